@@ -1,0 +1,45 @@
+"""The ``inscal`` command line: a thin layer over the library.
+
+Subcommands live with their domain: ``cli_<name>.py`` modules each define
+``register(app)``; this file assembles them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import typer
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
+
+#: modules contributing subcommands (each has ``register(app)``)
+_SUBCOMMAND_MODULES = ["cli_simulate", "cli_navigate", "cli_calibrate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report"]
+
+
+def _register_all() -> None:
+    for name in _SUBCOMMAND_MODULES:
+        try:
+            mod = importlib.import_module(f"inscal.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"inscal.{name}":
+                continue  # not built yet
+            raise
+        mod.register(app)
+
+
+_register_all()
+
+
+def fail(msg: str, code: int = 2) -> "typer.Exit":
+    """Print a one-line error to stderr and return an Exit to raise."""
+    typer.echo(f"inscal: error: {msg}", err=True)
+    return typer.Exit(code)
+
+
+def main() -> None:  # console-script entry point
+    app(prog_name="inscal")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
