@@ -31,12 +31,6 @@ def _register_all() -> None:
 _register_all()
 
 
-def fail(msg: str, code: int = 2) -> "typer.Exit":
-    """Print a one-line error to stderr and return an Exit to raise."""
-    typer.echo(f"inscal: error: {msg}", err=True)
-    return typer.Exit(code)
-
-
 def main() -> None:  # console-script entry point
     app(prog_name="inscal")
 
