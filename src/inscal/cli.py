@@ -13,6 +13,11 @@ import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 
+@app.callback()
+def _root() -> None:
+    """inscal: calibrate high-accuracy IMUs and dual-axis rotational INS (S16, N25)."""
+
+
 #: modules contributing subcommands (each has ``register(app)``)
 _SUBCOMMAND_MODULES = ["cli_simulate", "cli_navigate", "cli_calibrate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report"]
 

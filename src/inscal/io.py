@@ -1,0 +1,334 @@
+"""Data files: IMU records in HDF5 (simulated or recorded).
+
+Layout (schema version :data:`inscal.SCHEMA_VERSION`)::
+
+    /                attrs: kind="inscal-record", schema_version, inscal_version, created,
+                            scenario, rate_hz, units (JSON: dataset -> unit), path (JSON or "")
+    /time            (N,)   s       end time of each increment interval
+    /dtheta          (N, 3) rad     angular increments, IMU s-frame
+    /dvel            (N, 3) m/s     velocity increments, IMU s-frame
+    /gimbal          (N, 2) rad     recorded gimbal angles (outer, inner) at /time (optional)
+    /site            attrs: latitude_rad, longitude_rad, height_m
+    /truth           (simulated data only) groups imu/, gimbal/, noise/ with SI datasets
+
+Files are written to a temporary name in the same folder and renamed when complete,
+so a crash never leaves a half-written file under the requested name, and an existing
+file is never overwritten unless asked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import hashlib
+import json
+import math
+import os
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path as FsPath
+from typing import Callable, Iterator
+
+import h5py
+import numpy as np
+
+from . import SCHEMA_VERSION, __version__
+from .errors import GimbalErrors, ImuErrors, ImuNoise
+from .simulate import Scenario, Site, simulate_chunks
+from .turntable import Path, PathError
+
+KIND = "inscal-record"
+UNITS = {"time": "s", "dtheta": "rad", "dvel": "m/s", "gimbal": "rad"}
+
+
+class DataFileError(ValueError):
+    """A data file that cannot be used, with the reason."""
+
+
+@dataclass(frozen=True)
+class Truth:
+    imu: ImuErrors
+    gimbal: GimbalErrors
+    noise: ImuNoise
+
+
+@dataclass
+class Record:
+    """An IMU record in memory (SI)."""
+
+    time: np.ndarray
+    dtheta: np.ndarray
+    dvel: np.ndarray
+    gimbal: np.ndarray | None
+    rate_hz: float
+    site: Site
+    path: Path | None = None
+    truth: Truth | None = None
+    scenario: str = ""
+    source: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.time.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.n_samples / self.rate_hz)
+
+
+@contextmanager
+def atomic_path(path, overwrite: bool = False):
+    """Yield a temporary path next to ``path``; rename it onto ``path`` on success.
+
+    Refuses (FileExistsError) if ``path`` exists and not ``overwrite``.  On any
+    exception the temporary file is removed and ``path`` is untouched.
+    """
+    path = FsPath(path)
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
+    if not path.parent.exists():
+        raise FileNotFoundError(f"folder {path.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    try:
+        yield FsPath(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def file_hash(path) -> str:
+    """SHA-256 of a file's bytes (recorded in calibration parameter files)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return "sha256:" + h.hexdigest()
+
+
+# ----------------------------------------------------------------------------- writing
+def _write_dataclass(group, obj) -> None:
+    for f in dataclasses.fields(obj):
+        group.create_dataset(f.name, data=np.asarray(getattr(obj, f.name), dtype=float))
+
+
+def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
+    h5.attrs["kind"] = KIND
+    h5.attrs["schema_version"] = SCHEMA_VERSION
+    h5.attrs["inscal_version"] = __version__
+    h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    h5.attrs["scenario"] = scenario_name
+    h5.attrs["rate_hz"] = float(rate_hz)
+    h5.attrs["units"] = json.dumps(UNITS)
+    h5.attrs["path"] = path.to_json() if path is not None else ""
+    s = h5.create_group("site")
+    s.attrs["latitude_rad"] = site.latitude
+    s.attrs["longitude_rad"] = site.longitude
+    s.attrs["height_m"] = site.height
+    ch = min(max(n, 1), 1 << 16)
+    h5.create_dataset("time", shape=(n,), dtype="f8", chunks=(ch,))
+    h5.create_dataset("dtheta", shape=(n, 3), dtype="f8", chunks=(ch, 3))
+    h5.create_dataset("dvel", shape=(n, 3), dtype="f8", chunks=(ch, 3))
+    if has_gimbal:
+        h5.create_dataset("gimbal", shape=(n, 2), dtype="f8", chunks=(ch, 2))
+
+
+def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, overwrite: bool = False,
+                     progress: Callable[[int, int], None] | None = None, chunk_size: int = 1 << 19) -> int:
+    """Simulate ``scenario`` straight into an HDF5 record (chunk by chunk, atomic).  Returns N."""
+    n = scenario.n_samples
+    if n < 1:
+        raise ValueError("scenario is shorter than one sample")
+    with atomic_path(path, overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            _create_layout(h5, scenario.name, scenario.rate_hz, scenario.site, scenario.path, n)
+            for c in simulate_chunks(scenario, rng, chunk_size=chunk_size, progress=progress):
+                sl = slice(c.k0, c.k0 + c.time.shape[0])
+                h5["time"][sl] = c.time
+                h5["dtheta"][sl] = c.dtheta
+                h5["dvel"][sl] = c.dvel
+                h5["gimbal"][sl] = c.gimbal
+            t = h5.create_group("truth")
+            _write_dataclass(t.create_group("imu"), scenario.imu)
+            _write_dataclass(t.create_group("gimbal"), scenario.gimbal)
+            _write_dataclass(t.create_group("noise"), scenario.noise)
+    return n
+
+
+def write_record(path, rec: Record, overwrite: bool = False) -> None:
+    """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
+    validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
+    with atomic_path(path, overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            _create_layout(h5, rec.scenario, rec.rate_hz, rec.site, rec.path, rec.n_samples, rec.gimbal is not None)
+            h5["time"][:] = rec.time
+            h5["dtheta"][:] = rec.dtheta
+            h5["dvel"][:] = rec.dvel
+            if rec.gimbal is not None:
+                h5["gimbal"][:] = rec.gimbal
+            if rec.truth is not None:
+                t = h5.create_group("truth")
+                _write_dataclass(t.create_group("imu"), rec.truth.imu)
+                _write_dataclass(t.create_group("gimbal"), rec.truth.gimbal)
+                _write_dataclass(t.create_group("noise"), rec.truth.noise)
+
+
+# ----------------------------------------------------------------------------- reading
+def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") -> None:
+    """Shape, finiteness and time-grid checks with messages that say what is wrong."""
+    n = np.shape(time)[0] if np.ndim(time) == 1 else None
+    if n is None:
+        raise DataFileError(f"{where}: time must be a 1-D array, got shape {np.shape(time)}")
+    for name, a, cols in (("dtheta", dtheta, 3), ("dvel", dvel, 3), ("gimbal", gimbal, 2)):
+        if a is None:
+            continue
+        if np.shape(a) != (n, cols):
+            raise DataFileError(f"{where}: {name} has shape {np.shape(a)}, expected ({n}, {cols}) to match time")
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise DataFileError(f"{where}: rate_hz must be positive, got {rate_hz}")
+    if n < 2:
+        raise DataFileError(f"{where}: fewer than 2 samples")
+    for name, a in (("time", time), ("dtheta", dtheta), ("dvel", dvel), ("gimbal", gimbal)):
+        if a is None:
+            continue
+        bad = ~np.isfinite(np.asarray(a))
+        if bad.any():
+            idx = int(np.argmax(bad.reshape(n, -1).any(axis=1)))
+            raise DataFileError(f"{where}: {name} has {int(bad.sum())} NaN/inf value(s), first at sample {idx} (t = {time[idx]} s)")
+    dt = np.diff(time)
+    nominal = 1.0 / rate_hz
+    gaps = np.flatnonzero(np.abs(dt - nominal) > 0.01 * nominal)
+    if gaps.size:
+        k = int(gaps[0])
+        raise DataFileError(
+            f"{where}: time is not uniform at {rate_hz:g} Hz: {gaps.size} irregular step(s), first between "
+            f"t = {time[k]:.6f} s and {time[k + 1]:.6f} s (step {dt[k]:.6g} s, expected {nominal:.6g} s)"
+        )
+
+
+def _open(path) -> h5py.File:
+    p = FsPath(path)
+    if not p.exists():
+        raise DataFileError(f"{p}: no such file")
+    try:
+        h5 = h5py.File(p, "r")
+    except OSError as exc:
+        raise DataFileError(f"{p}: not a readable HDF5 file (truncated or not HDF5?): {exc}") from None
+    kind = h5.attrs.get("kind", "")
+    if kind != KIND:
+        h5.close()
+        raise DataFileError(f"{p}: not an inscal record (kind={kind!r})")
+    ver = int(h5.attrs.get("schema_version", -1))
+    if ver != SCHEMA_VERSION:
+        h5.close()
+        raise DataFileError(f"{p}: schema version {ver}, this inscal ({__version__}) reads version {SCHEMA_VERSION}")
+    units = json.loads(h5.attrs.get("units", "{}"))
+    for k, u in UNITS.items():
+        if k in h5 and units.get(k) != u:
+            h5.close()
+            raise DataFileError(f"{p}: dataset {k} is in {units.get(k)!r}, expected {u!r}")
+    for k in ("time", "dtheta", "dvel", "site"):
+        if k not in h5:
+            h5.close()
+            raise DataFileError(f"{p}: missing /{k}")
+    return h5
+
+
+def _read_dataclass(group, cls):
+    kw = {}
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = set(group.keys()) - names
+    if unknown:
+        raise DataFileError(f"truth/{group.name}: unknown parameters {sorted(unknown)} (file from another version?)")
+    for k in group.keys():
+        v = group[k][()]
+        kw[k] = float(v) if np.ndim(v) == 0 else np.asarray(v)
+    return cls(**kw)
+
+
+def _meta(h5, p):
+    s = h5["site"].attrs
+    site = Site(float(s["latitude_rad"]), float(s["longitude_rad"]), float(s["height_m"]))
+    pj = h5.attrs.get("path", "")
+    try:
+        path = Path.from_json(pj) if pj else None
+    except (PathError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{p}: stored rotation path is invalid: {exc}") from None
+    truth = None
+    if "truth" in h5:
+        t = h5["truth"]
+        truth = Truth(_read_dataclass(t["imu"], ImuErrors), _read_dataclass(t["gimbal"], GimbalErrors),
+                      _read_dataclass(t["noise"], ImuNoise))
+    return site, path, truth
+
+
+def read_record(path) -> Record:
+    """Read a whole record, validated (shapes, NaN, uniform time, schema version)."""
+    with _open(path) as h5:
+        try:
+            time = h5["time"][()]
+            dth = h5["dtheta"][()]
+            dv = h5["dvel"][()]
+            gim = h5["gimbal"][()] if "gimbal" in h5 else None
+        except OSError as exc:
+            raise DataFileError(f"{path}: cannot read data (truncated file?): {exc}") from None
+        rate = float(h5.attrs["rate_hz"])
+        site, p, truth = _meta(h5, path)
+        scen = str(h5.attrs.get("scenario", ""))
+    validate_arrays(time, dth, dv, gim, rate, where=str(path))
+    return Record(time, dth, dv, gim, rate, site, p, truth, scen, str(path))
+
+
+@dataclass
+class RecordInfo:
+    n_samples: int
+    rate_hz: float
+    site: Site
+    path: Path | None
+    truth: Truth | None
+    scenario: str
+    has_gimbal: bool
+
+
+def record_info(path) -> RecordInfo:
+    """Metadata of a record without reading its samples."""
+    with _open(path) as h5:
+        site, p, truth = _meta(h5, path)
+        return RecordInfo(int(h5["time"].shape[0]), float(h5.attrs["rate_hz"]), site, p, truth,
+                          str(h5.attrs.get("scenario", "")), "gimbal" in h5)
+
+
+def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """Yield ``(time, dtheta, dvel, gimbal)`` slices of a record, validated per chunk,
+    holding only one chunk in memory (for multi-day records)."""
+    with _open(path) as h5:
+        rate = float(h5.attrs["rate_hz"])
+        n = h5["time"].shape[0]
+        last_t = None
+        for k0 in range(0, n, chunk_size):
+            sl = slice(k0, min(n, k0 + chunk_size))
+            try:
+                t = h5["time"][sl]
+                dth = h5["dtheta"][sl]
+                dv = h5["dvel"][sl]
+                g = h5["gimbal"][sl] if "gimbal" in h5 else None
+            except OSError as exc:
+                raise DataFileError(f"{path}: cannot read samples {sl.start}..{sl.stop} (truncated file?): {exc}") from None
+            tt = t if last_t is None else np.concatenate([[last_t], t])
+            if tt.shape[0] >= 2:
+                validate_arrays(tt, None, None, None, rate, where=f"{path} samples {sl.start}..{sl.stop}")
+            for name, a in (("dtheta", dth), ("dvel", dv), ("gimbal", g)):
+                if a is not None and not np.all(np.isfinite(a)):
+                    raise DataFileError(f"{path}: {name} has NaN/inf in samples {sl.start}..{sl.stop}")
+            last_t = t[-1]
+            yield t, dth, dv, g
+
+
+def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
+    """Rebuild the simulation scenario of a simulated record (for truth trajectories)."""
+    if rec.truth is None or rec.path is None:
+        raise DataFileError("record has no truth/path: it is not a simulated record")
+    return Scenario(rec.scenario or "record", rec.path, rec.site, rec.truth.imu, rec.truth.gimbal, rec.truth.noise, rec.rate_hz)

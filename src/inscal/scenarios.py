@@ -1,0 +1,230 @@
+"""Built-in simulation scenarios and custom scenarios from TOML files.
+
+Built-in (``inscal simulate NAME``):
+
+``s16``
+    S16 section 4.1: gyro and accelerometer scale factors 300 ppm, misalignments 180"
+    (S16 form: 3 gyro angles in the gyro-defined m-frame, 6 accelerometer angles),
+    gyro bias 0.05 deg/h, ARW 0.00005 deg/sqrt(h), accelerometer bias 200 ug, white noise
+    1 ug/sqrt(Hz), g-sensitivity 0.001 deg/h/g (all 9 terms), nonlinearity and
+    cross-coupling 300 ug/g^2, lever arms 2 cm, turntable (mount) attitude error 1"
+    on each axis; S16 Table 1 path (18 rotations, 5 deg/s, 180 s dwell), 100 Hz,
+    latitude 30 deg N (S16 does not state its site; stated here).
+``n25``
+    N25 section 5: site 120.664265 E, 30.686651 N; carrier (mount) attitude
+    [0.1, 0.1, 20] deg; ARW 0.02 deg/sqrt(h), VRW 20 ug/sqrt(Hz); gimbal
+    non-orthogonality 20"; FOG-grade IMU errors (N25 Table 2 is not in the text; the
+    values are :data:`N25_ERRORS`); twelve positions of 100 s at 4 deg/s plus CW/CCW
+    rate tests at 10 deg/s.
+``static``, ``static-24h``
+    Static base, IMU level and E-N-U, N25 site, error-free (``static-24h``: 24 h).
+``rotmod16``, ``rotmod16-6h``
+    16-sequence rotation modulation (300 s per position, 10 deg/s) at the N25 site and
+    mount attitude, error-free (``rotmod16-6h``: 6 h).
+
+Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
+
+    base = "n25"                    # optional: start from a built-in scenario
+    [scenario]
+    name = "my-bench"
+    rate_hz = 200
+    duration_h = 2.0                # for static/rotmod paths
+    [site]
+    latitude_deg = 45.0
+    longitude_deg = 7.6
+    height_m = 250.0
+    [errors]                        # bare value = field unit; or {value = ..., unit = "..."}
+    gyro_bias = [0.01, -0.02, 0.005]
+    gimbal_nonorthogonality = 15
+    mount_attitude = {value = [0.1, 0.1, 20], unit = "deg"}
+    [noise]
+    arw = 0.02
+    vrw = 20
+    [path]
+    builtin = "n25-twelve"          # or: name, accel_dps2, closed, moves = [{axis, angle_deg, rate_dps, dwell_s}, ...]
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import replace
+from pathlib import Path as FsPath
+
+import numpy as np
+
+from . import units
+from .errors import (GimbalErrors, ImuErrors, ImuNoise, S16Parameters, errors_from_field, errors_to_field,
+                     from_s16, noise_from_field)
+from .simulate import Scenario, Site
+from .turntable import BUILTIN_PATHS, Path, PathError, n25_twelve, rotmod16, s16_table1, static
+
+DEG = math.pi / 180.0
+N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
+S16_SITE = Site(latitude=30.0 * DEG, longitude=114.0 * DEG, height=0.0)
+
+#: FOG-grade IMU errors chosen for the N25 scenario (field units).
+N25_ERRORS = {
+    "gyro_scale_factor": [50.0, -40.0, 30.0],
+    "gyro_misalignment": [20.0, -15.0, 10.0, -25.0, 15.0, -10.0],
+    "gyro_bias": [0.02, -0.03, 0.015],
+    "accel_scale_factor": [80.0, -60.0, 100.0],
+    "accel_misalignment": [30.0, -20.0, 25.0, -35.0, 20.0, -15.0],
+    "accel_bias": [50.0, -80.0, 100.0],
+    "gimbal_nonorthogonality": 20.0,
+    "mount_attitude": {"value": [0.1, 0.1, 20.0], "unit": "deg"},
+}
+N25_NOISE = {"arw": 0.02, "vrw": 20.0}
+
+
+def s16_errors() -> ImuErrors:
+    """S16 section 4.1 error values, expressed in the S16 form then converted (m-frame = s-frame)."""
+    sf, mis = 300e-6, units.to_si(180.0, "arcsec")
+    ug, ug_g2 = units.to_si(1.0, "ug"), units.to_si(1.0, "ug/g^2")
+    s16 = S16Parameters(
+        K_g=np.full(3, 1.0 + sf), gamma=np.full(3, mis), b_g=np.full(3, units.to_si(0.05, "deg/h")),
+        G=np.full((3, 3), units.to_si(0.001, "deg/h/g")),
+        K_a=np.full(3, 1.0 + sf), alpha=np.full(6, mis), b_a=np.full(3, 200 * ug),
+        K_a2=np.full(3, 300 * ug_g2), K_cross=np.zeros((3, 3)), lever_arm=np.full(3, 0.02),
+    )
+    kc = 300 * ug_g2
+    s16 = replace(s16, K_cross=np.array([[kc, kc, 0.0], [kc, 0.0, kc], [0.0, kc, kc]]))
+    return from_s16(s16)
+
+
+def _s16() -> Scenario:
+    return Scenario(
+        "s16", s16_table1(), S16_SITE, imu=s16_errors(),
+        gimbal=GimbalErrors(0.0, units.to_si([1.0, 1.0, 1.0], "arcsec")),
+        noise=ImuNoise(arw=units.to_si(0.00005, "deg/sqrt(h)"), vrw=units.to_si(1.0, "ug/sqrt(Hz)")),
+        rate_hz=100.0,
+    )
+
+
+def _n25() -> Scenario:
+    imu, gim = errors_from_field(N25_ERRORS)
+    return Scenario("n25", n25_twelve(), N25_SITE, imu=imu, gimbal=gim, noise=noise_from_field(N25_NOISE), rate_hz=100.0)
+
+
+def _static(duration_s: float = 3600.0) -> Scenario:
+    return Scenario("static", static(duration_s), N25_SITE, rate_hz=100.0)
+
+
+def _rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
+    _, gim = errors_from_field({"mount_attitude": N25_ERRORS["mount_attitude"]})
+    return Scenario("rotmod16", rotmod16(duration_s), N25_SITE, gimbal=gim, rate_hz=100.0)
+
+
+BUILTIN = {
+    "s16": lambda d: _s16(),
+    "n25": lambda d: _n25(),
+    "static": lambda d: _static(d or 3600.0),
+    "static-24h": lambda d: _static(d or 86400.0),
+    "rotmod16": lambda d: _rotmod(d or 6 * 3600.0),
+    "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
+}
+DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h"}
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be built."""
+
+
+def build(name: str, duration_s: float | None = None, rate_hz: float | None = None) -> Scenario:
+    """A built-in scenario by name, or a custom one from a ``.toml`` file."""
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ScenarioError(f"duration must be > 0, got {duration_s} s")
+    if name.endswith(".toml") or FsPath(name).is_file():
+        sc = load_toml(name, duration_s)
+    elif name in BUILTIN:
+        if duration_s is not None and name not in DURATION_SCENARIOS:
+            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration applies to {sorted(DURATION_SCENARIOS)}")
+        sc = BUILTIN[name](duration_s)
+    else:
+        raise ScenarioError(f"unknown scenario {name!r}; built-in: {', '.join(BUILTIN)}, or a .toml file")
+    if rate_hz is not None:
+        try:
+            sc = replace(sc, rate_hz=float(rate_hz))
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+    return sc
+
+
+_TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "path"}
+
+
+def load_toml(file, duration_s: float | None = None) -> Scenario:
+    p = FsPath(file)
+    if not p.is_file():
+        raise ScenarioError(f"{p}: no such scenario file")
+    try:
+        d = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: malformed TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{p}: not a text file") from None
+    try:
+        return scenario_from_dict(d, duration_s, default_name=p.stem)
+    except (ValueError, PathError, TypeError) as exc:
+        raise ScenarioError(f"{p}: {exc}") from None
+
+
+def _check_keys(section: str, d: dict, allowed: set) -> None:
+    if not isinstance(d, dict):
+        raise ScenarioError(f"[{section}] must be a table")
+    unknown = set(d) - allowed
+    if unknown:
+        raise ScenarioError(f"[{section}]: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+
+
+def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: str = "custom") -> Scenario:
+    from . import SCHEMA_VERSION
+
+    _check_keys("top level", d, _TOP_KEYS)
+    if "schema_version" in d and d["schema_version"] != SCHEMA_VERSION:
+        raise ScenarioError(f"schema_version {d['schema_version']} is not supported (this inscal reads {SCHEMA_VERSION})")
+    meta = d.get("scenario", {})
+    _check_keys("scenario", meta, {"name", "rate_hz", "duration_h", "duration_s"})
+    if "duration_h" in meta and duration_s is None:
+        duration_s = float(meta["duration_h"]) * 3600.0
+    if "duration_s" in meta and duration_s is None:
+        duration_s = float(meta["duration_s"])
+    if "base" in d:
+        base = build(str(d["base"]), duration_s if str(d["base"]) in DURATION_SCENARIOS else None)
+    else:
+        base = Scenario(default_name, static(duration_s or 3600.0), N25_SITE)
+    name = str(meta.get("name", default_name))
+    rate = float(meta.get("rate_hz", base.rate_hz))
+    if not (math.isfinite(rate) and rate > 0):
+        raise ScenarioError(f"[scenario] rate_hz must be positive, got {rate}")
+    site = base.site
+    if "site" in d:
+        s = d["site"]
+        _check_keys("site", s, {"latitude_deg", "longitude_deg", "height_m"})
+        site = Site(float(s.get("latitude_deg", site.latitude / DEG)) * DEG,
+                    float(s.get("longitude_deg", site.longitude / DEG)) * DEG,
+                    float(s.get("height_m", site.height)))
+    imu, gim = base.imu, base.gimbal
+    if "errors" in d:
+        merged = errors_to_field(base.imu, base.gimbal)
+        merged.update(d["errors"])
+        imu, gim = errors_from_field(merged)
+    noise = base.noise
+    if "noise" in d:
+        noise = noise_from_field(d["noise"])
+    path = base.path
+    if "path" in d:
+        pd = dict(d["path"])
+        if "builtin" in pd:
+            bname = pd.pop("builtin")
+            if bname not in BUILTIN_PATHS:
+                raise ScenarioError(f"[path] unknown builtin {bname!r}; known: {sorted(BUILTIN_PATHS)}")
+            if pd:
+                raise ScenarioError(f"[path] with builtin takes no other keys, got {sorted(pd)}")
+            fn = BUILTIN_PATHS[bname]
+            path = fn(duration_s or 3600.0) if bname in ("static", "rotmod16") else fn()
+        else:
+            path = Path.from_dict(pd)
+    elif duration_s is not None and "base" not in d:
+        path = static(duration_s)
+    return Scenario(name, path, site, imu, gim, noise, rate)
