@@ -1,0 +1,3 @@
+"""Analyses built on the simulator and the calibrations: Monte Carlo studies
+(:mod:`inscal.analysis.montecarlo`, built-in experiments in
+:mod:`inscal.analysis.experiments`)."""

@@ -1,0 +1,275 @@
+"""Monte Carlo framework: seeds, resume, refusal, outputs, Dask, CLI, built-in experiments."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+import numpy as np
+import pytest
+
+from inscal.analysis import montecarlo as mc
+
+
+# ------------------------------------------------------------------ a small dummy experiment
+def _dummy_run(exp, p, rng):
+    mu = exp.points[p]["mu"]
+    x = rng.normal(mu, exp.params["sigma"], size=4)
+    if exp.params.get("fail_above") is not None and x[0] > exp.params["fail_above"]:
+        raise RuntimeError("draw too large")
+    return {"x": float(x.mean()), "first": float(x[0])}
+
+
+def _dummy_summarize(exp, results):
+    rows = []
+    for pt, res in zip(exp.points, results):
+        x = np.array([r["x"] for r in res])
+        rows.append({"mu": pt["mu"], "n": len(res), "mean": float(x.mean()) if len(x) else None,
+                     "std": float(x.std(ddof=1)) if len(x) > 1 else None})
+    return mc.Summary("dummy", [("mu", "mu"), ("n", "n"), ("mean", "mean"), ("std", "std")], rows)
+
+
+def _dummy_plot(exp, s, path):
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.plot([r["mu"] for r in s.rows], [r["mean"] for r in s.rows], "o")
+    fig.savefig(path)
+
+
+def dummy(mus=(0.0, 1.0, 5.0), sigma=1.0, fail_above=None):
+    return mc.Experiment("dummy", {"mus": list(mus), "sigma": sigma, "fail_above": fail_above},
+                         tuple({"mu": float(m)} for m in mus), _dummy_run, _dummy_summarize, _dummy_plot)
+
+
+mc.register_experiment("test-dummy", dummy, "test only")
+
+
+def results_of(res: mc.StudyResult) -> dict:
+    return {rid: rec.get("result", rec.get("error")) for rid, rec in res.records.items()}
+
+
+# ----------------------------------------------------------------------------------- seeds
+def test_seed_mapping_is_spawn_and_independent_of_total():
+    ch = mc.seed_children(42, 10)
+    big = mc.seed_children(42, 1000)
+    for i in (0, 3, 9):
+        assert ch[i].spawn_key == (i,)
+        assert np.array_equal(ch[i].generate_state(4), big[i].generate_state(4))
+        assert np.array_equal(ch[i].generate_state(4), np.random.SeedSequence(42, spawn_key=(i,)).generate_state(4))
+    assert not np.array_equal(ch[0].generate_state(4), ch[1].generate_state(4))
+    assert mc.run_layout(3, 2) == [(0, 0, 0), (1, 1, 0), (2, 2, 0), (3, 0, 1), (4, 1, 1), (5, 2, 1)]
+
+
+def test_run_uses_its_child_seed(tmp_path):
+    exp = dummy()
+    res = mc.run_study(exp, tmp_path / "a", runs=4, seed=7, scheduler="synchronous")
+    ch = np.random.SeedSequence(7).spawn(12)
+    for rid, p, r in mc.run_layout(3, 4):
+        expect = _dummy_run(exp, p, np.random.default_rng(ch[rid]))
+        assert res.records[rid]["result"] == expect
+        assert (res.records[rid]["point"], res.records[rid]["rep"]) == (p, r)
+
+
+def test_results_do_not_depend_on_runs_batching_or_seed_change(tmp_path):
+    exp = dummy()
+    a = mc.run_study(exp, tmp_path / "a", runs=3, seed=1, scheduler="synchronous")
+    b = mc.run_study(exp, tmp_path / "b", runs=6, seed=1, scheduler="synchronous")
+    assert all(results_of(b)[k] == v for k, v in results_of(a).items())  # extending keeps runs
+    c = mc.run_study(exp, tmp_path / "c", runs=3, seed=2, scheduler="synchronous")
+    assert results_of(c) != results_of(a)
+    # extend a study in place: the first runs are kept, the new ones equal b's
+    a2 = mc.run_study(exp, tmp_path / "a", runs=6, seed=1, scheduler="synchronous")
+    assert a2.n_new == 9 and results_of(a2) == results_of(b)
+
+
+# ---------------------------------------------------------------------------------- resume
+def test_resume_after_interruption_gives_identical_results(tmp_path):
+    exp = dummy()
+    full = mc.run_study(exp, tmp_path / "full", runs=10, seed=3, scheduler="synchronous")
+    part = mc.run_study(exp, tmp_path / "part", runs=10, seed=3, scheduler="synchronous", max_new_runs=7)
+    assert part.stopped_early and not part.complete() and len(part.records) == 7
+    # the file really holds 7 runs after the "interruption"
+    header, recs = mc.read_results(tmp_path / "part" / mc.RUNS_FILE)
+    assert len(recs) == 7 and header["seed"] == 3
+    rest = mc.run_study(exp, tmp_path / "part", runs=10, seed=3, scheduler="synchronous")
+    assert rest.n_new == 23 and rest.complete()
+    assert results_of(rest) == results_of(full)
+    s_full = mc.summarize(exp, full).to_dict()
+    s_rest = mc.summarize(exp, rest).to_dict()
+    s_full["data"].pop("run_seconds_total")
+    s_rest["data"].pop("run_seconds_total")
+    assert s_full == s_rest
+    # a finished study reruns nothing
+    again = mc.run_study(exp, tmp_path / "part", runs=10, seed=3, scheduler="synchronous")
+    assert again.n_new == 0
+
+
+def test_truncated_last_line_is_dropped_and_rerun(tmp_path):
+    exp = dummy()
+    ref = mc.run_study(exp, tmp_path / "ref", runs=2, seed=0, scheduler="synchronous")
+    mc.run_study(exp, tmp_path / "x", runs=2, seed=0, scheduler="synchronous", max_new_runs=4)
+    f = tmp_path / "x" / mc.RUNS_FILE
+    raw = f.read_bytes()
+    f.write_bytes(raw[:-15])  # a writer killed in the middle of the 4th record
+    h, recs = mc.read_results(f)
+    assert len(recs) == 3
+    res = mc.run_study(exp, tmp_path / "x", runs=2, seed=0, scheduler="synchronous")
+    assert res.n_new == 3 and results_of(res) == results_of(ref)
+    lines = f.read_text().splitlines()
+    assert len(lines) == 1 + 6 and all(json.loads(line) for line in lines)
+
+
+def test_damaged_middle_line_is_an_error(tmp_path):
+    mc.run_study(dummy(), tmp_path, runs=2, seed=0, scheduler="synchronous")
+    f = tmp_path / mc.RUNS_FILE
+    lines = f.read_text().splitlines()
+    lines[2] = lines[2][:10]
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.raises(mc.StudyError, match="line 3"):
+        mc.run_study(dummy(), tmp_path, runs=2, seed=0, scheduler="synchronous")
+
+
+# ------------------------------------------------------------------------------ refusal
+def test_mismatched_study_is_refused_unless_forced(tmp_path):
+    mc.run_study(dummy(), tmp_path, runs=2, seed=0, scheduler="synchronous")
+    with pytest.raises(mc.StudyError, match=r"params.sigma \(1.0 here, 2.0 asked\)"):
+        mc.run_study(dummy(sigma=2.0), tmp_path, runs=2, seed=0, scheduler="synchronous")
+    with pytest.raises(mc.StudyError, match="seed"):
+        mc.run_study(dummy(), tmp_path, runs=2, seed=1, scheduler="synchronous")
+    other = mc.Experiment("other", {"mus": [0.0, 1.0, 5.0], "sigma": 1.0, "fail_above": None},
+                          dummy().points, _dummy_run, _dummy_summarize)
+    with pytest.raises(mc.StudyError, match="experiment"):
+        mc.run_study(other, tmp_path, runs=2, seed=0, scheduler="synchronous")
+    # nothing was appended by the refused calls
+    assert len(mc.read_results(tmp_path / mc.RUNS_FILE)[1]) == 6
+    res = mc.run_study(dummy(sigma=2.0), tmp_path, runs=2, seed=0, scheduler="synchronous", force=True)
+    assert res.n_new == 6 and res.header["params"]["sigma"] == 2.0
+
+
+def test_bad_arguments(tmp_path):
+    with pytest.raises(mc.StudyError):
+        mc.run_study(dummy(), tmp_path, runs=0, scheduler="synchronous")
+    with pytest.raises(mc.StudyError):
+        mc.run_study(dummy(), tmp_path, runs=1, seed=-1, scheduler="synchronous")
+    with pytest.raises(mc.StudyError, match="unknown experiment"):
+        mc.get_experiment("nope")
+    with pytest.raises(mc.StudyError):
+        mc.get_experiment("n25-fig5", {"dtheta_arcsec": [1, 1]})
+    with pytest.raises(mc.StudyError):
+        mc.get_experiment("n25-fig5", {"no_such_param": 1})
+    with pytest.raises(mc.StudyError):
+        mc.get_experiment("n25-schemes", {"simulation": "fast"})
+
+
+# ------------------------------------------------------------------- failures and outputs
+def test_failed_runs_are_recorded_and_reported(tmp_path):
+    exp = dummy(mus=(0.0,), fail_above=0.5)
+    res = mc.run_study(exp, tmp_path, runs=40, seed=0, scheduler="synchronous")
+    errs = [r for r in res.records.values() if "error" in r]
+    assert 0 < len(errs) < 40 and errs[0]["error"] == "RuntimeError: draw too large"
+    s = mc.summarize(exp, res)
+    assert s.rows[0]["n"] == 40 - len(errs)
+    assert s.data["runs_failed"] == [len(errs)]
+    assert any("failed" in n for n in s.notes)
+
+
+def test_outputs_written(tmp_path):
+    exp = dummy()
+    res = mc.run_study(exp, tmp_path, runs=5, seed=0, scheduler="synchronous")
+    s = mc.summarize(exp, res)
+    paths = mc.write_outputs(exp, s, tmp_path)
+    d = json.loads(paths["json"].read_text())
+    assert d["rows"][2]["mu"] == 5.0 and d["data"]["runs_per_point"] == 5
+    assert paths["csv"].read_text().splitlines()[0] == "mu,n,mean,std"
+    assert paths["png"].read_bytes()[:4] == b"\x89PNG"
+
+
+def test_load_study_from_folder(tmp_path):
+    exp = mc.get_experiment("test-dummy", {"sigma": 0.5})
+    mc.run_study(exp, tmp_path, runs=3, seed=9, scheduler="synchronous")
+    exp2, res2 = mc.load_study(tmp_path)
+    assert exp2.params == exp.params and res2.runs == 3 and res2.complete()
+
+
+# ------------------------------------------------------------------------------------ Dask
+def test_local_cluster_two_workers_matches_synchronous(tmp_path):
+    pytest.importorskip("distributed")
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the dummy lives in this test module
+    exp = dummy()
+    sync = mc.run_study(exp, tmp_path / "s", runs=6, seed=5, scheduler="synchronous")
+    dask_ = mc.run_study(exp, tmp_path / "d", runs=6, seed=5, workers=2, batch_size=2)
+    assert dask_.n_new == 18 and dask_.complete()
+    assert results_of(dask_) == results_of(sync)
+    # run order in the file may differ, content per run may not
+    _, recs = mc.read_results(tmp_path / "d" / mc.RUNS_FILE)
+    assert sorted(recs) == list(range(18))
+
+
+def test_make_batches_groups_points_and_interleaves():
+    items = [(rid, p, r, None) for rid, p, r in mc.run_layout(2, 5)]
+    b = mc.make_batches(items, 2)
+    assert [len(x) for x in b] == [2, 2, 2, 2, 1, 1]
+    assert all(len({it[1] for it in x}) == 1 for x in b)
+    assert [x[0][1] for x in b] == [0, 1, 0, 1, 0, 1]
+    assert sorted(it[0] for x in b for it in x) == list(range(10))
+
+
+# ------------------------------------------------------------------------------------- CLI
+def test_cli_run_resume_json_and_refusal(tmp_path):
+    from typer.testing import CliRunner
+
+    from inscal.cli import app
+
+    r = CliRunner()
+    out = tmp_path / "study"
+    res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "4", "--out", str(out), "--no-dask", "--json", "--seed", "2"])
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.stdout)
+    assert d["complete"] and d["new_runs"] == 12 and len(d["rows"]) == 3
+    assert (out / "summary.png").exists() and (out / "summary.csv").exists()
+    res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "4", "--out", str(out), "--no-dask", "--json", "--seed", "2"])
+    assert res.exit_code == 0 and json.loads(res.stdout)["new_runs"] == 0
+    res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "4", "--out", str(out), "--no-dask", "--set", "sigma=3"])
+    assert res.exit_code == 2 and "different study" in res.output and "--force" in res.output
+    res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "2", "--out", str(out), "--no-dask", "--set", "sigma=3", "--force",
+                         "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert "dummy" in res.stdout
+    res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "2", "--out", str(out), "--no-dask", "--set", "oops"])
+    assert res.exit_code == 2 and "KEY=VALUE" in res.output
+    res = r.invoke(app, ["montecarlo", "--list"])
+    assert res.exit_code == 0 and "n25-fig5" in res.stdout and "n25-schemes" in res.stdout
+
+
+# ------------------------------------------------------------------ built-in experiments
+def test_reuse_simulation_is_bit_identical_to_full():
+    from inscal.analysis import experiments as E
+
+    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0]})
+    key = E._scenario_key(exp.params, 7.0)
+    full = E.simulate_record(key, np.random.default_rng(np.random.SeedSequence(11)), "full")
+    fast = E.simulate_record(key, np.random.default_rng(np.random.SeedSequence(11)), "reuse")
+    for name in ("time", "dtheta", "dvel", "gimbal"):
+        assert np.array_equal(getattr(full, name), getattr(fast, name)), name
+    other = E.simulate_record(key, np.random.default_rng(np.random.SeedSequence(12)), "reuse")
+    assert not np.array_equal(other.dtheta, fast.dtheta)
+    sc = E.n25_scenario(exp.params, 7.0)
+    assert math.isclose(sc.gimbal.nonorthogonality, 7.0 * math.pi / 180 / 3600)
+    assert full.dtheta.shape[0] == sc.n_samples
+
+
+def test_parameter_errors_field_units():
+    from inscal.analysis.experiments import parameter_errors
+    from inscal.errors import GimbalErrors, ImuErrors
+
+    t = ImuErrors()
+    e = ImuErrors(accel_bias=[0, 0, 9.80665e-5])  # 10 ug on z
+    g0, g1 = GimbalErrors(), GimbalErrors(math.pi / 180 / 3600, [0, 0, 0])
+    d = parameter_errors(e, g1, t, g0, ["accel_bias", "gimbal_nonorthogonality", "accel_misalignment"])
+    assert d["accel_bias.z"] == pytest.approx(10.0, rel=1e-3) and d["accel_bias.x"] == 0
+    assert d["gimbal_nonorthogonality"] == pytest.approx(1.0)
+    assert set(k for k in d if k.startswith("accel_misalignment")) == {f"accel_misalignment.{c}" for c in ("xy", "xz", "yx", "yz", "zx", "zy")}
