@@ -240,33 +240,33 @@ class _NoiseState:
         self.g_arw, self.g_vrw, self.g_gbi, self.g_abi, self.g_enc = rng.spawn(5)
         self.zi_g = None
         self.zi_a = None
-        self.q_g = np.zeros(3)
-        self.q_a = np.zeros(3)
+        self.q_g = (np.zeros(3), np.zeros(3))
+        self.q_a = (np.zeros(3), np.zeros(3))
 
     def _gm(self, gen, sigma, tau, n, zi_name):
         if not np.any(sigma):
             return 0.0
         phi = math.exp(-self.dt / tau)
-        drive = gen.standard_normal((n, 3)) * sigma * math.sqrt(1 - phi * phi)
         zi = getattr(self, zi_name)
-        if zi is None:  # stationary start
-            zi = gen.standard_normal(3) * sigma * phi
-            zi = zi[None, :]
+        if zi is None:  # stationary start (drawn first, so results do not depend on chunking)
+            zi = (gen.standard_normal(3) * sigma * phi)[None, :]
+        drive = gen.standard_normal((n, 3)) * sigma * math.sqrt(1 - phi * phi)
         out, zf = lfilter([1.0], [1.0, -phi], drive, axis=0, zi=zi)
         setattr(self, zi_name, zf)
         return out
 
     @staticmethod
-    def _quantize(x, q, resid):
-        """Quantize increments with the residual carried to the next sample (accumulating output)."""
+    def _quantize(x, q, state):
+        """Quantize increments of an accumulating output: emit whole quanta of the running
+        total, the remainder carries to the next sample.  ``state = (total, emitted_counts)``;
+        the running total is summed in the same order whatever the chunking."""
         if q <= 0:
-            return x, resid
-        acc = np.cumsum(x, axis=0) + resid
+            return x, state
+        total, emitted = state
+        acc = np.cumsum(np.vstack([total[None, :], x]), axis=0)[1:]
         counts = np.floor(acc / q)
-        out = np.diff(np.vstack([np.floor(resid / q)[None, :], counts]), axis=0) * q
-        # residual: accumulated value not yet emitted, kept as absolute offset within quantum
-        new_resid = acc[-1] - counts[-1] * q
-        return out, new_resid
+        out = np.diff(np.vstack([emitted[None, :], counts]), axis=0) * q
+        return out, (acc[-1], counts[-1])
 
     def apply(self, dth, dv, gimbal):
         n, nz, dt = dth.shape[0], self.noise, self.dt
