@@ -273,3 +273,10 @@ def test_parameter_errors_field_units():
     assert d["accel_bias.z"] == pytest.approx(10.0, rel=1e-3) and d["accel_bias.x"] == 0
     assert d["gimbal_nonorthogonality"] == pytest.approx(1.0)
     assert set(k for k in d if k.startswith("accel_misalignment")) == {f"accel_misalignment.{c}" for c in ("xy", "xz", "yx", "yz", "zx", "zy")}
+
+
+def test_a_running_study_locks_its_folder(tmp_path):
+    with mc._FolderLock(tmp_path):
+        with pytest.raises(mc.StudyError, match="in use"):
+            mc.run_study(dummy(), tmp_path, runs=1, scheduler="synchronous")
+    assert mc.run_study(dummy(), tmp_path, runs=1, scheduler="synchronous").n_new == 3

@@ -312,19 +312,10 @@ class StudyResult:
 
 
 class _Appender:
-    """Append records to the results file, flushed (and fsync'ed per batch)."""
+    """Append records to the results file, flushed and fsync'ed after every batch."""
 
     def __init__(self, path: Path):
         self.fh = open(path, "a", encoding="utf-8")
-        try:
-            import fcntl
-
-            fcntl.flock(self.fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except ImportError:  # pragma: no cover - non-POSIX
-            pass
-        except OSError:
-            self.fh.close()
-            raise StudyError(f"{path} is in use by another running study") from None
 
     def write(self, records: Iterable[dict]) -> None:
         for rec in records:
@@ -336,12 +327,32 @@ class _Appender:
         self.fh.close()
 
 
+class _FolderLock:
+    """An exclusive lock on ``DIR/.lock`` for the duration of a study (released by the OS
+    if the process dies), so two processes never append to the same study."""
+
+    def __init__(self, out: Path):
+        self.fh = open(out / ".lock", "a")
+        try:
+            import fcntl
+
+            fcntl.flock(self.fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except ImportError:  # pragma: no cover - non-POSIX
+            pass
+        except OSError:
+            self.fh.close()
+            raise StudyError(f"{out} is in use by another running study") from None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.fh.close()
+
+
 def open_study(experiment: Experiment, out: Path, seed: int, force: bool = False) -> tuple[Path, dict, dict[int, dict]]:
     """Create ``out/runs.jsonl`` or check the one there; return (path, header, records)."""
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise StudyError(f"{out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
     path = out / RUNS_FILE
     new = make_header(experiment, seed)
     if path.exists() and path.stat().st_size > 0 and not force:
@@ -379,21 +390,25 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise StudyError(f"seed must be a non-negative integer, got {seed!r}")
     t0 = time.perf_counter()
-    path, header, records = open_study(experiment, out, int(seed), force)
-    P = len(experiment.points)
-    layout = run_layout(P, int(runs))
-    children = seed_children(int(seed), len(layout))
-    pending = [(rid, p, r, children[rid]) for rid, p, r in layout if rid not in records]
-    stopped = False
-    if max_new_runs is not None and len(pending) > max_new_runs:
-        pending = pending[:max_new_runs]
-        stopped = True
-    n_new = 0
-    if pending:
-        appender = _Appender(path)
-        try:
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise StudyError(f"{out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    with _FolderLock(out):
+        path, header, records = open_study(experiment, out, int(seed), force)
+        P = len(experiment.points)
+        layout = run_layout(P, int(runs))
+        children = seed_children(int(seed), len(layout))
+        pending = [(rid, p, r, children[rid]) for rid, p, r in layout if rid not in records]
+        stopped = False
+        if max_new_runs is not None and len(pending) > max_new_runs:
+            pending = pending[:max_new_runs]
+            stopped = True
+        n_new = 0
+        if pending:
             if warmup and experiment.warmup is not None:
                 experiment.warmup(experiment)
+            appender = _Appender(path)
             bar = _Progress(len(pending), experiment.name, enabled=progress)
             try:
                 def sink(recs):
@@ -411,9 +426,8 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
                     _run_dask(experiment, pending, scheduler, workers, batch_size, sink)
             finally:
                 bar.close()
-        finally:
-            appender.close()
-    return StudyResult(Path(out), header, records, int(runs), n_new, time.perf_counter() - t0, stopped)
+                appender.close()
+    return StudyResult(out, header, records, int(runs), n_new, time.perf_counter() - t0, stopped)
 
 
 def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None:
