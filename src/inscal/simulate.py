@@ -25,7 +25,7 @@ from numba import njit
 from scipy.signal import lfilter
 
 from . import earth
-from .attitude import axis_angle_dcm, dcm_from_euler
+from .attitude import dcm_from_euler
 from .errors import GimbalErrors, ImuErrors, ImuNoise
 from .turntable import Path, Segments, outer_axis
 
@@ -80,37 +80,61 @@ class Scenario:
 # ----------------------------------------------------------------------------- kernel
 @njit(cache=True)
 def _eval(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_out, f_out):
-    """Evaluate w_is^s and f^s at time t on segment s (writes into w_out, f_out)."""
+    """Evaluate w_is^s and f^s at time t on segment s (writes into w_out, f_out; no allocation).
+
+    ``C_s^n = C_b^n Rot(u, theta_x) R_z(theta_z)`` (N25 eq. 7-8); ``w_is^s`` per N25 eq. 9 with the
+    outer rate about the tilted axis u, ``f^s = C_n^s [0, 0, g]`` (eq. 10, static base).
+    """
     tau = t - seg_t0[s]
     thx = seg_th0[s, 0] + seg_w0[s, 0] * tau + 0.5 * seg_acc[s, 0] * tau * tau
     thz = seg_th0[s, 1] + seg_w0[s, 1] * tau + 0.5 * seg_acc[s, 1] * tau * tau
     wx = seg_w0[s, 0] + seg_acc[s, 0] * tau
     wz = seg_w0[s, 1] + seg_acc[s, 1] * tau
-    Cx = axis_angle_dcm(u, thx)
+    # Rodrigues rotation about the unit outer axis u (exact N25 eq. 5)
+    c, sn = math.cos(thx), math.sin(thx)
+    t1 = 1.0 - c
+    ux, uy, uz = u[0], u[1], u[2]
+    x00 = c + ux * ux * t1
+    x01 = ux * uy * t1 - uz * sn
+    x10 = uy * ux * t1 + uz * sn
+    x11 = c + uy * uy * t1
+    x20 = uz * ux * t1 - uy * sn
+    x21 = uz * uy * t1 + ux * sn
+    x02 = ux * uz * t1 + uy * sn
+    x12 = uy * uz * t1 - ux * sn
+    x22 = c + uz * uz * t1
     cz, sz = math.cos(thz), math.sin(thz)
-    # C_s^b = Cx Rz ; C_s^n = Cbn C_s^b ; we need C_n^s = (C_s^n)^T
-    Cgn = Cbn @ Cx  # C_g^n (inner gimbal frame)
-    # columns of C_s^n: x_s = cz*Cgn[:,0] + sz*Cgn[:,1], y_s = -sz*Cgn[:,0] + cz*Cgn[:,1], z_s = Cgn[:,2]
-    # rows of C_n^s (columns of C_s^n)
-    r0 = np.empty(3)
-    r1 = np.empty(3)
-    r2 = np.empty(3)
+    # columns of C_s^n = Cbn Cx Rz : x_s = Cbn (cz Cx[:,0] + sz Cx[:,1]), y_s = Cbn (-sz Cx[:,0] + cz Cx[:,1]), z_s = Cbn Cx[:,2]
+    ax0 = cz * x00 + sz * x01
+    ax1 = cz * x10 + sz * x11
+    ax2 = cz * x20 + sz * x21
+    ay0 = -sz * x00 + cz * x01
+    ay1 = -sz * x10 + cz * x11
+    ay2 = -sz * x20 + cz * x21
+    w0_ = 0.0
+    w1_ = 0.0
+    w2_ = 0.0
+    f0_ = 0.0
+    f1_ = 0.0
+    f2_ = 0.0
     for k in range(3):
-        r0[k] = cz * Cgn[k, 0] + sz * Cgn[k, 1]
-        r1[k] = -sz * Cgn[k, 0] + cz * Cgn[k, 1]
-        r2[k] = Cgn[k, 2]
-    # Earth rate in s
-    w_out[0] = r0[0] * wie_n[0] + r0[1] * wie_n[1] + r0[2] * wie_n[2]
-    w_out[1] = r1[0] * wie_n[0] + r1[1] * wie_n[1] + r1[2] * wie_n[2]
-    w_out[2] = r2[0] * wie_n[0] + r2[1] * wie_n[1] + r2[2] * wie_n[2]
-    # outer rate: Rz^T u * wx (u is fixed in the inner-gimbal frame); inner rate: wz e_z
-    w_out[0] += (cz * u[0] + sz * u[1]) * wx
-    w_out[1] += (-sz * u[0] + cz * u[1]) * wx
-    w_out[2] += u[2] * wx + wz
-    # specific force at rest: f^n = [0, 0, g]
-    f_out[0] = r0[2] * g
-    f_out[1] = r1[2] * g
-    f_out[2] = r2[2] * g
+        xs = Cbn[k, 0] * ax0 + Cbn[k, 1] * ax1 + Cbn[k, 2] * ax2
+        ys = Cbn[k, 0] * ay0 + Cbn[k, 1] * ay1 + Cbn[k, 2] * ay2
+        zs = Cbn[k, 0] * x02 + Cbn[k, 1] * x12 + Cbn[k, 2] * x22
+        w0_ += xs * wie_n[k]
+        w1_ += ys * wie_n[k]
+        w2_ += zs * wie_n[k]
+        if k == 2:
+            f0_ = xs * g
+            f1_ = ys * g
+            f2_ = zs * g
+    # outer rate about u, expressed in s: Rz^T u wx (u is fixed in the inner-gimbal frame); inner rate wz e_z
+    w_out[0] = w0_ + (cz * ux + sz * uy) * wx
+    w_out[1] = w1_ + (-sz * ux + cz * uy) * wx
+    w_out[2] = w2_ + uz * wx + wz
+    f_out[0] = f0_
+    f_out[1] = f1_
+    f_out[2] = f2_
 
 
 @njit(cache=True)
@@ -119,9 +143,8 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
     S = seg_t0.shape[0]
     w = np.empty(3)
     f = np.empty(3)
-    wa = np.empty(3)
-    fa_ = np.empty(3)
-    # segment containing the start of the chunk
+    w_prev = np.empty(3)
+    w_end = np.empty(3)
     a0 = k0 * dt
     s = 0
     while s < S - 1 and seg_t1[s] <= a0:
@@ -129,6 +152,8 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
     static_seg = -1
     ws = np.zeros(3)
     fs = np.zeros(3)
+    if want_nl:
+        _eval(a0, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_prev, f)
     for j in range(n):
         a = (k0 + j) * dt
         b = (k0 + j + 1) * dt
@@ -140,15 +165,13 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
                 fx[j, c] = 0.0
                 ww[j, c] = 0.0
                 ww[j, c + 3] = 0.0
-        # rate at the start (for delta w)
-        if want_nl:
-            _eval(a, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, wa, fa_)
         sa = a
+        end_static = False
         while True:
             sb = seg_t1[s] if (seg_t1[s] < b and s < S - 1) else b
             h = sb - sa
+            is_static = seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
             if h > 0.0:
-                is_static = seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
                 if is_static:
                     if static_seg != s:
                         _eval(seg_t0[s], s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, ws, fs)
@@ -183,13 +206,20 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
                         ww[j, 4] += wq * w[0] * w[2]
                         ww[j, 5] += wq * w[1] * w[2]
             if sb >= b:
+                end_static = is_static and static_seg == s
                 break
             s += 1
             sa = sb
         if want_nl:
-            _eval(b, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w, f)
+            # delta w = w(b) - w(a) (the integral of w-dot); w is continuous across segments
+            if end_static:
+                for c in range(3):
+                    w_end[c] = ws[c]
+            else:
+                _eval(b, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_end, f)
             for c in range(3):
-                dw[j, c] = w[c] - wa[c]
+                dw[j, c] = w_end[c] - w_prev[c]
+                w_prev[c] = w_end[c]
         # the next sample starts in segment s (or the one after, if s ends exactly at b)
         if s < S - 1 and seg_t1[s] <= b:
             s += 1
