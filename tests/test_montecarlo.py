@@ -280,3 +280,16 @@ def test_a_running_study_locks_its_folder(tmp_path):
         with pytest.raises(mc.StudyError, match="in use"):
             mc.run_study(dummy(), tmp_path, runs=1, scheduler="synchronous")
     assert mc.run_study(dummy(), tmp_path, runs=1, scheduler="synchronous").n_new == 3
+
+
+def test_failed_runs_are_retried_on_resume_and_broken_setups_stop(tmp_path):
+    exp = dummy(mus=(0.0,), fail_above=0.5)
+    first = mc.run_study(exp, tmp_path, runs=40, seed=0, scheduler="synchronous")
+    n_err = sum("error" in r for r in first.records.values())
+    again = mc.run_study(exp, tmp_path, runs=40, seed=0, scheduler="synchronous")
+    assert again.n_new == n_err  # deterministic failures: retried, fail again
+    assert sum("error" in r for r in again.records.values()) == n_err
+    # every run fails: the study stops after FAIL_FAST_RUNS runs instead of running all
+    with pytest.raises(mc.StudyError, match="all failed"):
+        mc.run_study(dummy(mus=(0.0,), fail_above=-100.0), tmp_path / "b", runs=100, scheduler="synchronous")
+    assert len(mc.read_results(tmp_path / "b" / mc.RUNS_FILE)[1]) == mc.FAIL_FAST_RUNS

@@ -173,8 +173,8 @@ def _fig5_run(exp: Experiment, p: int, rng: np.random.Generator) -> dict:
 
     dtheta = exp.points[p]["dtheta_arcsec"]
     rec = simulate_record(_scenario_key(exp.params, dtheta), rng, exp.params["simulation"])
-    res = calibrate(rec, exp.params["method"])
-    if res.gimbal is None:
+    res = calibrate(rec, exp.params["method"], uncertainty=exp.params["uncertainty"])
+    if "gimbal_nonorthogonality" not in _estimated_names(res):
         raise StudyError(f"method {exp.params['method']!r} does not estimate the gimbal non-orthogonality")
     out = {"dtheta_est_arcsec": float(units.from_si(res.gimbal.nonorthogonality, "arcsec"))}
     sig = getattr(res, "sigma", None)
@@ -249,7 +249,7 @@ def _fig5_plot(exp: Experiment, s: Summary, path: Path) -> None:
 
 
 def n25_fig5(dtheta_arcsec=FIG5_DTHETA, method: str = "n25", arw_deg_rt_h: float = 0.02, vrw_ug_rt_hz: float = 20.0,
-             dwell_s: float = 100.0, rate_hz: float = 100.0, simulation: str = "full",
+             dwell_s: float = 100.0, rate_hz: float = 100.0, simulation: str = "full", uncertainty: bool = True,
              rsd_threshold_pct: float = 10.0, rsd_threshold_from_arcsec: float = 7.0) -> Experiment:
     vals = dtheta_arcsec if isinstance(dtheta_arcsec, (list, tuple)) else [dtheta_arcsec]
     try:
@@ -262,7 +262,9 @@ def n25_fig5(dtheta_arcsec=FIG5_DTHETA, method: str = "n25", arw_deg_rt_h: float
         raise StudyError("dtheta_arcsec values must be distinct")
     if not isinstance(method, str):
         raise StudyError("method must be a string")
-    params = {"dtheta_arcsec": vals, "method": method,
+    if not isinstance(uncertainty, bool):
+        raise StudyError(f"uncertainty must be true or false, got {uncertainty!r}")
+    params = {"dtheta_arcsec": vals, "method": method, "uncertainty": uncertainty,
               **_check_common({"arw_deg_rt_h": arw_deg_rt_h, "vrw_ug_rt_hz": vrw_ug_rt_hz, "dwell_s": dwell_s,
                                "rate_hz": rate_hz, "simulation": simulation}),
               "rsd_threshold_pct": float(rsd_threshold_pct), "rsd_threshold_from_arcsec": float(rsd_threshold_from_arcsec)}
@@ -279,7 +281,7 @@ def _schemes_run(exp: Experiment, p: int, rng: np.random.Generator) -> dict:
     rec = simulate_record(key, rng, exp.params["simulation"])
     out = {}
     for m in exp.params["methods"]:
-        res = calibrate(rec, m)
+        res = calibrate(rec, m, uncertainty=False)
         out[m] = parameter_errors(res.imu, res.gimbal, sc.imu, sc.gimbal, _estimated_names(res))
     return out
 

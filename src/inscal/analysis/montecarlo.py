@@ -16,7 +16,9 @@ Results file
     and version, resolved parameters, configuration points, seed); every further line is
     one run (``run``, ``point``, ``rep``, ``result`` or ``error``, ``elapsed_s``), written
     and flushed as soon as the run's batch returns.  On restart the completed runs are
-    read back and skipped; a truncated last line (a killed writer) is cut off.  A file
+    read back and skipped; a truncated last line (a killed writer) is cut off.  A run
+    that raised is recorded with its error, left out of the summary (and counted there),
+    and retried on the next restart; a study whose first 20 new runs all fail stops.  A file
     written for another experiment, other parameters or another seed is refused unless
     ``force`` (which discards it).  ``runs`` is not part of the identity (see Seeds).
     While a study runs it holds an exclusive lock on the file.
@@ -54,6 +56,8 @@ import numpy as np
 
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
+#: a study stops when its first this-many new runs all fail (a broken setup, not bad luck)
+FAIL_FAST_RUNS = 20
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
 SUMMARY_PNG = "summary.png"
@@ -211,6 +215,14 @@ def _header_mismatch(old: dict, new: dict) -> list[str]:
     return diffs
 
 
+def _keep(records: dict[int, dict], rec: dict) -> None:
+    """Store a run's record: the first successful one wins; a success replaces an error
+    (a failed run is retried when the study is resumed)."""
+    old = records.get(rec["run"])
+    if old is None or ("error" in old and "error" not in rec):
+        records[rec["run"]] = rec
+
+
 def read_results(path: Path, repair: bool = False) -> tuple[dict, dict[int, dict]]:
     """Header and ``{run id: record}`` of a results file.  A truncated (unparsable) last
     line is ignored, and cut off the file when ``repair``; a bad line elsewhere is an error."""
@@ -246,7 +258,7 @@ def read_results(path: Path, repair: bool = False) -> tuple[dict, dict[int, dict
                 rid = obj.get("run")
                 if not isinstance(rid, int):
                     raise StudyError(f"{path}: line {k + 1} has no integer 'run'")
-                records.setdefault(rid, obj)
+                _keep(records, obj)
         good_end = min(end, len(raw))
         pos = end
     if header is None:
@@ -399,7 +411,8 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
         P = len(experiment.points)
         layout = run_layout(P, int(runs))
         children = seed_children(int(seed), len(layout))
-        pending = [(rid, p, r, children[rid]) for rid, p, r in layout if rid not in records]
+        # runs not done yet, and failed runs (retried: the failure may have been fixed)
+        pending = [(rid, p, r, children[rid]) for rid, p, r in layout if rid not in records or "error" in records[rid]]
         stopped = False
         if max_new_runs is not None and len(pending) > max_new_runs:
             pending = pending[:max_new_runs]
@@ -411,13 +424,24 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
             appender = _Appender(path)
             bar = _Progress(len(pending), experiment.name, enabled=progress)
             try:
+                # fail fast on a broken setup: the first new (never tried) runs all failed
+                fresh = {it[0] for it in pending if it[0] not in records}
+                fresh_done = fresh_failed = 0
+                fail_fast = min(FAIL_FAST_RUNS, len(fresh))
+
                 def sink(recs):
-                    nonlocal n_new
+                    nonlocal n_new, fresh_done, fresh_failed
                     appender.write(recs)
-                    for rec in recs:
-                        records.setdefault(rec["run"], rec)
+                    for rec in recs:  # new runs only: missing or previously failed
+                        records[rec["run"]] = rec
+                        if rec["run"] in fresh:
+                            fresh_done += 1
+                            fresh_failed += "error" in rec
                     n_new += len(recs)
                     bar.advance(len(recs), sum(1 for r in recs if "error" in r))
+                    if fail_fast and fresh_failed == fresh_done >= fail_fast:
+                        first = next(r["error"] for r in recs if "error" in r)
+                        raise StudyError(f"the first {fresh_done} new runs all failed, stopping the study; first error: {first}")
 
                 if scheduler in ("synchronous", "sync"):
                     for it in pending:
@@ -586,7 +610,7 @@ def format_table(summary: Summary, file=None):
 
 
 def _fmt(v) -> str:
-    if v is None:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     if isinstance(v, float):
         if v == 0 or 1e-3 <= abs(v) < 1e5:
