@@ -1,0 +1,68 @@
+"""Discrete calibration of the IMU and the dual-axis gimbal from turntable records (issue 4).
+
+Public API::
+
+    from inscal.calibrate import calibrate, window_means, CalibrationResult, CalibrationError, METHODS
+
+    res = calibrate(record_like, "n25")          # or "six-position", "twelve-position", "joint"
+    res.imu, res.gimbal                          # ImuErrors / GimbalErrors estimates (SI; zeros if not estimated)
+    res.sigma["accel_bias"]                      # 1-sigma (SI), names of errors.PARAMETERS
+    res.estimated                                # names the method estimates
+    res.to_field(truth)                          # {NAME: {"value", "sigma", "unit", "error"}} in field units
+
+``record_like`` is anything with ``.time, .dtheta, .dvel, .gimbal, .rate_hz, .site``
+(``io.Record``, ``simulate.SimData`` plus site/rate, or a simple namespace); ``gimbal``
+may be None when the record has a ``.path`` (windows are then found from the increments).
+A :class:`WindowSet` from :func:`window_means` may be passed instead of a record.
+
+Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
+
+``six-position``     scheme 2: eq. 15-19 accelerometers (ideal inputs), Earth-rate gyro
+                     bias, CW/CCW rate tests (eq. 28).
+``twelve-position``  inner-symmetric version (eq. 24-26).
+``n25``              scheme 1: rough alpha0 (eq. 38), the eq. 40-44 least squares for
+                     [tan beta0, alpha0, dth], refined accelerometer and gyro errors.
+``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
+                     attitude to every window, 1 sigma from the Jacobian and the measured
+                     window noise; unobservable directions are reported and held fixed.
+
+Options (``**options``) go to :func:`window_means` (``settle``, ``min_static``, ...) and to
+the method (``uncertainty=False`` skips the error propagation; ``joint``: ``fix``,
+``initial``, ``sv_tol``).
+"""
+
+from __future__ import annotations
+
+import inspect
+
+from .joint import joint
+from .n25 import n25
+from .result import CalibrationResult
+from .segment import CalibrationError, Window, WindowSet, window_means
+from .six_position import six_position
+from .twelve_position import twelve_position
+
+METHODS = {
+    "six-position": six_position,
+    "twelve-position": twelve_position,
+    "n25": n25,
+    "joint": joint,
+}
+
+__all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
+           "six_position", "twelve_position", "n25", "joint"]
+
+
+def calibrate(record_like, method: str, **options) -> CalibrationResult:
+    """Calibrate with ``method`` (one of :data:`METHODS`); see the module docstring."""
+    if method not in METHODS:
+        raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
+    seg_keys = set(inspect.signature(window_means).parameters) - {"record_like"}
+    seg_opts = {k: v for k, v in options.items() if k in seg_keys}
+    fn = METHODS[method]
+    meth_keys = set(inspect.signature(fn).parameters) - {"ws"}
+    unknown = set(options) - seg_keys - meth_keys
+    if unknown:
+        raise CalibrationError(f"unknown option(s) for {method}: {sorted(unknown)}")
+    ws = record_like if isinstance(record_like, WindowSet) else window_means(record_like, **seg_opts)
+    return fn(ws, **{k: v for k, v in options.items() if k in meth_keys})

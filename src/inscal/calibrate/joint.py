@@ -1,0 +1,248 @@
+"""Joint calibration (beyond N25): one nonlinear least-squares fit of every IMU error of the
+linear N25 model (eq. 1-4), the gimbal non-orthogonality dth and the mounting attitude
+[alpha0, beta0, gamma0] to the means of every static and constant-rate window at once,
+with the exact forward model of :mod:`.model` (no small-angle approximation).
+
+* Residuals: (predicted - measured) window means divided by their measured 1-sigma noise
+  (floored at 1e-6 deg/h and 1e-6 ug so noise-free data stay well conditioned).
+* Internal parameters (28): K_g, E_g, eps / w_ie, K_a, E_a, nabla / g, dth, alpha0, beta0,
+  gamma0; Jacobian analytic in the IMU errors (the model is linear in them) and by
+  central differences in the four angles.
+* Observability: the singular values of the column-normalised weighted Jacobian at the
+  start point.  A direction with relative singular value below ``sv_tol`` is reported
+  (as the parameter combination) and the parameter that dominates it is held at its
+  start value (zero unless given in ``fix``); see ``result.diagnostics["unobservable"]``.
+* 1 sigma: ``sqrt(diag((J^T J)^-1))`` of the weighted Jacobian at the solution (the
+  measured window noise, not rescaled by the fit's chi^2, which is reported too).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import MISALIGN_NAMES, GimbalErrors, ImuErrors, off_diagonal
+from ..units import to_si
+from .model import window_inputs
+from .result import GIMBAL, IMU_LINEAR, CalibrationResult, make_result
+from .segment import CalibrationError, WindowSet
+
+NAMES = IMU_LINEAR + GIMBAL
+#: (parameter name, component label) of each internal parameter
+COMPONENTS = (
+    [("gyro_scale_factor", a) for a in "xyz"] + [("gyro_misalignment", m) for m in MISALIGN_NAMES]
+    + [("gyro_bias", a) for a in "xyz"] + [("accel_scale_factor", a) for a in "xyz"]
+    + [("accel_misalignment", m) for m in MISALIGN_NAMES] + [("accel_bias", a) for a in "xyz"]
+    + [("gimbal_nonorthogonality", "")] + [("mount_attitude", a) for a in ("alpha0", "beta0", "gamma0")]
+)
+NP = len(COMPONENTS)
+GYRO_FLOOR = to_si(1e-6, "deg/h")
+ACCEL_FLOOR = to_si(1e-6, "ug")
+
+
+def component_label(i: int) -> str:
+    n, c = COMPONENTS[i]
+    return f"{n}[{c}]" if c else n
+
+
+def _parse_component(key: str) -> list[int]:
+    m = re.fullmatch(r"([a-z_]+)(?:\[([a-z0-9]+)\])?", key.strip())
+    if not m or m.group(1) not in NAMES:
+        raise CalibrationError(f"cannot fix {key!r}: expected NAME or NAME[component] with NAME in {', '.join(NAMES)}")
+    idx = [i for i, (n, c) in enumerate(COMPONENTS) if n == m.group(1) and (m.group(2) is None or c == m.group(2))]
+    if not idx:
+        raise CalibrationError(f"cannot fix {key!r}: unknown component")
+    return idx
+
+
+class _Model:
+    def __init__(self, ws: WindowSet):
+        self.ws = ws
+        self.Om = float(np.linalg.norm(ws.site.earth_rate_n))
+        self.g = ws.site.gravity
+        self.G = np.array([w.gyro for w in ws.windows])
+        self.A = np.array([w.accel for w in ws.windows])
+        self.sg = np.maximum(np.array([w.gyro_sigma for w in ws.windows]), GYRO_FLOOR)
+        self.sa = np.maximum(np.array([w.accel_sigma for w in ws.windows]), ACCEL_FLOOR)
+        # internal scaling: eps / w_ie, nabla / g; other parameters in rad or dimensionless
+        self.scale = np.ones(NP)
+        self.scale[9:12] = self.Om
+        self.scale[21:24] = self.g
+
+    def to_si(self, p):
+        return p * self.scale
+
+    def from_si(self, x):
+        return x / self.scale
+
+    @staticmethod
+    def unpack(x):
+        return x[0:3], x[3:9], x[9:12], x[12:15], x[15:21], x[21:24], x[24], x[25:28]
+
+    def inputs(self, x):
+        return window_inputs(self.ws, x[24], x[25:28])
+
+    def residual(self, p):
+        x = self.to_si(p)
+        kg, eg, eps, ka, ea, nab, dth, mount = self.unpack(x)
+        W, F = window_inputs(self.ws, dth, mount)
+        Mg = (np.eye(3) + np.diag(kg)) @ (np.eye(3) + off_diagonal(eg))
+        Ma = (np.eye(3) + np.diag(ka)) @ (np.eye(3) + off_diagonal(ea))
+        rg = (W @ Mg.T + eps - self.G) / self.sg
+        ra = (F @ Ma.T + nab - self.A) / self.sa
+        return np.concatenate([rg.ravel(), ra.ravel()])
+
+    def jacobian(self, p, h: float = 1e-6):
+        x = self.to_si(p)
+        kg, eg, eps, ka, ea, nab, dth, mount = self.unpack(x)
+        n = len(self.ws.windows)
+        W, F = window_inputs(self.ws, dth, mount)
+        Eg, Ea = np.eye(3) + off_diagonal(eg), np.eye(3) + off_diagonal(ea)
+        Mg, Ma = (np.eye(3) + np.diag(kg)) @ Eg, (np.eye(3) + np.diag(ka)) @ Ea
+        Jg = np.zeros((n, 3, NP))
+        Ja = np.zeros((n, 3, NP))
+        from ..errors import MISALIGN_INDEX
+        for blk, (J, V, E, k, off_k, off_e, off_b) in enumerate(((Jg, W, Eg, kg, 0, 3, 9), (Ja, F, Ea, ka, 12, 15, 21))):
+            EV = V @ E.T
+            for i in range(3):
+                J[:, i, off_k + i] = EV[:, i]  # d/dK_i
+                J[:, i, off_b + i] = 1.0  # d/d bias_i
+            for m, (i, j) in enumerate(MISALIGN_INDEX):
+                J[:, i, off_e + m] = (1.0 + k[i]) * V[:, j]  # d/dE_ij
+        for q in range(4):
+            xp, xm = x.copy(), x.copy()
+            xp[24 + q] += h
+            xm[24 + q] -= h
+            Wp, Fp = self.inputs(xp)
+            Wm, Fm = self.inputs(xm)
+            Jg[:, :, 24 + q] = (Wp - Wm) @ Mg.T / (2 * h)
+            Ja[:, :, 24 + q] = (Fp - Fm) @ Ma.T / (2 * h)
+        Jg /= self.sg[:, :, None]
+        Ja /= self.sa[:, :, None]
+        J = np.concatenate([Jg.reshape(3 * n, NP), Ja.reshape(3 * n, NP)])
+        return J * self.scale[None, :]
+
+
+def _initial(ws: WindowSet) -> tuple[np.ndarray, str]:
+    """Start point: the n25 estimate when the record allows it, else zeros."""
+    from .n25 import n25
+
+    try:
+        r = n25(ws, uncertainty=False)
+    except CalibrationError as exc:
+        return np.zeros(NP), f"zeros (n25 start not available: {exc})"
+    x = np.concatenate([r.imu.gyro_scale_factor, r.imu.gyro_misalignment, r.imu.gyro_bias, r.imu.accel_scale_factor,
+                        r.imu.accel_misalignment, r.imu.accel_bias, [r.gimbal.nonorthogonality], r.gimbal.mount_attitude])
+    return x, "n25"
+
+
+def observability(J: np.ndarray, free: np.ndarray, sv_tol: float) -> list[dict]:
+    """Unobservable directions of the free columns of J (column-normalised SVD)."""
+    Jf = J[:, free]
+    norms = np.linalg.norm(Jf, axis=0)
+    out = []
+    zero = norms <= 1e-300
+    for i in np.flatnonzero(zero):
+        out.append({"combination": {component_label(int(free[i])): 1.0}, "relative_singular_value": 0.0,
+                    "fixed": component_label(int(free[i])), "index": int(free[i])})
+    keep = ~zero
+    if keep.sum() == 0:
+        return out
+    Jn = Jf[:, keep] / norms[keep]
+    _, s, Vt = np.linalg.svd(Jn, full_matrices=False)
+    rel = s / s[0]
+    cols = free[keep]
+    for r, v in zip(rel, Vt):
+        if r < sv_tol:
+            order = np.argsort(-np.abs(v))
+            comb = {component_label(int(cols[i])): round(float(v[i]), 4) for i in order[:4] if abs(v[i]) > 0.05}
+            i_fix = int(cols[order[0]])
+            out.append({"combination": comb, "relative_singular_value": float(r), "fixed": component_label(i_fix),
+                        "index": i_fix})
+    return out
+
+
+def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, initial=None,
+          sv_tol: float = 1e-7) -> CalibrationResult:
+    """Fit all parameters jointly (see the module docstring).
+
+    ``fix``: ``{"NAME" or "NAME[comp]": value_SI}`` held fixed (a prior); ``initial``: an
+    ``(ImuErrors, GimbalErrors)`` start point instead of the n25 estimate.
+    """
+    if len(ws.windows) < 5:
+        raise CalibrationError(f"joint calibration needs at least 5 windows, found {len(ws.windows)}")
+    model = _Model(ws)
+    if initial is not None:
+        imu0, gim0 = initial
+        x0 = np.concatenate([imu0.gyro_scale_factor, imu0.gyro_misalignment, imu0.gyro_bias, imu0.accel_scale_factor,
+                             imu0.accel_misalignment, imu0.accel_bias, [gim0.nonorthogonality], gim0.mount_attitude])
+        start = "given"
+    else:
+        x0, start = _initial(ws)
+    free = np.ones(NP, bool)
+    notes = []
+    for key, val in (fix or {}).items():
+        for i in _parse_component(key):
+            free[i] = False
+            x0[i] = float(np.ravel(val)[0]) if np.ndim(val) == 0 or len(np.ravel(val)) == 1 else float(
+                np.ravel(val)[_parse_component(key).index(i)])
+        notes.append(f"{key} held fixed at the given value")
+    p0 = model.from_si(x0)
+    unobs = []
+    for _ in range(NP):
+        found = observability(model.jacobian(p0), np.flatnonzero(free), sv_tol)
+        if not found:
+            break
+        d = found[0]
+        free[d["index"]] = False
+        unobs.append(d)
+        comb = " + ".join(f"{c:+g}*{k}" for k, c in d["combination"].items())
+        notes.append(f"unobservable direction ({comb}, relative singular value {d['relative_singular_value']:.1e}): "
+                     f"{d['fixed']} held at its start value {x0[d['index']]:.3e} (SI)")
+    fi = np.flatnonzero(free)
+    if fi.size == 0:
+        raise CalibrationError("no observable parameter in this record")
+
+    def fun(q):
+        p = p0.copy()
+        p[fi] = q
+        return model.residual(p)
+
+    def jac(q):
+        p = p0.copy()
+        p[fi] = q
+        return model.jacobian(p)[:, fi]
+
+    sol = least_squares(fun, p0[fi], jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200,
+                        x_scale="jac")
+    p = p0.copy()
+    p[fi] = sol.x
+    x = model.to_si(p)
+    sig_full = np.full(NP, np.nan)
+    chi2 = float(np.sum(sol.fun ** 2))
+    dof = max(1, sol.fun.size - fi.size)
+    if uncertainty:
+        J = model.jacobian(p)[:, fi]
+        try:
+            cov = np.linalg.inv(J.T @ J)
+            sig_full[fi] = np.sqrt(np.clip(np.diag(cov), 0, None)) * model.scale[fi]
+        except np.linalg.LinAlgError:
+            notes.append("Jacobian singular at the solution: no uncertainties")
+    kg, eg, eps, ka, ea, nab, dth, mount = model.unpack(x)
+    vals = {"gyro_scale_factor": kg, "gyro_misalignment": eg, "gyro_bias": eps, "accel_scale_factor": ka,
+            "accel_misalignment": ea, "accel_bias": nab, "gimbal_nonorthogonality": float(dth),
+            "mount_attitude": np.array(mount)}
+    sk = model.unpack(sig_full)
+    sigma = dict(zip(NAMES, [sk[0], sk[1], sk[2], sk[3], sk[4], sk[5], np.array(sk[6]), sk[7]]))
+    # report gamma0 within (-pi, pi]
+    vals["mount_attitude"][2] = math.remainder(vals["mount_attitude"][2], 2 * math.pi)
+    diag = {"start": start, "status": int(sol.status), "message": sol.message, "nfev": int(sol.nfev),
+            "chi2": chi2, "dof": int(dof), "unobservable": [{k: v for k, v in d.items() if k != "index"} for d in unobs],
+            "n_windows": len(ws.windows)}
+    if not sol.success:
+        notes.append(f"least squares did not converge: {sol.message}")
+    return make_result("joint", vals, sigma, NAMES, ws, diag,
+                       ["joint nonlinear least squares of all window means (exact model)"] + notes)

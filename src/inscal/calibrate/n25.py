@@ -1,0 +1,150 @@
+"""The N25 self-calibration (scheme 1, N25 section 4): IMU errors plus the gimbal
+non-orthogonality and the mounting (vehicle) attitude, without leveling or alignment.
+
+1. Rough accelerometer calibration: the twelve-position least squares with ideal inputs
+   (N25 eq. 24-26), and a rough roll ``alpha0`` from the z accelerometer at
+   (theta_x, theta_z) = (90, 0) and (0, 0) deg (eq. 38; physics gives
+   ``tan alpha0 = -N_z(90, 0) / N_z(0, 0)`` in the frames of ``turntable``; the printed
+   equation has no minus sign).  ``alpha0`` must be small for the linearised step 2.
+2. ``L`` = x/y part of the roughly compensated difference of the outputs at
+   inner-symmetric positions, divided by ``2 g``, minus its ideal value (eq. 40), and the
+   least-squares solution ``X = [tan beta0, alpha0, dth]`` of ``L = A X`` (eq. 41-44).
+   The design matrix printed as eq. 42 is garbled; derived from the model (eq. 5-12),
+   per inner-symmetric pair at (theta_x, theta_z) and (theta_x, theta_z + 180 deg)::
+
+       L_x = -cos(tz) tan(b0) + sin(tz) cos(tx) a0 + cos(tz) (1 - cos(tx)) dth
+       L_y =  sin(tz) tan(b0) + cos(tz) cos(tx) a0 - sin(tz) (1 - cos(tx)) dth
+
+   (first order in a0, dth and the rough-calibration residuals; tests compare it with
+   finite differences of the full model).  Its dropped terms are of second order in the
+   small angles (a0, b0, dth, installation angles, scale factors).
+3. Refined accelerometer scale factors, installation angles and biases: the eq. 19 least
+   squares with the inputs of the full model at the estimated (a0, b0, dth) instead of the
+   ideal ones (the paper's "substitute into eq. 21-26").
+4. Gyro: ``M_g`` from the CW/CCW rate tests (eq. 28) with the turning axes of the
+   estimated gimbal geometry (the outer axis is ``R_z^T u``, not an s-axis); then the
+   bias ``eps`` and the Earth rate in the base frame ``w^b`` by least squares from the
+   twelve static means ``N_g = M_g C_b^s w^b + eps`` (eq. 11), and the heading
+   ``gamma0`` from ``w^b`` (``C_b^n w^b = w_ie^n``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .model import C_b_s, C_n_s
+from .result import IMU_LINEAR, GIMBAL, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
+from .segment import CalibrationError, WindowSet
+from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, positions
+from .twelve_position import TWELVE, accel_twelve, twelve_windows
+from ..attitude import rot_x, rot_y
+
+NAMES = IMU_LINEAR + GIMBAL
+DEG = math.pi / 180.0
+
+
+def design_rows(theta_x: float, theta_z: float) -> np.ndarray:
+    """Rows ``(L_x, L_y)`` of the design matrix for X = [tan b0, a0, dth] (N25 eq. 42, derived)."""
+    cx, cz, sz = math.cos(theta_x), math.cos(theta_z), math.sin(theta_z)
+    return np.array([[-cz, sz * cx, cz * (1.0 - cx)],
+                     [sz, cz * cx, -sz * (1.0 - cx)]])
+
+
+def inner_pairs(ws: WindowSet, idx: list[int]) -> list[tuple[int, int]]:
+    """Pairs of window indices at (tx, tz) and (tx, tz + 180) among the twelve positions."""
+    pos = {TWELVE[i]: k for i, k in enumerate(idx)}
+    pairs, seen = [], set()
+    for (tx, tz), k in pos.items():
+        q = (tx, (tz + 180) % 360)
+        if q in pos and (tx, tz) not in seen:
+            pairs.append((k, pos[q]))
+            seen.update({(tx, tz), q})
+    return pairs
+
+
+def L_vector(ws: WindowSet, pairs, Ma_rough: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``L`` (N25 eq. 40, normalised by 2 g and minus its ideal value) and the design matrix A."""
+    g = ws.site.gravity
+    Minv = np.linalg.inv(Ma_rough)
+    L, A = [], []
+    for k1, k2 in pairs:
+        w1, w2 = ws.windows[k1], ws.windows[k2]
+        tx, tz = w1.theta
+        d = (Minv @ (w1.accel - w2.accel))[:2] / (2.0 * g)  # N25 eq. 40
+        ideal = math.sin(tx) * np.array([math.sin(tz), math.cos(tz)])
+        L.append(d - ideal)
+        A.append(design_rows(tx, tz))
+    return np.concatenate(L), np.vstack(A)
+
+
+def rough_alpha0(ws: WindowSet) -> float | None:
+    """N25 eq. 38 (sign from the model): ``tan a0 = -N_z(90, 0) / N_z(0, 0)``."""
+    pos = positions(ws)
+    if (0, 0) not in pos or (90, 0) not in pos:
+        return None
+    return math.atan2(-ws.windows[pos[(90, 0)]].accel[2], ws.windows[pos[(0, 0)]].accel[2])
+
+
+def solve_X(ws: WindowSet, idx: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps 1-2: rough twelve-position calibration and the eq. 44 least squares."""
+    Ma0, _ = accel_twelve(ws, idx)
+    L, A = L_vector(ws, inner_pairs(ws, idx), Ma0)
+    X, *_ = np.linalg.lstsq(A, L, rcond=None)  # N25 eq. 44
+    return X, L, A
+
+
+def heading_from_earth_rate(wb: np.ndarray, alpha0: float, beta0: float) -> float:
+    """``gamma0`` from the Earth rate in the base frame: ``R_z(g0) R_y(b0) R_x(a0) w^b = w_ie^n``
+    has a zero East component."""
+    v = rot_y(beta0) @ rot_x(alpha0) @ wb
+    return math.atan2(v[0], v[1])
+
+
+def _core(ws: WindowSet, idx: list[int]):
+    X, _, _ = solve_X(ws, idx)
+    beta0, alpha0, dth = math.atan(X[0]), X[1], X[2]
+    g = ws.site.gravity
+    # step 3: refined accelerometer errors with the model inputs (eq. 19 with true inputs)
+    F = np.array([C_n_s(*ws.windows[k].theta, dth, [alpha0, beta0, 0.0]) @ np.array([0.0, 0.0, g]) for k in idx])
+    N = np.array([ws.windows[k].accel for k in idx])
+    Ma, nabla = accel_least_squares(N, F)
+    # step 4: gyro matrix from rate tests about the true turning axes, then eps and w^b
+    Mg, used_rate = gyro_matrix_from_rate_tests(ws, dth=dth, ideal=False)
+    rows, rhs = [], []
+    for k in idx:
+        C = C_b_s(*ws.windows[k].theta, dth)
+        rows.append(np.hstack([Mg @ C, np.eye(3)]))
+        rhs.append(ws.windows[k].gyro)
+    sol, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
+    wb, eps = sol[:3], sol[3:]
+    gamma0 = heading_from_earth_rate(wb, alpha0, beta0)
+    vals = _values(Ma, nabla, Mg, eps)
+    vals["gimbal_nonorthogonality"] = dth
+    vals["mount_attitude"] = np.array([alpha0, beta0, gamma0])
+    return vals, used_rate, X, wb
+
+
+def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) -> CalibrationResult:
+    """Scheme 1 of N25 (see the module docstring)."""
+    idx = twelve_windows(ws, "n25")
+    a0 = rough_alpha0(ws)
+    if a0 is not None and abs(a0) > max_alpha0:
+        raise CalibrationError(
+            f"rough roll alpha0 = {math.degrees(a0):.3f} deg (N25 eq. 38) exceeds {math.degrees(max_alpha0):g} deg: "
+            "the linearised n25 step needs the outer gimbal near level; turn the outer axis zero or use --method joint")
+    vals, used_rate, X, wb = _core(ws, idx)
+
+    def est(w2):
+        return flatten(*_imu_gim(_core(w2, idx)[0]), NAMES)
+
+    used = {k: (True, True) for k in idx}
+    used.update({k: (True, False) for k in used_rate})
+    sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(NAMES), np.nan), NAMES)
+    diag = {"rough_alpha0_rad": a0, "X": X.tolist(), "earth_rate_b": wb.tolist(),
+            "earth_rate_norm_ratio": float(np.linalg.norm(wb) / np.linalg.norm(ws.site.earth_rate_n)),
+            "n_rate_windows": len(used_rate)}
+    return make_result("n25", vals, sig, NAMES, ws, diag,
+                       ["N25 scheme 1: linearised [tan b0, a0, dth] step (eq. 40-44, design matrix derived from the "
+                        "model), refined accelerometer and gyro errors; heading gamma0 from the Earth rate"])

@@ -1,0 +1,182 @@
+"""Classical discrete calibration (N25 section 3.1, scheme 2): six-position accelerometer
+least squares (eq. 15-19), gyro bias from the Earth rate with each gyro axis up and down,
+gyro scale factors and installation angles from clockwise/counter-clockwise rate tests
+(eq. 28).  The turntable is assumed level and orthogonal (ideal inputs): this is the
+scheme whose leveling and non-orthogonality errors N25 eq. 21-23 and 29 describe.
+
+The helpers here (position matching, the eq. 19 least squares, the eq. 28 rate-test
+solution) are shared with the twelve-position and n25 methods.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import off_diagonal_angles, split_scale_misalignment  # noqa: F401  (re-exported helper)
+from .model import _rz, ideal_up, outer_axis
+from .result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
+from .segment import CalibrationError, Window, WindowSet
+
+DEG = math.pi / 180.0
+AXIS_NAMES = ("x", "y", "z")
+
+
+def nominal_position(w: Window, tol: float = 2.0 * DEG) -> tuple[int, int] | None:
+    """Nominal (theta_x, theta_z) in whole degrees (multiples of 90, mod 360) of a static
+    window, or None if its angles are not within ``tol`` of such a position."""
+    out = []
+    for a in w.theta:
+        q = round(a / (math.pi / 2))
+        if abs(a - q * math.pi / 2) > tol:
+            return None
+        out.append(int(q * 90) % 360)
+    return out[0], out[1]
+
+
+def orientation(pos: tuple[int, int]) -> str:
+    """Which s-axis points up at a nominal position for a level turntable: '+x', '-z', ..."""
+    up = ideal_up(pos[0] * DEG, pos[1] * DEG)
+    j = int(np.argmax(np.abs(up)))
+    return ("+" if up[j] > 0 else "-") + AXIS_NAMES[j]
+
+
+def positions(ws: WindowSet) -> dict[tuple[int, int], int]:
+    """Nominal position -> index of its first static window (the scheme's visit; later
+    returns to the same position, e.g. between rate tests, are not used)."""
+    best: dict[tuple[int, int], int] = {}
+    for k, w in enumerate(ws.windows):
+        if w.kind != "static":
+            continue
+        p = nominal_position(w)
+        if p is not None and p not in best:
+            best[p] = k
+    return best
+
+
+def accel_least_squares(N: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``[M | nabla] = U A^T (A A^T)^-1`` (N25 eq. 19) with ``U`` (3 x n) the mean outputs
+    and ``A`` (4 x n) the inputs ``F`` (n x 3) stacked over a row of ones (eq. 17)."""
+    A = np.vstack([F.T, np.ones(F.shape[0])])
+    U = N.T
+    AAt = A @ A.T
+    if np.linalg.matrix_rank(AAt) < 4:
+        raise CalibrationError("the static positions do not span the three axes and the bias (rank-deficient eq. 19)")
+    Mt = U @ A.T @ np.linalg.inv(AAt)
+    return Mt[:, :3], Mt[:, 3]
+
+
+def rate_test_groups(ws: WindowSet) -> list[tuple[str, float, list[int], list[int]]]:
+    """Constant-rate windows grouped by (axis, fixed angle of the other axis): each group
+    with its positive- and negative-rate window indices (CW/CCW pairs, eq. 28)."""
+    groups: dict[tuple[str, int], tuple[list, list]] = {}
+    for k, w in enumerate(ws.windows):
+        if w.kind != "rate":
+            continue
+        fixed = w.theta[1] if w.axis == "outer" else w.theta[0]
+        key = (w.axis, int(round(math.degrees(fixed))) % 360)
+        pos, neg = groups.setdefault(key, ([], []))
+        (pos if w.rate > 0 else neg).append(k)
+    return [(ax, float(f), p, n) for (ax, f), (p, n) in sorted(groups.items()) if p and n]
+
+
+def rate_test_axis(axis: str, fixed_deg: float, dth: float) -> np.ndarray:
+    """s-frame direction of the turning axis: inner -> e_z; outer at theta_z -> R_z^T u (N25 eq. 9)."""
+    if axis == "inner":
+        return np.array([0.0, 0.0, 1.0])
+    return _rz(math.radians(fixed_deg)).T @ outer_axis(dth)
+
+
+def gyro_matrix_from_rate_tests(ws: WindowSet, dth: float = 0.0, ideal: bool = True) -> tuple[np.ndarray, list[int]]:
+    """``M_g`` from CW/CCW rate tests: ``M_g a = (N+ - N-) / (w+ - w-)`` for each turning
+    axis ``a`` (N25 eq. 28, with the minus sign the extraction lost), solved by least
+    squares over all pairs.  ``ideal``: round ``a`` to the nearest s-axis (the classical
+    scheme, which ignores the non-orthogonality); otherwise ``a`` uses ``dth``."""
+    groups = rate_test_groups(ws)
+    cols_a, cols_b, used = [], [], []
+    for axis, fixed, pos, neg in groups:
+        a = rate_test_axis(axis, fixed, 0.0 if ideal else dth)
+        if ideal:
+            j = int(np.argmax(np.abs(a)))
+            a = np.sign(a[j]) * np.eye(3)[j]
+        Np = np.mean([ws.windows[k].gyro for k in pos], axis=0)
+        Nn = np.mean([ws.windows[k].gyro for k in neg], axis=0)
+        wp = np.mean([ws.windows[k].rate for k in pos])
+        wn = np.mean([ws.windows[k].rate for k in neg])
+        cols_a.append(a)
+        cols_b.append((Np - Nn) / (wp - wn))  # N25 eq. 28
+        used += pos + neg
+    A = np.array(cols_a).T if cols_a else np.zeros((3, 0))
+    missing = [AXIS_NAMES[j] for j in range(3) if A.shape[1] == 0 or np.max(np.abs(A[j])) < 0.5]
+    if missing or np.linalg.matrix_rank(A) < 3:
+        raise CalibrationError(
+            "no clockwise/counter-clockwise rate-test pair about the " + ", ".join(missing or ["(independent)"])
+            + " axis: the gyro scale factors and installation angles need constant-rate windows of at least one "
+              "whole turn in both directions about x, y and z (N25 eq. 28)")
+    B = np.array(cols_b).T
+    Mg = B @ A.T @ np.linalg.inv(A @ A.T)
+    return Mg, used
+
+
+def _need_orientations(ws: WindowSet, pos: dict) -> dict[str, int]:
+    """For each of the six orientations, the index of its first static window."""
+    by: dict[str, int] = {}
+    for p, k in sorted(pos.items(), key=lambda q: q[1]):
+        by.setdefault(orientation(p), k)
+    missing = [o for o in ("+x", "-x", "+y", "-y", "+z", "-z") if o not in by]
+    if missing:
+        words = ", ".join(f"{o[1]} axis {'up' if o[0] == '+' else 'down'}" for o in missing)
+        raise CalibrationError(f"six-position calibration needs a static window with each IMU axis up and down; "
+                               f"missing: {words} (found {len(by)} of 6 orientations)")
+    return by
+
+
+def _six_core(ws: WindowSet, sel: dict[str, int]):
+    g = ws.site.gravity
+    order = ("+x", "-x", "+y", "-y", "+z", "-z")
+    idx = [sel[o] for o in order]
+    N = np.array([ws.windows[k].accel for k in idx])
+    F = np.array([g * ideal_up(*ws.windows[k].theta) for k in idx])  # N25 eq. 17 (ideal inputs)
+    F = np.round(F / g) * g
+    Ma, nabla = accel_least_squares(N, F)  # N25 eq. 19
+    # gyro bias from the Earth rate: axis j vertical up and down (its horizontal input is zero)
+    eps = np.array([0.5 * (ws.windows[sel["+" + a]].gyro[j] + ws.windows[sel["-" + a]].gyro[j])
+                    for j, a in enumerate(AXIS_NAMES)])
+    Mg, used_rate = gyro_matrix_from_rate_tests(ws, ideal=True)  # N25 eq. 28
+    return Ma, nabla, Mg, eps, used_rate
+
+
+def _values(Ma, nabla, Mg, eps) -> dict:
+    ka, ea = split_scale_misalignment(Ma)
+    kg, eg = split_scale_misalignment(Mg)
+    return {"gyro_scale_factor": kg, "gyro_misalignment": eg, "gyro_bias": eps,
+            "accel_scale_factor": ka, "accel_misalignment": ea, "accel_bias": nabla}
+
+
+def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
+    """Scheme 2 of N25: six-position accelerometer LS, Earth-rate gyro bias, rate tests."""
+    pos = positions(ws)
+    sel = _need_orientations(ws, pos)
+    Ma, nabla, Mg, eps, used_rate = _six_core(ws, sel)
+    vals = _values(Ma, nabla, Mg, eps)
+
+    def est(w2):
+        return flatten(*_imu_gim(_values(*_six_core(w2, sel)[:4])), IMU_LINEAR)
+
+    used = {k: (True, True) for k in sel.values()}
+    used.update({k: (True, False) for k in used_rate})
+    sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(IMU_LINEAR), np.nan), IMU_LINEAR)
+    diag = {"positions": {o: [round(math.degrees(a), 3) for a in ws.windows[k].theta] for o, k in sel.items()},
+            "n_rate_windows": len(used_rate)}
+    return make_result("six-position", vals, sig, IMU_LINEAR, ws, diag,
+                       ["ideal inputs: turntable assumed level and orthogonal (N25 scheme 2); "
+                        "gimbal non-orthogonality and mount attitude not estimated"])
+
+
+def _imu_gim(vals: dict):
+    from ..errors import GimbalErrors, ImuErrors
+    from ..errors import PARAMETERS as P
+
+    return ImuErrors(**{P[n][1]: v for n, v in vals.items() if P[n][0] == "imu"}), GimbalErrors(
+        **{P[n][1]: v for n, v in vals.items() if P[n][0] == "gimbal"})

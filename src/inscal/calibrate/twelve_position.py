@@ -1,0 +1,67 @@
+"""Twelve-position (inner-symmetric) discrete calibration (N25 eq. 24-26).
+
+The six orientations of the six-position scheme are each visited at two inner-gimbal
+angles differing by 180 deg (the twelve N25 positions, ``turntable.N25_TWELVE_POSITIONS``),
+which cancels the leveling error in the installation angles to first order.  Inputs are
+still the ideal ones (level, orthogonal turntable).  Gyro bias: the mean gyro output over
+the twelve positions, where the ideal Earth-rate inputs sum to zero (N25 eq. 27).  Gyro
+scale factors and installation angles from the CW/CCW rate tests (eq. 28).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..turntable import N25_TWELVE_POSITIONS
+from .model import ideal_up
+from .result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
+from .segment import CalibrationError, WindowSet
+from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, positions
+
+TWELVE = [tuple(p) for p in N25_TWELVE_POSITIONS]
+
+
+def twelve_windows(ws: WindowSet, method: str = "twelve-position") -> list[int]:
+    """Window indices of the twelve N25 positions, in N25 order; a clear error if any is missing."""
+    pos = positions(ws)
+    missing = [p for p in TWELVE if p not in pos]
+    if missing:
+        raise CalibrationError(
+            f"{method} calibration needs static windows at the twelve N25 positions (theta_x, theta_z) deg; "
+            f"missing {len(missing)}: " + ", ".join(f"({a}, {b})" for a, b in missing))
+    return [pos[p] for p in TWELVE]
+
+
+def accel_twelve(ws: WindowSet, idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 24-26: the eq. 19 least squares over the twelve positions with ideal inputs."""
+    g = ws.site.gravity
+    N = np.array([ws.windows[k].accel for k in idx])
+    F = np.array([np.round(ideal_up(*ws.windows[k].theta)) * g for k in idx])
+    return accel_least_squares(N, F)
+
+
+def _core(ws: WindowSet, idx: list[int]):
+    Ma, nabla = accel_twelve(ws, idx)
+    eps = np.mean([ws.windows[k].gyro for k in idx], axis=0)  # N25 eq. 27: ideal Earth inputs cancel
+    Mg, used_rate = gyro_matrix_from_rate_tests(ws, ideal=True)  # N25 eq. 28
+    return Ma, nabla, Mg, eps, used_rate
+
+
+def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
+    idx = twelve_windows(ws)
+    Ma, nabla, Mg, eps, used_rate = _core(ws, idx)
+    vals = _values(Ma, nabla, Mg, eps)
+
+    def est(w2):
+        return flatten(*_imu_gim(_values(*_core(w2, idx)[:4])), IMU_LINEAR)
+
+    used = {k: (True, True) for k in idx}
+    used.update({k: (True, False) for k in used_rate})
+    sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(IMU_LINEAR), np.nan), IMU_LINEAR)
+    diag = {"positions": [[round(math.degrees(a), 3) for a in ws.windows[k].theta] for k in idx],
+            "n_rate_windows": len(used_rate)}
+    return make_result("twelve-position", vals, sig, IMU_LINEAR, ws, diag,
+                       ["ideal inputs (level, orthogonal turntable), inner-symmetric positions (N25 eq. 24-26); "
+                        "gimbal non-orthogonality and mount attitude not estimated"])
