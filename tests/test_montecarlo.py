@@ -293,3 +293,49 @@ def test_failed_runs_are_retried_on_resume_and_broken_setups_stop(tmp_path):
     with pytest.raises(mc.StudyError, match="all failed"):
         mc.run_study(dummy(mus=(0.0,), fail_above=-100.0), tmp_path / "b", runs=100, scheduler="synchronous")
     assert len(mc.read_results(tmp_path / "b" / mc.RUNS_FILE)[1]) == mc.FAIL_FAST_RUNS
+
+
+def test_small_n25_fig5_rsd_decreases_with_dtheta(tmp_path):
+    pytest.importorskip("inscal.calibrate")
+    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [2.0, 7.0, 30.0], "simulation": "reuse"})
+    res = mc.run_study(exp, tmp_path, runs=10, seed=0, scheduler="synchronous")
+    s = mc.summarize(exp, res)
+    rows = s.rows
+    assert [r["n"] for r in rows] == [10, 10, 10]
+    rsd = [r["rsd_pct"] for r in rows]
+    assert rsd[0] > rsd[1] > rsd[2] > 0
+    for r in rows:
+        # the estimation noise does not depend on dtheta much, and the estimate is unbiased
+        assert 0.02 < r["std_arcsec"] < 2.0
+        assert abs(r["bias_arcsec"]) < 4 * r["std_arcsec"] / math.sqrt(r["n"]) + 0.05
+        assert r["rsd_ci95_lo_pct"] < r["rsd_pct"] < r["rsd_ci95_hi_pct"]
+    assert s.data["rsd_below_threshold"] is True and "yes" in s.notes[0]
+    paths = mc.write_outputs(exp, s, tmp_path)
+    assert paths["png"].stat().st_size > 1000
+
+
+def test_small_n25_schemes_shows_the_n25_claims(tmp_path):
+    pytest.importorskip("inscal.calibrate")
+    exp = mc.get_experiment("n25-schemes", {"simulation": "reuse"})
+    assert exp.params["methods"] == ["n25", "six-position", "joint"]
+    res = mc.run_study(exp, tmp_path, runs=4, seed=1, scheduler="synchronous")
+    s = mc.summarize(exp, res)
+    params = [r["parameter"] for r in s.rows]
+    assert "accel_bias.z" in params and "gimbal_nonorthogonality" in params
+    row = next(r for r in s.rows if r["parameter"] == "gimbal_nonorthogonality")
+    assert row["six-position_bias"] is None and row["n25_std"] > 0  # six-position does not estimate dtheta
+    checks = {c["claim"]: c["holds"] for c in s.data["checks"]}
+    assert len(checks) == 5
+    for claim, holds in checks.items():
+        if claim.startswith("n25 < six-position"):
+            assert holds, claim  # systematic (leveling, dtheta) errors: clear even with 4 runs
+    assert mc.write_outputs(exp, s, tmp_path)["png"].exists()
+
+
+def test_local_cluster_runs_the_real_experiment_identically(tmp_path):
+    pytest.importorskip("inscal.calibrate")
+    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [5.0, 20.0], "simulation": "reuse"})
+    sync = mc.run_study(exp, tmp_path / "s", runs=2, seed=4, scheduler="synchronous")
+    dask_ = mc.run_study(exp, tmp_path / "d", runs=2, seed=4, workers=2, batch_size=1)
+    assert dask_.complete() and not any("error" in r for r in dask_.records.values())
+    assert results_of(dask_) == results_of(sync)

@@ -456,14 +456,18 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
 
 def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None:
     import logging
+    import warnings
 
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
     if scheduler in (None, "", "local"):
         n = workers or os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR)
+        with warnings.catch_warnings():
+            # no dashboard; the scheduler's health-check HTTP server moves off a busy port by itself
+            warnings.filterwarnings("ignore", message=r"(?s)Port \d+ is already in use")
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
         try:
@@ -603,7 +607,8 @@ def format_table(summary: Summary, file=None):
         t.add_column(h, justify="right")
     for row in summary.rows:
         t.add_row(*[_fmt(row.get(k)) for k, _ in summary.columns])
-    con = Console(file=file or sys.stdout)
+    f = file or sys.stdout
+    con = Console(file=f, width=None if f.isatty() else 200)
     con.print(t)
     for n in summary.notes:
         con.print(f"note: {n}")
