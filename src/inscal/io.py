@@ -158,6 +158,28 @@ def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, 
     return n
 
 
+def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None) -> int:
+    """Write a record chunk by chunk from an iterator of ``(time, dtheta, dvel, gimbal)``
+    (atomic; only one chunk in memory).  ``info`` gives the metadata (no truth is written)."""
+    k = 0
+    with atomic_path(path, overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            _create_layout(h5, info.scenario, info.rate_hz, info.site, info.path, info.n_samples, info.has_gimbal)
+            for key, val in (extra_attrs or {}).items():
+                h5.attrs[key] = val
+            for t, dth, dv, g in chunks:
+                sl = slice(k, k + t.shape[0])
+                h5["time"][sl] = t
+                h5["dtheta"][sl] = dth
+                h5["dvel"][sl] = dv
+                if info.has_gimbal:
+                    h5["gimbal"][sl] = g
+                k = sl.stop
+            if k != info.n_samples:
+                raise DataFileError(f"wrote {k} samples, expected {info.n_samples}")
+    return k
+
+
 def write_record(path, rec: Record, overwrite: bool = False) -> None:
     """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
     validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
