@@ -17,6 +17,13 @@
 Both draw all randomness from the generator a run is given: only the sensor noise is
 random; the true errors are the scenario's.
 
+Parameters (``inscal montecarlo EXPERIMENT --set KEY=VALUE``; ``--list`` shows defaults):
+``arw_deg_rt_h``, ``vrw_ug_rt_hz`` (N25: 0.02, 20), ``dwell_s`` (100), ``rate_hz`` (100),
+``simulation`` (below); ``n25-fig5``: ``dtheta_arcsec`` (list), ``method`` (``n25``),
+``uncertainty`` (false: the formal 1-sigma of the calibration is not needed for the
+empirical RSD and costs as much as the rest of a run; true adds a "formal σ" column);
+``n25-schemes``: ``methods`` (list), ``dtheta_arcsec`` (20).
+
 Simulation (parameter ``simulation``): ``"full"`` simulates every run with
 :func:`inscal.simulate.simulate`.  ``"reuse"`` computes the noise-free part of the
 record (the deterministic kinematics and sensor errors, which do not depend on the
@@ -376,17 +383,22 @@ def _schemes_plot(exp: Experiment, s: Summary, path: Path) -> None:
     for ax, (g, rows) in zip(axes.flat, groups.items()):
         x = np.arange(len(rows))
         for i, m in enumerate(methods):
-            y = [r.get(f"{m}_rms") or 0.0 for r in rows]
-            ax.bar(x + (i - (len(methods) - 1) / 2) * w, y, w, label=SCHEME_LABELS.get(m, m))
+            y = [r.get(f"{m}_rms") or np.nan for r in rows]  # not estimated: no bar
+            ax.bar(x + (i - (len(methods) - 1) / 2) * w, y, w, label=SCHEME_LABELS.get(m, m), color=f"C{i}")
         ax.set_xticks(x, [r["parameter"].split(".", 1)[1] if "." in r["parameter"] else g for r in rows])
         ax.set_title(f"{g} [{rows[0]['unit']}]")
         ax.set_ylabel("RMS error")
-        ax.grid(True, axis="y", alpha=0.3)
+        ax.set_yscale("log")
+        vals = [r.get(f"{m}_rms") for r in rows for m in methods if r.get(f"{m}_rms")]
+        if vals:  # a common floor well below the smallest bar, so bar heights compare
+            ax.set_ylim(bottom=min(vals) / 4)
+        ax.grid(True, axis="y", which="both", alpha=0.3)
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    axes.flat[0].legend(fontsize=8)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", fontsize=9)
     fig.suptitle(s.title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
     fig.savefig(path, dpi=110)
 
 
