@@ -9,9 +9,12 @@ with the exact forward model of :mod:`.model` (no small-angle approximation).
   gamma0; Jacobian analytic in the IMU errors (the model is linear in them) and by
   central differences in the four angles.
 * Observability: the singular values of the column-normalised weighted Jacobian at the
-  start point.  A direction with relative singular value below ``sv_tol`` is reported
-  (as the parameter combination) and the parameter that dominates it is held at its
-  start value (zero unless given in ``fix``); see ``result.diagnostics["unobservable"]``.
+  start point (angles below 1e-3 rad moved to 1e-3 rad so that an exactly level start
+  does not hide what a real tilt reveals).  A direction with relative singular value
+  below ``sv_tol`` is reported (as the parameter combination) and one parameter of it is
+  held at its start value (zero unless given in ``fix``): the IMU error with the largest
+  weight among those within a factor 2 of the largest, else the largest; see
+  ``result.diagnostics["unobservable"]`` and ``result.notes``.
 * 1 sigma: ``sqrt(diag((J^T J)^-1))`` of the weighted Jacobian at the solution (the
   measured window noise, not rescaled by the fit's chi^2, which is reported too).
 """
@@ -159,7 +162,11 @@ def observability(J: np.ndarray, free: np.ndarray, sv_tol: float) -> list[dict]:
         if r < sv_tol:
             order = np.argsort(-np.abs(v))
             comb = {component_label(int(cols[i])): round(float(v[i]), 4) for i in order[:4] if abs(v[i]) > 0.05}
-            i_fix = int(cols[order[0]])
+            # hold an IMU error (a nuisance of the scheme) rather than the gimbal geometry when both
+            # carry the direction comparably
+            big = [i for i in order if abs(v[i]) >= 0.5 * abs(v[order[0]])]
+            imu = [i for i in big if cols[i] < 24]
+            i_fix = int(cols[imu[0] if imu else order[0]])
             out.append({"combination": comb, "relative_singular_value": float(r), "fixed": component_label(i_fix),
                         "index": i_fix})
     return out
@@ -191,9 +198,15 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
                 np.ravel(val)[_parse_component(key).index(i)])
         notes.append(f"{key} held fixed at the given value")
     p0 = model.from_si(x0)
+    # structural observability at a generic point near the start: exactly zero angles would
+    # hide parameters that the tilt of a real mount makes (weakly) observable
+    xg = x0.copy()
+    xg[24] += 1e-4 if abs(xg[24]) < 1e-4 else 0.0
+    xg[25:27] += np.where(np.abs(xg[25:27]) < 1e-3, 1e-3, 0.0)
+    pg = model.from_si(xg)
     unobs = []
     for _ in range(NP):
-        found = observability(model.jacobian(p0), np.flatnonzero(free), sv_tol)
+        found = observability(model.jacobian(pg), np.flatnonzero(free), sv_tol)
         if not found:
             break
         d = found[0]

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..errors import off_diagonal_angles, split_scale_misalignment  # noqa: F401  (re-exported helper)
+from ..errors import off_diagonal_angles, split_scale_misalignment
 from .model import _rz, ideal_up, outer_axis
 from .result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
 from .segment import CalibrationError, Window, WindowSet
@@ -167,7 +167,7 @@ def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     used = {k: (True, True) for k in sel.values()}
     used.update({k: (True, False) for k in used_rate})
     sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(IMU_LINEAR), np.nan), IMU_LINEAR)
-    diag = {"positions": {o: [round(math.degrees(a), 3) for a in ws.windows[k].theta] for o, k in sel.items()},
+    diag = {"positions": {o: list(nominal_position(ws.windows[k])) for o, k in sel.items()},
             "n_rate_windows": len(used_rate)}
     return make_result("six-position", vals, sig, IMU_LINEAR, ws, diag,
                        ["ideal inputs: turntable assumed level and orthogonal (N25 scheme 2); "
@@ -180,3 +180,44 @@ def _imu_gim(vals: dict):
 
     return ImuErrors(**{P[n][1]: v for n, v in vals.items() if P[n][0] == "imu"}), GimbalErrors(
         **{P[n][1]: v for n, v in vals.items() if P[n][0] == "gimbal"})
+
+
+def leveling_deviation(theta_x: float, theta_z: float, alpha0: float, beta0: float, dth: float) -> np.ndarray:
+    """First-order deviation of the unit up vector in the s-frame from its ideal value
+    (generalises N25 eq. 20 to any position)::
+
+        dn = R_z(tz)^T [-b0 + (1 - cos tx) dth,  cos(tx) a0,  -sin(tx) a0]
+
+    For tx = 180 deg this is eq. 20 with ``-b0 + 2 dth`` where N25 prints ``b0 + 2 dth``:
+    the printed pitch has the opposite sign to the z-y-x Euler pitch of eq. 8 used here
+    (the physics, checked against the exact model in tests/test_calibrate_schemes.py).
+    """
+    cx, sx = math.cos(theta_x), math.sin(theta_x)
+    return _rz(theta_z).T @ np.array([-beta0 + (1.0 - cx) * dth, cx * alpha0, -sx * alpha0])
+
+
+def predicted_scheme_errors(windows: list[Window], g: float, alpha0: float, beta0: float, dth: float,
+                            rate_axes: list[tuple[str, float]] = ()) -> dict:
+    """First-order errors of the ideal-input schemes caused by the leveling error (a0, b0)
+    and the non-orthogonality dth (N25 eq. 21-23 for six positions, eq. 24-26 for twelve,
+    eq. 29 for the rate tests), for the static ``windows`` actually used and the rate-test
+    groups ``rate_axes`` = [(axis, fixed angle deg)].  Returns SI arrays
+    ``accel_bias`` (3), ``accel_misalignment`` (6), ``gyro_misalignment`` (6).
+
+    With the ideal inputs ``g n_k`` and true inputs ``g (n_k + dn_k)``, the eq. 19 least
+    squares returns ``[M | nabla] + g M [dn_k] A^T (A A^T)^-1``; to first order the
+    scale factors are unaffected (their error is second order, eq. 22/25).
+    """
+    F = np.array([np.round(ideal_up(*w.theta)) * g for w in windows])
+    D = np.array([g * leveling_deviation(*w.theta, alpha0, beta0, dth) for w in windows])
+    A = np.vstack([F.T, np.ones(len(windows))])
+    dMt = D.T @ A.T @ np.linalg.inv(A @ A.T)
+    out = {"accel_bias": dMt[:, 3], "accel_misalignment": off_diagonal_angles(dMt[:, :3])}
+    dMg = np.zeros((3, 3))
+    for axis, fixed in rate_axes:
+        a = rate_test_axis(axis, fixed, dth)
+        j = int(np.argmax(np.abs(a)))
+        sgn = np.sign(a[j])
+        dMg[:, j] = sgn * a - np.eye(3)[j]  # eq. 28/29: the column is measured along the tilted axis
+    out["gyro_misalignment"] = off_diagonal_angles(dMg)
+    return out

@@ -10,15 +10,13 @@ scale factors and installation angles from the CW/CCW rate tests (eq. 28).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..turntable import N25_TWELVE_POSITIONS
 from .model import ideal_up
 from .result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
 from .segment import CalibrationError, WindowSet
-from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, positions
+from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position, positions
 
 TWELVE = [tuple(p) for p in N25_TWELVE_POSITIONS]
 
@@ -60,7 +58,7 @@ def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResul
     used = {k: (True, True) for k in idx}
     used.update({k: (True, False) for k in used_rate})
     sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(IMU_LINEAR), np.nan), IMU_LINEAR)
-    diag = {"positions": [[round(math.degrees(a), 3) for a in ws.windows[k].theta] for k in idx],
+    diag = {"positions": [list(nominal_position(ws.windows[k])) for k in idx],
             "n_rate_windows": len(used_rate)}
     return make_result("twelve-position", vals, sig, IMU_LINEAR, ws, diag,
                        ["ideal inputs (level, orthogonal turntable), inner-symmetric positions (N25 eq. 24-26); "
