@@ -30,7 +30,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     try:
         res = calibrate(rec, method, settle=settle, min_static=min_static)
     except CalibrationError as exc:
-        raise CliError(f"{data}: {method}: {exc}") from None
+        raise CliError(f"{data}: {exc}") from None
     truth = rec.truth
     try:
         save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force,
