@@ -338,11 +338,13 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
 # ============================================================================ truth and errors
 @dataclass
 class NavErrors:
-    """Errors of a navigation output against a static-site truth (SI)."""
+    """Errors of a navigation output against a static-site truth (SI).  Without a simulation
+    truth (recorded data) only the position and velocity errors are known (the site is
+    static and surveyed); ``attitude`` and ``vehicle`` are then None."""
 
     time: np.ndarray
-    attitude: np.ndarray  # IMU attitude error phi, n-frame (N, 3) [rad]
-    vehicle: np.ndarray  # vehicle [roll, pitch, yaw] error (N, 3) [rad]
+    attitude: np.ndarray | None  # IMU attitude error phi, n-frame (N, 3) [rad]
+    vehicle: np.ndarray | None  # vehicle [roll, pitch, yaw] error (N, 3) [rad]
     velocity: np.ndarray  # (N, 3) [m/s]
     position: np.ndarray  # East, North, Up (N, 3) [m]
 
@@ -355,27 +357,34 @@ def _wrap(a):
     return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
 
 
-def navigation_errors(out: NavOutput, scenario, gimbal_model: GimbalErrors | None = None) -> NavErrors:
+def navigation_errors(out: NavOutput, scenario=None, gimbal_model: GimbalErrors | None = None,
+                      site=None) -> NavErrors:
     """Errors of ``out`` against the truth of a simulated static-site ``scenario``: the site
     position, zero velocity, the true IMU attitude (:func:`inscal.simulate.true_attitude`)
-    and the true vehicle attitude (the gimbal mount attitude, N25 eq. 8)."""
+    and the true vehicle attitude (the gimbal mount attitude, N25 eq. 8).  With only a
+    ``site`` (recorded data on a static base), position and velocity errors."""
     from .simulate import true_attitude
 
-    site = scenario.site
-    C_true = true_attitude(scenario, out.time)
-    phi = small_angle_error(out.C_s_n, C_true)
-    if out.gimbal is not None:
-        veh_true = euler_from_dcm(dcm_from_euler(scenario.gimbal.mount_attitude))
-    else:  # no gimbal angles recorded: compare the IMU attitude's Euler angles
-        veh_true = euler_from_dcm(C_true)
-    veh = out.vehicle_attitude(gimbal_model)
+    if scenario is not None:
+        site = scenario.site
+        C_true = true_attitude(scenario, out.time)
+        phi = small_angle_error(out.C_s_n, C_true)
+        if out.gimbal is not None:
+            veh_true = euler_from_dcm(dcm_from_euler(scenario.gimbal.mount_attitude))
+        else:  # no gimbal angles recorded: compare the IMU attitude's Euler angles
+            veh_true = euler_from_dcm(C_true)
+        veh = _wrap(out.vehicle_attitude(gimbal_model) - veh_true)
+    elif site is None:
+        raise ValueError("navigation errors need a scenario (truth) or at least the static site")
+    else:
+        phi = veh = None
     rm, rn = earth.radii(site.latitude)
     pos = np.stack([
         _wrap(out.position[:, 1] - site.longitude) * (rn + site.height) * math.cos(site.latitude),
         (out.position[:, 0] - site.latitude) * (rm + site.height),
         out.position[:, 2] - site.height,
     ], axis=-1)
-    return NavErrors(out.time.copy(), phi, _wrap(veh - veh_true), out.velocity.copy(), pos)
+    return NavErrors(out.time.copy(), phi, veh, out.velocity.copy(), pos)
 
 
 # ----------------------------------------------------------------------- oscillations
@@ -474,15 +483,19 @@ def summarize(err: NavErrors, lat: float) -> dict:
         "final_position_error_m": float(hor[-1]),
         "max_velocity_error_mps": float(np.max(np.linalg.norm(err.velocity[:, 0:2], axis=-1))),
         "max_velocity_error_enu_mps": np.max(np.abs(err.velocity), axis=0),
-        "max_attitude_error_rad": np.max(np.abs(err.vehicle), axis=0),  # roll, pitch, yaw
-        "max_imu_attitude_error_rad": np.max(np.abs(err.attitude), axis=0),  # phi E, N, U
         "final_position_error_en_m": err.position[-1, 0:2],
+        "max_attitude_error_rad": None,
+        "max_imu_attitude_error_rad": None,
     }
+    series = [("position_east", err.position[:, 0]), ("position_north", err.position[:, 1]),
+              ("velocity_east", err.velocity[:, 0]), ("velocity_north", err.velocity[:, 1])]
+    if err.vehicle is not None:
+        out["max_attitude_error_rad"] = np.max(np.abs(err.vehicle), axis=0)  # roll, pitch, yaw
+        out["max_imu_attitude_error_rad"] = np.max(np.abs(err.attitude), axis=0)  # phi E, N, U
+        series += [("roll", err.vehicle[:, 0]), ("pitch", err.vehicle[:, 1]), ("yaw", err.vehicle[:, 2])]
     comps = {}
-    for name, series in (("position_east", err.position[:, 0]), ("position_north", err.position[:, 1]),
-                         ("velocity_east", err.velocity[:, 0]), ("velocity_north", err.velocity[:, 1]),
-                         ("roll", err.vehicle[:, 0]), ("pitch", err.vehicle[:, 1]), ("yaw", err.vehicle[:, 2])):
-        comps[name] = oscillation_components(err.time, series, lat)
+    for name, x in series:
+        comps[name] = oscillation_components(err.time, x, lat)
     out["components"] = comps
     return out
 
@@ -545,11 +558,61 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     if not parts:
         raise ValueError("no samples left to navigate after the alignment")
     out = NavOutput.concatenate(parts)
-    errors = summary = None
-    if scenario is not None:
-        errors = navigation_errors(out, scenario, gimbal_model)
-        summary = summarize(errors, site.latitude)
+    # static base: position and velocity are known even without a simulation truth
+    errors = navigation_errors(out, scenario, gimbal_model, site=site)
+    summary = summarize(errors, site.latitude)
     return NavResult(out, errors, summary, alignment, config, label)
+
+
+def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = False) -> None:
+    """Write a navigation result to HDF5 (SI datasets, atomic; see ``inscal navigate``)::
+
+        /time (N,) s; /quaternion (N,4) C_s^n scalar-first; /velocity (N,3) m/s ENU;
+        /position (N,3) lat rad, lon rad, h m; /vehicle_attitude (N,3) rad roll/pitch/yaw;
+        /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
+        attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
+    """
+    import json
+
+    import h5py
+
+    from . import SCHEMA_VERSION, __version__
+    from .io import atomic_path
+
+    def _js(o):
+        return json.dumps(o, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v))
+
+    out = res.output
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["kind"] = "inscal-navigation"
+            h5.attrs["schema_version"] = SCHEMA_VERSION
+            h5.attrs["inscal_version"] = __version__
+            h5.attrs["mode"] = res.config.mode
+            h5.attrs["vertical"] = res.config.vertical
+            h5.attrs["init"] = res.init
+            h5.attrs["meta"] = _js(meta or {})
+            h5.attrs["summary"] = _js(res.summary or {})
+            h5.attrs["units"] = json.dumps({"time": "s", "quaternion": "1", "velocity": "m/s", "position": "rad,rad,m",
+                                            "vehicle_attitude": "rad", "gimbal": "rad", "errors/position": "m",
+                                            "errors/velocity": "m/s", "errors/attitude": "rad", "errors/vehicle": "rad"})
+            h5["time"] = out.time
+            h5["quaternion"] = out.quaternion
+            h5["velocity"] = out.velocity
+            h5["position"] = out.position
+            gm = None
+            if meta and meta.get("gimbal_nonorthogonality_rad"):
+                gm = GimbalErrors(meta["gimbal_nonorthogonality_rad"])
+            h5["vehicle_attitude"] = out.vehicle_attitude(gm)
+            if out.gimbal is not None:
+                h5["gimbal"] = out.gimbal
+            if res.errors is not None:
+                g = h5.create_group("errors")
+                g["position"] = res.errors.position
+                g["velocity"] = res.errors.velocity
+                if res.errors.attitude is not None:
+                    g["attitude"] = res.errors.attitude
+                    g["vehicle"] = res.errors.vehicle
 
 
 # ============================================================================ error model / closed forms
