@@ -49,11 +49,11 @@ def test_segmentation_finds_every_window(n25_clean, ws_clean):
     assert len([w for w in st if w.duration > 90]) == 14
     assert len(st) == 21
     assert len(rt) == 6
-    for w in rt:  # the largest whole number of turns inside the constant-rate part (n25_twelve: 720 deg of
-        # constant rate, less the settling time, leaves one whole turn of 36 s)
+    for w in rt:  # the largest whole number of turns inside the constant-rate part (n25_twelve: 720 deg + 2 s
+        # of cruise at each end, less the settling time, leaves two whole turns of 72 s)
         turns = abs(w.theta1 - w.theta0)[0 if w.axis == "outer" else 1] / (2 * math.pi)
-        assert abs(turns - 1.0) < 1e-9
-        assert w.duration < 720 * DEG / (10 * DEG)
+        assert abs(turns - 2.0) < 1e-9
+        assert w.duration < (720 + 40) * DEG / (10 * DEG)
         assert abs(abs(w.rate) - 10 * DEG) < 1e-12
     # settling dropped: no window touches a move
     seg = sc.path.segments()

@@ -314,8 +314,9 @@ def n25_twelve(dwell_s: float = 100.0, rate_dps: float = 4.0, rate_test_dps: flo
 
     Rate tests: about z (inner axis, z up), about x (outer axis at theta_z = 0) and about y
     (outer axis at theta_z = 90 deg, so y lies along -outer).  Each turns
-    ``rate_test_turns`` full turns plus the acceleration angle, so the constant-rate part
-    covers at least ``rate_test_turns`` whole turns, first +, then -.
+    ``rate_test_turns`` full turns plus the acceleration angle plus 2 s of cruise at each
+    end, so the constant-rate part still covers ``rate_test_turns`` whole turns after the
+    settling time is dropped; first +, then -.
     """
     pos = N25_TWELVE_POSITIONS
     moves = []
@@ -333,7 +334,8 @@ def n25_twelve(dwell_s: float = 100.0, rate_dps: float = 4.0, rate_test_dps: flo
     moves.append(Move("inner", 180 * DEG, rate_dps * DEG, dwell_s, label="position 1 (return)"))
     if rate_tests:
         extra = rate_test_dps**2 / accel_dps2  # angle spent accelerating + decelerating
-        ang = rate_test_turns * 360.0 + extra
+        margin = 4.0 * rate_test_dps  # 2 s of cruise at each end, so settling can be dropped
+        ang = rate_test_turns * 360.0 + extra + margin
         rt = rate_test_dps * DEG
         short = 30.0
         # about z (z up): inner axis
