@@ -106,7 +106,7 @@ def test_accel_bias_mid_latitude_matches_linear_error_model():
 @pytest.mark.parametrize("axis", ["east", "north"])
 def test_level_gyro_bias_position_growth_24h(axis):
     """East / North gyro bias (IMU aligned E-N-U) over 24 h against the textbook
-    Schuler-averaged solution (T&W 12.3.4): within 2 % of the peak error, after a
+    Schuler-averaged solution (T&W ch. 12): within 2 % of the peak error, after a
     one-Schuler-period moving average of both; and the full series against the linear model."""
     eps = np.zeros(3)
     eps[0 if axis == "east" else 1] = 0.005 * DEGH
@@ -125,7 +125,7 @@ def test_level_gyro_bias_position_growth_24h(axis):
 
 
 def test_vertical_gyro_bias_heading_drift():
-    """Up gyro bias: heading error eps_U sin(Wt)/W (T&W 12.3.4), i.e. eps_U t at first."""
+    """Up gyro bias: heading error eps_U sin(Wt)/W (T&W ch. 12), i.e. eps_U t at first."""
     eps = np.array([0.0, 0.0, 0.005 * DEGH])
     scn = Scenario("gz", turntable.static(86400), Site(LAT), imu=ImuErrors(gyro_bias=eps), rate_hz=10)
     e = run(scn).errors
@@ -264,7 +264,7 @@ def test_alignment_error_free_is_exact_even_while_turning():
 
 def test_alignment_reaches_the_textbook_limits():
     """Static alignment with biases settles at tilt = -nabla^n/g (level) and heading error
-    (eps_E + W sinL phi_N)/(W cosL) (gyrocompassing limit, T&W 10.? / 12.3)."""
+    (eps_E + W sinL phi_N)/(W cosL) (gyrocompassing limit, T&W ch. 10)."""
     mount = np.radians([0.1, 0.1, 20.0])
     eps_s = np.array([0.01, 0.005, 0.0]) * DEGH
     nab_s = np.array([50.0, -30.0, 0.0]) * UG

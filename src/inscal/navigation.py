@@ -7,11 +7,11 @@ Error conventions (SI, ENU):
 * attitude error ``phi`` with ``C_est = exp([phi x]) C_true`` (the rotation vector of
   :func:`inscal.attitude.small_angle_error`), so a level error of the computed
   frame about North is ``phi_N``; with this sign an East accelerometer bias ``b``
-  settles at ``phi_N = -b/g`` (T&W 12.3, tilt = -bias/g);
+  settles at ``phi_N = -b/g`` (T&W ch. 12, tilt = -bias/g);
 * velocity error ``v_est - v_true``; position error in metres East/North/Up
   ``[(lambda_est - lambda) (R_N + h) cos L, (L_est - L)(R_M + h), h_est - h]``.
 
-Linear error model (phi-angle form, ENU, vertical channel held; T&W 12.2, S16 eq. 17
+Linear error model (phi-angle form, ENU, vertical channel held; T&W ch. 12, S16 eq. 17
 without the vertical terms), derived for ``C_est = (I + [phi x]) C``::
 
     phi'  = -w_ie x phi - dw_en(dv) - dw_ie(dL) + C_s^n eps          dw_ie = W [0, -sin L, cos L] dL
@@ -22,7 +22,7 @@ without the vertical terms), derived for ``C_est = (I + [phi x]) C``::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator
 
 import numpy as np
@@ -164,7 +164,7 @@ def _inertial_integrals(dth, dv, every, out_v):
         c1 = b1 + 0.5 * (a2 * b0 - a0 * b2)
         c2 = b2 + 0.5 * (a0 * b1 - a1 * b0)
         r0, r1, r2 = a0, a1, a2
-        if j > 0:  # coning and sculling (Savage 7.1.1.1-11, 7.2.2.2-22)
+        if j > 0:  # coning and sculling (Savage ch. 7)
             r0 += (p1 * a2 - p2 * a1) / 12.0
             r1 += (p2 * a0 - p0 * a2) / 12.0
             r2 += (p0 * a1 - p1 * a0) / 12.0
@@ -268,7 +268,7 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
           cfg: AlignConfig | None = None, params: ImuErrors | None = None, t0: float = 0.0) -> AlignResult:
     """Coarse + Kalman fine alignment on the first ``coarse_time + fine_time`` seconds of ``stream``.
 
-    Fine alignment (zero-velocity Kalman filter, T&W 12.? / S16 eq. 25-27 with a zero
+    Fine alignment (zero-velocity Kalman filter, T&W ch. 10; S16 eq. 25-27 with a zero
     reference velocity): the mechanization runs with the position clamped to the known
     site and the vertical channel held; every ``kf_interval`` the 11-state filter
     [attitude, horizontal velocity, gyro and accelerometer residual biases] is propagated
@@ -389,7 +389,7 @@ def navigation_errors(out: NavOutput, scenario=None, gimbal_model: GimbalErrors 
 
 # ----------------------------------------------------------------------- oscillations
 def schuler_frequency(lat: float, h: float = 0.0) -> float:
-    """w_s = sqrt(g / R) with R the geometric mean radius (T&W 12.3)."""
+    """w_s = sqrt(g / R) with R the geometric mean radius (T&W ch. 12)."""
     return 2.0 * math.pi / earth.schuler_period(lat, h)
 
 
@@ -663,7 +663,7 @@ def linear_error_model(C_s_n: np.ndarray, lat: float, t: np.ndarray, gyro_bias=(
 
 def gyro_bias_closed_form(eps_n, lat: float, t) -> dict:
     """Schuler-averaged (24-hour) closed-form errors for a constant gyro bias ``eps_n``
-    = [E, N, U] in the n-frame on a static base (T&W 12.3.4; Britting), with the level
+    = [E, N, U] in the n-frame on a static base (T&W ch. 12; Britting), with the level
     tilts in equilibrium and terms of order (W/w_s)^2 dropped::
 
         p      = eps_U cos L - eps_N sin L
@@ -686,7 +686,7 @@ def gyro_bias_closed_form(eps_n, lat: float, t) -> dict:
 
 
 def accel_bias_closed_form(b_east: float, lat: float, t) -> dict:
-    """Single-channel Schuler solution for an East accelerometer bias (T&W 12.3.2): exact for
+    """Single-channel Schuler solution for an East accelerometer bias (T&W ch. 12): exact for
     the phi-angle model at the equator (no Foucault or Earth-rate coupling of the channel)::
 
         phi_N = -(b/g)(1 - cos w_s t),  dv_E = (b/w_s) sin w_s t,  dx_E = (b/w_s^2)(1 - cos w_s t)

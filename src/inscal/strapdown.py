@@ -12,11 +12,11 @@ Algorithm (Savage, *Strapdown Analytics* ch. 7; Titterton & Weston (T&W) ch. 11)
 
 * Attitude: ``q(k) = q(-zeta_k) * q(k-1) * q(phi_k)`` with the two-sample
   (current + previous) coning correction ``phi_k = dth_k + dth_{k-1} x dth_k / 12``
-  (Savage eq. 7.1.1.1-11 / T&W 11.2.1) and the navigation-frame rotation
+  (Savage ch. 7 / T&W ch. 11) and the navigation-frame rotation
   ``zeta_k = (w_ie^n + w_en^n) dt`` (exact rotation vectors, Rodrigues quaternions).
 * Velocity: ``v(k) = v(k-1) + (I - [zeta x]/2) C_s^n(k-1) dv_sf + (g^n - (2 w_ie + w_en) x v) dt``
   with ``dv_sf = dv_k + dth_k x dv_k / 2`` (rotation correction) ``+ (dth_{k-1} x dv_k +
-  dv_{k-1} x dth_k) / 12`` (two-sample sculling) (Savage eq. 7.2.2.2-22 / T&W 11.2.3).
+  dv_{k-1} x dth_k) / 12`` (two-sample sculling) (Savage ch. 7 / T&W ch. 11).
 * Position: trapezoidal integration of ``dL/dt = v_N/(R_M+h)``, ``dlambda/dt = v_E/((R_N+h) cos L)``.
 * The attitude update uses the transport rate of the *new* velocity (symplectic
   ordering): the discrete Schuler loop then neither grows nor decays (an explicit
@@ -25,13 +25,15 @@ Algorithm (Savage, *Strapdown Analytics* ch. 7; Titterton & Weston (T&W) ch. 11)
 Vertical channel (stated, not free: a free inertial vertical channel diverges with
 the time constant ``sqrt(R/2g)`` ~ 9.5 min): ``"hold"`` (default) keeps ``v_U = 0`` and
 ``h = h_ref``; ``"damped"`` is a third-order loop on ``h - h_ref`` with three poles at
-``-1/tau`` (T&W 10.? / Savage 7.3: gains k1 = 3/tau, k2 = 3/tau^2 + 2 w_s^2, k3 = 1/tau^3).
+``-1/tau`` (the standard third-order vertical-channel loop, with the reference height in place of
+a barometer: gains k1 = 3/tau, k2 = 3/tau^2 + 2 w_s^2 (cancelling the 2 g/R gravity-gradient
+instability), k3 = 1/tau^3).
 
 Horizontal damping (mode ``"damped"``, the S16 sailing test): an external velocity
 reference ``v_ref`` (zero on a static base) feeds the velocity difference back into
 the velocity (gain k1) and into the level-axis rotation rate (gain k2, as an extra
 transport rate), giving the damped Schuler loop ``s^2 + k1 s + (1 + k2) w_s^2``
-(T&W 10.? "damped Schuler loop"); k1 = 2 xi w_n, k2 = (w_n/w_s)^2 - 1.
+(the classical velocity-damped Schuler loop); k1 = 2 xi w_n, k2 = (w_n/w_s)^2 - 1.
 
 Compensation on the fly (S16 eq. 3, 6, 7-8; the same model as
 :meth:`inscal.errors.ImuErrors.compensate`): each sample's increments are compensated
@@ -242,7 +244,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
         else:
             a0, a1, a2 = dth[j, 0], dth[j, 1], dth[j, 2]
             b0, b1, b2 = dv[j, 0], dv[j, 1], dv[j, 2]
-        # ---- coning (Savage 7.1.1.1-11) and sculling + rotation (Savage 7.2.2.2-22)
+        # ---- two-sample coning, sculling and rotation corrections (Savage ch. 7)
         r0, r1, r2 = a0, a1, a2
         c0 = b0 + 0.5 * (a1 * b2 - a2 * b1)
         c1 = b1 + 0.5 * (a2 * b0 - a0 * b2)
@@ -254,7 +256,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
             c0 += ((p1 * b2 - p2 * b1) + (u1 * a2 - u2 * a1)) / 12.0
             c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) / 12.0
             c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) / 12.0
-        # ---- Earth quantities at the start of the interval (WGS-84, T&W 3.x)
+        # ---- Earth quantities at the start of the interval (WGS-84, T&W ch. 3)
         sl = math.sin(lat)
         cl = math.cos(lat)
         w = math.sqrt(1.0 - earth.E2 * sl * sl)
@@ -271,7 +273,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
         z0 = we0 * dt
         z1 = (wie_n + we1) * dt
         z2 = (wie_u + we2) * dt
-        # ---- velocity (T&W 11.2.3): (I - [zeta x]/2) C dv_sf + (g - (2 w_ie + w_en) x v) dt
+        # ---- velocity (T&W ch. 11): (I - [zeta x]/2) C dv_sf + (g - (2 w_ie + w_en) x v) dt
         s0, s1, s2 = _qrot(q0, q1, q2, q3, c0, c1, c2)
         s0 -= 0.5 * (z1 * s2 - z2 * s1)
         s1 -= 0.5 * (z2 * s0 - z0 * s2)
@@ -552,12 +554,6 @@ class Strapdown:
         q = quat_mul(quat_from_rotvec(-np.asarray(phi, dtype=float)), self.st[S_Q:S_Q + 4].copy())
         self.st[S_Q:S_Q + 4] = q / np.linalg.norm(q)
         self.st[S_V:S_V + 3] -= dv
-
-    def initial_output(self, gimbal0=None) -> NavOutput:
-        st = self.st
-        g = None if gimbal0 is None else np.asarray(gimbal0, dtype=float).reshape(1, 2)
-        return NavOutput(np.array([self.k - 1]), np.array([self.time]), st[S_Q:S_Q + 4][None].copy(),
-                         st[S_V:S_V + 3][None].copy(), np.array([[st[S_LAT], st[S_LON], st[S_H]]]), g)
 
     # -- integration
     def run(self, dtheta, dvel, gimbal=None, vref=None) -> NavOutput:
