@@ -37,3 +37,112 @@ def allan_plot(path, taus, gyro_adev_deg_h, accel_adev_ug, overwrite: bool = Fal
         a.legend()
     save_figure(fig, path, overwrite)
     plt.close(fig)
+
+
+def _png_base64(fig) -> str:
+    import base64
+    import io as _io
+
+    buf = _io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _fmt(v) -> str:
+    a = np.atleast_1d(np.asarray(v, dtype=float)).ravel()
+    return ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a)
+
+
+def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] | None = None,
+                  overwrite: bool = False, max_points: int = 20000) -> dict:
+    """Write a self-contained HTML report of a record (plots embedded) and return its summary.
+
+    ``param_sets``: ``[(label, ImuErrors, GimbalErrors, metadata)]`` from parameter files; each
+    is tabulated in field units with its 1 sigma and, for simulated records, its error.
+    """
+    import html
+
+    from . import units
+    from .analysis.allan import allan
+    from .errors import PARAMETERS, errors_to_field
+    from .io import atomic_path
+
+    plt = _figure()
+    figs = []
+    step = max(1, rec.n_samples // max_points)
+    t = rec.time[::step]
+    dt = 1.0 / rec.rate_hz
+    if rec.gimbal is not None:
+        fig, ax = plt.subplots(figsize=(10, 3))
+        ax.plot(t, np.degrees(rec.gimbal[::step, 0]), label="outer")
+        ax.plot(t, np.degrees(rec.gimbal[::step, 1]), label="inner")
+        ax.set(xlabel="time [s]", ylabel="gimbal angle [deg]", title="Gimbal angles")
+        ax.legend()
+        ax.grid(alpha=0.3)
+        figs.append(("Gimbal motion", _png_base64(fig)))
+        plt.close(fig)
+    fig, ax = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
+    for k, lab in enumerate("xyz"):
+        ax[0].plot(t, units.from_si(rec.dtheta[::step, k] / dt, "deg/s"), label=f"gyro {lab}", lw=0.6)
+        ax[1].plot(t, rec.dvel[::step, k] / dt / units.G0, label=f"accel {lab}", lw=0.6)
+    ax[0].set(ylabel="rate [deg/s]", title="Sensor outputs")
+    ax[1].set(xlabel="time [s]", ylabel="specific force [g]")
+    for a in ax:
+        a.legend(loc="upper right", fontsize=8)
+        a.grid(alpha=0.3)
+    figs.append(("Sensor outputs", _png_base64(fig)))
+    plt.close(fig)
+    summary: dict = {"samples": rec.n_samples, "duration_s": rec.duration, "rate_hz": rec.rate_hz,
+                     "scenario": rec.scenario, "simulated": rec.truth is not None}
+    # Allan deviation of the first dwell (static window at the start), if long enough
+    still = np.all(np.abs(np.diff(rec.gimbal, axis=0)) < 1e-9, axis=1) if rec.gimbal is not None else np.ones(rec.n_samples - 1, bool)
+    first = int(np.argmin(still)) if not still.all() else still.size
+    if first >= 2000:
+        g, a = allan(rec.dtheta[:first], rec.rate_hz), allan(rec.dvel[:first], rec.rate_hz)
+        fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+        for k, lab in enumerate("xyz"):
+            ax[0].loglog(g.taus, units.from_si(g.adev[:, k], "deg/h"), label=lab)
+            ax[1].loglog(a.taus, units.from_si(a.adev[:, k], "ug"), label=lab)
+        ax[0].set(xlabel="tau [s]", ylabel="ADEV [deg/h]", title=f"Gyro Allan deviation (first {first * dt:.0f} s)")
+        ax[1].set(xlabel="tau [s]", ylabel="ADEV [ug]", title="Accelerometer Allan deviation")
+        for x in ax:
+            x.grid(True, which="both", alpha=0.3)
+            x.legend()
+        figs.append(("Noise of the first dwell", _png_base64(fig)))
+        plt.close(fig)
+        summary["arw_deg_rth"] = units.from_si(g.white, "deg/sqrt(h)").tolist()
+        summary["vrw_ug_rthz"] = units.from_si(a.white, "ug/sqrt(Hz)").tolist()
+    tables = []
+    truth = errors_to_field(rec.truth.imu, rec.truth.gimbal) if rec.truth is not None else None
+    for label, imu, gim, meta in param_sets or []:
+        est = errors_to_field(imu, gim)
+        sig = meta.get("sigma", {})
+        names = meta.get("estimated") or list(est)
+        rows = []
+        for name in names:
+            unit = PARAMETERS[name][3]
+            row = [name, unit, _fmt(est[name]["value"])]
+            s = sig.get(name)
+            row.append(_fmt(units.from_si(np.asarray(s, dtype=float), unit)) if s is not None else "")
+            if truth is not None:
+                row.append(_fmt(np.asarray(est[name]["value"]) - np.asarray(truth[name]["value"])))
+            rows.append(row)
+        tables.append((label, meta.get("method", ""), rows))
+    head = ["parameter", "unit", "value", "1σ"] + (["error (estimate − truth)"] if truth is not None else [])
+    parts = [f"<h1>inscal report: {html.escape(rec.source or rec.scenario)}</h1>",
+             "<p>" + ", ".join(f"{k}: {html.escape(str(v))}" for k, v in summary.items() if not isinstance(v, list)) + "</p>"]
+    for title, b64 in figs:
+        parts.append(f"<h2>{title}</h2><img src='data:image/png;base64,{b64}'/>")
+    for label, method, rows in tables:
+        parts.append(f"<h2>Parameters: {html.escape(label)} ({html.escape(method)})</h2><table><tr>"
+                     + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
+                     + "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows) + "</table>")
+    doc = ("<!doctype html><html><head><meta charset='utf-8'><title>inscal report</title><style>"
+           "body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
+           "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}</style></head><body>"
+           + "".join(parts) + "</body></html>")
+    with atomic_path(path, overwrite) as tmp:
+        tmp.write_text(doc, encoding="utf-8")
+    summary["figures"] = [f[0] for f in figs]
+    summary["parameter_tables"] = [t[0] for t in tables]
+    return summary

@@ -1,0 +1,45 @@
+"""``inscal report``: an HTML report of a record, with parameter files compared."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from .cliutil import CliError, check_output, fail, print_json
+
+
+def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -> dict:
+    from . import io
+    from .paramfile import ParamFileError, load_params
+    from .report import record_report
+
+    check_output(out, force)
+    try:
+        rec = io.read_record(data)
+        sets = [(str(p), *load_params(p)) for p in params]
+    except (io.DataFileError, ParamFileError) as exc:
+        raise CliError(str(exc)) from None
+    res = record_report(out, rec, sets, overwrite=force)
+    res["out"] = str(out)
+    return res
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def report(
+        data: Path = typer.Argument(..., help="HDF5 record"),
+        params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable)"),
+        out: Path = typer.Option(..., "--out", "-o", help="HTML report to write"),
+        force: bool = typer.Option(False, "--force", help="overwrite an existing report"),
+        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+    ):
+        """Write an HTML report: gimbal motion, sensor outputs, Allan deviation, parameters vs truth."""
+        try:
+            res = run_report(data, params, out, force)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(res)
+        else:
+            typer.echo(f"report written to {res['out']}")
