@@ -44,7 +44,8 @@ def summary(sc, out: Path, seed: int | None, n: int) -> dict:
 
 
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
-                 rate_hz: float | None = None, force: bool = False, show_progress: bool = True) -> dict:
+                 rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
+                 no_noise: bool = False) -> dict:
     from . import io, scenarios
 
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
@@ -55,6 +56,12 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
         sc = scenarios.build(scenario, duration_s=None if duration_h is None else duration_h * 3600.0, rate_hz=rate_hz)
     except ValueError as exc:  # ScenarioError, PathError, unit errors
         raise CliError(str(exc)) from None
+    if no_noise:
+        from dataclasses import replace
+
+        from .errors import ImuNoise
+
+        sc = replace(sc, noise=ImuNoise())
     check_output(out, force)
     rng = np.random.default_rng(seed)
     with progress_bar(f"simulating {sc.name}", sc.n_samples, show_progress) as upd:
@@ -74,11 +81,12 @@ def register(app: typer.Typer) -> None:
         duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static and rotation-modulation scenarios)"),
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
+        no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Simulate an IMU on a dual-axis turntable and write an HDF5 record."""
         try:
-            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_)
+            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

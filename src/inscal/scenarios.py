@@ -21,6 +21,9 @@ Built-in (``inscal simulate NAME``):
 ``rotmod16``, ``rotmod16-6h``
     16-sequence rotation modulation (300 s per position, 10 deg/s) at the N25 site and
     mount attitude, error-free (``rotmod16-6h``: 6 h).
+``n25-rotmod``
+    The ``n25`` IMU errors, gimbal non-orthogonality, mount attitude and noise under
+    16-sequence rotation modulation (6 h by default): the N25 section 6 navigation check.
 
 Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 
@@ -115,6 +118,12 @@ def _rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
     return Scenario("rotmod16", rotmod16(duration_s), N25_SITE, gimbal=gim, rate_hz=100.0)
 
 
+def _n25_rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
+    """The N25 IMU, gimbal and noise under 16-sequence rotation modulation (N25 section 6 navigation check)."""
+    base = _n25()
+    return replace(base, name="n25-rotmod", path=rotmod16(duration_s))
+
+
 BUILTIN = {
     "s16": lambda d: _s16(),
     "n25": lambda d: _n25(),
@@ -122,8 +131,9 @@ BUILTIN = {
     "static-24h": lambda d: _static(d or 86400.0),
     "rotmod16": lambda d: _rotmod(d or 6 * 3600.0),
     "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
+    "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
 }
-DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h"}
+DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod"}
 
 
 class ScenarioError(ValueError):

@@ -55,6 +55,7 @@ FACTOR: dict[str, float] = {
     "m": 1.0,
     "cm": 1e-2,
     "mm": 1e-3,
+    "nmi": 1852.0,  # international nautical mile
     # time
     "s": 1.0,
     "h": HOUR,
@@ -103,7 +104,7 @@ KIND: dict[str, str] = {
     "m/s/sqrt(s)": "vrw", "ug/sqrt(Hz)": "vrw",
     "1/(m/s^2)": "nonlinearity", "ug/g^2": "nonlinearity",
     "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
-    "m": "length", "cm": "length", "mm": "length",
+    "m": "length", "cm": "length", "mm": "length", "nmi": "length",
     "s": "time", "h": "time", "min": "time",
     "m/s": "velocity", "mm/s": "velocity",
 }
