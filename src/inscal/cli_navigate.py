@@ -10,14 +10,8 @@ import typer
 from . import units
 from .cliutil import CliError, check_output, fail, print_json
 
-#: international nautical mile [m] (exact); report-boundary unit
-NMI = 1852.0
-
-
 def _nmi(x_m: float) -> float:
-    if "nmi" in units.FACTOR:
-        return float(units.from_si(x_m, "nmi"))
-    return x_m / NMI
+    return float(units.from_si(x_m, "nmi"))
 
 
 def _as(x):
