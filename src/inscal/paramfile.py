@@ -23,8 +23,6 @@ renamed, so an existing file is never half-overwritten, and never overwritten un
 from __future__ import annotations
 
 import datetime as _dt
-import os
-import tempfile
 import tomllib
 from pathlib import Path as FsPath
 
@@ -43,19 +41,10 @@ class ParamFileError(ValueError):
 
 
 def _atomic_write_text(path: FsPath, text: str, overwrite: bool) -> None:
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
-    if not path.parent.exists():
-        raise FileNotFoundError(f"folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from .io import atomic_path
+
+    with atomic_path(path, overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def params_document(result, data_file: str | None = None, data_hash: str | None = None,
