@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from . import earth
 from .attitude import dcm_from_euler, euler_from_dcm, quat_to_dcm, small_angle_error
 from .errors import GimbalErrors, ImuErrors
-from .strapdown import S_Q, S_V, NavConfig, NavOutput, NavState, Strapdown, _qmul, _qrot, _qrv
+from .strapdown import S_Q, S_V, NavConfig, NavOutput, NavState, Strapdown, _qmul, _qrot, _qrv, _two_sample
 
 DAY = 86400.0
 
@@ -160,17 +160,7 @@ def _inertial_integrals(dth, dv, every, out_v):
     for j in range(dth.shape[0]):
         a0, a1, a2 = dth[j, 0], dth[j, 1], dth[j, 2]
         b0, b1, b2 = dv[j, 0], dv[j, 1], dv[j, 2]
-        c0 = b0 + 0.5 * (a1 * b2 - a2 * b1)
-        c1 = b1 + 0.5 * (a2 * b0 - a0 * b2)
-        c2 = b2 + 0.5 * (a0 * b1 - a1 * b0)
-        r0, r1, r2 = a0, a1, a2
-        if j > 0:  # coning and sculling (Savage ch. 7)
-            r0 += (p1 * a2 - p2 * a1) / 12.0
-            r1 += (p2 * a0 - p0 * a2) / 12.0
-            r2 += (p0 * a1 - p1 * a0) / 12.0
-            c0 += ((p1 * b2 - p2 * b1) + (u1 * a2 - u2 * a1)) / 12.0
-            c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) / 12.0
-            c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) / 12.0
+        r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, j > 0)
         x, y, z = _qrot(q0, q1, q2, q3, c0, c1, c2)  # C_s^{s0}(k-1) dv_sf
         vx += x
         vy += y

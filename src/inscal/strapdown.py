@@ -122,6 +122,25 @@ def _qrv(x, y, z):
 
 
 @njit(cache=True, inline="always")
+def _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, with_prev):
+    """Rotation vector and velocity increment of one sample with the rotation (0.5 dth x dv)
+    and, from the previous increments (p, u), the two-sample coning and sculling corrections
+    (Savage ch. 7): r = a + p x a / 12, c = b + a x b / 2 + (p x b + u x a) / 12."""
+    r0, r1, r2 = a0, a1, a2
+    c0 = b0 + 0.5 * (a1 * b2 - a2 * b1)
+    c1 = b1 + 0.5 * (a2 * b0 - a0 * b2)
+    c2 = b2 + 0.5 * (a0 * b1 - a1 * b0)
+    if with_prev:
+        r0 += (p1 * a2 - p2 * a1) / 12.0
+        r1 += (p2 * a0 - p0 * a2) / 12.0
+        r2 += (p0 * a1 - p1 * a0) / 12.0
+        c0 += ((p1 * b2 - p2 * b1) + (u1 * a2 - u2 * a1)) / 12.0
+        c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) / 12.0
+        c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) / 12.0
+    return r0, r1, r2, c0, c1, c2
+
+
+@njit(cache=True, inline="always")
 def _qrot(q0, q1, q2, q3, x, y, z):
     """Rotate (x, y, z) by the quaternion: C(q) v."""
     # t = 2 q_v x v ; v' = v + q0 t + q_v x t
@@ -245,17 +264,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
             a0, a1, a2 = dth[j, 0], dth[j, 1], dth[j, 2]
             b0, b1, b2 = dv[j, 0], dv[j, 1], dv[j, 2]
         # ---- two-sample coning, sculling and rotation corrections (Savage ch. 7)
-        r0, r1, r2 = a0, a1, a2
-        c0 = b0 + 0.5 * (a1 * b2 - a2 * b1)
-        c1 = b1 + 0.5 * (a2 * b0 - a0 * b2)
-        c2 = b2 + 0.5 * (a0 * b1 - a1 * b0)
-        if coning and have_prev:
-            r0 += (p1 * a2 - p2 * a1) / 12.0
-            r1 += (p2 * a0 - p0 * a2) / 12.0
-            r2 += (p0 * a1 - p1 * a0) / 12.0
-            c0 += ((p1 * b2 - p2 * b1) + (u1 * a2 - u2 * a1)) / 12.0
-            c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) / 12.0
-            c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) / 12.0
+        r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, coning and have_prev)
         # ---- Earth quantities at the start of the interval (WGS-84, T&W ch. 3)
         sl = math.sin(lat)
         cl = math.cos(lat)
