@@ -339,3 +339,10 @@ def test_local_cluster_runs_the_real_experiment_identically(tmp_path):
     dask_ = mc.run_study(exp, tmp_path / "d", runs=2, seed=4, workers=2, batch_size=1)
     assert dask_.complete() and not any("error" in r for r in dask_.records.values())
     assert results_of(dask_) == results_of(sync)
+
+
+def test_progress_lines_when_stderr_is_not_a_terminal(tmp_path, capsys):
+    mc.run_study(dummy(), tmp_path, runs=10, scheduler="synchronous", progress=True)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("dummy: 30/30 runs (100 %)")
+    assert 5 <= len(err) <= 11

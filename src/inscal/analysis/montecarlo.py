@@ -481,7 +481,12 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None
         futures = [client.submit(run_batch, exp_future, b, pure=False) for b in make_batches(pending, bs)]
         try:
             for fut in as_completed(futures):
-                sink(fut.result())
+                try:
+                    recs = fut.result()
+                except Exception as exc:  # the task itself died (worker lost, unpicklable...): runs raise inside
+                    raise StudyError(f"a Dask task failed ({type(exc).__name__}: {exc}); the finished runs are "
+                                     "saved, rerun the same command to resume") from exc
+                sink(recs)
         except BaseException:
             client.cancel(futures)
             raise
@@ -492,25 +497,48 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None
 
 
 class _Progress:
-    """A Rich progress bar on stderr (nothing when disabled)."""
+    """Progress on stderr: a Rich bar on a terminal; otherwise (a log file, CI) a plain
+    line at every 10 % and at most every 30 s.  Nothing when disabled."""
 
     def __init__(self, total: int, name: str, enabled: bool):
         self.p = None
+        self.plain = False
         self.failed = 0
+        self.done = 0
+        self.total = total
+        self.name = name
+        self.t0 = self.t_last = time.perf_counter()
+        self.next_pct = 10
         if not enabled:
             return
         from rich.console import Console
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+        con = Console(stderr=True)
+        if not con.is_terminal:
+            self.plain = True
+            return
         self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]}"),
-                          TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False)
+                          TimeElapsedColumn(), TimeRemainingColumn(), console=con, transient=False)
         self.p.start()
         self.task = self.p.add_task(name, total=total, failed="")
 
     def advance(self, n: int, failed: int) -> None:
         self.failed += failed
+        self.done += n
         if self.p is not None:
             self.p.update(self.task, advance=n, failed=f"{self.failed} failed" if self.failed else "")
+        elif self.plain:
+            now = time.perf_counter()
+            pct = 100 * self.done / max(1, self.total)
+            if pct >= self.next_pct or now - self.t_last >= 30 or self.done == self.total:
+                el = now - self.t0
+                eta = el / self.done * (self.total - self.done)
+                print(f"{self.name}: {self.done}/{self.total} runs ({pct:.0f} %), {el:.0f} s elapsed, about {eta:.0f} s left"
+                      + (f", {self.failed} failed" if self.failed else ""), file=sys.stderr, flush=True)
+                self.t_last = now
+                while self.next_pct <= pct:
+                    self.next_pct += 10
 
     def close(self) -> None:
         if self.p is not None:
