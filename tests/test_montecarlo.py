@@ -346,3 +346,19 @@ def test_progress_lines_when_stderr_is_not_a_terminal(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("dummy: 30/30 runs (100 %)")
     assert 5 <= len(err) <= 11
+
+
+@pytest.mark.filterwarnings("ignore:Port .* is already in use")
+def test_existing_cluster_by_address(tmp_path, monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    exp = dummy(mus=(2.0,))
+    ref = mc.run_study(exp, tmp_path / "s", runs=5, seed=8, scheduler="synchronous")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        res = mc.run_study(exp, tmp_path / "d", runs=5, seed=8, scheduler=cluster.scheduler_address)
+    assert results_of(res) == results_of(ref)
+    monkeypatch.setattr(mc, "CONNECT_TIMEOUT", "1s")
+    with pytest.raises(mc.StudyError, match="cannot reach"):
+        mc.run_study(exp, tmp_path / "e", runs=1, scheduler="tcp://127.0.0.1:9")

@@ -58,6 +58,8 @@ SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
 #: a study stops when its first this-many new runs all fail (a broken setup, not bad luck)
 FAIL_FAST_RUNS = 20
+#: how long to try to reach a Dask scheduler given by address
+CONNECT_TIMEOUT = "15s"
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
 SUMMARY_PNG = "summary.png"
@@ -471,7 +473,7 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None
         client = Client(cluster)
     else:
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
             raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
     try:
