@@ -362,3 +362,29 @@ def test_existing_cluster_by_address(tmp_path, monkeypatch):
     monkeypatch.setattr(mc, "CONNECT_TIMEOUT", "1s")
     with pytest.raises(mc.StudyError, match="cannot reach"):
         mc.run_study(exp, tmp_path / "e", runs=1, scheduler="tcp://127.0.0.1:9")
+
+
+def test_worker_kernels_are_cached_on_disk():
+    """Dask workers load compiled numba code instead of compiling: every kernel the
+    experiments reach is ``cache=True``."""
+    import importlib
+    import pkgutil
+
+    from numba.core.caching import NullCache
+    from numba.core.registry import CPUDispatcher
+
+    import inscal
+
+    names = ["inscal.simulate", "inscal.earth", "inscal.attitude", "inscal.turntable"]
+    if importlib.util.find_spec("inscal.calibrate") is not None:
+        import inscal.calibrate as cal
+
+        names += [f"inscal.calibrate.{m.name}" for m in pkgutil.iter_modules(cal.__path__)]
+    found = 0
+    for name in names:
+        mod = importlib.import_module(name)
+        for obj in vars(mod).values():
+            if isinstance(obj, CPUDispatcher) and obj.__module__ == name:
+                found += 1
+                assert not isinstance(obj._cache, NullCache), f"{name}.{obj.__name__} is not cache=True"
+    assert found >= 3 and inscal.__version__
