@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
-import numpy as np
 import typer
+
+from .jsonutil import to_jsonable
 
 
 class CliError(Exception):
@@ -28,23 +28,6 @@ def check_output(path: Path, force: bool) -> None:
         raise CliError(f"folder {path.parent} does not exist")
 
 
-def _clean(o):
-    if isinstance(o, dict):
-        return {str(k): _clean(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_clean(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _clean(o.tolist())
-    if isinstance(o, (np.floating, float)):
-        f = float(o)
-        return f if math.isfinite(f) else None
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
-    return o
-
-
 def print_json(obj) -> None:
     """Print ``obj`` as JSON on stdout (NumPy types converted, NaN/inf -> null)."""
-    typer.echo(json.dumps(_clean(obj), indent=2))
+    typer.echo(json.dumps(to_jsonable(obj), indent=2))

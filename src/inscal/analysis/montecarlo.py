@@ -54,6 +54,8 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from ..jsonutil import to_jsonable
+
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
 #: a study stops when its first this-many new runs all fail (a broken setup, not bad luck)
@@ -157,24 +159,6 @@ def seed_children(seed: int, total: int) -> list[np.random.SeedSequence]:
 
 
 # ------------------------------------------------------------------------------ JSON I/O
-def to_jsonable(o):
-    """NumPy scalars/arrays to Python; non-finite floats to None."""
-    if isinstance(o, dict):
-        return {str(k): to_jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [to_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return to_jsonable(o.tolist())
-    if isinstance(o, (float, np.floating)):
-        f = float(o)
-        return f if math.isfinite(f) else None
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
-    return o
-
-
 def _canonical(o) -> str:
     return json.dumps(to_jsonable(o), sort_keys=True)
 
