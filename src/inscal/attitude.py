@@ -120,19 +120,27 @@ def quat_mul(p, q):
     )
 
 
-@njit(cache=True)
-def quat_from_rotvec(v):
-    """Exact quaternion of rotation vector ``v`` (series near zero)."""
-    a2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+@njit(cache=True, inline="always")
+def quat_from_rotvec_xyz(x, y, z):
+    """Exact quaternion ``(w, x, y, z)`` of the rotation vector (x, y, z), as scalars (for the
+    allocation-free kernels).  Series near zero: cos(a/2) and sin(a/2)/a to O(a^6), exact to
+    round-off for a < 1e-4."""
+    a2 = x * x + y * y + z * z
     if a2 < 1e-8:
-        # cos(a/2) and sin(a/2)/a to O(a^6): exact to round-off for a < 1e-4
         c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
         s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
     else:
         a = math.sqrt(a2)
         c = math.cos(0.5 * a)
         s = math.sin(0.5 * a) / a
-    return np.array([c, s * v[0], s * v[1], s * v[2]])
+    return c, s * x, s * y, s * z
+
+
+@njit(cache=True)
+def quat_from_rotvec(v):
+    """Exact quaternion of rotation vector ``v`` (series near zero)."""
+    c, x, y, z = quat_from_rotvec_xyz(v[0], v[1], v[2])
+    return np.array([c, x, y, z])
 
 
 @njit(cache=True)

@@ -56,7 +56,7 @@ import numpy as np
 from numba import njit
 
 from . import earth
-from .attitude import dcm_from_quat, euler_from_dcm, quat_from_dcm
+from .attitude import dcm_from_quat, euler_from_dcm, quat_from_dcm, quat_from_rotvec_xyz as _qrv
 from .errors import GimbalErrors, ImuErrors
 
 # layout of the kernel's state vector ``st`` (float64)
@@ -107,18 +107,6 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
     )
 
 
-@njit(cache=True, inline="always")
-def _qrv(x, y, z):
-    """Quaternion of the rotation vector (x, y, z) (exact; series below 1e-4 rad)."""
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-8:
-        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-    else:
-        a = math.sqrt(a2)
-        c = math.cos(0.5 * a)
-        s = math.sin(0.5 * a) / a
-    return c, s * x, s * y, s * z
 
 
 @njit(cache=True, inline="always")
