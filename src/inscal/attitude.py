@@ -153,9 +153,3 @@ def quat_to_dcm(q):
             [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
         ]
     )
-
-
-@njit(cache=True)
-def quat_normalize(q):
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return q / n

@@ -10,6 +10,7 @@ method are kept in its attributes.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import typer
@@ -39,7 +40,8 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False) -> 
     attrs = {"compensated_with": json.dumps({"file": str(params), "hash": io.file_hash(params),
                                              "method": meta.get("method", ""), "source": str(data)})}
     try:
-        n = io.write_stream(out, info, chunks(), overwrite=force, extra_attrs=attrs)
+        # the compensated record has no truth: its residual errors are not the simulated ones
+        n = io.write_stream(out, replace(info, truth=None), chunks(), overwrite=force, extra_attrs=attrs)
     except (io.DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     return {"data": str(data), "params": str(params), "method": meta.get("method", ""), "out": str(out), "samples": n}

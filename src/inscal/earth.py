@@ -45,11 +45,6 @@ def radii(lat: float) -> tuple[float, float]:
     return A * (1.0 - E2) / (w * w * w), A / w
 
 
-def gravity_n(lat: float, h: float = 0.0) -> np.ndarray:
-    """Gravity vector in ENU [m/s^2] (points down)."""
-    return np.array([0.0, 0.0, -normal_gravity(lat, h)])
-
-
 def earth_rate_n(lat: float) -> np.ndarray:
     """Earth rotation rate in ENU, w_ie^n [rad/s]."""
     return np.array([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)])

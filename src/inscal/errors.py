@@ -362,13 +362,6 @@ def noise_from_field(d: dict) -> ImuNoise:
     return ImuNoise(**kw)
 
 
-def noise_to_field(noise: ImuNoise) -> dict:
-    return {
-        name: {"value": np.atleast_1d(units.from_si(np.asarray(getattr(noise, attr), dtype=float), unit)).tolist(), "unit": unit}
-        for name, (attr, kind, unit) in NOISE_FIELDS.items()
-    }
-
-
 # ----------------------------------------------------------------------------------
 # S16 parameterisation (m-frame defined by the gyro input axes)
 @dataclass(frozen=True)

@@ -142,25 +142,17 @@ def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, 
     n = scenario.n_samples
     if n < 1:
         raise ValueError("scenario is shorter than one sample")
-    with atomic_path(path, overwrite) as tmp:
-        with h5py.File(tmp, "w") as h5:
-            _create_layout(h5, scenario.name, scenario.rate_hz, scenario.site, scenario.path, n)
-            for c in simulate_chunks(scenario, rng, chunk_size=chunk_size, progress=progress):
-                sl = slice(c.k0, c.k0 + c.time.shape[0])
-                h5["time"][sl] = c.time
-                h5["dtheta"][sl] = c.dtheta
-                h5["dvel"][sl] = c.dvel
-                h5["gimbal"][sl] = c.gimbal
-            t = h5.create_group("truth")
-            _write_dataclass(t.create_group("imu"), scenario.imu)
-            _write_dataclass(t.create_group("gimbal"), scenario.gimbal)
-            _write_dataclass(t.create_group("noise"), scenario.noise)
-    return n
+    info = RecordInfo(n, scenario.rate_hz, scenario.site, scenario.path,
+                      Truth(scenario.imu, scenario.gimbal, scenario.noise), scenario.name, True)
+    chunks = ((c.time, c.dtheta, c.dvel, c.gimbal)
+              for c in simulate_chunks(scenario, rng, chunk_size=chunk_size, progress=progress))
+    return write_stream(path, info, chunks, overwrite)
 
 
 def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None) -> int:
     """Write a record chunk by chunk from an iterator of ``(time, dtheta, dvel, gimbal)``
-    (atomic; only one chunk in memory).  ``info`` gives the metadata (no truth is written)."""
+    (atomic; only one chunk in memory).  ``info`` gives the metadata; its truth, if any, is
+    written under /truth."""
     k = 0
     with atomic_path(path, overwrite) as tmp:
         with h5py.File(tmp, "w") as h5:
@@ -177,25 +169,19 @@ def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extr
                 k = sl.stop
             if k != info.n_samples:
                 raise DataFileError(f"wrote {k} samples, expected {info.n_samples}")
+            if info.truth is not None:
+                t = h5.create_group("truth")
+                _write_dataclass(t.create_group("imu"), info.truth.imu)
+                _write_dataclass(t.create_group("gimbal"), info.truth.gimbal)
+                _write_dataclass(t.create_group("noise"), info.truth.noise)
     return k
 
 
 def write_record(path, rec: Record, overwrite: bool = False) -> None:
     """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
     validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
-    with atomic_path(path, overwrite) as tmp:
-        with h5py.File(tmp, "w") as h5:
-            _create_layout(h5, rec.scenario, rec.rate_hz, rec.site, rec.path, rec.n_samples, rec.gimbal is not None)
-            h5["time"][:] = rec.time
-            h5["dtheta"][:] = rec.dtheta
-            h5["dvel"][:] = rec.dvel
-            if rec.gimbal is not None:
-                h5["gimbal"][:] = rec.gimbal
-            if rec.truth is not None:
-                t = h5.create_group("truth")
-                _write_dataclass(t.create_group("imu"), rec.truth.imu)
-                _write_dataclass(t.create_group("gimbal"), rec.truth.gimbal)
-                _write_dataclass(t.create_group("noise"), rec.truth.noise)
+    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, rec.truth, rec.scenario, rec.gimbal is not None)
+    write_stream(path, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite)
 
 
 # ----------------------------------------------------------------------------- reading
