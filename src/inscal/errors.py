@@ -25,11 +25,21 @@ used on data::
 
 Compensating the forward model's output with the same parameters returns the true
 inputs to round-off (tests/test_errors.py).
+
+Gyro-accelerometer time asynchrony ``tau = time_asynchrony`` [s]: the accelerometer
+triad has its own time base, lagging the gyros by ``tau`` (``tau < 0``: it leads).  The
+velocity increment of sample k (gyro interval ``[t_{k-1}, t_k]``) is the accelerometer
+output integrated over ``[t_{k-1} - tau, t_k - tau]``; every accelerometer term (scale,
+misalignment, bias, nonlinearity, cross-coupling, size effect) acts on the delayed
+specific force and rates, while the gyro g-sensitivity acts on the specific force at the
+gyro time.  The simulator integrates the delayed window exactly; the compensation
+removes it to first order in ``tau`` (:meth:`ImuErrors.compensate`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,9 +129,20 @@ class ImuErrors:
     accel_nonlinearity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # K2 diag [1/(m/s^2)]
     accel_cross_coupling: np.ndarray = field(default_factory=lambda: np.zeros(6))  # Kx [1/(m/s^2)]
     accel_lever_arm: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # rows p_i [m]
+    time_asynchrony: float = 0.0  # tau [s]: accelerometer samples lag the gyro samples by tau
 
     def __post_init__(self):
+        tau = self.time_asynchrony
+        try:
+            tau = float(np.asarray(tau, dtype=float).reshape(()))
+        except (TypeError, ValueError):
+            raise ValueError(f"time_asynchrony: expected a scalar number of seconds, got {self.time_asynchrony!r}") from None
+        if not math.isfinite(tau):
+            raise ValueError("time_asynchrony: must be finite")
+        object.__setattr__(self, "time_asynchrony", tau)
         for f in dataclasses.fields(self):
+            if f.name == "time_asynchrony":
+                continue
             shape = (3, 3) if f.name in ("gyro_g_sensitivity", "accel_lever_arm") else (
                 (6,) if f.name in ("gyro_misalignment", "accel_misalignment", "accel_cross_coupling") else (3,)
             )
@@ -152,29 +173,47 @@ class ImuErrors:
     def has_nonlinear(self) -> bool:
         return bool(np.any(self.accel_nonlinearity) or np.any(self.accel_cross_coupling) or np.any(self.accel_lever_arm))
 
+    @property
+    def has_asynchrony(self) -> bool:
+        """True when the accelerometers are not synchronous with the gyros (``time_asynchrony != 0``)."""
+        return self.time_asynchrony != 0.0
+
     # -- forward model on rates (true -> measured)
-    def measure(self, w, f, wdot=None):
-        """Exact measured rates (N_g, N_a) for true w, f (..., 3) in the s-frame."""
+    def measure(self, w, f, wdot=None, f_gyro=None):
+        """Exact measured rates (N_g, N_a) for true w, f (..., 3) in the s-frame.
+
+        With a time asynchrony the accelerometer inputs ``f`` and ``w``, ``wdot`` of its
+        size effect are those at the accelerometer time ``t - tau`` (the caller evaluates
+        them there; the gyro output then uses ``w`` at ``t``: call twice or use the
+        increment form); ``f_gyro`` is the specific force at the gyro time for the
+        g-sensitivity term (default ``f``).
+        """
         w = np.asarray(w, dtype=float)
         f = np.asarray(f, dtype=float)
+        fg = f if f_gyro is None else np.asarray(f_gyro, dtype=float)
         sq, cr = quad_terms(f)
-        ng = (w + f @ self.gyro_g_sensitivity.T) @ self.M_g.T + self.gyro_bias
+        ng = (w + fg @ self.gyro_g_sensitivity.T) @ self.M_g.T + self.gyro_bias
         fa = f + size_effect(self.accel_lever_arm, w, wdot) + sq * self.accel_nonlinearity + cr @ self.K_cross.T
         na = fa @ self.M_a.T + self.accel_bias
         return ng, na
 
-    def measure_increments(self, dt, dth, dv, f2=None, fx=None, wwT=None, dw=None):
+    def measure_increments(self, dt, dth, dv, f2=None, fx=None, wwT=None, dw=None, dv_gyro=None):
         """Measured increments from the exact integrals of one sample interval each.
 
         ``dth = int w``, ``dv = int f``; for the nonlinear terms ``f2 = int f^(2)``,
         ``fx = int f^(x)``, ``wwT = int [wx^2, wy^2, wz^2, wx wy, wx wz, wy wz]``,
         ``dw = w(t_k) - w(t_{k-1})`` (the integral of w-dot).  Everything is linear in
         these integrals, so the result is exact whatever the motion inside the interval.
+
+        With a time asynchrony ``tau``, ``dv, f2, fx, wwT, dw`` are the integrals over the
+        accelerometer window ``[t_{k-1} - tau, t_k - tau]`` and ``dv_gyro`` is ``int f``
+        over the gyro window ``[t_{k-1}, t_k]`` (for the g-sensitivity; default ``dv``).
         """
         dth = np.asarray(dth, dtype=float)
         dv = np.asarray(dv, dtype=float)
+        dvg = dv if dv_gyro is None else np.asarray(dv_gyro, dtype=float)
         dt = np.asarray(dt, dtype=float)[..., None] if np.ndim(dt) else dt
-        ng = (dth + dv @ self.gyro_g_sensitivity.T) @ self.M_g.T + self.gyro_bias * dt
+        ng = (dth + dvg @ self.gyro_g_sensitivity.T) @ self.M_g.T + self.gyro_bias * dt
         fa = dv
         if self.has_nonlinear:
             fa = fa + f2 * self.accel_nonlinearity + fx @ self.K_cross.T
@@ -195,32 +234,77 @@ class ImuErrors:
         return ng, na
 
     # -- compensation model (S16 form) on rates (measured -> true)
-    def compensate(self, ng, na, wdot=None, tol=1e-15, max_iter=20):
-        """Compensated (w~, f~) from measured rates, by the S16 fixed-point iteration."""
+    def compensate(self, ng, na, wdot=None, tol=1e-15, max_iter=20, dt=None):
+        """Compensated (w~, f~) from measured rates, by the S16 fixed-point iteration.
+
+        Time asynchrony: when ``dt`` (the sample interval [s], scalar or per sample) is given
+        and ``time_asynchrony != 0``, the rows of ``ng``, ``na`` (N, 3) are taken as consecutive
+        samples and the accelerometer output is brought to the gyro time base by the causal
+        first-order correction ``f~_k <- f~_k + tau (f~_k - f~_{k-1}) / dt`` (the first row is
+        not corrected); the g-sensitivity term then uses the corrected force.  Without
+        ``dt`` (or for a single sample) the asynchrony is left in.  See
+        :meth:`compensate_increments` for the accuracy.
+        """
         ng = np.asarray(ng, dtype=float)
         na = np.asarray(na, dtype=float)
         w0 = (ng - self.gyro_bias) @ np.linalg.inv(self.M_g).T  # S16 eq. 3
         f0 = (na - self.accel_bias) @ np.linalg.inv(self.M_a).T  # S16 eq. 6 / eq. 7
         w, f = w0 - f0 @ self.gyro_g_sensitivity.T, f0
-        if not (self.has_nonlinear or np.any(self.gyro_g_sensitivity)):
-            return w, f
-        scale = max(1.0, float(np.max(np.abs(f0)))) if f0.size else 1.0
-        for _ in range(max_iter):  # S16 eq. 8 (corrected: fixed point, seed-notes section 2)
-            sq, cr = quad_terms(f)
-            f_new = f0 - sq * self.accel_nonlinearity - cr @ self.K_cross.T - size_effect(self.accel_lever_arm, w, wdot)
-            w = w0 - f_new @ self.gyro_g_sensitivity.T
-            done = np.max(np.abs(f_new - f)) <= tol * scale if f.size else True
-            f = f_new
-            if done:
-                break
+        if self.has_nonlinear or np.any(self.gyro_g_sensitivity):
+            scale = max(1.0, float(np.max(np.abs(f0)))) if f0.size else 1.0
+            for _ in range(max_iter):  # S16 eq. 8 (corrected: fixed point, seed-notes section 2)
+                sq, cr = quad_terms(f)
+                f_new = f0 - sq * self.accel_nonlinearity - cr @ self.K_cross.T - size_effect(self.accel_lever_arm, w, wdot)
+                w = w0 - f_new @ self.gyro_g_sensitivity.T
+                done = np.max(np.abs(f_new - f)) <= tol * scale if f.size else True
+                f = f_new
+                if done:
+                    break
+        if dt is not None and self.has_asynchrony and f.ndim == 2 and f.shape[0] > 1:
+            dtc = np.asarray(dt, dtype=float)
+            dtc = dtc[1:, None] if dtc.ndim else dtc
+            corr = np.zeros_like(f)
+            corr[1:] = self.time_asynchrony * (f[1:] - f[:-1]) / dtc
+            f = f + corr
+            w = w - corr @ self.gyro_g_sensitivity.T
         return w, f
 
-    def compensate_increments(self, dt, dth, dv):
-        """Compensate increments (rates = increments/dt, the S16 practice on sampled data)."""
+    def compensate_increments(self, dt, dth, dv, prev=None):
+        """Compensate increments (rates = increments/dt, the S16 practice on sampled data).
+
+        Time asynchrony ``tau``: after the linear (and nonlinear) compensation each velocity
+        increment is corrected by the causal first-order formula
+        ``dv_k <- dv_k + tau (f_k - f_{k-1})`` with ``f_k = dv_k / dt`` the mean specific
+        force of sample k (the first sample of the array is not corrected unless ``prev`` is
+        given).  Measured increments are ``dv^a_k = int_{t_{k-1}-tau}^{t_k-tau} f``.  The
+        correction is exact for a force linear in time (first order in ``tau``); its residual
+        is ``dv_k^corr - dv_k = int K(s) f''(s) ds`` with a one-signed Peano kernel of integral
+        ``-tau (dt + tau) dt / 2``, so per sample ``|residual| <= |tau (dt + tau)| / 2 * dt *
+        max|f''|`` (over ``[t_{k-2} - tau, t_k]``), i.e. ``<= |tau| dt^2 max|f''|`` (as a mean
+        force ``|tau| dt |f''|``) for ``|tau| <= dt``; it vanishes for ``tau = -dt``.  The
+        residuals do not accumulate (their sum telescopes to ``-tau (dt + tau)/2 (f'(end) -
+        f'(start))``).  Uncorrected, the error would be ``-tau dt f'`` per sample.  The size
+        effect is compensated with the gyro-time rates (the accelerometer's are ``tau``
+        earlier: a ``tau w-dot w r`` term).
+
+        ``prev = (dth, dv)``: the raw measured increments of the sample before ``dth[0]``,
+        so that data compensated in chunks gives the same result as in one piece.
+        """
         dt = np.asarray(dt, dtype=float)
+        dth = np.asarray(dth, dtype=float)
+        dv = np.asarray(dv, dtype=float)
+        lead = prev is not None and self.has_asynchrony and dv.ndim == 2
+        if lead:
+            dth = np.concatenate([np.reshape(np.asarray(prev[0], dtype=float), (1, 3)), dth])
+            dv = np.concatenate([np.reshape(np.asarray(prev[1], dtype=float), (1, 3)), dv])
+            if dt.ndim:
+                dt = np.concatenate([dt[:1], dt])
         dtc = dt[..., None] if dt.ndim else dt
-        w, f = self.compensate(np.asarray(dth) / dtc, np.asarray(dv) / dtc)
-        return w * dtc, f * dtc
+        w, f = self.compensate(dth / dtc, dv / dtc, dt=dt)
+        w, f = w * dtc, f * dtc
+        if lead:
+            w, f = w[1:], f[1:]
+        return w, f
 
 
 @dataclass(frozen=True)
@@ -285,6 +369,7 @@ PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
     "accel_nonlinearity": ("imu", "accel_nonlinearity", "nonlinearity", "ug/g^2", (3,)),
     "accel_cross_coupling": ("imu", "accel_cross_coupling", "nonlinearity", "ug/g^2", (6,)),
     "accel_lever_arm": ("imu", "accel_lever_arm", "length", "cm", (3, 3)),
+    "time_asynchrony": ("imu", "time_asynchrony", "time", "ms", ()),
     "gimbal_nonorthogonality": ("gimbal", "nonorthogonality", "angle", "arcsec", ()),
     "mount_attitude": ("gimbal", "mount_attitude", "angle", "arcsec", (3,)),
 }

@@ -10,6 +10,14 @@ relative for turntable rates).  The integrals the error model needs (``int f``,
 ``int f^(2)``, ``int f^(x)``, ``int w w^T``, ``delta w``) are produced once; every
 error term is linear in them, so measured increments are exact too.
 
+Time asynchrony (``ImuErrors.time_asynchrony = tau``): the accelerometer integrals are
+taken over ``[t_{k-1} - tau, t_k - tau]`` as ``gyro-window integral - I_k + I_{k-1}`` with
+``I_k = int_{t_k - tau}^{t_k}`` computed by the same quadrature (split at breakpoints;
+the base is static at the initial angles before t = 0 and at the final ones after the
+end), and ``delta w = w(t_k - tau) - w(t_{k-1} - tau)``; the gyro increments (and the
+g-sensitivity's specific force) stay on the gyro time base.  ``I_k`` depends only on k, so
+the result does not depend on the chunk size; with ``tau == 0`` none of this runs.
+
 Random draws: each noise source has its own child generator spawned from the
 generator passed in, so results do not depend on the chunk size.
 """
@@ -225,6 +233,117 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
             s += 1
 
 
+@njit(cache=True)
+def _find_segment(t, seg_t1):
+    """Smallest s with ``seg_t1[s] > t`` (clamped to the last segment)."""
+    lo = 0
+    hi = seg_t1.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if seg_t1[mid] > t:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True)
+def _accumulate(wq, w, f, want_nl, j, sgn, iv, if2, ifx, iww):
+    c = sgn * wq
+    for i in range(3):
+        iv[j, i] += c * f[i]
+    if want_nl:
+        if2[j, 0] += c * f[0] * f[0]
+        if2[j, 1] += c * f[1] * f[1]
+        if2[j, 2] += c * f[2] * f[2]
+        ifx[j, 0] += c * f[0] * f[1]
+        ifx[j, 1] += c * f[0] * f[2]
+        ifx[j, 2] += c * f[1] * f[2]
+        iww[j, 0] += c * w[0] * w[0]
+        iww[j, 1] += c * w[1] * w[1]
+        iww[j, 2] += c * w[2] * w[2]
+        iww[j, 3] += c * w[0] * w[1]
+        iww[j, 4] += c * w[0] * w[2]
+        iww[j, 5] += c * w[1] * w[2]
+
+
+@njit(cache=True)
+def _asynchrony_kernel(k0, n1, dt, tau, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, glx, glw,
+                       want_nl, iv, if2, ifx, iww, wdel):
+    """Boundary integrals for a time asynchrony ``tau``: for the sample boundaries
+    ``t_j = (k0 + j) dt``, j = 0 .. n1-1, ``I_j = int_{t_j - tau}^{t_j} (f, f^(2), f^(x), w w^T)``
+    (signed: negative for ``tau < 0``) and ``wdel_j = w(t_j - tau)``.  Before t = 0 and after
+    the end of the path the base is static at the first / last gimbal angles.  Each piece
+    between segment breakpoints is integrated with Gauss-Legendre (pieces longer than dt
+    are split into <= dt parts), static segments exactly."""
+    S = seg_t0.shape[0]
+    T = seg_t1[S - 1]
+    w = np.empty(3)
+    f = np.empty(3)
+    w_beg = np.empty(3)
+    f_beg = np.empty(3)
+    w_fin = np.empty(3)
+    f_fin = np.empty(3)
+    _eval(0.0, 0, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_beg, f_beg)
+    _eval(T, S - 1, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_fin, f_fin)
+    nq = glx.shape[0]
+    for j in range(n1):
+        tb = (k0 + j) * dt
+        ta = tb - tau
+        for c in range(3):
+            iv[j, c] = 0.0
+            if want_nl:
+                if2[j, c] = 0.0
+                ifx[j, c] = 0.0
+                iww[j, c] = 0.0
+                iww[j, c + 3] = 0.0
+        if tau > 0.0:
+            lo, hi, sgn = ta, tb, 1.0
+        else:
+            lo, hi, sgn = tb, ta, -1.0
+        x = lo
+        if x < 0.0:  # static base before the path starts
+            xe = hi if hi < 0.0 else 0.0
+            _accumulate(xe - x, w_beg, f_beg, want_nl, j, sgn, iv, if2, ifx, iww)
+            x = xe
+        if x < hi and x < T:
+            s = _find_segment(x, seg_t1)
+            while x < hi and s < S:
+                xe = seg_t1[s] if seg_t1[s] < hi else hi
+                h = xe - x
+                if h > 0.0:
+                    if seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0:
+                        _eval(seg_t0[s], s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w, f)
+                        _accumulate(h, w, f, want_nl, j, sgn, iv, if2, ifx, iww)
+                    else:
+                        m = int(math.ceil(h / dt)) if h > dt else 1
+                        hp = h / m
+                        for p in range(m):
+                            pa = x + p * hp
+                            pb = xe if p == m - 1 else pa + hp
+                            hh = pb - pa
+                            for q in range(nq):
+                                tq = 0.5 * (pa + pb) + 0.5 * hh * glx[q]
+                                _eval(tq, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w, f)
+                                _accumulate(0.5 * hh * glw[q], w, f, want_nl, j, sgn, iv, if2, ifx, iww)
+                x = xe
+                s += 1
+        if x < hi:  # static base after the path ends
+            _accumulate(hi - x, w_fin, f_fin, want_nl, j, sgn, iv, if2, ifx, iww)
+        if want_nl:
+            if ta <= 0.0:
+                for c in range(3):
+                    wdel[j, c] = w_beg[c]
+            elif ta >= T:
+                for c in range(3):
+                    wdel[j, c] = w_fin[c]
+            else:
+                s = _find_segment(ta, seg_t1)
+                _eval(ta, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w, f)
+                for c in range(3):
+                    wdel[j, c] = w[c]
+
+
 def true_rates(scenario: Scenario, t) -> tuple[np.ndarray, np.ndarray]:
     """True ``w_is^s`` and ``f^s`` (N, 3) at times ``t`` (N25 eq. 9-10 on a static base)."""
     seg = scenario.path.segments()
@@ -339,7 +458,19 @@ def simulate_chunks(scenario: Scenario, rng: np.random.Generator | None, chunk_s
                          want_nl, dth, dv, f2, fx, ww, dw)
         t = (k0 + 1 + np.arange(n)) * dt
         th, _, _ = seg.angles(t)
-        mdth, mdv = imu.measure_increments(dt, dth, dv, f2, fx, ww, dw)
+        if imu.has_asynchrony:
+            # accelerometer window [t_{k-1} - tau, t_k - tau] = gyro window - I_k + I_{k-1}
+            iv, if2, ifx, wdel = np.empty((n + 1, 3)), np.empty((m + 1, 3)), np.empty((m + 1, 3)), np.empty((m + 1, 3))
+            iww = np.empty((m + 1, 6))
+            _asynchrony_kernel(k0, n + 1, dt, imu.time_asynchrony, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn,
+                               wie_n, g, _GL_X, _GL_W, want_nl, iv, if2, ifx, iww, wdel)
+            dva = dv - iv[1:] + iv[:-1]
+            if want_nl:
+                f2, fx, ww = f2 - if2[1:] + if2[:-1], fx - ifx[1:] + ifx[:-1], ww - iww[1:] + iww[:-1]
+                dw = wdel[1:] - wdel[:-1]
+            mdth, mdv = imu.measure_increments(dt, dth, dva, f2, fx, ww, dw, dv_gyro=dv)
+        else:
+            mdth, mdv = imu.measure_increments(dt, dth, dv, f2, fx, ww, dw)
         gimbal = th
         if noise is not None:
             mdth, mdv, gimbal = noise.apply(mdth, mdv, gimbal)

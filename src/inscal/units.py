@@ -58,6 +58,7 @@ FACTOR: dict[str, float] = {
     "nmi": 1852.0,  # international nautical mile
     # time
     "s": 1.0,
+    "ms": 1e-3,
     "h": HOUR,
     "min": 60.0,
     # angle quantisation
@@ -105,7 +106,7 @@ KIND: dict[str, str] = {
     "1/(m/s^2)": "nonlinearity", "ug/g^2": "nonlinearity",
     "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
     "m": "length", "cm": "length", "mm": "length", "nmi": "length",
-    "s": "time", "h": "time", "min": "time",
+    "s": "time", "ms": "time", "h": "time", "min": "time",
     "m/s": "velocity", "mm/s": "velocity",
 }
 
