@@ -24,6 +24,19 @@ Built-in (``inscal simulate NAME``):
 ``n25-rotmod``
     The ``n25`` IMU errors, gimbal non-orthogonality, mount attitude and noise under
     16-sequence rotation modulation (6 h by default): the N25 section 6 navigation check.
+``psins19``
+    PSINS-style 19-position systematic calibration (:func:`inscal.turntable.psins19`: 18
+    turns of 90 deg at 10 deg/s, 50 deg/s^2, 9.2 s each, 20-90 s stops, 1035.6 s), 100 Hz,
+    site 34 N, 108 E, 380 m; no gimbal non-orthogonality, zero mount attitude.  A
+    navigation-grade IMU whose truth includes the quadratic terms and lever arms
+    (:data:`PSINS19_ERRORS`), given in the S16 compensation form with the m-frame equal to
+    the s-frame (gyro misalignment lower-triangular, 3 angles) like ``s16``, so a filter
+    estimating in the gyro-defined frame compares with the truth without a rotation:
+    gyro scale factors 20-40 ppm, misalignments 10-35", gyro bias 0.015-0.035 deg/h,
+    g-sensitivity 1e-4 to 8e-4 deg/h/g on 5 entries, accelerometer bias 60-95 ug, scale
+    factors 60-95 ppm, nonlinearity 15-25 ug/g^2, cross-coupling 10-28 ug/g^2, lever arms
+    [2.0, 3.0, -1.5] cm along the axes.  Noise of a navigation-grade FOG IMU: ARW
+    0.002 deg/sqrt(h), VRW 5 ug/sqrt(Hz).
 
 Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 
@@ -60,7 +73,7 @@ from . import units
 from .errors import (GimbalErrors, ImuErrors, ImuNoise, S16Parameters, errors_from_field, errors_to_field,
                      from_s16, noise_from_field)
 from .simulate import Scenario, Site
-from .turntable import BUILTIN_PATHS, Path, PathError, n25_twelve, rotmod16, s16_table1, static
+from .turntable import BUILTIN_PATHS, Path, PathError, n25_twelve, psins19, rotmod16, s16_table1, static
 
 DEG = math.pi / 180.0
 N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
@@ -79,6 +92,31 @@ N25_ERRORS = {
 }
 N25_NOISE = {"arw": 0.02, "vrw": 20.0}
 
+#: Site of the ``psins19`` scenario (34 N, 108 E, 380 m).
+PSINS19_SITE = Site(latitude=34.0 * DEG, longitude=108.0 * DEG, height=380.0)
+
+#: Navigation-grade IMU errors of the ``psins19`` scenario, in the S16 compensation form
+#: (:class:`~inscal.errors.S16Parameters`, m-frame = s-frame), field units.  Keys are the
+#: S16Parameters fields: ``K_g``/``K_a`` are given as ``K - 1`` in ppm; ``gamma`` = [yz, zx, zy]
+#: and ``alpha`` = [xy, xz, yx, yz, zx, zy] in arcsec; ``G`` (3x3, rows: gyro x, y, z) in
+#: deg/h/g; ``K_a2`` = [xx, yy, zz] and ``K_cross`` = [xy, xz, yx, yz, zx, zy] (the entries of
+#: S16 eq. 12: x gets ``Kxy fx fy + Kxz fx fz`` ...) in ug/g^2; ``lever_arm`` = [rx, ry, rz]
+#: along each accelerometer's own axis in cm.
+PSINS19_ERRORS = {
+    "K_g": {"value": [30.0, -20.0, 40.0], "unit": "ppm"},
+    "gamma": {"value": [20.0, -30.0, 15.0], "unit": "arcsec"},
+    "b_g": {"value": [0.02, -0.035, 0.015], "unit": "deg/h"},
+    "G": {"value": [[5e-4, 0.0, 2e-4], [0.0, -3e-4, 0.0], [0.0, 1e-4, 8e-4]], "unit": "deg/h/g"},
+    "K_a": {"value": [80.0, -60.0, 95.0], "unit": "ppm"},
+    "alpha": {"value": [25.0, -15.0, 30.0, -20.0, 10.0, -35.0], "unit": "arcsec"},
+    "b_a": {"value": [60.0, -80.0, 95.0], "unit": "ug"},
+    "K_a2": {"value": [15.0, -25.0, 20.0], "unit": "ug/g^2"},
+    "K_cross": {"value": [12.0, -18.0, 22.0, -10.0, 28.0, -15.0], "unit": "ug/g^2"},
+    "lever_arm": {"value": [2.0, 3.0, -1.5], "unit": "cm"},
+}
+#: Noise of the ``psins19`` scenario (navigation-grade FOG IMU), field units.
+PSINS19_NOISE = {"arw": 0.002, "vrw": 5.0}
+
 
 def s16_errors() -> ImuErrors:
     """S16 section 4.1 error values, expressed in the S16 form then converted (m-frame = s-frame)."""
@@ -93,6 +131,28 @@ def s16_errors() -> ImuErrors:
     kc = 300 * ug_g2
     s16 = replace(s16, K_cross=np.array([[kc, kc, 0.0], [kc, 0.0, kc], [0.0, kc, kc]]))
     return from_s16(s16)
+
+
+def psins19_s16() -> S16Parameters:
+    """:data:`PSINS19_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    v = {k: units.to_si(e["value"], e["unit"]) for k, e in PSINS19_ERRORS.items()}
+    kx = v["K_cross"]  # [xy, xz, yx, yz, zx, zy] -> S16 eq. 12 rows
+    return S16Parameters(
+        K_g=1.0 + v["K_g"], gamma=v["gamma"], b_g=v["b_g"], G=v["G"],
+        K_a=1.0 + v["K_a"], alpha=v["alpha"], b_a=v["b_a"], K_a2=v["K_a2"],
+        K_cross=np.array([[kx[0], kx[1], 0.0], [kx[2], 0.0, kx[3]], [0.0, kx[4], kx[5]]]),
+        lever_arm=v["lever_arm"],
+    )
+
+
+def psins19_errors() -> ImuErrors:
+    """The ``psins19`` IMU errors in the canonical form (``from_s16`` with ``C_s^m = I``)."""
+    return from_s16(psins19_s16())
+
+
+def _psins19() -> Scenario:
+    return Scenario("psins19", psins19(), PSINS19_SITE, imu=psins19_errors(), gimbal=GimbalErrors(),
+                    noise=noise_from_field(PSINS19_NOISE), rate_hz=100.0)
 
 
 def _s16() -> Scenario:
@@ -132,6 +192,7 @@ BUILTIN = {
     "rotmod16": lambda d: _rotmod(d or 6 * 3600.0),
     "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
     "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
+    "psins19": lambda d: _psins19(),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod"}
 

@@ -377,4 +377,88 @@ def static(duration_s: float) -> Path:
     return Path("static", (Move("none", dwell=float(duration_s)),))
 
 
-BUILTIN_PATHS = {"s16-table1": s16_table1, "n25-twelve": n25_twelve, "rotmod16": rotmod16, "static": static}
+#: PSINS-style 19-position sequence: (gimbal axis, angle [deg], IMU axis and sense of the turn).
+#: With the outer axis East and the inner axis = IMU z, an outer turn ``a`` at inner angle
+#: ``theta_z`` turns the IMU about ``[cos theta_z, -sin theta_z, 0]`` (s-frame) by ``a``:
+#: about +x at 0 deg, -y at 90 deg, -x at 180 deg, +y at 270 deg.
+PSINS19_SEQUENCE = [
+    ("outer", +90, "+x"), ("outer", +90, "+x"), ("outer", +90, "+x"),
+    ("inner", -90, "-z"), ("inner", -90, "-z"),
+    ("outer", +90, "-x"), ("outer", +90, "-x"), ("outer", +90, "-x"),
+    ("inner", +90, "+z"),
+    ("outer", -90, "-y"), ("outer", -90, "-y"), ("outer", -90, "-y"),
+    ("inner", +90, "+z"), ("inner", +90, "+z"),
+    ("outer", -90, "+y"), ("outer", -90, "+y"), ("outer", -90, "+y"),
+    ("inner", -90, "-z"),
+]
+
+#: Attitudes of the IMU axes (x, y, z) at the 19 positions of :func:`psins19` (E/N/U/W/S/D).
+PSINS19_ATTITUDES = [
+    "ENU", "EUS", "ESD", "EDN", "UEN", "WUN", "WSU", "WDS", "WND", "NED",
+    "DES", "SEU", "UEN", "EDN", "DWN", "SWD", "UWS", "NWU", "ENU",
+]
+
+#: Dwell after each of the 18 moves [s] (the first position has ``initial_dwell_s``).
+PSINS19_DWELLS_S = (30.0, 20.0, 60.0, 20.0, 30.0, 90.0, 20.0, 60.0, 30.0,
+                    20.0, 90.0, 30.0, 20.0, 60.0, 30.0, 20.0, 60.0, 90.0)
+
+
+def psins19(rate_dps: float = 10.0, accel_dps2: float = 50.0, dwells_s=PSINS19_DWELLS_S,
+            initial_dwell_s: float = 90.0) -> Path:
+    """PSINS-style 19-position systematic-calibration path (in the manner of Yan Gongmin's
+    PSINS toolbox: 18 turns of 90 deg, ~9 s each, 20-90 s stops) for the dual-axis table.
+
+    Every IMU axis points up and down (x up 3x / down 2x, y up 2x / down 3x, z up 4x /
+    down 4x), the IMU turns about each of its three axes three times in each sense, with
+    the turning axis in several orientations (x turns with x East and West, y turns with y
+    East and West, z turns with z North, Down and Up), and the first 18 positions are the
+    16 distinct orientations a 90-deg dual-axis table can reach plus two repeats.  Both
+    gimbals return to their start without net winding (outer: +540 then -540 deg; inner
+    within +-180 deg).
+
+    Timing: cruise ``rate_dps`` (10 deg/s) with a trapezoidal profile of ``accel_dps2``
+    (50 deg/s^2), so each 90-deg turn lasts ``90/10 + 10/50 = 9.2 s`` (the PSINS 9 s turn at
+    10 deg/s plus the 0.2 s the acceleration costs).  Dwells: ``initial_dwell_s`` (90 s, for
+    the alignment) at the first position, then :data:`PSINS19_DWELLS_S` (20/30/60/90 s).
+    Duration with the defaults: 90 + 18 x 9.2 + 780 = 1035.6 s (17.3 min).
+
+    ====  ======  =====  ==========  ======  =========
+    pos   gimbal  angle  IMU turn    x y z   dwell [s]
+    ====  ======  =====  ==========  ======  =========
+    0     --      --     --          E N U   90
+    1     outer   +90    +x (x = E)  E U S   30
+    2     outer   +90    +x (x = E)  E S D   20
+    3     outer   +90    +x (x = E)  E D N   60
+    4     inner   -90    -z (z = N)  U E N   20
+    5     inner   -90    -z (z = N)  W U N   30
+    6     outer   +90    -x (x = W)  W S U   90
+    7     outer   +90    -x (x = W)  W D S   20
+    8     outer   +90    -x (x = W)  W N D   60
+    9     inner   +90    +z (z = D)  N E D   30
+    10    outer   -90    -y (y = E)  D E S   20
+    11    outer   -90    -y (y = E)  S E U   90
+    12    outer   -90    -y (y = E)  U E N   30
+    13    inner   +90    +z (z = N)  E D N   20
+    14    inner   +90    +z (z = N)  D W N   60
+    15    outer   -90    +y (y = W)  S W D   30
+    16    outer   -90    +y (y = W)  U W S   20
+    17    outer   -90    +y (y = W)  N W U   60
+    18    inner   -90    -z (z = U)  E N U   90
+    ====  ======  =====  ==========  ======  =========
+
+    "IMU turn" is the IMU axis (and its direction while it turns) about which the move
+    turns the IMU, right-handed; the letters give where the IMU axes point after the move
+    (:data:`PSINS19_ATTITUDES`), with zero mount attitude (outer axis East).
+    """
+    dwells = tuple(float(d) for d in dwells_s)
+    if len(dwells) != len(PSINS19_SEQUENCE):
+        raise PathError(f"psins19 needs {len(PSINS19_SEQUENCE)} dwells, got {len(dwells)}")
+    moves = tuple(
+        Move(ax, a * DEG, rate_dps * DEG, dwells[k], label=f"psins19 #{k + 1}: {turn}")
+        for k, (ax, a, turn) in enumerate(PSINS19_SEQUENCE)
+    )
+    return Path("psins19", moves, accel=accel_dps2 * DEG, initial_dwell=float(initial_dwell_s))
+
+
+BUILTIN_PATHS = {"s16-table1": s16_table1, "n25-twelve": n25_twelve, "rotmod16": rotmod16, "static": static,
+                 "psins19": psins19}
