@@ -196,7 +196,7 @@ def _integrated_gravity_n0(w_n: np.ndarray, f_n: np.ndarray, t: np.ndarray) -> n
 
 
 def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: float, height: float = 0.0,
-                 params: ImuErrors | None = None) -> np.ndarray:
+                 params: ImuErrors | None = None, at_start: bool = False) -> np.ndarray:
     """Analytic coarse alignment on a static site, valid also while the turntable turns.
 
     Inertial-frame (two-vector / Wahba) method: the gyros give ``C_s^{s0}(t)`` (s0 = the
@@ -204,7 +204,8 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
     must equal the closed-form integral of ``f^n = [0, 0, g]`` in the inertial frame n0
     (= n at the start), ``v^{n0} = C_{s0}^{n0} v^{s0}``.  ``C_{s0}^{n0}`` follows from an SVD
     (Wahba) fit over one vector per second; then
-    ``C_s^n(T) = C_{n0}^{n(T)} C_{s0}^{n0} C_{s(T)}^{s0}``.  Returns ``C_s^n`` at the end of the window.
+    ``C_s^n(T) = C_{n0}^{n(T)} C_{s0}^{n0} C_{s(T)}^{s0}``.  Returns ``C_s^n`` at the end of the window
+    (``at_start``: ``C_{s0}^{n0}``, the attitude at the start of the window).
     """
     if params is not None:
         dtheta, dvel = params.compensate_increments(dt, dtheta, dvel)
@@ -226,6 +227,8 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
     U, _, Vt = np.linalg.svd(B)
     D = np.diag([1.0, 1.0, np.linalg.det(U @ Vt)])
     C_s0_n0 = U @ D @ Vt
+    if at_start:
+        return C_s0_n0
     T = n * dt
     C_n_n0 = _earth_rotation(w_n, np.array([T]))[0]
     return C_n_n0.T @ C_s0_n0 @ quat_to_dcm(q_end)

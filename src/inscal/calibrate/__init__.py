@@ -40,6 +40,7 @@ from .n25 import n25
 from .result import CalibrationResult
 from .segment import CalibrationError, Window, WindowSet, window_means
 from .six_position import six_position
+from .systematic import systematic30, systematic51
 from .twelve_position import twelve_position
 
 METHODS = {
@@ -47,7 +48,11 @@ METHODS = {
     "twelve-position": twelve_position,
     "n25": n25,
     "joint": joint,
+    "systematic51": systematic51,
+    "systematic30": systematic30,
 }
+#: methods that read the increments directly (no window segmentation)
+RECORD_METHODS = {"systematic51", "systematic30"}
 
 __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
            "six_position", "twelve_position", "n25", "joint"]
@@ -57,9 +62,19 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
     """Calibrate with ``method`` (one of :data:`METHODS`); see the module docstring."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
+    fn = METHODS[method]
+    if method in RECORD_METHODS:
+        from .systematic import systematic
+
+        meth_keys = set(inspect.signature(systematic).parameters) - {"ws_or_record", "method_name"}
+        unknown = set(options) - meth_keys
+        if unknown:
+            raise CalibrationError(f"unknown option(s) for {method}: {sorted(unknown)}")
+        if isinstance(record_like, WindowSet):
+            raise CalibrationError(f"{method} needs the record (increments), not window means")
+        return fn(record_like, **options)
     seg_keys = set(inspect.signature(window_means).parameters) - {"record_like"}
     seg_opts = {k: v for k, v in options.items() if k in seg_keys}
-    fn = METHODS[method]
     meth_keys = set(inspect.signature(fn).parameters) - {"ws"}
     unknown = set(options) - seg_keys - meth_keys
     if unknown:

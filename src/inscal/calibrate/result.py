@@ -57,6 +57,10 @@ class CalibrationResult:
     windows: WindowSet | None = None
     diagnostics: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: maps the truth (``(ImuErrors, GimbalErrors)``) into the frame of the estimates, for
+    #: methods that define their own IMU frame (the systematic filter); None = identity
+    truth_transform: Callable | None = None
+    history: dict | None = None
 
     def value(self, name: str) -> np.ndarray:
         """Estimated value of a parameter (SI)."""
@@ -64,14 +68,18 @@ class CalibrationResult:
 
     def error(self, truth, name: str) -> np.ndarray:
         """Estimate minus truth (SI); ``truth`` as in :meth:`to_field`."""
-        ti, tg = _truth_pair(truth)
+        ti, tg = self._truth(truth)
         return self.value(name) - param_value(ti, tg, name)
+
+    def _truth(self, truth):
+        pair = _truth_pair(truth)
+        return self.truth_transform(pair) if self.truth_transform is not None else pair
 
     def to_field(self, truth=None) -> dict:
         """``{NAME: {"value": [...], "sigma": [...], "unit": ..., "error": [...]}}`` in field
         units (``error`` = estimate - truth, only when ``truth`` is given: an object with
         ``.imu`` and ``.gimbal`` or a pair ``(ImuErrors, GimbalErrors)``)."""
-        ti, tg = _truth_pair(truth) if truth is not None else (None, None)
+        ti, tg = self._truth(truth) if truth is not None else (None, None)
         out = {}
         for name in self.estimated:
             unit = PARAMETERS[name][3]

@@ -1,0 +1,1141 @@
+"""Systematic calibration (S16 section 3): a closed-loop error-state Kalman filter with RTS
+smoother on the navigation errors of a static-site turntable record.
+
+Formulation
+-----------
+Frames: n = local ENU at the (fixed, known) site; m = the IMU frame the calibration
+defines, the gyro-defined frame of S16 section 2.1 (gyro matrix lower-triangular), or
+with ``psins`` the accelerometer-defined frame (accelerometer matrix lower-triangular,
+gyro matrix full).  No gimbal angles are used: the base is static, so the record may
+come from any path, with or without encoders.
+
+Compensation (the S16 form, eq. 3, 6-8, 12; rates = increments / dt)::
+
+    u_g = A_g dtheta/dt,   u_a = A_a dv/dt
+    f0  = u_a - b_a  (+ tau (f0_k - f0_{k-1}) / dt       time asynchrony, when estimated)
+    f~  = f0 - K2 f~^(2) - Kx f~^(x) - a_size(w~, w~-dot)           (fixed point, eq. 7-8)
+    w~  = u_g - b_g - G f~
+
+``a_size`` is the size effect of :func:`inscal.errors.size_effect`: with S16's diagonal
+lever arm ``a_size_i = -(|w|^2 - w_i^2) r_i`` (S16 eq. 9-11, the physics).  **S16 eq. 12 and
+block F29 as printed have the opposite sign; inscal keeps eq. 9, so inscal's r is the
+position of each accelerometer (S16's printed convention would report -r).**
+
+Error states (estimate minus truth).  Navigation (n = 9): attitude ``phi`` with
+``C_est = (I + [phi x]) C_true`` (n-frame), velocity ``dv`` (ENU), position ``dp`` (ENU
+metres).  Parameters: ``A_g,true = (I - dKG) A_g``, ``A_a,true = (I - dKA) A_a`` (dKG lower
+triangular in the S16 set, eq. 20), every other parameter additive (``b_true = b - db``).
+Then, to first order (S16 eq. 18-19 in this sign convention)::
+
+    dw = dKG u_g - db_g - dG f~                                            # S16 eq. 18
+    df = dKA u_a - db_a - dK2 f~^(2) - dKx f~^(x) + (d a_size / d r) dr + dtau f-dot  # eq. 19
+
+and the error dynamics on the static base (S16 eq. 17, ENU, v = 0)::
+
+    phi' = phi x w_ie^n - dw_ie(dL) - dw_en(dv) + C_m^n dw
+    dv'  = phi x f^n + C_m^n df - 2 w_ie^n x dv + dg(dh)
+    dp'  = dv
+
+The parameter rows of F are zero (eq. 21).  F-blocks are checked against finite
+differences of the nonlinear error propagation in ``tests/test_systematic.py``.
+
+Discretisation.  The navigation runs at the IMU rate (compiled kernel, two-sample coning
+and sculling); the filter steps every ``T`` (default 1 s).  Over one step ``F_nn`` is constant
+on a static base (``f^n`` = the step's mean of ``C f~``), while ``F_np(t)`` follows the rotation
+sample by sample, so::
+
+    Phi_nn = I + F T + F^2 T^2/2 + F^3 T^3/6
+    Phi_np = sum_k e^{F (T - t_k)} F_np(t_k) dt = M0 + F M1 + F^2 M2,  M_i = sum_k (T - t_k)^i / i! F_np(t_k) dt
+
+(``M_i`` accumulated per sample), and ``Q_d`` is the third-order Van Loan series of the
+white gyro and accelerometer noise.  Measurements at each step: zero velocity and the
+known position (S16 eq. 25-26 plus the fixed-position observation).
+
+Feedback and smoothing.  After every update the whole estimate is fed back (S16 eq. 27):
+the attitude, velocity and position of the navigator and every parameter of the
+compensation, so the filter's state is zero between updates.  The smoother
+(:mod:`inscal.filters`, the RTS smoother in modified Bryson-Frazier form) returns the
+smoothed error of the *pre-update reference* at each stored step; the smoothed parameters
+at step k are the reference parameters kept at k corrected by it.  With constant
+parameters they equal the final filtered ones (a test checks this); the smoother adds the
+smoothed navigation states, the smoothed initial attitude and the smoothed history.
+
+Passes.  Pass 1 linearises around the nominal parameters (prior mean); each later pass
+re-runs the record with the compensation of the previous result and the smoothed initial
+attitude (an iterated, Gauss-Newton smoother).  Every pass starts from the same prior
+covariance centred on its own start point; the exact linear correction
+``x_{0|M} += P_{0|M} P_0^-1 mu`` moves the result to the prior centred on the nominal
+parameters.  Passes stop when no parameter moves by more than ``tol`` of its sigma.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from .. import earth, filters, units
+from ..attitude import dcm_from_quat, quat_from_dcm, quat_from_rotvec_xyz as _qrv
+from ..errors import ImuErrors, split_scale_misalignment
+from ..strapdown import _qmul, _qrot, _two_sample
+from .result import CalibrationResult
+from .segment import CalibrationError
+
+N_NAV = 9
+IDX_MEAS = np.array([3, 4, 5, 6, 7, 8], dtype=np.int64)
+
+# column kinds of the per-sample parameter Jacobian (row block 0: phi rows, 1: dv rows)
+K_UG, K_M1G, K_MF, K_UA, K_M1A, K_F2, K_FX, K_LEVD, K_LEVF, K_TAU = range(10)
+
+DIAG = ((0, 0), (1, 1), (2, 2))
+OFFD = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))  # = errors.MISALIGN_INDEX order
+LOWER = DIAG + ((1, 0), (2, 0), (2, 1))
+FULL = DIAG + OFFD
+AX = "xyz"
+CROSS_PAIRS = ((0, 0, 1), (0, 0, 2), (1, 0, 1), (1, 1, 2), (2, 0, 2), (2, 1, 2))  # (row, a, b): S16 eq. 12
+CROSS_NAMES = ("xy", "xz", "yx", "yz", "zx", "zy")
+
+
+# ----------------------------------------------------------------------------- state sets
+@dataclass(frozen=True)
+class Group:
+    """One parameter group of the state vector."""
+
+    name: str  # gyro_matrix, gyro_bias, gyro_g_sensitivity, accel_matrix, accel_bias,
+    # accel_nonlinearity, accel_cross_coupling, accel_lever_arm, time_asynchrony
+    labels: tuple[str, ...]
+    kinds: tuple[int, ...]
+    axes: tuple[int, ...]  # row i (the sensor axis) of each column
+    js: tuple[int, ...]  # second index (column j / product pair / lever component)
+    sigma0: float  # default prior 1 sigma (SI)
+    unit: str  # field unit for reports
+
+    @property
+    def size(self) -> int:
+        return len(self.labels)
+
+
+def _matrix_group(name, ij, kind, sigma0, unit):
+    labels = tuple(f"{AX[i]}{AX[j]}" for i, j in ij)
+    return Group(name, labels, (kind,) * len(ij), tuple(i for i, _ in ij), tuple(j for _, j in ij), sigma0, unit)
+
+
+def _vec_group(name, kind, sigma0, unit):
+    return Group(name, tuple(AX), (kind,) * 3, (0, 1, 2), (0, 1, 2), sigma0, unit)
+
+
+UG = units.to_si(1.0, "ug")
+ARW_FLOOR = units.to_si(1e-5, "deg/sqrt(h)")
+VRW_FLOOR = units.to_si(0.2, "ug/sqrt(Hz)")
+DEFAULT_SIGMA0 = {
+    "gyro_matrix": 1e-3, "gyro_bias": units.to_si(0.1, "deg/h"), "gyro_g_sensitivity": units.to_si(0.01, "deg/h/g"),
+    "accel_matrix": 1e-3, "accel_bias": 1000 * UG, "accel_nonlinearity": units.to_si(1000.0, "ug/g^2"),
+    "accel_cross_coupling": units.to_si(1000.0, "ug/g^2"), "accel_lever_arm": 0.05, "time_asynchrony": 5e-3,
+}
+GROUP_UNITS = {
+    "gyro_matrix": "ppm", "gyro_bias": "deg/h", "gyro_g_sensitivity": "deg/h/g", "accel_matrix": "ppm",
+    "accel_bias": "ug", "accel_nonlinearity": "ug/g^2", "accel_cross_coupling": "ug/g^2", "accel_lever_arm": "cm",
+    "time_asynchrony": "ms",
+}
+
+#: named options of ``--states``
+STATE_OPTIONS = {
+    "51": "S16 eq. 22: attitude, velocity, position, gyro matrix (lower-triangular, 6), gyro bias, accelerometer "
+          "matrix (full, 9), accelerometer bias, g-sensitivity (9), nonlinearity (3), cross-coupling (6), lever arm (3)",
+    "30": "S16's traditional 30-state filter: no g-sensitivity, nonlinearity, cross-coupling or lever arm",
+    "lever9": "full inner lever arm: a 3-vector per accelerometer (9 states instead of 3)",
+    "async": "gyro-accelerometer time asynchrony (1 state)",
+    "psins": "PSINS triangular convention: gyro matrix full (9), accelerometer matrix lower-triangular (6); "
+              "the IMU frame is then defined by the accelerometers",
+}
+
+
+@dataclass(frozen=True)
+class StateSet:
+    """A configuration of the systematic filter's parameter states (S16 eq. 22)."""
+
+    extended: bool = True  # G, K2, Kx, lever arm
+    lever9: bool = False
+    asynchrony: bool = False
+    psins: bool = False
+
+    @classmethod
+    def parse(cls, spec: str | None) -> "StateSet":
+        """``"51"``, ``"30"``, optionally followed by ``,lever9``, ``,async``, ``,psins``."""
+        if spec is None or str(spec).strip() == "":
+            return cls()
+        toks = [t.strip() for t in str(spec).replace("+", ",").split(",") if t.strip()]
+        kw = {"extended": True}
+        for t in toks:
+            if t == "51":
+                kw["extended"] = True
+            elif t == "30":
+                kw["extended"] = False
+            elif t == "lever9":
+                kw["lever9"] = True
+            elif t == "async":
+                kw["asynchrony"] = True
+            elif t == "psins":
+                kw["psins"] = True
+            else:
+                raise CalibrationError(f"unknown state option {t!r}; options: {', '.join(STATE_OPTIONS)}")
+        if kw.get("lever9") and not kw["extended"]:
+            raise CalibrationError("lever9 needs the extended (51-state) model")
+        return cls(**kw)
+
+    @property
+    def frame(self) -> str:
+        return "accel" if self.psins else "gyro"
+
+    @property
+    def groups(self) -> tuple[Group, ...]:
+        s = DEFAULT_SIGMA0
+        gm = _matrix_group("gyro_matrix", FULL if self.psins else LOWER, K_UG, s["gyro_matrix"], "ppm")
+        am = _matrix_group("accel_matrix", LOWER if self.psins else FULL, K_UA, s["accel_matrix"], "ppm")
+        out = [gm, _vec_group("gyro_bias", K_M1G, s["gyro_bias"], "deg/h"), am,
+               _vec_group("accel_bias", K_M1A, s["accel_bias"], "ug")]
+        if self.extended:
+            ij9 = tuple((i, j) for i in range(3) for j in range(3))
+            out.append(_matrix_group("gyro_g_sensitivity", ij9, K_MF, s["gyro_g_sensitivity"], "deg/h/g"))
+            out.append(Group("accel_nonlinearity", tuple(AX), (K_F2,) * 3, (0, 1, 2), (0, 1, 2),
+                             s["accel_nonlinearity"], "ug/g^2"))
+            out.append(Group("accel_cross_coupling", CROSS_NAMES, (K_FX,) * 6, tuple(p[0] for p in CROSS_PAIRS),
+                             tuple(range(6)), s["accel_cross_coupling"], "ug/g^2"))
+            if self.lever9:
+                out.append(_matrix_group("accel_lever_arm", ij9, K_LEVF, s["accel_lever_arm"], "cm"))
+            else:
+                out.append(Group("accel_lever_arm", tuple(AX), (K_LEVD,) * 3, (0, 1, 2), (0, 1, 2),
+                                 s["accel_lever_arm"], "cm"))
+        if self.asynchrony:
+            out.append(Group("time_asynchrony", ("",), (K_TAU,), (0,), (0,), s["time_asynchrony"], "ms"))
+        return tuple(out)
+
+    @property
+    def n_params(self) -> int:
+        return sum(g.size for g in self.groups)
+
+    @property
+    def n_states(self) -> int:
+        return N_NAV + self.n_params
+
+    def labels(self) -> list[str]:
+        nav = [f"attitude[{a}]" for a in "ENU"] + [f"velocity[{a}]" for a in "ENU"] + [f"position[{a}]" for a in "ENU"]
+        return nav + [f"{g.name}[{lab}]" if lab else g.name for g in self.groups for lab in g.labels]
+
+    def offsets(self) -> dict[str, int]:
+        off, k = {}, N_NAV
+        for g in self.groups:
+            off[g.name] = k
+            k += g.size
+        return off
+
+    def columns(self):
+        kinds, axes, js = [], [], []
+        for g in self.groups:
+            kinds += g.kinds
+            axes += g.axes
+            js += g.js
+        return np.array(kinds, np.int64), np.array(axes, np.int64), np.array(js, np.int64)
+
+
+# ----------------------------------------------------------------------------- parameters
+@dataclass
+class CompParams:
+    """Compensation parameters of the S16 form (SI, the filter's frame)."""
+
+    Ag: np.ndarray = field(default_factory=lambda: np.eye(3))
+    bg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    G: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    Aa: np.ndarray = field(default_factory=lambda: np.eye(3))
+    ba: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    K2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    Kx: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # errors.cross_matrix layout
+    lever: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # rows p_i
+    tau: np.ndarray = field(default_factory=lambda: np.zeros(1))
+
+    def copy(self) -> "CompParams":
+        return CompParams(*(np.array(getattr(self, f), dtype=float) for f in self.__dataclass_fields__))
+
+    def flat(self) -> np.ndarray:
+        return np.concatenate([np.ravel(getattr(self, f)) for f in self.__dataclass_fields__])
+
+    @classmethod
+    def from_flat(cls, v) -> "CompParams":
+        v = np.asarray(v, float)
+        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,)]
+        out, k = [], 0
+        for s in shapes:
+            n = int(np.prod(s))
+            out.append(v[k:k + n].reshape(s).copy())
+            k += n
+        return cls(*out)
+
+    @classmethod
+    def from_imu(cls, imu: ImuErrors) -> "CompParams":
+        """The compensation set equivalent to a canonical (measurement-form) error model."""
+        Ag = np.linalg.inv(imu.M_g)
+        Aa = np.linalg.inv(imu.M_a)
+        return cls(Ag, Ag @ imu.gyro_bias, np.array(imu.gyro_g_sensitivity), Aa, Aa @ imu.accel_bias,
+                   np.array(imu.accel_nonlinearity), np.array(imu.K_cross), np.array(imu.accel_lever_arm),
+                   np.array([float(getattr(imu, "time_asynchrony", 0.0))]))
+
+    def to_imu(self) -> ImuErrors:
+        """Canonical measurement-form errors (``M = A^-1``, ``eps = M_g b_g``, ``nabla = M_a b_a``)."""
+        Mg = np.linalg.inv(self.Ag)
+        Ma = np.linalg.inv(self.Aa)
+        kg, eg = split_scale_misalignment(Mg)
+        ka, ea = split_scale_misalignment(Ma)
+        kc = self.Kx
+        kw = dict(gyro_scale_factor=kg, gyro_misalignment=eg, gyro_bias=Mg @ self.bg, gyro_g_sensitivity=self.G,
+                  accel_scale_factor=ka, accel_misalignment=ea, accel_bias=Ma @ self.ba,
+                  accel_nonlinearity=self.K2,
+                  accel_cross_coupling=[kc[0, 0], kc[0, 1], kc[1, 0], kc[1, 2], kc[2, 1], kc[2, 2]],
+                  accel_lever_arm=self.lever)
+        if "time_asynchrony" in ImuErrors.__dataclass_fields__:
+            kw["time_asynchrony"] = float(self.tau[0])
+        return ImuErrors(**kw)
+
+    def corrected(self, states: StateSet, x: np.ndarray) -> "CompParams":
+        """The parameters with the error estimate ``x`` (physical, parameter part) removed
+        (the feedback of S16 eq. 27, as the kernel applies it)."""
+        p = self.copy()
+        k = 0
+        for g in states.groups:
+            v = x[k:k + g.size]
+            k += g.size
+            if g.name in ("gyro_matrix", "accel_matrix"):
+                D = np.zeros((3, 3))
+                for e, (i, j) in enumerate(zip(g.axes, g.js)):
+                    D[i, j] = v[e]
+                if g.name == "gyro_matrix":
+                    p.Ag = (np.eye(3) - D) @ p.Ag
+                else:
+                    p.Aa = (np.eye(3) - D) @ p.Aa
+            elif g.name == "gyro_bias":
+                p.bg = p.bg - v
+            elif g.name == "accel_bias":
+                p.ba = p.ba - v
+            elif g.name == "gyro_g_sensitivity":
+                p.G = p.G - v.reshape(3, 3)
+            elif g.name == "accel_nonlinearity":
+                p.K2 = p.K2 - v
+            elif g.name == "accel_cross_coupling":
+                for e, (r, a, b) in enumerate(CROSS_PAIRS):
+                    p.Kx[r, _kx_col(a, b)] -= v[e]
+            elif g.name == "accel_lever_arm":
+                if g.size == 3:
+                    p.lever = p.lever - np.diag(v)
+                else:
+                    p.lever = p.lever - v.reshape(3, 3)
+            elif g.name == "time_asynchrony":
+                p.tau = p.tau - v
+        return p
+
+    def error_state(self, states: StateSet, truth: "CompParams") -> np.ndarray:
+        """The error state ``x`` (estimate - truth, first order) of these parameters."""
+        out = []
+        for g in states.groups:
+            if g.name in ("gyro_matrix", "accel_matrix"):
+                A, At = (self.Ag, truth.Ag) if g.name == "gyro_matrix" else (self.Aa, truth.Aa)
+                D = np.eye(3) - At @ np.linalg.inv(A)
+                out += [D[i, j] for i, j in zip(g.axes, g.js)]
+            elif g.name == "gyro_bias":
+                out += list(self.bg - truth.bg)
+            elif g.name == "accel_bias":
+                out += list(self.ba - truth.ba)
+            elif g.name == "gyro_g_sensitivity":
+                out += list((self.G - truth.G).ravel())
+            elif g.name == "accel_nonlinearity":
+                out += list(self.K2 - truth.K2)
+            elif g.name == "accel_cross_coupling":
+                out += [self.Kx[r, _kx_col(a, b)] - truth.Kx[r, _kx_col(a, b)] for r, a, b in CROSS_PAIRS]
+            elif g.name == "accel_lever_arm":
+                d = self.lever - truth.lever
+                out += list(np.diag(d)) if g.size == 3 else list(d.ravel())
+            elif g.name == "time_asynchrony":
+                out += list(self.tau - truth.tau)
+        return np.array(out)
+
+
+def _kx_col(a: int, b: int) -> int:
+    """Column of the cross-coupling matrix acting on f^(x) = [fx fy, fx fz, fy fz]."""
+    return {(0, 1): 0, (0, 2): 1, (1, 2): 2}[(a, b)]
+
+
+def frame_rotation(imu: ImuErrors, frame: str = "gyro") -> np.ndarray:
+    """``C_s^m``: the rotation from the canonical s-frame to the frame in which the chosen
+    triad's compensation matrix is lower-triangular (QL decomposition, as errors.to_s16)."""
+    from scipy.linalg import rq
+
+    A = np.linalg.inv(imu.M_g if frame == "gyro" else imu.M_a)
+    R_, Q_ = rq(A.T)
+    L = R_.T
+    C_m_s = Q_.T
+    S = np.diag(np.sign(np.diag(L)))
+    C_m_s = C_m_s @ S
+    return C_m_s.T
+
+
+def truth_in_frame(imu: ImuErrors, states: StateSet) -> CompParams:
+    """The true compensation parameters expressed in the filter's frame (the quadratic terms
+    and lever arms are carried unchanged: exact when the frames coincide, as in the s16 and
+    psins19 scenarios; otherwise to first order in the rotation, seed-notes section 5)."""
+    R = frame_rotation(imu, states.frame)
+    p = CompParams.from_imu(imu)
+    p.Ag = R @ p.Ag
+    p.bg = R @ p.bg
+    p.G = R @ p.G @ R.T
+    p.Aa = R @ p.Aa
+    p.ba = R @ p.ba
+    return p
+
+
+# ----------------------------------------------------------------------------- the kernel
+@njit(cache=True)
+def _compensate(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0p, have_prev, wprev, ug, ua, w, f, fdot):
+    """S16 compensation of one sample (see the module docstring); fills ug, ua, w, f, fdot (rates)."""
+    idt = 1.0 / dt
+    for i in range(3):
+        ug[i] = (Ag[i, 0] * dth[0] + Ag[i, 1] * dth[1] + Ag[i, 2] * dth[2]) * idt
+        ua[i] = (Aa[i, 0] * dv[0] + Aa[i, 1] * dv[1] + Aa[i, 2] * dv[2]) * idt
+    f0x = ua[0] - ba[0]
+    f0y = ua[1] - ba[1]
+    f0z = ua[2] - ba[2]
+    if have_prev:
+        fdot[0] = (f0x - f0p[0]) * idt
+        fdot[1] = (f0y - f0p[1]) * idt
+        fdot[2] = (f0z - f0p[2]) * idt
+    else:
+        fdot[0] = 0.0
+        fdot[1] = 0.0
+        fdot[2] = 0.0
+    f0p[0], f0p[1], f0p[2] = f0x, f0y, f0z
+    f0x += tau * fdot[0]
+    f0y += tau * fdot[1]
+    f0z += tau * fdot[2]
+    fx, fy, fz = f0x, f0y, f0z
+    for i in range(3):
+        w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
+    if nl:
+        for _ in range(3):  # S16 eq. 8 (fixed point)
+            c0, c1, c2 = fx * fy, fx * fz, fy * fz
+            w0, w1, w2 = w[0], w[1], w[2]
+            ww = w0 * w0 + w1 * w1 + w2 * w2
+            if have_prev:
+                d0, d1, d2 = (w0 - wprev[0]) * idt, (w1 - wprev[1]) * idt, (w2 - wprev[2]) * idt
+            else:
+                d0, d1, d2 = 0.0, 0.0, 0.0
+            wp0 = w0 * lev[0, 0] + w1 * lev[0, 1] + w2 * lev[0, 2]
+            wp1 = w0 * lev[1, 0] + w1 * lev[1, 1] + w2 * lev[1, 2]
+            wp2 = w0 * lev[2, 0] + w1 * lev[2, 1] + w2 * lev[2, 2]
+            s0 = w0 * wp0 - lev[0, 0] * ww + (d1 * lev[0, 2] - d2 * lev[0, 1])  # S16 eq. 9-11 (+ w-dot)
+            s1 = w1 * wp1 - lev[1, 1] * ww + (d2 * lev[1, 0] - d0 * lev[1, 2])
+            s2 = w2 * wp2 - lev[2, 2] * ww + (d0 * lev[2, 1] - d1 * lev[2, 0])
+            nx = f0x - (K2[0] * fx * fx + Kx[0, 0] * c0 + Kx[0, 1] * c1 + Kx[0, 2] * c2) - s0  # S16 eq. 12
+            ny = f0y - (K2[1] * fy * fy + Kx[1, 0] * c0 + Kx[1, 1] * c1 + Kx[1, 2] * c2) - s1
+            nz = f0z - (K2[2] * fz * fz + Kx[2, 0] * c0 + Kx[2, 1] * c1 + Kx[2, 2] * c2) - s2
+            fx, fy, fz = nx, ny, nz
+            for i in range(3):
+                w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
+    f[0], f[1], f[2] = fx, fy, fz
+
+
+@njit(cache=True)
+def _column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
+    """Per-sample value of each parameter column of dw (kinds 0-2) or df (kinds 3-9): the column
+    is ``C[:, axes[c]] * vals[c]`` except for the asynchrony (``C fdot``, handled by the caller)."""
+    ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    for c in range(kinds.shape[0]):
+        k = kinds[c]
+        i = axes[c]
+        j = js[c]
+        if k == 0:  # dKG u_g
+            vals[c] = ug[j]
+        elif k == 1 or k == 4:  # -db
+            vals[c] = -1.0
+        elif k == 2:  # -dG f
+            vals[c] = -f[j]
+        elif k == 3:  # dKA u_a
+            vals[c] = ua[j]
+        elif k == 5:  # -dK2 f_i^2
+            vals[c] = -f[i] * f[i]
+        elif k == 6:  # -dKx f_a f_b
+            if j == 0 or j == 2:
+                vals[c] = -f[0] * f[1]
+            elif j == 1 or j == 4:
+                vals[c] = -f[0] * f[2]
+            else:
+                vals[c] = -f[1] * f[2]
+        elif k == 7:  # diagonal lever arm: -d a_size_i / d r_i = |w|^2 - w_i^2
+            vals[c] = ww - w[i] * w[i]
+        elif k == 8:  # full lever arm p_ij: -(w_i w_j - delta_ij |w|^2 + (wdot x e_j)_i)
+            cr = 0.0
+            if j == 0:
+                cr = 0.0 if i == 0 else (wd[2] if i == 1 else -wd[1])
+            elif j == 1:
+                cr = -wd[2] if i == 0 else (0.0 if i == 1 else wd[0])
+            else:
+                cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
+            vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + cr)
+        else:
+            vals[c] = 0.0
+
+
+@njit(cache=True)
+def _nav_F(lat, h, fn, F):
+    """Continuous F_nn (9 x 9) of the static-base error model (module docstring)."""
+    for i in range(9):
+        for j in range(9):
+            F[i, j] = 0.0
+    W = earth.OMEGA_IE
+    sl, cl = math.sin(lat), math.cos(lat)
+    rm, rn = earth.radii(lat)
+    rm += h
+    rn += h
+    wn, wu = W * cl, W * sl
+    # phi' = phi x w_ie  = -[w_ie x] phi
+    F[0, 1] = wu
+    F[0, 2] = -wn
+    F[1, 0] = -wu
+    F[2, 0] = wn
+    # - dw_en(dv):  dw_en = [-dvN/RM, dvE/RN, dvE tanL/RN]
+    F[0, 4] = 1.0 / rm
+    F[1, 3] = -1.0 / rn
+    F[2, 3] = -sl / cl / rn
+    # - dw_ie(dL), dL = dpN / RM: dw_ie = W [0, -sinL, cosL] dL
+    F[1, 7] = W * sl / rm
+    F[2, 7] = -W * cl / rm
+    # dv' = phi x f^n = -[f x] phi
+    F[3, 1] = fn[2]
+    F[3, 2] = -fn[1]
+    F[4, 0] = -fn[2]
+    F[4, 2] = fn[0]
+    F[5, 0] = fn[1]
+    F[5, 1] = -fn[0]
+    # - 2 w_ie x dv
+    F[3, 4] = 2.0 * wu
+    F[3, 5] = -2.0 * wn
+    F[4, 3] = -2.0 * wu
+    F[5, 3] = 2.0 * wn
+    # gravity gradient: g_U = -gamma(h), d(dv_U)/d(h) = +2 gamma / R
+    F[5, 8] = 2.0 * earth.normal_gravity(lat, h) / math.sqrt(rm * rn)
+    # dp' = dv
+    F[6, 3] = 1.0
+    F[7, 4] = 1.0
+    F[8, 5] = 1.0
+
+
+@njit(cache=True)
+def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, est_tau,
+                 kinds, axes, js, sig, qg, qa, r, P, hist_every,
+                 K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st,
+                 hist_Pm, hist_ref, hist_Pf, nav_out):
+    """One closed-loop filter pass over the record (see the module docstring).
+
+    ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0]; parameter arrays are
+    updated in place by the feedback.  ``sig``: state scaling (the filter works on x / sig).
+    Stores per step the smoother data; every ``hist_every`` steps the predicted covariance
+    and the pre-update reference parameters.  Returns the number of steps.
+    """
+    N = sig.shape[0]
+    npar = N - 9
+    M = dth.shape[0] // n_per
+    T = n_per * dt
+    q0, q1, q2, q3 = nav0[0], nav0[1], nav0[2], nav0[3]
+    ve, vn, vu = nav0[4], nav0[5], nav0[6]
+    lat, lon, h = nav0[7], nav0[8], nav0[9]
+    lat0, lon0, h0 = site[0], site[1], site[2]
+    W = earth.OMEGA_IE
+    ug = np.empty(3)
+    ua = np.empty(3)
+    w = np.empty(3)
+    f = np.empty(3)
+    fdot = np.empty(3)
+    f0p = np.zeros(3)
+    wprev = np.zeros(3)
+    wd = np.zeros(3)
+    vals = np.empty(npar)
+    M0 = np.zeros((6, npar))
+    M1 = np.zeros((6, npar))
+    M2 = np.zeros((6, npar))
+    F = np.zeros((9, 9))
+    fn = np.zeros(3)
+    K = np.empty((N, 6))
+    Si = np.empty((6, 6))
+    xs = np.empty(N)
+    z = np.empty(6)
+    rs = np.empty(6)
+    for a in range(6):
+        rs[a] = r[a] / sig[3 + a] ** 2
+    p0, p1, p2 = 0.0, 0.0, 0.0
+    u0, u1, u2 = 0.0, 0.0, 0.0
+    have_prev = False
+    qgm = (qg[0] + qg[1] + qg[2]) / 3.0
+    qam = (qa[0] + qa[1] + qa[2]) / 3.0
+    ih = 0
+    for k in range(M):
+        for a in range(6):
+            for c in range(npar):
+                M0[a, c] = 0.0
+                M1[a, c] = 0.0
+                M2[a, c] = 0.0
+        fn[0] = 0.0
+        fn[1] = 0.0
+        fn[2] = 0.0
+        for jj in range(n_per):
+            s = k * n_per + jj
+            _compensate(dth[s], dv[s], dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau[0], nl, f0p, have_prev, wprev,
+                        ug, ua, w, f, fdot)
+            if have_prev:
+                wd[0] = (w[0] - wprev[0]) / dt
+                wd[1] = (w[1] - wprev[1]) / dt
+                wd[2] = (w[2] - wprev[2]) / dt
+            wprev[0], wprev[1], wprev[2] = w[0], w[1], w[2]
+            a0, a1, a2 = w[0] * dt, w[1] * dt, w[2] * dt
+            b0, b1, b2 = f[0] * dt, f[1] * dt, f[2] * dt
+            r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, have_prev)
+            sl = math.sin(lat)
+            cl = math.cos(lat)
+            rm_, rn_ = earth.radii(lat)
+            rmh = rm_ + h
+            rnh = rn_ + h
+            grav = earth.normal_gravity(lat, h)
+            wie_n, wie_u = W * cl, W * sl
+            we0 = -vn / rmh
+            we1 = ve / rnh
+            we2 = ve * sl / (cl * rnh)
+            z0 = we0 * dt
+            z1 = (wie_n + we1) * dt
+            z2 = (wie_u + we2) * dt
+            s0, s1, s2 = _qrot(q0, q1, q2, q3, c0, c1, c2)
+            s0 -= 0.5 * (z1 * s2 - z2 * s1)
+            s1 -= 0.5 * (z2 * s0 - z0 * s2)
+            s2 -= 0.5 * (z0 * s1 - z1 * s0)
+            o0 = we0
+            o1 = 2.0 * wie_n + we1
+            o2 = 2.0 * wie_u + we2
+            nve = ve + s0 - (o1 * vu - o2 * vn) * dt
+            nvn = vn + s1 - (o2 * ve - o0 * vu) * dt
+            nvu = vu + s2 - (o0 * vn - o1 * ve) * dt - grav * dt
+            # attitude with the midpoint transport rate
+            mve = 0.5 * (ve + nve)
+            mvn = 0.5 * (vn + nvn)
+            e0, e1, e2, e3 = _qrv(r0, r1, r2)
+            oq0, oq1, oq2, oq3 = q0, q1, q2, q3
+            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, e0, e1, e2, e3)
+            e0, e1, e2, e3 = _qrv(mvn / rmh * dt, -(wie_n + mve / rnh) * dt, -(wie_u + mve * sl / (cl * rnh)) * dt)
+            q0, q1, q2, q3 = _qmul(e0, e1, e2, e3, q0, q1, q2, q3)
+            qn = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+            q0 *= qn
+            q1 *= qn
+            q2 *= qn
+            q3 *= qn
+            lat += 0.5 * (vn + nvn) / rmh * dt
+            lon += 0.5 * (ve + nve) / (rnh * cl) * dt
+            h += 0.5 * (vu + nvu) * dt
+            ve, vn, vu = nve, nvn, nvu
+            p0, p1, p2 = a0, a1, a2
+            u0, u1, u2 = b0, b1, b2
+            have_prev = True
+            # ---- Jacobian accumulation with the mid-sample attitude
+            m0, m1, m2, m3 = oq0 + q0, oq1 + q1, oq2 + q2, oq3 + q3
+            mn = 1.0 / math.sqrt(m0 * m0 + m1 * m1 + m2 * m2 + m3 * m3)
+            m0 *= mn
+            m1 *= mn
+            m2 *= mn
+            m3 *= mn
+            _column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals)
+            sw = (n_per - jj - 0.5) * dt
+            wt0 = dt
+            wt1 = sw * dt
+            wt2 = 0.5 * sw * sw * dt
+            fe, fnn_, fu = _qrot(m0, m1, m2, m3, f[0], f[1], f[2])
+            fn[0] += fe * dt
+            fn[1] += fnn_ * dt
+            fn[2] += fu * dt
+            # columns of C_m^n: C e_i
+            cx0, cx1, cx2 = _qrot(m0, m1, m2, m3, 1.0, 0.0, 0.0)
+            cy0, cy1, cy2 = _qrot(m0, m1, m2, m3, 0.0, 1.0, 0.0)
+            cz0, cz1, cz2 = _qrot(m0, m1, m2, m3, 0.0, 0.0, 1.0)
+            for c in range(npar):
+                kk = kinds[c]
+                rb = 0 if kk <= 2 else 3
+                if kk == 9:
+                    if not est_tau:
+                        continue
+                    v0 = cx0 * fdot[0] + cy0 * fdot[1] + cz0 * fdot[2]
+                    v1 = cx1 * fdot[0] + cy1 * fdot[1] + cz1 * fdot[2]
+                    v2 = cx2 * fdot[0] + cy2 * fdot[1] + cz2 * fdot[2]
+                else:
+                    i = axes[c]
+                    vv = vals[c]
+                    if i == 0:
+                        v0, v1, v2 = cx0 * vv, cx1 * vv, cx2 * vv
+                    elif i == 1:
+                        v0, v1, v2 = cy0 * vv, cy1 * vv, cy2 * vv
+                    else:
+                        v0, v1, v2 = cz0 * vv, cz1 * vv, cz2 * vv
+                M0[rb, c] += v0 * wt0
+                M0[rb + 1, c] += v1 * wt0
+                M0[rb + 2, c] += v2 * wt0
+                M1[rb, c] += v0 * wt1
+                M1[rb + 1, c] += v1 * wt1
+                M1[rb + 2, c] += v2 * wt1
+                M2[rb, c] += v0 * wt2
+                M2[rb + 1, c] += v1 * wt2
+                M2[rb + 2, c] += v2 * wt2
+        # ---- discretisation (module docstring)
+        fn[0] /= T
+        fn[1] /= T
+        fn[2] /= T
+        _nav_F(lat0, h0, fn, F)
+        F2 = F @ F
+        F3 = F2 @ F
+        phinn = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
+        Fnp = np.zeros((9, npar))
+        Fnp[0:6, :] = M0
+        phinp = Fnp + F[:, 0:6] @ M1 + F2[:, 0:6] @ M2
+        Qc = np.zeros((9, 9))
+        for i in range(3):
+            Qc[i, i] = qgm
+            Qc[3 + i, 3 + i] = qam
+        FQ = F @ Qc
+        Qd = Qc * T + (FQ + FQ.T) * (T * T / 2.0) + (F2 @ Qc + 2.0 * FQ @ F.T + Qc @ F2.T) * (T * T * T / 6.0)
+        # scaling
+        for i in range(9):
+            for j in range(9):
+                phinn[i, j] *= sig[j] / sig[i]
+                Qd[i, j] /= sig[i] * sig[j]
+            for c in range(npar):
+                phinp[i, c] *= sig[9 + c] / sig[i]
+        filters.predict(P, 9, phinn, phinp, Qd, np.zeros(npar))
+        phinn_st[k] = phinn
+        phinp_st[k] = phinp
+        # ---- measurement: zero velocity, known position
+        rm0, rn0 = earth.radii(lat0)
+        z[0], z[1], z[2] = ve, vn, vu
+        z[3] = (lon - lon0) * (rn0 + h0) * math.cos(lat0)
+        z[4] = (lat - lat0) * (rm0 + h0)
+        z[5] = h - h0
+        for a in range(6):
+            z_st[k, a] = z[a]
+            z[a] /= sig[3 + a]
+        if k % hist_every == 0 or k == M - 1:
+            hist_Pm[ih] = P
+            hist_ref[ih, 0:9] = Ag.ravel()
+            hist_ref[ih, 9:12] = bg
+            hist_ref[ih, 12:21] = G.ravel()
+            hist_ref[ih, 21:30] = Aa.ravel()
+            hist_ref[ih, 30:33] = ba
+            hist_ref[ih, 33:36] = K2
+            hist_ref[ih, 36:45] = Kx.ravel()
+            hist_ref[ih, 45:54] = lev.ravel()
+            hist_ref[ih, 54] = tau[0]
+        nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
+        K_st[k] = K
+        Si_st[k] = Si
+        sz_st[k] = Si @ z
+        if k % hist_every == 0 or k == M - 1:
+            for i in range(N):
+                hist_Pf[ih, i] = P[i, i]
+            ih += 1
+        # ---- feedback (S16 eq. 27)
+        for i in range(N):
+            xs[i] *= sig[i]
+        e0, e1, e2, e3 = _qrv(-xs[0], -xs[1], -xs[2])
+        q0, q1, q2, q3 = _qmul(e0, e1, e2, e3, q0, q1, q2, q3)
+        ve -= xs[3]
+        vn -= xs[4]
+        vu -= xs[5]
+        lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
+        lat -= xs[7] / (rm0 + h0)
+        h -= xs[8]
+        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau)
+    nav_out[0], nav_out[1], nav_out[2], nav_out[3] = q0, q1, q2, q3
+    nav_out[4], nav_out[5], nav_out[6] = ve, vn, vu
+    nav_out[7], nav_out[8], nav_out[9] = lat, lon, h
+    return M
+
+
+@njit(cache=True)
+def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau):
+    """Remove the parameter estimates (physical, ``xs[9:]``) from the compensation (in place)."""
+    npar = kinds.shape[0]
+    Dg = np.zeros((3, 3))
+    Da = np.zeros((3, 3))
+    for c in range(npar):
+        v = xs[9 + c]
+        k = kinds[c]
+        i = axes[c]
+        j = js[c]
+        if k == 0:
+            Dg[i, j] = v
+        elif k == 1:
+            bg[i] -= v
+        elif k == 2:
+            G[i, j] -= v
+        elif k == 3:
+            Da[i, j] = v
+        elif k == 4:
+            ba[i] -= v
+        elif k == 5:
+            K2[i] -= v
+        elif k == 6:
+            col = 0 if (j == 0 or j == 2) else (1 if (j == 1 or j == 4) else 2)
+            Kx[i, col] -= v
+        elif k == 7:
+            lev[i, i] -= v
+        elif k == 8:
+            lev[i, j] -= v
+        else:
+            tau[0] -= v
+    nA = Ag - Dg @ Ag
+    Ag[:, :] = nA
+    nA = Aa - Da @ Aa
+    Aa[:, :] = nA
+
+
+@njit(cache=True)
+def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0):
+    """Backward MBF pass (inscal.filters): smoothed errors and covariances at the stored steps and at
+    the start (``x0``, ``Pc0``)."""
+    N = P0.shape[0]
+    lam = np.zeros(N)
+    Lam = np.zeros((N, N))
+    ih = hist_Pm.shape[0] - 1
+    for k in range(M - 1, -1, -1):
+        filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
+        if k % hist_every == 0 or k == M - 1:
+            x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
+            hist_x[ih] = x
+            hist_P[ih] = Ps
+            ih -= 1
+        filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
+    x, Ps = filters.smoothed(P0, lam, Lam)
+    x0[:] = x
+    Pc0[:, :] = Ps
+
+
+# ----------------------------------------------------------------------------- driver
+REF_SLICES = {"Ag": (0, 9, (3, 3)), "bg": (9, 12, (3,)), "G": (12, 21, (3, 3)), "Aa": (21, 30, (3, 3)),
+              "ba": (30, 33, (3,)), "K2": (33, 36, (3,)), "Kx": (36, 45, (3, 3)), "lever": (45, 54, (3, 3)),
+              "tau": (54, 55, (1,))}
+
+
+def _params_from_ref(row) -> CompParams:
+    return CompParams(**{k: np.array(row[a:b]).reshape(s) for k, (a, b, s) in REF_SLICES.items()})
+
+
+def estimate_white_noise(dtheta, dvel, dt) -> tuple[np.ndarray, np.ndarray]:
+    """Angle and velocity random walk [rad/sqrt(s), m/s/sqrt(s)] per axis from the record itself:
+    the robust spread (1.4826 MAD) of second differences of the increments, which removes
+    constant rates and constant-rate rotations (var of a second difference of white noise = 6 s^2)."""
+    out = []
+    for x in (dtheta, dvel):
+        d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+        mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+        out.append(1.4826 * mad / math.sqrt(6.0) / math.sqrt(dt))
+    return out[0], out[1]
+
+
+@dataclass
+class PassOutput:
+    params: CompParams
+    P0s: np.ndarray  # smoothed covariance at the start (scaled)
+    x0s: np.ndarray  # smoothed error at the start (scaled)
+    nis: np.ndarray
+    z: np.ndarray
+    steps: int
+    hist_step: np.ndarray
+    hist_ref: np.ndarray
+    hist_x: np.ndarray
+    hist_P: np.ndarray
+    hist_Pm: np.ndarray
+    Pf: np.ndarray | None = None  # filtered covariance after the last update (scaled)
+    phinn: np.ndarray | None = None
+    phinp: np.ndarray | None = None
+
+
+def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
+             keep_phi: bool = False) -> PassOutput:
+    """One forward filter pass and its smoother (compiled kernels)."""
+    N = states.n_states
+    npar = N - N_NAV
+    M = dth.shape[0] // n_per
+    if M < 2:
+        raise CalibrationError(f"record too short for the filter: {dth.shape[0] * dt:g} s at a {n_per * dt:g} s step")
+    nh = (M - 1) // hist_every + 1 + (1 if (M - 1) % hist_every else 0)
+    p = params.copy()
+    kinds, axes, js = states.columns()
+    q = quat_from_dcm(C0)
+    nav0 = np.concatenate([q / np.linalg.norm(q), np.zeros(3), [site[0], site[1], site[2]]])
+    P = np.eye(N)
+    K_st = np.empty((M, N, 6))
+    Si_st = np.empty((M, 6, 6))
+    sz_st = np.empty((M, 6))
+    phinn_st = np.empty((M, 9, 9))
+    phinp_st = np.empty((M, 9, npar))
+    nis = np.empty(M)
+    z_st = np.empty((M, 6))
+    hist_Pm = np.empty((nh, N, N))
+    hist_ref = np.empty((nh, 55))
+    hist_Pf = np.empty((nh, N))
+    nav_out = np.empty(10)
+    nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
+    Mk = _pass_kernel(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
+                      int(n_per), nav0, np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever,
+                      p.tau, nl, bool(states.asynchrony), kinds, axes, js, sig, qg, qa, r, P, int(hist_every),
+                      K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out)
+    hist_x = np.empty((nh, N))
+    hist_P = np.empty((nh, N, N))
+    x0 = np.empty(N)
+    Pc0 = np.empty((N, N))
+    _smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, hist_P,
+                   x0, Pc0)
+    steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
+    out = PassOutput(p, Pc0, x0, nis, z_st, Mk, steps, hist_ref, hist_x, hist_P, hist_Pm, P)
+    if keep_phi:
+        out.phinn, out.phinp = phinn_st, phinp_st
+    return out
+
+
+def _canon_flat(p: CompParams, names) -> np.ndarray:
+    from .result import flatten
+    from ..errors import GimbalErrors
+
+    return flatten(p.to_imu(), GimbalErrors(), names)
+
+
+def estimated_names(states: StateSet) -> tuple[str, ...]:
+    names = ["gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
+             "accel_bias"]
+    if states.extended:
+        names += ["gyro_g_sensitivity", "accel_nonlinearity", "accel_cross_coupling", "accel_lever_arm"]
+    if states.asynchrony:
+        names.append("time_asynchrony")
+    return tuple(names)
+
+
+def _fixed_mask(states: StateSet, names) -> np.ndarray:
+    """Components of the canonical vector that the state set does not estimate (NaN sigma):
+    the misalignment angles fixed by the frame definition, off-diagonal lever arms (S16 form)."""
+    from ..errors import PARAMETERS
+
+    mask = []
+    for n in names:
+        shape = PARAMETERS[n][4]
+        size = int(np.prod(shape)) if shape else 1
+        m = np.zeros(size, bool)
+        tri = "accel_misalignment" if states.psins else "gyro_misalignment"
+        if n == tri:  # upper angles [xy, xz, yz] are zero by the frame definition
+            m[[0, 1, 3]] = True
+        if n == "accel_lever_arm" and not states.lever9:
+            m[[1, 2, 3, 5, 6, 7]] = True
+        mask.append(m)
+    return np.concatenate(mask)
+
+
+def _jacobian(p: CompParams, states: StateSet, names, sig_par) -> np.ndarray:
+    """d(canonical flat) / d(scaled parameter error state), central differences."""
+    n = sig_par.shape[0]
+    base = _canon_flat(p, names)
+    J = np.empty((base.size, n))
+    for c in range(n):
+        h = 1e-4 * sig_par[c]
+        e = np.zeros(n)
+        e[c] = h
+        J[:, c] = (_canon_flat(p.corrected(states, -e), names) - _canon_flat(p.corrected(states, e), names)) / (2 * h)
+        J[:, c] *= sig_par[c]
+    return J
+
+
+def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 5,
+               tol: float = 0.01, arw=None, vrw=None, velocity_sigma: float | None = None,
+               position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
+               align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
+               keep_passes: bool = False) -> CalibrationResult:
+    """Systematic calibration of a static-site rotation record (S16 section 3).
+
+    ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
+    ``arw``/``vrw``: white noise [rad/sqrt(s)], [m/s/sqrt(s)] (scalar or per axis); estimated from
+    the record when None.  ``prior``: prior 1 sigma per group name (SI), default
+    :data:`DEFAULT_SIGMA0`.  ``initial``: linearisation start (canonical errors; default ideal).
+    """
+    rec = ws_or_record
+    st = states if isinstance(states, StateSet) else StateSet.parse(states)
+    for attr in ("dtheta", "dvel", "rate_hz", "site"):
+        if not hasattr(rec, attr):
+            raise CalibrationError(f"systematic calibration needs a record with increments, rate and site (no {attr!r})")
+    dth = np.ascontiguousarray(rec.dtheta, dtype=float)
+    dv = np.ascontiguousarray(rec.dvel, dtype=float)
+    if dth.ndim != 2 or dth.shape[1] != 3 or dv.shape != dth.shape:
+        raise CalibrationError(f"increments must be (n, 3) arrays of equal shape, got {dth.shape} and {dv.shape}")
+    if not (np.all(np.isfinite(dth)) and np.all(np.isfinite(dv))):
+        raise CalibrationError("increments contain NaN or infinite values")
+    rate = float(rec.rate_hz)
+    dt = 1.0 / rate
+    if not (filter_rate_hz > 0 and math.isfinite(filter_rate_hz)):
+        raise CalibrationError(f"filter rate must be > 0 Hz, got {filter_rate_hz}")
+    n_per = max(1, int(round(rate / filter_rate_hz)))
+    T = n_per * dt
+    site = rec.site
+    site_v = np.array([site.latitude, site.longitude, site.height])
+    # noise model
+    est_arw, est_vrw = estimate_white_noise(dth, dv, dt)
+    arw_v = np.broadcast_to(np.asarray(est_arw if arw is None else arw, float), (3,)).copy()
+    vrw_v = np.broadcast_to(np.asarray(est_vrw if vrw is None else vrw, float), (3,)).copy()
+    # floors: a filter tuned to (near) noise-free data loses its numerical footing; these are
+    # far below navigation-grade noise (S16: 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz))
+    floored = bool(np.any(arw_v < ARW_FLOOR) or np.any(vrw_v < VRW_FLOOR))
+    arw_v = np.maximum(arw_v, ARW_FLOOR)
+    vrw_v = np.maximum(vrw_v, VRW_FLOOR)
+    qg, qa = arw_v**2, vrw_v**2
+    vsig = float(velocity_sigma) if velocity_sigma is not None else 0.05 * float(np.mean(vrw_v)) * math.sqrt(T)
+    psig = float(position_sigma) if position_sigma is not None else vsig * T
+    r = np.array([vsig**2] * 3 + [psig**2] * 3)
+    # state scaling = prior sigma
+    sig0 = dict(DEFAULT_SIGMA0)
+    for k, v in (prior or {}).items():
+        if k not in sig0:
+            raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
+        sig0[k] = float(v)
+    g = site.gravity
+    nav_sig = [units.to_si(600.0, "arcsec")] * 2 + [units.to_si(1.0, "deg")] + [0.01] * 3 + [0.01] * 3
+    sig = np.array(nav_sig + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
+    sig_par = sig[N_NAV:]
+    hist_every = max(1, int(round(history_s / T)))
+    # coarse alignment (inertial-frame Wahba; valid while turning)
+    from ..navigation import coarse_align
+
+    n_al = min(dth.shape[0], max(int(round(min(align_s, dth.shape[0] * dt) * rate)), int(5 * rate) + 1))
+    start = CompParams() if initial is None else CompParams.from_imu(initial)
+    nominal = CompParams()
+    try:
+        C0 = coarse_align(dth[:n_al], dv[:n_al], dt, site.latitude, site.height, params=start.to_imu(), at_start=True)
+    except ValueError as exc:
+        raise CalibrationError(f"coarse alignment failed: {exc}") from None
+    passes = []
+    p_start = start
+    prev = None
+    converged = False
+    for ip in range(max_passes):
+        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig, qg, qa, r, hist_every)
+        # prior centred on the nominal parameters instead of this pass's start (exact linear correction)
+        # (constant parameters: their smoothed covariance is the final filtered one, P_N^pp)
+        mu = p_start.error_state(st, nominal) / sig_par
+        Ppp = out.Pf[N_NAV:, N_NAV:]
+        est = out.params.corrected(st, (Ppp @ mu) * sig_par)
+        sig_post = np.sqrt(np.maximum(np.diag(Ppp), 0.0)) * sig_par
+        phi0 = out.x0s[:3] * sig[:3]
+        C0 = _rotvec_dcm(-phi0) @ C0
+        passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
+                       "change_max_sigma": None if prev is None else
+                       float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))})
+        if prev is not None and passes[-1]["change_max_sigma"] < tol:
+            converged = True
+            p_start = est
+            break
+        prev = est
+        p_start = est
+    last = out
+    names = estimated_names(st)
+    J = _jacobian(est, st, names, sig_par)
+    Sig = J @ last.Pf[N_NAV:, N_NAV:] @ J.T
+    sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
+    fixed = _fixed_mask(st, names)
+    sflat[fixed] = np.nan
+    imu = est.to_imu()
+    from ..errors import PARAMETERS, GimbalErrors
+    from .result import flatten, unflatten
+
+    sigma = unflatten(sflat, names)
+    # innovation statistics (normalised innovation squared; dof = 6 per step)
+    from scipy.stats import chi2 as _chi2
+
+    nis = last.nis
+    dof = 6 * last.steps
+    chisq = float(np.sum(nis))
+    diag = {
+        "states": st.n_states, "state_options": _state_spec(st), "frame": "accelerometer-defined (PSINS triangular)"
+        if st.psins else "gyro-defined (S16 m-frame)",
+        "filter_rate_hz": 1.0 / T, "steps": int(last.steps), "passes": passes, "converged": converged,
+        "noise": {"arw_deg_sqrt_h": units.from_si(arw_v, "deg/sqrt(h)").tolist(),
+                  "vrw_ug_sqrt_hz": units.from_si(vrw_v, "ug/sqrt(Hz)").tolist(),
+                  "estimated_from_data": arw is None and vrw is None, "floored": floored,
+                  "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
+        "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": 6.0, "chi2": chisq, "dof": dof,
+                        "p_value": float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan"),
+                        "velocity_rms_m_s": float(np.sqrt(np.mean(last.z[:, :3] ** 2))),
+                        "position_rms_m": float(np.sqrt(np.mean(last.z[:, 3:] ** 2)))},
+        "initial_attitude_deg": np.degrees(_euler(C0)).tolist(),
+    }
+    notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
+    p_val = diag["innovations"]["p_value"]
+    if p_val < 1e-3:
+        notes.append(f"innovations inconsistent with the noise model (NIS mean {diag['innovations']['nis_mean']:.3g} "
+                     f"vs 6, p = {p_val:.2g}): unmodelled errors or wrong noise; sigma may be optimistic")
+    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu, GimbalErrors(),
+                            sigma, names, None, diag, notes)
+    res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), GimbalErrors())
+    res.history = _history(last, st, names, sig, J)
+    res.history["time_s"] = res.history["t_steps"] * T
+    res.states = st
+    res.covariance = {"labels": st.labels()[N_NAV:], "P": last.Pf[N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)}
+    if keep_passes:
+        res.pass_output = last
+    return res
+
+
+def _truth_imu(truth, st: StateSet) -> ImuErrors:
+    imu = truth[0] if isinstance(truth, tuple) else truth.imu
+    return truth_in_frame(imu, st).to_imu()
+
+
+def _state_spec(st: StateSet) -> str:
+    parts = ["51" if st.extended else "30"]
+    parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins)) if f]
+    return ",".join(parts)
+
+
+def _rotvec_dcm(v) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(np.asarray(v, float)).as_matrix()
+
+
+def _euler(C) -> np.ndarray:
+    from ..attitude import euler_from_dcm
+
+    return np.asarray(euler_from_dcm(C))
+
+
+def _history(out: PassOutput, st: StateSet, names, sig, J) -> dict:
+    """Filtered (predicted, before each stored update) and smoothed parameter histories in the
+    canonical layout (SI), with 1 sigma, at the stored steps."""
+    sig_par = sig[N_NAV:]
+    t = (out.hist_step + 1).astype(float)
+    filt, smooth, sf, ss = [], [], [], []
+    for i in range(out.hist_ref.shape[0]):
+        ref = _params_from_ref(out.hist_ref[i])
+        filt.append(_canon_flat(ref, names))
+        smooth.append(_canon_flat(ref.corrected(st, out.hist_x[i, N_NAV:] * sig_par), names))
+        sf.append(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.hist_Pm[i][N_NAV:, N_NAV:], J), 0.0)))
+        ss.append(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.hist_P[i][N_NAV:, N_NAV:], J), 0.0)))
+    return {"step": out.hist_step, "names": names, "filtered": np.array(filt), "smoothed": np.array(smooth),
+            "filtered_sigma": np.array(sf), "smoothed_sigma": np.array(ss), "t_steps": t}
+
+
+def systematic51(ws_or_record, **kw) -> CalibrationResult:
+    """S16's 51-state systematic calibration (``states="51"`` plus options)."""
+    extra = kw.pop("states", None)
+    spec = "51" + ("," + extra if extra else "")
+    return systematic(ws_or_record, spec, method_name="systematic51", **kw)
+
+
+def systematic30(ws_or_record, **kw) -> CalibrationResult:
+    """S16's traditional 30-state filter (no g-sensitivity, nonlinearity, cross-coupling, lever arm)."""
+    extra = kw.pop("states", None)
+    spec = "30" + ("," + extra if extra else "")
+    return systematic(ws_or_record, spec, method_name="systematic30", **kw)
