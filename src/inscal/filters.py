@@ -59,9 +59,9 @@ from numba import njit
 def predict(P, n, phi_nn, phi_np, q_nn, q_p):
     """Structured prediction ``P <- Phi P Phi^T + Q`` in place (see the module docstring)."""
     N = P.shape[0]
-    Pnn = P[:n, :n]
-    Pnp = P[:n, n:]
-    Ppp = P[n:, n:]
+    Pnn = np.ascontiguousarray(P[:n, :n])
+    Pnp = np.ascontiguousarray(P[:n, n:])
+    Ppp = np.ascontiguousarray(P[n:, n:])
     new_np = phi_nn @ Pnp + phi_np @ Ppp
     t1 = phi_nn @ Pnn + phi_np @ Pnp.T
     new_nn = t1 @ phi_nn.T + new_np @ phi_np.T + q_nn

@@ -393,9 +393,24 @@ def truth_in_frame(imu: ImuErrors, states: StateSet) -> CompParams:
 
 
 # ----------------------------------------------------------------------------- the kernel
+@njit(cache=True, inline="always")
+def _lin(A, b, x, idt, out):
+    """``out = A x / dt - b`` (the linear part of the compensation, a rate)."""
+    for i in range(3):
+        out[i] = (A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]) * idt - b[i]
+
+
 @njit(cache=True)
-def _compensate(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0p, have_prev, wprev, ug, ua, w, f, fdot):
-    """S16 compensation of one sample (see the module docstring); fills ug, ua, w, f, fdot (rates)."""
+def _compensate(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0m, f0p, wlm, wlp, ug, ua, w, f, fdot, wdot):
+    """S16 compensation of one sample (module docstring); fills ug, ua, w, f (rates), the
+    centred derivatives ``fdot`` (of the accelerometer output) and ``wdot``.
+
+    ``f0m``/``f0p`` and ``wlm``/``wlp``: the linearly compensated specific force and rate of the
+    previous and next samples (equal to this sample's at the ends of the record).  Time asynchrony:
+    the accelerometer increment over [t_k-1 - tau, t_k - tau] is moved to [t_k-1, t_k] by a quadratic
+    interpolation of the integrated output, ``fb_k += tau (fb_k+1 - fb_k-1) / (2 dt)
+    + tau^2 (fb_k+1 - 2 fb_k + fb_k-1) / (2 dt^2)`` (error of order tau dt^2 times the third
+    derivative of f).  The size effect's w-dot is the centred difference ``(wb_k+1 - wb_k-1) / (2 dt)``."""
     idt = 1.0 / dt
     for i in range(3):
         ug[i] = (Ag[i, 0] * dth[0] + Ag[i, 1] * dth[1] + Ag[i, 2] * dth[2]) * idt
@@ -403,39 +418,34 @@ def _compensate(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0p, have_
     f0x = ua[0] - ba[0]
     f0y = ua[1] - ba[1]
     f0z = ua[2] - ba[2]
-    if have_prev:
-        fdot[0] = (f0x - f0p[0]) * idt
-        fdot[1] = (f0y - f0p[1]) * idt
-        fdot[2] = (f0z - f0p[2]) * idt
-    else:
-        fdot[0] = 0.0
-        fdot[1] = 0.0
-        fdot[2] = 0.0
-    f0p[0], f0p[1], f0p[2] = f0x, f0y, f0z
-    f0x += tau * fdot[0]
-    f0y += tau * fdot[1]
-    f0z += tau * fdot[2]
+    fdot[0] = (f0p[0] - f0m[0]) * 0.5 * idt
+    fdot[1] = (f0p[1] - f0m[1]) * 0.5 * idt
+    fdot[2] = (f0p[2] - f0m[2]) * 0.5 * idt
+    for i in range(3):
+        wdot[i] = (wlp[i] - wlm[i]) * 0.5 * idt
+    if tau != 0.0:
+        c2 = 0.5 * tau * tau * idt * idt
+        f0x += tau * fdot[0] + c2 * (f0p[0] - 2.0 * f0x + f0m[0])
+        f0y += tau * fdot[1] + c2 * (f0p[1] - 2.0 * f0y + f0m[1])
+        f0z += tau * fdot[2] + c2 * (f0p[2] - 2.0 * f0z + f0m[2])
     fx, fy, fz = f0x, f0y, f0z
     for i in range(3):
         w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
     if nl:
+        d0, d1, d2 = wdot[0], wdot[1], wdot[2]
         for _ in range(3):  # S16 eq. 8 (fixed point)
-            c0, c1, c2 = fx * fy, fx * fz, fy * fz
+            c0, c1, c2_ = fx * fy, fx * fz, fy * fz
             w0, w1, w2 = w[0], w[1], w[2]
             ww = w0 * w0 + w1 * w1 + w2 * w2
-            if have_prev:
-                d0, d1, d2 = (w0 - wprev[0]) * idt, (w1 - wprev[1]) * idt, (w2 - wprev[2]) * idt
-            else:
-                d0, d1, d2 = 0.0, 0.0, 0.0
             wp0 = w0 * lev[0, 0] + w1 * lev[0, 1] + w2 * lev[0, 2]
             wp1 = w0 * lev[1, 0] + w1 * lev[1, 1] + w2 * lev[1, 2]
             wp2 = w0 * lev[2, 0] + w1 * lev[2, 1] + w2 * lev[2, 2]
             s0 = w0 * wp0 - lev[0, 0] * ww + (d1 * lev[0, 2] - d2 * lev[0, 1])  # S16 eq. 9-11 (+ w-dot)
             s1 = w1 * wp1 - lev[1, 1] * ww + (d2 * lev[1, 0] - d0 * lev[1, 2])
             s2 = w2 * wp2 - lev[2, 2] * ww + (d0 * lev[2, 1] - d1 * lev[2, 0])
-            nx = f0x - (K2[0] * fx * fx + Kx[0, 0] * c0 + Kx[0, 1] * c1 + Kx[0, 2] * c2) - s0  # S16 eq. 12
-            ny = f0y - (K2[1] * fy * fy + Kx[1, 0] * c0 + Kx[1, 1] * c1 + Kx[1, 2] * c2) - s1
-            nz = f0z - (K2[2] * fz * fz + Kx[2, 0] * c0 + Kx[2, 1] * c1 + Kx[2, 2] * c2) - s2
+            nx = f0x - (K2[0] * fx * fx + Kx[0, 0] * c0 + Kx[0, 1] * c1 + Kx[0, 2] * c2_) - s0  # S16 eq. 12
+            ny = f0y - (K2[1] * fy * fy + Kx[1, 0] * c0 + Kx[1, 1] * c1 + Kx[1, 2] * c2_) - s1
+            nz = f0z - (K2[2] * fz * fz + Kx[2, 0] * c0 + Kx[2, 1] * c1 + Kx[2, 2] * c2_) - s2
             fx, fy, fz = nx, ny, nz
             for i in range(3):
                 w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
@@ -553,9 +563,19 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     w = np.empty(3)
     f = np.empty(3)
     fdot = np.empty(3)
-    f0p = np.zeros(3)
-    wprev = np.zeros(3)
+    f0m = np.empty(3)  # linear-compensated specific force / rate of the previous, this, next sample
+    f0c = np.empty(3)
+    f0n = np.empty(3)
+    wlm = np.empty(3)
+    wlc = np.empty(3)
+    wln = np.empty(3)
     wd = np.zeros(3)
+    idt = 1.0 / dt
+    if M > 0:
+        _lin(Aa, ba, dv[0], idt, f0c)
+        _lin(Ag, bg, dth[0], idt, wlc)
+        f0m[:] = f0c
+        wlm[:] = wlc
     vals = np.empty(npar)
     M0 = np.zeros((6, npar))
     M1 = np.zeros((6, npar))
@@ -586,13 +606,18 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
         fn[2] = 0.0
         for jj in range(n_per):
             s = k * n_per + jj
-            _compensate(dth[s], dv[s], dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau[0], nl, f0p, have_prev, wprev,
-                        ug, ua, w, f, fdot)
-            if have_prev:
-                wd[0] = (w[0] - wprev[0]) / dt
-                wd[1] = (w[1] - wprev[1]) / dt
-                wd[2] = (w[2] - wprev[2]) / dt
-            wprev[0], wprev[1], wprev[2] = w[0], w[1], w[2]
+            if s + 1 < dth.shape[0]:
+                _lin(Aa, ba, dv[s + 1], idt, f0n)
+                _lin(Ag, bg, dth[s + 1], idt, wln)
+            else:
+                f0n[:] = f0c
+                wln[:] = wlc
+            _compensate(dth[s], dv[s], dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau[0], nl, f0m, f0n, wlm, wln,
+                        ug, ua, w, f, fdot, wd)
+            f0m[:] = f0c
+            f0c[:] = f0n
+            wlm[:] = wlc
+            wlc[:] = wln
             a0, a1, a2 = w[0] * dt, w[1] * dt, w[2] * dt
             b0, b1, b2 = f[0] * dt, f[1] * dt, f[2] * dt
             r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, have_prev)
@@ -696,7 +721,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
         phinn = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
         Fnp = np.zeros((9, npar))
         Fnp[0:6, :] = M0
-        phinp = Fnp + F[:, 0:6] @ M1 + F2[:, 0:6] @ M2
+        phinp = Fnp + np.ascontiguousarray(F[:, 0:6]) @ M1 + np.ascontiguousarray(F2[:, 0:6]) @ M2
         Qc = np.zeros((9, 9))
         for i in range(3):
             Qc[i, i] = qgm
@@ -1079,7 +1104,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu, GimbalErrors(),
                             sigma, names, None, diag, notes)
     res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), GimbalErrors())
-    res.history = _history(last, st, names, sig, J)
+    res.history = _history(last, st, names, sig, J, est)
     res.history["time_s"] = res.history["t_steps"] * T
     res.states = st
     res.covariance = {"labels": st.labels()[N_NAV:], "P": last.Pf[N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)}
@@ -1111,20 +1136,30 @@ def _euler(C) -> np.ndarray:
     return np.asarray(euler_from_dcm(C))
 
 
-def _history(out: PassOutput, st: StateSet, names, sig, J) -> dict:
-    """Filtered (predicted, before each stored update) and smoothed parameter histories in the
-    canonical layout (SI), with 1 sigma, at the stored steps."""
+def _history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams) -> dict:
+    """Parameter histories in the canonical layout (SI) at the stored steps: ``filtered`` (the
+    reference before each stored update, 1 sigma from the predicted covariance) and ``smoothed``.
+
+    The parameters are constants, so their smoothed estimate and covariance at every step are the
+    final ones (the RTS smoother with zero parameter process noise); inscal uses that identity
+    rather than the adjoint recursion, whose parameter part loses precision early in the record
+    when the zero-velocity updates are ~1e8 times more informative than the prior.  The recursion's
+    own parameter estimates (``mbf``) are kept for checks; they agree with the final ones once the
+    record is well conditioned (tests/test_systematic.py)."""
     sig_par = sig[N_NAV:]
     t = (out.hist_step + 1).astype(float)
-    filt, smooth, sf, ss = [], [], [], []
+    filt, mbf, sf = [], [], []
     for i in range(out.hist_ref.shape[0]):
         ref = _params_from_ref(out.hist_ref[i])
         filt.append(_canon_flat(ref, names))
-        smooth.append(_canon_flat(ref.corrected(st, out.hist_x[i, N_NAV:] * sig_par), names))
+        mbf.append(_canon_flat(ref.corrected(st, out.hist_x[i, N_NAV:] * sig_par), names))
         sf.append(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.hist_Pm[i][N_NAV:, N_NAV:], J), 0.0)))
-        ss.append(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.hist_P[i][N_NAV:, N_NAV:], J), 0.0)))
-    return {"step": out.hist_step, "names": names, "filtered": np.array(filt), "smoothed": np.array(smooth),
-            "filtered_sigma": np.array(sf), "smoothed_sigma": np.array(ss), "t_steps": t}
+    fin = _canon_flat(final, names)
+    sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.Pf[N_NAV:, N_NAV:], J), 0.0))
+    n = len(filt)
+    return {"step": out.hist_step, "names": names, "filtered": np.array(filt), "filtered_sigma": np.array(sf),
+            "smoothed": np.tile(fin, (n, 1)), "smoothed_sigma": np.tile(sfin, (n, 1)), "mbf": np.array(mbf),
+            "t_steps": t}
 
 
 def systematic51(ws_or_record, **kw) -> CalibrationResult:
@@ -1139,3 +1174,26 @@ def systematic30(ws_or_record, **kw) -> CalibrationResult:
     extra = kw.pop("states", None)
     spec = "30" + ("," + extra if extra else "")
     return systematic(ws_or_record, spec, method_name="systematic30", **kw)
+
+
+def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
+    """Propagate the navigation over the samples given (one filter step, no update) from the
+    navigation state ``nav0 = [q(4), v(3), lat, lon, h]``; returns the final state (10) and the
+    step's physical ``(Phi_nn, Phi_np)``.  For tests of the F blocks against finite differences
+    of this same nonlinear propagation."""
+    N = states.n_states
+    n = dth.shape[0]
+    p = params.copy()
+    kinds, axes, js = states.columns()
+    P = np.eye(N)
+    one = lambda *s: np.empty((1,) + s)  # noqa: E731
+    K_st, Si_st, sz_st = one(N, 6), one(6, 6), one(6)
+    phinn, phinp = one(9, 9), one(9, N - N_NAV)
+    nis, z = np.empty(1), one(6)
+    hP, hr, hf = one(N, N), one(55), one(N)
+    out = np.empty(10)
+    _pass_kernel(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
+                 np.asarray(nav0, float), np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx,
+                 p.lever, p.tau, True, bool(states.asynchrony), kinds, axes, js, np.ones(N), np.zeros(3),
+                 np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out)
+    return out, phinn[0], phinp[0]

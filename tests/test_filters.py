@@ -1,0 +1,114 @@
+"""The structured closed-loop filter and its MBF smoother against the textbook dense Kalman
+filter and RTS smoother (S16 eq. 13-16) on a small random linear system."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inscal import filters
+
+
+def _system(rng, n=3, p=2, m=2, M=40, qp=0.0):
+    phinn = [np.eye(n) + 0.2 * rng.standard_normal((n, n)) for _ in range(M + 1)]
+    phinp = [0.5 * rng.standard_normal((n, p)) for _ in range(M + 1)]
+    A = rng.standard_normal((n, n))
+    qnn = 0.05 * (A @ A.T) + 0.01 * np.eye(n)
+    q_p = np.full(p, qp)
+    idx = np.array([0, n - 1][:m], dtype=np.int64)
+    r = np.array([0.3, 0.02][:m])
+    return phinn, phinp, qnn, q_p, idx, r
+
+
+def _dense_phi(pn, pp):
+    n, p = pp.shape
+    F = np.eye(n + p)
+    F[:n, :n] = pn
+    F[:n, n:] = pp
+    return F
+
+
+@pytest.mark.parametrize("qp", [0.0, 1e-3])
+def test_structured_closed_loop_filter_and_mbf_equal_dense_rts(qp):
+    rng = np.random.default_rng(7)
+    n, p, M = 3, 2, 40
+    phinn, phinp, qnn, q_p, idx, r = _system(rng, n, p, 2, M, qp)
+    N = n + p
+    H = np.zeros((len(idx), N))
+    H[np.arange(len(idx)), idx] = 1.0
+    Q = np.zeros((N, N))
+    Q[:n, :n] = qnn
+    Q[n:, n:] = np.diag(q_p)
+    P0 = np.diag(rng.uniform(0.5, 2.0, N))
+    x_true = rng.standard_normal(N) * np.sqrt(np.diag(P0))
+    zs = []
+    for k in range(1, M + 1):
+        x_true = _dense_phi(phinn[k], phinp[k]) @ x_true + rng.multivariate_normal(np.zeros(N), Q)
+        zs.append(H @ x_true + rng.standard_normal(len(idx)) * np.sqrt(r))
+    # --- dense, open loop (textbook)
+    xf, Pf, xp, Pp, Phis = [np.zeros(N)], [P0.copy()], [None], [None], [None]
+    for k in range(1, M + 1):
+        F = _dense_phi(phinn[k], phinp[k])
+        x_ = F @ xf[-1]
+        P_ = F @ Pf[-1] @ F.T + Q
+        S = H @ P_ @ H.T + np.diag(r)
+        K = P_ @ H.T @ np.linalg.inv(S)
+        xf.append(x_ + K @ (zs[k - 1] - H @ x_))
+        Pf.append((np.eye(N) - K @ H) @ P_)
+        xp.append(x_)
+        Pp.append(P_)
+        Phis.append(F)
+    xs, Ps = filters.dense_rts(xf, Pf, xp, Pp, Phis)
+    # --- structured, closed loop: reference y, error e = y - x; estimate fed back every step
+    P = P0.copy()
+    y = np.zeros(N)
+    K_st = np.empty((M, N, len(idx)))
+    Si_st = np.empty((M, len(idx), len(idx)))
+    sz_st = np.empty((M, len(idx)))
+    Pm = np.empty((M, N, N))
+    yref = np.empty((M, N))
+    Kk = np.empty((N, len(idx)))
+    Si = np.empty((len(idx), len(idx)))
+    xh = np.empty(N)
+    for k in range(1, M + 1):
+        filters.predict(P, n, phinn[k], np.ascontiguousarray(phinp[k]), qnn, q_p)
+        y = _dense_phi(phinn[k], phinp[k]) @ y
+        np.testing.assert_allclose(P, Pp[k], rtol=1e-11, atol=1e-13)
+        Pm[k - 1] = P
+        yref[k - 1] = y
+        z = H @ y - zs[k - 1]
+        filters.update(P, idx, r, z, Kk, Si, xh)
+        K_st[k - 1], Si_st[k - 1], sz_st[k - 1] = Kk, Si, Si @ z
+        y = y - xh  # feedback (S16 eq. 27)
+        np.testing.assert_allclose(y, xf[k], rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(P, Pf[k], rtol=1e-10, atol=1e-12)
+    # --- MBF backwards: smoothed error of the pre-update reference
+    lam = np.zeros(N)
+    Lam = np.zeros((N, N))
+    for k in range(M, 0, -1):
+        filters.smoother_step(lam, Lam, idx, K_st[k - 1], Si_st[k - 1], sz_st[k - 1])
+        e, Pk = filters.smoothed(Pm[k - 1], lam, Lam)
+        np.testing.assert_allclose(yref[k - 1] - e, xs[k], rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(Pk, Ps[k], rtol=1e-9, atol=1e-11)
+        filters.adjoint_back(lam, Lam, n, phinn[k], np.ascontiguousarray(phinp[k]))
+    e0, P0s = filters.smoothed(P0, lam, Lam)
+    np.testing.assert_allclose(-e0, xs[0], rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(P0s, Ps[0], rtol=1e-9, atol=1e-11)
+    if qp == 0.0:  # constant parameters: smoothed = final filtered at every step
+        for k in range(M + 1):
+            np.testing.assert_allclose(xs[k][n:], xf[M][n:], rtol=1e-9, atol=1e-11)
+
+
+def test_joseph_update_keeps_covariance_symmetric_positive_with_tiny_noise():
+    rng = np.random.default_rng(3)
+    N = 12
+    A = rng.standard_normal((N, N))
+    P = A @ A.T + np.eye(N)
+    idx = np.array([1, 4, 7], dtype=np.int64)
+    K = np.empty((N, 3))
+    Si = np.empty((3, 3))
+    x = np.empty(N)
+    for _ in range(50):
+        filters.update(P, idx, np.full(3, 1e-14), rng.standard_normal(3), K, Si, x)
+        assert np.array_equal(P, P.T)
+        assert np.min(np.linalg.eigvalsh(P)) > -1e-12 * np.max(np.diag(P))
