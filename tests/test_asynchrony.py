@@ -136,11 +136,13 @@ def test_zero_asynchrony_is_the_old_code_path(monkeypatch):
 
 
 @pytest.mark.parametrize("tau", [2e-3, -5e-3])
-def test_simulate_then_compensate_within_first_order_bound(tau):
-    """Linear errors + g-sensitivity + tau.  Bound per sample (one-signed Peano kernel, see
-    ImuErrors.compensate_increments): |tau (dt + tau)| / 2 * dt * max|f''|, with
-    |f''| <= (alpha + w^2) g for a turn of rate w and angular acceleration alpha (the
-    specific force only turns with the gimbals on a static base)."""
+def test_simulate_then_compensate_within_bound(tau):
+    """Linear errors + g-sensitivity + tau.  The compensation interpolates the integrated
+    accelerometer output quadratically across the neighbouring samples (ImuErrors.compensate);
+    it is exact for a force quadratic in time, so its error comes only from the jumps of f'' at
+    the acceleration onsets.  Reference: the first-order bound |tau (dt + tau)| / 2 * dt * max|f''|
+    with |f''| <= (alpha + w^2) g (turn of rate w, angular acceleration alpha); measured 0.17 and
+    0.13 of it for the two taus."""
     base = s16_errors().replace(accel_nonlinearity=np.zeros(3), accel_cross_coupling=np.zeros(6),
                                 accel_lever_arm=np.zeros(3))
     imu = base.replace(time_asynchrony=tau)
@@ -148,19 +150,18 @@ def test_simulate_then_compensate_within_first_order_bound(tau):
     d = simulate(sc, keep_truth=True)
     cth, cdv = imu.compensate_increments(DT, d.dtheta, d.dvel)
     alpha, w = 50 * DEG, 10 * DEG
-    bound = abs(tau * (DT + tau)) / 2 * DT * (alpha + w * w) * SITE.gravity
-    err = np.abs(cdv - d.true_dvel)[1:].max()
-    assert err < bound * (1 + 1e-9) + 1e-15, (err, bound)  # measured: 0.966 of the bound for both taus
-    assert err > 0.5 * bound  # and the bound is attained (the acceleration onsets)
+    bound = abs(tau * (DT + abs(tau))) / 2 * DT * (alpha + w * w) * SITE.gravity
+    err = np.abs(cdv - d.true_dvel)[1:-1].max()  # first/last rows lack a neighbour
+    assert err < 0.25 * bound, (err, bound)
     # uncorrected: ~ |tau| dt |f'| = |tau| dt w g per sample, much larger
     _, raw = base.compensate_increments(DT, d.dtheta, d.dvel)
-    assert np.abs(raw - d.true_dvel).max() > 10 * err
-    # residuals do not accumulate: |sum| <= |tau| (dt + |tau|) / 2 * |delta f'| (+ the uncorrected first sample)
-    assert np.abs(np.sum(cdv - d.true_dvel, axis=0)).max() < 2 * abs(tau) * (DT + abs(tau)) * w * SITE.gravity + 1e-9
+    assert np.abs(raw - d.true_dvel).max() > 50 * err
+    # residuals do not accumulate
+    assert np.abs(np.sum(cdv - d.true_dvel, axis=0)).max() < 1e-12
     # the gyros see the g-sensitivity of the corrected force
-    assert np.abs(cth - d.true_dtheta)[1:].max() < 1e-15
-    # chunked compensation with the raw previous sample equals one piece
-    a1, b1 = imu.compensate_increments(DT, d.dtheta[:400], d.dvel[:400])
+    assert np.abs(cth - d.true_dtheta)[1:-1].max() < 1e-15
+    # chunked compensation with the raw neighbouring samples equals one piece
+    a1, b1 = imu.compensate_increments(DT, d.dtheta[:400], d.dvel[:400], next=(d.dtheta[400], d.dvel[400]))
     a2, b2 = imu.compensate_increments(DT, d.dtheta[400:], d.dvel[400:], prev=(d.dtheta[399], d.dvel[399]))
     assert np.allclose(np.vstack([b1, b2]), cdv, rtol=0, atol=1e-18)
     assert np.allclose(np.vstack([a1, a2]), cth, rtol=0, atol=1e-18)
@@ -173,7 +174,7 @@ def test_rate_compensation_with_dt():
     fa = np.stack([np.sin(t - 3e-3), np.cos(t - 3e-3), 9.8 + 0 * t], axis=1)  # sampled at t - tau
     _, na = imu.measure(np.zeros_like(fa), fa)
     _, fc = imu.compensate(np.zeros_like(fa), na, dt=DT)
-    assert np.abs(fc - f)[1:].max() < 3e-3 * DT * 1.01  # |tau dt f''/2| with f'' ~ 1 (backward difference)
+    assert np.abs(fc - f)[1:-1].max() < 3e-3 * DT**2  # quadratic interpolation: tau dt^2 |f'''| with |f'''| ~ 1
     _, f0 = imu.compensate(np.zeros_like(fa), na)  # without dt: left in
     assert np.abs(f0 - fa).max() < 1e-15
 

@@ -33,9 +33,9 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False) -> 
     dt = 1.0 / info.rate_hz
 
     def chunks():
-        for t, dth, dv, g in io.iter_chunks(data):
-            cdth, cdv = imu.compensate_increments(dt, dth, dv)
-            yield t, cdth, cdv, g
+        from .navigation import compensated_chunks
+
+        yield from compensated_chunks(io.iter_chunks(data), imu, dt)
 
     attrs = {"compensated_with": json.dumps({"file": str(params), "hash": io.file_hash(params),
                                              "method": meta.get("method", ""), "source": str(data)})}

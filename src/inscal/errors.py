@@ -237,18 +237,36 @@ class ImuErrors:
     def compensate(self, ng, na, wdot=None, tol=1e-15, max_iter=20, dt=None):
         """Compensated (w~, f~) from measured rates, by the S16 fixed-point iteration.
 
-        Time asynchrony: when ``dt`` (the sample interval [s], scalar or per sample) is given
-        and ``time_asynchrony != 0``, the rows of ``ng``, ``na`` (N, 3) are taken as consecutive
-        samples and the accelerometer output is brought to the gyro time base by the causal
-        first-order correction ``f~_k <- f~_k + tau (f~_k - f~_{k-1}) / dt`` (the first row is
-        not corrected); the g-sensitivity term then uses the corrected force.  Without
-        ``dt`` (or for a single sample) the asynchrony is left in.  See
-        :meth:`compensate_increments` for the accuracy.
+        With ``dt`` (the sample interval [s]) and rows of ``ng``, ``na`` (N, 3) that are
+        consecutive samples, two sample-to-sample terms are taken from the data, exactly as the
+        systematic calibration's kernel does (:mod:`inscal.calibrate.systematic`):
+
+        * time asynchrony ``tau`` (accelerometer increments over ``[t_k-1 - tau, t_k - tau]``): the
+          linearly compensated mean force ``fb`` is moved to the gyro time base by a quadratic
+          interpolation of its integral, ``fb_k += tau (fb_k+1 - fb_k-1) / (2 dt) + tau^2 (fb_k+1 -
+          2 fb_k + fb_k-1) / (2 dt^2)`` (error of order tau dt^2 times the third derivative of f;
+          the first and last rows use themselves as the missing neighbour);
+        * the size effect's w-dot, when ``wdot`` is None: the centred difference of the linearly
+          compensated rates ``(wb_k+1 - wb_k-1) / (2 dt)``.
         """
         ng = np.asarray(ng, dtype=float)
         na = np.asarray(na, dtype=float)
         w0 = (ng - self.gyro_bias) @ np.linalg.inv(self.M_g).T  # S16 eq. 3
         f0 = (na - self.accel_bias) @ np.linalg.inv(self.M_a).T  # S16 eq. 6 / eq. 7
+        if dt is not None and f0.ndim == 2 and f0.shape[0] > 1:
+            dtc = np.asarray(dt, dtype=float)
+            dtc = dtc[:, None] if dtc.ndim else dtc
+
+            def nb(x):
+                return np.vstack([x[:1], x[:-1]]), np.vstack([x[1:], x[-1:]])
+
+            if self.has_asynchrony:
+                fm, fp = nb(f0)
+                tau = self.time_asynchrony
+                f0 = f0 + tau * (fp - fm) / (2 * dtc) + tau * tau * (fp - 2 * f0 + fm) / (2 * dtc * dtc)
+            if wdot is None and np.any(self.accel_lever_arm):
+                wm, wp = nb(w0)
+                wdot = (wp - wm) / (2 * dtc)
         w, f = w0 - f0 @ self.gyro_g_sensitivity.T, f0
         if self.has_nonlinear or np.any(self.gyro_g_sensitivity):
             scale = max(1.0, float(np.max(np.abs(f0)))) if f0.size else 1.0
@@ -260,50 +278,36 @@ class ImuErrors:
                 f = f_new
                 if done:
                     break
-        if dt is not None and self.has_asynchrony and f.ndim == 2 and f.shape[0] > 1:
-            dtc = np.asarray(dt, dtype=float)
-            dtc = dtc[1:, None] if dtc.ndim else dtc
-            corr = np.zeros_like(f)
-            corr[1:] = self.time_asynchrony * (f[1:] - f[:-1]) / dtc
-            f = f + corr
-            w = w - corr @ self.gyro_g_sensitivity.T
         return w, f
 
-    def compensate_increments(self, dt, dth, dv, prev=None):
-        """Compensate increments (rates = increments/dt, the S16 practice on sampled data).
+    def compensate_increments(self, dt, dth, dv, prev=None, next=None):
+        """Compensate increments (rates = increments/dt, the S16 practice on sampled data), with
+        the sample-to-sample terms of :meth:`compensate` (time asynchrony, size-effect w-dot).
 
-        Time asynchrony ``tau``: after the linear (and nonlinear) compensation each velocity
-        increment is corrected by the causal first-order formula
-        ``dv_k <- dv_k + tau (f_k - f_{k-1})`` with ``f_k = dv_k / dt`` the mean specific
-        force of sample k (the first sample of the array is not corrected unless ``prev`` is
-        given).  Measured increments are ``dv^a_k = int_{t_{k-1}-tau}^{t_k-tau} f``.  The
-        correction is exact for a force linear in time (first order in ``tau``); its residual
-        is ``dv_k^corr - dv_k = int K(s) f''(s) ds`` with a one-signed Peano kernel of integral
-        ``-tau (dt + tau) dt / 2``, so per sample ``|residual| <= |tau (dt + tau)| / 2 * dt *
-        max|f''|`` (over ``[t_{k-2} - tau, t_k]``), i.e. ``<= |tau| dt^2 max|f''|`` (as a mean
-        force ``|tau| dt |f''|``) for ``|tau| <= dt``; it vanishes for ``tau = -dt``.  The
-        residuals do not accumulate (their sum telescopes to ``-tau (dt + tau)/2 (f'(end) -
-        f'(start))``).  Uncorrected, the error would be ``-tau dt f'`` per sample.  The size
-        effect is compensated with the gyro-time rates (the accelerometer's are ``tau``
-        earlier: a ``tau w-dot w r`` term).
-
-        ``prev = (dth, dv)``: the raw measured increments of the sample before ``dth[0]``,
-        so that data compensated in chunks gives the same result as in one piece.
+        ``prev = (dth, dv)`` / ``next = (dth, dv)``: the raw measured increments of the samples
+        just before ``dth[0]`` and just after ``dth[-1]``, so that data compensated in chunks gives
+        the same result as in one piece.
         """
         dt = np.asarray(dt, dtype=float)
         dth = np.asarray(dth, dtype=float)
         dv = np.asarray(dv, dtype=float)
-        lead = prev is not None and self.has_asynchrony and dv.ndim == 2
+        seq = dv.ndim == 2 and (self.has_asynchrony or bool(np.any(self.accel_lever_arm)))
+        lead = seq and prev is not None
+        tail = seq and next is not None
+        row = lambda x: np.reshape(np.asarray(x, dtype=float), (1, 3))  # noqa: E731
         if lead:
-            dth = np.concatenate([np.reshape(np.asarray(prev[0], dtype=float), (1, 3)), dth])
-            dv = np.concatenate([np.reshape(np.asarray(prev[1], dtype=float), (1, 3)), dv])
-            if dt.ndim:
-                dt = np.concatenate([dt[:1], dt])
+            dth, dv = np.vstack([row(prev[0]), dth]), np.vstack([row(prev[1]), dv])
+        if tail:
+            dth, dv = np.vstack([dth, row(next[0])]), np.vstack([dv, row(next[1])])
+        if dt.ndim:
+            dt = np.concatenate([dt[:1]] * lead + [dt] + [dt[-1:]] * tail)
         dtc = dt[..., None] if dt.ndim else dt
-        w, f = self.compensate(dth / dtc, dv / dtc, dt=dt)
+        w, f = self.compensate(dth / dtc, dv / dtc, dt=dt if seq else None)
         w, f = w * dtc, f * dtc
-        if lead:
-            w, f = w[1:], f[1:]
+        if w.ndim == 2:
+            n = w.shape[0]
+            sl = slice(1 if lead else 0, n - 1 if tail else n)
+            w, f = w[sl], f[sl]
         return w, f
 
 

@@ -504,6 +504,22 @@ class NavResult:
     init: str
 
 
+def compensated_chunks(chunks, params: ImuErrors, dt: float):
+    """``(t, dtheta, dvel, gimbal)`` chunks compensated with ``params`` (one chunk of look-ahead)."""
+    prev = None
+    it = iter(chunks)
+    cur = next(it, None)
+    while cur is not None:
+        nxt = next(it, None)
+        t, dth, dv, g = cur
+        after = (nxt[1][0], nxt[2][0]) if nxt is not None and len(nxt[1]) else None
+        cdth, cdv = params.compensate_increments(dt, dth, dv, prev=prev, next=after)
+        if len(dth):
+            prev = (dth[-1], dv[-1])
+        yield t, cdth, cdv, g
+        cur = nxt
+
+
 def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=None,
              params: ImuErrors | None = None, gimbal_model: GimbalErrors | None = None,
              config: NavConfig | None = None, align_config: AlignConfig | None = None,
@@ -521,6 +537,11 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     config = config or NavConfig()
     dt = 1.0 / rate_hz
     stream = SampleStream(chunks)
+    if params is not None and (params.has_asynchrony or np.any(params.accel_lever_arm - np.diag(np.diag(params.accel_lever_arm)))):
+        # sample-to-sample terms (time asynchrony, tangential size effect) need the next sample:
+        # compensate ahead of the kernel exactly as the systematic calibration does
+        stream = SampleStream(compensated_chunks(stream.chunks(), params, dt))
+        params = None
     head = stream.peek()
     if head is None or head[0].shape[0] == 0:
         raise ValueError("record has no samples")

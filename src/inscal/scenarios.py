@@ -37,6 +37,28 @@ Built-in (``inscal simulate NAME``):
     factors 60-95 ppm, nonlinearity 15-25 ug/g^2, cross-coupling 10-28 ug/g^2, lever arms
     [2.0, 3.0, -1.5] cm along the axes.  Noise of a navigation-grade FOG IMU: ARW
     0.002 deg/sqrt(h), VRW 5 ug/sqrt(Hz).
+``s16-table3``
+    An ultra-high-accuracy IMU (the "0.1 nmi / 5 d" INS of S16 section 4.3) whose truth
+    includes the extra terms at the magnitudes of S16 Table 3 (the calibrated values of S16's
+    real dual-axis RINS), in the S16 form with the m-frame equal to the s-frame like ``s16``
+    (:data:`S16_TABLE3_ERRORS`): g-sensitivity G = 1e-5 deg/h/g x [[0.09, 0.25, -0.22],
+    [0.35, 0.81, -0.24], [-0.07, -0.50, -1.02]]; nonlinearity K_a2 = [17.1, -20.4, 25.2]
+    ug/g^2; cross-coupling [xy, xz, yx, yz, zx, zy] = [-2.0, -22.6, 7.8, 16.5, -0.5, 1.6]
+    ug/g^2; lever arms [-4.1, 2.2, -2.4] cm (Table 3's numbers taken as inscal lever arms,
+    i.e. accelerometer positions; S16's printed eq. 12 sign would report their negatives:
+    the sign is immaterial here).  Linear errors of a real unit before calibration (not from
+    S16; chosen "tens of ppm / arcsec"): gyro scale factors [20, -15, 25] ppm, gyro
+    misalignment gamma [yz, zx, zy] = [15, -20, 10]", gyro bias [0.010, -0.008, 0.012] deg/h;
+    accelerometer scale factors [40, -30, 50] ppm, misalignment alpha [xy, xz, yx, yz, zx,
+    zy] = [20, -25, 15, -10, 30, -20]", bias [50, -40, 60] ug.  Noise (:data:`S16_TABLE3_NOISE`):
+    ARW 5e-6 deg/sqrt(h), VRW 0.5 ug/sqrt(Hz).  Why: S16 predicts atomic gyros better than
+    5e-6 deg/h; with ARW N the 5-day position error of free inertial navigation grows about
+    R N sqrt(t) (12 m at 1e-5 deg/sqrt(h)), and a 1 h calibration resolves the gyro biases to
+    about N / sqrt(1 h) (1e-5 deg/h of north gyro bias = 134 m in 5 days), so an INS at
+    0.1 nmi (185 m) / 5 d needs ARW of a few 1e-6 deg/sqrt(h); 0.5 ug/sqrt(Hz) is a good
+    quartz accelerometer (VRW is Schuler-bounded in navigation).  No bias instability.
+    Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
+    S16 Table 1 path, 100 Hz.
 
 Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 
@@ -117,6 +139,26 @@ PSINS19_ERRORS = {
 #: Noise of the ``psins19`` scenario (navigation-grade FOG IMU), field units.
 PSINS19_NOISE = {"arw": 0.002, "vrw": 5.0}
 
+#: IMU errors of the ``s16-table3`` scenario in the S16 compensation form (m-frame = s-frame),
+#: field units, keys and layout as :data:`PSINS19_ERRORS`.  G, K_a2, K_cross and lever_arm are
+#: S16 Table 3 (the calibrated extra terms of S16's real dual-axis RINS); the linear terms are
+#: those of a real unit before calibration (chosen, not from S16).
+S16_TABLE3_ERRORS = {
+    "K_g": {"value": [20.0, -15.0, 25.0], "unit": "ppm"},
+    "gamma": {"value": [15.0, -20.0, 10.0], "unit": "arcsec"},
+    "b_g": {"value": [0.010, -0.008, 0.012], "unit": "deg/h"},
+    "G": {"value": [[0.09e-5, 0.25e-5, -0.22e-5], [0.35e-5, 0.81e-5, -0.24e-5], [-0.07e-5, -0.50e-5, -1.02e-5]],
+          "unit": "deg/h/g"},
+    "K_a": {"value": [40.0, -30.0, 50.0], "unit": "ppm"},
+    "alpha": {"value": [20.0, -25.0, 15.0, -10.0, 30.0, -20.0], "unit": "arcsec"},
+    "b_a": {"value": [50.0, -40.0, 60.0], "unit": "ug"},
+    "K_a2": {"value": [17.1, -20.4, 25.2], "unit": "ug/g^2"},
+    "K_cross": {"value": [-2.0, -22.6, 7.8, 16.5, -0.5, 1.6], "unit": "ug/g^2"},
+    "lever_arm": {"value": [-4.1, 2.2, -2.4], "unit": "cm"},
+}
+#: Noise of the ``s16-table3`` scenario (an INS at the 0.1 nmi / 5 d level), field units.
+S16_TABLE3_NOISE = {"arw": 5e-6, "vrw": 0.5}
+
 
 def s16_errors() -> ImuErrors:
     """S16 section 4.1 error values, expressed in the S16 form then converted (m-frame = s-frame)."""
@@ -133,9 +175,9 @@ def s16_errors() -> ImuErrors:
     return from_s16(s16)
 
 
-def psins19_s16() -> S16Parameters:
-    """:data:`PSINS19_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
-    v = {k: units.to_si(e["value"], e["unit"]) for k, e in PSINS19_ERRORS.items()}
+def _s16_form(table: dict) -> S16Parameters:
+    """A field-unit table in the :data:`PSINS19_ERRORS` layout as :class:`~inscal.errors.S16Parameters` (SI)."""
+    v = {k: units.to_si(e["value"], e["unit"]) for k, e in table.items()}
     kx = v["K_cross"]  # [xy, xz, yx, yz, zx, zy] -> S16 eq. 12 rows
     return S16Parameters(
         K_g=1.0 + v["K_g"], gamma=v["gamma"], b_g=v["b_g"], G=v["G"],
@@ -143,6 +185,21 @@ def psins19_s16() -> S16Parameters:
         K_cross=np.array([[kx[0], kx[1], 0.0], [kx[2], 0.0, kx[3]], [0.0, kx[4], kx[5]]]),
         lever_arm=v["lever_arm"],
     )
+
+
+def psins19_s16() -> S16Parameters:
+    """:data:`PSINS19_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    return _s16_form(PSINS19_ERRORS)
+
+
+def s16_table3_s16() -> S16Parameters:
+    """:data:`S16_TABLE3_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    return _s16_form(S16_TABLE3_ERRORS)
+
+
+def s16_table3_errors() -> ImuErrors:
+    """The ``s16-table3`` IMU errors in the canonical form (``from_s16`` with ``C_s^m = I``)."""
+    return from_s16(s16_table3_s16())
 
 
 def psins19_errors() -> ImuErrors:
@@ -162,6 +219,12 @@ def _s16() -> Scenario:
         noise=ImuNoise(arw=units.to_si(0.00005, "deg/sqrt(h)"), vrw=units.to_si(1.0, "ug/sqrt(Hz)")),
         rate_hz=100.0,
     )
+
+
+def _s16_table3() -> Scenario:
+    return Scenario("s16-table3", s16_table1(), S16_SITE, imu=s16_table3_errors(),
+                    gimbal=GimbalErrors(0.0, units.to_si([1.0, 1.0, 1.0], "arcsec")),
+                    noise=noise_from_field(S16_TABLE3_NOISE), rate_hz=100.0)
 
 
 def _n25() -> Scenario:
@@ -193,6 +256,7 @@ BUILTIN = {
     "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
     "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
     "psins19": lambda d: _psins19(),
+    "s16-table3": lambda d: _s16_table3(),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod"}
 
