@@ -11,38 +11,71 @@ from .cliutil import CliError, check_output, fail, print_json
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
-                  min_static: float = 20.0) -> dict:
+                  min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
+                  filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
-    Nothing is written unless the calibration succeeds."""
-    from . import io
-    from .calibrate import METHODS, CalibrationError, calibrate
+    Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
+    ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods."""
+    from . import io, units
+    from .calibrate import METHODS, RECORD_METHODS, CalibrationError, calibrate
     from .paramfile import ParamFileError, save_params
 
     if method not in METHODS:
         raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
+    systematic = method in RECORD_METHODS
+    if not systematic and (states or plots or arw is not None or vrw is not None):
+        raise CliError(f"--states, --plots, --arw and --vrw apply to the systematic methods, not {method}")
     if not data.is_file():
         raise CliError(f"{data}: no such data file")
     check_output(out, force)
+    if plots is not None and not plots.is_dir():
+        raise CliError(f"--plots {plots}: no such folder")
     try:
         rec = io.read_record(data)
     except (ValueError, OSError) as exc:  # DataFileError is a ValueError
         raise CliError(str(exc)) from None
     try:
-        res = calibrate(rec, method, settle=settle, min_static=min_static)
+        if systematic:
+            opts = {"states": states, "filter_rate_hz": filter_rate_hz}
+            if arw is not None:
+                opts["arw"] = units.to_si(arw, "deg/sqrt(h)")
+            if vrw is not None:
+                opts["vrw"] = units.to_si(vrw, "ug/sqrt(Hz)")
+            res = calibrate(rec, method, **opts)
+        else:
+            res = calibrate(rec, method, settle=settle, min_static=min_static)
     except CalibrationError as exc:
         raise CliError(f"{data}: {exc}") from None
     truth = rec.truth
+    meta = {"scenario": rec.scenario or None, "windows": len(res.windows.windows) if res.windows else None}
+    if systematic:
+        d = res.diagnostics
+        meta.update({"frame": d["frame"], "states": d["state_options"], "state_count": d["states"],
+                     "filter_rate_hz": d["filter_rate_hz"], "nis_mean": d["innovations"]["nis_mean"],
+                     "chi2": d["innovations"]["chi2"], "dof": d["innovations"]["dof"],
+                     "p_value": d["innovations"]["p_value"]})
     try:
-        save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force,
-                    metadata={"scenario": rec.scenario or None, "windows": len(res.windows.windows) if res.windows else None})
+        save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
     except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
         raise CliError(str(exc)) from None
     report = {"method": res.method, "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
+    if systematic:
+        d = res.diagnostics
+        report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
+                       "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
+                       "converged": d["converged"]})
+        if plots is not None:
+            from .report import convergence_plots
+
+            try:
+                report["plots"] = [str(p) for p in convergence_plots(plots, res, truth, overwrite=force)]
+            except (FileExistsError, FileNotFoundError, OSError) as exc:
+                raise CliError(f"--plots: {exc}") from None
     return report
 
 
 def _fmt(v) -> str:
-    a = np.atleast_1d(np.asarray(v, dtype=float))
+    a = np.ravel(np.asarray(v, dtype=float))
     return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
 
 
@@ -50,20 +83,27 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def calibrate(
         data: Path = typer.Argument(..., help="HDF5 record (inscal simulate, or a recorded run)"),
-        method: str = typer.Option(..., "--method", "-m", help="six-position | twelve-position | n25 | joint"),
+        method: str = typer.Option(..., "--method", "-m",
+                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30"),
         out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
         settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
         min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
+        states: str = typer.Option(None, "--states", help="systematic: 51 | 30, plus options lever9, async, psins "
+                                   "(e.g. 51,lever9)"),
+        plots: Path = typer.Option(None, "--plots", help="systematic: folder for the convergence plots (PNG)"),
+        filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
+        arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),
+        vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)] (default: from the data)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
-            rep = run_calibrate(data, method, out, force, settle, min_static)
+            rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
-            print_json({"method": rep["method"], "parameters": rep["parameters"]})
+            print_json({k: v for k, v in rep.items() if k not in ("out", "notes")} | {"notes": rep["notes"]})
             return
         typer.echo(f"{rep['method']}: parameters -> {rep['out']}")
         for name, e in rep["parameters"].items():
@@ -71,5 +111,12 @@ def register(app: typer.Typer) -> None:
             if "error" in e:
                 line += f"   (error {_fmt(e['error'])})"
             typer.echo(line)
+        if "innovations" in rep:
+            inn = rep["innovations"]
+            typer.echo(f"  fit: NIS mean {inn['nis_mean']:.3f} (expected 6), chi2 {inn['chi2']:.1f} on {inn['dof']} dof, "
+                       f"p = {inn['p_value']:.3g}; {len(rep['passes'])} passes"
+                       + ("" if rep["converged"] else " (not converged)"))
+        for p in rep.get("plots", []):
+            typer.echo(f"  plot: {p}")
         for n in rep["notes"]:
             typer.echo(f"  note: {n}")

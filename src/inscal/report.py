@@ -146,3 +146,63 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     summary["figures"] = [f[0] for f in figs]
     summary["parameter_tables"] = [t[0] for t in tables]
     return summary
+
+
+def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> list[Path]:
+    """S16 Fig. 4-style convergence plots of a systematic calibration, one PNG per parameter
+    group: the filtered estimate (minus the truth when given, else the estimate) of every
+    component against time, with its 1-sigma envelope, and the smoothed (final) value.
+    Values in the field units of :data:`inscal.errors.PARAMETERS`.  Returns the files written."""
+    from . import units
+    from .calibrate.result import param_value
+    from .errors import PARAMETERS
+
+    h = result.history
+    if h is None:
+        raise ValueError(f"method {result.method!r} has no convergence history")
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise FileNotFoundError(f"plot folder {out_dir} does not exist")
+    t = np.asarray(h["time_s"]) / 60.0
+    ref = None
+    if truth is not None:
+        ti, tg = result._truth(truth)
+        ref = np.concatenate([np.ravel(param_value(ti, tg, n)) for n in h["names"]])
+    plt = _figure()
+    files, k = [], 0
+    for name in h["names"]:
+        shape = PARAMETERS[name][4]
+        size = int(np.prod(shape)) if shape else 1
+        unit = PARAMETERS[name][3]
+        sl = slice(k, k + size)
+        k += size
+        sig = np.ravel(result.sigma[name])
+        comps = [i for i in range(size) if np.isfinite(sig[i])]
+        if not comps:
+            continue
+        conv = lambda v: units.from_si(np.asarray(v, dtype=float), unit)  # noqa: E731
+        est = h["filtered"][:, sl] - (ref[sl] if ref is not None else 0.0)
+        fin = h["smoothed"][:, sl] - (ref[sl] if ref is not None else 0.0)
+        s = h["filtered_sigma"][:, sl]
+        fig, ax = plt.subplots(figsize=(9, 4.2))
+        for i in comps:
+            line, = ax.plot(t, conv(est[:, i]), lw=1.0, label=f"[{i}]")
+            ax.fill_between(t, conv(est[:, i] - s[:, i]), conv(est[:, i] + s[:, i]), color=line.get_color(),
+                            alpha=0.12, lw=0)
+            ax.plot(t, conv(fin[:, i]), color=line.get_color(), lw=0.8, ls="--")
+        span = [conv(fin[-1, i]) for i in comps]
+        ss = [conv(h["smoothed_sigma"][-1, sl][i]) for i in comps]
+        lo, hi = min(span) - 8 * max(ss), max(span) + 8 * max(ss)
+        lo = min(lo, *(conv(est[len(t) // 3:, i]).min() for i in comps))
+        hi = max(hi, *(conv(est[len(t) // 3:, i]).max() for i in comps))
+        ax.set_ylim(lo, hi)
+        what = "error (estimate - truth)" if ref is not None else "estimate"
+        ax.set(xlabel="time [min]", ylabel=f"{what} [{unit}]",
+               title=f"{result.method}: {name} - filtered +- 1 sigma (solid), smoothed (dashed)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=min(len(comps), 9), fontsize=8, loc="upper right")
+        path = out_dir / f"convergence-{name}.png"
+        save_figure(fig, path, overwrite)
+        plt.close(fig)
+        files.append(path)
+    return files
