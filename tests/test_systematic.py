@@ -254,3 +254,12 @@ def test_bad_input_is_refused():
         calibrate(bad, "systematic51")
     with pytest.raises(CalibrationError, match="unknown option"):
         calibrate(rec, "systematic51", bogus=1)
+
+
+@pytest.mark.slow
+def test_noise_free_recovery_on_the_n25_path():
+    """Any rotation record at a fixed site: the N25 twelve positions and rate tests, whose gimbal is
+    non-orthogonal (dth = 20") and tilted (mount attitude) - the filter uses no gimbal angles."""
+    sc = _noise_free("n25")
+    res = calibrate(_record(sc), "systematic51")
+    _check_recovery(res, sc)
