@@ -78,7 +78,7 @@ from .. import units
 from ..errors import ImuErrors, ImuNoise
 from ..turntable import BUILTIN_PATHS, Path, PathError
 from .segment import CalibrationError
-from .systematic import DEFAULT_SIGMA0, N_NAV, CompParams, StateSet, run_pass, systematic
+from .systematic import DEFAULT_SIGMA0, N_NAV, NAV_SIGMA0, StateSet, systematic
 
 #: verdict thresholds on ratio = posterior / prior sigma (upper bounds, exclusive)
 THRESHOLDS = (("well observed", 0.01), ("observed", 0.1), ("weak", 0.5))
@@ -97,7 +97,7 @@ DEFAULT_ARW = units.to_si(5e-5, "deg/sqrt(h)")
 DEFAULT_VRW = units.to_si(1.0, "ug/sqrt(Hz)")
 #: navigation prior sigma of the observability matrix's initial state (scaling only; the
 #: parameter-block results do not depend on it): tilt 600", heading 1 deg, 1 cm/s, 1 cm
-NAV_SIGMA = tuple([units.to_si(600.0, "arcsec")] * 2 + [units.to_si(1.0, "deg")] + [0.01] * 6)
+NAV_SIGMA = NAV_SIGMA0
 
 
 class ObservabilityError(ValueError):
@@ -132,7 +132,9 @@ class StateResult:
 @dataclass(frozen=True)
 class Direction:
     """A right singular vector of the parameter block: normalised singular value and its
-    largest components (label, weight; unit vector in the scaled parameter space)."""
+    largest components (label, weight; unit vector in the scaled parameter space).  Where several
+    singular values are (numerically) equal, e.g. a null space of dimension > 1, any basis of
+    that subspace is as valid as the one reported."""
 
     singular_value: float
     components: tuple[tuple[str, float], ...]
@@ -302,7 +304,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     docstring).  ``scenario_or_path``: a Scenario, a Path, a built-in scenario/path name or a
     TOML file.  ``arw`` [rad/sqrt(s)], ``vrw`` [m/s/sqrt(s)]: scalar or per axis; default
     the scenario's, else S16's.  ``rate_hz``: simulation rate of the noise-free record."""
-    from ..simulate import simulate, true_attitude
+    from ..simulate import simulate
 
     t_start = time.perf_counter()
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
@@ -346,11 +348,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     noise = res.diagnostics["noise"]
     r = np.array([noise["velocity_sigma_m_s"] ** 2] * 3 + [noise["position_sigma_m"] ** 2] * 3)
     sig = np.concatenate([NAV_SIGMA, prior])
-    n_per = max(1, int(round(rate_hz / filter_rate_hz)))
-    C0 = true_attitude(sc0, [0.0])[0]
-    site_v = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
-    out = run_pass(data.dtheta, data.dvel, 1.0 / rate_hz, n_per, C0, site_v, CompParams(), st, sig, arw_v**2,
-                   vrw_v**2, r, 10**9, keep_phi=True)
+    out = res.pass_output  # the same pass: its per-step transitions (keep_passes keeps them)
     Rf, growth = _triangular_factor(out.phinn, out.phinp, r / sig[3:9] ** 2)
     # self-check: this pass's posterior must be the systematic() one (same trajectory, noise, priors)
     mismatch = float(np.max(np.abs(np.sqrt(np.maximum(np.diag(out.Pf)[N_NAV:], 0.0)) / ratio - 1.0)))
@@ -383,7 +381,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
         noise={"arw_deg_sqrt_h": units.from_si(arw_v, "deg/sqrt(h)").tolist(),
                "vrw_ug_sqrt_hz": units.from_si(vrw_v, "ug/sqrt(Hz)").tolist(), "source": noise_src,
                "velocity_sigma_m_s": noise["velocity_sigma_m_s"], "position_sigma_m": noise["position_sigma_m"]},
-        rate_hz=float(rate_hz), filter_rate_hz=float(rate_hz / n_per), steps=int(out.steps), states=tuple(rows),
+        rate_hz=float(rate_hz), filter_rate_hz=float(res.diagnostics["filter_rate_hz"]), steps=int(out.steps), states=tuple(rows),
         singular_values=nsv, largest_singular_value=float(psv[0]), rank=int(np.sum(nsv > RANK_TOL)),
         full_singular_values=nfull, full_rank=int(np.sum(nfull > RANK_TOL)), weakest=tuple(weakest),
         vertical_growth=float(growth), consistency=mismatch, covariance=res.covariance["P"],

@@ -135,6 +135,8 @@ def _vec_group(name, kind, sigma0, unit):
 
 
 UG = units.to_si(1.0, "ug")
+#: prior 1 sigma of the navigation states: level, heading [rad], velocity [m/s], position [m]
+NAV_SIGMA0 = tuple([units.to_si(600.0, "arcsec")] * 2 + [units.to_si(1.0, "deg")] + [0.01] * 6)
 ARW_FLOOR = units.to_si(1e-5, "deg/sqrt(h)")
 VRW_FLOOR = units.to_si(0.2, "ug/sqrt(Hz)")
 DEFAULT_SIGMA0 = {
@@ -1035,8 +1037,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
         sig0[k] = float(v)
     g = site.gravity
-    nav_sig = [units.to_si(600.0, "arcsec")] * 2 + [units.to_si(1.0, "deg")] + [0.01] * 3 + [0.01] * 3
-    sig = np.array(nav_sig + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
+    sig = np.array(list(NAV_SIGMA0) + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
     sig_par = sig[N_NAV:]
     hist_every = max(1, int(round(history_s / T)))
     # coarse alignment (inertial-frame Wahba; valid while turning)
@@ -1054,7 +1055,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     prev = None
     converged = False
     for ip in range(max_passes):
-        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig, qg, qa, r, hist_every)
+        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig, qg, qa, r, hist_every, keep_phi=keep_passes)
         # prior centred on the nominal parameters instead of this pass's start (exact linear correction)
         # (constant parameters: their smoothed covariance is the final filtered one, P_N^pp)
         mu = p_start.error_state(st, nominal) / sig_par
