@@ -19,7 +19,7 @@ def _root() -> None:
 
 
 #: modules contributing subcommands (each has ``register(app)``)
-_SUBCOMMAND_MODULES = ["cli_simulate", "cli_calibrate", "cli_compensate", "cli_navigate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report", "cli_observability"]
+_SUBCOMMAND_MODULES = ["cli_simulate", "cli_calibrate", "cli_compensate", "cli_navigate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report", "cli_observability", "cli_import"]
 
 
 def _register_all() -> None:
