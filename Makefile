@@ -3,6 +3,7 @@ PY      ?= python3
 VENV    ?= .venv
 BIN      = $(VENV)/bin
 STAMP    = $(VENV)/.installed-stamp
+BSTAMP   = $(VENV)/.bench-stamp
 
 .PHONY: demo test bench venv clean
 
@@ -12,6 +13,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# the bench extra (filterpy, a benchmark-only dependency) on top of the test install
+$(BSTAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	touch $(BSTAMP)
+
 venv: $(STAMP)
 
 demo: $(STAMP)
@@ -20,7 +26,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
-bench: $(STAMP)
+bench: $(BSTAMP)
 	$(BIN)/python bench/run.py
 
 clean:
