@@ -4,9 +4,12 @@ magnitudes of S16 Table 3, calibrated with the 51-state and with the 30-state sy
 on the S16 Table 1 path, then navigated 5 days static, free inertial, level (x East, y North,
 z Up) and noise-free (so the difference is the calibrations'), with each parameter set.
 
-S16: with the 51-state parameters the position error is at least 20 % smaller.  The full study
-(four orientations, including rotation modulation, where the claim does not hold here) is
-``python -m inscal.analysis.nav5d``; its module docstring explains the orientations.
+S16: with the 51-state parameters the position error is at least 20 % smaller.  This holds here
+(seed 2016: 6.2 nmi against 64.6 nmi, 90 %; seeds 1-5: 25-96 %), but neither parameter set is near
+0.1 nmi: the 1 h S16 path does not resolve the Table 3 g-sensitivity at this noise, and the
+default 30-state filter does not converge.  In the other orientations of the full study (y-up,
+tilt, rotation modulation) the claim fails at seed 2016.  The full study and its findings:
+``python -m inscal.analysis.nav5d`` and that module's docstring.
 """
 
 import math
@@ -45,7 +48,7 @@ def test_s16_table3_scenario_is_table3_in_s16_form_with_m_frame_equal_s_frame():
 
 @pytest.fixture(scope="module")
 def study():
-    return nav5d.compare_5day(SEED, orientations=("level",))
+    return nav5d.compare_5day(SEED, orientations=("level",), consistent_30=False)
 
 
 @pytest.mark.slow

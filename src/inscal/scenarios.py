@@ -51,12 +51,13 @@ Built-in (``inscal simulate NAME``):
     misalignment gamma [yz, zx, zy] = [15, -20, 10]", gyro bias [0.010, -0.008, 0.012] deg/h;
     accelerometer scale factors [40, -30, 50] ppm, misalignment alpha [xy, xz, yx, yz, zx,
     zy] = [20, -25, 15, -10, 30, -20]", bias [50, -40, 60] ug.  Noise (:data:`S16_TABLE3_NOISE`):
-    ARW 5e-6 deg/sqrt(h), VRW 0.5 ug/sqrt(Hz).  Why: S16 predicts atomic gyros better than
-    5e-6 deg/h; with ARW N the 5-day position error of free inertial navigation grows about
-    R N sqrt(t) (12 m at 1e-5 deg/sqrt(h)), and a 1 h calibration resolves the gyro biases to
-    about N / sqrt(1 h) (1e-5 deg/h of north gyro bias = 134 m in 5 days), so an INS at
-    0.1 nmi (185 m) / 5 d needs ARW of a few 1e-6 deg/sqrt(h); 0.5 ug/sqrt(Hz) is a good
-    quartz accelerometer (VRW is Schuler-bounded in navigation).  No bias instability.
+    ARW 5e-6 deg/sqrt(h), VRW 0.5 ug/sqrt(Hz), no bias instability.  Why: S16 expects atomic
+    gyros better than 5e-6 deg/h; the 5-day position error that ARW N alone leaves in free
+    inertial navigation grows about R N sqrt(t) (6 m here), and 0.5 ug/sqrt(Hz) is a good quartz
+    accelerometer (its effect is Schuler-bounded): navigating 5 days with the true parameters
+    and this noise leaves 10-21 m (0.005-0.011 nmi, :mod:`inscal.analysis.nav5d` with
+    ``--nav-noise``), so the sensors are those of an INS well inside 0.1 nmi / 5 d and what the
+    calibration leaves decides the error.
     Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
     S16 Table 1 path, 100 Hz.
 
