@@ -70,10 +70,13 @@ differences of the neighbouring samples (one sample of look-ahead), as
 
 Passes.  Pass 1 linearises around the nominal parameters (prior mean); each later pass
 re-runs the record with the compensation of the previous result and the smoothed initial
-attitude (an iterated, Gauss-Newton smoother).  Every pass starts from the same prior
-covariance centred on its own start point; the exact linear correction
-``x_{0|M} += P_{0|M} P_0^-1 mu`` moves the result to the prior centred on the nominal
-parameters.  Passes stop when no parameter moved by more than ``tol`` of its sigma (default 0.2:
+attitude (an iterated, Gauss-Newton smoother).  Each pass runs with a prior centred on its own
+start; after pass 1 its widths are deflated to at most ``DEFLATE`` (30) previous posterior
+sigmas.  The exact linear-Gaussian change of prior then restores the real one, centred on the
+nominal parameters: with the pass's data information ``L_d = P_f^-1 - P_pass^-1``,
+``P = (L_d + P_0^-1)^-1`` and ``x = P (P_f^-1 x_pass + P_0^-1 mu)``.  The deflation is
+numerical: with the full prior the covariance spans ~1e10 and, on a quiet IMU (VRW 0.5 ug/sqrt(Hz)),
+round-off made the 51-state filter inconsistent (NEES 240 on 42 parameters; 39 with deflation).  Passes stop when no parameter moved by more than ``tol`` of its sigma (default 0.2:
 the iteration converges about quadratically, 24 -> 0.14 -> 0.001 sigma on the s16 record).
 """
 
@@ -136,6 +139,8 @@ def _vec_group(name, kind, sigma0, unit):
 
 
 UG = units.to_si(1.0, "ug")
+#: passes after the first run with prior widths of at most DEFLATE times the previous posterior sigma
+DEFLATE = 30.0
 #: prior 1 sigma of the navigation states: level, heading [rad], velocity [m/s], position [m]
 NAV_SIGMA0 = tuple([units.to_si(600.0, "arcsec")] * 2 + [units.to_si(1.0, "deg")] + [0.01] * 6)
 ARW_FLOOR = units.to_si(1e-5, "deg/sqrt(h)")
@@ -1089,18 +1094,36 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     p_start = start
     prev = None
     converged = False
+    inv_prior = 1.0 / sig_par**2
+    mu_nom = None
+    sig_pass = sig.copy()
+    first = None
     for ip in range(max_passes):
-        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig, qg, qa, r, hist_every, keep_phi=keep_passes,
-                       smooth=False)
-        # prior centred on the nominal parameters instead of this pass's start (exact linear correction)
-        # (constant parameters: their smoothed covariance is the final filtered one, P_N^pp)
-        mu = p_start.error_state(st, nominal) / sig_par
-        Ppp = out.Pf[N_NAV:, N_NAV:]
-        est = out.params.corrected(st, (Ppp @ mu) * sig_par)
-        sig_post = np.sqrt(np.maximum(np.diag(Ppp), 0.0)) * sig_par
-        phi0 = out.x0s[:3] * sig[:3]
+        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
+                       keep_phi=keep_passes, smooth=(max_passes == 1))
+        sp = sig_pass[N_NAV:]
+        # This pass ran with the prior N(p_start, diag(sp^2)) (deflated after pass 1 for numerical range).
+        # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
+        # L_d = Pf^-1 - diag(sp^-2), posterior P = (L_d + diag(sig0^-2))^-1,
+        # x = P (Pf^-1 x' + diag(sig0^-2) mu) with x' the pass's total correction and mu = p_start - nominal.
+        Pf = out.Pf[N_NAV:, N_NAV:] * np.outer(sp, sp)
+        Pf = 0.5 * (Pf + Pf.T)
+        Pf_inv = np.linalg.inv(Pf)
+        Pf_inv = 0.5 * (Pf_inv + Pf_inv.T)
+        L_d = Pf_inv - np.diag(1.0 / sp**2)
+        P_post = np.linalg.inv(L_d + np.diag(inv_prior))
+        P_post = 0.5 * (P_post + P_post.T)
+        x_pass = p_start.error_state(st, out.params)  # estimate(start) - estimate(end) = the correction
+        mu = p_start.error_state(st, nominal)
+        x_post = P_post @ (Pf_inv @ x_pass + inv_prior * mu)
+        est = out.params.corrected(st, x_post - x_pass)
+        sig_post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
+        phi0 = out.x0s[:3] * sig_pass[:3]
         C0 = _rotvec_dcm(-phi0) @ C0
+        if first is None:
+            first = (out, sig_pass.copy())
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
+                       "prior_deflation": float(np.max(sig_par / sp)),
                        "change_max_sigma": None if prev is None else
                        float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))})
         if prev is not None and passes[-1]["change_max_sigma"] < tol:
@@ -1109,10 +1132,14 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             break
         prev = est
         p_start = est
-    last = smooth_pass(out)
+        # next pass: prior widths of at most DEFLATE posterior sigmas about the new start (its
+        # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
+        sig_pass = sig.copy()
+        sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
+    last = out if max_passes == 1 else smooth_pass(out)
     names = estimated_names(st)
-    J = _jacobian(est, st, names, sig_par)
-    Sig = J @ last.Pf[N_NAV:, N_NAV:] @ J.T
+    J = _jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
+    Sig = J @ P_post @ J.T
     sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
     fixed = _fixed_mask(st, names)
     sflat[fixed] = np.nan
@@ -1149,10 +1176,13 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu, GimbalErrors(),
                             sigma, names, None, diag, notes)
     res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), GimbalErrors())
-    res.history = _history(last, st, names, sig, J, est)
+    h_out, h_sig = first
+    if h_out.hist_x is None:
+        smooth_pass(h_out)
+    res.history = _history(h_out, st, names, h_sig, J, est, P_post)
     res.history["time_s"] = res.history["t_steps"] * T
     res.states = st
-    res.covariance = {"labels": st.labels()[N_NAV:], "P": last.Pf[N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)}
+    res.covariance = {"labels": st.labels()[N_NAV:], "P": P_post}
     if keep_passes:
         res.pass_output = last
     return res
@@ -1181,7 +1211,7 @@ def _euler(C) -> np.ndarray:
     return np.asarray(euler_from_dcm(C))
 
 
-def _history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams) -> dict:
+def _history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams, P_post) -> dict:
     """Parameter histories in the canonical layout (SI) at the stored steps: ``filtered`` (the
     reference before each stored update, 1 sigma from the predicted covariance) and ``smoothed``.
 
@@ -1197,13 +1227,13 @@ def _history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams) ->
     # x_ref = the error state of each reference relative to the final (exact conversions at both ends)
     fin = _canon_flat(final, names)
     refs = [_params_from_ref(r) for r in out.hist_ref]
-    xr = np.array([r.error_state(st, final) for r in refs]) / sig_par
+    xr = np.array([r.error_state(st, final) for r in refs])
     filt = fin + xr @ J.T
     filt[0] = _canon_flat(refs[0], names)
-    mbf = fin + (xr - out.hist_x[:, N_NAV:]) @ J.T
-    Pm = out.hist_Pm[:, N_NAV:, N_NAV:]
+    mbf = fin + (xr - out.hist_x[:, N_NAV:] * sig_par) @ J.T
+    Pm = out.hist_Pm[:, N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)
     sf = np.sqrt(np.maximum(np.sum((J @ Pm) * J, axis=2), 0.0))
-    sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, out.Pf[N_NAV:, N_NAV:], J), 0.0))
+    sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P_post, J), 0.0))
     n = filt.shape[0]
     return {"step": out.hist_step, "names": names, "filtered": filt, "filtered_sigma": sf,
             "smoothed": np.tile(fin, (n, 1)), "smoothed_sigma": np.tile(sfin, (n, 1)), "mbf": mbf,
