@@ -120,6 +120,7 @@ def test_noisy_errors_consistent_with_sigma():
     ws = window_means(rec)
     for m in ("n25", "joint"):
         r = calibrate(ws, m)
+        assert r.fit["consistent"] and r.fit["dof"] == 6 * len(ws.windows) - 28, (m, r.fit["p_value"])
         for name in NAMES_ALL:
             err = np.atleast_1d(r.error((sc.imu, sc.gimbal), name))
             sig = np.atleast_1d(r.sigma[name])

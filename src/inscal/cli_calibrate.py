@@ -47,7 +47,10 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     except CalibrationError as exc:
         raise CliError(f"{data}: {exc}") from None
     truth = rec.truth
-    meta = {"scenario": rec.scenario or None, "windows": len(res.windows.windows) if res.windows else None}
+    from .cli_compensate import record_attrs
+
+    meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
+            "windows": len(res.windows.windows) if res.windows else None}
     if systematic:
         d = res.diagnostics
         meta.update({"frame": d["frame"], "states": d["state_options"], "state_count": d["states"],
@@ -59,6 +62,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
         raise CliError(str(exc)) from None
     report = {"method": res.method, "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
+    if res.fit is not None:
+        report["fit"] = res.fit  # chi2, dof, p, per-window residuals, cause and note (window-mean methods)
     if systematic:
         d = res.diagnostics
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
@@ -72,6 +77,19 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None
     return report
+
+
+def fit_lines(fit: dict) -> list[str]:
+    """The printed fit of a window-mean method: chi2, dof, p, verdict and the residuals of
+    every window (RMS of the normalised residuals, gyro / accelerometer)."""
+    exp = "" if fit.get("expected_chi2", fit["dof"]) == fit["dof"] else f", {fit['expected_chi2']:.4g} expected"
+    ref = "expected" if exp else "dof"
+    verdict = ("consistent" if fit["consistent"]
+               else f"INCONSISTENT (sqrt(chi2/{ref}) = {fit['scale']:.3g}), sigma adjusted: see the note")
+    out = [f"  fit: chi2 {fit['chi2']:.4g} on {fit['dof']} dof{exp}, p = {fit['p_value']:.3g}: {verdict}",
+           "  residuals per window (normalised RMS, gyro / accel):"]
+    out += [f"    {r['window']:3d} {r['label']:44s} {r['gyro']:9.3g} / {r['accel']:9.3g}" for r in fit["residuals"]]
+    return out
 
 
 def _fmt(v) -> str:
@@ -108,9 +126,14 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"{rep['method']}: parameters -> {rep['out']}")
         for name, e in rep["parameters"].items():
             line = f"  {name:24s} {_fmt(e['value'])} +- {_fmt(e['sigma'])} {e['unit']}"
+            if "sigma_formal" in e:
+                line += f" (formal +- {_fmt(e['sigma_formal'])})"
             if "error" in e:
                 line += f"   (error {_fmt(e['error'])})"
             typer.echo(line)
+        if "fit" in rep:
+            for line in fit_lines(rep["fit"]):
+                typer.echo(line)
         if "innovations" in rep:
             inn = rep["innovations"]
             typer.echo(f"  fit: NIS mean {inn['nis_mean']:.3f} (expected 6), chi2 {inn['chi2']:.1f} on {inn['dof']} dof, "

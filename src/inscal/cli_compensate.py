@@ -4,7 +4,12 @@ The increments are compensated with the S16 form (``ImuErrors.compensate_increme
 ``M^-1 (N - bias)``, g-sensitivity, and the fixed-point iteration of the nonlinear
 terms) chunk by chunk, so multi-day records are never held in memory twice.  The
 output is a record of the same layout without truth; the parameter file's hash and
-method are kept in its attributes.
+method are kept in its ``compensated_with`` attribute.
+
+Provenance: one warning line (stderr) when the parameter file's ``data_hash``,
+``metadata.scenario`` or ``metadata.imu_serial`` differ from the record's (each compared
+only when both sides have it); a record that was already compensated (its
+``compensated_with`` attribute is set) is refused unless ``--force``.
 """
 
 from __future__ import annotations
@@ -18,7 +23,60 @@ import typer
 from .cliutil import CliError, check_output, fail, print_json
 
 
-def run_compensate(data: Path, params: Path, out: Path, force: bool = False) -> dict:
+def record_attrs(path: Path, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:
+    """String attributes of a record file (None when absent or empty)."""
+    import h5py
+
+    out = {}
+    try:
+        with h5py.File(path, "r") as h5:
+            for n in names:
+                v = h5.attrs.get(n)
+                v = v.decode() if isinstance(v, bytes) else (None if v is None else str(v))
+                out[n] = v or None
+    except OSError:
+        out = {n: None for n in names}
+    return out
+
+
+def provenance_mismatch(data: Path, params: Path, meta: dict, attrs: dict | None = None) -> str | None:
+    """One warning line when the parameter file's ``data_hash``, ``metadata.scenario`` or
+    ``metadata.imu_serial`` differ from the record's (compared where both have them), else None."""
+    from . import io
+
+    attrs = record_attrs(data) if attrs is None else attrs
+    pm = meta.get("metadata") or {}
+    parts = []
+    if meta.get("data_hash"):
+        h = io.file_hash(data)
+        if h != meta["data_hash"]:
+            parts.append(f"calibrated from another record ({meta.get('data_file') or 'data'} "
+                         f"{str(meta['data_hash'])[:19]}..., this one {h[:19]}...)")
+    for key, what in (("scenario", "scenario"), ("imu_serial", "IMU serial")):
+        a, b = pm.get(key), attrs.get(key)
+        if a and b and str(a) != str(b):
+            parts.append(f"{what} {a!r} vs the record's {b!r}")
+    if not parts:
+        return None
+    return f"{params} does not match {data}: " + "; ".join(parts)
+
+
+def compensated_with(attrs: dict) -> str | None:
+    """A short description of a record's ``compensated_with`` attribute, None if not compensated."""
+    raw = attrs.get("compensated_with")
+    if not raw:
+        return None
+    try:
+        cw = json.loads(raw)
+        return f"{cw.get('file', '?')} ({cw.get('method', '?')})"
+    except (ValueError, AttributeError):
+        return str(raw)
+
+
+def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None) -> dict:
+    """Compensate ``data`` with ``params`` into ``out``.  Refuses an already compensated
+    record unless ``force``; ``warn(line)`` is called at once for each provenance warning
+    (they are also in the result's ``warnings``)."""
     from . import io
     from .paramfile import ParamFileError, load_params
 
@@ -30,6 +88,20 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False) -> 
         info = io.record_info(data)
     except (ParamFileError, io.DataFileError) as exc:
         raise CliError(str(exc)) from None
+    attrs = record_attrs(data)
+    warnings = []
+    done = compensated_with(attrs)
+    if done is not None:
+        if not force:
+            raise CliError(f"{data} is already compensated (with {done}); compensating it again would apply the "
+                           "correction twice; use --force to do it anyway")
+        warnings.append(f"{data} is already compensated (with {done}): compensating it a second time (--force)")
+    mismatch = provenance_mismatch(data, params, meta, attrs)
+    if mismatch:
+        warnings.append(mismatch)
+    for w in warnings:
+        if warn is not None:
+            warn(w)
     dt = 1.0 / info.rate_hz
 
     def chunks():
@@ -44,7 +116,8 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False) -> 
         n = io.write_stream(out, replace(info, truth=None), chunks(), overwrite=force, extra_attrs=attrs)
     except (io.DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
-    return {"data": str(data), "params": str(params), "method": meta.get("method", ""), "out": str(out), "samples": n}
+    return {"data": str(data), "params": str(params), "method": meta.get("method", ""), "out": str(out), "samples": n,
+            "warnings": warnings}
 
 
 def register(app: typer.Typer) -> None:
@@ -53,12 +126,13 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="HDF5 record to compensate"),
         params: Path = typer.Option(..., "--params", "-p", help="calibration parameter file (TOML, from inscal calibrate)"),
         out: Path = typer.Option(..., "--out", "-o", help="compensated HDF5 record"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing output"),
+        force: bool = typer.Option(False, "--force", help="overwrite an existing output; compensate an already "
+                                   "compensated record anyway"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Compensate a record's increments with a calibration parameter file."""
         try:
-            res = run_compensate(data, params, out, force)
+            res = run_compensate(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

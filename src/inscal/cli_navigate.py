@@ -64,7 +64,9 @@ def report(res, data: Path, params: Path | None, n: int, rate: float, has_truth:
 
 def run_navigate(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
                  init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False) -> dict:
+                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None) -> dict:
+    """Navigate ``data`` (see the command); ``warn(line)`` is called at once for each
+    provenance warning (they are also in the result's ``warnings``)."""
     from . import io, navigation as nv
     from .strapdown import NavConfig
 
@@ -75,15 +77,28 @@ def run_navigate(data: Path, params: Path | None = None, mode: str = "free", ver
     except (OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     imu = gim = None
+    warnings = []
     if params is not None:
         try:
             from .paramfile import load_params
         except ImportError:  # pragma: no cover - the parameter-file module ships with inscal
             raise CliError("this inscal cannot read parameter files") from None
         try:
-            imu, gim, _ = load_params(params)
+            imu, gim, pmeta = load_params(params)
         except ValueError as exc:
             raise CliError(str(exc)) from None
+        from .cli_compensate import compensated_with, provenance_mismatch, record_attrs
+
+        attrs = record_attrs(data)
+        mismatch = provenance_mismatch(data, params, pmeta, attrs)
+        if mismatch:
+            warnings.append(mismatch)
+        done = compensated_with(attrs)
+        if done is not None:
+            warnings.append(f"{data} is already compensated (with {done}): --params applies a correction again")
+        for w in warnings:
+            if warn is not None:
+                warn(w)
     try:
         config = NavConfig(mode=mode, vertical=vertical, output_rate_hz=output_rate_hz)
         align_cfg = nv.AlignConfig(coarse_time=align_coarse_s, fine_time=align_fine_s)
@@ -111,7 +126,9 @@ def run_navigate(data: Path, params: Path | None = None, mode: str = "free", ver
             nv.write_nav(out, res, meta, overwrite=force)
         except (FileExistsError, FileNotFoundError, OSError) as exc:
             raise CliError(str(exc)) from None
-    return report(res, data, params, info.n_samples, info.rate_hz, scenario is not None, out)
+    rep = report(res, data, params, info.n_samples, info.rate_hz, scenario is not None, out)
+    rep["warnings"] = warnings
+    return rep
 
 
 def register(app: typer.Typer) -> None:
@@ -131,7 +148,8 @@ def register(app: typer.Typer) -> None:
     ):
         """Navigate (strapdown, pure inertial or damped) and report the errors on a static base."""
         try:
-            rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out, force)
+            rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
+                               force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

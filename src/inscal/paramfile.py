@@ -10,10 +10,36 @@ Layout (``schema_version`` :data:`PARAM_SCHEMA_VERSION`)::
     data_file = "run.h5"                    # optional
     data_hash = "sha256:..."                # optional: io.file_hash of the data file
 
+    [metadata]                              # optional, free-form; inscal calibrate writes
+    scenario = "n25"                        # the record's scenario and, when the record has
+    imu_serial = "FOG-0042"                 # one, its IMU serial (compensate / navigate warn
+                                            # when they differ from the record's)
+
     [parameters.accel_bias]                 # names and field units of errors.PARAMETERS
     value = [50.0, -80.0, 100.0]
-    sigma = [1.2, 1.1, 0.9]                 # 1 sigma (nan: held fixed)
-    unit = "ug"
+    sigma = [1.2, 1.1, 0.9]                 # 1 sigma reported (nan: held fixed)
+    sigma_formal = [0.02, 0.02, 0.02]       # optional: the formal 1 sigma, present when the
+    unit = "ug"                             # reported one was scaled (inconsistent fit)
+
+    [fit]                                   # optional (window-mean methods): the fit of the model
+    chi2 = 1.9e8                            # to the window means (calibrate.result.fit_statistics)
+    dof = 86
+    expected_chi2 = 86.0                    # > dof for estimators that are not least squares
+    p_value = 0.0
+    consistent = false                      # p >= 0.001
+    scale = 1491.6                          # sqrt(chi2 / expected_chi2) if inconsistent, else 1
+    cause = "unmodelled accelerometer terms ..."   # only when inconsistent
+    note = "fit inconsistent: ..."                 # the one-line note, only when inconsistent
+    [fit.channels.accel]                    # chi2, dof, expected_chi2, p_value, scale, systematic
+    [[fit.residuals]]                       # per window: index, label, RMS of the normalised
+    window = 0                              # gyro and accelerometer residuals
+    label = "static (0.0, 0.0) deg, 1.5-98.5 s"
+    gyro = 0.9
+    accel = 1366.8
+
+Both additions (schema_version 1 still) are ignored by readers that predate them; files
+without them load as before.  The systematic methods report their fit as
+``metadata.chi2/dof/p_value`` (innovations).
 
 Values are in the field units of :data:`inscal.errors.PARAMETERS` (ppm, arcsec, deg/h,
 ug); ``load_params`` converts back to SI.  Files are written to a temporary name and
@@ -64,7 +90,29 @@ def params_document(result, data_file: str | None = None, data_hash: str | None 
     if metadata:
         doc["metadata"] = {str(k): v for k, v in metadata.items() if v is not None}
     doc["parameters"] = result.to_field(truth)
+    fit = getattr(result, "fit", None)
+    if fit:
+        doc["fit"] = fit_table(fit)
     return doc
+
+
+#: keys of a fit dict written to the ``[fit]`` table (large or derived entries are left out)
+FIT_KEYS = ("chi2", "dof", "expected_chi2", "dof_effective", "p_value", "consistent", "scale", "cause", "note",
+            "channels", "residuals")
+
+
+def fit_table(fit: dict) -> dict:
+    """The ``[fit]`` table of a fit dict (plain TOML types; None and non-finite entries dropped)."""
+    from .jsonutil import to_jsonable
+
+    def clean(v):
+        if isinstance(v, dict):
+            return {str(k): clean(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v if x is not None]
+        return v
+
+    return clean(to_jsonable({k: fit[k] for k in FIT_KEYS if k in fit}))
 
 
 def save_params(path, result, data_file: str | None = None, data_hash: str | None = None,
@@ -82,7 +130,9 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
     """Read a parameter file: ``(ImuErrors, GimbalErrors, metadata)`` (SI).
 
     ``metadata`` holds ``method``, ``created``, ``data_file``, ``data_hash``,
-    ``schema_version``, ``estimated`` (names in the file) and ``sigma`` (SI arrays).
+    ``schema_version``, ``estimated`` (names in the file), ``sigma`` (SI arrays, the reported
+    1 sigma), ``sigma_formal`` (SI arrays, only for parameters whose sigma was scaled),
+    ``metadata`` (the file's ``[metadata]`` table) and ``fit`` (its ``[fit]`` table or None).
     Parameters not in the file are zero.  Raises :class:`ParamFileError` with the reason.
     """
     p = FsPath(path)
@@ -105,7 +155,7 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
     params = doc.get("parameters")
     if not isinstance(params, dict) or not params:
         raise ParamFileError(f"{p}: no [parameters] section")
-    values, sigma = {}, {}
+    values, sigma, sigma_formal = {}, {}, {}
     from . import units
 
     for name, entry in params.items():
@@ -118,20 +168,25 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
         if val.shape != shape and not (shape == () and val.shape == ()):
             raise ParamFileError(f"{p}: parameter {name} has shape {list(val.shape)}, expected {list(shape)}")
         values[name] = {"value": val.tolist(), "unit": entry["unit"]}
-        if "sigma" in entry:
-            try:
-                sigma[name] = units.to_si(np.squeeze(np.asarray(entry["sigma"], dtype=float)), entry["unit"], kind)
-            except (units.UnitError, ValueError, TypeError) as exc:
-                raise ParamFileError(f"{p}: parameter {name} sigma: {exc}") from None
+        for key, dest in (("sigma", sigma), ("sigma_formal", sigma_formal)):
+            if key in entry:
+                try:
+                    dest[name] = units.to_si(np.squeeze(np.asarray(entry[key], dtype=float)), entry["unit"], kind)
+                except (units.UnitError, ValueError, TypeError) as exc:
+                    raise ParamFileError(f"{p}: parameter {name} {key}: {exc}") from None
     try:
         imu, gim = errors_from_field(values)
     except ValueError as exc:
         raise ParamFileError(f"{p}: {exc}") from None
     meta = {k: doc.get(k) for k in ("method", "created", "data_file", "data_hash", "inscal_version")}
-    meta.update(schema_version=ver, estimated=tuple(params), sigma=sigma, metadata=doc.get("metadata", {}))
+    fit = doc.get("fit")
+    if fit is not None and not isinstance(fit, dict):
+        raise ParamFileError(f"{p}: [fit] must be a table")
+    meta.update(schema_version=ver, estimated=tuple(params), sigma=sigma, sigma_formal=sigma_formal,
+                metadata=doc.get("metadata", {}), fit=fit)
     if not isinstance(meta["method"], str):
         raise ParamFileError(f"{p}: missing 'method'")
-    for n, s in sigma.items():
+    for n, s in list(sigma.items()) + list(sigma_formal.items()):
         if np.any(np.asarray(s) < 0) or not np.all(np.isnan(s) | np.isfinite(s)):
             raise ParamFileError(f"{p}: parameter {n} has an invalid sigma")
     return imu, gim, meta

@@ -26,6 +26,13 @@ non-orthogonality and the mounting (vehicle) attitude, without leveling or align
    bias ``eps`` and the Earth rate in the base frame ``w^b`` by least squares from the
    twelve static means ``N_g = M_g C_b^s w^b + eps`` (eq. 11), and the heading
    ``gamma0`` from ``w^b`` (``C_b^n w^b = w_ie^n``).
+
+Uncertainty: first order in the measured noise of the window means it reads
+(:func:`.result.sensitivity`; the estimator is linear in them, so this is exact to second
+order in the small angles: a Monte Carlo over 100 simulated records gives error/sigma RMS
+0.98-1.07 for every group, alpha0 included).  Fit: the chi^2 of the exact model's predicted
+window means (all windows) against the measured ones, dof = components - 28; when
+inconsistent the sigma are scaled for the misfit (:data:`.result.SIGMA_RULE`).
 """
 
 from __future__ import annotations
@@ -35,7 +42,8 @@ import math
 import numpy as np
 
 from .model import C_b_s, C_n_s
-from .result import IMU_LINEAR, GIMBAL, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
+from .result import (IMU_LINEAR, GIMBAL, CalibrationResult, estimator_reference, finish_sigma, fit_statistics, flatten,
+                     make_result, nparams, sensitivity)
 from .segment import CalibrationError, WindowSet
 from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, positions
 from .twelve_position import TWELVE, accel_twelve, twelve_windows
@@ -141,10 +149,17 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
 
     used = {k: (True, True) for k in idx}
     used.update({k: (True, False) for k in used_rate})
-    sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(NAMES), np.nan), NAMES)
+    imu, gim = _imu_gim(vals)
+    S = comp = A = None
+    if uncertainty:
+        S, comp = sensitivity(est, ws, used, flatten(imu, gim, NAMES))
+        A = estimator_reference(imu, gim, ws, S, comp, list(range(nparams(NAMES))))
+    fit = fit_statistics(imu, gim, ws, nparams(NAMES), A=A)
+    sig, formal = finish_sigma(S, comp, fit, NAMES, len(ws.windows))
     diag = {"rough_alpha0_rad": a0, "X": X.tolist(), "earth_rate_b": wb.tolist(),
             "earth_rate_norm_ratio": float(np.linalg.norm(wb) / np.linalg.norm(ws.site.earth_rate_n)),
-            "n_rate_windows": len(used_rate)}
+            "n_rate_windows": len(used_rate), "fit": fit, "formal_sigma": formal}
     return make_result("n25", vals, sig, NAMES, ws, diag,
-                       ["N25 scheme 1: linearised [tan b0, a0, dth] step (eq. 40-44, design matrix derived from the "
-                        "model), refined accelerometer and gyro errors; heading gamma0 from the Earth rate"])
+                       ([fit["note"]] if fit["note"] else [])
+                       + ["N25 scheme 1: linearised [tan b0, a0, dth] step (eq. 40-44, design matrix derived from the "
+                          "model), refined accelerometer and gyro errors; heading gamma0 from the Earth rate"])

@@ -5,7 +5,9 @@ angles differing by 180 deg (the twelve N25 positions, ``turntable.N25_TWELVE_PO
 which cancels the leveling error in the installation angles to first order.  Inputs are
 still the ideal ones (level, orthogonal turntable).  Gyro bias: the mean gyro output over
 the twelve positions, where the ideal Earth-rate inputs sum to zero (N25 eq. 27).  Gyro
-scale factors and installation angles from the CW/CCW rate tests (eq. 28).
+scale factors and installation angles from the CW/CCW rate tests (eq. 28).  Fit, sigma and
+notes as for the six-position scheme (:func:`.six_position.finish_ideal`; known scheme
+error N25 eq. 24-26, 29).
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ import numpy as np
 
 from ..turntable import N25_TWELVE_POSITIONS
 from .model import ideal_up
-from .result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, propagate, unflatten
+from .result import IMU_LINEAR, CalibrationResult, flatten
 from .segment import CalibrationError, WindowSet
-from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position, positions
+from .six_position import (_imu_gim, _values, accel_least_squares, finish_ideal, gyro_matrix_from_rate_tests,
+                           nominal_position, positions)
 
 TWELVE = [tuple(p) for p in N25_TWELVE_POSITIONS]
 
@@ -57,9 +60,8 @@ def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResul
 
     used = {k: (True, True) for k in idx}
     used.update({k: (True, False) for k in used_rate})
-    sig = unflatten(propagate(est, ws, used) if uncertainty else np.full(nparams(IMU_LINEAR), np.nan), IMU_LINEAR)
     diag = {"positions": [list(nominal_position(ws.windows[k])) for k in idx],
             "n_rate_windows": len(used_rate)}
-    return make_result("twelve-position", vals, sig, IMU_LINEAR, ws, diag,
-                       ["ideal inputs (level, orthogonal turntable), inner-symmetric positions (N25 eq. 24-26); "
-                        "gimbal non-orthogonality and mount attitude not estimated"])
+    return finish_ideal("twelve-position", ws, vals, est, used, [ws.windows[k] for k in idx], uncertainty, diag,
+                        ["ideal inputs (level, orthogonal turntable), inner-symmetric positions (N25 eq. 24-26); "
+                         "gimbal non-orthogonality and mount attitude not estimated"], "N25 eq. 24-26, 29")
