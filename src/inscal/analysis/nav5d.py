@@ -48,30 +48,32 @@ Orientations (S16 gimbal: outer axis East at zero, inner axis = IMU z):
               average (vertical-axis terms such as G_zz fz, scale-factor and misalignment errors
               times the turn rates, size effects during the turns).
 
-Findings (systematic filter of this tree; seed 2016 unless stated; 2-4 min per full run):
+Findings (seed 2016, noise-free navigation; ~2.5 min per full run on 2 cores):
 
-* With the true parameters the 5-day maximum is 5e-5 m (level) to 1.5 m (rotmod16, 10 Hz
-  coning/sculling) noise-free, 10-21 m with the scenario's noise: the sensors are far inside
-  0.1 nmi / 5 d.  Uncompensated: 11.7 nmi (level) to 87 nmi (y-up).
-* Neither calibration reaches the 0.1 nmi level.  The 51-state errors are 3-55 nmi (level,
-  seeds 1-5 and 2016): the S16 Table 1 path (1 h, 180 s stops) does not resolve the diagonal
-  g-sensitivity at Table 3 size: the filter's own 1 sigma of G_xx, G_yy, G_zz is 4-6e-4 deg/h/g
-  (true: 0.09-1.02e-5), and G_ii g on the vertical gyro is a heading drift that neither a
-  level INS nor rotation modulation averages out (one sigma of G_zz alone: 2.9 km in 5 days,
-  level or rotmod16).  The estimates are also worse than their sigma (2-13 sigma typical; seed 2:
-  up to 85 sigma, with NIS spikes of ~1e3 at the start of S16 move 7, also when the truth has no
-  extra terms; accelerometer noise triggers it, gyro noise alone does not).
-* The default 30-state filter does not converge (NIS mean 1e3-4e3; gyro biases off by ~1e-2
-  deg/h): 6-117 nmi level, often worse than no compensation.  The NIS-consistent 30-state
-  filter (VRW x 16) is stable across seeds: 22-24 nmi level (aliasing), 0.56-0.73 nmi rotmod16.
-* S16's ">= 20 %": holds in ``level`` against the default 30-state filter for every seed tried
-  (25-96 %), and against the NIS-consistent one for 5 of 6 seeds; it fails at seed 2016 in
-  ``y-up`` (-300 %), ``tilt`` (-35 %) and ``rotmod16`` (-255 %; there 4 of 6 seeds fail against
-  the default 30-state filter and all 6 against the NIS-consistent one).
-* With 10 x less calibration noise (``cal_noise_scale=0.1``) the 51-state errors are 0.14-1.3 nmi
-  and the claim holds in every orientation (85-98 %); with 100 x less, 0.002-0.04 nmi.  S16's
-  premise (the 51-state calibration resolves the Table 3 terms) needs 10-100 x less noise in the
-  calibration record than these 0.1 nmi / 5 d sensors have, or a longer calibration.
+=============  ==============  ==============  ================  ==========  =============  ========
+orientation    51-state        30-state        30-state NIS<=6   truth       uncompensated  1-51/30
+=============  ==============  ==============  ================  ==========  =============  ========
+level          267 m (0.14)    14.6 km (7.9)   51.2 km (27.7)    5e-5 m      21.7 km (11.7) 98 %
+y-up           5.5 km (3.0)    6.9 km (3.7)    12.5 km (6.7)     4e-4 m      161 km (87)    20 %
+tilt           4.7 km (2.5)    21.7 km (11.7)  46.9 km (25.3)    8e-4 m      34.5 km (18.6) 79 %
+rotmod16       298 m (0.16)    954 m (0.52)    780 m (0.42)      1.5 m       20.2 km (10.9) 69 %
+=============  ==============  ==============  ================  ==========  =============  ========
+
+(nmi in parentheses.)  With the true parameters the floor is 5e-5 m (level) to 1.5 m (rotmod16,
+10 Hz coning/sculling), 10-21 m with the scenario's noise: the sensors are far inside 0.1 nmi / 5 d.
+
+* S16's ">= 20 %" holds in every orientation (y-up at the margin) against the default 30-state
+  filter, which cannot fit the unmodelled terms (NIS mean ~1e3) and aliases them into biases,
+  scale factors and misalignments; also against a 30-state filter whose VRW is inflated until
+  its innovations are consistent (VRW x 16).
+* The 51-state INS reaches the 0.1 nmi level only where the calibration resolves what the
+  orientation needs: level and rotation-modulated (0.14-0.16 nmi).  The S16 Table 1 path (1 h,
+  180 s stops) determines the diagonal g-sensitivity only to 4-6e-4 deg/h/g (1 sigma, the
+  Cramer-Rao bound of this record) against true values of 0.09-1.02e-5: with an axis up that
+  is a heading drift (y-up, tilt: 2.5-3 nmi).
+* An earlier version of the filter (before the prior deflation of the passes, see
+  :mod:`inscal.calibrate.systematic`) was numerically inconsistent on this quiet IMU (NIS spikes
+  of ~1e3, errors of 2-85 sigma) and gave 3-55 nmi level; the figures above are with the fix.
 
 Run ``python -m inscal.analysis.nav5d`` for the table (``--help`` for options).
 """
