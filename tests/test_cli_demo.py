@@ -2,9 +2,11 @@
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
 from inscal.cli import app
+from inscal.paramfile import load_params
 
 
 def test_demo_quick_json(tmp_path):
@@ -18,6 +20,22 @@ def test_demo_quick_json(tmp_path):
     assert abs(cal["n25"]["gimbal_nonorthogonality"]["error"][0]) < 1.0
     # the six-position scheme's z accelerometer bias error is the eq. 21 leveling/non-orthogonality term
     assert abs(cal["six-position"]["accel_bias"]["error"][2]) > 100 * abs(cal["n25"]["accel_bias"]["error"][2])
+    # S16: the 51-state systematic filter reaches the S16 Table 2 figures for the quadratic terms and the
+    # lever arm; the 30-state filter leaves them (and, through them, the linear terms) uncompensated
+    sysc = steps["systematic_s16"]
+    g51, g30 = sysc["systematic51"]["groups"], sysc["systematic30"]["groups"]
+    assert g51["accel_nonlinearity"]["mean_abs_error"] < g51["accel_nonlinearity"]["s16"] == 1.3
+    assert g51["accel_cross_coupling"]["mean_abs_error"] < g51["accel_cross_coupling"]["s16"] == 1.5
+    assert g51["accel_lever_arm"]["mean_abs_error"] < 0.03  # cm (S16: 0.01; sigma ~0.008 here)
+    assert g51["gyro_g_sensitivity"]["mean_abs_error"] < 0.005 and g51["gyro_g_sensitivity"]["estimated"]
+    for g, before in (("gyro_g_sensitivity", 0.001), ("accel_nonlinearity", 300.0), ("accel_cross_coupling", 300.0),
+                      ("accel_lever_arm", 2.0)):
+        assert not g30[g]["estimated"] and g30[g]["mean_abs_error"] == pytest.approx(before, rel=1e-6)
+    assert g30["accel_bias"]["mean_abs_error"] > 100 * g51["accel_bias"]["mean_abs_error"]
+    assert 4.0 < sysc["systematic51"]["nis_mean"] < 8.0 < sysc["systematic30"]["nis_mean"]
+    for m in ("systematic51", "systematic30"):
+        imu, _, meta = load_params(sysc[m]["out"])
+        assert meta["method"] == m and meta["metadata"]["states"] == m[-2:]
     nav = steps["navigate"]
     assert nav["n25"]["max_position_error_m"] < nav["six-position"]["max_position_error_m"] < nav["uncalibrated"]["max_position_error_m"]
     # a second run refuses to overwrite without --force

@@ -242,7 +242,7 @@ def test_cli_run_resume_json_and_refusal(tmp_path):
     res = r.invoke(app, ["montecarlo", "test-dummy", "--runs", "2", "--out", str(out), "--no-dask", "--set", "oops"])
     assert res.exit_code == 2 and "KEY=VALUE" in res.output
     res = r.invoke(app, ["montecarlo", "--list"])
-    assert res.exit_code == 0 and "n25-fig5" in res.stdout and "n25-schemes" in res.stdout
+    assert res.exit_code == 0 and all(n in res.stdout for n in ("n25-fig5", "n25-schemes", "s16-table2"))
 
 
 # ------------------------------------------------------------------ built-in experiments
@@ -314,22 +314,95 @@ def test_small_n25_fig5_rsd_decreases_with_dtheta(tmp_path):
     assert paths["png"].stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_small_n25_schemes_shows_the_n25_claims(tmp_path):
     pytest.importorskip("inscal.calibrate")
     exp = mc.get_experiment("n25-schemes", {"simulation": "reuse"})
-    assert exp.params["methods"] == ["n25", "six-position", "joint"]
-    res = mc.run_study(exp, tmp_path, runs=4, seed=1, scheduler="synchronous")
+    assert exp.params["methods"] == ["n25", "six-position", "joint", "systematic30"]  # scheme 3 by default
+    res = mc.run_study(exp, tmp_path, runs=3, seed=1, scheduler="synchronous")
     s = mc.summarize(exp, res)
-    params = [r["parameter"] for r in s.rows]
-    assert "accel_bias.z" in params and "gimbal_nonorthogonality" in params
-    row = next(r for r in s.rows if r["parameter"] == "gimbal_nonorthogonality")
+    rows = {r["parameter"]: r for r in s.rows}
+    assert "accel_bias.z" in rows and "gimbal_nonorthogonality" in rows
+    row = rows["gimbal_nonorthogonality"]
     assert row["six-position_bias"] is None and row["n25_std"] > 0  # six-position does not estimate dtheta
-    checks = {c["claim"]: c["holds"] for c in s.data["checks"]}
-    assert len(checks) == 5
-    for claim, holds in checks.items():
+    # scheme 3: the gimbal and the 3 gyro angles that define its frame are absent, not zero errors
+    assert row["systematic30_bias"] is None and rows["mount_attitude.gamma0"]["systematic30_rms"] is None
+    for c in ("xy", "xz", "yz"):
+        assert rows[f"gyro_misalignment.{c}"]["systematic30_rms"] is None
+        assert rows[f"accel_misalignment.{c}"]["systematic30_rms"] is not None
+    # its errors are taken against the truth mapped into the gyro-defined frame: without that
+    # mapping the accelerometer angles would be off by the gyro angles of the truth (10-25")
+    for k in ("accel_misalignment.xy", "accel_misalignment.yz", "accel_misalignment.zy", "gyro_misalignment.zy"):
+        assert rows[k]["systematic30_rms"] < 3.0, k
+    for k in ("accel_bias.x", "accel_bias.y", "accel_bias.z"):
+        assert rows[k]["systematic30_rms"] < 3.0, k  # ug; six-position is off by hundreds
+    diag = s.data["scheme3_diagnostics"]["systematic30"]
+    assert diag["runs"] == 3 and 4.0 < diag["nis_mean"] < 8.0
+    checks = {c["claim"]: c for c in s.data["checks"]}
+    assert len(checks) == 9
+    for claim, c in checks.items():
         if claim.startswith("n25 < six-position"):
-            assert holds, claim  # systematic (leveling, dtheta) errors: clear even with 4 runs
+            assert c["holds"], claim  # systematic (leveling, dtheta) errors: clear even with 3 runs
+    s3 = [c for k, c in checks.items() if k.startswith("n25 < systematic30")]
+    assert len(s3) == 3 and all(math.isfinite(c["systematic30"]) and c["systematic30"] > 0 for c in s3)
+    ratios = next(c for k, c in checks.items() if k.startswith("scheme 3"))["ratios"]
+    assert set(ratios) == {"gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor",
+                           "accel_misalignment", "accel_bias"}
+    assert any("scheme 3 (systematic30" in n for n in s.notes)
     assert mc.write_outputs(exp, s, tmp_path)["png"].exists()
+
+
+def test_result_errors_map_the_truth_and_drop_frame_fixed_components():
+    from inscal.analysis.experiments import result_errors
+    from inscal.calibrate import CalibrationResult
+    from inscal.errors import GimbalErrors, ImuErrors
+
+    arcsec = math.pi / 180 / 3600
+    true = ImuErrors(gyro_misalignment=[5 * arcsec, 0, 0, 0, 0, 0], accel_bias=[0, 0, 9.80665e-5])
+    est = ImuErrors(accel_bias=[0, 0, 2 * 9.80665e-5])  # estimate in a frame where the truth has no gyro angle
+    sig = {"gyro_misalignment": np.array([np.nan, np.nan, 1.0, np.nan, 1.0, 1.0]) * arcsec,
+           "accel_bias": np.full(3, 9.80665e-6)}
+    res = CalibrationResult("x", est, GimbalErrors(), sig, ("gyro_misalignment", "accel_bias"))
+    err, s = result_errors(res, true, GimbalErrors(0.1, [0, 0, 0]))
+    assert err["gyro_misalignment.xy"] == pytest.approx(-5.0)  # no transform: plain difference, all components
+    assert set(s) == {"gyro_misalignment.yx", "gyro_misalignment.zx", "gyro_misalignment.zy", "accel_bias.x",
+                      "accel_bias.y", "accel_bias.z"}
+    assert not any(k.startswith("gimbal") or k.startswith("mount") for k in err)  # not estimated: absent
+    res.truth_transform = lambda t: (ImuErrors(accel_bias=t[0].accel_bias), GimbalErrors())
+    err, s = result_errors(res, true, GimbalErrors(0.1, [0, 0, 0]))
+    assert set(err) == set(s) == {"gyro_misalignment.yx", "gyro_misalignment.zx", "gyro_misalignment.zy",
+                                  "accel_bias.x", "accel_bias.y", "accel_bias.z"}  # frame-fixed angles dropped
+    assert err["accel_bias.z"] == pytest.approx(10.0, rel=1e-9) and s["accel_bias.z"] == pytest.approx(1.0)
+    assert err["gyro_misalignment.yx"] == 0.0
+
+
+@pytest.mark.slow
+def test_cli_s16_table2_small(tmp_path):
+    """``inscal montecarlo s16-table2`` end to end (1 run, 50 Hz, two passes: the plumbing, not the figures)."""
+    from typer.testing import CliRunner
+
+    from inscal.cli import app
+
+    out = tmp_path / "t2"
+    r = CliRunner().invoke(app, ["montecarlo", "s16-table2", "--runs", "1", "--out", str(out), "--no-dask", "--json",
+                                 "--set", "rate_hz=50", "--set", "max_passes=2"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["complete"] and d["data"]["methods"] == ["systematic51", "systematic30"]
+    rows = {x["group"]: x for x in d["rows"]}
+    assert len(rows) == 10
+    for g, target in {"gyro_g_sensitivity": 2e-4, "accel_nonlinearity": 1.3, "accel_cross_coupling": 1.5,
+                      "accel_lever_arm": 0.01}.items():
+        assert rows[g]["s16_target"] == target and rows[g]["systematic30_mae"] is None  # not in the 30-state model
+        assert rows[g]["systematic51_mae"] > 0 and rows[g]["systematic51_crb"] > 0
+        if g != "gyro_g_sensitivity":  # its diagonal is barely observable (sigma ~ the 0.001 deg/h/g truth)
+            assert rows[g]["systematic51_mae"] < rows[g]["before"] / 100
+    assert rows["accel_bias"]["systematic30_mae"] > 10 * rows["accel_bias"]["systematic51_mae"]  # S16's point
+    assert rows["accel_lever_arm"]["before"] == pytest.approx(2.0) and rows["accel_nonlinearity"]["before"] == pytest.approx(300.0)
+    nees = d["data"]["nees"]["systematic51"]
+    assert nees["dof"] == 42 and nees["runs"] == 1 and nees["mean"] > 0
+    assert len(d["data"]["z"]["systematic51"]["components"]) == 42
+    assert (out / "summary.png").stat().st_size > 5000 and (out / "summary.csv").exists()
 
 
 def test_local_cluster_runs_the_real_experiment_identically(tmp_path):
