@@ -12,10 +12,12 @@ from .cliutil import CliError, check_output, fail, print_json
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
                   min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
-                  filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None) -> dict:
+                  filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
+                  gravity: str | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
-    ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods."""
+    ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
+    (wgs84 | psins | m/s^2) overrides the record's gravity model."""
     from . import io, units
     from .calibrate import METHODS, RECORD_METHODS, CalibrationError, calibrate
     from .paramfile import ParamFileError, save_params
@@ -34,6 +36,12 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         rec = io.read_record(data)
     except (ValueError, OSError) as exc:  # DataFileError is a ValueError
         raise CliError(str(exc)) from None
+    if gravity is not None:
+        import dataclasses
+
+        from .cli_simulate import parse_gravity_option
+
+        rec = dataclasses.replace(rec, site=rec.site.with_gravity(parse_gravity_option(gravity)))
     try:
         if systematic:
             opts = {"states": states, "filter_rate_hz": filter_rate_hz}
@@ -61,7 +69,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
     except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
         raise CliError(str(exc)) from None
-    report = {"method": res.method, "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
+    report = {"method": res.method, "gravity": {**rec.site.gravity_model.to_json(), "g_site_m_s2": rec.site.gravity},
+              "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window residuals, cause and note (window-mean methods)
     if systematic:
@@ -113,11 +122,14 @@ def register(app: typer.Typer) -> None:
         filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
         arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),
         vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)] (default: from the data)"),
+        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+                                    "(default: the record's)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
-            rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw)
+            rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
+                                gravity)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -64,9 +64,11 @@ def report(res, data: Path, params: Path | None, n: int, rate: float, has_truth:
 
 def run_navigate(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
                  init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None) -> dict:
+                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
+                 gravity: str | None = None) -> dict:
     """Navigate ``data`` (see the command); ``warn(line)`` is called at once for each
-    provenance warning (they are also in the result's ``warnings``)."""
+    provenance warning (they are also in the result's ``warnings``).  ``gravity`` (wgs84 | psins |
+    m/s^2) overrides the record's gravity model."""
     from . import io, navigation as nv
     from .strapdown import NavConfig
 
@@ -76,6 +78,12 @@ def run_navigate(data: Path, params: Path | None = None, mode: str = "free", ver
         info = io.record_info(data)
     except (OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    if gravity is not None:
+        import dataclasses
+
+        from .cli_simulate import parse_gravity_option
+
+        info = dataclasses.replace(info, site=info.site.with_gravity(parse_gravity_option(gravity)))
     imu = gim = None
     warnings = []
     if params is not None:
@@ -127,6 +135,7 @@ def run_navigate(data: Path, params: Path | None = None, mode: str = "free", ver
         except (FileExistsError, FileNotFoundError, OSError) as exc:
             raise CliError(str(exc)) from None
     rep = report(res, data, params, info.n_samples, info.rate_hz, scenario is not None, out)
+    rep["gravity"] = {**info.site.gravity_model.to_json(), "g_site_m_s2": info.site.gravity}
     rep["warnings"] = warnings
     return rep
 
@@ -144,12 +153,14 @@ def register(app: typer.Typer) -> None:
         output_rate_hz: float = typer.Option(1.0, "--output-rate-hz", help="rate of the navigation output [Hz]"),
         out: Path = typer.Option(None, "--out", "-o", help="write the navigation solution (HDF5)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
+        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+                                    "(default: the record's)"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Navigate (strapdown, pure inertial or damped) and report the errors on a static base."""
         try:
             rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
-                               force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
+                               force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), gravity=gravity)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -39,13 +39,30 @@ def summary(sc, out: Path, seed: int | None, n: int) -> dict:
         "seed": seed,
         "site": {"latitude_deg": math.degrees(sc.site.latitude), "longitude_deg": math.degrees(sc.site.longitude),
                  "height_m": sc.site.height},
+        "gravity": {**sc.site.gravity_model.to_json(), "g_site_m_s2": sc.site.gravity},
         "noise": not sc.noise.is_zero,
     }
 
 
+def parse_gravity_option(text: str):
+    """``--gravity wgs84|psins|VALUE`` (VALUE in m/s^2, measured at the site height)."""
+    from .earth import parse_gravity
+
+    try:
+        return parse_gravity(text)
+    except ValueError as exc:
+        raise CliError(f"--gravity: {exc}") from None
+
+
+def _with_gravity(sc, text: str):
+    from dataclasses import replace
+
+    return replace(sc, site=sc.site.with_gravity(parse_gravity_option(text)))
+
+
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
                  rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
-                 no_noise: bool = False) -> dict:
+                 no_noise: bool = False, gravity: str | None = None) -> dict:
     from . import io, scenarios
 
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
@@ -56,6 +73,8 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
         sc = scenarios.build(scenario, duration_s=None if duration_h is None else duration_h * 3600.0, rate_hz=rate_hz)
     except ValueError as exc:  # ScenarioError, PathError, unit errors
         raise CliError(str(exc)) from None
+    if gravity is not None:
+        sc = _with_gravity(sc, gravity)
     if no_noise:
         from dataclasses import replace
 
@@ -82,11 +101,14 @@ def register(app: typer.Typer) -> None:
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
+        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+                                    "(default: the scenario's, wgs84 unless its [site] says otherwise)"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Simulate an IMU on a dual-axis turntable and write an HDF5 record."""
         try:
-            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise)
+            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
+                               gravity=gravity)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

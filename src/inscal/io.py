@@ -8,7 +8,9 @@ Layout (schema version :data:`inscal.SCHEMA_VERSION`)::
     /dtheta          (N, 3) rad     angular increments, IMU s-frame
     /dvel            (N, 3) m/s     velocity increments, IMU s-frame
     /gimbal          (N, 2) rad     recorded gimbal angles (outer, inner) at /time (optional)
-    /site            attrs: latitude_rad, longitude_rad, height_m
+    /site            attrs: latitude_rad, longitude_rad, height_m, gravity_model (JSON
+                            {"kind": "wgs84"|"psins"|"measured", "value": m/s^2 or null};
+                            absent: wgs84)
     /truth           (simulated data only) groups imu/, gimbal/, noise/ with SI datasets
 
 Files are written to a temporary name in the same folder and renamed when complete,
@@ -34,6 +36,7 @@ import h5py
 import numpy as np
 
 from . import SCHEMA_VERSION, __version__
+from .earth import GravityModel
 from .errors import GimbalErrors, ImuErrors, ImuNoise
 from .simulate import Scenario, Site, simulate_chunks
 from .turntable import Path, PathError
@@ -135,6 +138,7 @@ def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
     s.attrs["latitude_rad"] = site.latitude
     s.attrs["longitude_rad"] = site.longitude
     s.attrs["height_m"] = site.height
+    s.attrs["gravity_model"] = json.dumps(site.gravity_model.to_json())
     ch = min(max(n, 1), 1 << 16)
     h5.create_dataset("time", shape=(n,), dtype="f8", chunks=(ch,))
     h5.create_dataset("dtheta", shape=(n, 3), dtype="f8", chunks=(ch, 3))
@@ -266,7 +270,12 @@ def _read_dataclass(group, cls):
 
 def _meta(h5, p):
     s = h5["site"].attrs
-    site = Site(float(s["latitude_rad"]), float(s["longitude_rad"]), float(s["height_m"]))
+    try:
+        gm = s.get("gravity_model")
+        gravity = GravityModel.from_json(json.loads(gm) if gm else None)
+    except (ValueError, TypeError) as exc:
+        raise DataFileError(f"{p}: stored gravity model is invalid: {exc}") from None
+    site = Site(float(s["latitude_rad"]), float(s["longitude_rad"]), float(s["height_m"]), gravity)
     pj = h5.attrs.get("path", "")
     try:
         path = Path.from_json(pj) if pj else None

@@ -196,7 +196,8 @@ def _integrated_gravity_n0(w_n: np.ndarray, f_n: np.ndarray, t: np.ndarray) -> n
 
 
 def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: float, height: float = 0.0,
-                 params: ImuErrors | None = None, at_start: bool = False) -> np.ndarray:
+                 params: ImuErrors | None = None, at_start: bool = False,
+                 gravity: earth.GravityModel | None = None) -> np.ndarray:
     """Analytic coarse alignment on a static site, valid also while the turntable turns.
 
     Inertial-frame (two-vector / Wahba) method: the gyros give ``C_s^{s0}(t)`` (s0 = the
@@ -205,7 +206,8 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
     (= n at the start), ``v^{n0} = C_{s0}^{n0} v^{s0}``.  ``C_{s0}^{n0}`` follows from an SVD
     (Wahba) fit over one vector per second; then
     ``C_s^n(T) = C_{n0}^{n(T)} C_{s0}^{n0} C_{s(T)}^{s0}``.  Returns ``C_s^n`` at the end of the window
-    (``at_start``: ``C_{s0}^{n0}``, the attitude at the start of the window).
+    (``at_start``: ``C_{s0}^{n0}``, the attitude at the start of the window).  ``gravity``: the
+    site's gravity model (WGS-84 normal gravity when None).
     """
     if params is not None:
         dtheta, dvel = params.compensate_increments(dt, dtheta, dvel)
@@ -220,7 +222,7 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
     q_end = _inertial_integrals(dtheta, dvel, every, v_s0)
     t = (np.arange(m) + 1) * every * dt
     w_n = earth.earth_rate_n(latitude)
-    f_n = np.array([0.0, 0.0, earth.normal_gravity(latitude, height)])
+    f_n = np.array([0.0, 0.0, (gravity or earth.WGS84_GRAVITY).g(latitude, height)])
     v_n0 = _integrated_gravity_n0(w_n, f_n, t)
     # Wahba: maximise sum a_k . C b_k (SVD of B = sum a b^T)
     B = v_n0.T @ v_s0
@@ -234,10 +236,10 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
     return C_n_n0.T @ C_s0_n0 @ quat_to_dcm(q_end)
 
 
-def _fine_F(C: np.ndarray, lat: float, h: float) -> np.ndarray:
+def _fine_F(C: np.ndarray, lat: float, h: float, gravity: earth.GravityModel | None = None) -> np.ndarray:
     """Error-state matrix of the fine alignment, x = [phi(3), dv_E, dv_N, eps(3), nabla(3)]."""
     rm, rn = earth.radii(lat)
-    g = earth.normal_gravity(lat, h)
+    g = (gravity or earth.WGS84_GRAVITY).g(lat, h)
     W = earth.OMEGA_IE
     wn, wu = W * math.cos(lat), W * math.sin(lat)
     F = np.zeros((11, 11))
@@ -258,7 +260,8 @@ def _fine_F(C: np.ndarray, lat: float, h: float) -> np.ndarray:
 
 
 def align(stream: SampleStream, dt: float, latitude: float, longitude: float, height: float,
-          cfg: AlignConfig | None = None, params: ImuErrors | None = None, t0: float = 0.0) -> AlignResult:
+          cfg: AlignConfig | None = None, params: ImuErrors | None = None, t0: float = 0.0,
+          gravity: earth.GravityModel | None = None) -> AlignResult:
     """Coarse + Kalman fine alignment on the first ``coarse_time + fine_time`` seconds of ``stream``.
 
     Fine alignment (zero-velocity Kalman filter, T&W ch. 10; S16 eq. 25-27 with a zero
@@ -273,7 +276,7 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
     first = stream.take(nc)
     if first is None or first[0].shape[0] < nc:
         raise ValueError(f"record shorter than the coarse alignment time ({cfg.coarse_time:g} s)")
-    C0 = coarse_align(first[1], first[2], dt, latitude, height, params)
+    C0 = coarse_align(first[1], first[2], dt, latitude, height, params, gravity=gravity)
     state = NavState(C0, np.zeros(3), latitude, longitude, height)
     nf = int(round(cfg.fine_time / dt))
     gb = np.zeros(3)
@@ -282,7 +285,7 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
     if nf == 0:
         return AlignResult(state, nc, t0 + nc * dt, C0, gb, ab, sig)
     nav = Strapdown(state, dt, NavConfig(vertical="hold", output_rate_hz=1.0 / dt), params, k0=nc, t0=t0,
-                    fix_position=True)
+                    fix_position=True, gravity=gravity)
     nblk = max(1, int(round(cfg.kf_interval / dt)))
     T = nblk * dt
     P = np.diag(np.r_[[cfg.level_sigma**2] * 2, cfg.heading_sigma**2, [cfg.velocity_sigma**2] * 2,
@@ -306,7 +309,7 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
         C_now = quat_to_dcm(nav.st[S_Q:S_Q + 4])
         Cm = 0.5 * (C_prev + C_now)  # mean attitude over the block (the turntable may turn)
         Tb = n * dt
-        FT = _fine_F(Cm, latitude, height) * Tb
+        FT = _fine_F(Cm, latitude, height, gravity) * Tb
         FT2 = FT @ FT
         Phi = I11 + FT + FT2 / 2.0 + FT2 @ FT / 6.0  # |F T| << 1 (T <= a few s)
         P = Phi @ P @ Phi.T + np.diag(Qc) * Tb  # isotropic white noise: its rotation into n changes nothing
@@ -528,7 +531,8 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
 
     ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
     :func:`chunks_of`) or :class:`inscal.simulate.Chunk` objects.  ``site``: the known static site
-    (latitude, longitude, height).  ``init``: "truth" (needs ``scenario``), "align" (static coarse +
+    (latitude, longitude, height; its ``gravity_model``, when it has one, is used throughout).
+    ``init``: "truth" (needs ``scenario``), "align" (static coarse +
     fine alignment, navigation continues from its end), or a :class:`NavState` at the start.
     ``params``: calibration set applied on the fly (S16 compensation form); ``gimbal_model``: the
     gimbal non-orthogonality used to map the IMU attitude to the vehicle.  With a ``scenario``,
@@ -536,6 +540,7 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     """
     config = config or NavConfig()
     dt = 1.0 / rate_hz
+    gravity = getattr(site, "gravity_model", None)
     stream = SampleStream(chunks)
     if params is not None and (params.has_asynchrony or np.any(params.accel_lever_arm - np.diag(np.diag(params.accel_lever_arm)))):
         # sample-to-sample terms (time asynchrony, tangential size effect) need the next sample:
@@ -554,11 +559,12 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
             raise ValueError("initialisation from truth needs the simulation scenario (record has no truth)")
         state, k0, label = NavState.from_truth(scenario, t0), 0, "truth"
     elif init == "align":
-        alignment = align(stream, dt, site.latitude, site.longitude, site.height, align_config, params, t0=t0)
+        alignment = align(stream, dt, site.latitude, site.longitude, site.height, align_config, params, t0=t0,
+                          gravity=gravity)
         state, k0, label = alignment.state, alignment.k_end, "align"
     else:
         raise ValueError(f"init must be 'truth', 'align' or a NavState, got {init!r}")
-    nav = Strapdown(state, dt, config, params, k0=k0, t0=t0)
+    nav = Strapdown(state, dt, config, params, k0=k0, t0=t0, gravity=gravity)
     if alignment is not None and (align_config or AlignConfig()).apply_bias_estimates:
         nav.set_extra_bias(alignment.gyro_bias, alignment.accel_bias)
     parts = []

@@ -93,6 +93,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from . import units
+from .earth import GravityModel, parse_gravity
 from .errors import (GimbalErrors, ImuErrors, ImuNoise, S16Parameters, errors_from_field, errors_to_field,
                      from_s16, noise_from_field)
 from .simulate import Scenario, Site
@@ -305,6 +306,32 @@ def load_toml(file, duration_s: float | None = None) -> Scenario:
         raise ScenarioError(f"{p}: {exc}") from None
 
 
+def gravity_from_field(g) -> GravityModel:
+    """``[site] gravity``: "wgs84" | "psins" | {value = 9.79, unit = "m/s^2"(, height_m = h)}
+    (a measured value, at the site height unless ``height_m`` says where it was taken)."""
+    if isinstance(g, str):
+        if g.strip().lower() not in ("wgs84", "psins"):
+            raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
+        return parse_gravity(g)
+    if isinstance(g, dict):
+        _check_keys("site.gravity", g, {"value", "unit", "height_m"})
+        if "value" not in g or "unit" not in g:
+            raise ScenarioError("[site] gravity = {value = ..., unit = ...} needs both value and unit")
+        v = units.to_si(float(g["value"]), str(g["unit"]), "accel")
+        return GravityModel("measured", float(v), None if "height_m" not in g else float(g["height_m"]))
+    raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
+
+
+def gravity_to_field(m: GravityModel):
+    """Inverse of :func:`gravity_from_field` (SI value in m/s^2)."""
+    if m.kind != "measured":
+        return m.kind
+    d = {"value": m.value, "unit": "m/s^2"}
+    if m.height is not None:
+        d["height_m"] = m.height
+    return d
+
+
 def _check_keys(section: str, d: dict, allowed: set) -> None:
     if not isinstance(d, dict):
         raise ScenarioError(f"[{section}] must be a table")
@@ -336,10 +363,11 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
     site = base.site
     if "site" in d:
         s = d["site"]
-        _check_keys("site", s, {"latitude_deg", "longitude_deg", "height_m"})
+        _check_keys("site", s, {"latitude_deg", "longitude_deg", "height_m", "gravity"})
         site = Site(float(s.get("latitude_deg", site.latitude / DEG)) * DEG,
                     float(s.get("longitude_deg", site.longitude / DEG)) * DEG,
-                    float(s.get("height_m", site.height)))
+                    float(s.get("height_m", site.height)),
+                    gravity_from_field(s["gravity"]) if "gravity" in s else site.gravity_model)
     imu, gim = base.imu, base.gimbal
     if "errors" in d:
         merged = errors_to_field(base.imu, base.gimbal)

@@ -25,7 +25,7 @@ generator passed in, so results do not depend on the chunk size.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -42,11 +42,13 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
 
 @dataclass(frozen=True)
 class Site:
-    """A static site: geodetic latitude, longitude [rad] and ellipsoidal height [m]."""
+    """A static site: geodetic latitude, longitude [rad], ellipsoidal height [m] and the
+    gravity model (:class:`~inscal.earth.GravityModel`, WGS-84 normal gravity by default)."""
 
     latitude: float
     longitude: float = 0.0
     height: float = 0.0
+    gravity_model: earth.GravityModel = earth.WGS84_GRAVITY
 
     def __post_init__(self):
         for n in ("latitude", "longitude", "height"):
@@ -54,10 +56,23 @@ class Site:
                 raise ValueError(f"site {n} must be finite")
         if abs(self.latitude) > math.pi / 2:
             raise ValueError("site latitude must be within +-90 deg")
+        if not isinstance(self.gravity_model, earth.GravityModel):
+            object.__setattr__(self, "gravity_model", earth.parse_gravity(self.gravity_model))
 
     @property
     def gravity(self) -> float:
-        return earth.normal_gravity(self.latitude, self.height)
+        """Gravity magnitude at the site [m/s^2] by the site's gravity model."""
+        return self.gravity_model.g(self.latitude, self.height)
+
+    @property
+    def gravity_scale(self) -> float:
+        """Site gravity / WGS-84 normal gravity at the site (1.0 for ``wgs84``): the factor the
+        navigation kernels apply to their normal gravity."""
+        return self.gravity_model.scale(self.latitude, self.height)
+
+    def with_gravity(self, model) -> "Site":
+        """This site with another gravity model (``GravityModel`` or ``wgs84``/``psins``/value)."""
+        return replace(self, gravity_model=earth.parse_gravity(model))
 
     @property
     def earth_rate_n(self) -> np.ndarray:

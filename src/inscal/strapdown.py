@@ -91,7 +91,8 @@ C_HK1, C_HK2 = 5, 6
 C_CONING = 7  # 1 apply coning/sculling corrections
 C_COMP = 8  # 0 none, 1 linear (M, bias, G), 2 full (plus nonlinear and size effect)
 C_FIXPOS = 9  # 1: position clamped to the reference (alignment)
-N_CFG = 10
+C_GSCALE = 10  # gravity model / WGS-84 normal gravity at the site (1.0: WGS-84)
+N_CFG = 11
 
 # rows of the compensation parameter block ``cp`` (float64, (14, 3))
 P_MGI = 0  # rows 0..2: M_g^-1
@@ -241,6 +242,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
     fixpos = cfg[C_FIXPOS] != 0.0
     vk1, vk2, vk3 = cfg[C_VK1], cfg[C_VK2], cfg[C_VK3]
     hk1, hk2 = cfg[C_HK1], cfg[C_HK2]
+    gscale = cfg[C_GSCALE]
     per_sample_ref = vref.shape[0] > 1
     wie = earth.OMEGA_IE
     buf = np.empty(6)
@@ -277,7 +279,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
         w = math.sqrt(1.0 - earth.E2 * sl * sl)
         rn = earth.A / w
         rm = rn * (1.0 - earth.E2) / (w * w)
-        grav = earth.normal_gravity(lat, h)
+        grav = earth.normal_gravity(lat, h) * gscale
         rmh = rm + h
         rnh = rn + h
         wie_n, wie_u = wie * cl, wie * sl
@@ -502,11 +504,14 @@ class Strapdown:
     ``params``: an :class:`ImuErrors` calibration set applied to every sample before
     integration (S16 compensation form), or None.  ``k0``: global index of the next
     sample; ``t0``: the time at the start of sample k0 = 0 (time of sample k is
-    ``t0 + (k + 1) dt``).
+    ``t0 + (k + 1) dt``).  ``gravity``: the site's :class:`~inscal.earth.GravityModel` (WGS-84
+    normal gravity when None); the kernel scales its normal gravity by the model's ratio to it
+    at the initial position.
     """
 
     def __init__(self, init: NavState, dt: float, config: NavConfig | None = None,
-                 params: ImuErrors | None = None, k0: int = 0, t0: float = 0.0, fix_position: bool = False):
+                 params: ImuErrors | None = None, k0: int = 0, t0: float = 0.0, fix_position: bool = False,
+                 gravity: earth.GravityModel | None = None):
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError("sample interval must be > 0")
         self.dt = float(dt)
@@ -523,13 +528,17 @@ class Strapdown:
         cfg[C_CONING] = 1.0 if c.coning else 0.0
         cfg[C_COMP] = level
         cfg[C_FIXPOS] = 1.0 if fix_position else 0.0
+        # the kernel evaluates WGS-84 normal gravity along the track and scales it to the model
+        self.gravity = gravity or earth.WGS84_GRAVITY
+        cfg[C_GSCALE] = self.gravity.scale(init.latitude, init.height)
+        g_site = earth.normal_gravity(init.latitude, init.height) * cfg[C_GSCALE]
         if c.vertical == "damped":
             tau = c.vertical_tau
-            ws2 = earth.normal_gravity(init.latitude, init.height) / earth.A
+            ws2 = g_site / earth.A
             cfg[C_VERT] = 1.0
             cfg[C_VK1], cfg[C_VK2], cfg[C_VK3] = 3.0 / tau, 3.0 / tau**2 + 2.0 * ws2, 1.0 / tau**3
         if c.mode == "damped":
-            ws = math.sqrt(earth.normal_gravity(init.latitude, init.height) / earth.A)
+            ws = math.sqrt(g_site / earth.A)
             wn = c.damping_frequency_ratio * ws
             cfg[C_HDAMP] = 1.0
             cfg[C_HK1] = 2.0 * c.damping_ratio * wn  # s^2 + k1 s + (1 + k2) w_s^2

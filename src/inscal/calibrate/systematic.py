@@ -510,8 +510,9 @@ def _column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
 
 
 @njit(cache=True)
-def _nav_F(lat, h, fn, F):
-    """Continuous F_nn (9 x 9) of the static-base error model (module docstring)."""
+def _nav_F(lat, h, fn, F, g_scale=1.0):
+    """Continuous F_nn (9 x 9) of the static-base error model (module docstring); ``g_scale``:
+    site gravity model / WGS-84 normal gravity."""
     for i in range(9):
         for j in range(9):
             F[i, j] = 0.0
@@ -546,7 +547,7 @@ def _nav_F(lat, h, fn, F):
     F[4, 3] = -2.0 * wu
     F[5, 3] = 2.0 * wn
     # gravity gradient: g_U = -gamma(h), d(dv_U)/d(h) = +2 gamma / R
-    F[5, 8] = 2.0 * earth.normal_gravity(lat, h) / math.sqrt(rm * rn)
+    F[5, 8] = 2.0 * earth.normal_gravity(lat, h) * g_scale / math.sqrt(rm * rn)
     # dp' = dv
     F[6, 3] = 1.0
     F[7, 4] = 1.0
@@ -560,7 +561,8 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
                  hist_Pm, hist_ref, hist_Pf, nav_out):
     """One closed-loop filter pass over the record (see the module docstring).
 
-    ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0]; parameter arrays are
+    ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
+    gravity model / WGS-84 normal gravity, 1 when absent); parameter arrays are
     updated in place by the feedback.  ``sig``: state scaling (the filter works on x / sig).
     Stores per step the smoother data; every ``hist_every`` steps the predicted covariance
     and the pre-update reference parameters.  Returns the number of steps.
@@ -573,6 +575,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     ve, vn, vu = nav0[4], nav0[5], nav0[6]
     lat, lon, h = nav0[7], nav0[8], nav0[9]
     lat0, lon0, h0 = site[0], site[1], site[2]
+    g_scale = site[3] if site.shape[0] > 3 else 1.0
     W = earth.OMEGA_IE
     ug = np.empty(3)
     ua = np.empty(3)
@@ -642,7 +645,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             rm_, rn_ = earth.radii(lat)
             rmh = rm_ + h
             rnh = rn_ + h
-            grav = earth.normal_gravity(lat, h)
+            grav = earth.normal_gravity(lat, h) * g_scale
             wie_n, wie_u = W * cl, W * sl
             we0 = -vn / rmh
             we1 = ve / rnh
@@ -731,7 +734,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
         fn[0] /= T
         fn[1] /= T
         fn[2] /= T
-        _nav_F(lat0, h0, fn, F)
+        _nav_F(lat0, h0, fn, F, g_scale)
         F2 = F @ F
         F3 = F2 @ F
         phinn = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
@@ -1056,7 +1059,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     n_per = max(1, int(round(rate / filter_rate_hz)))
     T = n_per * dt
     site = rec.site
-    site_v = np.array([site.latitude, site.longitude, site.height])
+    site_v = np.array([site.latitude, site.longitude, site.height, site.gravity_scale])
     # noise model
     est_arw, est_vrw = estimate_white_noise(dth, dv, dt)
     arw_v = np.broadcast_to(np.asarray(est_arw if arw is None else arw, float), (3,)).copy()
@@ -1087,7 +1090,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     start = CompParams() if initial is None else CompParams.from_imu(initial)
     nominal = CompParams()
     try:
-        C0 = coarse_align(dth[:n_al], dv[:n_al], dt, site.latitude, site.height, params=start.to_imu(), at_start=True)
+        C0 = coarse_align(dth[:n_al], dv[:n_al], dt, site.latitude, site.height, params=start.to_imu(), at_start=True,
+                          gravity=site.gravity_model)
     except ValueError as exc:
         raise CalibrationError(f"coarse alignment failed: {exc}") from None
     passes = []
