@@ -102,7 +102,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
         gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
-                                    "(default: the scenario's, wgs84 unless its [site] says otherwise)"),
+                                    "(default: the scenario's, wgs84 unless its site table says otherwise)"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Simulate an IMU on a dual-axis turntable and write an HDF5 record."""
