@@ -13,8 +13,19 @@ import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 
+def _version(value: bool) -> None:
+    if value:
+        from . import __version__
+
+        typer.echo(f"inscal {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="print the inscal version and exit"),
+) -> None:
     """inscal: calibrate high-accuracy IMUs and dual-axis rotational INS (S16, N25)."""
 
 

@@ -8,22 +8,64 @@ import numpy as np
 import typer
 
 from . import units
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record, short
+
+#: plot formats (from the --plot suffix)
+PLOT_FORMATS = ("png", "pdf", "svg")
+
+
+def motion_warning(rec, sel) -> str | None:
+    """One line when the window ``sel`` of ``rec`` is not static: the gyro rate (block means of
+    about 1 s) departs from its median by more than 10x the Earth rate (and 6x its noise) in more
+    than 1 % of the window, or the gimbal angles change by more than 1 mrad."""
+    from .earth import OMEGA_IE
+
+    n = int(sel.sum())
+    m = max(1, min(n // 20, int(round(rec.rate_hz))))  # ~1 s blocks (at least 20 of them)
+    k = n // m
+    rates = np.asarray(rec.dtheta[sel], dtype=float)[: k * m].reshape(k, m, 3).sum(axis=1) * rec.rate_hz / m
+    dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
+    d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
+    sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
+    thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
+    frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
+    moving = frac > 0.01
+    why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
+    if not moving and getattr(rec, "gimbal", None) is not None:
+        g = np.asarray(rec.gimbal[sel], dtype=float)
+        span = float(np.max(np.ptp(g, axis=0))) if g.size else 0.0
+        if span > 1e-3:
+            moving, why = True, f"the gimbal turns by {np.degrees(span):.3g} deg in it"
+    if not moving:
+        return None
+    return (f"the window is not static ({why}): the Allan deviation mixes rotation into the noise; "
+            "use --start/--stop on a static part of the record")
 
 
 def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plot: Path | None = None,
-              force: bool = False) -> dict:
-    from . import io
+              force: bool = False, warn=None) -> dict:
+    """Allan deviation of a window of ``data``; ``warn(line)`` is called for a window that is not
+    static (the warning is also in the result's ``warnings``)."""
     from .analysis.allan import allan
 
-    try:
-        rec = io.read_record(data)
-    except io.DataFileError as exc:
-        raise CliError(str(exc)) from None
+    if plot is not None:
+        fmt = plot.suffix.lower().lstrip(".")
+        if fmt not in PLOT_FORMATS:
+            raise CliError(f"--plot {short(plot)}: unknown plot format {short(plot.suffix or '(none)', 20)!r}; "
+                           f"use a .png, .pdf or .svg name")
+        check_output(plot, force)
+        check_not_input(plot, data, what="--plot")
+    rec = read_record(data)
     t = rec.time
     sel = (t > start_s) & (t <= (stop_s if stop_s is not None else np.inf))
     if sel.sum() < 1000:
         raise CliError(f"only {int(sel.sum())} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+    warnings = []
+    w = motion_warning(rec, sel)
+    if w:
+        warnings.append(w)
+        if warn is not None:
+            warn(w)
     g = allan(rec.dtheta[sel], rec.rate_hz)
     a = allan(rec.dvel[sel], rec.rate_hz)
     res = {
@@ -37,11 +79,14 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         "gyro_bias_instability_deg_h": units.from_si(g.bias_instability, "deg/h"),
         "accel_bias_instability_ug": units.from_si(a.bias_instability, "ug"),
     }
+    res["warnings"] = warnings
     if plot is not None:
-        check_output(plot, force)
         from .report import allan_plot
 
-        allan_plot(plot, g.taus, res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
+        try:
+            allan_plot(plot, g.taus, res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
+        except OSError as exc:
+            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
         res["plot"] = str(plot)
     return res
 
@@ -52,13 +97,14 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="HDF5 record (use a static window)"),
         start_s: float = typer.Option(0.0, "--start", help="window start [s]"),
         stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
-        plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (PNG)"),
+        plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (.png, .pdf or .svg)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing plot"),
         json_: bool = typer.Option(False, "--json", help="print results as JSON"),
     ):
         """Allan deviation of a record: ARW, VRW and bias instability per axis."""
         try:
-            res = run_allan(data, start_s, stop_s, plot, force)
+            res = run_allan(data, start_s, stop_s, plot, force,
+                            warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

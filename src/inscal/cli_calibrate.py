@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
@@ -30,11 +30,12 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     if not data.is_file():
         raise CliError(f"{data}: no such data file")
     check_output(out, force)
+    check_not_input(out, data)
     if plots is not None and not plots.is_dir():
         raise CliError(f"--plots {plots}: no such folder")
     try:
-        rec = io.read_record(data)
-    except (ValueError, OSError) as exc:  # DataFileError is a ValueError
+        rec = read_record(data)
+    except OSError as exc:
         raise CliError(str(exc)) from None
     if gravity is not None:
         import dataclasses

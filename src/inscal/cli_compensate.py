@@ -20,7 +20,7 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, short
 
 
 def record_attrs(path: Path, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:
@@ -81,13 +81,16 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     from .paramfile import ParamFileError, load_params
 
     check_output(out, force)
-    if out.resolve() == data.resolve():
-        raise CliError("--out must differ from the input record")
+    check_not_input(out, data, params)
     try:
         imu, gimbal, meta = load_params(params)
         info = io.record_info(data)
     except (ParamFileError, io.DataFileError) as exc:
         raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
+    if info.n_samples < 2:
+        raise CliError(f"{short(data)}: {info.n_samples} sample(s); nothing to compensate")
     attrs = record_attrs(data)
     warnings = []
     done = compensated_with(attrs)
@@ -116,6 +119,8 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
         n = io.write_stream(out, replace(info, truth=None), chunks(), overwrite=force, extra_attrs=attrs)
     except (io.DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
     return {"data": str(data), "params": str(params), "method": meta.get("method", ""), "out": str(out), "samples": n,
             "warnings": warnings}
 

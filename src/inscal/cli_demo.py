@@ -17,7 +17,7 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, fail, print_json
+from .cliutil import CliError, fail, print_json, short
 
 
 def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool, log) -> dict:
@@ -180,6 +180,8 @@ def register(app: typer.Typer) -> None:
             res = run_demo(out, force, seed, quick, not json_, log)
         except CliError as exc:
             raise fail(str(exc)) from None
+        except OSError as exc:  # a read-only or full disk
+            raise fail(f"cannot write in {short(out)}: {exc.strerror or exc}") from None
         if json_:
             print_json(res)
         else:

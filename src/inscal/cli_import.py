@@ -13,7 +13,7 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json
 
 
 def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
@@ -60,14 +60,16 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     if not src.is_file():
         raise CliError(f"{src}: no such file")
     check_output(out, force)
-    if out.resolve() == src.resolve():
-        raise CliError("--out must differ from the source file")
+    check_not_input(out, src, role="source file")
+    check_not_input(out, mapping, path, gimbal)
     try:
         site = _site(lat, lon, height, mapping, fmt)
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
 
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
@@ -85,8 +87,9 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
     resolved = [p.resolve() for p in outs]
     if len(set(resolved)) != len(resolved):
         raise CliError("--out, --gimbal-out and --path-out must be different files")
-    if data.resolve() in resolved:
-        raise CliError("the outputs must differ from the input record")
+    for p in outs:
+        check_not_input(p, data, what="the outputs" if p == out else ("--gimbal-out" if p == gimbal_out else "--path-out"),
+                        role="input record")
     try:
         return export_record(data, out, fmt, overwrite=force, gimbal_out=gimbal_out, path_out=path_out)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError, OSError) as exc:

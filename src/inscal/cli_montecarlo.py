@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, fail, print_json
+from .cliutil import CliError, fail, print_json, short
 
 
 def parse_set(items: list[str] | None) -> dict:
@@ -57,6 +57,8 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
         paths = mc.write_outputs(exp, summ, out)
     except mc.StudyError as exc:
         raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write the study in {short(out)}: {exc.strerror or exc}") from None
     d = summ.to_dict()
     d["out"] = str(out)
     d["files"] = {k: str(v) for k, v in {**paths, "runs": Path(out) / mc.RUNS_FILE}.items()}

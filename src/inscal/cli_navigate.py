@@ -8,7 +8,7 @@ import numpy as np
 import typer
 
 from . import units
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json
 
 def _nmi(x_m: float) -> float:
     return float(units.from_si(x_m, "nmi"))
@@ -74,9 +74,10 @@ def run_navigate(data: Path, params: Path | None = None, mode: str = "free", ver
 
     if out is not None:
         check_output(out, force)
+        check_not_input(out, data, *([params] if params is not None else []))
     try:
         info = io.record_info(data)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, KeyError, TypeError) as exc:
         raise CliError(str(exc)) from None
     if gravity is not None:
         import dataclasses

@@ -6,21 +6,24 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record, short
 
 
 def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -> dict:
-    from . import io
     from .paramfile import ParamFileError, load_params
     from .report import record_report
 
     check_output(out, force)
+    check_not_input(out, data, *params)
+    rec = read_record(data)
     try:
-        rec = io.read_record(data)
         sets = [(str(p), *load_params(p)) for p in params]
-    except (io.DataFileError, ParamFileError) as exc:
+    except ParamFileError as exc:
         raise CliError(str(exc)) from None
-    res = record_report(out, rec, sets, overwrite=force)
+    try:
+        res = record_report(out, rec, sets, overwrite=force)
+    except OSError as exc:
+        raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
     res["out"] = str(out)
     return res
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from .jsonutil import to_jsonable
@@ -16,6 +18,9 @@ class CliError(Exception):
 
 def fail(msg: str, code: int = 2) -> typer.Exit:
     """Print a one-line error to stderr and return an Exit to raise: ``raise fail("...")``."""
+    msg = re.sub(r"\S{%d,}" % (MAX_ECHO + 1), lambda m: short(m.group()), " ".join(str(msg).split("\n")))
+    if len(msg) > 5 * MAX_ECHO:  # a message quoting a very long user string
+        msg = short(msg, 5 * MAX_ECHO)
     typer.echo(f"inscal: error: {msg}", err=True)
     return typer.Exit(code)
 
@@ -23,9 +28,57 @@ def fail(msg: str, code: int = 2) -> typer.Exit:
 def check_output(path: Path, force: bool) -> None:
     """Refuse to overwrite an existing output unless ``force``; the parent folder must exist."""
     if path.exists() and not force:
-        raise CliError(f"{path} exists; use --force to overwrite it")
+        raise CliError(f"{short(path)} exists; use --force to overwrite it")
     if not path.parent.exists():
-        raise CliError(f"folder {path.parent} does not exist")
+        raise CliError(f"folder {short(path.parent)} does not exist")
+
+
+def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: str = "input") -> None:
+    """Refuse (one line, exit 2 via :class:`CliError`) an output that is one of the inputs, so that
+    ``--force`` never destroys an input record or parameter file (paths are resolved, links followed)."""
+    try:
+        ro = Path(out).resolve()
+    except (OSError, RuntimeError):
+        return
+    for inp in inputs:
+        if inp is None:
+            continue
+        try:
+            same = Path(inp).resolve() == ro or (ro.exists() and Path(inp).exists() and ro.samefile(inp))
+        except (OSError, RuntimeError):
+            continue
+        if same:
+            raise CliError(f"{what} must differ from the {role} {short(inp)} (writing it would destroy it)")
+
+
+def read_record(path: Path):
+    """``io.read_record`` with every failure of a malformed record (a missing attribute, a
+    non-numeric dataset) turned into a one-line :class:`CliError`."""
+    from . import io
+
+    try:
+        rec = io.read_record(path)
+    except io.DataFileError as exc:
+        raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(path)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
+    bad = [n for n in ("dtheta", "dvel") if not np.issubdtype(np.asarray(getattr(rec, n)).dtype, np.floating)]
+    if bad:
+        raise CliError(f"{short(path)}: {', '.join(bad)} must be floating point (rad, m/s), got "
+                       f"{np.asarray(getattr(rec, bad[0])).dtype}")
+    return rec
+
+
+#: echoed user strings longer than this are cut (a 100,000-character name is not echoed in full)
+MAX_ECHO = 200
+
+
+def short(value, limit: int = MAX_ECHO) -> str:
+    """``str(value)`` cut to ``limit`` characters (with an ellipsis and the full length) for messages."""
+    s = str(value)
+    if len(s) <= limit:
+        return s
+    return f"{s[:limit - 1]}… ({len(s)} characters)"
 
 
 def print_json(obj) -> None:

@@ -196,6 +196,15 @@ def write_record(path, rec: Record, overwrite: bool = False) -> None:
 
 
 # ----------------------------------------------------------------------------- reading
+def _rate(h5, path) -> float:
+    if "rate_hz" not in h5.attrs:
+        raise DataFileError(f"{path}: missing attribute rate_hz (not an inscal record, or a damaged one)")
+    try:
+        return float(h5.attrs["rate_hz"])
+    except (TypeError, ValueError):
+        raise DataFileError(f"{path}: attribute rate_hz is not a number") from None
+
+
 def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") -> None:
     """Shape, finiteness and time-grid checks with messages that say what is wrong."""
     n = np.shape(time)[0] if np.ndim(time) == 1 else None
@@ -204,6 +213,8 @@ def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") 
     for name, a, cols in (("dtheta", dtheta, 3), ("dvel", dvel, 3), ("gimbal", gimbal, 2)):
         if a is None:
             continue
+        if not np.issubdtype(np.asarray(a).dtype, np.floating):
+            raise DataFileError(f"{where}: {name} must be floating point (SI units), got {np.asarray(a).dtype}")
         if np.shape(a) != (n, cols):
             raise DataFileError(f"{where}: {name} has shape {np.shape(a)}, expected ({n}, {cols}) to match time")
     if not (math.isfinite(rate_hz) and rate_hz > 0):
@@ -299,7 +310,7 @@ def read_record(path) -> Record:
             gim = h5["gimbal"][()] if "gimbal" in h5 else None
         except OSError as exc:
             raise DataFileError(f"{path}: cannot read data (truncated file?): {exc}") from None
-        rate = float(h5.attrs["rate_hz"])
+        rate = _rate(h5, path)
         site, p, truth = _meta(h5, path)
         scen = str(h5.attrs.get("scenario", ""))
     validate_arrays(time, dth, dv, gim, rate, where=str(path))
@@ -321,7 +332,7 @@ def record_info(path) -> RecordInfo:
     """Metadata of a record without reading its samples."""
     with _open(path) as h5:
         site, p, truth = _meta(h5, path)
-        return RecordInfo(int(h5["time"].shape[0]), float(h5.attrs["rate_hz"]), site, p, truth,
+        return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
                           str(h5.attrs.get("scenario", "")), "gimbal" in h5)
 
 
@@ -329,7 +340,7 @@ def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, n
     """Yield ``(time, dtheta, dvel, gimbal)`` slices of a record, validated per chunk,
     holding only one chunk in memory (for multi-day records)."""
     with _open(path) as h5:
-        rate = float(h5.attrs["rate_hz"])
+        rate = _rate(h5, path)
         n = h5["time"].shape[0]
         last_t = None
         for k0 in range(0, n, chunk_size):

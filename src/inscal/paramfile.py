@@ -66,6 +66,53 @@ class ParamFileError(ValueError):
     """A parameter file that cannot be read or written, with the reason."""
 
 
+_IMU_LINEAR = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
+               "accel_bias")
+#: the tables a file written by each method always has (a file written by inscal that misses one
+#: was edited or cut: loading it would silently take that term as zero)
+REQUIRED: dict[str, tuple[str, ...]] = {
+    "six-position": _IMU_LINEAR,
+    "twelve-position": _IMU_LINEAR,
+    "n25": _IMU_LINEAR + ("gimbal_nonorthogonality", "mount_attitude"),
+    "joint": _IMU_LINEAR + ("gimbal_nonorthogonality", "mount_attitude"),
+    "systematic51": _IMU_LINEAR,
+    "systematic30": _IMU_LINEAR,
+}
+
+#: plausibility limits in field units: a value beyond one is a unit or typing mistake
+LIMITS: dict[str, tuple[float, str]] = {
+    "gyro_scale_factor": (1e5, "ppm"),
+    "accel_scale_factor": (1e5, "ppm"),
+    "gyro_misalignment": (36000.0, "arcsec"),
+    "accel_misalignment": (36000.0, "arcsec"),
+    "accel_bias": (1e6, "ug"),
+    "gyro_bias": (1e6, "deg/h"),
+    "accel_lever_arm": (100.0, "cm"),
+}
+
+
+def _check_plausible(p, name: str, entry: dict, kind: str) -> None:
+    """Non-finite values, and values beyond :data:`LIMITS`, raise :class:`ParamFileError`."""
+    from . import units
+
+    raw = np.asarray(entry["value"], dtype=float)
+    if not np.all(np.isfinite(raw)):
+        raise ParamFileError(f"{p}: parameter {name} has a non-finite value")
+    if name not in LIMITS:
+        return
+    lim, lim_unit = LIMITS[name]
+    try:
+        si = np.asarray(units.to_si(raw, entry["unit"], kind), dtype=float)
+    except (units.UnitError, TypeError, ValueError):
+        return  # the unit is reported by errors_from_field
+    lim_si = float(units.to_si(lim, lim_unit, kind))
+    big = np.abs(si) > lim_si
+    if np.any(big):
+        worst = float(np.max(np.abs(units.from_si(si, lim_unit))))
+        raise ParamFileError(f"{p}: parameter {name} = {worst:.4g} {lim_unit} is implausible (limit {lim:g} {lim_unit}); "
+                             "check the value and its unit")
+
+
 def _atomic_write_text(path: FsPath, text: str, overwrite: bool) -> None:
     from .io import atomic_path
 
@@ -164,9 +211,13 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
         if not isinstance(entry, dict) or "value" not in entry or "unit" not in entry:
             raise ParamFileError(f"{p}: parameter {name} needs 'value' and 'unit'")
         kind, shape = PARAMETERS[name][2], PARAMETERS[name][4]
-        val = np.squeeze(np.asarray(entry["value"], dtype=float))
+        try:
+            val = np.squeeze(np.asarray(entry["value"], dtype=float))
+        except (TypeError, ValueError):
+            raise ParamFileError(f"{p}: parameter {name}: value is not a number or list of numbers") from None
         if val.shape != shape and not (shape == () and val.shape == ()):
             raise ParamFileError(f"{p}: parameter {name} has shape {list(val.shape)}, expected {list(shape)}")
+        _check_plausible(p, name, entry, kind)
         values[name] = {"value": val.tolist(), "unit": entry["unit"]}
         for key, dest in (("sigma", sigma), ("sigma_formal", sigma_formal)):
             if key in entry:
@@ -186,6 +237,13 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
                 metadata=doc.get("metadata", {}), fit=fit)
     if not isinstance(meta["method"], str):
         raise ParamFileError(f"{p}: missing 'method'")
+    # only files written by inscal (they carry inscal_version) are held to their method's tables;
+    # hand-written and pre-0.1 files may list a subset
+    required = REQUIRED.get(meta["method"], ()) if doc.get("inscal_version") else ()
+    missing = [n for n in required if n not in params]
+    if missing:
+        raise ParamFileError(f"{p}: method {meta['method']} estimates {', '.join(missing)} but the file has no "
+                             f"[parameters.{missing[0]}] table (edited or cut file?)")
     for n, s in list(sigma.items()) + list(sigma_formal.items()):
         if np.any(np.asarray(s) < 0) or not np.all(np.isnan(s) | np.isfinite(s)):
             raise ParamFileError(f"{p}: parameter {n} has an invalid sigma")

@@ -46,6 +46,7 @@ import datetime as _dt
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -391,7 +392,53 @@ def run_study(experiment: Experiment, out, runs: int, seed: int = 0, *, schedule
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise StudyError(f"{out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    created = _first_missing(out)  # the topmost folder this call creates (None: out exists)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        return _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, force, progress,
+                             max_new_runs, warmup, t0)
+    except BaseException as exc:
+        # a study that failed to start leaves no folder behind that it created (one with runs
+        # recorded is kept, so that it can be resumed)
+        if created is not None and not _has_finished_runs(out):
+            shutil.rmtree(created, ignore_errors=True)
+        if isinstance(exc, OSError) and not isinstance(exc, StudyError):
+            raise StudyError(f"cannot write the study in {out}: {exc.strerror or exc}") from None
+        raise
+
+
+def _first_missing(out: Path) -> Path | None:
+    """The topmost ancestor of ``out`` (or ``out`` itself) that does not exist, else None."""
+    missing = None
+    for p in [out, *out.parents]:
+        if p.exists():
+            break
+        missing = p
+    return missing
+
+
+def _has_finished_runs(out: Path) -> bool:
+    """Whether ``out`` holds a results file with at least one run (failed runs included: they
+    show what went wrong and are retried on resume)."""
+    path = out / RUNS_FILE
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for k, line in enumerate(fh):
+                if k == 0 or not line.strip():
+                    continue
+                try:
+                    rec = json.loads(line)
+                except ValueError:
+                    continue
+                if isinstance(rec, dict) and "run" in rec:
+                    return True
+    except OSError:
+        pass
+    return False
+
+
+def _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, force, progress, max_new_runs,
+                  warmup, t0) -> StudyResult:
     with _FolderLock(out):
         path, header, records = open_study(experiment, out, int(seed), force)
         P = len(experiment.points)
