@@ -161,6 +161,42 @@ def _qrot(q0, q1, q2, q3, x, y, z):
     )
 
 
+@njit(cache=True, inline="always")
+def _velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, lat, h, dt, gscale):
+    """ENU velocity after one sample (T&W ch. 11): ``v + (I - [zeta x]/2) C dv_sf + (g - (2 w_ie + w_en) x v) dt``
+    with the Earth quantities at the start of the interval (WGS-84, T&W ch. 3); ``C`` = the quaternion
+    ``q`` (C_s^n), ``c`` = the sample's velocity increment with its rotation and sculling terms.
+    Returns the new velocity and ``sin L, cos L, R_M + h, R_N + h, w_ie north, w_ie up``."""
+    sl = math.sin(lat)
+    cl = math.cos(lat)
+    w = math.sqrt(1.0 - earth.E2 * sl * sl)
+    rn = earth.A / w
+    rm = rn * (1.0 - earth.E2) / (w * w)
+    grav = earth.normal_gravity(lat, h) * gscale
+    rmh = rm + h
+    rnh = rn + h
+    wie = earth.OMEGA_IE
+    wie_n, wie_u = wie * cl, wie * sl
+    # transport rate w_en^n = [-vN/(RM+h), vE/(RN+h), vE tanL/(RN+h)]
+    we0 = -vn / rmh
+    we1 = ve / rnh
+    we2 = ve * sl / (cl * rnh)
+    z0 = we0 * dt
+    z1 = (wie_n + we1) * dt
+    z2 = (wie_u + we2) * dt
+    s0, s1, s2 = _qrot(q0, q1, q2, q3, c0, c1, c2)
+    s0 -= 0.5 * (z1 * s2 - z2 * s1)
+    s1 -= 0.5 * (z2 * s0 - z0 * s2)
+    s2 -= 0.5 * (z0 * s1 - z1 * s0)
+    o0 = we0
+    o1 = 2.0 * wie_n + we1
+    o2 = 2.0 * wie_u + we2
+    nve = ve + s0 - (o1 * vu - o2 * vn) * dt
+    nvn = vn + s1 - (o2 * ve - o0 * vu) * dt
+    nvu = vu + s2 - (o0 * vn - o1 * ve) * dt - grav * dt
+    return nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u
+
+
 @njit(cache=True)
 def _compensate(dth, dv, dt, cp, level, pw, have_prev, out):
     """S16 compensation of one sample's increments into ``out[0:3]`` (dtheta) and ``out[3:6]`` (dv)."""
@@ -244,7 +280,6 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
     hk1, hk2 = cfg[C_HK1], cfg[C_HK2]
     gscale = cfg[C_GSCALE]
     per_sample_ref = vref.shape[0] > 1
-    wie = earth.OMEGA_IE
     buf = np.empty(6)
     pw = np.empty(3)
 
@@ -273,34 +308,9 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
             b0, b1, b2 = dv[j, 0], dv[j, 1], dv[j, 2]
         # ---- two-sample coning, sculling and rotation corrections (Savage ch. 7)
         r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, coning and have_prev)
-        # ---- Earth quantities at the start of the interval (WGS-84, T&W ch. 3)
-        sl = math.sin(lat)
-        cl = math.cos(lat)
-        w = math.sqrt(1.0 - earth.E2 * sl * sl)
-        rn = earth.A / w
-        rm = rn * (1.0 - earth.E2) / (w * w)
-        grav = earth.normal_gravity(lat, h) * gscale
-        rmh = rm + h
-        rnh = rn + h
-        wie_n, wie_u = wie * cl, wie * sl
-        # transport rate w_en^n = [-vN/(RM+h), vE/(RN+h), vE tanL/(RN+h)]
-        we0 = -vn / rmh
-        we1 = ve / rnh
-        we2 = ve * sl / (cl * rnh)
-        z0 = we0 * dt
-        z1 = (wie_n + we1) * dt
-        z2 = (wie_u + we2) * dt
-        # ---- velocity (T&W ch. 11): (I - [zeta x]/2) C dv_sf + (g - (2 w_ie + w_en) x v) dt
-        s0, s1, s2 = _qrot(q0, q1, q2, q3, c0, c1, c2)
-        s0 -= 0.5 * (z1 * s2 - z2 * s1)
-        s1 -= 0.5 * (z2 * s0 - z0 * s2)
-        s2 -= 0.5 * (z0 * s1 - z1 * s0)
-        o0 = we0
-        o1 = 2.0 * wie_n + we1
-        o2 = 2.0 * wie_u + we2
-        nve = ve + s0 - (o1 * vu - o2 * vn) * dt
-        nvn = vn + s1 - (o2 * ve - o0 * vu) * dt
-        nvu = vu + s2 - (o0 * vn - o1 * ve) * dt - grav * dt
+        # ---- Earth quantities at the start of the interval, velocity update (T&W ch. 3, 11)
+        nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u = _velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, lat, h,
+                                                                        dt, gscale)
         if hdamp:
             if per_sample_ref:
                 re, rn_ = vref[j, 0], vref[j, 1]

@@ -91,7 +91,7 @@ from numba import njit
 from .. import earth, filters, units
 from ..attitude import dcm_from_quat, quat_from_dcm, quat_from_rotvec_xyz as _qrv
 from ..errors import ImuErrors, split_scale_misalignment
-from ..strapdown import _qmul, _qrot, _two_sample
+from ..strapdown import _qmul, _qrot, _two_sample, _velocity_step
 from .result import CalibrationResult
 from .segment import CalibrationError
 
@@ -576,7 +576,6 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     lat, lon, h = nav0[7], nav0[8], nav0[9]
     lat0, lon0, h0 = site[0], site[1], site[2]
     g_scale = site[3] if site.shape[0] > 3 else 1.0
-    W = earth.OMEGA_IE
     ug = np.empty(3)
     ua = np.empty(3)
     w = np.empty(3)
@@ -640,29 +639,8 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             a0, a1, a2 = w[0] * dt, w[1] * dt, w[2] * dt
             b0, b1, b2 = f[0] * dt, f[1] * dt, f[2] * dt
             r0, r1, r2, c0, c1, c2 = _two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, have_prev)
-            sl = math.sin(lat)
-            cl = math.cos(lat)
-            rm_, rn_ = earth.radii(lat)
-            rmh = rm_ + h
-            rnh = rn_ + h
-            grav = earth.normal_gravity(lat, h) * g_scale
-            wie_n, wie_u = W * cl, W * sl
-            we0 = -vn / rmh
-            we1 = ve / rnh
-            we2 = ve * sl / (cl * rnh)
-            z0 = we0 * dt
-            z1 = (wie_n + we1) * dt
-            z2 = (wie_u + we2) * dt
-            s0, s1, s2 = _qrot(q0, q1, q2, q3, c0, c1, c2)
-            s0 -= 0.5 * (z1 * s2 - z2 * s1)
-            s1 -= 0.5 * (z2 * s0 - z0 * s2)
-            s2 -= 0.5 * (z0 * s1 - z1 * s0)
-            o0 = we0
-            o1 = 2.0 * wie_n + we1
-            o2 = 2.0 * wie_u + we2
-            nve = ve + s0 - (o1 * vu - o2 * vn) * dt
-            nvn = vn + s1 - (o2 * ve - o0 * vu) * dt
-            nvu = vu + s2 - (o0 * vn - o1 * ve) * dt - grav * dt
+            nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u = _velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu,
+                                                                            lat, h, dt, g_scale)
             # attitude with the midpoint transport rate
             mve = 0.5 * (ve + nve)
             mvn = 0.5 * (vn + nvn)
