@@ -161,3 +161,22 @@ def test_static_navigation_with_the_data_gravity_model():
     print(f"1 h static position error: psins navigator {right * 1e3:.4f} mm, wgs84 navigator {wrong * 1e3:.4f} mm")
     assert right < 1e-3
     assert wrong > 2e-3
+
+
+def test_import_stores_the_gravity_model(tmp_path):
+    from typer.testing import CliRunner
+
+    from inscal import io
+    from inscal.cli import app
+
+    runner = CliRunner()
+    rec = tmp_path / "st.h5"
+    assert runner.invoke(app, ["simulate", "static", "--duration-h", "0.01", "--out", str(rec)]).exit_code == 0
+    assert runner.invoke(app, ["export", str(rec), "--format", "psins", "--out", str(tmp_path / "x.bin")]).exit_code == 0
+    base = ["import", str(tmp_path / "x.bin"), "--format", "psins", "--lat", "30.686651", "--lon", "120.664265",
+            "--height", "0", "--skip-check", "constant", "--skip-check", "magnitudes"]
+    r = runner.invoke(app, base + ["--gravity", "psins", "--out", str(tmp_path / "i.h5")])
+    assert r.exit_code == 0, r.stdout
+    assert io.read_record(tmp_path / "i.h5").site.gravity_model.kind == "psins"
+    r = runner.invoke(app, base + ["--gravity", "nonsense", "--out", str(tmp_path / "j.h5")])
+    assert r.exit_code == 2 and not (tmp_path / "j.h5").exists()

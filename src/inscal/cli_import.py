@@ -46,7 +46,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str = "deg",
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
-               rates: bool = False, skip: list[str] | None = None, force: bool = False) -> dict:
+               rates: bool = False, skip: list[str] | None = None, force: bool = False,
+               gravity: str | None = None) -> dict:
     from .importers import CHECKS, FORMATS, ImportFileError, import_file
     from .io import DataFileError
 
@@ -64,6 +65,10 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     check_not_input(out, mapping, path, gimbal)
     try:
         site = _site(lat, lon, height, mapping, fmt)
+        if gravity is not None:
+            from .cli_simulate import parse_gravity_option
+
+            site = site.with_gravity(parse_gravity_option(gravity))
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
@@ -118,13 +123,15 @@ def register(app: typer.Typer) -> None:
         rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
         skip: list[str] = typer.Option(None, "--skip-check", help="skip a plausibility check: constant | saturation | "
                                        "magnitudes | motion (repeatable)"),
+        gravity: str = typer.Option(None, "--gravity", help="site gravity model stored in the record: wgs84 (default) | "
+                                    "psins | a measured value in m/s^2 at the site height"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force)
+                             rate_hz, dtype, variable, rates, skip, force, gravity)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

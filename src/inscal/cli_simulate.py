@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json
+from .cliutil import CliError, check_output, fail, print_json, short
 
 
 @contextlib.contextmanager
@@ -86,7 +86,7 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
     with progress_bar(f"simulating {sc.name}", sc.n_samples, show_progress) as upd:
         try:
             n = io.write_simulation(out, sc, rng, overwrite=force, progress=upd)
-        except (FileExistsError, FileNotFoundError, ValueError) as exc:
+        except (FileExistsError, FileNotFoundError, ValueError, OSError) as exc:  # OSError: e.g. a read-only folder
             raise CliError(str(exc)) from None
     return summary(sc, out, seed, n)
 
@@ -114,5 +114,5 @@ def register(app: typer.Typer) -> None:
         if json_:
             print_json(res)
         else:
-            typer.echo(f"{res['scenario']}: {res['samples']} samples, {res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, "
+            typer.echo(f"{short(res['scenario'])}: {res['samples']} samples, {res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, "
                        f"path {res['path']} ({res['moves']} moves) -> {res['out']}")
