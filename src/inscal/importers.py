@@ -80,7 +80,7 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
+from .tomlfile import read_toml
 from contextlib import ExitStack
 from dataclasses import dataclass
 from io import StringIO
@@ -263,14 +263,7 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
 
 def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:
     p = FsPath(path)
-    if not p.is_file():
-        raise ImportFileError(f"{p}: no such mapping file")
-    try:
-        d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ImportFileError(f"{p}: malformed TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file") from None
+    d = read_toml(p, ImportFileError, "mapping file")
     try:
         return parse_mapping(d, fmt)
     except ImportFileError as exc:
@@ -288,14 +281,7 @@ def default_mapping(gimbal: bool) -> Mapping:
 def load_path(path) -> Path:
     """A rotation path from a TOML file holding one ``[path]`` table (as in scenario files)."""
     p = FsPath(path)
-    if not p.is_file():
-        raise ImportFileError(f"{p}: no such path file")
-    try:
-        d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ImportFileError(f"{p}: malformed TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file") from None
+    d = read_toml(p, ImportFileError, "path file")
     if set(d) - {"path"} or "path" not in d:
         raise ImportFileError(f"{p}: a path file holds one [path] table, got key(s) {sorted(d)}")
     pd = dict(d["path"]) if isinstance(d["path"], dict) else None

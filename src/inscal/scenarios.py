@@ -86,7 +86,7 @@ Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 from __future__ import annotations
 
 import math
-import tomllib
+from .tomlfile import read_toml
 from dataclasses import replace
 from pathlib import Path as FsPath
 
@@ -292,14 +292,7 @@ _TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "p
 
 def load_toml(file, duration_s: float | None = None) -> Scenario:
     p = FsPath(file)
-    if not p.is_file():
-        raise ScenarioError(f"{p}: no such scenario file")
-    try:
-        d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{p}: malformed TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ScenarioError(f"{p}: not a text file") from None
+    d = read_toml(p, ScenarioError, "scenario file")
     try:
         return scenario_from_dict(d, duration_s, default_name=p.stem)
     except (ValueError, PathError, TypeError) as exc:

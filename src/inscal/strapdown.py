@@ -162,6 +162,18 @@ def _qrot(q0, q1, q2, q3, x, y, z):
 
 
 @njit(cache=True, inline="always")
+def _attitude_step(q0, q1, q2, q3, r0, r1, r2, z0, z1, z2):
+    """``q(-zeta) * q * q(r)``, normalised: the body rotation vector ``r`` of the sample and the
+    navigation-frame rotation ``zeta = (w_ie^n + w_en^n) dt`` (exact rotation-vector quaternions)."""
+    e0, e1, e2, e3 = _qrv(r0, r1, r2)
+    q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, e0, e1, e2, e3)
+    e0, e1, e2, e3 = _qrv(-z0, -z1, -z2)
+    q0, q1, q2, q3 = _qmul(e0, e1, e2, e3, q0, q1, q2, q3)
+    qn = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return q0 * qn, q1 * qn, q2 * qn, q3 * qn
+
+
+@njit(cache=True, inline="always")
 def _velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, lat, h, dt, gscale):
     """ENU velocity after one sample (T&W ch. 11): ``v + (I - [zeta x]/2) C dv_sf + (g - (2 w_ie + w_en) x v) dt``
     with the Earth quantities at the start of the interval (WGS-84, T&W ch. 3); ``C`` = the quaternion
@@ -332,15 +344,7 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, k0, decim, o_idx, o_q, o_v, o_pos)
             # extra level rotation rate from the (midpoint) velocity difference (damped Schuler loop)
             we0 += -hk2 * (mvn - rn_) / rmh
             we1 += hk2 * (mve - re) / rnh
-        e0, e1, e2, e3 = _qrv(r0, r1, r2)
-        q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, e0, e1, e2, e3)
-        e0, e1, e2, e3 = _qrv(-we0 * dt, -(wie_n + we1) * dt, -(wie_u + we2) * dt)
-        q0, q1, q2, q3 = _qmul(e0, e1, e2, e3, q0, q1, q2, q3)
-        qn = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-        q0 *= qn
-        q1 *= qn
-        q2 *= qn
-        q3 *= qn
+        q0, q1, q2, q3 = _attitude_step(q0, q1, q2, q3, r0, r1, r2, we0 * dt, (wie_n + we1) * dt, (wie_u + we2) * dt)
         # ---- position (trapezoidal)
         if fixpos:
             lat, lon = lat0, lon0

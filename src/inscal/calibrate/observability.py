@@ -66,7 +66,7 @@ from __future__ import annotations
 
 import math
 import time
-import tomllib
+from ..tomlfile import read_toml
 from dataclasses import dataclass, field, replace
 from pathlib import Path as FsPath
 from types import SimpleNamespace
@@ -76,7 +76,7 @@ from numba import njit
 
 from .. import units
 from ..errors import ImuErrors, ImuNoise
-from ..turntable import BUILTIN_PATHS, Path, PathError
+from ..turntable import BUILTIN_PATHS, Path
 from .segment import CalibrationError
 from .systematic import DEFAULT_SIGMA0, N_NAV, NAV_SIGMA0, StateSet, systematic
 
@@ -245,14 +245,7 @@ def load_source(source):
     fs = FsPath(name)
     try:
         if fs.is_file() or name.endswith(".toml"):
-            if not fs.is_file():
-                raise ObservabilityError(f"{name}: no such file")
-            try:
-                d = tomllib.loads(fs.read_text())
-            except tomllib.TOMLDecodeError as exc:
-                raise ObservabilityError(f"{name}: malformed TOML: {exc}") from None
-            except UnicodeDecodeError:
-                raise ObservabilityError(f"{name}: not a text file") from None
+            d = read_toml(fs, ObservabilityError)
             if set(d) <= {"path", "schema_version"} and "path" in d:
                 sc = scenarios.scenario_from_dict(d, default_name=fs.stem)
                 return _bare(sc.path), "path", name

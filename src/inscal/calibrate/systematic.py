@@ -89,9 +89,9 @@ import numpy as np
 from numba import njit
 
 from .. import earth, filters, units
-from ..attitude import dcm_from_quat, quat_from_dcm, quat_from_rotvec_xyz as _qrv
+from ..attitude import quat_from_dcm, quat_from_rotvec_xyz as _qrv
 from ..errors import ImuErrors, split_scale_misalignment
-from ..strapdown import _qmul, _qrot, _two_sample, _velocity_step
+from ..strapdown import _attitude_step, _qmul, _qrot, _two_sample, _velocity_step
 from .result import CalibrationResult
 from .segment import CalibrationError
 
@@ -644,16 +644,9 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             # attitude with the midpoint transport rate
             mve = 0.5 * (ve + nve)
             mvn = 0.5 * (vn + nvn)
-            e0, e1, e2, e3 = _qrv(r0, r1, r2)
             oq0, oq1, oq2, oq3 = q0, q1, q2, q3
-            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, e0, e1, e2, e3)
-            e0, e1, e2, e3 = _qrv(mvn / rmh * dt, -(wie_n + mve / rnh) * dt, -(wie_u + mve * sl / (cl * rnh)) * dt)
-            q0, q1, q2, q3 = _qmul(e0, e1, e2, e3, q0, q1, q2, q3)
-            qn = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-            q0 *= qn
-            q1 *= qn
-            q2 *= qn
-            q3 *= qn
+            q0, q1, q2, q3 = _attitude_step(q0, q1, q2, q3, r0, r1, r2, -mvn / rmh * dt, (wie_n + mve / rnh) * dt,
+                                            (wie_u + mve * sl / (cl * rnh)) * dt)
             lat += 0.5 * (vn + nvn) / rmh * dt
             lon += 0.5 * (ve + nve) / (rnh * cl) * dt
             h += 0.5 * (vu + nvu) * dt
@@ -1057,7 +1050,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         if k not in sig0:
             raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
         sig0[k] = float(v)
-    g = site.gravity
     sig = np.array(list(NAV_SIGMA0) + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
     sig_par = sig[N_NAV:]
     hist_every = max(1, int(round(history_s / T)))
@@ -1077,7 +1069,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     prev = None
     converged = False
     inv_prior = 1.0 / sig_par**2
-    mu_nom = None
     sig_pass = sig.copy()
     first = None
     for ip in range(max_passes):
@@ -1126,8 +1117,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     fixed = _fixed_mask(st, names)
     sflat[fixed] = np.nan
     imu = est.to_imu()
-    from ..errors import PARAMETERS, GimbalErrors
-    from .result import flatten, unflatten
+    from ..errors import GimbalErrors
+    from .result import unflatten
 
     sigma = unflatten(sflat, names)
     # innovation statistics (normalised innovation squared; dof = 6 per step)
