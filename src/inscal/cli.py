@@ -47,8 +47,57 @@ def _register_all() -> None:
 _register_all()
 
 
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM: raised in the main thread by :func:`main`'s handler so that it unwinds
+    through the ``atomic_path`` context managers (whose cleanup removes the ``.part`` files).
+    A ``BaseException``: no ``except Exception`` and no click handler swallows it."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _interrupt_handler(signum, frame):  # pragma: no cover - runs in a subprocess (tests/test_signals.py)
+    import signal
+
+    for s in (signal.SIGINT, signal.SIGTERM):  # a second signal must not cut the cleanup short
+        signal.signal(s, signal.SIG_IGN)
+    raise Interrupted(signum)
+
+
+def _interrupted(signum: int) -> int:
+    """Report an interrupt in one line (stderr) after the cleanup; return the exit code
+    (128 + signal number: 130 for SIGINT, 143 for SIGTERM)."""
+    import signal
+
+    name = signal.Signals(signum).name
+    removed = []
+    io = sys.modules.get("inscal.io")
+    if io is not None:  # no output is written without inscal.io
+        io.remove_live_parts()
+        removed = [f"{tmp} ({target} not written)" for tmp, target in io.REMOVED_PARTS]
+    msg = f"inscal: interrupted ({name})"
+    if removed:
+        msg += "; removed partial output " + ", ".join(removed)
+    sys.stderr.write(msg + "\n")
+    sys.stderr.flush()
+    return 128 + signum
+
+
 def main() -> None:  # console-script entry point
-    app(prog_name="inscal")
+    """Run the command line; SIGINT and SIGTERM remove the partial outputs, print one line
+    and exit with 130 / 143."""
+    import signal
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        try:
+            signal.signal(s, _interrupt_handler)
+        except (ValueError, OSError):  # not the main thread: leave the handlers alone
+            pass
+    try:
+        app(prog_name="inscal")
+    except (Interrupted, KeyboardInterrupt) as exc:
+        sys.exit(_interrupted(getattr(exc, "signum", signal.SIGINT)))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -80,12 +80,20 @@ class Record:
         return float(self.n_samples / self.rate_hz)
 
 
+#: temporaries of :func:`atomic_path` now being written (temporary -> final path), so that an
+#: interrupt (SIGINT/SIGTERM, see :func:`inscal.cli.main`) can say what it removed
+_LIVE_PARTS: dict[str, FsPath] = {}
+#: ``(temporary, final path)`` of the temporaries removed after a failure, newest last
+REMOVED_PARTS: list[tuple[str, FsPath]] = []
+
+
 @contextmanager
 def atomic_path(path, overwrite: bool = False):
     """Yield a temporary path next to ``path``; rename it onto ``path`` on success.
 
     Refuses (FileExistsError) if ``path`` exists and not ``overwrite``.  On any
-    exception the temporary file is removed and ``path`` is untouched.
+    exception, ``BaseException`` included (KeyboardInterrupt, the interrupt of a SIGTERM),
+    the temporary file is removed and ``path`` is untouched.
     """
     path = FsPath(path)
     if path.exists() and not overwrite:
@@ -93,15 +101,36 @@ def atomic_path(path, overwrite: bool = False):
     if not path.parent.exists():
         raise FileNotFoundError(f"folder {path.parent} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(fd)
     try:
+        _LIVE_PARTS[tmp] = path
+        os.close(fd)
         yield FsPath(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; outputs follow the umask like any file
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        remove_part(tmp)
         raise
+    finally:
+        _LIVE_PARTS.pop(tmp, None)
+
+
+def remove_part(tmp: str) -> bool:
+    """Remove a temporary of :func:`atomic_path` (if still there); True if it was removed."""
+    try:
+        os.unlink(tmp)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return False
+    REMOVED_PARTS.append((tmp, _LIVE_PARTS.get(tmp, FsPath(tmp))))
+    return True
+
+
+def remove_live_parts() -> None:
+    """Remove every temporary still being written (last resort of an interrupt)."""
+    for tmp in list(_LIVE_PARTS):
+        remove_part(tmp)
+        _LIVE_PARTS.pop(tmp, None)
 
 
 def _umask() -> int:
