@@ -296,16 +296,53 @@ def _open(path) -> h5py.File:
     return h5
 
 
-def _read_dataclass(group, cls):
-    kw = {}
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = set(group.keys()) - names
+#: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
+TRUTH_GROUPS = {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
+
+
+def _read_dataclass(group, cls, where: str = ""):
+    """Every field of ``cls`` from the datasets of ``group``.  A missing field is an error that
+    names it: the truth is optional as a whole (measured records have none), but a partial
+    truth is never completed with silent zeros."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    keys = set(group.keys())
+    unknown = keys - set(names)
     if unknown:
-        raise DataFileError(f"truth/{group.name}: unknown parameters {sorted(unknown)} (file from another version?)")
-    for k in group.keys():
-        v = group[k][()]
-        kw[k] = float(v) if np.ndim(v) == 0 else np.asarray(v)
-    return cls(**kw)
+        raise DataFileError(f"{where}truth{group.name.removeprefix('/truth')}: unknown parameters {sorted(unknown)} "
+                            "(file from another version?)")
+    missing = [n for n in names if n not in keys]
+    if missing:
+        raise DataFileError(f"{where}partial truth: {group.name} lacks {', '.join(missing)} (a record's truth is "
+                            "complete or absent; delete /truth to use it as a measured record)")
+    kw = {}
+    for k in names:
+        ds = group[k]
+        if not isinstance(ds, h5py.Dataset) or not np.issubdtype(ds.dtype, np.number):
+            raise DataFileError(f"{where}truth {group.name}/{k} is not a numeric dataset (SI units)")
+        v = ds[()]
+        kw[k] = float(v) if np.ndim(v) == 0 else np.asarray(v, dtype=float)
+    try:
+        return cls(**kw)
+    except (TypeError, ValueError) as exc:
+        raise DataFileError(f"{where}truth {group.name}: {exc}") from None
+
+
+def _read_truth(h5, p) -> "Truth | None":
+    """The /truth group (None when absent); an incomplete one is a :class:`DataFileError`."""
+    if "truth" not in h5:
+        return None
+    t = h5["truth"]
+    missing = []
+    for g, cls in TRUTH_GROUPS.items():
+        if g not in t or not isinstance(t[g], h5py.Group):
+            missing.append(f"{g}/ (all of it)")
+        else:
+            missing += [f"{g}/{f.name}" for f in dataclasses.fields(cls) if f.name not in t[g]]
+    if missing:
+        raise DataFileError(f"{p}: partial truth: /truth lacks {', '.join(missing)} (a record's truth is complete "
+                            "or absent; delete /truth to use it as a measured record)")
+    parts = {g: _read_dataclass(t[g], cls, where=f"{p}: ") for g, cls in TRUTH_GROUPS.items()}
+    return Truth(parts["imu"], parts["gimbal"], parts["noise"])
 
 
 def _meta(h5, p):
@@ -321,12 +358,7 @@ def _meta(h5, p):
         path = Path.from_json(pj) if pj else None
     except (PathError, json.JSONDecodeError) as exc:
         raise DataFileError(f"{p}: stored rotation path is invalid: {exc}") from None
-    truth = None
-    if "truth" in h5:
-        t = h5["truth"]
-        truth = Truth(_read_dataclass(t["imu"], ImuErrors), _read_dataclass(t["gimbal"], GimbalErrors),
-                      _read_dataclass(t["noise"], ImuNoise))
-    return site, path, truth
+    return site, path, _read_truth(h5, p)
 
 
 def read_record(path) -> Record:
