@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from . import earth
 from .attitude import dcm_from_euler, euler_from_dcm, quat_to_dcm, small_angle_error
 from .errors import GimbalErrors, ImuErrors
-from .strapdown import S_Q, S_V, NavConfig, NavOutput, NavState, Strapdown, _qmul, _qrot, _qrv, _two_sample
+from .strapdown import S_HREF, S_Q, S_V, NavConfig, NavOutput, NavState, Strapdown, _qmul, _qrot, _qrv, _two_sample
 
 DAY = 86400.0
 
@@ -496,6 +496,76 @@ def summarize(err: NavErrors, lat: float) -> dict:
     return out
 
 
+# ============================================================================ height reference
+class HeightReference:
+    """External height for the vertical channel (a barometer, a survey, a depth gauge): a
+    constant ``height_m`` or a profile ``time_s``, ``height_m`` (linearly interpolated, held at
+    its end values outside its span).  The damped vertical loop ("damped") tracks it, "hold"
+    follows it; the navigator updates the reference once per ``UPDATE_S`` seconds."""
+
+    #: how often the navigator reads the reference [s] (the third-order loop's tau is ~100 s)
+    UPDATE_S = 1.0
+
+    def __init__(self, height_m=None, time_s=None):
+        if time_s is None:
+            h = float(height_m)
+            if not math.isfinite(h):
+                raise ValueError(f"reference height must be finite, got {height_m!r}")
+            self.time = None
+            self.height = np.array([h])
+            return
+        t = np.asarray(time_s, dtype=float).ravel()
+        h = np.asarray(height_m, dtype=float).ravel()
+        if t.size != h.size or t.size == 0:
+            raise ValueError(f"height reference needs as many heights as times (got {t.size} and {h.size}), at least one")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(h))):
+            raise ValueError("height reference: times and heights must be finite numbers")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0))
+            raise ValueError(f"height reference: times must increase (row {k + 2}: {t[k + 1]:g} s after {t[k]:g} s)")
+        self.time, self.height = t, h
+
+    @property
+    def constant(self) -> bool:
+        return self.time is None
+
+    def __call__(self, t):
+        if self.time is None:
+            return np.full(np.shape(t), self.height[0]) if np.ndim(t) else float(self.height[0])
+        return np.interp(t, self.time, self.height)
+
+    def span(self) -> tuple[float, float] | None:
+        return None if self.time is None else (float(self.time[0]), float(self.time[-1]))
+
+    @classmethod
+    def read_csv(cls, path) -> "HeightReference":
+        """A CSV file with a header row naming the columns ``time_s`` and ``height_m`` (any order,
+        other columns ignored; ``#`` comments allowed)."""
+        import csv
+
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = [r for r in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#"))]
+        if not rows:
+            raise ValueError(f"{path}: empty height reference (expected a header time_s,height_m and rows)")
+        head = [c.strip() for c in rows[0]]
+        if "time_s" not in head or "height_m" not in head:
+            raise ValueError(f"{path}: the header must name the columns time_s and height_m, got {','.join(head)[:80]!r}")
+        it, ih = head.index("time_s"), head.index("height_m")
+        t, h = [], []
+        for n, r in enumerate(rows[1:], start=2):
+            try:
+                t.append(float(r[it]))
+                h.append(float(r[ih]))
+            except (IndexError, ValueError):
+                raise ValueError(f"{path}: row {n} is not two numbers time_s, height_m: {','.join(r)[:80]!r}") from None
+        if not t:
+            raise ValueError(f"{path}: no rows after the header")
+        try:
+            return cls(h, t)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+
 # ============================================================================ orchestration
 @dataclass
 class NavResult:
@@ -526,7 +596,8 @@ def compensated_chunks(chunks, params: ImuErrors, dt: float):
 def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=None,
              params: ImuErrors | None = None, gimbal_model: GimbalErrors | None = None,
              config: NavConfig | None = None, align_config: AlignConfig | None = None,
-             vref=None, progress: Callable[[float], None] | None = None) -> NavResult:
+             vref=None, progress: Callable[[float], None] | None = None,
+             height_ref: "HeightReference | float | None" = None) -> NavResult:
     """Navigate a chunked record.
 
     ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
@@ -536,7 +607,9 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     fine alignment, navigation continues from its end), or a :class:`NavState` at the start.
     ``params``: calibration set applied on the fly (S16 compensation form); ``gimbal_model``: the
     gimbal non-orthogonality used to map the IMU attitude to the vehicle.  With a ``scenario``,
-    errors against its truth and a summary are computed.
+    errors against its truth and a summary are computed.  ``height_ref``: an external height
+    (:class:`HeightReference`, or a constant in metres) for the vertical channel's reference in
+    place of the initial height ("damped" tracks it, "hold" follows it; "free" refuses it).
     """
     config = config or NavConfig()
     dt = 1.0 / rate_hz
@@ -567,12 +640,27 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     nav = Strapdown(state, dt, config, params, k0=k0, t0=t0, gravity=gravity)
     if alignment is not None and (align_config or AlignConfig()).apply_bias_estimates:
         nav.set_extra_bias(alignment.gyro_bias, alignment.accel_bias)
+    if height_ref is not None and not isinstance(height_ref, HeightReference):
+        height_ref = HeightReference(height_ref)
+    if height_ref is not None and config.vertical == "free":
+        raise ValueError("a height reference needs a damped (or held) vertical channel, not vertical 'free'")
+    profile = height_ref is not None and not height_ref.constant
+    if height_ref is not None and not profile:
+        nav.st[S_HREF] = height_ref.height[0]
+    blk = max(1, int(round(HeightReference.UPDATE_S * rate_hz)))
     parts = []
     for t, dth, dv, g in stream.chunks():
         vr = None
         if vref is not None:
             vr = vref(t) if callable(vref) else vref
-        parts.append(nav.run(dth, dv, g, vr))
+        if profile:  # the reference once per UPDATE_S, at the middle of each block of samples
+            per = vr is not None and np.ndim(vr) == 2 and np.shape(vr)[0] == t.shape[0]
+            for a in range(0, t.shape[0], blk):
+                b = min(a + blk, t.shape[0])
+                nav.st[S_HREF] = height_ref(0.5 * (t[a] + t[b - 1]))
+                parts.append(nav.run(dth[a:b], dv[a:b], None if g is None else g[a:b], vr[a:b] if per else vr))
+        else:
+            parts.append(nav.run(dth, dv, g, vr))
         if progress is not None:
             progress(float(t[-1]))
     if not parts:

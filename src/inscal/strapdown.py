@@ -425,7 +425,8 @@ class NavConfig:
     """Mechanization options.
 
     ``mode``: "free" (pure inertial) or "damped" (horizontal damping against ``reference_velocity``);
-    ``vertical``: "hold" (v_U = 0, h = h_ref) or "damped" (third-order loop, time constant ``vertical_tau``);
+    ``vertical``: "hold" (v_U = 0, h = h_ref), "damped" (third-order loop, time constant ``vertical_tau``)
+    or "free" (pure inertial, no damping: diverges with the time constant sqrt(R/2g) ~ 9.5 min);
     ``damping_ratio`` / ``damping_frequency_ratio``: the damped Schuler loop's xi and w_n / w_s;
     ``output_rate_hz``: decimated output rate (the nearest whole divisor of the sample rate);
     ``coning``: apply the coning/sculling corrections (switch off only to study them).
@@ -442,8 +443,8 @@ class NavConfig:
     def __post_init__(self):
         if self.mode not in ("free", "damped"):
             raise ValueError(f"mode must be 'free' or 'damped', got {self.mode!r}")
-        if self.vertical not in ("hold", "damped"):
-            raise ValueError(f"vertical must be 'hold' or 'damped', got {self.vertical!r}")
+        if self.vertical not in ("hold", "damped", "free"):
+            raise ValueError(f"vertical must be 'hold', 'damped' or 'free', got {self.vertical!r}")
         for n in ("vertical_tau", "damping_ratio", "damping_frequency_ratio", "output_rate_hz"):
             v = getattr(self, n)
             if not (math.isfinite(v) and v > 0):
@@ -551,6 +552,8 @@ class Strapdown:
             ws2 = g_site / earth.A
             cfg[C_VERT] = 1.0
             cfg[C_VK1], cfg[C_VK2], cfg[C_VK3] = 3.0 / tau, 3.0 / tau**2 + 2.0 * ws2, 1.0 / tau**3
+        elif c.vertical == "free":  # the loop with zero gains: the pure inertial (unstable) vertical channel
+            cfg[C_VERT] = 1.0
         if c.mode == "damped":
             ws = math.sqrt(g_site / earth.A)
             wn = c.damping_frequency_ratio * ws
