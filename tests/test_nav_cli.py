@@ -115,3 +115,63 @@ def test_record_without_truth_is_aligned_and_checked_against_the_site(record, tm
     assert rep["init"] == "align" and rep["truth"] is False
     assert "max_attitude_error_arcsec" not in rep
     assert rep["max_position_error_m"] > 0
+
+
+def test_navigate_plot_and_heading_beside_yaw(record, tmp_path):
+    png = tmp_path / "nav.png"
+    r = invoke(record, "--plot", png, "--json")
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    assert rep["plot"] == str(png)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)
+    assert img.shape[0] > 400 and img.shape[1] > 600 and np.ptp(img[..., :3]) > 0.5  # drawn, not blank
+    att = rep["final_attitude_deg"]
+    # yaw: counter-clockwise from East; heading: clockwise from North = 90 deg - yaw, in [0, 360)
+    assert 0.0 <= att["heading"] < 360.0
+    assert att["heading"] == pytest.approx((90.0 - att["yaw"]) % 360.0)
+    scn = io.scenario_from_record(io.record_info(record))
+    assert att["yaw"] == pytest.approx(math.degrees(scn.gimbal.mount_attitude[2]), abs=0.01)
+    r = invoke(record, "--plot", png)  # never overwritten without --force
+    assert r.exit_code == 2 and "exists" in r.output
+    r = invoke(record, "--plot", png, "--force")
+    assert r.exit_code == 0 and "heading" in r.stdout and "clockwise from North" in r.stdout
+    r = invoke(record, "--plot", tmp_path / "nav.jpeg")
+    assert r.exit_code == 2 and "plot format" in r.output
+    r = invoke(record, "--plot", record, "--force")  # never the input record
+    assert r.exit_code == 2 and "plot format" in r.output and record.exists()
+
+
+def test_navigate_vertical_free_and_height_reference(record, tmp_path):
+    r = invoke(record, "--vertical", "free", "--json")
+    assert r.exit_code == 0, r.output
+    free = json.loads(r.stdout)
+    assert free["vertical_channel"] == "free" and free["max_height_error_m"] > 0
+    r = invoke(record, "--vertical", "damped", "--height-ref", "25.5", "--json")
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    assert rep["height_reference"] == {"height_m": 25.5}
+    # the site is at 20 m: the loop settles on the reference, 5.5 m above it
+    assert rep["final_height_error_m"] == pytest.approx(5.5, abs=0.05) and rep["max_height_error_m"] >= 5.5
+    csv = tmp_path / "baro.csv"
+    csv.write_text("time_s,height_m\n0,20\n1200,30\n2400,20\n")
+    out = tmp_path / "v.h5"
+    # compensated (the record's 50-100 ug biases, modulated by the rotation, would move the loop by ~b tau^2 = 5 m)
+    pf = params_file(tmp_path / "p.toml", IMU)
+    r = invoke(record, "--vertical", "damped", "--height-ref", csv, "--params", pf, "--out", out, "--json")
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    assert rep["height_reference"]["points"] == 3
+    with h5py.File(out) as h5:
+        t, h = h5["time"][:], h5["position"][:, 2]
+    late = t > 600
+    assert np.max(np.abs(h[late] - np.interp(t[late], [0, 1200, 2400], [20, 30, 20]))) < 0.5
+    for args, msg in ((["--vertical", "free", "--height-ref", "3"], "free vertical"),
+                      (["--vertical", "damped", "--height-ref", tmp_path / "none.csv"], "neither a number"),
+                      (["--vertical", "sideways"], "vertical")):
+        r = invoke(record, *args)
+        assert r.exit_code == 2 and msg in r.output and "Traceback" not in r.output, (args, r.output)
+    csv.write_text("time_s,height_m\n0,20\n10,x\n")
+    r = invoke(record, "--vertical", "damped", "--height-ref", csv)
+    assert r.exit_code == 2 and "row 3" in r.output and len(r.output.strip().splitlines()) == 1

@@ -206,3 +206,78 @@ def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> l
         plt.close(fig)
         files.append(path)
     return files
+
+
+# ------------------------------------------------------------------------------ navigation
+def heading_deg(yaw_rad):
+    """Heading (clockwise from North, degrees in [0, 360)) from the code's yaw (counter-clockwise
+    from East, radians): ``heading = 90 deg - yaw``, wrapped."""
+    return np.mod(90.0 - np.degrees(np.asarray(yaw_rad, dtype=float)), 360.0)
+
+
+def _time_axis(t_s):
+    t = np.asarray(t_s, dtype=float)
+    span = float(t[-1] - t[0]) if t.size else 0.0
+    if span > 3 * 3600:
+        return t / 3600.0, "time [h]"
+    if span > 600:
+        return t / 60.0, "time [min]"
+    return t, "time [s]"
+
+
+def navigation_figure(res, title: str = "", gimbal_model=None, max_points: int = 4000):
+    """Figure of one navigation run (:class:`inscal.navigation.NavResult`): position error East,
+    North, Up [m]; the horizontal position error [nmi] (and m); the attitude error roll, pitch,
+    yaw [arcsec] when the run has a truth, else the attitude (roll, pitch [deg] and the heading,
+    clockwise from North [deg]).  Returns the matplotlib figure (the caller saves and closes it)."""
+    from . import units
+
+    plt = _figure()
+    err = res.errors
+    out = res.output
+    step = max(1, out.time.size // max_points)
+    t, tlabel = _time_axis(out.time[::step])
+    fig, ax = plt.subplots(3, 1, figsize=(10, 8.4), sharex=True)
+    if err is not None:
+        pos = err.position[::step]
+        for k, (lab, c) in enumerate(zip(("East", "North", "Up"), ("C0", "C1", "C2"))):
+            ax[0].plot(t, pos[:, k], color=c, lw=1.0, label=lab)
+        ax[0].set(ylabel="position error [m]")
+        hor = units.from_si(err.horizontal[::step], "nmi")
+        ax[1].plot(t, hor, color="C3", lw=1.2, label="horizontal")
+        ax[1].set(ylabel="horizontal error [nmi]")
+        sec = ax[1].secondary_yaxis("right", functions=(lambda x: x * 1852.0, lambda m: m / 1852.0))
+        sec.set_ylabel("[m]")
+    if err is not None and err.vehicle is not None:
+        att = units.from_si(err.vehicle[::step], "arcsec")
+        for k, lab in enumerate(("roll", "pitch", "yaw")):
+            ax[2].plot(t, att[:, k], lw=1.0, label=lab)
+        ax[2].set(ylabel="attitude error [arcsec]")
+    else:
+        att = out.vehicle_attitude(gimbal_model)[::step]
+        ax[2].plot(t, np.degrees(att[:, 0]), lw=1.0, label="roll")
+        ax[2].plot(t, np.degrees(att[:, 1]), lw=1.0, label="pitch")
+        ax[2].set(ylabel="roll, pitch [deg]")
+        tw = ax[2].twinx()
+        tw.plot(t, heading_deg(att[:, 2]), color="C3", lw=1.0, label="heading (cw from North)")
+        tw.set_ylabel("heading [deg]")
+        tw.legend(loc="upper right", fontsize=8)
+    ax[2].set(xlabel=tlabel)
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(loc="upper left", fontsize=8, ncol=3)
+    if title:
+        ax[0].set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def navigation_plot(path, res, title: str = "", gimbal_model=None, overwrite: bool = False) -> None:
+    """Write :func:`navigation_figure` to ``path`` (PNG, PDF or SVG by its suffix; atomic)."""
+    plt = _figure()
+    fig = navigation_figure(res, title, gimbal_model)
+    try:
+        save_figure(fig, path, overwrite)
+    finally:
+        plt.close(fig)
