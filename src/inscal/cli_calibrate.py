@@ -13,11 +13,12 @@ from .cliutil import CliError, check_not_input, check_output, fail, print_json, 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
                   min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
                   filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
-                  gravity: str | None = None) -> dict:
+                  gravity: str | None = None, encoder_sigma: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
-    (wgs84 | psins | m/s^2) overrides the record's gravity model."""
+    (wgs84 | psins | m/s^2) overrides the record's gravity model.  ``encoder_sigma`` [arcsec]: white
+    noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``)."""
     from . import io, units
     from .calibrate import METHODS, RECORD_METHODS, CalibrationError, calibrate
     from .paramfile import ParamFileError, save_params
@@ -25,8 +26,10 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     if method not in METHODS:
         raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     systematic = method in RECORD_METHODS
-    if not systematic and (states or plots or arw is not None or vrw is not None):
-        raise CliError(f"--states, --plots, --arw and --vrw apply to the systematic methods, not {method}")
+    if not systematic and (states or plots or arw is not None or vrw is not None or encoder_sigma is not None):
+        raise CliError(f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {method}")
+    if encoder_sigma is not None and not (np.isfinite(encoder_sigma) and encoder_sigma > 0):
+        raise CliError(f"--encoder-sigma must be > 0 arcsec, got {encoder_sigma}")
     if not data.is_file():
         raise CliError(f"{data}: no such data file")
     check_output(out, force)
@@ -50,6 +53,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                 opts["arw"] = units.to_si(arw, "deg/sqrt(h)")
             if vrw is not None:
                 opts["vrw"] = units.to_si(vrw, "ug/sqrt(Hz)")
+            if encoder_sigma is not None:
+                opts["encoder_sigma"] = units.to_si(encoder_sigma, "arcsec")
             res = calibrate(rec, method, **opts)
         else:
             res = calibrate(rec, method, settle=settle, min_static=min_static)
@@ -79,6 +84,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
                        "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
                        "converged": d["converged"]})
+        if "encoder" in d:  # unified / gimbal states: the encoder attitude innovations
+            report["encoder"] = d["encoder"]
         if plots is not None:
             from .report import convergence_plots
 
@@ -112,25 +119,28 @@ def register(app: typer.Typer) -> None:
     def calibrate(
         data: Path = typer.Argument(..., help="HDF5 record (inscal simulate, or a recorded run)"),
         method: str = typer.Option(..., "--method", "-m",
-                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30"),
+                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
+                                        "unified"),
         out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
         settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
         min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
-        states: str = typer.Option(None, "--states", help="systematic: 51 | 30, plus options lever9, async, psins "
-                                   "(e.g. 51,lever9)"),
+        states: str = typer.Option(None, "--states", help="systematic: 51 | 30, plus options lever9, async, psins, "
+                                   "gimbal (e.g. 51,lever9); unified: extra options (e.g. lever9)"),
         plots: Path = typer.Option(None, "--plots", help="systematic: folder for the convergence plots (PNG)"),
         filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
         arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),
         vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)] (default: from the data)"),
         gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
                                     "(default: the record's)"),
+        encoder_sigma: float = typer.Option(None, "--encoder-sigma", help="unified / gimbal states: white noise of "
+                                            "each encoder angle [arcsec] (default 1)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
-                                gravity)
+                                gravity, encoder_sigma)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

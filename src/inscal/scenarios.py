@@ -60,6 +60,11 @@ Built-in (``inscal simulate NAME``):
     calibration leaves decides the error.
     Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
     S16 Table 1 path, 100 Hz.
+``s16-gimbal``
+    The ``s16`` scenario (S16 section 4.1 IMU errors and noise, S16 Table 1 path, 100 Hz, 30 N)
+    on a gimbal with N25's geometry: non-orthogonality 20" and mount (carrier) attitude
+    [0.1, 0.1, 20] deg (N25 section 5), encoders recorded with 1" white noise.  The case of
+    the ``unified`` method (S16 filter + gimbal states + encoder attitude).
 
 Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 
@@ -229,6 +234,13 @@ def _s16_table3() -> Scenario:
                     noise=noise_from_field(S16_TABLE3_NOISE), rate_hz=100.0)
 
 
+def _s16_gimbal() -> Scenario:
+    base = _s16()
+    gim = GimbalErrors(units.to_si(20.0, "arcsec"), units.to_si([0.1, 0.1, 20.0], "deg"))
+    return replace(base, name="s16-gimbal", gimbal=gim,
+                   noise=replace(base.noise, encoder_noise=units.to_si(1.0, "arcsec")))
+
+
 def _n25() -> Scenario:
     imu, gim = errors_from_field(N25_ERRORS)
     return Scenario("n25", n25_twelve(), N25_SITE, imu=imu, gimbal=gim, noise=noise_from_field(N25_NOISE), rate_hz=100.0)
@@ -259,6 +271,7 @@ BUILTIN = {
     "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
     "psins19": lambda d: _psins19(),
     "s16-table3": lambda d: _s16_table3(),
+    "s16-gimbal": lambda d: _s16_gimbal(),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod"}
 

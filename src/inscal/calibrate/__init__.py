@@ -22,6 +22,9 @@ Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
 ``twelve-position``  inner-symmetric version (eq. 24-26).
 ``n25``              scheme 1: rough alpha0 (eq. 38), the eq. 40-44 least squares for
                      [tan beta0, alpha0, dth], refined accelerometer and gyro errors.
+``unified``          the systematic filter (S16, 51 states) with the gimbal non-orthogonality
+                     and mount attitude estimated from the encoder angles (58 states;
+                     :mod:`.unified`); reads the record like the systematic methods.
 ``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
                      attitude to every window, 1 sigma from the Jacobian and the measured
                      window noise; unobservable directions are reported and held fixed.
@@ -42,6 +45,7 @@ from .segment import CalibrationError, Window, WindowSet, window_means
 from .six_position import six_position
 from .systematic import systematic30, systematic51
 from .twelve_position import twelve_position
+from .unified import unified
 
 METHODS = {
     "six-position": six_position,
@@ -50,12 +54,13 @@ METHODS = {
     "joint": joint,
     "systematic51": systematic51,
     "systematic30": systematic30,
+    "unified": unified,
 }
 #: methods that read the increments directly (no window segmentation)
-RECORD_METHODS = {"systematic51", "systematic30"}
+RECORD_METHODS = {"systematic51", "systematic30", "unified"}
 
 __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
-           "six_position", "twelve_position", "n25", "joint"]
+           "six_position", "twelve_position", "n25", "joint", "unified"]
 
 
 def calibrate(record_like, method: str, **options) -> CalibrationResult:

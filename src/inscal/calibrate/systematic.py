@@ -78,6 +78,36 @@ nominal parameters: with the pass's data information ``L_d = P_f^-1 - P_pass^-1`
 numerical: with the full prior the covariance spans ~1e10 and, on a quiet IMU (VRW 0.5 ug/sqrt(Hz)),
 round-off made the 51-state filter inconsistent (NEES 240 on 42 parameters; 39 with deflation).  Passes stop when no parameter moved by more than ``tol`` of its sigma (default 0.2:
 the iteration converges about quadratically, 24 -> 0.14 -> 0.001 sigma on the s16 record).
+
+Gimbal states and encoder observations (state option ``gimbal``; ``unified`` = ``51,gimbal``; the
+``unified`` method of :mod:`inscal.calibrate.unified`).  With the record's encoder angles the filter
+also estimates the gimbal non-orthogonality ``dth`` and the mount (base) attitude ``[alpha0, beta0,
+gamma0]`` of N25 eq. 5-8 (errors estimate minus truth, additive; ``K_GIM`` columns, zero in
+``Phi_np``: they do not enter the navigation error dynamics).  The IMU frame is then N25's s-frame
+(z = the inner axis, x = the outer axis's projection at zero angles, i.e. the encoders' zero; the
+canonical frame of :mod:`inscal.errors`), not the gyro-defined m-frame: the gimbal, not the gyro
+triad, fixes the frame, so the gyro matrix is full (9) like the accelerometer's (18 matrix states
+= 6 scale factors + the 12 installation angles of N25 eq. 1-4; without encoders the three extra
+states would be a frame rotation the velocity data cannot see).  At every ``encoder_every``-th
+filter step the navigated attitude ``C_nav`` (of the s-frame) is compared with the gimbal model's::
+
+    C_pred = C_b^n(alpha0, beta0, gamma0) Rot(u, theta_x) R_z(theta_z),  u = [cos dth, 0, sin dth]  # N25 eq. 5-8, 34
+    z = vee(C_nav C_pred^T) ~ phi - psi      (3 rows, n-frame; vee(I + [a x]) = a)                  # N25 eq. 35-36
+    psi = e_z dgamma0 + R_z(g0) e_y dbeta0 + R_z(g0) R_y(b0) e_x dalpha0 + C_b^n (sin tx du + (1 - cos tx) u x du) ddth
+    R = s_enc^2 (a a^T + c c^T) + (s_enc / 10)^2 I,   a = C_b^n u,  c = C_b^n Rot(u, tx) e_z
+
+``psi`` is the n-frame rotation of ``C_pred`` for an error of the gimbal parameters (``du = du/d dth``;
+the ``dth`` term is the left Jacobian of a rotation about a tilting axis: with ``dth = 0`` it is
+``C_b^n ddth [0, -(1 - cos tx), sin tx]``, seed-notes section 5).  White encoder noise (``s_enc`` per
+angle) turns ``C_pred`` about the outer axis ``a`` and the inner axis ``c`` only; the isotropic tenth
+is a floor for the third direction (unmodelled wobble; it keeps ``S`` well conditioned).  The
+encoder sample at the end of each filter step (``gimbal[(k+1) n_per - 1]``, the time of the
+navigation) is used; a record without encoders but with its path uses the path's angles.  The
+attitude rows are a second, sequential update at the same step (innovation ``z - H x_v`` after the
+velocity/position update's ``x_v``, one feedback of the sum), stored beside the first (``K``,
+``S^-1``, ``S^-1 nu`` and the dense ``H``) so the MBF smoother runs both backwards, the attitude
+rows first: exact, as one 9-row update would be.  The velocity/position innovations keep their own
+NIS (dof 6 per step: the fit); the encoder rows' (expected 3) are in ``diagnostics["encoder"]``.
 """
 
 from __future__ import annotations
@@ -89,7 +119,7 @@ import numpy as np
 from numba import njit
 
 from .. import earth, filters, units
-from ..attitude import quat_from_dcm, quat_from_rotvec_xyz as _qrv
+from ..attitude import axis_angle_dcm, quat_from_dcm, quat_from_rotvec_xyz as _qrv, rot_x, rot_y, rot_z
 from ..errors import ImuErrors, split_scale_misalignment
 from ..strapdown import _attitude_step, _qmul, _qrot, _two_sample, _velocity_step
 from .result import CalibrationResult
@@ -100,6 +130,8 @@ IDX_MEAS = np.array([3, 4, 5, 6, 7, 8], dtype=np.int64)
 
 # column kinds of the per-sample parameter Jacobian (row block 0: phi rows, 1: dv rows)
 K_UG, K_M1G, K_MF, K_UA, K_M1A, K_F2, K_FX, K_LEVD, K_LEVF, K_TAU = range(10)
+# gimbal states (dth, alpha0, beta0, gamma0; js = index into the gimbal array): no column in Phi_np
+K_GIM = 10
 
 DIAG = ((0, 0), (1, 1), (2, 2))
 OFFD = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))  # = errors.MISALIGN_INDEX order
@@ -149,11 +181,15 @@ DEFAULT_SIGMA0 = {
     "gyro_matrix": 1e-3, "gyro_bias": units.to_si(0.1, "deg/h"), "gyro_g_sensitivity": units.to_si(0.01, "deg/h/g"),
     "accel_matrix": 1e-3, "accel_bias": 1000 * UG, "accel_nonlinearity": units.to_si(1000.0, "ug/g^2"),
     "accel_cross_coupling": units.to_si(1000.0, "ug/g^2"), "accel_lever_arm": 0.05, "time_asynchrony": 5e-3,
+    "gimbal_nonorthogonality": units.to_si(60.0, "arcsec"), "mount_attitude": units.to_si(1.0, "deg"),
 }
+#: default white noise of each encoder angle (gimbal states)
+ENCODER_SIGMA = units.to_si(1.0, "arcsec")
+FRAME_GIMBAL = "gimbal-defined (N25 s-frame)"
 GROUP_UNITS = {
     "gyro_matrix": "ppm", "gyro_bias": "deg/h", "gyro_g_sensitivity": "deg/h/g", "accel_matrix": "ppm",
     "accel_bias": "ug", "accel_nonlinearity": "ug/g^2", "accel_cross_coupling": "ug/g^2", "accel_lever_arm": "cm",
-    "time_asynchrony": "ms",
+    "time_asynchrony": "ms", "gimbal_nonorthogonality": "arcsec", "mount_attitude": "arcsec",
 }
 
 #: named options of ``--states``
@@ -163,6 +199,9 @@ STATE_OPTIONS = {
     "30": "S16's traditional 30-state filter: no g-sensitivity, nonlinearity, cross-coupling or lever arm",
     "lever9": "full inner lever arm: a 3-vector per accelerometer (9 states instead of 3)",
     "async": "gyro-accelerometer time asynchrony (1 state)",
+    "gimbal": "gimbal non-orthogonality and mount attitude (4 states) observed through the encoder angles; the "
+              "frame is then the gimbal's s-frame and the gyro matrix full (9): 51 + 3 + 4 = 58 states",
+    "unified": "51,gimbal: the unified estimator (S16 51-state filter plus the N25 gimbal states)",
     "psins": "PSINS triangular convention: gyro matrix full (9), accelerometer matrix lower-triangular (6); "
               "the IMU frame is then defined by the accelerometers",
 }
@@ -176,10 +215,12 @@ class StateSet:
     lever9: bool = False
     asynchrony: bool = False
     psins: bool = False
+    gimbal: bool = False  # dth + mount attitude, encoder attitude rows; frame = the gimbal's s-frame
 
     @classmethod
     def parse(cls, spec: str | None) -> "StateSet":
-        """``"51"``, ``"30"``, optionally followed by ``,lever9``, ``,async``, ``,psins``."""
+        """``"51"``, ``"30"``, optionally followed by ``,lever9``, ``,async``, ``,psins``, ``,gimbal``;
+        ``"unified"`` = ``"51,gimbal"``."""
         if spec is None or str(spec).strip() == "":
             return cls()
         toks = [t.strip() for t in str(spec).replace("+", ",").split(",") if t.strip()]
@@ -195,20 +236,28 @@ class StateSet:
                 kw["asynchrony"] = True
             elif t == "psins":
                 kw["psins"] = True
+            elif t == "gimbal":
+                kw["gimbal"] = True
+            elif t == "unified":
+                kw["extended"] = True
+                kw["gimbal"] = True
             else:
                 raise CalibrationError(f"unknown state option {t!r}; options: {', '.join(STATE_OPTIONS)}")
         if kw.get("lever9") and not kw["extended"]:
             raise CalibrationError("lever9 needs the extended (51-state) model")
+        if kw.get("gimbal") and kw.get("psins"):
+            raise CalibrationError("psins (accelerometer-defined frame) and gimbal (the gimbal's s-frame) exclude "
+                                   "each other")
         return cls(**kw)
 
     @property
     def frame(self) -> str:
-        return "accel" if self.psins else "gyro"
+        return "gimbal" if self.gimbal else ("accel" if self.psins else "gyro")
 
     @property
     def groups(self) -> tuple[Group, ...]:
         s = DEFAULT_SIGMA0
-        gm = _matrix_group("gyro_matrix", FULL if self.psins else LOWER, K_UG, s["gyro_matrix"], "ppm")
+        gm = _matrix_group("gyro_matrix", FULL if (self.psins or self.gimbal) else LOWER, K_UG, s["gyro_matrix"], "ppm")
         am = _matrix_group("accel_matrix", LOWER if self.psins else FULL, K_UA, s["accel_matrix"], "ppm")
         out = [gm, _vec_group("gyro_bias", K_M1G, s["gyro_bias"], "deg/h"), am,
                _vec_group("accel_bias", K_M1A, s["accel_bias"], "ug")]
@@ -226,6 +275,11 @@ class StateSet:
                                  s["accel_lever_arm"], "cm"))
         if self.asynchrony:
             out.append(Group("time_asynchrony", ("",), (K_TAU,), (0,), (0,), s["time_asynchrony"], "ms"))
+        if self.gimbal:  # N25 eq. 5-8; js = index into the gimbal array [dth, alpha0, beta0, gamma0]
+            out.append(Group("gimbal_nonorthogonality", ("",), (K_GIM,), (0,), (0,), s["gimbal_nonorthogonality"],
+                             "arcsec"))
+            out.append(Group("mount_attitude", ("alpha0", "beta0", "gamma0"), (K_GIM,) * 3, (0, 0, 0), (1, 2, 3),
+                             s["mount_attitude"], "arcsec"))
         return tuple(out)
 
     @property
@@ -270,6 +324,7 @@ class CompParams:
     Kx: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # errors.cross_matrix layout
     lever: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # rows p_i
     tau: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    gim: np.ndarray = field(default_factory=lambda: np.zeros(4))  # [dth, alpha0, beta0, gamma0] (gimbal states)
 
     def copy(self) -> "CompParams":
         return CompParams(*(np.array(getattr(self, f), dtype=float) for f in self.__dataclass_fields__))
@@ -280,7 +335,7 @@ class CompParams:
     @classmethod
     def from_flat(cls, v) -> "CompParams":
         v = np.asarray(v, float)
-        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,)]
+        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,)]
         out, k = [], 0
         for s in shapes:
             n = int(np.prod(s))
@@ -296,6 +351,12 @@ class CompParams:
         return cls(Ag, Ag @ imu.gyro_bias, np.array(imu.gyro_g_sensitivity), Aa, Aa @ imu.accel_bias,
                    np.array(imu.accel_nonlinearity), np.array(imu.K_cross), np.array(imu.accel_lever_arm),
                    np.array([float(getattr(imu, "time_asynchrony", 0.0))]))
+
+    def to_gimbal(self):
+        """The gimbal parameters as :class:`~inscal.errors.GimbalErrors` (N25 eq. 5-8)."""
+        from ..errors import GimbalErrors
+
+        return GimbalErrors(float(self.gim[0]), np.array(self.gim[1:4]))
 
     def to_imu(self) -> ImuErrors:
         """Canonical measurement-form errors (``M = A^-1``, ``eps = M_g b_g``, ``nabla = M_a b_a``)."""
@@ -347,6 +408,10 @@ class CompParams:
                     p.lever = p.lever - v.reshape(3, 3)
             elif g.name == "time_asynchrony":
                 p.tau = p.tau - v
+            elif g.name == "gimbal_nonorthogonality":
+                p.gim = p.gim - np.array([v[0], 0.0, 0.0, 0.0])
+            elif g.name == "mount_attitude":
+                p.gim = p.gim - np.concatenate([[0.0], v])
         return p
 
     def error_state(self, states: StateSet, truth: "CompParams") -> np.ndarray:
@@ -372,6 +437,10 @@ class CompParams:
                 out += list(np.diag(d)) if g.size == 3 else list(d.ravel())
             elif g.name == "time_asynchrony":
                 out += list(self.tau - truth.tau)
+            elif g.name == "gimbal_nonorthogonality":
+                out += [self.gim[0] - truth.gim[0]]
+            elif g.name == "mount_attitude":
+                out += [math.remainder(a - b, 2 * math.pi) for a, b in zip(self.gim[1:4], truth.gim[1:4])]
         return np.array(out)
 
 
@@ -394,17 +463,21 @@ def frame_rotation(imu: ImuErrors, frame: str = "gyro") -> np.ndarray:
     return C_m_s.T
 
 
-def truth_in_frame(imu: ImuErrors, states: StateSet) -> CompParams:
+def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None) -> CompParams:
     """The true compensation parameters expressed in the filter's frame (the quadratic terms
     and lever arms are carried unchanged: exact when the frames coincide, as in the s16 and
-    psins19 scenarios; otherwise to first order in the rotation, seed-notes section 5)."""
-    R = frame_rotation(imu, states.frame)
+    psins19 scenarios; otherwise to first order in the rotation, seed-notes section 5).  With the
+    gimbal states the frame is the canonical s-frame (no rotation) and ``gimbal`` (GimbalErrors)
+    supplies the true gimbal parameters."""
+    R = np.eye(3) if states.gimbal else frame_rotation(imu, states.frame)
     p = CompParams.from_imu(imu)
     p.Ag = R @ p.Ag
     p.bg = R @ p.bg
     p.G = R @ p.G @ R.T
     p.Aa = R @ p.Aa
     p.ba = R @ p.ba
+    if gimbal is not None:
+        p.gim = np.concatenate([[gimbal.nonorthogonality], gimbal.mount_attitude])
     return p
 
 
@@ -555,10 +628,116 @@ def _nav_F(lat, h, fn, F, g_scale=1.0):
 
 
 @njit(cache=True)
+def _gimbal_attitude(gim, tx, tz, C, a, c, Hg):
+    """The gimbal model's IMU attitude ``C = C_b^n Rot(u, tx) R_z(tz)`` (N25 eq. 5-8, 34; exact
+    Rodrigues rotation about ``u = [cos dth, 0, sin dth]``), the outer and inner axes in n (``a``,
+    ``c``: the directions of the encoder noise) and ``Hg = d psi / d[dth, alpha0, beta0, gamma0]``
+    (3 x 4), ``psi`` the n-frame rotation of ``C`` for a change of the gimbal parameters (module
+    docstring); ``gim = [dth, alpha0, beta0, gamma0]``."""
+    dth = gim[0]
+    u = np.array([math.cos(dth), 0.0, math.sin(dth)])
+    du = np.array([-math.sin(dth), 0.0, math.cos(dth)])
+    Rzg = rot_z(gim[3])
+    RzRy = Rzg @ rot_y(gim[2])
+    Cbn = RzRy @ rot_x(gim[1])  # N25 eq. 8
+    Rx = axis_angle_dcm(u, tx)  # N25 eq. 5 (exact)
+    C[:, :] = Cbn @ (Rx @ rot_z(tz))  # N25 eq. 7
+    s1, c1 = math.sin(tx), 1.0 - math.cos(tx)
+    # left Jacobian of Rot(u, tx) for a change du of the unit axis (du perpendicular to u)
+    w0 = s1 * du[0] + c1 * (u[1] * du[2] - u[2] * du[1])
+    w1 = s1 * du[1] + c1 * (u[2] * du[0] - u[0] * du[2])
+    w2 = s1 * du[2] + c1 * (u[0] * du[1] - u[1] * du[0])
+    for i in range(3):
+        a[i] = Cbn[i, 0] * u[0] + Cbn[i, 1] * u[1] + Cbn[i, 2] * u[2]
+        c[i] = Cbn[i, 0] * Rx[0, 2] + Cbn[i, 1] * Rx[1, 2] + Cbn[i, 2] * Rx[2, 2]
+        Hg[i, 0] = Cbn[i, 0] * w0 + Cbn[i, 1] * w1 + Cbn[i, 2] * w2  # N25 eq. 35-36 (d dth)
+        Hg[i, 1] = RzRy[i, 0]  # d alpha0: R_z R_y e_x
+        Hg[i, 2] = Rzg[i, 1]  # d beta0: R_z e_y
+        Hg[i, 3] = 1.0 if i == 2 else 0.0  # d gamma0: e_z
+
+
+@njit(cache=True)
+def _update_h(P, H, R, nu, K, Sinv, x):
+    """:func:`inscal.filters.update` for a dense ``H`` (m x N) and a full ``R`` (m x m): Joseph-form
+    update, writes ``K``, ``S^-1`` and ``x = K nu``; returns ``nu^T S^-1 nu``."""
+    N = P.shape[0]
+    m = H.shape[0]
+    PHt = np.zeros((N, m))
+    for i in range(N):
+        for a in range(m):
+            s = 0.0
+            for j in range(N):
+                s += P[i, j] * H[a, j]
+            PHt[i, a] = s
+    S = np.empty((m, m))
+    for a in range(m):
+        for b in range(m):
+            s = R[a, b]
+            for j in range(N):
+                s += H[a, j] * PHt[j, b]
+            S[a, b] = s
+    for a in range(m):
+        for b in range(a + 1, m):
+            v = 0.5 * (S[a, b] + S[b, a])
+            S[a, b] = v
+            S[b, a] = v
+    Si = np.linalg.inv(S)
+    Sinv[:, :] = Si
+    K[:, :] = PHt @ Si
+    KPH = K @ PHt.T
+    KSK = (K @ S) @ K.T
+    for i in range(N):
+        for j in range(i, N):
+            v = P[i, j] - KPH[i, j] - KPH[j, i] + 0.5 * (KSK[i, j] + KSK[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    sz = Si @ nu
+    nis = 0.0
+    for a in range(m):
+        nis += nu[a] * sz[a]
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += K[i, a] * nu[a]
+        x[i] = s
+    return nis
+
+
+@njit(cache=True)
+def _smoother_step_h(lam, Lam, H, K, Sinv, sz):
+    """:func:`inscal.filters.smoother_step` for a dense ``H``: ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
+    ``Lam <- H^T S^-1 H + (I - K H)^T Lam (I - K H)``, in place."""
+    N = lam.shape[0]
+    m = H.shape[0]
+    d = np.empty(m)
+    for a in range(m):
+        s = sz[a]
+        for i in range(N):
+            s -= K[i, a] * lam[i]
+        d[a] = s
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += H[a, i] * d[a]
+        lam[i] += s
+    LK = Lam @ K  # (N, m)
+    C = K.T @ LK + Sinv  # (m, m)
+    B = LK @ H  # Lam K H (N, N)
+    HtC = H.T @ C  # (N, m)
+    add = HtC @ H
+    for i in range(N):
+        for j in range(i, N):
+            v = 0.5 * (Lam[i, j] + Lam[j, i]) - B[i, j] - B[j, i] + 0.5 * (add[i, j] + add[j, i])
+            Lam[i, j] = v
+            Lam[j, i] = v
+
+
+@njit(cache=True)
 def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, est_tau,
                  kinds, axes, js, sig, qg, qa, r, P, hist_every,
                  K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st,
-                 hist_Pm, hist_ref, hist_Pf, nav_out):
+                 hist_Pm, hist_ref, hist_Pf, nav_out,
+                 gim, enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st):
     """One closed-loop filter pass over the record (see the module docstring).
 
     ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
@@ -566,6 +745,12 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     updated in place by the feedback.  ``sig``: state scaling (the filter works on x / sig).
     Stores per step the smoother data; every ``hist_every`` steps the predicted covariance
     and the pre-update reference parameters.  Returns the number of steps.
+
+    Gimbal states: ``gim = [dth, alpha0, beta0, gamma0]`` (updated in place by the feedback);
+    ``enc`` (M, 2) the encoder angles at the end of each step (NaN: no attitude rows that step; shape
+    (0, 2) without gimbal states), ``enc_var``/``enc_floor`` the encoder and floor variances; the
+    attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS and raw ``z`` are stored per step
+    (``att_used[k] = 1`` where it ran).
     """
     N = sig.shape[0]
     npar = N - 9
@@ -607,6 +792,19 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     rs = np.empty(6)
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
+    have_enc = enc.shape[0] > 0
+    Cp = np.empty((3, 3))
+    Ce = np.empty((3, 3))
+    ga = np.empty(3)
+    gc = np.empty(3)
+    Hg = np.empty((3, 4))
+    Ha = np.zeros((3, N))
+    Ra = np.empty((3, 3))
+    Ka = np.empty((N, 3))
+    Sia = np.empty((3, 3))
+    za = np.empty(3)
+    nu = np.empty(3)
+    xa = np.empty(N)
     p0, p1, p2 = 0.0, 0.0, 0.0
     u0, u1, u2 = 0.0, 0.0, 0.0
     have_prev = False
@@ -676,6 +874,8 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             cz0, cz1, cz2 = _qrot(m0, m1, m2, m3, 0.0, 0.0, 1.0)
             for c in range(npar):
                 kk = kinds[c]
+                if kk == K_GIM:  # gimbal states: constants outside the navigation error dynamics
+                    continue
                 rb = 0 if kk <= 2 else 3
                 if kk == 9:
                     if not est_tau:
@@ -748,10 +948,51 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             hist_ref[ih, 36:45] = Kx.ravel()
             hist_ref[ih, 45:54] = lev.ravel()
             hist_ref[ih, 54] = tau[0]
+            hist_ref[ih, 55:59] = gim
         nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
         K_st[k] = K
         Si_st[k] = Si
         sz_st[k] = Si @ z
+        if have_enc and enc[k, 0] == enc[k, 0] and enc[k, 1] == enc[k, 1]:
+            # ---- encoder attitude rows (module docstring): z = vee(C_nav C_pred^T) ~ phi - psi
+            _gimbal_attitude(gim, enc[k, 0], enc[k, 1], Cp, ga, gc, Hg)
+            e0, e1, e2 = _qrot(q0, q1, q2, q3, 1.0, 0.0, 0.0)
+            Ce[0, 0], Ce[1, 0], Ce[2, 0] = e0, e1, e2
+            e0, e1, e2 = _qrot(q0, q1, q2, q3, 0.0, 1.0, 0.0)
+            Ce[0, 1], Ce[1, 1], Ce[2, 1] = e0, e1, e2
+            e0, e1, e2 = _qrot(q0, q1, q2, q3, 0.0, 0.0, 1.0)
+            Ce[0, 2], Ce[1, 2], Ce[2, 2] = e0, e1, e2
+            Em = Ce @ Cp.T
+            za[0] = 0.5 * (Em[2, 1] - Em[1, 2])
+            za[1] = 0.5 * (Em[0, 2] - Em[2, 0])
+            za[2] = 0.5 * (Em[1, 0] - Em[0, 1])
+            for i in range(3):
+                for j in range(N):
+                    Ha[i, j] = 0.0
+                Ha[i, i] = sig[i]
+            for c in range(npar):
+                if kinds[c] == K_GIM:
+                    for i in range(3):
+                        Ha[i, 9 + c] = -Hg[i, js[c]] * sig[9 + c]
+            for i in range(3):
+                for j in range(3):
+                    Ra[i, j] = enc_var * (ga[i] * ga[j] + gc[i] * gc[j])
+                Ra[i, i] += enc_floor
+            # sequential update: innovation against the pending velocity/position estimate xs (scaled)
+            for i in range(3):
+                s_ = za[i]
+                for j in range(N):
+                    s_ -= Ha[i, j] * xs[j]
+                nu[i] = s_
+            nisa_st[k] = _update_h(P, Ha, Ra, nu, Ka, Sia, xa)
+            for i in range(N):
+                xs[i] += xa[i]
+            Ka_st[k] = Ka
+            Sia_st[k] = Sia
+            sza_st[k] = Sia @ nu
+            Ha_st[k] = Ha
+            za_st[k] = za
+            att_used[k] = 1
         if k % hist_every == 0 or k == M - 1:
             for i in range(N):
                 hist_Pf[ih, i] = P[i, i]
@@ -767,7 +1008,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau)
+        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim)
     nav_out[0], nav_out[1], nav_out[2], nav_out[3] = q0, q1, q2, q3
     nav_out[4], nav_out[5], nav_out[6] = ve, vn, vu
     nav_out[7], nav_out[8], nav_out[9] = lat, lon, h
@@ -775,7 +1016,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
 
 
 @njit(cache=True)
-def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau):
+def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim):
     """Remove the parameter estimates (physical, ``xs[9:]``) from the compensation (in place)."""
     npar = kinds.shape[0]
     Dg = np.zeros((3, 3))
@@ -804,6 +1045,8 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau):
             lev[i, i] -= v
         elif k == 8:
             lev[i, j] -= v
+        elif k == K_GIM:
+            gim[j] -= v
         else:
             tau[0] -= v
     nA = Ag - Dg @ Ag
@@ -813,14 +1056,18 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau):
 
 
 @njit(cache=True)
-def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0):
+def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
+                   att_used, Ka_st, Sia_st, sza_st, Ha_st):
     """Backward MBF pass (inscal.filters): smoothed errors and covariances at the stored steps and at
-    the start (``x0``, ``Pc0``)."""
+    the start (``x0``, ``Pc0``).  Steps with encoder attitude rows (``att_used``) undo that second,
+    later update first."""
     N = P0.shape[0]
     lam = np.zeros(N)
     Lam = np.zeros((N, N))
     ih = hist_Pm.shape[0] - 1
     for k in range(M - 1, -1, -1):
+        if att_used.shape[0] > 0 and att_used[k]:
+            _smoother_step_h(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
         filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
         if k % hist_every == 0 or k == M - 1:
             x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
@@ -834,12 +1081,21 @@ def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hi
 
 
 @njit(cache=True)
-def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0):
+def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_st, sza_st, Ha_st):
     """The adjoint recursion for the smoothed state at the start only (``x0 = P_0 lambda_0`` with
     ``P_0 = I``): what the passes before the last need (the initial attitude)."""
     N = x0.shape[0]
     lam = np.zeros(N)
+    d = np.empty(3)
     for k in range(M - 1, -1, -1):
+        if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
+            for a in range(3):
+                s = sza_st[k, a]
+                for i in range(N):
+                    s -= Ka_st[k, i, a] * lam[i]
+                d[a] = s
+            for i in range(N):
+                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
         K = K_st[k]
         ktl = K.T @ lam
         for a in range(IDX_MEAS.shape[0]):
@@ -853,7 +1109,7 @@ def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0):
 # ----------------------------------------------------------------------------- driver
 REF_SLICES = {"Ag": (0, 9, (3, 3)), "bg": (9, 12, (3,)), "G": (12, 21, (3, 3)), "Aa": (21, 30, (3, 3)),
               "ba": (30, 33, (3,)), "K2": (33, 36, (3,)), "Kx": (36, 45, (3, 3)), "lever": (45, 54, (3, 3)),
-              "tau": (54, 55, (1,))}
+              "tau": (54, 55, (1,)), "gim": (55, 59, (4,))}
 
 
 def _params_from_ref(row) -> CompParams:
@@ -889,12 +1145,17 @@ class PassOutput:
     Pf: np.ndarray | None = None  # filtered covariance after the last update (scaled)
     phinn: np.ndarray | None = None
     phinp: np.ndarray | None = None
+    att_used: np.ndarray | None = None  # per step: 1 where the encoder attitude rows were used
+    nis_att: np.ndarray | None = None  # their NIS (3 dof; NaN where unused)
+    z_att: np.ndarray | None = None  # their raw residual vee(C_nav C_pred^T) [rad] (NaN where unused)
 
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
-             keep_phi: bool = False, smooth: bool = True) -> PassOutput:
+             keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
-    the adjoint recursion for the smoothed initial state (:func:`smooth_pass` completes it)."""
+    the adjoint recursion for the smoothed initial state (:func:`smooth_pass` completes it).
+    Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
+    (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring)."""
     N = states.n_states
     npar = N - N_NAV
     M = dth.shape[0] // n_per
@@ -914,19 +1175,33 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     nis = np.empty(M)
     z_st = np.empty((M, 6))
     hist_Pm = np.empty((nh, N, N))
-    hist_ref = np.empty((nh, 55))
+    hist_ref = np.empty((nh, 59))
     hist_Pf = np.empty((nh, N))
     nav_out = np.empty(10)
+    if states.gimbal:
+        if enc is None or np.shape(enc)[0] < M or np.shape(enc)[1:] != (2,):
+            raise CalibrationError("the gimbal states need the encoder angles at every filter step")
+        enc_a = np.ascontiguousarray(np.asarray(enc, float)[:M])
+    else:
+        enc_a = np.empty((0, 2))
+    Ma = enc_a.shape[0]
+    att_used = np.zeros(Ma, np.int8)
+    Ka_st, Sia_st, sza_st = np.zeros((Ma, N, 3)), np.zeros((Ma, 3, 3)), np.zeros((Ma, 3))
+    Ha_st, nisa_st, za_st = np.zeros((Ma, 3, N)), np.full(Ma, np.nan), np.full((Ma, 3), np.nan)
     nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
     Mk = _pass_kernel(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                       int(n_per), nav0, np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever,
                       p.tau, nl, bool(states.asynchrony), kinds, axes, js, sig, qg, qa, r, P, int(hist_every),
-                      K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out)
+                      K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out,
+                      p.gim, enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st,
+                      sza_st, Ha_st, nisa_st, za_st)
     x0 = np.empty(N)
-    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0)
+    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, P)
-    out._smoother_data = (K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every))
+    out._smoother_data = (K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st, sza_st,
+                          Ha_st)
+    out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
     if keep_phi:
         out.phinn, out.phinp = phinn_st, phinp_st
     if smooth:
@@ -937,7 +1212,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
 def smooth_pass(out: PassOutput) -> PassOutput:
     """Run the full smoother (states and covariances at the stored steps and at the start) on a
     pass's stored data, in place."""
-    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every = out._smoother_data
+    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st = out._smoother_data
     N = K_st.shape[1]
     nh = out.hist_Pm.shape[0]
     out.hist_x = np.empty((nh, N))
@@ -945,7 +1220,7 @@ def smooth_pass(out: PassOutput) -> PassOutput:
     x0 = np.empty(N)
     out.P0s = np.empty((N, N))
     _smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
-                   out.hist_P, x0, out.P0s)
+                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st)
     out.x0s = x0
     return out
 
@@ -954,7 +1229,7 @@ def _canon_flat(p: CompParams, names) -> np.ndarray:
     from .result import flatten
     from ..errors import GimbalErrors
 
-    return flatten(p.to_imu(), GimbalErrors(), names)
+    return flatten(p.to_imu(), p.to_gimbal(), names)
 
 
 def estimated_names(states: StateSet) -> tuple[str, ...]:
@@ -964,6 +1239,8 @@ def estimated_names(states: StateSet) -> tuple[str, ...]:
         names += ["gyro_g_sensitivity", "accel_nonlinearity", "accel_cross_coupling", "accel_lever_arm"]
     if states.asynchrony:
         names.append("time_asynchrony")
+    if states.gimbal:
+        names += ["gimbal_nonorthogonality", "mount_attitude"]
     return tuple(names)
 
 
@@ -978,7 +1255,7 @@ def _fixed_mask(states: StateSet, names) -> np.ndarray:
         size = int(np.prod(shape)) if shape else 1
         m = np.zeros(size, bool)
         tri = "accel_misalignment" if states.psins else "gyro_misalignment"
-        if n == tri:  # upper angles [xy, xz, yz] are zero by the frame definition
+        if n == tri and not states.gimbal:  # upper angles [xy, xz, yz] are zero by the frame definition
             m[[0, 1, 3]] = True
         if n == "accel_lever_arm" and not states.lever9:
             m[[1, 2, 3, 5, 6, 7]] = True
@@ -1004,13 +1281,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                tol: float = 0.2, arw=None, vrw=None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
                align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
-               keep_passes: bool = False) -> CalibrationResult:
+               keep_passes: bool = False, encoder_sigma: float | None = None,
+               encoder_every: int = 1) -> CalibrationResult:
     """Systematic calibration of a static-site rotation record (S16 section 3).
 
     ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
     ``arw``/``vrw``: white noise [rad/sqrt(s)], [m/s/sqrt(s)] (scalar or per axis); estimated from
     the record when None.  ``prior``: prior 1 sigma per group name (SI), default
     :data:`DEFAULT_SIGMA0`.  ``initial``: linearisation start (canonical errors; default ideal).
+    Gimbal states (``gimbal``/``unified``): ``encoder_sigma`` the white noise of each encoder angle
+    [rad] (default :data:`ENCODER_SIGMA`, 1"), ``encoder_every`` the encoder attitude rows every n-th
+    filter step (default every step); the record's ``gimbal`` dataset, else its ``path``.
     """
     rec = ws_or_record
     st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -1064,6 +1345,24 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                           gravity=site.gravity_model)
     except ValueError as exc:
         raise CalibrationError(f"coarse alignment failed: {exc}") from None
+    enc = None
+    enc_sig = ENCODER_SIGMA if encoder_sigma is None else float(encoder_sigma)
+    if st.gimbal:
+        if not (math.isfinite(enc_sig) and enc_sig > 0):
+            raise CalibrationError(f"encoder sigma must be > 0, got {encoder_sigma}")
+        if int(encoder_every) != encoder_every or encoder_every < 1:
+            raise CalibrationError(f"encoder_every must be a whole number >= 1, got {encoder_every}")
+        ang = encoder_angles(rec, dth.shape[0], dt)
+        Msteps = dth.shape[0] // n_per
+        enc = ang[(np.arange(Msteps) + 1) * n_per - 1].copy()
+        enc[np.arange(Msteps) % int(encoder_every) != 0] = np.nan
+        if not np.all(np.isfinite(ang[0])):
+            raise CalibrationError("the gimbal states need the encoder angles at the first sample (the mount attitude "
+                                   "starts from the coarse alignment there)")
+        # N25 eq. 8 at the start: C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T with dth = the start value
+        mount0 = mount_from_attitude(C0, ang[0], start.gim[0])
+        start.gim = np.concatenate([start.gim[:1], mount0])
+        nominal.gim = np.concatenate([[0.0], mount0])
     passes = []
     p_start = start
     prev = None
@@ -1073,7 +1372,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     first = None
     for ip in range(max_passes):
         out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                       keep_phi=keep_passes, smooth=(max_passes == 1))
+                       keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig)
         sp = sig_pass[N_NAV:]
         # This pass ran with the prior N(p_start, diag(sp^2)) (deflated after pass 1 for numerical range).
         # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
@@ -1146,9 +1445,11 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if p_val < 1e-3:
         notes.append(f"innovations inconsistent with the noise model (NIS mean {diag['innovations']['nis_mean']:.3g} "
                      f"vs 6, p = {p_val:.2g}): unmodelled errors or wrong noise; sigma may be optimistic")
-    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu, GimbalErrors(),
-                            sigma, names, None, diag, notes)
-    res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), GimbalErrors())
+    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
+                            est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
+    res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), _truth_gimbal(truth, _st))
+    if st.gimbal:
+        _gimbal_diagnostics(res, last, st, enc_sig, int(encoder_every))
     h_out, h_sig = first
     if h_out.hist_x is None:
         smooth_pass(h_out)
@@ -1161,6 +1462,56 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     return res
 
 
+def encoder_angles(rec, n: int, dt: float) -> np.ndarray:
+    """Gimbal angles [outer, inner] (n, 2) [rad] at the end of every sample: the record's ``gimbal``
+    dataset (non-finite entries: no encoder sample), or, without one, its path's angles at the
+    sample times (noise-free: simulated records, the observability analysis)."""
+    g = getattr(rec, "gimbal", None)
+    if g is not None:
+        g = np.array(g, dtype=float)
+        if g.shape != (n, 2):
+            raise CalibrationError(f"encoder angles must be an ({n}, 2) array like the increments, got {g.shape}")
+        g[~np.all(np.isfinite(g), axis=1)] = np.nan
+        return g
+    path = getattr(rec, "path", None)
+    if path is None:
+        raise CalibrationError("the gimbal states need the encoder angles (the record's gimbal dataset) or its path")
+    t = getattr(rec, "time", None)
+    t = (np.arange(n) + 1) * dt if t is None else np.asarray(t, float)
+    return path.segments().angles(t)[0]
+
+
+def mount_from_attitude(C_s_n, angles, dth: float = 0.0) -> np.ndarray:
+    """``[alpha0, beta0, gamma0]`` of ``C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T`` (N25 eq. 7-8 inverted)."""
+    from ..turntable import C_s_b
+
+    return _euler(np.asarray(C_s_n, float) @ C_s_b(float(angles[0]), float(angles[1]), float(dth)).T)
+
+
+def _gimbal_diagnostics(res, last: PassOutput, st: StateSet, enc_sig: float, every: int) -> None:
+    """The unified filter's frame label and its encoder attitude innovations (``diagnostics["encoder"]``)."""
+    d = res.diagnostics
+    d["frame"] = FRAME_GIMBAL
+    if res.notes:
+        res.notes[0] = f"systematic {st.n_states}-state filter: parameters in the {FRAME_GIMBAL} frame"
+    used = np.asarray(last.att_used, bool)
+    nis = last.nis_att[used]
+    za = last.z_att[used]
+    d["encoder"] = {"sigma_arcsec": float(units.from_si(enc_sig, "arcsec")), "every_steps": every,
+                    "updates": int(used.sum()), "nis_mean": float(np.mean(nis)) if nis.size else float("nan"),
+                    "nis_expected": 3.0,
+                    "residual_rms_arcsec": (units.from_si(np.sqrt(np.mean(za**2, axis=0)), "arcsec").tolist()
+                                            if za.size else None)}
+
+
+def _truth_gimbal(truth, st: StateSet):
+    from ..errors import GimbalErrors
+
+    if not st.gimbal:
+        return GimbalErrors()
+    return truth[1] if isinstance(truth, tuple) else truth.gimbal
+
+
 def _truth_imu(truth, st: StateSet) -> ImuErrors:
     imu = truth[0] if isinstance(truth, tuple) else truth.imu
     return truth_in_frame(imu, st).to_imu()
@@ -1168,7 +1519,8 @@ def _truth_imu(truth, st: StateSet) -> ImuErrors:
 
 def _state_spec(st: StateSet) -> str:
     parts = ["51" if st.extended else "30"]
-    parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins)) if f]
+    parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins),
+                             ("gimbal", st.gimbal)) if f]
     return ",".join(parts)
 
 
@@ -1241,10 +1593,12 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
     K_st, Si_st, sz_st = one(N, 6), one(6, 6), one(6)
     phinn, phinp = one(9, 9), one(9, N - N_NAV)
     nis, z = np.empty(1), one(6)
-    hP, hr, hf = one(N, N), one(55), one(N)
+    hP, hr, hf = one(N, N), one(59), one(N)
     out = np.empty(10)
     _pass_kernel(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                  np.asarray(nav0, float), np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx,
                  p.lever, p.tau, True, bool(states.asynchrony), kinds, axes, js, np.ones(N), np.zeros(3),
-                 np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out)
+                 np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out,
+                 p.gim, np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
+                 np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)))
     return out, phinn[0], phinp[0]

@@ -1,0 +1,279 @@
+"""The unified estimator (calibrate.unified: the systematic filter with the N25 gimbal states and
+the encoder attitude rows): H columns and the new Phi columns against finite differences of the
+nonlinear models, the sequential update and its MBF smoother against the dense RTS form, the
+state-set options, noise-free recovery on the s16-gimbal scenario, and what systematic51 and n25
+leave out on such records."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from inscal import filters, scenarios, units
+from inscal.attitude import quat_from_dcm
+from inscal.calibrate import CalibrationError, calibrate
+from inscal.calibrate import systematic as S
+from inscal.calibrate.unified import measurement, predicted_attitude, residual, state_set
+from inscal.errors import ImuNoise
+from inscal.simulate import simulate, true_attitude
+
+AS = units.to_si(1.0, "arcsec")
+TOL = {"ppm": 0.05, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.05, "ug/g^2": 0.05, "cm": 0.005, "deg/h/g": 0.001}
+GIMBALS = [np.array([20 * AS, math.radians(0.1), math.radians(0.1), math.radians(20.0)]),
+           np.array([2e-3, -0.3, 0.2, 2.5])]  # the s16-gimbal values, and a large tilt of the outer axis
+ANGLES = [(0.0, 0.0), (0.5 * math.pi, 0.3), (math.pi, -1.1), (-2.0, 2.9), (1.234, 0.5 * math.pi)]
+
+
+def _rotvec(v):
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(v).as_matrix()
+
+
+# ----------------------------------------------------------------------------- H and R
+@pytest.mark.parametrize("gim", GIMBALS)
+@pytest.mark.parametrize("tx,tz", ANGLES)
+def test_H_columns_match_finite_differences(gim, tx, tz):
+    """z = vee(C_nav C_pred^T): columns on the attitude error (I) and on [dth, alpha0, beta0, gamma0]
+    (N25 eq. 5-8, 34-36) against central differences of the nonlinear residual; the encoder-noise
+    directions of R against differences in the encoder angles."""
+    C = predicted_attitude(gim, tx, tz)
+    H_phi, H_g, R = measurement(gim, tx, tz, encoder_sigma=AS)
+    np.testing.assert_allclose(residual(C, gim, tx, tz), 0.0, atol=1e-15)
+    h = 1e-6
+    for j in range(3):  # C_nav = exp([phi x]) C_true
+        e = np.zeros(3)
+        e[j] = h
+        fd = (residual(_rotvec(e) @ C, gim, tx, tz) - residual(_rotvec(-e) @ C, gim, tx, tz)) / (2 * h)
+        np.testing.assert_allclose(fd, H_phi[:, j], atol=1e-9)
+    for j in range(4):  # gimbal estimate = truth + h e_j
+        e = np.zeros(4)
+        e[j] = h
+        fd = (residual(C, gim + e, tx, tz) - residual(C, gim - e, tx, tz)) / (2 * h)
+        np.testing.assert_allclose(fd, H_g[:, j], atol=1e-9)
+    # encoder noise: z moves along -a (outer) and -c (inner) per unit angle, R = s^2 J J^T + floor
+    J = np.column_stack([(residual(C, gim, tx + h, tz) - residual(C, gim, tx - h, tz)) / (2 * h),
+                         (residual(C, gim, tx, tz + h) - residual(C, gim, tx, tz - h)) / (2 * h)])
+    np.testing.assert_allclose(R, AS**2 * (J @ J.T + 0.01 * np.eye(3)), rtol=0, atol=1e-9 * AS**2)
+    # with dth = 0 the dth column is the seed-notes section 5 form C_b^n [0, -(1 - cos tx), sin tx]
+    g0 = gim.copy()
+    g0[0] = 0.0
+    Cbn = predicted_attitude(g0, 0.0, 0.0)
+    np.testing.assert_allclose(-measurement(g0, tx, tz)[1][:, 0], Cbn @ [0.0, -(1 - math.cos(tx)), math.sin(tx)],
+                               atol=1e-15)
+
+
+def test_predicted_attitude_is_the_turntable_model():
+    from inscal.turntable import C_b_n, C_s_b
+
+    for gim in GIMBALS:
+        for tx, tz in ANGLES:
+            np.testing.assert_allclose(predicted_attitude(gim, tx, tz),
+                                       C_b_n(gim[1:]) @ C_s_b(tx, tz, gim[0]), atol=1e-15)
+
+
+# ----------------------------------------------------------------------------- sequential update + smoother
+def test_sequential_dense_update_and_smoother_equal_the_dense_rts():
+    """Two updates per step (selection rows with filters.update, then dense rows with _update_h) and
+    their MBF smoother (_smoother_step_h first) equal one stacked update and the textbook RTS
+    smoother (filters.dense_rts) on a random linear system; _update_h / _smoother_step_h with a
+    selection H equal filters.update / filters.smoother_step."""
+    rng = np.random.default_rng(3)
+    n, p, M = 4, 3, 12
+    N = n + p
+    idx = np.array([1, 3], np.int64)
+    r = np.array([0.3, 0.5])
+    Phis = [np.block([[np.eye(n) + 0.1 * rng.standard_normal((n, n)), 0.2 * rng.standard_normal((n, p))],
+                      [np.zeros((p, n)), np.eye(p)]]) for _ in range(M)]
+    Q = np.zeros((N, N))
+    Q[:n, :n] = 0.01 * np.eye(n)
+    Hb = rng.standard_normal((3, N))
+    A = rng.standard_normal((3, 3))
+    Rb = A @ A.T + 0.1 * np.eye(3)
+    zs = rng.standard_normal((M, 5))
+    # ---- sequential filter (open loop), stored as the kernel stores it
+    x, P = np.zeros(N), np.eye(N)
+    xf, Pf, xp, Pp = [x.copy()], [P.copy()], [None], [None]
+    store = []
+    for k in range(M):
+        x = Phis[k] @ x
+        filters.predict(P, n, np.ascontiguousarray(Phis[k][:n, :n]), np.ascontiguousarray(Phis[k][:n, n:]),
+                        Q[:n, :n].copy(), np.zeros(p))
+        xp.append(x.copy())
+        Pp.append(P.copy())
+        Ka, Sa, xa = np.empty((N, 2)), np.empty((2, 2)), np.empty(N)
+        nu_a = zs[k, :2] - x[idx]
+        filters.update(P, idx, r, nu_a, Ka, Sa, xa)
+        x = x + xa
+        Kb, Sb, xb = np.empty((N, 3)), np.empty((3, 3)), np.empty(N)
+        nu_b = zs[k, 2:] - Hb @ x
+        S._update_h(P, Hb, Rb, nu_b, Kb, Sb, xb)
+        x = x + xb
+        xf.append(x.copy())
+        Pf.append(P.copy())
+        store.append((Ka, Sa, Sa @ nu_a, Kb, Sb, Sb @ nu_b))
+    # ---- the same with one stacked update
+    H = np.vstack([np.eye(N)[idx], Hb])
+    Rf = np.zeros((5, 5))
+    Rf[:2, :2] = np.diag(r)
+    Rf[2:, 2:] = Rb
+    for k in range(M):
+        Sk = H @ Pp[k + 1] @ H.T + Rf
+        K = Pp[k + 1] @ H.T @ np.linalg.inv(Sk)
+        np.testing.assert_allclose(xp[k + 1] + K @ (zs[k] - H @ xp[k + 1]), xf[k + 1], atol=1e-10)
+        np.testing.assert_allclose((np.eye(N) - K @ H) @ Pp[k + 1], Pf[k + 1], atol=1e-10)
+    xs_d, Ps_d = filters.dense_rts(xf, Pf, xp, Pp, [None] + Phis)
+    # ---- MBF backwards, the dense rows first
+    lam, Lam = np.zeros(N), np.zeros((N, N))
+    for k in range(M - 1, -1, -1):
+        Ka, Sa, sza, Kb, Sb, szb = store[k]
+        S._smoother_step_h(lam, Lam, Hb, Kb, Sb, szb)
+        filters.smoother_step(lam, Lam, idx, Ka, Sa, sza)
+        dx, Ps = filters.smoothed(Pp[k + 1], lam, Lam)
+        np.testing.assert_allclose(xp[k + 1] + dx, xs_d[k + 1], atol=1e-9)
+        np.testing.assert_allclose(Ps, Ps_d[k + 1], atol=1e-9)
+        filters.adjoint_back(lam, Lam, n, np.ascontiguousarray(Phis[k][:n, :n]), np.ascontiguousarray(Phis[k][:n, n:]))
+    dx, Ps = filters.smoothed(np.eye(N), lam, Lam)
+    np.testing.assert_allclose(dx, xs_d[0], atol=1e-9)
+    np.testing.assert_allclose(Ps, Ps_d[0], atol=1e-9)
+    # ---- dense routines with a selection H equal the selection ones
+    P0 = Pp[5].copy()
+    P1, P2 = P0.copy(), P0.copy()
+    K1, S1, x1, K2, S2, x2 = np.empty((N, 2)), np.empty((2, 2)), np.empty(N), np.empty((N, 2)), np.empty((2, 2)), np.empty(N)
+    n1 = filters.update(P1, idx, r, zs[0, :2], K1, S1, x1)
+    n2 = S._update_h(P2, np.eye(N)[idx], np.diag(r), zs[0, :2], K2, S2, x2)
+    np.testing.assert_allclose([n1, *x1, *P1.ravel()], [n2, *x2, *P2.ravel()], rtol=1e-12, atol=1e-14)
+    l1, L1 = rng.standard_normal(N), np.eye(N) + 0.1
+    l2, L2 = l1.copy(), L1.copy()
+    filters.smoother_step(l1, L1, idx, K1, S1, S1 @ zs[0, :2])
+    S._smoother_step_h(l2, L2, np.eye(N)[idx], K1, S1, S1 @ zs[0, :2])
+    np.testing.assert_allclose(l1, l2, atol=1e-13)
+    np.testing.assert_allclose(L1, L2, atol=1e-13)
+
+
+# ----------------------------------------------------------------------------- state sets
+def test_state_set_options():
+    st = S.StateSet.parse("unified")
+    assert st.n_states == 58 and st.gimbal and st.extended and st.frame == "gimbal"
+    assert st == state_set()
+    assert S.StateSet.parse("51,gimbal") == st
+    assert S.StateSet.parse("30,gimbal").n_states == 30 + 3 + 4
+    assert S.StateSet.parse("unified,lever9").n_states == 58 + 6
+    labels = st.labels()
+    assert labels[-4:] == ["gimbal_nonorthogonality", "mount_attitude[alpha0]", "mount_attitude[beta0]",
+                           "mount_attitude[gamma0]"]
+    assert sum(1 for lab in labels if lab.startswith("gyro_matrix")) == 9
+    with pytest.raises(CalibrationError, match="exclude"):
+        S.StateSet.parse("51,psins,gimbal")
+    # round trip of the gimbal part of the parameters
+    p = S.CompParams()
+    p.gim = GIMBALS[0].copy()
+    x = np.linspace(-1, 1, st.n_params) * 1e-6
+    np.testing.assert_allclose(p.corrected(st, x).error_state(st, p), -x, rtol=1e-5, atol=1e-14)
+    g = p.to_gimbal()
+    assert g.nonorthogonality == p.gim[0] and np.all(g.mount_attitude == p.gim[1:])
+
+
+# ----------------------------------------------------------------------------- records
+def _rec(d, sc, gimbal=True):
+    return SimpleNamespace(dtheta=d.dtheta, dvel=d.dvel, gimbal=d.gimbal if gimbal else None, time=d.time,
+                           rate_hz=sc.rate_hz, site=sc.site, path=sc.path)
+
+
+@pytest.fixture(scope="module")
+def s16_gimbal_noise_free():
+    sc = dataclasses.replace(scenarios.build("s16-gimbal"), noise=ImuNoise())
+    return sc, simulate(sc)
+
+
+def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free):
+    """The columns the unified set adds to Phi_np: the upper gyro-matrix entries (the s-frame set) and
+    the gimbal states (zero: they do not enter the navigation), over 1 s at the start of an outer
+    rotation, against differences of the nonlinear propagation (test_systematic.py's method)."""
+    from test_systematic import _nav_error
+
+    sc, d = s16_gimbal_noise_free
+    st = S.StateSet.parse("unified")
+    truth = S.truth_in_frame(sc.imu, st, sc.gimbal)
+    t0 = 180.2
+    k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
+    dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
+    site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
+    C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
+    nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
+    x0, phinn, phinp = S.one_step(dth, dv, dt, nav0, site, truth, st)
+    assert np.max(np.abs(_nav_error(x0, C1, site))) < 1e-6
+    labels = st.labels()[9:]
+    cols = [labels.index(f"gyro_matrix[{ij}]") for ij in ("xy", "xz", "yz")]
+    cols += [c for c, lab in enumerate(labels) if lab.startswith(("gimbal_", "mount_"))]
+    rows = [0, 1, 2, 3, 4, 5, 8]
+    for c in cols:
+        gname = labels[c].split("[")[0]
+        h = 1e-2 * S.DEFAULT_SIGMA0[gname]
+        e = np.zeros(st.n_params)
+        e[c] = h
+        xp = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
+        xm = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
+        fd = (xp - xm) / (2 * h)
+        if gname == "gyro_matrix":
+            assert np.max(np.abs(fd[rows] - phinp[rows, c])) <= 2e-3 * np.max(np.abs(fd[rows])) + 1e-12, labels[c]
+            assert np.max(np.abs(fd[rows])) > 1e-5  # a rotation about x turns the outer-rotation rate into y, z
+        else:
+            assert np.all(phinp[:, c] == 0.0) and np.all(fd == 0.0), labels[c]
+
+
+def test_noise_free_recovery_s16_gimbal(s16_gimbal_noise_free):
+    """S16 section 4.1 errors plus dth = 20" and mount [0.1, 0.1, 20] deg on the S16 path with encoders:
+    every S16 parameter (with all 6 installation angles per triad, in the gimbal frame) and the
+    gimbal parameters to the noise-free tolerances; systematic51 on the same record does not
+    estimate the gimbal (its dth stays 0, i.e. 20" off) and refers its errors to the gyro frame."""
+    sc, d = s16_gimbal_noise_free
+    rec = _rec(d, sc)
+    res = calibrate(rec, "unified")
+    assert res.method == "unified" and res.diagnostics["states"] == 58 and res.diagnostics["converged"]
+    assert res.diagnostics["frame"] == S.FRAME_GIMBAL and res.diagnostics["encoder"]["updates"] > 3800
+    errs = {}
+    for name, e in res.to_field((sc.imu, sc.gimbal)).items():
+        errs[name] = float(np.nanmax(np.abs(e["error"])))
+        assert errs[name] <= TOL[e["unit"]], (name, e)
+        if name.endswith("misalignment"):  # no angle is fixed by a frame definition
+            assert np.all(np.isfinite(e["sigma"])), name
+    assert errs["gimbal_nonorthogonality"] < 1e-3 and errs["mount_attitude"] < 1e-2  # arcsec
+    assert res.gimbal.nonorthogonality == pytest.approx(20 * AS, abs=1e-3 * AS)
+    # systematic51: no gimbal states, gyro-frame parameters (= the s-frame here: the truth's gyro
+    # misalignment is lower-triangular), the IMU errors are still recovered
+    r51 = calibrate(_rec(d, sc, gimbal=False), "systematic51")
+    assert "gimbal_nonorthogonality" not in r51.estimated and r51.gimbal.nonorthogonality == 0.0
+    assert abs(r51.gimbal.nonorthogonality - sc.gimbal.nonorthogonality) == pytest.approx(20 * AS)
+    assert "gyro-defined" in r51.diagnostics["frame"]
+
+
+def test_unified_uses_the_path_without_encoders_and_refuses_without_either(s16_gimbal_noise_free):
+    sc, d = s16_gimbal_noise_free
+    n = int(600 * sc.rate_hz)  # 10 min: enough to run, not to converge
+    rec = SimpleNamespace(dtheta=d.dtheta[:n], dvel=d.dvel[:n], gimbal=None, time=d.time[:n], rate_hz=sc.rate_hz,
+                          site=sc.site, path=sc.path)
+    res = calibrate(rec, "unified", max_passes=1, encoder_every=5)
+    assert res.diagnostics["encoder"]["updates"] == 120
+    rec.path = None
+    with pytest.raises(CalibrationError, match="encoder angles"):
+        calibrate(rec, "unified", max_passes=1)
+    rec.gimbal = d.gimbal[:n]
+    with pytest.raises(CalibrationError, match="encoder sigma"):
+        calibrate(rec, "unified", max_passes=1, encoder_sigma=0.0)
+
+
+def test_n25_ignores_the_extended_terms():
+    """n25 on the N25 path with the S16 IMU (quadratic terms, lever arms, g-sensitivity): the terms it
+    does not model leave ~100 ug in its accelerometer bias and ~0.1" in dth (noise-free)."""
+    g = scenarios.build("s16-gimbal")
+    sc = dataclasses.replace(scenarios.build("n25"), imu=g.imu, gimbal=g.gimbal, noise=ImuNoise())
+    res = calibrate(_rec(simulate(sc), sc), "n25")
+    f = res.to_field((sc.imu, sc.gimbal))
+    assert "accel_nonlinearity" not in res.estimated
+    assert np.max(np.abs(f["accel_bias"]["error"])) > 50.0  # ug: 300 ug/g^2 x g^2 taken for a bias
+    assert np.max(np.abs(f["gimbal_nonorthogonality"]["error"])) > 0.03  # arcsec
