@@ -27,6 +27,10 @@ non-orthogonality and the mounting (vehicle) attitude, without leveling or align
    twelve static means ``N_g = M_g C_b^s w^b + eps`` (eq. 11), and the heading
    ``gamma0`` from ``w^b`` (``C_b^n w^b = w_ie^n``).
 
+Windows (:func:`symmetric_windows`): the twelve N25 positions when present, otherwise any
+set of inner-symmetric pairs that separates [tan b0, a0, dth] and points every
+accelerometer axis up and down; the method refuses only what it truly needs, naming it.
+
 Uncertainty: first order in the measured noise of the window means it reads
 (:func:`.result.sensitivity`; the estimator is linear in them, so this is exact to second
 order in the small angles: a Monte Carlo over 100 simulated records gives error/sigma RMS
@@ -45,8 +49,10 @@ from .model import C_b_s, C_n_s
 from .result import (IMU_LINEAR, GIMBAL, CalibrationResult, estimator_reference, finish_sigma, fit_statistics, flatten,
                      make_result, nparams, sensitivity)
 from .segment import CalibrationError, WindowSet
-from .six_position import _imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, positions
-from .twelve_position import TWELVE, accel_twelve, twelve_windows
+from .model import ideal_up
+from .six_position import (_imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position,
+                           positions)
+from .twelve_position import TWELVE, accel_twelve
 from ..attitude import rot_x, rot_y
 
 NAMES = IMU_LINEAR + GIMBAL
@@ -61,8 +67,8 @@ def design_rows(theta_x: float, theta_z: float) -> np.ndarray:
 
 
 def inner_pairs(ws: WindowSet, idx: list[int]) -> list[tuple[int, int]]:
-    """Pairs of window indices at (tx, tz) and (tx, tz + 180) among the twelve positions."""
-    pos = {TWELVE[i]: k for i, k in enumerate(idx)}
+    """Pairs of window indices at (tx, tz) and (tx, tz + 180) among the windows ``idx``."""
+    pos = {nominal_position(ws.windows[k]): k for k in idx}
     pairs, seen = [], set()
     for (tx, tz), k in pos.items():
         q = (tx, (tz + 180) % 360)
@@ -110,14 +116,40 @@ def heading_from_earth_rate(wb: np.ndarray, alpha0: float, beta0: float) -> floa
     return math.atan2(v[0], v[1])
 
 
-def _core(ws: WindowSet, idx: list[int]):
-    X, _, _ = solve_X(ws, idx)
+#: fixed-point passes of steps 2-3 when the positions are not the twelve N25 ones
+MAX_REFINE = 8
+
+
+def _refined_accel(ws: WindowSet, idx: list[int], X: np.ndarray):
+    """Step 3: the eq. 19 least squares with the model inputs at X = [tan b0, a0, dth]."""
     beta0, alpha0, dth = math.atan(X[0]), X[1], X[2]
     g = ws.site.gravity
-    # step 3: refined accelerometer errors with the model inputs (eq. 19 with true inputs)
     F = np.array([C_n_s(*ws.windows[k].theta, dth, [alpha0, beta0, 0.0]) @ np.array([0.0, 0.0, g]) for k in idx])
     N = np.array([ws.windows[k].accel for k in idx])
-    Ma, nabla = accel_least_squares(N, F)
+    return accel_least_squares(N, F)
+
+
+def _core(ws: WindowSet, idx: list[int]):
+    X, _, _ = solve_X(ws, idx)
+    # step 3: refined accelerometer errors with the model inputs (eq. 19 with true inputs)
+    Ma, nabla = _refined_accel(ws, idx, X)
+    if [nominal_position(ws.windows[k]) for k in idx] != TWELVE:
+        # Without the full inner-symmetric set the rough (ideal-input) calibration of step 1
+        # keeps the leveling error to first order (N25 eq. 24-26 cancel it only over all twelve),
+        # which biases step 2 (on the N25 path less the (90, 0)/(90, 180) pair: beta0 off by
+        # 68", dth by 0.3").  Beyond the paper: repeat step 2 with the refined M_a and step 3
+        # at the new X until X settles (a fixed point; the eq. 40 residual is then of second
+        # order in the small angles, as with the twelve positions).
+        pairs = inner_pairs(ws, idx)
+        for _ in range(MAX_REFINE):
+            L, A = L_vector(ws, pairs, Ma)
+            X_new, *_ = np.linalg.lstsq(A, L, rcond=None)  # N25 eq. 44
+            Ma, nabla = _refined_accel(ws, idx, X_new)
+            done = np.max(np.abs(X_new - X)) < 1e-12
+            X = X_new
+            if done:
+                break
+    beta0, alpha0, dth = math.atan(X[0]), X[1], X[2]
     # step 4: gyro matrix from rate tests about the true turning axes, then eps and w^b
     Mg, used_rate = gyro_matrix_from_rate_tests(ws, dth=dth, ideal=False)
     rows, rhs = [], []
@@ -134,9 +166,39 @@ def _core(ws: WindowSet, idx: list[int]):
     return vals, used_rate, X, wb
 
 
+def symmetric_windows(ws: WindowSet) -> list[int]:
+    """The static windows the n25 steps use: the first visit of every nominal position
+    (multiples of 90 deg) whose inner-symmetric partner (theta_z + 180 deg) was also visited,
+    the twelve N25 positions first, in N25 order.  What the method truly needs, each checked
+    here with one clear error naming what is missing: pairs whose design rows (eq. 42) give
+    rank 3 for [tan b0, a0, dth], and positions spanning the three accelerometer axes and
+    the bias (eq. 19).  (The gyro step's CW/CCW rate tests are checked where they are used.)"""
+    pos = positions(ws)
+    paired = [p for p in pos if (p[0], (p[1] + 180) % 360) in pos]
+    order = [p for p in TWELVE if p in paired] + sorted(p for p in paired if p not in TWELVE)
+    idx = [pos[p] for p in order]
+    missing = [p for p in TWELVE if p not in pos]
+    hint = ("; missing N25 positions (theta_x, theta_z) deg: " + ", ".join(f"({a}, {b})" for a, b in missing)
+            if missing else "")
+    pairs = inner_pairs(ws, idx)
+    A = np.vstack([design_rows(*ws.windows[k1].theta) for k1, _ in pairs]) if pairs else np.zeros((0, 3))
+    if np.linalg.matrix_rank(A, tol=1e-6) < 3:
+        have = ", ".join(f"({a}, {b})/({a}, {(b + 180) % 360})" for a, b in
+                         sorted({min(p, (p[0], (p[1] + 180) % 360)) for p in paired})) or "none"
+        raise CalibrationError(
+            "n25 calibration needs static windows in inner-symmetric pairs ((theta_x, theta_z) and (theta_x, theta_z + 180) "
+            "deg) that separate tan(beta0), alpha0 and dth (N25 eq. 40-44): at least one pair with theta_x = 0 or 180 and "
+            f"pairs at theta_x = 90 or 270 with theta_z both along and across the outer axis; pairs found: {have}{hint}")
+    F = np.array([np.round(ideal_up(*ws.windows[k].theta)) for k in idx])
+    if np.linalg.matrix_rank(np.vstack([F.T, np.ones(len(idx))])) < 4:
+        raise CalibrationError("n25 calibration: the inner-symmetric positions do not point every accelerometer axis up "
+                               f"and down (rank-deficient eq. 19){hint}")
+    return idx
+
+
 def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) -> CalibrationResult:
     """Scheme 1 of N25 (see the module docstring)."""
-    idx = twelve_windows(ws, "n25")
+    idx = symmetric_windows(ws)
     a0 = rough_alpha0(ws)
     if a0 is not None and abs(a0) > max_alpha0:
         raise CalibrationError(
@@ -156,7 +218,7 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
         A = estimator_reference(imu, gim, ws, S, comp, list(range(nparams(NAMES))))
     fit = fit_statistics(imu, gim, ws, nparams(NAMES), A=A)
     sig, formal = finish_sigma(S, comp, fit, NAMES, len(ws.windows))
-    diag = {"rough_alpha0_rad": a0, "X": X.tolist(), "earth_rate_b": wb.tolist(),
+    diag = {"positions": [list(nominal_position(ws.windows[k])) for k in idx], "rough_alpha0_rad": a0, "X": X.tolist(), "earth_rate_b": wb.tolist(),
             "earth_rate_norm_ratio": float(np.linalg.norm(wb) / np.linalg.norm(ws.site.earth_rate_n)),
             "n_rate_windows": len(used_rate), "fit": fit, "formal_sigma": formal}
     return make_result("n25", vals, sig, NAMES, ws, diag,

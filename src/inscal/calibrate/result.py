@@ -68,9 +68,9 @@ class CalibrationResult:
 
     @property
     def fit(self) -> dict | None:
-        """The fit of the window-mean methods (``diagnostics["fit"]``, see
-        :func:`fit_statistics`); None for the systematic methods (their fit is
-        ``diagnostics["innovations"]``)."""
+        """The fit (``diagnostics["fit"]``): of the window means for the window-mean methods
+        (:func:`fit_statistics`), of the innovations for the systematic filter
+        (:func:`inscal.calibrate.systematic.innovation_fit`)."""
         return self.diagnostics.get("fit")
 
     def sigma_scaled(self, name: str) -> bool:
@@ -359,7 +359,7 @@ def _signatures(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, geometry: b
     for i in range(3):
         c = np.zeros((2, n, 3))
         for k, w in enumerate(ws.windows):
-            if w.kind == "rate":
+            if w.kind in ("rate", "turn"):
                 a = (np.array([0.0, 0.0, 1.0]) if w.axis == "inner"
                      else _rz(w.theta[1]).T @ outer_axis(gimbal.nonorthogonality))
                 c[1, k, i] = w.rate ** 2 * (1.0 - a[i] ** 2)

@@ -19,7 +19,15 @@ no angle channel):
 * a constant-rate window is cut to the largest whole number of turns that fits inside
   the constant-rate part (centred), so the rotating Earth-rate and gravity components
   average out; the exact model (:mod:`.model`) uses the window's start and end angles,
-  so a residual fraction of a turn is modelled, not neglected.
+  so a residual fraction of a turn is modelled, not neglected;
+* a move of less than one turn (e.g. the +-90 deg moves of an S16 or PSINS path) gives a
+  *turn* window (``kind == "turn"``): its whole constant-rate part, with the angles turned
+  known from the encoders or the path (``partial_turns``; at least ``min_turn_s`` seconds
+  and ``min_turn_deg`` degrees).  The same exact constant-rate model holds (the mean of a
+  rotation over a partial turn, :func:`.model.mean_rot_T`), so these windows carry the
+  gyro scale factors and installation angles for :mod:`.joint` on paths without full-turn
+  rate tests.  The classical CW/CCW rate tests (N25 eq. 28) use whole-turn ``rate``
+  windows only.
 
 Noise of a window mean: the per-sample white-noise level is estimated from the second
 differences of the per-sample rates (robust MAD, insensitive to the slow signal change
@@ -47,7 +55,7 @@ class CalibrationError(ValueError):
 class Window:
     """One static or constant-rate window (SI).  Angles are (theta_x, theta_z) [rad]."""
 
-    kind: str  # "static" or "rate"
+    kind: str  # "static", "rate" (whole turns) or "turn" (part of a turn)
     i0: int  # first sample
     i1: int  # one past the last sample
     t0: float  # start of the first sample interval [s]
@@ -74,7 +82,8 @@ class Window:
         th = np.degrees(self.theta)
         if self.kind == "static":
             return f"static ({th[0]:.1f}, {th[1]:.1f}) deg, {self.t0:.1f}-{self.t1:.1f} s"
-        return f"{self.axis} {self.rate / DEG:+.2f} deg/s, {self.t0:.1f}-{self.t1:.1f} s"
+        turned = f" ({np.degrees(abs(self.theta1 - self.theta0)).max():.0f} deg)" if self.kind == "turn" else ""
+        return f"{self.axis} {self.rate / DEG:+.2f} deg/s{turned}, {self.t0:.1f}-{self.t1:.1f} s"
 
 
 @dataclass
@@ -93,6 +102,10 @@ class WindowSet:
     @property
     def rate(self) -> list[Window]:
         return [w for w in self.windows if w.kind == "rate"]
+
+    @property
+    def turn(self) -> list[Window]:
+        return [w for w in self.windows if w.kind == "turn"]
 
     def replace_means(self, gyro: np.ndarray, accel: np.ndarray) -> "WindowSet":
         """A copy with the window means replaced (rows in window order); used for error propagation."""
@@ -156,7 +169,8 @@ def check_gimbal_jumps(theta: np.ndarray, dt: float, time: np.ndarray | None = N
 
 def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smooth: float = 0.5,
                  static_tol: float = 0.01 * DEG, rate_min: float = 1.0 * DEG, rate_rel_tol: float = 1e-3,
-                 min_turns: int = 1, increment_static_tol: float = 0.05 * DEG, jump_tol: float | None = None) -> WindowSet:
+                 min_turns: int = 1, increment_static_tol: float = 0.05 * DEG, jump_tol: float | None = None,
+                 partial_turns: bool = True, min_turn_s: float = 2.0, min_turn_deg: float = 10.0) -> WindowSet:
     """Find the static and constant-rate windows of a record and average each.
 
     ``record_like`` needs ``.time, .dtheta, .dvel, .gimbal`` (``gimbal`` may be None:
@@ -247,11 +261,16 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
             travel = abs(theta[cb - 1, ax] - theta[ca - 1, ax])
             turns = int(math.floor(travel / (2 * math.pi) + 1e-9))
             if turns < min_turns:
-                continue
-            m = int(round(turns * 2 * math.pi / abs(med) * rate_hz))
-            m = min(m, cb - ca)
-            s0 = ca + (cb - ca - m) // 2
-            s1 = s0 + m
+                if not (partial_turns and travel < 2 * math.pi and travel >= min_turn_deg * DEG
+                        and (cb - ca) * dt >= min_turn_s):
+                    continue
+                kind, s0, s1 = "turn", ca, cb  # the whole constant-rate part of a partial turn
+            else:
+                kind = "rate"
+                m = int(round(turns * 2 * math.pi / abs(med) * rate_hz))
+                m = min(m, cb - ca)
+                s0 = ca + (cb - ca - m) // 2
+                s1 = s0 + m
             # straight-line fit of the angles on the window: boundary angles and rate
             tt = time[s0 - 1:s1]
             th = theta[s0 - 1:s1]
@@ -259,11 +278,12 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
             coef, *_ = np.linalg.lstsq(A, th, rcond=None)
             th0 = coef[0]
             th1 = coef[0] + coef[1] * (tt[-1] - tt[0])
-            windows.append(make("rate", s0, s1, axname, float(coef[1, ax]), th0, th1))
+            windows.append(make(kind, s0, s1, axname, float(coef[1, ax]), th0, th1))
     windows.sort(key=lambda w: w.i0)
     if not windows:
         raise CalibrationError("no static dwell window and no constant-rate window found in the record "
                                f"(static: both axes slower than {static_tol / DEG:g} deg/s for at least {min_static:g} s)")
     info.update(n_static=sum(w.kind == "static" for w in windows), n_rate=sum(w.kind == "rate" for w in windows),
+                n_turn=sum(w.kind == "turn" for w in windows),
                 settle_s=settle, min_static_s=min_static)
     return WindowSet(windows, site, rate_hz, info)

@@ -1419,13 +1419,15 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     from ..errors import GimbalErrors
     from .result import unflatten
 
-    sigma = unflatten(sflat, names)
-    # innovation statistics (normalised innovation squared; dof = 6 per step)
+    # innovation statistics (normalised innovation squared; dof = 6 per step) and the fit
     from scipy.stats import chi2 as _chi2
 
     nis = last.nis
     dof = 6 * last.steps
     chisq = float(np.sum(nis))
+    fit = innovation_fit(nis, last.z, T, chisq, dof, st)
+    formal = unflatten(sflat, names)
+    sigma = unflatten(sflat * fit["scale"], names)
     diag = {
         "states": st.n_states, "state_options": _state_spec(st), "frame": "accelerometer-defined (PSINS triangular)"
         if st.psins else "gyro-defined (S16 m-frame)",
@@ -1440,11 +1442,11 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                         "position_rms_m": float(np.sqrt(np.mean(last.z[:, 3:] ** 2)))},
         "initial_attitude_deg": np.degrees(_euler(C0)).tolist(),
     }
+    diag["fit"] = fit
+    diag["formal_sigma"] = formal
     notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
-    p_val = diag["innovations"]["p_value"]
-    if p_val < 1e-3:
-        notes.append(f"innovations inconsistent with the noise model (NIS mean {diag['innovations']['nis_mean']:.3g} "
-                     f"vs 6, p = {p_val:.2g}): unmodelled errors or wrong noise; sigma may be optimistic")
+    if fit["note"]:
+        notes.append(fit["note"])
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
                             est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
     res.truth_transform = lambda truth, _st=st: (_truth_imu(truth, _st), _truth_gimbal(truth, _st))
@@ -1460,6 +1462,57 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if keep_passes:
         res.pass_output = last
     return res
+
+
+#: p-value below which the innovations are declared inconsistent with the noise model
+P_INCONSISTENT = 1e-3
+#: time blocks of the per-window innovation residuals (at most this many, at least 60 s each)
+FIT_BLOCKS = 24
+
+
+def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet) -> dict:
+    """The fit of a systematic-filter run, in the form of the window-mean methods' fit
+    (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
+    ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
+    mean NIS (expected 6) with the velocity / position innovation RMS.
+
+    When p < :data:`P_INCONSISTENT` the reported sigma are the formal (smoothed) ones times
+    ``scale = sqrt(chi2 / dof)`` (``sqrt(mean NIS / 6)``): the innovation sequence says the
+    noise model understates what the filter sees (unmodelled terms, a wrong path or wrong
+    gravity add to every innovation); the formal sigma are kept beside them."""
+    from scipy.stats import chi2 as _chi2
+
+    p = float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan")
+    consistent = not (p < P_INCONSISTENT)
+    scale = 1.0 if consistent else math.sqrt(max(chisq / dof, 1.0))
+    n = len(nis)
+    nb = int(max(1, min(FIT_BLOCKS, n * T // 60.0)))
+    edges = np.linspace(0, n, nb + 1).astype(int)
+    res = []
+    for k in range(nb):
+        a, b = edges[k], edges[k + 1]
+        if b <= a:
+            continue
+        res.append({"window": k, "label": f"t {a * T:7.0f}-{b * T:7.0f} s",
+                    "nis_mean": float(np.mean(nis[a:b])),
+                    "velocity_rms_m_s": float(np.sqrt(np.mean(z[a:b, :3] ** 2))),
+                    "position_rms_m": float(np.sqrt(np.mean(z[a:b, 3:] ** 2)))})
+    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": float(dof), "p_value": p, "consistent": consistent,
+           "scale": scale, "residuals": res, "cause": None, "note": None,
+           "sigma_rule": "systematic filter: sigma x sqrt(chi2/dof) of the innovations when p < 0.001"}
+    if not consistent:
+        worst = max(res, key=lambda r: r["nis_mean"])
+        if not st.extended:
+            cause = ("unmodelled terms (the 30-state set has no g-sensitivity, quadratic, cross-coupling or "
+                     "lever-arm states: try --states 51)")
+        else:
+            cause = ("unmodelled terms, wrong noise (--arw/--vrw), a wrong path or wrong gravity (--gravity); "
+                     f"worst block {worst['label'].strip()} (NIS {worst['nis_mean']:.3g})")
+        fit["cause"] = cause
+        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof (NIS mean {chisq / max(n, 1):.3g} "
+                       f"vs 6, p = {p:.2g}); likely cause: {cause}; sigma scaled by sqrt(chi2/dof) = {scale:.3g}, "
+                       "formal sigma kept")
+    return fit
 
 
 def encoder_angles(rec, n: int, dt: float) -> np.ndarray:
