@@ -1,6 +1,7 @@
 """The demo (the main job on built-in defaults) runs end to end and its results make sense."""
 
 import json
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -38,6 +39,15 @@ def test_demo_quick_json(tmp_path):
         assert meta["method"] == m and meta["metadata"]["states"] == m[-2:]
     nav = steps["navigate"]
     assert nav["n25"]["max_position_error_m"] < nav["six-position"]["max_position_error_m"] < nav["uncalibrated"]["max_position_error_m"]
+    # the report: self-contained HTML, the figures as PNG files, summary.json = the --json document
+    rep = res["report"]
+    html = Path(rep["html"]).read_text(encoding="utf-8")
+    assert html.count("<img ") == len(rep["figures"]) == 7 and "data:image/png;base64," in html
+    assert all(Path(f).stat().st_size > 10_000 for f in rep["figures"].values())
+    summary = json.loads(Path(rep["summary"]).read_text(encoding="utf-8"))
+    assert summary["steps"]["calibrate"] == cal and summary["steps"]["navigate"] == nav
+    assert nav["n25"]["final_attitude_deg"]["heading"] == pytest.approx(
+        (90.0 - nav["n25"]["final_attitude_deg"]["yaw"]) % 360.0)
     # a second run refuses to overwrite without --force
     r = CliRunner().invoke(app, ["demo", "--out", str(tmp_path / "d"), "--quick"])
     assert r.exit_code != 0 and "exists" in r.stderr

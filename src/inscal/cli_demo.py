@@ -7,7 +7,9 @@
    with the truth;
 4. calibrate the S16 record with the systematic 51- and 30-state filters (S16 section 4) and
    compare the S16 Table 2 groups with the paper's figures;
-5. navigate a rotation-modulated run with and without the calibration.
+5. navigate a rotation-modulated run with and without the calibration;
+6. write the report: ``report.html`` (self-contained, every figure embedded), the figures as PNG
+   files and ``summary.json`` (the result dict, as ``--json`` prints it).
 """
 
 from __future__ import annotations
@@ -20,11 +22,22 @@ import typer
 from .cliutil import CliError, fail, print_json, short
 
 
+#: the report's files (besides the records and parameter files of the steps)
+REPORT_FILES = ("report.html", "summary.json", "allan.png", "s16-table2.png", "nav-comparison.png")
+#: the navigation runs: label -> parameter file (None: uncalibrated)
+NAV_RUNS = ("uncalibrated", "six-position", "n25", "joint")
+
+
 def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool, log) -> dict:
     from .cli_simulate import run_simulate
+    from .cliutil import check_output
 
     out.mkdir(parents=True, exist_ok=True)
-    res: dict = {"out": str(out), "seed": seed, "steps": {}}
+    for name in REPORT_FILES + tuple(f"nav-{label}.png" for label in NAV_RUNS):
+        check_output(out / name, force)  # before the work, not after it
+    res: dict = {"out": str(out), "seed": seed, "quick": quick, "steps": {}}
+    ctx: dict = {"nav_runs": {}}
+    res["_ctx"] = ctx
     t0 = time.perf_counter()
     for name in ("s16", "n25"):
         r = run_simulate(name, out / f"{name}.h5", seed=seed, force=force, show_progress=show_progress)
@@ -32,14 +45,46 @@ def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool
         log(f"simulated {name}: {r['samples']} samples, {r['duration_s'] / 3600:.2f} h -> {r['out']}")
     from .cli_allan import run_allan
 
+    from . import io, units
+
     a = run_allan(out / "n25.h5", 0.0, 100.0)
-    res["steps"]["allan_n25"] = {k: a[k] for k in ("arw_deg_rth", "vrw_ug_rthz")}
-    log("Allan (N25 first dwell): ARW " + ", ".join(f"{v:.4f}" for v in a["arw_deg_rth"]) + " deg/rt(h) (true 0.02); VRW "
-        + ", ".join(f"{v:.1f}" for v in a["vrw_ug_rthz"]) + " ug/rt(Hz) (true 20)")
+    noise = io.record_info(out / "n25.h5").truth.noise
+    a["true_arw_deg_rth"] = units.from_si(noise.arw, "deg/sqrt(h)")
+    a["true_vrw_ug_rthz"] = units.from_si(noise.vrw, "ug/sqrt(Hz)")
+    ctx["allan"] = a
+    res["steps"]["allan_n25"] = {k: a[k] for k in ("arw_deg_rth", "vrw_ug_rthz", "true_arw_deg_rth", "true_vrw_ug_rthz",
+                                                   "window_s")}
+    log("Allan (N25 first dwell): ARW " + ", ".join(f"{v:.4f}" for v in a["arw_deg_rth"])
+        + f" deg/rt(h) (true {a['true_arw_deg_rth'][0]:g}); VRW " + ", ".join(f"{v:.1f}" for v in a["vrw_ug_rthz"])
+        + f" ug/rt(Hz) (true {a['true_vrw_ug_rthz'][0]:g})")
     for stage in _STAGES:
         stage(out, force, seed, quick, show_progress, log, res)
-    res["elapsed_s"] = time.perf_counter() - t0
+    _report_stage(out, force, log, res, t0)
     return res
+
+
+def _report_stage(out, force, log, res, t0):
+    """Figures, ``report.html`` and ``summary.json``."""
+    import json
+
+    from .io import atomic_path
+    from .jsonutil import to_jsonable
+    from .report import demo_report
+
+    ctx = res.pop("_ctx")
+    t1 = time.perf_counter()
+    res["elapsed_s"] = t1 - t0
+    try:
+        files = demo_report(out, res, ctx.get("nav_runs"), ctx.get("allan"), overwrite=force)
+    except (FileExistsError, FileNotFoundError) as exc:
+        raise CliError(str(exc)) from None
+    res["report"] = {"html": str(files.pop("report.html")), "figures": {k: str(v) for k, v in files.items()},
+                     "summary": str(out / "summary.json"), "elapsed_s": round(time.perf_counter() - t1, 3)}
+    res["elapsed_s"] = time.perf_counter() - t0
+    with atomic_path(out / "summary.json", force) as tmp:
+        tmp.write_text(json.dumps(to_jsonable(res), indent=2) + "\n", encoding="utf-8")
+    log(f"report: {res['report']['html']} ({len(res['report']['figures'])} figures, "
+        f"{res['report']['elapsed_s']:.1f} s), summary: {res['report']['summary']}")
 
 
 def _calibrate_stage(out, force, seed, quick, show_progress, log, res):
@@ -51,8 +96,7 @@ def _calibrate_stage(out, force, seed, quick, show_progress, log, res):
     for method in ("six-position", "n25", "joint"):
         r = run_calibrate(out / "n25.h5", method, out / f"params-{method}.toml", force=force)
         p = r["parameters"]
-        keep = {k: p[k] for k in ("gimbal_nonorthogonality", "accel_bias", "accel_scale_factor", "accel_misalignment") if k in p}
-        res["steps"]["calibrate"][method] = keep
+        res["steps"]["calibrate"][method] = p  # every estimate: value, sigma, error (against the truth), unit
         dth = p.get("gimbal_nonorthogonality")
         dth_txt = (f"dtheta {dth['value'][0]:.2f}\" (error {dth['error'][0]:+.2f}\")" if dth and dth.get("error") is not None
                    else "dtheta not estimated")
@@ -108,7 +152,8 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
                                   "max_passes": DEMO_SYSTEMATIC_PASSES})
         except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
             raise CliError(str(exc)) from None
-        err, _ = result_errors(r, truth.imu, truth.gimbal)
+        err, sig = result_errors(r, truth.imu, truth.gimbal)
+        comps = _components(r, err, sig)
         groups = {}
         for g in PARAMETERS:
             e = [abs(v) for k, v in err.items() if k.split(".")[0] == g]
@@ -124,7 +169,7 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
         inn = r.diagnostics["innovations"]
         res["steps"]["systematic_s16"][method] = {
             "groups": groups, "out": str(dest), "nis_mean": inn["nis_mean"], "passes": len(r.diagnostics["passes"]),
-            "elapsed_s": round(elapsed, 3)}
+            "elapsed_s": round(elapsed, 3), "parameters": comps}
 
         def fmt(g, v, short=True):
             return (f"{(g.split('_', 1)[1] if short else g).replace('_', ' ')} {v['mean_abs_error']:.2g}"
@@ -137,23 +182,48 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
             "gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor", "accel_misalignment")))
 
 
+def _components(r, err: dict, sig: dict) -> dict:
+    """Per-parameter lists (field units) of a result's estimates with their errors and sigmas
+    (``{"group.comp": x}`` of :func:`inscal.analysis.experiments.result_errors`; NaN where a
+    component is not an estimate), as in ``inscal calibrate --json``."""
+    import math
+
+    import numpy as np
+
+    from .analysis.experiments import parameter_components
+    from .errors import PARAMETERS, errors_to_field
+
+    est = errors_to_field(r.imu, r.gimbal)
+    out = {}
+    for name in PARAMETERS:
+        keys = [f"{name}.{c}" if c else name for c in parameter_components(name)]
+        if name not in est or not any(k in err for k in keys):
+            continue
+        out[name] = {"value": [float(x) for x in np.ravel(est[name]["value"])],
+                     "sigma": [sig.get(k, math.nan) for k in keys], "error": [err.get(k, math.nan) for k in keys],
+                     "unit": PARAMETERS[name][3]}
+    return out
+
+
 def _navigate_stage(out, force, seed, quick, show_progress, log, res):
     """Navigate a rotation-modulated run of the N25 IMU with each calibration (N25 section 6).
 
     The navigation record is noise-free: with the N25 noise (ARW 0.02 deg/sqrt(h)) the attitude
     random walk alone reaches ~90" per hour and hides the differences between calibrations."""
-    from .cli_navigate import run_navigate
+    from .cli_navigate import navigate_file
     from .cli_simulate import run_simulate
 
     hours = 1.0 if quick else 6.0
     rec = out / "n25-rotmod.h5"
     run_simulate("n25-rotmod", rec, seed=seed, duration_h=hours, force=force, show_progress=show_progress, no_noise=True)
     res["steps"]["navigate"] = {}
-    for label, params in (("uncalibrated", None), ("six-position", out / "params-six-position.toml"),
-                          ("n25", out / "params-n25.toml"), ("joint", out / "params-joint.toml")):
-        r = run_navigate(rec, params=params)
-        keep = {k: r[k] for k in ("max_position_error_m", "final_position_error_m", "max_attitude_error_arcsec",
-                                  "max_velocity_error_mps") if k in r}
+    res["navigation_hours"] = hours
+    for label in NAV_RUNS:
+        params = None if label == "uncalibrated" else out / f"params-{label}.toml"
+        r, nav_res, gim = navigate_file(rec, params=params)
+        res["_ctx"]["nav_runs"][label] = (nav_res, gim)
+        keep = {k: r[k] for k in ("duration_h", "max_position_error_m", "final_position_error_m", "max_position_error_nmi",
+                                  "max_attitude_error_arcsec", "max_velocity_error_mps", "final_attitude_deg") if k in r}
         res["steps"]["navigate"][label] = keep
         att = list(keep.get("max_attitude_error_arcsec", {"roll": float("nan"), "pitch": float("nan"), "yaw": float("nan")}).values())
         log(f"navigated {hours:g} h rotation modulation with {label:>12}: max position error "
@@ -185,4 +255,4 @@ def register(app: typer.Typer) -> None:
         if json_:
             print_json(res)
         else:
-            typer.echo(f"demo finished in {res['elapsed_s']:.1f} s; files in {res['out']}/")
+            typer.echo(f"demo finished in {res['elapsed_s']:.1f} s; files in {res['out']}/; open {res['report']['html']}")
