@@ -187,3 +187,28 @@ def test_cli_crlb_json_and_table():
     for bad in (["--crlb", "--arw", "-1"], ["--gyro-bi", "0.01"], ["--crlb", "--bi-tau", "0"]):
         r = runner.invoke(app, ["observability", "psins19", *bad])
         assert r.exit_code == 2 and r.output.count("\n") <= 2, r.output
+
+
+def test_bound_vs_monte_carlo_psins19():
+    """Eight seeded noise-only systematic51 calibrations of psins19 (20 Hz): the errors normalised by the
+    predicted fixed-truth mean and spread of the bound (crlb.predicted_error) have an RMS in [0.6, 1.5]
+    over all 42 states (the full 50-run comparison on three paths: bench/crlb_vs_mc.py)."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from inscal.calibrate.systematic import CompParams, systematic51, truth_in_frame
+    from inscal.scenarios import build
+    from inscal.simulate import simulate
+
+    sc = replace(build("psins19"), rate_hz=20.0)
+    b = C.crlb(sc)
+    m, s = C.predicted_error(b, sc.imu)
+    z = []
+    for run in range(8):
+        d = simulate(sc, np.random.default_rng(np.random.SeedSequence([7, run])))
+        res = systematic51(SimpleNamespace(dtheta=d.dtheta, dvel=d.dvel, rate_hz=sc.rate_hz, site=sc.site))
+        e = CompParams.from_imu(res.imu).error_state(res.states, truth_in_frame(sc.imu, res.states))
+        z.append((e - m) / s)
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert 0.6 < rms < 1.5, rms
+    assert np.all(s <= b.sigma * (1 + 1e-9))  # a fixed truth spreads at most as much as the Bayesian bound

@@ -775,3 +775,27 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
         bias_noise = BiasNoise.from_imu_noise(sc.noise)
     setup = make_setup(states, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior)
     return evaluate(setup, sc.path, keep_history)
+
+
+def predicted_error(b: Bound, imu) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of the error (estimate - truth, the filter's parameter error
+    state, SI) of a linear-Gaussian calibration of an IMU whose truth ``imu`` (canonical
+    :class:`~inscal.errors.ImuErrors`) is fixed while only the noise varies (a noise-only Monte
+    Carlo).  With the bound ``P``, the prior ``P0 = diag(sigma0^2)`` centred on the nominal (ideal)
+    parameters and the data information ``L = P^-1 - P0^-1``, the posterior mean is
+    ``x^ = P (L x + P0^-1 mu)``, so ``x^ - x`` has mean ``P P0^-1 (mu - x)`` (the prior's pull) and
+    covariance ``P L P = P - P P0^-1 P`` (the noise).  Both are zero / equal to ``P`` where the data
+    dominate the prior (bound << prior); where they do not, a fixed-truth spread is smaller than
+    the bound.  Constant parameters only (no Gauss-Markov bias states)."""
+    from .systematic import CompParams, truth_in_frame
+
+    su = b.setup
+    if su.n_gm:
+        raise BoundError("predicted_error needs constant parameter states (no Gauss-Markov bias states)")
+    st = su.states
+    x_nom = CompParams().error_state(st, truth_in_frame(imu, st))  # nominal - truth (first order)
+    P = b.covariance
+    L0 = 1.0 / su.prior**2
+    mean = P @ (L0 * x_nom)
+    cov = P - (P * L0) @ P
+    return mean, np.sqrt(np.maximum(np.diag(cov), 0.0))
