@@ -107,7 +107,8 @@ attitude rows are a second, sequential update at the same step (innovation ``z -
 velocity/position update's ``x_v``, one feedback of the sum), stored beside the first (``K``,
 ``S^-1``, ``S^-1 nu`` and the dense ``H``) so the MBF smoother runs both backwards, the attitude
 rows first: exact, as one 9-row update would be.  The velocity/position innovations keep their own
-NIS (dof 6 per step: the fit); the encoder rows' (expected 3) are in ``diagnostics["encoder"]``.
+NIS (dof 6 per step: the fit); the encoder rows' are in ``diagnostics["encoder"]`` with their
+expectation ``3 - floor tr(S^-1)`` (between 2 and 3: the floor direction carries no encoder noise).
 """
 
 from __future__ import annotations
@@ -737,7 +738,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
                  kinds, axes, js, sig, qg, qa, r, P, hist_every,
                  K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st,
                  hist_Pm, hist_ref, hist_Pf, nav_out,
-                 gim, enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st):
+                 gim, enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st):
     """One closed-loop filter pass over the record (see the module docstring).
 
     ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
@@ -749,8 +750,8 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     Gimbal states: ``gim = [dth, alpha0, beta0, gamma0]`` (updated in place by the feedback);
     ``enc`` (M, 2) the encoder angles at the end of each step (NaN: no attitude rows that step; shape
     (0, 2) without gimbal states), ``enc_var``/``enc_floor`` the encoder and floor variances; the
-    attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS and raw ``z`` are stored per step
-    (``att_used[k] = 1`` where it ran).
+    attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
+    step (``att_used[k] = 1`` where it ran).
     """
     N = sig.shape[0]
     npar = N - 9
@@ -992,6 +993,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             sza_st[k] = Sia @ nu
             Ha_st[k] = Ha
             za_st[k] = za
+            Ra_st[k] = Ra
             att_used[k] = 1
         if k % hist_every == 0 or k == M - 1:
             for i in range(N):
@@ -1148,6 +1150,10 @@ class PassOutput:
     att_used: np.ndarray | None = None  # per step: 1 where the encoder attitude rows were used
     nis_att: np.ndarray | None = None  # their NIS (3 dof; NaN where unused)
     z_att: np.ndarray | None = None  # their raw residual vee(C_nav C_pred^T) [rad] (NaN where unused)
+    # with keep_phi: the encoder rows' H (M, 3, N; scaled states, as Phi) and R (M, 3, 3; rad^2) per step,
+    # for an observability matrix with the encoder rows (whitened by R^-1/2; zero where att_used is 0)
+    H_att: np.ndarray | None = None
+    R_att: np.ndarray | None = None
 
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
@@ -1188,13 +1194,14 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     att_used = np.zeros(Ma, np.int8)
     Ka_st, Sia_st, sza_st = np.zeros((Ma, N, 3)), np.zeros((Ma, 3, 3)), np.zeros((Ma, 3))
     Ha_st, nisa_st, za_st = np.zeros((Ma, 3, N)), np.full(Ma, np.nan), np.full((Ma, 3), np.nan)
+    Ra_st = np.zeros((Ma, 3, 3))
     nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
     Mk = _pass_kernel(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                       int(n_per), nav0, np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever,
                       p.tau, nl, bool(states.asynchrony), kinds, axes, js, sig, qg, qa, r, P, int(hist_every),
                       K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out,
                       p.gim, enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st,
-                      sza_st, Ha_st, nisa_st, za_st)
+                      sza_st, Ha_st, nisa_st, za_st, Ra_st)
     x0 = np.empty(N)
     _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
@@ -1202,6 +1209,9 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     out._smoother_data = (K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st, sza_st,
                           Ha_st)
     out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
+    out._enc_floor = (0.1 * float(enc_sigma)) ** 2
+    if keep_phi and Ma:
+        out.H_att, out.R_att = Ha_st, Ra_st
     if keep_phi:
         out.phinn, out.phinp = phinn_st, phinp_st
     if smooth:
@@ -1550,9 +1560,12 @@ def _gimbal_diagnostics(res, last: PassOutput, st: StateSet, enc_sig: float, eve
     used = np.asarray(last.att_used, bool)
     nis = last.nis_att[used]
     za = last.z_att[used]
+    # E[NIS] = tr(S^-1 (H P H^T + R_enc)) = 3 - floor tr(S^-1): the floor is not in the data (between 2 and 3)
+    Sia = last._smoother_data[8][used]
+    expected = float(np.mean(3.0 - last._enc_floor * np.trace(Sia, axis1=1, axis2=2))) if nis.size else float("nan")
     d["encoder"] = {"sigma_arcsec": float(units.from_si(enc_sig, "arcsec")), "every_steps": every,
                     "updates": int(used.sum()), "nis_mean": float(np.mean(nis)) if nis.size else float("nan"),
-                    "nis_expected": 3.0,
+                    "nis_expected": expected,
                     "residual_rms_arcsec": (units.from_si(np.sqrt(np.mean(za**2, axis=0)), "arcsec").tolist()
                                             if za.size else None)}
 
@@ -1653,5 +1666,5 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
                  p.lever, p.tau, True, bool(states.asynchrony), kinds, axes, js, np.ones(N), np.zeros(3),
                  np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out,
                  p.gim, np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
-                 np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)))
+                 np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
     return out, phinn[0], phinp[0]
