@@ -48,8 +48,10 @@ from .. import units
 from ..turntable import AXES, DEG, Move, Path, PathError, psins19, s16_table1
 from .crlb import Bound, BoundError, Setup, evaluate, make_setup
 
-#: angles of a move [deg] (either sense)
-ANGLES_DEG = (90.0, 180.0, 270.0, 360.0, 720.0)
+#: angles of a move [deg] (either sense): 45-deg positions excite the cross-coupling (f_i f_j) and put
+#: a tilted gyro's g-sensitivity into the well-observed tilt channel; whole turns the lever arms
+ANGLES_DEG = (45.0, 90.0, 135.0, 180.0, 270.0, 360.0, 720.0)
+ANGLE_P = (0.15, 0.35, 0.1, 0.15, 0.05, 0.12, 0.08)
 #: S16 Table 2 "after filter" figures (field units of the groups)
 S16_TABLE2 = {"gyro_g_sensitivity": 0.0002, "accel_nonlinearity": 1.3, "accel_cross_coupling": 1.5,
               "accel_lever_arm": 0.01}
@@ -171,6 +173,18 @@ def _genes_of(path: Path, limits: Limits) -> list:
     return out
 
 
+def seed_genomes(limits: Limits) -> list:
+    """Structured starting points: S16 Table 1 and PSINS-19 (their sequences, dwell weights equal,
+    so the budget compresses them), and S16's sequence after 45-deg offsets of one or both axes."""
+    s16 = _genes_of(s16_table1(rate_dps=5.0), limits)
+    fast = [(ax, a, 1.0, w) for ax, a, _, w in s16]
+    out = [s16, fast, _genes_of(psins19(), limits)]
+    out.append([(0, 45.0, 1.0, 1.0)] + fast)
+    out.append([(0, 45.0, 1.0, 1.0), (1, 45.0, 1.0, 1.0)] + fast)
+    out.append(fast + fast)
+    return out
+
+
 def random_genes(rng: np.random.Generator, limits: Limits, n: int | None = None) -> list:
     axes = [AXES.index(a) for a in limits.axes]
     n = int(rng.integers(8, 31)) if n is None else n
@@ -178,7 +192,7 @@ def random_genes(rng: np.random.Generator, limits: Limits, n: int | None = None)
 
 
 def _random_gene(rng, axes, limits) -> Gene:
-    ang = float(rng.choice(ANGLES_DEG, p=[0.4, 0.25, 0.1, 0.15, 0.1])) * float(rng.choice([-1.0, 1.0]))
+    ang = float(rng.choice(ANGLES_DEG, p=ANGLE_P)) * float(rng.choice([-1.0, 1.0]))
     rf = float(rng.uniform(limits.min_rate_fraction, 1.0)) if rng.random() < 0.5 else 1.0
     return (int(rng.choice(axes)), ang, rf, float(rng.lognormal(0.0, 0.7)))
 
@@ -197,7 +211,7 @@ def mutate(genes: list, rng: np.random.Generator, limits: Limits) -> list:
         if op == 0:
             ax = int(rng.choice(axes))
         elif op == 1:
-            ang = float(rng.choice(ANGLES_DEG)) * float(rng.choice([-1.0, 1.0]))
+            ang = float(rng.choice(ANGLES_DEG, p=ANGLE_P)) * float(rng.choice([-1.0, 1.0]))
         elif op == 2:
             rf = float(np.clip(rf * math.exp(rng.normal(0.0, 0.3)), limits.min_rate_fraction, 1.0))
         elif op == 3:
@@ -424,8 +438,7 @@ def design(minutes: float, states: str = "51", objective: str = "worst-normalise
     try:
         ev.setup(setup, obj, budget, limits)
         lam = max(4, 4 * ev.workers)
-        init = [_genes_of(s16_table1(rate_dps=5.0), limits), _genes_of(psins19(), limits)]
-        init = [g for g in init if g]
+        init = [g for g in seed_genomes(limits) if g]
         while len(init) < mu:
             init.append(random_genes(rng, limits))
         init = init[:min(len(init), candidates)]
