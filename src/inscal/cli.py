@@ -31,6 +31,7 @@ def _root(
 
 #: modules contributing subcommands (each has ``register(app)``)
 _SUBCOMMAND_MODULES = ["cli_simulate", "cli_calibrate", "cli_compensate", "cli_navigate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report", "cli_observability", "cli_import"]
+_SUBCOMMAND_MODULES.append("cli_design")  # inscal design (issue 10): path design from the Cramér-Rao bound
 
 
 def _register_all() -> None:
