@@ -58,12 +58,38 @@ class Interrupted(BaseException):
         self.signum = signum
 
 
+#: the signal being handled (None: not interrupted)
+_PENDING: list[int] = []
+
+
 def _interrupt_handler(signum, frame):  # pragma: no cover - runs in a subprocess (tests/test_signals.py)
+    """SIGINT/SIGTERM (and the SIGALRM re-arm): raise :class:`Interrupted` in the main thread.
+    Python may have to drop it (a handler that runs inside a weakref or ``__del__`` callback), so
+    the writers of :mod:`inscal.io` are told too (they stop at their next chunk), and SIGALRM
+    repeats the raise every 0.2 s until :func:`main` has caught it."""
     import signal
 
-    for s in (signal.SIGINT, signal.SIGTERM):  # a second signal must not cut the cleanup short
-        signal.signal(s, signal.SIG_IGN)
-    raise Interrupted(signum)
+    if _PENDING and isinstance(sys.exc_info()[1], Interrupted):
+        return  # the interrupt is being handled (a cleanup runs): let it finish
+    if not _PENDING:
+        _PENDING.append(signum)
+        try:
+            signal.signal(signal.SIGALRM, _interrupt_handler)
+            signal.setitimer(signal.ITIMER_REAL, 0.2, 0.2)
+        except (ValueError, OSError, AttributeError):
+            pass
+    exc = Interrupted(_PENDING[0])
+    io = sys.modules.get("inscal.io")
+    if io is not None:
+        io.cancel(exc)
+    raise exc
+
+
+def _quiet_unraisable(unraisable) -> None:
+    """Drop the 'Exception ignored in ...' report of an interrupt Python could not propagate."""
+    if isinstance(unraisable.exc_value, Interrupted):
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 def _interrupted(signum: int) -> int:
@@ -71,6 +97,15 @@ def _interrupted(signum: int) -> int:
     (128 + signal number: 130 for SIGINT, 143 for SIGTERM)."""
     import signal
 
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    except (ValueError, OSError, AttributeError):
+        pass
+    for s in (signal.SIGINT, signal.SIGTERM):  # a second signal must not cut the report short
+        try:
+            signal.signal(s, signal.SIG_IGN)
+        except (ValueError, OSError):
+            pass
     name = signal.Signals(signum).name
     removed = []
     io = sys.modules.get("inscal.io")
@@ -95,10 +130,18 @@ def main() -> None:  # console-script entry point
             signal.signal(s, _interrupt_handler)
         except (ValueError, OSError):  # not the main thread: leave the handlers alone
             pass
+    sys.unraisablehook = _quiet_unraisable
     try:
         app(prog_name="inscal")
     except (Interrupted, KeyboardInterrupt) as exc:
-        sys.exit(_interrupted(getattr(exc, "signum", signal.SIGINT)))
+        signum = _PENDING[0] if _PENDING else getattr(exc, "signum", signal.SIGINT)
+        while True:
+            try:
+                code = _interrupted(signum)
+                break
+            except Interrupted:  # the SIGALRM re-arm fired before _interrupted disarmed it
+                continue
+        sys.exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

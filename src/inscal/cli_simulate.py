@@ -15,14 +15,18 @@ from .cliutil import CliError, check_output, fail, print_json, short
 @contextlib.contextmanager
 def progress_bar(description: str, total: int, enabled: bool = True):
     """A Rich progress bar on stderr; yields ``update(done, total)``."""
-    if not enabled:
+    console = None
+    if enabled:
+        from rich.console import Console
+
+        console = Console(stderr=True)
+    if console is None or not console.is_terminal:  # no bar (nor its stray newline) in a log or a pipe
         yield lambda done, tot: None
         return
-    from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                  TimeRemainingColumn(), console=Console(stderr=True), transient=True) as prog:
+                  TimeRemainingColumn(), console=console, transient=True) as prog:
         task = prog.add_task(description, total=total)
         yield lambda done, tot: prog.update(task, completed=done)
 
@@ -60,6 +64,45 @@ def _with_gravity(sc, text: str):
     return replace(sc, site=sc.site.with_gravity(parse_gravity_option(text)))
 
 
+#: bytes a record stores per sample: time (8), dtheta (3 x 8), dvel (3 x 8), gimbal (2 x 8), float64
+BYTES_PER_SAMPLE = 8 * (1 + 3 + 3 + 2)
+#: more samples than this is not a sensible simulation (10^10: 3.2 years at 100 Hz, 720 GB)
+MAX_SAMPLES = 10**10
+#: room kept free beside the record (HDF5 metadata, truth, the file system)
+HEADROOM_BYTES = 64 << 20
+
+
+def _human(nbytes: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if nbytes < 1000 or unit == "PB":
+            return f"{nbytes:.3g} {unit}"
+        nbytes /= 1000
+    return f"{nbytes:.3g} PB"  # pragma: no cover
+
+
+def check_size(sc, out: Path) -> int:
+    """Refuse (one line) a record with an absurd number of samples or one larger than the free
+    space of the output folder, before anything is written.  Returns the estimated bytes."""
+    import shutil
+
+    dur = sc.path.duration
+    n_exact = dur * sc.rate_hz
+    if not math.isfinite(n_exact) or n_exact > MAX_SAMPLES:
+        raise CliError(f"{short(sc.name, 60)}: {n_exact:.3g} samples ({dur / 3600:.3g} h at {sc.rate_hz:g} Hz) is not a "
+                       f"sensible record (at most {MAX_SAMPLES:.0e} samples); check the duration, the rate and the path's angles")
+    n = sc.n_samples
+    need = n * BYTES_PER_SAMPLE
+    folder = out.parent if str(out.parent) else Path(".")
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return need  # the write itself reports an unusable folder
+    if need + HEADROOM_BYTES > free:
+        raise CliError(f"{short(out)} would take about {_human(need)} ({n} samples x {BYTES_PER_SAMPLE} bytes) but "
+                       f"{short(folder)} has {_human(free)} free; shorten --duration-h or lower --rate-hz")
+    return need
+
+
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
                  rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
                  no_noise: bool = False, gravity: str | None = None) -> dict:
@@ -82,6 +125,7 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
 
         sc = replace(sc, noise=ImuNoise())
     check_output(out, force)
+    check_size(sc, out)
     rng = np.random.default_rng(seed)
     with progress_bar(f"simulating {sc.name}", sc.n_samples, show_progress) as upd:
         try:

@@ -85,6 +85,23 @@ class Record:
 _LIVE_PARTS: dict[str, FsPath] = {}
 #: ``(temporary, final path)`` of the temporaries removed after a failure, newest last
 REMOVED_PARTS: list[tuple[str, FsPath]] = []
+#: a pending cancellation (the exception to raise), set by :func:`cancel`
+_CANCEL: list[BaseException] = []
+
+
+def cancel(exc: BaseException) -> None:
+    """Ask the writers and readers of this module to stop: :func:`check_cancel` (called per
+    chunk and before an output is renamed into place) raises ``exc`` from now on.  Used by the
+    SIGINT/SIGTERM handler of :func:`inscal.cli.main`, whose own exception may be swallowed
+    where Python cannot propagate it (a weakref or ``__del__`` callback)."""
+    if not _CANCEL:
+        _CANCEL.append(exc)
+
+
+def check_cancel() -> None:
+    """Raise the pending cancellation, if any (see :func:`cancel`)."""
+    if _CANCEL:
+        raise _CANCEL[0]
 
 
 @contextmanager
@@ -93,7 +110,8 @@ def atomic_path(path, overwrite: bool = False):
 
     Refuses (FileExistsError) if ``path`` exists and not ``overwrite``.  On any
     exception, ``BaseException`` included (KeyboardInterrupt, the interrupt of a SIGTERM),
-    the temporary file is removed and ``path`` is untouched.
+    the temporary file is removed and ``path`` is untouched; a pending :func:`cancel` is raised
+    before the rename, so an interrupted write is never published.
     """
     path = FsPath(path)
     if path.exists() and not overwrite:
@@ -105,32 +123,36 @@ def atomic_path(path, overwrite: bool = False):
         _LIVE_PARTS[tmp] = path
         os.close(fd)
         yield FsPath(tmp)
+        check_cancel()
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; outputs follow the umask like any file
         os.replace(tmp, path)
+        _LIVE_PARTS.pop(tmp, None)
     except BaseException:
         remove_part(tmp)
         raise
-    finally:
-        _LIVE_PARTS.pop(tmp, None)
 
 
 def remove_part(tmp: str) -> bool:
-    """Remove a temporary of :func:`atomic_path` (if still there); True if it was removed."""
+    """Remove a temporary of :func:`atomic_path` (if still there); True if it is gone and was live
+    (an earlier, interrupted removal counts)."""
+    live = tmp in _LIVE_PARTS
     try:
         os.unlink(tmp)
+        gone = True
     except FileNotFoundError:
-        return False
+        gone = live
     except OSError:
-        return False
-    REMOVED_PARTS.append((tmp, _LIVE_PARTS.get(tmp, FsPath(tmp))))
-    return True
+        gone = False
+    if gone and all(t != tmp for t, _ in REMOVED_PARTS):
+        REMOVED_PARTS.append((tmp, _LIVE_PARTS.get(tmp, FsPath(tmp))))
+    _LIVE_PARTS.pop(tmp, None)
+    return gone
 
 
 def remove_live_parts() -> None:
     """Remove every temporary still being written (last resort of an interrupt)."""
     for tmp in list(_LIVE_PARTS):
         remove_part(tmp)
-        _LIVE_PARTS.pop(tmp, None)
 
 
 def _umask() -> int:
@@ -200,6 +222,7 @@ def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extr
             for key, val in (extra_attrs or {}).items():
                 h5.attrs[key] = val
             for t, dth, dv, g in chunks:
+                check_cancel()
                 sl = slice(k, k + t.shape[0])
                 h5["time"][sl] = t
                 h5["dtheta"][sl] = dth
@@ -405,6 +428,7 @@ def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, n
         n = h5["time"].shape[0]
         last_t = None
         for k0 in range(0, n, chunk_size):
+            check_cancel()
             sl = slice(k0, min(n, k0 + chunk_size))
             try:
                 t = h5["time"][sl]
