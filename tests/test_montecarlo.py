@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 
 import numpy as np
@@ -461,3 +462,71 @@ def test_worker_kernels_are_cached_on_disk():
                 found += 1
                 assert not isinstance(obj._cache, NullCache), f"{name}.{obj.__name__} is not cache=True"
     assert found >= 3 and inscal.__version__
+
+
+# ------------------------------------------------------------------ progress ETA and the table
+def test_eta_is_mean_run_time_times_runs_left_over_workers(capsys):
+    bar = mc._Progress(10, "eta", enabled=True, workers=2)  # stderr is not a terminal: plain lines
+    assert bar.eta_s() is None
+    bar.advance(2, 0, 6.0)  # 3 s per run so far
+    assert bar.eta_s() == pytest.approx(3.0 * 8 / 2)
+    bar.advance(3, 1, 3.0)  # 9 s over 5 runs
+    assert bar.eta_s() == pytest.approx(9.0 / 5 * 5 / 2)
+    bar.workers = 1
+    assert bar.eta_s() == pytest.approx(9.0)
+    bar.close()
+    err = capsys.readouterr().err
+    assert "about 12 s left (3 s per run, 2 workers)" in err and "1 failed" in err
+    assert mc._duration(42) == "42 s" and mc._duration(185) == "3 min 05 s" and mc._duration(7620) == "2 h 07 min"
+
+
+def _wide_summary():
+    rng = np.random.default_rng(3)
+    methods = ["n25", "six-position", "joint", "systematic30"]
+    cols = [("parameter", "parameter"), ("unit", "unit")]
+    for m in methods:
+        cols += [(f"{m}_bias", f"{m} bias"), (f"{m}_std", f"{m} std")]
+    rows = []
+    for name in ("gyro_scale_factor.x", "accel_misalignment.xy", "gimbal_nonorthogonality", "accel_bias.z"):
+        row = {"parameter": name, "unit": "arcsec"}
+        for m in methods:
+            row[f"{m}_bias"] = float(rng.normal() * 10.0 ** rng.integers(-6, 5))
+            row[f"{m}_std"] = float(abs(rng.normal()) * 10.0 ** rng.integers(-6, 5))
+        rows.append(row)
+    rows[0]["joint_bias"] = None
+    rows[1]["n25_std"] = 123456.789
+    return mc.Summary("n25-schemes: calibration error (estimate - truth), 200 runs, dθ = 20″", cols, rows,
+                      ["a note long enough to wrap at eighty columns " * 3])
+
+
+@pytest.mark.parametrize("columns", [80, 120])
+def test_summary_table_fits_the_terminal_without_cutting_numbers(columns, monkeypatch):
+    import io as _io
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    s = _wide_summary()
+    buf = _io.StringIO()
+    mc.format_table(s, file=buf)
+    text = buf.getvalue()
+    assert "…" not in text
+    assert max(len(line) for line in text.splitlines()) <= columns
+    for row in s.rows:  # every number in full (3-4 significant digits), on one line
+        for k, _ in s.columns:
+            cell = mc._fmt(row.get(k))
+            assert (k in ("parameter", "unit") or len(cell) <= 9) and re.search(
+                rf"(^|\s){re.escape(cell)}(\s|$)", text, re.M), (k, cell)
+    assert mc._fmt(123456.789) == "1.23e5" and mc._fmt(0.000968) == "0.000968" and mc._fmt(-1.234e-6) == "-1.23e-6" and mc._fmt(-0.07524) == "-0.07524"
+    if columns == 80:
+        assert "(part 2 of" in text  # split, with the parameter and unit repeated
+        assert text.count("gimbal_nonorthogonality") >= 2
+
+
+def test_cli_table_at_80_columns(tmp_path):
+    from typer.testing import CliRunner
+
+    from inscal.cli import app
+
+    r = CliRunner().invoke(app, ["montecarlo", "test-dummy", "--runs", "3", "--out", str(tmp_path / "s"), "--no-dask"],
+                           env={"COLUMNS": "80"})
+    assert r.exit_code == 0, r.output
+    assert "…" not in r.stdout and max(len(line) for line in r.stdout.splitlines()[:-1]) <= 80

@@ -43,9 +43,8 @@ def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool
         r = run_simulate(name, out / f"{name}.h5", seed=seed, force=force, show_progress=show_progress)
         res["steps"][f"simulate_{name}"] = r
         log(f"simulated {name}: {r['samples']} samples, {r['duration_s'] / 3600:.2f} h -> {r['out']}")
-    from .cli_allan import run_allan
-
     from . import io, units
+    from .cli_allan import run_allan
 
     a = run_allan(out / "n25.h5", 0.0, 100.0)
     noise = io.record_info(out / "n25.h5").truth.noise
@@ -89,7 +88,6 @@ def _report_stage(out, force, log, res, t0):
 
 def _calibrate_stage(out, force, seed, quick, show_progress, log, res):
     """Calibrate the N25 record with the traditional six-position scheme, the N25 method and the joint fit."""
-    from . import units
     from .cli_calibrate import run_calibrate
 
     res["steps"]["calibrate"] = {}

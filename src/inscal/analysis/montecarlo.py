@@ -471,23 +471,25 @@ def _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, f
                             fresh_done += 1
                             fresh_failed += "error" in rec
                     n_new += len(recs)
-                    bar.advance(len(recs), sum(1 for r in recs if "error" in r))
+                    bar.advance(len(recs), sum(1 for r in recs if "error" in r),
+                                sum(float(r.get("elapsed_s") or 0.0) for r in recs))
                     if fail_fast and fresh_failed == fresh_done >= fail_fast:
                         first = next(r["error"] for r in recs if "error" in r)
                         raise StudyError(f"the first {fresh_done} new runs all failed, stopping the study; first error: {first}")
 
                 if scheduler in ("synchronous", "sync"):
+                    bar.workers = 1
                     for it in pending:
                         sink([_run_one(experiment, *it)])
                 else:
-                    _run_dask(experiment, pending, scheduler, workers, batch_size, sink)
+                    _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar)
             finally:
                 bar.close()
                 appender.close()
     return StudyResult(out, header, records, int(runs), n_new, time.perf_counter() - t0, stopped)
 
 
-def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None:
+def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=None) -> None:
     import logging
     import warnings
 
@@ -509,6 +511,8 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None
             raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
     try:
         n_workers = max(1, sum(client.nthreads().values()))
+        if bar is not None:
+            bar.workers = n_workers
         bs = batch_size or default_batch_size(len(pending), n_workers)
         exp_future = client.scatter(experiment, broadcast=True)
         futures = [client.submit(run_batch, exp_future, b, pure=False) for b in make_batches(pending, bs)]
@@ -529,15 +533,31 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink) -> None
             cluster.close()
 
 
+def _duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
+    s = int(round(max(0.0, seconds)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
 class _Progress:
     """Progress on stderr: a Rich bar on a terminal; otherwise (a log file, CI) a plain
-    line at every 10 % and at most every 30 s.  Nothing when disabled."""
+    line at every 10 % and at most every 30 s.  Nothing when disabled.
 
-    def __init__(self, total: int, name: str, enabled: bool):
+    The time left is the mean run time so far (each run's own ``elapsed_s``) x the runs left /
+    the workers (``workers``: set by the runner once the cluster is known), not the wall-clock
+    rate, which the start of a cluster and the first (compiling) runs distort."""
+
+    def __init__(self, total: int, name: str, enabled: bool, workers: int = 1):
         self.p = None
         self.plain = False
         self.failed = 0
         self.done = 0
+        self.run_s = 0.0
+        self.workers = workers
         self.total = total
         self.name = name
         self.t0 = self.t_last = time.perf_counter()
@@ -545,29 +565,39 @@ class _Progress:
         if not enabled:
             return
         from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         con = Console(stderr=True)
         if not con.is_terminal:
             self.plain = True
             return
         self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]}"),
-                          TimeElapsedColumn(), TimeRemainingColumn(), console=con, transient=False)
+                          TimeElapsedColumn(), TextColumn("{task.fields[eta]}"), console=con, transient=False)
         self.p.start()
-        self.task = self.p.add_task(name, total=total, failed="")
+        self.task = self.p.add_task(name, total=total, failed="", eta="")
 
-    def advance(self, n: int, failed: int) -> None:
+    def eta_s(self) -> float | None:
+        """Seconds left: mean run time x runs left / workers (None before the first run)."""
+        if self.done == 0:
+            return None
+        return self.run_s / self.done * (self.total - self.done) / max(1, self.workers)
+
+    def advance(self, n: int, failed: int, run_seconds: float = 0.0) -> None:
         self.failed += failed
         self.done += n
+        self.run_s += run_seconds
+        eta = self.eta_s()
         if self.p is not None:
-            self.p.update(self.task, advance=n, failed=f"{self.failed} failed" if self.failed else "")
+            self.p.update(self.task, advance=n, failed=f"{self.failed} failed" if self.failed else "",
+                          eta="" if eta is None else f"~{_duration(eta)} left")
         elif self.plain:
             now = time.perf_counter()
             pct = 100 * self.done / max(1, self.total)
             if pct >= self.next_pct or now - self.t_last >= 30 or self.done == self.total:
                 el = now - self.t0
-                eta = el / self.done * (self.total - self.done)
-                print(f"{self.name}: {self.done}/{self.total} runs ({pct:.0f} %), {el:.0f} s elapsed, about {eta:.0f} s left"
+                print(f"{self.name}: {self.done}/{self.total} runs ({pct:.0f} %), {_duration(el)} elapsed, about "
+                      f"{_duration(eta or 0.0)} left ({self.run_s / max(1, self.done):.3g} s per run, {self.workers} "
+                      f"worker{'s' if self.workers != 1 else ''})"
                       + (f", {self.failed} failed" if self.failed else ""), file=sys.stderr, flush=True)
                 self.t_last = now
                 while self.next_pct <= pct:
@@ -658,30 +688,76 @@ def load_study(out, runs: int | None = None) -> tuple[Experiment, StudyResult]:
     return exp, StudyResult(Path(out), header, records, runs, 0, 0.0)
 
 
-def format_table(summary: Summary, file=None):
-    """Print the summary as a Rich table (stdout by default)."""
+def format_table(summary: Summary, file=None, width: int | None = None):
+    """Print the summary as Rich table(s) (stdout by default) that fit ``width`` columns (default:
+    ``$COLUMNS``, else the terminal's width, else 80) without cutting a number: numbers with 4
+    significant digits, headers wrap at spaces, and a table too wide is split into parts that
+    repeat the leading label columns (parameter, unit)."""
+    import shutil
+
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
-    t = Table(title=summary.title)
-    for _, h in summary.columns:
-        t.add_column(h, justify="right")
-    for row in summary.rows:
-        t.add_row(*[_fmt(row.get(k)) for k, _ in summary.columns])
     f = file or sys.stdout
-    con = Console(file=f, width=None if f.isatty() else 200)
-    con.print(t)
+    if width is None:
+        width = shutil.get_terminal_size((80, 24)).columns
+    width = max(40, int(width))
+    con = Console(file=f, width=width, soft_wrap=False, highlight=False)
+    cols = list(summary.columns)
+    cells = [[_fmt(row.get(k)) for k, _ in cols] for row in summary.rows]
+    # leading label columns (no numbers in them): repeated in every part
+    nkey = 0
+    for i, (k, _) in enumerate(cols[:-1]):
+        if i >= 2 or any(isinstance(row.get(k), (int, float)) and not isinstance(row.get(k), bool) for row in summary.rows):
+            break
+        nkey = i + 1
+
+    import io as _io
+
+    def need(i) -> int:  # a column's width: its widest cell, or its header's longest word
+        words = cols[i][1].split()
+        return max([len(c[i]) for c in cells] + [max((len(w) for w in words), default=1)])
+
+    def table(idx, title=None):
+        t = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, title_justify="left")
+        for i in idx:
+            t.add_column(cols[i][1], justify="left" if i < nkey else "right", width=need(i), overflow="fold")
+        for c in cells:
+            t.add_row(*[c[i] for i in idx])
+        return t
+
+    def fits(idx) -> bool:
+        buf = _io.StringIO()
+        Console(file=buf, width=10 * width, soft_wrap=False).print(table(idx))
+        return max((len(line) for line in buf.getvalue().splitlines()), default=0) <= width
+
+    keys = list(range(nkey))
+    parts, cur = [], []
+    for i in range(nkey, len(cols)):
+        if cur and not fits(keys + cur + [i]):
+            parts.append(cur)
+            cur = []
+        cur.append(i)
+    parts.append(cur)
+    for n, part in enumerate(parts):
+        title = summary.title if len(parts) == 1 else f"{summary.title} (part {n + 1} of {len(parts)})"
+        con.print(table(keys + part, title))
     for n in summary.notes:
         con.print(f"note: {n}")
 
 
 def _fmt(v) -> str:
+    """A table cell: 4 significant digits (an exponent only outside 1e-3 .. 1e5, as ``1.23e-5``)."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
+    if isinstance(v, bool):
+        return str(v)
     if isinstance(v, float):
         if v == 0 or 1e-3 <= abs(v) < 1e5:
             return f"{v:.4g}"
-        return f"{v:.3e}"
+        m, e = f"{v:.3g}".split("e") if "e" in f"{v:.3g}" else (f"{v:.3g}", "")
+        return m + (f"e{int(e)}" if e else "")
     return str(v)
 
 
