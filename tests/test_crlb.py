@@ -143,7 +143,7 @@ def test_extra_rows_hook(monkeypatch):
     s = units.to_si(0.01, "ug")
     off = StateSet().offsets()["accel_bias"]
 
-    def rows(st, sc, t):
+    def rows(st, sc, t, options):
         H = np.zeros((t.size, 1, st.n_states))
         H[:, 0, off] = 1.0
         return H, np.full((t.size, 1), s * s)
@@ -212,3 +212,12 @@ def test_bound_vs_monte_carlo_psins19():
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert 0.6 < rms < 1.5, rms
     assert np.all(s <= b.sigma * (1 + 1e-9))  # a fixed truth spreads at most as much as the Bayesian bound
+
+
+def test_unified_encoder_rows_match_the_filter():
+    """The unified state set (58 states: gimbal non-orthogonality and mount attitude observed through the
+    encoder attitude rows, plugged in with register_rows): the bound = observability() within 1 %."""
+    b = C.crlb("psins19", "unified")
+    o = observability("psins19", "unified")
+    assert b.setup.states.n_states == 58 and "mount_attitude[gamma0]" in b.labels
+    assert np.max(np.abs(b.sigma / np.sqrt(np.diag(o.covariance)) - 1)) < 0.01

@@ -133,19 +133,52 @@ _ROW_BUILDERS: list[tuple[Callable, Callable]] = []
 
 
 def register_rows(applies: Callable[[StateSet], bool], builder: Callable) -> None:
-    """Plug in a state set's extra measurement rows.  ``builder(states, scenario, t)`` gets the
-    :class:`StateSet`, the :class:`~inscal.simulate.Scenario` and the update times ``t`` (M,)
-    [s] (the end of each filter step) and returns ``(H, r)``: rows ``H`` (M, m, n_states) on the
-    physical error state (navigation first, then the parameters in ``states.groups`` order) and
-    their noise variances ``r`` (M, m).  Used for every state set where ``applies(states)``."""
+    """Plug in a state set's extra measurement rows.  ``builder(states, scenario, t, options)`` gets
+    the :class:`StateSet`, the :class:`~inscal.simulate.Scenario`, the update times ``t`` (M,) [s]
+    (the end of each filter step) and the setup's ``row_options`` dict, and returns ``(H, r)``:
+    rows ``H`` (M, m, n_states) on the physical error state (navigation first, then the parameters
+    in ``states.groups`` order) and their noise variances ``r`` (M, m), independent rows (whiten
+    correlated ones first).  Used for every state set where ``applies(states)``."""
     _ROW_BUILDERS.append((applies, builder))
 
 
-def _extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray):
+def encoder_rows(st: StateSet, sc, t: np.ndarray, options: dict):
+    """The unified model's encoder attitude rows (:mod:`inscal.calibrate.unified`, the systematic
+    filter's ``gimbal`` option): ``z = vee(C_nav C_pred^T) ~ phi - psi(d dth, d alpha0, d beta0,
+    d gamma0)`` with ``R = s^2 (a a^T + c c^T) + (s/10)^2 I`` at the path's encoder angles at the end
+    of each step, linearised at the scenario's gimbal geometry (:func:`~inscal.calibrate.systematic._gimbal_attitude`);
+    whitened by the Cholesky factor of ``R`` (three independent unit-variance rows).
+    ``options["encoder_sigma"]``: encoder white noise [rad] (default the filter's 1")."""
+    from .systematic import ENCODER_SIGMA, K_GIM, _gimbal_attitude
+
+    s = float(options.get("encoder_sigma") or ENCODER_SIGMA)
+    th, _, _ = sc.path.segments().angles(t)
+    gim = np.concatenate([[sc.gimbal.nonorthogonality], np.asarray(sc.gimbal.mount_attitude, float)])
+    kinds, _, js = st.columns()
+    cols = [(N_NAV + c, int(js[c])) for c in range(kinds.size) if kinds[c] == K_GIM]
+    M = t.size
+    # a, c, Hg and R depend on the outer angle only (not on the inner one): one evaluation per distinct angle
+    tx_u, inv = np.unique(th[:, 0], return_inverse=True)
+    Hu = np.zeros((tx_u.size, 3, st.n_states))
+    Cp, a, c3, Hg = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 4))
+    for k, tx in enumerate(tx_u):
+        _gimbal_attitude(gim, float(tx), 0.0, Cp, a, c3, Hg)
+        R = s * s * (np.outer(a, a) + np.outer(c3, c3)) + 0.01 * s * s * np.eye(3)
+        Li = np.linalg.inv(np.linalg.cholesky(R))
+        Hk = np.zeros((3, st.n_states))
+        Hk[:, 0:3] = np.eye(3)
+        for col, j in cols:
+            Hk[:, col] = -Hg[:, j]
+        Hu[k] = Li @ Hk
+    H = Hu[inv.ravel()]
+    return H, np.ones((M, 3))
+
+
+def _extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray, options: dict | None = None):
     Hs, rs = [], []
     for applies, builder in _ROW_BUILDERS:
         if applies(st):
-            H, r = builder(st, sc, t)
+            H, r = builder(st, sc, t, options or {})
             H = np.asarray(H, float)
             r = np.asarray(r, float)
             if H.ndim != 3 or H.shape[0] != t.size or H.shape[2] != st.n_states or r.shape != H.shape[:2]:
@@ -158,6 +191,9 @@ def _extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray):
     H = np.concatenate(Hs, axis=1)
     r = np.concatenate(rs, axis=1)
     return H, r
+
+
+register_rows(lambda st: bool(getattr(st, "gimbal", False)), encoder_rows)
 
 
 # ----------------------------------------------------------------------------- kinematics
@@ -520,6 +556,7 @@ class Setup:
     position_sigma: float
     floored: bool
     need_rates: bool
+    row_options: dict  # options of the extra measurement rows (e.g. encoder_sigma)
     labels: tuple[str, ...]  # parameter labels (without GM states)
     groups: tuple[str, ...]  # group of each parameter
     units_: tuple[str, ...]  # field unit of each parameter
@@ -542,12 +579,13 @@ class Setup:
 def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, vrw=None,
                bias_noise: BiasNoise | None = None, filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ,
                prior: dict | None = None, velocity_sigma: float | None = None,
-               position_sigma: float | None = None) -> Setup:
+               position_sigma: float | None = None, encoder_sigma: float | None = None) -> Setup:
     """The path-independent part of a bound (:class:`Setup`).  ``site``: a
     :class:`~inscal.simulate.Site` (default S16's, 30 N 114 E); ``gimbal``: a
     :class:`~inscal.errors.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
     [m/s/sqrt(s)], scalar or per axis (default S16's 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz));
-    ``prior``: prior 1 sigma per group (SI; default the groups' own)."""
+    ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
+    encoder noise of the gimbal states' attitude rows (default the filter's)."""
     from ..errors import GimbalErrors
     from ..scenarios import S16_SITE
     from .observability import DEFAULT_ARW, DEFAULT_VRW
@@ -639,7 +677,8 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     r = np.array([vsig**2] * 3 + [psig**2] * 3)
     rs = r / sig[3:9] ** 2
     return Setup(st, site, gimbal, arw_v, vrw_v, bias, T, n_sub, sig, n_gm, kinds, axes, js, phinn, F, F2, qd, rs,
-                 phi_p, q_p, vsig, psig, floored, need_rates, tuple(labels), tuple(groups), tuple(unit_l))
+                 phi_p, q_p, vsig, psig, floored, need_rates, {"encoder_sigma": encoder_sigma}, tuple(labels),
+                 tuple(groups), tuple(unit_l))
 
 
 @dataclass(frozen=True)
@@ -736,7 +775,8 @@ def evaluate(setup: Setup, path: Path, keep_history: bool = True) -> Bound:
     Cbn = dcm_from_euler(setup.gimbal.mount_attitude)
     wie = earth.earth_rate_n(setup.site.latitude)
     t_up = (np.arange(M) + 1.0) * T
-    xH, xr = _extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states])
+    xH, xr = _extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states],
+                         setup.row_options)
     if xH.shape[1]:
         pad = N - setup.states.n_states
         if pad:
