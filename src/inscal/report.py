@@ -390,7 +390,10 @@ def _param_rows(methods: dict[str, dict], truth: dict[str, dict] | None = None):
                 si = None if s is None or i >= s.size else float(s[i])
                 if si is not None and not np.isfinite(si):
                     si = None
-                fixed = ei is not None and si is None and p.get("sigma") is not None and ei == 0.0
+                if ei is not None and not np.isfinite(ei):
+                    ei = None
+                # a component the method fixes (by its frame definition or model): no error, no sigma
+                fixed = e is not None and ei is None and si is None
                 row += [_num(vconv(v[i]), 7 if big else 4) if i < v.size else "—",
                         ("html", "<i>fixed</i>", " class='na'") if fixed else _num(ei), _num(si), _z_cell(ei, si)]
             rows.append(row)
