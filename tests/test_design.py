@@ -66,7 +66,7 @@ def test_search_improves_and_is_seeded():
     b = D.design(12, candidates=16, population=4, seed=5, scheduler="none")
     assert a.path == b.path and a.value == b.value
     assert all(y <= x + 1e-12 for x, y in zip(a.trace, a.trace[1:]))
-    assert a.value == pytest.approx(a.trace[-1])
+    assert a.value <= a.trace[-1] + 1e-12 and a.trace[-1] == pytest.approx(a.objective.score(a.bound.sigma))
     assert a.path.duration == pytest.approx(720.0)
     assert a.evaluations == 16
 

@@ -25,6 +25,41 @@ def _range(opt: str, v: str | None):
     return (float(units.to_si(lo, "deg")), float(units.to_si(hi, "deg")))
 
 
+class _Progress:
+    """Search progress on stderr: a Rich bar with the best score on a terminal; otherwise (a log, CI)
+    a plain line at every 10 % of the candidates."""
+
+    def __init__(self, total: int, name: str):
+        import sys
+
+        from rich.console import Console
+
+        self.total, self.name, self.next_pct, self.p = total, name, 10, None
+        self.err = sys.stderr
+        con = Console(stderr=True)
+        if con.is_terminal:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                              TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=con)
+            self.p.start()
+            self.task = self.p.add_task(name, total=total, best="-")
+
+    def update(self, done: int, total: int, best: float) -> None:
+        if self.p is not None:
+            self.p.update(self.task, completed=done, best=f"{best:.4g}")
+            return
+        pct = 100.0 * done / max(1, total)
+        if pct >= self.next_pct or done == total:
+            print(f"{self.name}: {done}/{total} candidates, best score {best:.4g}", file=self.err, flush=True)
+            while self.next_pct <= pct:
+                self.next_pct += 10
+
+    def close(self) -> None:
+        if self.p is not None:
+            self.p.stop()
+
+
 def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | None) -> dict:
     """The scenario TOML document of a designed path: ``base`` (a built-in scenario: IMU errors,
     site, gimbal, noise) with the designed ``[path]``; ``[noise]`` only when ARW/VRW are overridden
@@ -91,19 +126,10 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
         setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise))
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    bar = None
-    if progress:
-        from .analysis.montecarlo import _Progress
-
-        bar = _Progress(candidates, f"design {minutes:g} min", enabled=True)
-        state = {"done": 0}
-
-        def prog(done, total, best):
-            bar.advance(done - state["done"], 0)
-            state["done"] = done
+    bar = _Progress(candidates, f"design {minutes:g} min") if progress else None
     try:
         res = design(minutes, states, objective, targets, groups, limits, seed, candidates, population,
-                     scheduler, workers, setup, prog if bar else None, name)
+                     scheduler, workers, setup, bar.update if bar else None, name)
     except (DesignError, BoundError) as exc:
         raise CliError(str(exc)) from None
     finally:
