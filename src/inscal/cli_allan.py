@@ -8,7 +8,7 @@ import numpy as np
 import typer
 
 from . import units
-from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record, short
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, short
 
 #: plot formats (from the --plot suffix)
 PLOT_FORMATS = ("png", "pdf", "svg")
@@ -18,35 +18,87 @@ def motion_warning(rec, sel) -> str | None:
     """One line when the window ``sel`` of ``rec`` is not static: the gyro rate (block means of
     about 1 s) departs from its median by more than 10x the Earth rate (and 6x its noise) in more
     than 1 % of the window, or the gimbal angles change by more than 1 mrad."""
-    from .earth import OMEGA_IE
+    mot = MotionStats(int(sel.sum()), rec.rate_hz)
+    mot.update(np.asarray(rec.dtheta[sel], dtype=float),
+               None if getattr(rec, "gimbal", None) is None else np.asarray(rec.gimbal[sel], dtype=float))
+    return mot.warning()
 
-    n = int(sel.sum())
-    m = max(1, min(n // 20, int(round(rec.rate_hz))))  # ~1 s blocks (at least 20 of them)
-    k = n // m
-    rates = np.asarray(rec.dtheta[sel], dtype=float)[: k * m].reshape(k, m, 3).sum(axis=1) * rec.rate_hz / m
-    dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
-    d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
-    sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
-    thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
-    frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
-    moving = frac > 0.01
-    why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
-    if not moving and getattr(rec, "gimbal", None) is not None:
-        g = np.asarray(rec.gimbal[sel], dtype=float)
-        span = float(np.max(np.ptp(g, axis=0))) if g.size else 0.0
-        if span > 1e-3:
-            moving, why = True, f"the gimbal turns by {np.degrees(span):.3g} deg in it"
-    if not moving:
-        return None
-    return (f"the window is not static ({why}): the Allan deviation mixes rotation into the noise; "
-            "use --start/--stop on a static part of the record")
+
+class MotionStats:
+    """What :func:`motion_warning` needs, gathered chunk by chunk: the gyro increments summed over
+    blocks of about 1 s (at least 20 blocks) and the span of the gimbal angles."""
+
+    def __init__(self, n: int, rate_hz: float):
+        self.rate_hz = rate_hz
+        self.m = max(1, min(n // 20, int(round(rate_hz))))  # ~1 s blocks (at least 20 of them)
+        self.k = n // self.m
+        self.sums = np.empty((self.k, 3))
+        self.nb = 0
+        self.rest = np.zeros((0, 3))
+        self.gmin = self.gmax = None
+
+    def update(self, dtheta, gimbal=None) -> None:
+        if self.nb < self.k:
+            x = np.concatenate([self.rest, dtheta]) if self.rest.shape[0] else dtheta
+            nfull = min(x.shape[0] // self.m, self.k - self.nb)
+            take = nfull * self.m
+            self.sums[self.nb: self.nb + nfull] = x[:take].reshape(nfull, self.m, 3).sum(axis=1)
+            self.nb += nfull
+            self.rest = x[take:] if self.nb < self.k else np.zeros((0, 3))
+        if gimbal is not None and gimbal.shape[0]:
+            lo, hi = gimbal.min(axis=0), gimbal.max(axis=0)
+            self.gmin = lo if self.gmin is None else np.minimum(self.gmin, lo)
+            self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
+
+    def warning(self) -> str | None:
+        from .earth import OMEGA_IE
+
+        k, m = self.k, self.m
+        rates = self.sums[: self.nb] * self.rate_hz / m
+        dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
+        d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
+        sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
+        thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
+        frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
+        moving = frac > 0.01
+        why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
+        if not moving and self.gmin is not None:
+            span = float(np.max(self.gmax - self.gmin))
+            if span > 1e-3:
+                moving, why = True, f"the gimbal turns by {np.degrees(span):.3g} deg in it"
+        if not moving:
+            return None
+        return (f"the window is not static ({why}): the Allan deviation mixes rotation into the noise; "
+                "use --start/--stop on a static part of the record")
+
+
+def stream_allan(data: Path, win, chunk_size: int = 1 << 18):
+    """Gyro and accelerometer Allan deviations of the window ``win`` (:func:`inscal.io.record_window`)
+    and its motion statistics, streamed in chunks: two passes (gyro with /time and /gimbal, then
+    accelerometers), so memory holds about a quarter of one sensor's window, never the record.
+    Returns ``(gyro AllanResult, accel AllanResult, MotionStats, (t_first, t_last))``."""
+    from . import io
+    from .analysis.allan import StreamingAllan
+
+    n = win.n
+    gyro, accel, mot = StreamingAllan(n, win.rate_hz), StreamingAllan(n, win.rate_hz), MotionStats(n, win.rate_hz)
+    t_first = t_last = None
+    for t, dth, g in io.iter_window(data, ("time", "dtheta", "gimbal"), win.i0, win.i1, chunk_size):
+        t_first = float(t[0]) if t_first is None else t_first
+        t_last = float(t[-1])
+        gyro.update(dth)
+        mot.update(dth, g)
+    for (dv,) in io.iter_window(data, ("dvel",), win.i0, win.i1, chunk_size):
+        accel.update(dv)
+    return gyro.result(), accel.result(), mot, (t_first, t_last)
 
 
 def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plot: Path | None = None,
               force: bool = False, warn=None) -> dict:
     """Allan deviation of a window of ``data``; ``warn(line)`` is called for a window that is not
-    static (the warning is also in the result's ``warnings``)."""
-    from .analysis.allan import allan
+    static (the warning is also in the result's ``warnings``).  The record is streamed in chunks
+    (bounded memory, multi-day records included)."""
+    from . import io
 
     if plot is not None:
         fmt = plot.suffix.lower().lstrip(".")
@@ -55,22 +107,27 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
                            f"use a .png, .pdf or .svg name")
         check_output(plot, force)
         check_not_input(plot, data, what="--plot")
-    rec = read_record(data)
-    t = rec.time
-    sel = (t > start_s) & (t <= (stop_s if stop_s is not None else np.inf))
-    if sel.sum() < 1000:
-        raise CliError(f"only {int(sel.sum())} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+    for name, v in (("--start", start_s), ("--stop", stop_s)):
+        if v is not None and not np.isfinite(v):
+            raise CliError(f"{name} must be a finite time in s, got {v}")
+    try:
+        win = io.record_window(data, start_s, stop_s)
+        if win.n < 1000:
+            raise CliError(f"only {win.n} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+        g, a, mot, (t0, t1) = stream_allan(data, win)
+    except io.DataFileError as exc:
+        raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
     warnings = []
-    w = motion_warning(rec, sel)
+    w = mot.warning()
     if w:
         warnings.append(w)
         if warn is not None:
             warn(w)
-    g = allan(rec.dtheta[sel], rec.rate_hz)
-    a = allan(rec.dvel[sel], rec.rate_hz)
     res = {
         "data": str(data),
-        "window_s": [float(t[sel][0] - 1 / rec.rate_hz), float(t[sel][-1])],
+        "window_s": [float(t0 - 1 / win.rate_hz), float(t1)],
         "taus_s": g.taus,
         "gyro_adev_deg_h": units.from_si(g.adev, "deg/h").T,
         "accel_adev_ug": units.from_si(a.adev, "ug").T,

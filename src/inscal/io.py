@@ -447,6 +447,96 @@ def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, n
             yield t, dth, dv, g
 
 
+#: columns of the sample datasets (None: 1-D)
+_COLUMNS = {"time": None, "dtheta": 3, "dvel": 3, "gimbal": 2}
+
+
+def check_datasets(h5, path) -> int:
+    """Shapes and types of a record's sample datasets, checked without reading them (floating point,
+    (N,), (N, 3), (N, 3), (N, 2)); returns N.  :class:`DataFileError` names what is wrong."""
+    n = None
+    for name, cols in _COLUMNS.items():
+        if name not in h5:
+            continue
+        ds = h5[name]
+        if not isinstance(ds, h5py.Dataset):
+            raise DataFileError(f"{path}: /{name} is not a dataset")
+        if not np.issubdtype(ds.dtype, np.floating):
+            raise DataFileError(f"{path}: {name} must be floating point (SI units: {UNITS[name]}), got {ds.dtype}")
+        if n is None:
+            n = int(ds.shape[0]) if len(ds.shape) == 1 else -1
+            if n < 0:
+                raise DataFileError(f"{path}: time must be a 1-D array, got shape {ds.shape}")
+        elif ds.shape != (n, cols):
+            raise DataFileError(f"{path}: {name} has shape {ds.shape}, expected ({n}, {cols}) to match time")
+    return int(n)
+
+
+@dataclass(frozen=True)
+class Window:
+    """The samples ``i0 .. i1 - 1`` of a record whose time lies in ``(start_s, stop_s]``."""
+
+    path: str
+    n_total: int
+    rate_hz: float
+    i0: int
+    i1: int
+    has_gimbal: bool
+
+    @property
+    def n(self) -> int:
+        return self.i1 - self.i0
+
+
+def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Window:
+    """Locate the samples with ``start_s < time <= stop_s`` by bisection of /time (a few reads,
+    not the whole record), after the layout checks of :func:`check_datasets`.  The samples
+    themselves are validated as they are streamed (:func:`iter_window`)."""
+    import bisect
+
+    with _open(path) as h5:
+        rate = _rate(h5, path)
+        n = check_datasets(h5, path)
+        if not (math.isfinite(rate) and rate > 0):
+            raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
+        t = h5["time"]
+        try:
+            i0 = bisect.bisect_right(t, start_s)
+            i1 = n if stop_s is None else bisect.bisect_right(t, stop_s)
+        except OSError as exc:
+            raise DataFileError(f"{path}: cannot read /time (truncated file?): {exc}") from None
+        return Window(str(path), n, rate, i0, max(i0, i1), "gimbal" in h5)
+
+
+def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int = 1 << 18) -> Iterator[tuple]:
+    """Yield tuples of the datasets ``names`` (None for an absent gimbal) over samples ``i0 .. i1 - 1``,
+    one chunk at a time (bounded memory); each chunk is checked (finite values; /time uniform at
+    rate_hz, across chunk boundaries too, when "time" is among ``names``)."""
+    with _open(path) as h5:
+        rate = _rate(h5, path)
+        check_datasets(h5, path)
+        last_t = None
+        for k0 in range(i0, i1, chunk_size):
+            check_cancel()
+            sl = slice(k0, min(i1, k0 + chunk_size))
+            try:
+                out = tuple(h5[nm][sl] if nm in h5 else None for nm in names)
+            except OSError as exc:
+                raise DataFileError(f"{path}: cannot read samples {sl.start}..{sl.stop} (truncated file?): {exc}") from None
+            for nm, a in zip(names, out):
+                if a is None:
+                    continue
+                if not np.all(np.isfinite(a)):
+                    bad = ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+                    raise DataFileError(f"{path}: {nm} has NaN/inf value(s), first at sample {sl.start + int(np.argmax(bad))}")
+                if nm == "time":
+                    tt = a if last_t is None else np.concatenate([[last_t], a])
+                    if tt.shape[0] >= 2:
+                        validate_arrays(tt, None, None, None, rate, where=f"{path} samples {sl.start}..{sl.stop}")
+                    last_t = a[-1]
+            yield out
+
+
 def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
     """Rebuild the simulation scenario of a simulated record (for truth trajectories)."""
     if rec.truth is None or rec.path is None:
