@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from inscal.calibrate import crlb as C
-from inscal.turntable import Move, Path, rotmod16, s16_table1, psins19
+from inscal.turntable import Path, psins19, rotmod16, s16_table1
 
 TARGET_S = 0.2
 

@@ -330,7 +330,7 @@ def evaluate_genes(setup: Setup, objective: Objective, budget: float, limits: Li
             path, kept = build_path(genes, budget, limits)
             b = evaluate(setup, path, keep_history=False)
             out.append((objective.score(b.sigma), b.sigma, kept))
-        except (DesignError, BoundError, PathError) as exc:
+        except (DesignError, BoundError, PathError):
             out.append((math.inf, None, genes))
     return out
 
