@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record, short
+from .cliutil import CliError, check_not_input, check_output, fail, print_json, short
 
 
 def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -> dict:
@@ -15,13 +15,20 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -
 
     check_output(out, force)
     check_not_input(out, data, *params)
-    rec = read_record(data)
+    from . import io
+
     try:
         sets = [(str(p), *load_params(p)) for p in params]
     except ParamFileError as exc:
         raise CliError(str(exc)) from None
     try:
-        res = record_report(out, rec, sets, overwrite=force)
+        # the samples stay on disk: the report streams them (bounded memory for multi-day records)
+        with io.open_record(data) as rec:
+            res = record_report(out, rec, sets, overwrite=force)
+    except io.DataFileError as exc:
+        raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
     except OSError as exc:
         raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
     res["out"] = str(out)

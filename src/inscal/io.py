@@ -537,6 +537,64 @@ def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int 
             yield out
 
 
+class LazyArray:
+    """A record dataset read on demand (the samples stay on disk): ``a[i:j]`` reads those rows,
+    ``a[::step]`` / ``a[::step, k]`` reads the decimated rows chunk by chunk (contiguous reads,
+    cached per step) for plots; ``np.asarray(a)`` reads it all (avoid it on long records)."""
+
+    def __init__(self, ds, chunk_size: int = 1 << 18):
+        self._ds, self._chunk, self._dec = ds, chunk_size, {}
+        self.shape, self.dtype, self.ndim = ds.shape, ds.dtype, ds.ndim
+
+    def __len__(self) -> int:
+        return int(self.shape[0])
+
+    def decimated(self, step: int) -> np.ndarray:
+        """Rows 0, step, 2 step, ... (read in contiguous chunks)."""
+        if step not in self._dec:
+            n, parts = self.shape[0], []
+            block = max(step, (self._chunk // step) * step)
+            for a in range(0, n, block):
+                check_cancel()
+                parts.append(self._ds[a:min(n, a + block)][::step])
+            self._dec[step] = np.concatenate(parts) if parts else self._ds[0:0]
+        return self._dec[step]
+
+    def __getitem__(self, key):
+        first, rest = (key[0], key[1:]) if isinstance(key, tuple) else (key, ())
+        if isinstance(first, slice) and first.step not in (None, 1) and first.start is None and first.stop is None:
+            d = self.decimated(int(first.step))
+            return d[(slice(None), *rest)] if rest else d
+        return self._ds[key]
+
+    def __array__(self, dtype=None, copy=None):
+        a = self._ds[()]
+        return a if dtype is None else a.astype(dtype)
+
+
+@contextmanager
+def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
+    """A :class:`Record` whose samples stay on disk (:class:`LazyArray` datasets), for reports of
+    multi-day records in bounded memory; the file is open inside the ``with`` block.  With
+    ``validate`` the samples are first streamed once through the checks of :func:`read_record`
+    (finite values, uniform time), one chunk at a time."""
+    with _open(path) as h5:
+        n = check_datasets(h5, path)
+        rate = _rate(h5, path)
+        if not (math.isfinite(rate) and rate > 0):
+            raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
+        if n < 2:
+            raise DataFileError(f"{path}: fewer than 2 samples")
+        site, p, truth = _meta(h5, path)
+        scen = str(h5.attrs.get("scenario", ""))
+        if validate:
+            for _ in iter_chunks(path, chunk_size):
+                pass
+        gim = LazyArray(h5["gimbal"]) if "gimbal" in h5 else None
+        yield Record(LazyArray(h5["time"]), LazyArray(h5["dtheta"]), LazyArray(h5["dvel"]), gim, rate, site, p, truth,
+                     scen, str(path))
+
+
 def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
     """Rebuild the simulation scenario of a simulated record (for truth trajectories)."""
     if rec.truth is None or rec.path is None:

@@ -63,7 +63,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     import html
 
     from . import units
-    from .analysis.allan import allan
+    from .analysis.allan import allan_of, first_dwell
     from .errors import PARAMETERS, errors_to_field
     from .io import atomic_path
 
@@ -95,10 +95,9 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     summary: dict = {"samples": rec.n_samples, "duration_s": rec.duration, "rate_hz": rec.rate_hz,
                      "scenario": rec.scenario, "simulated": rec.truth is not None}
     # Allan deviation of the first dwell (static window at the start), if long enough
-    still = np.all(np.abs(np.diff(rec.gimbal, axis=0)) < 1e-9, axis=1) if rec.gimbal is not None else np.ones(rec.n_samples - 1, bool)
-    first = int(np.argmin(still)) if not still.all() else still.size
+    first = first_dwell(rec.gimbal, rec.n_samples)  # streamed: rec may be an on-disk io.open_record
     if first >= 2000:
-        g, a = allan(rec.dtheta[:first], rec.rate_hz), allan(rec.dvel[:first], rec.rate_hz)
+        g, a = allan_of(rec.dtheta, first, rec.rate_hz), allan_of(rec.dvel, first, rec.rate_hz)
         fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
         for k, lab in enumerate("xyz"):
             ax[0].loglog(g.taus, units.from_si(g.adev[:, k], "deg/h"), label=lab)

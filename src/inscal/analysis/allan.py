@@ -153,3 +153,29 @@ class StreamingAllan:
         adev = np.sqrt(self.sums / (2.0 * nterm[:, None])) / (self.m[:, None] / self.rate_hz)
         err = adev / np.sqrt(nterm)[:, None]
         return _result(self.taus[ok], adev[ok], err[ok], white_tau_max)
+
+
+def first_dwell(gimbal, n: int, chunk: int = 1 << 18, tol: float = 1e-9) -> int:
+    """Length of the static start of a record: the index of the first step where a gimbal angle
+    changes by ``tol`` rad or more (``n - 1`` when it never does; ``n - 1`` without gimbal), read
+    chunk by chunk from an array or a dataset."""
+    if gimbal is None:
+        return n - 1
+    prev = None
+    for a in range(0, n, chunk):
+        g = np.asarray(gimbal[a:min(n, a + chunk)], dtype=float)
+        gg = g if prev is None else np.concatenate([prev, g])
+        moving = ~np.all(np.abs(np.diff(gg, axis=0)) < tol, axis=1)
+        if moving.any():
+            return int(np.argmax(moving)) + (a - 1 if prev is not None else 0)
+        prev = g[-1:]
+    return n - 1
+
+
+def allan_of(increments, stop: int, rate_hz: float, chunk: int = 1 << 18, **kw) -> AllanResult:
+    """:func:`allan` of ``increments[:stop]`` (an array or a dataset), streamed in chunks
+    (:class:`StreamingAllan`): the same result in bounded memory."""
+    acc = StreamingAllan(stop, rate_hz, k=int(np.shape(increments)[1]) if len(np.shape(increments)) > 1 else 1)
+    for a in range(0, stop, chunk):
+        acc.update(np.asarray(increments[a:min(stop, a + chunk)], dtype=float))
+    return acc.result(**kw)
