@@ -180,7 +180,7 @@ def _print(res, out) -> None:
                     "" if v["s16_table2"] is None else f"{v['s16_table2']:g}")
     con.print(tab)
     con.print(f"{res.evaluations} candidates in {res.generations} generations, seed {res.seed}, {res.seconds:.1f} s; "
-              f"best objective per generation: {res.trace[0]:.3g} -> {res.trace[-1]:.3g}")
+              f"best score (objective + tie-break) per generation: {res.trace[0]:.3g} -> {res.trace[-1]:.3g}")
 
 
 def register(app: typer.Typer) -> None:
