@@ -81,16 +81,19 @@ def stream_allan(data: Path, win, chunk_size: int = 1 << 18):
     from .analysis.allan import StreamingAllan
 
     n = win.n
-    gyro, accel, mot = StreamingAllan(n, win.rate_hz), StreamingAllan(n, win.rate_hz), MotionStats(n, win.rate_hz)
+    acc, mot = StreamingAllan(n, win.rate_hz), MotionStats(n, win.rate_hz)
     t_first = t_last = None
     for t, dth, g in io.iter_window(data, ("time", "dtheta", "gimbal"), win.i0, win.i1, chunk_size):
         t_first = float(t[0]) if t_first is None else t_first
         t_last = float(t[-1])
-        gyro.update(dth)
+        acc.update(dth)
         mot.update(dth, g)
+    gyro = acc.result()
+    acc = None  # one phase history at a time
+    acc = StreamingAllan(n, win.rate_hz)
     for (dv,) in io.iter_window(data, ("dvel",), win.i0, win.i1, chunk_size):
-        accel.update(dv)
-    return gyro.result(), accel.result(), mot, (t_first, t_last)
+        acc.update(dv)
+    return gyro, acc.result(), mot, (t_first, t_last)
 
 
 def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plot: Path | None = None,

@@ -556,7 +556,7 @@ class LazyArray:
             block = max(step, (self._chunk // step) * step)
             for a in range(0, n, block):
                 check_cancel()
-                parts.append(self._ds[a:min(n, a + block)][::step])
+                parts.append(self._ds[a:min(n, a + block)][::step].copy())  # not a view of the block
             self._dec[step] = np.concatenate(parts) if parts else self._ds[0:0]
         return self._dec[step]
 
