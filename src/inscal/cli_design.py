@@ -81,7 +81,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
                targets: str = "s16-path", groups: str = "all", axes: str = "outer,inner", max_rate: float = 10.0,
                max_accel: float = 10.0, outer_range: str | None = None, inner_range: str | None = None,
                cable_wrap: float | None = None, min_dwell: float = 5.0, initial_dwell: float = 60.0,
-               seed: int = 0, candidates: int = 256, population: int = 16, scheduler: str | None = None,
+               max_moves: int = 40, seed: int = 0, candidates: int = 256, population: int = 16, scheduler: str | None = None,
                workers: int = 2, base: str = "s16", arw: float | None = None, vrw: float | None = None,
                plot: FsPath | None = None, force: bool = False, progress: bool = True):
     """Run the search and write the path; returns ``(DesignResult, document)``."""
@@ -113,7 +113,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
         limits = Limits(axes=ax, max_rate=units.to_si(max_rate, "deg/s"), max_accel=units.to_si(max_accel, "deg/s"),
                         outer_range=_range("--outer-range", outer_range), inner_range=_range("--inner-range", inner_range),
                         cable_wrap=None if cable_wrap is None else units.to_si(cable_wrap, "deg"),
-                        min_dwell=min_dwell, initial_dwell=initial_dwell)
+                        min_dwell=min_dwell, initial_dwell=initial_dwell, max_moves=max_moves)
     except DesignError as exc:
         raise CliError(str(exc)) from None
     name = out.stem
@@ -204,6 +204,7 @@ def register(app: typer.Typer) -> None:
         cable_wrap: float = typer.Option(None, "--cable-wrap", help="largest net rotation of each axis [deg]"),
         min_dwell: float = typer.Option(5.0, "--min-dwell", help="shortest dwell after a move [s]"),
         initial_dwell: float = typer.Option(60.0, "--initial-dwell", help="dwell at the start (alignment) [s]"),
+        max_moves: int = typer.Option(40, "--max-moves", help="most moves in a path"),
         seed: int = typer.Option(0, "--seed", help="seed of the search"),
         candidates: int = typer.Option(256, "--candidates", help="candidate paths to evaluate"),
         population: int = typer.Option(16, "--population", help="survivors per generation"),
@@ -222,7 +223,8 @@ def register(app: typer.Typer) -> None:
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""
         try:
             res, _ = run_design(out, minutes, states, objective, targets, groups, axes, max_rate, max_accel,
-                                outer_range, inner_range, cable_wrap, min_dwell, initial_dwell, seed, candidates,
+                                outer_range, inner_range, cable_wrap, min_dwell, initial_dwell, max_moves, seed,
+                                candidates,
                                 population, scheduler, workers, base, arw, vrw, plot, force, progress=True)
         except CliError as exc:
             raise fail(str(exc)) from None

@@ -113,7 +113,7 @@ def path_figure(bound, path, targets: np.ndarray | None = None, title: str = "",
     ax.set_yticks(range(len(groups)))
     ax.set_yticklabels(groups, fontsize=7)
     lab = ["init" if r["move"] == 0 else f"{r['move']}\n{r['axis'][0]}{r['angle_deg']:+.0f}" for r in gains]
-    step = max(1, len(lab) // 40)
+    step = max(1, math.ceil(len(lab) / 24))
     ax.set_xticks(range(0, len(lab), step))
     ax.set_xticklabels(lab[::step], fontsize=6)
     ax.set_xlabel("move (axis, angle [deg]); each with the dwell after it")
