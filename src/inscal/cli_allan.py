@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from . import units
-from .cliutil import CliError, check_not_input, check_output, fail, print_json, short
+from .cliutil import CliError, LazyModule, check_not_input, check_output, fail, print_json, short
+
+np = LazyModule("numpy")
+units = LazyModule("inscal.units")
+#: Earth rotation rate [rad/s] (WGS84; inscal.earth.OMEGA_IE, not imported: it loads numba)
+OMEGA_IE = 7.292115e-5
 
 #: plot formats (from the --plot suffix)
 PLOT_FORMATS = ("png", "pdf", "svg")
@@ -51,8 +54,6 @@ class MotionStats:
             self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
 
     def warning(self) -> str | None:
-        from .earth import OMEGA_IE
-
         k, m = self.k, self.m
         rates = self.sums[: self.nb] * self.rate_hz / m
         dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from .cliutil import CliError, check_not_input, check_output, fail, print_json, read_record
+from .cliutil import CliError, check_not_input, check_output, fail, np, print_json, read_record  # np: lazy (fast start)
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,

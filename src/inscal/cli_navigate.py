@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from . import units
-from .cliutil import CliError, check_not_input, check_output, fail, print_json, short
+from .cliutil import CliError, LazyModule, check_not_input, check_output, fail, np, print_json, short
+
+units = LazyModule("inscal.units")  # np, units: imported on first use (fast start of the command line)
 
 def _nmi(x_m: float) -> float:
     return float(units.from_si(x_m, "nmi"))

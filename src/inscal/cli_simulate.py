@@ -6,10 +6,11 @@ import contextlib
 import math
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from .cliutil import CliError, check_output, fail, print_json, short
+from .cliutil import CliError, LazyModule, check_output, fail, print_json, short
+
+np = LazyModule("numpy")
 
 
 @contextlib.contextmanager

@@ -2,14 +2,29 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import re
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from .jsonutil import to_jsonable
+
+class LazyModule:
+    """A module imported on first attribute access: ``np = LazyModule("numpy")`` keeps NumPy (and
+    heavier modules) off the start of ``inscal --help`` / ``--version`` (see bench/bench_startup.py)."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr):
+        return getattr(importlib.import_module(self._name), attr)
+
+    def __repr__(self) -> str:
+        return f"<lazy module {self._name!r}>"
+
+
+np = LazyModule("numpy")
 
 
 class CliError(Exception):
@@ -83,4 +98,6 @@ def short(value, limit: int = MAX_ECHO) -> str:
 
 def print_json(obj) -> None:
     """Print ``obj`` as JSON on stdout (NumPy types converted, NaN/inf -> null)."""
+    from .jsonutil import to_jsonable
+
     typer.echo(json.dumps(to_jsonable(obj), indent=2))

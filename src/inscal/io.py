@@ -30,16 +30,31 @@ import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path as FsPath
-from typing import Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import h5py
 import numpy as np
 
 from . import SCHEMA_VERSION, __version__
-from .earth import GravityModel
-from .errors import GimbalErrors, ImuErrors, ImuNoise
-from .simulate import Scenario, Site, simulate_chunks
-from .turntable import Path, PathError
+
+if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
+    from .earth import GravityModel
+    from .errors import GimbalErrors, ImuErrors, ImuNoise
+    from .simulate import Scenario, Site
+    from .turntable import Path
+
+#: names this module re-exports from the domain modules, imported on first use (PEP 562)
+_LAZY = {"GravityModel": "earth", "GimbalErrors": "errors", "ImuErrors": "errors", "ImuNoise": "errors",
+         "Scenario": "simulate", "Site": "simulate", "simulate_chunks": "simulate", "Path": "turntable",
+         "PathError": "turntable"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"inscal.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 KIND = "inscal-record"
 UNITS = {"time": "s", "dtheta": "rad", "dvel": "m/s", "gimbal": "rad"}
@@ -201,6 +216,8 @@ def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
 def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, overwrite: bool = False,
                      progress: Callable[[int, int], None] | None = None, chunk_size: int = 1 << 19) -> int:
     """Simulate ``scenario`` straight into an HDF5 record (chunk by chunk, atomic).  Returns N."""
+    from .simulate import simulate_chunks
+
     n = scenario.n_samples
     if n < 1:
         raise ValueError("scenario is shorter than one sample")
@@ -320,7 +337,10 @@ def _open(path) -> h5py.File:
 
 
 #: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
-TRUTH_GROUPS = {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
+def truth_groups() -> dict:
+    from .errors import GimbalErrors, ImuErrors, ImuNoise
+
+    return {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
 
 
 def _read_dataclass(group, cls, where: str = ""):
@@ -356,7 +376,7 @@ def _read_truth(h5, p) -> "Truth | None":
         return None
     t = h5["truth"]
     missing = []
-    for g, cls in TRUTH_GROUPS.items():
+    for g, cls in truth_groups().items():
         if g not in t or not isinstance(t[g], h5py.Group):
             missing.append(f"{g}/ (all of it)")
         else:
@@ -364,11 +384,15 @@ def _read_truth(h5, p) -> "Truth | None":
     if missing:
         raise DataFileError(f"{p}: partial truth: /truth lacks {', '.join(missing)} (a record's truth is complete "
                             "or absent; delete /truth to use it as a measured record)")
-    parts = {g: _read_dataclass(t[g], cls, where=f"{p}: ") for g, cls in TRUTH_GROUPS.items()}
+    parts = {g: _read_dataclass(t[g], cls, where=f"{p}: ") for g, cls in truth_groups().items()}
     return Truth(parts["imu"], parts["gimbal"], parts["noise"])
 
 
 def _meta(h5, p):
+    from .earth import GravityModel
+    from .simulate import Site
+    from .turntable import Path, PathError
+
     s = h5["site"].attrs
     try:
         gm = s.get("gravity_model")
@@ -597,6 +621,8 @@ def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
 
 def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
     """Rebuild the simulation scenario of a simulated record (for truth trajectories)."""
+    from .simulate import Scenario
+
     if rec.truth is None or rec.path is None:
         raise DataFileError("record has no truth/path: it is not a simulated record")
     return Scenario(rec.scenario or "record", rec.path, rec.site, rec.truth.imu, rec.truth.gimbal, rec.truth.noise, rec.rate_hz)

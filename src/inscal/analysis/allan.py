@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import allantools
 import numpy as np
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
@@ -37,6 +36,8 @@ def allan(increments: np.ndarray, rate_hz: float, taus=None, white_tau_max: floa
     Increments are converted to rates (``/ dt``).  The white-noise coefficient is the
     least-squares fit of ``sigma = N / sqrt(tau)`` over ``tau <= white_tau_max``.
     """
+    import allantools  # here: it imports scipy (slow); the streamed path does not need it
+
     x = np.asarray(increments, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
