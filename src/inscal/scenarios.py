@@ -17,7 +17,11 @@ Built-in (``inscal simulate NAME``):
     values are :data:`N25_ERRORS`); twelve positions of 100 s at 4 deg/s plus CW/CCW
     rate tests at 10 deg/s.
 ``static``, ``static-24h``
-    Static base, IMU level and E-N-U, N25 site, error-free (``static-24h``: 24 h).
+    Static base, IMU level and E-N-U, N25 site, error-free (``static-24h``: 24 h): a
+    perfect IMU, the reference run for the navigator (compensating it adds errors).
+``n25-static``
+    The ``n25`` IMU errors and noise on a static base (1 h by default, ``--duration-h``):
+    the record for ``inscal allan`` and for static navigation of a real-looking IMU.
 ``rotmod16``, ``rotmod16-6h``
     16-sequence rotation modulation (300 s per position, 10 deg/s) at the N25 site and
     mount attitude, error-free (``rotmod16-6h``: 6 h).
@@ -255,6 +259,11 @@ def _rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
     return Scenario("rotmod16", rotmod16(duration_s), N25_SITE, gimbal=gim, rate_hz=100.0)
 
 
+def _n25_static(duration_s: float = 3600.0) -> Scenario:
+    """The N25 IMU errors, mount attitude and noise on a static base."""
+    return replace(_n25(), name="n25-static", path=static(duration_s))
+
+
 def _n25_rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
     """The N25 IMU, gimbal and noise under 16-sequence rotation modulation (N25 section 6 navigation check)."""
     base = _n25()
@@ -269,11 +278,12 @@ BUILTIN = {
     "rotmod16": lambda d: _rotmod(d or 6 * 3600.0),
     "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
     "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
+    "n25-static": lambda d: _n25_static(d or 3600.0),
     "psins19": lambda d: _psins19(),
     "s16-table3": lambda d: _s16_table3(),
     "s16-gimbal": lambda d: _s16_gimbal(),
 }
-DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod"}
+DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static"}
 
 
 class ScenarioError(ValueError):
