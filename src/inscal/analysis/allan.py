@@ -124,7 +124,11 @@ class StreamingAllan:
         L = x.shape[0]
         if self.fill + L > self.buf.shape[0]:  # drop the phases no term needs any more
             keep0 = int(min(self.next_i.min(), self.b0 + self.fill - 1)) - self.b0
-            self.buf[: self.fill - keep0] = self.buf[keep0: self.fill]
+            rows = self.fill - keep0
+            if keep0 > 0:
+                step = min(keep0, 1 << 16)  # blocks that do not overlap: no temporary copy of the history
+                for a in range(0, rows, step):
+                    self.buf[a: min(rows, a + step)] = self.buf[keep0 + a: keep0 + min(rows, a + step)]
             self.b0 += keep0
             self.fill -= keep0
             if self.fill + L > self.buf.shape[0]:  # first shift of a buffer sized for a short record
