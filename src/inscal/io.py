@@ -439,6 +439,7 @@ class RecordInfo:
 def record_info(path) -> RecordInfo:
     """Metadata of a record without reading its samples."""
     with _open(path) as h5:
+        check_datasets(h5, path)
         site, p, truth = _meta(h5, path)
         return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
                           str(h5.attrs.get("scenario", "")), "gimbal" in h5)
