@@ -34,7 +34,7 @@ def record_attrs(path: Path, names=("scenario", "imu_serial", "compensated_with"
                 v = h5.attrs.get(n)
                 v = v.decode() if isinstance(v, bytes) else (None if v is None else str(v))
                 out[n] = v or None
-    except OSError:
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError, AttributeError):  # a damaged file: no attributes
         out = {n: None for n in names}
     return out
 

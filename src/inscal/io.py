@@ -308,6 +308,25 @@ def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") 
         )
 
 
+#: what HDF5 and the decoding of a damaged file raise (h5py: OSError, RuntimeError, KeyError, ...)
+_DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError, AttributeError, UnicodeDecodeError,
+           OverflowError)
+
+
+@contextmanager
+def _reading(path):
+    """Turn the errors of a damaged file (HDF5 metadata, attributes that do not decode) into one
+    :class:`DataFileError` that names the file."""
+    try:
+        yield
+    except DataFileError:
+        raise
+    except _DAMAGE as exc:
+        msg = " ".join(str(exc).split())
+        raise DataFileError(f"{path}: damaged or not an inscal record ({type(exc).__name__}: "
+                            f"{msg[:200] + '...' if len(msg) > 200 else msg})") from None
+
+
 def _open(path) -> h5py.File:
     p = FsPath(path)
     if not p.exists():
@@ -316,24 +335,31 @@ def _open(path) -> h5py.File:
         h5 = h5py.File(p, "r")
     except OSError as exc:
         raise DataFileError(f"{p}: not a readable HDF5 file (truncated or not HDF5?): {exc}") from None
+    try:
+        with _reading(p):
+            _check_header(h5, p)
+    except BaseException:
+        h5.close()
+        raise
+    return h5
+
+
+def _check_header(h5, p) -> None:
     kind = h5.attrs.get("kind", "")
     if kind != KIND:
-        h5.close()
         raise DataFileError(f"{p}: not an inscal record (kind={kind!r})")
     ver = int(h5.attrs.get("schema_version", -1))
     if ver != SCHEMA_VERSION:
-        h5.close()
         raise DataFileError(f"{p}: schema version {ver}, this inscal ({__version__}) reads version {SCHEMA_VERSION}")
     units = json.loads(h5.attrs.get("units", "{}"))
+    if not isinstance(units, dict):
+        raise DataFileError(f"{p}: attribute units is not a JSON table")
     for k, u in UNITS.items():
         if k in h5 and units.get(k) != u:
-            h5.close()
             raise DataFileError(f"{p}: dataset {k} is in {units.get(k)!r}, expected {u!r}")
     for k in ("time", "dtheta", "dvel", "site"):
         if k not in h5:
-            h5.close()
             raise DataFileError(f"{p}: missing /{k}")
-    return h5
 
 
 #: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
@@ -410,7 +436,7 @@ def _meta(h5, p):
 
 def read_record(path) -> Record:
     """Read a whole record, validated (shapes, NaN, uniform time, schema version)."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(path):
         try:
             time = h5["time"][()]
             dth = h5["dtheta"][()]
@@ -438,7 +464,7 @@ class RecordInfo:
 
 def record_info(path) -> RecordInfo:
     """Metadata of a record without reading its samples."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(path):
         check_datasets(h5, path)
         site, p, truth = _meta(h5, path)
         return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
@@ -448,7 +474,7 @@ def record_info(path) -> RecordInfo:
 def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
     """Yield ``(time, dtheta, dvel, gimbal)`` slices of a record, validated per chunk,
     holding only one chunk in memory (for multi-day records)."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
         n = h5["time"].shape[0]
         last_t = None
@@ -519,7 +545,7 @@ def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Wi
     themselves are validated as they are streamed (:func:`iter_window`)."""
     import bisect
 
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
         n = check_datasets(h5, path)
         if not (math.isfinite(rate) and rate > 0):
@@ -537,7 +563,7 @@ def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int 
     """Yield tuples of the datasets ``names`` (None for an absent gimbal) over samples ``i0 .. i1 - 1``,
     one chunk at a time (bounded memory); each chunk is checked (finite values; /time uniform at
     rate_hz, across chunk boundaries too, when "time" is among ``names``)."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
         check_datasets(h5, path)
         last_t = None
@@ -567,8 +593,8 @@ class LazyArray:
     ``a[::step]`` / ``a[::step, k]`` reads the decimated rows chunk by chunk (contiguous reads,
     cached per step) for plots; ``np.asarray(a)`` reads it all (avoid it on long records)."""
 
-    def __init__(self, ds, chunk_size: int = 1 << 18):
-        self._ds, self._chunk, self._dec = ds, chunk_size, {}
+    def __init__(self, ds, chunk_size: int = 1 << 18, where=""):
+        self._ds, self._chunk, self._dec, self._where = ds, chunk_size, {}, where or ds.name
         self.shape, self.dtype, self.ndim = ds.shape, ds.dtype, ds.ndim
 
     def __len__(self) -> int:
@@ -581,7 +607,8 @@ class LazyArray:
             block = max(step, (self._chunk // step) * step)
             for a in range(0, n, block):
                 check_cancel()
-                parts.append(self._ds[a:min(n, a + block)][::step].copy())  # not a view of the block
+                with _reading(self._where):
+                    parts.append(self._ds[a:min(n, a + block)][::step].copy())  # not a view of the block
             self._dec[step] = np.concatenate(parts) if parts else self._ds[0:0]
         return self._dec[step]
 
@@ -590,7 +617,8 @@ class LazyArray:
         if isinstance(first, slice) and first.step not in (None, 1) and first.start is None and first.stop is None:
             d = self.decimated(int(first.step))
             return d[(slice(None), *rest)] if rest else d
-        return self._ds[key]
+        with _reading(self._where):
+            return self._ds[key]
 
     def __array__(self, dtype=None, copy=None):
         a = self._ds[()]
@@ -604,20 +632,20 @@ def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
     ``validate`` the samples are first streamed once through the checks of :func:`read_record`
     (finite values, uniform time), one chunk at a time."""
     with _open(path) as h5:
-        n = check_datasets(h5, path)
-        rate = _rate(h5, path)
-        if not (math.isfinite(rate) and rate > 0):
-            raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
-        if n < 2:
-            raise DataFileError(f"{path}: fewer than 2 samples")
-        site, p, truth = _meta(h5, path)
-        scen = str(h5.attrs.get("scenario", ""))
-        if validate:
-            for _ in iter_chunks(path, chunk_size):
-                pass
-        gim = LazyArray(h5["gimbal"]) if "gimbal" in h5 else None
-        yield Record(LazyArray(h5["time"]), LazyArray(h5["dtheta"]), LazyArray(h5["dvel"]), gim, rate, site, p, truth,
-                     scen, str(path))
+        with _reading(path):
+            n = check_datasets(h5, path)
+            rate = _rate(h5, path)
+            if not (math.isfinite(rate) and rate > 0):
+                raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
+            if n < 2:
+                raise DataFileError(f"{path}: fewer than 2 samples")
+            site, p, truth = _meta(h5, path)
+            scen = str(h5.attrs.get("scenario", ""))
+            if validate:
+                for _ in iter_chunks(path, chunk_size):
+                    pass
+            lazy = {k: LazyArray(h5[k], where=path) for k in ("time", "dtheta", "dvel", "gimbal") if k in h5}
+        yield Record(lazy["time"], lazy["dtheta"], lazy["dvel"], lazy.get("gimbal"), rate, site, p, truth, scen, str(path))
 
 
 def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
