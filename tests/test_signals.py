@@ -55,7 +55,7 @@ def test_sigterm_during_compensate_removes_part(tmp_path):
     from test_cli_guards import make_record, params_file
 
     rec = make_record(tmp_path / "r.h5", n=2_000_000)
-    p = params_file(tmp_path / "p.toml")
+    params_file(tmp_path / "p.toml")
     before = sorted(x.name for x in tmp_path.iterdir())
     proc = _launch(["compensate", "r.h5", "--params", "p.toml", "--out", "c.h5", "--json"], tmp_path)
     try:

@@ -38,7 +38,6 @@ import numpy as np
 from . import SCHEMA_VERSION, __version__
 
 if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
-    from .earth import GravityModel
     from .errors import GimbalErrors, ImuErrors, ImuNoise
     from .simulate import Scenario, Site
     from .turntable import Path
