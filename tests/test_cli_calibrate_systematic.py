@@ -72,7 +72,7 @@ def test_bad_options_exit_2_and_write_nothing(psins19, tmp_path):
     out = tmp_path / "x.toml"
     for args, msg in (((data, "--method", "systematic51", "--states", "51,bogus"), "unknown state option"),
                       ((data, "--method", "joint", "--states", "51"), "apply to the systematic methods"),
-                      ((data, "--method", "systematic51", "--plots", tmp_path / "nope"), "no such folder")):
+                      ((data, "--method", "systematic51", "--plots", tmp_path / "no" / "pe"), "nor one that can be created")):
         code, stdout, stderr = run("calibrate", *args, "--out", out)
         assert code == 2, stdout
         assert msg in (stdout + stderr)

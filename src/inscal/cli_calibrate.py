@@ -33,8 +33,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(f"{data}: no such data file")
     check_output(out, force)
     check_not_input(out, data)
-    if plots is not None and not plots.is_dir():
-        raise CliError(f"--plots {plots}: no such folder")
+    if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
+        raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
     try:
         rec = read_record(data)
     except OSError as exc:
@@ -89,6 +89,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
             from .report import convergence_plots
 
             try:
+                plots.mkdir(exist_ok=True)  # created once the calibration succeeded
                 report["plots"] = [str(p) for p in convergence_plots(plots, res, truth, overwrite=force)]
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None

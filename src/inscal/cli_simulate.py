@@ -133,13 +133,21 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
             n = io.write_simulation(out, sc, rng, overwrite=force, progress=upd)
         except (FileExistsError, FileNotFoundError, ValueError, OSError) as exc:  # OSError: e.g. a read-only folder
             raise CliError(str(exc)) from None
-    return summary(sc, out, seed, n)
+    res = summary(sc, out, seed, n)
+    if duration_h is not None:
+        res["requested_duration_s"] = duration_h * 3600.0
+        path_s = float(sc.path.duration)
+        if abs(path_s - duration_h * 3600.0) > 0.5 / sc.rate_hz:
+            res["duration_note"] = (f"--duration-h {duration_h:g} gives {path_s / 3600:.4g} h: the path is made of whole "
+                                    f"cycles of {sc.path.name} ({len(sc.path.moves)} moves), rounded up")
+    return res
 
 
 def register(app: typer.Typer) -> None:
     @app.command()
     def simulate(
-        scenario: str = typer.Argument(..., help="built-in scenario (s16, n25, static-24h, rotmod16-6h, static, rotmod16) or a .toml file"),
+        scenario: str = typer.Argument(..., help="built-in scenario (s16, s16-table3, s16-gimbal, psins19, n25, n25-rotmod, "
+                                       "n25-static, static, static-24h, rotmod16, rotmod16-6h) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
         seed: int = typer.Option(0, help="seed of the noise generator"),
         duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static and rotation-modulation scenarios)"),
@@ -161,3 +169,5 @@ def register(app: typer.Typer) -> None:
         else:
             typer.echo(f"{short(res['scenario'])}: {res['samples']} samples, {res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, "
                        f"path {res['path']} ({res['moves']} moves) -> {res['out']}")
+            if "duration_note" in res:
+                typer.echo(f"  note: {res['duration_note']}")
