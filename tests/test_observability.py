@@ -142,6 +142,56 @@ def test_triangular_factor_matches_dense():
     assert growth == pytest.approx(a88, rel=1e-12)
 
 
+def test_triangular_factor_with_encoder_rows():
+    """Encoder attitude rows (3 per step where used) are stacked with the velocity/position rows."""
+    rng = np.random.default_rng(4)
+    M, p = 150, 6
+    phinn = np.eye(9) + 0.05 * rng.standard_normal((M, 9, 9))
+    phinp = rng.standard_normal((M, 9, p))
+    r = rng.uniform(0.5, 2.0, 6)
+    W = rng.standard_normal((M, 3, 9 + p))
+    used = (rng.uniform(size=M) < 0.5).astype(np.int8)
+    rows, A, B = [], np.eye(9), np.zeros((9, p))
+    for k in range(M):
+        A, B = phinn[k] @ A, phinn[k] @ B + phinp[k]
+        Psi = np.block([[A, B], [np.zeros((p, 9)), np.eye(p)]])
+        rows.append(Psi[3:9] / np.sqrt(r)[:, None])
+        if used[k]:
+            rows.append(W[k] @ Psi)
+    R, _ = _triangular_factor(phinn, phinp, r, W, used)
+    np.testing.assert_allclose(np.linalg.svd(R, compute_uv=False), np.linalg.svd(np.vstack(rows), compute_uv=False),
+                               rtol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def gimbal_s16():
+    return observability("s16-gimbal", "unified")
+
+
+def test_unified_encoder_rows_observe_gimbal(gimbal_s16):
+    """With the encoder attitude rows in O, S16's path with encoders observes every parameter of
+    the unified set, the four gimbal states included (without those rows they were a null space)."""
+    rep = gimbal_s16
+    assert (rep.n_states, rep.n_params) == (58, 49)
+    assert rep.rank == rep.n_params
+    for lab in ("gimbal_nonorthogonality", "mount_attitude[alpha0]", "mount_attitude[beta0]",
+                "mount_attitude[gamma0]"):
+        assert rep.null_weight(lab) < 1e-6, lab
+        assert rep.by_label(lab).ratio < 0.1, lab  # the covariance view agrees
+
+
+def test_unified_inner_axis_only_leaves_dth():
+    """Only inner-axis turns: the outer axis never moves, so dth (the tilt of the outer axis in
+    the gimbal's x-z plane) looks like a mount attitude / IMU frame rotation: in the null space."""
+    rep = observability(inner_only(), "unified")
+    assert rep.null_weight("gimbal_nonorthogonality") > 0.999
+    assert rep.by_label("gimbal_nonorthogonality").ratio > 0.5
+    # the mount attitude's level angles are seen by the encoder rows from the first step
+    for lab in ("mount_attitude[alpha0]", "mount_attitude[beta0]"):
+        assert rep.null_weight(lab) < 1e-6, lab
+    assert rep.rank < rep.n_params
+
+
 @pytest.mark.slow
 def test_simulation_rate_does_not_matter():
     a, b = observability("psins19", rate_hz=20.0), observability("psins19", rate_hz=50.0)

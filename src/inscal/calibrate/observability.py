@@ -25,9 +25,15 @@ well.  Two views, both from the path alone:
                                                           B_k = Phi_nn,k B_{k-1} + Phi_np,k
        O = [W H Psi_1; W H Psi_2; ...; W H Psi_M]          W = R^-1/2 (whitened rows)
 
-   ``H`` selects velocity and position (zero velocity, known position each filter step).  ``O``
+   ``H`` selects velocity and position (zero velocity, known position each filter step).  With
+   gimbal states (``gimbal``/``unified``) each step that has encoder attitude rows adds them too,
+   whitened the same way, ``L_k^-1 H_enc,k Psi_k`` with ``L_k L_k^T = R_enc,k`` (the filter's own
+   per-step ``H_enc`` and ``R_enc``, kept by ``keep_passes``): the encoders observe the attitude
+   against the gimbal model, so ``dth`` and the mount attitude appear as observed where the path
+   separates them (``dth`` needs turns of the outer axis away from zero; with the inner axis only
+   it stays in the null space).  ``O``
    is reduced as it is built to its triangular factor (``O = Q R``, a Householder update of
-   ``R`` with each step's six rows; memory independent of the path length), whose singular values are
+   ``R`` with each step's six (nine) rows; memory independent of the path length), whose singular values are
    those of ``O`` to round-off relative to the largest (better than the square root of the
    Gramian's eigenvalues, which loses half the digits).  Reported: the singular values of the
    full state (navigation initial state + parameters) and those of the parameter columns
@@ -173,6 +179,7 @@ class ObservabilityReport:
     timing_s: dict
     consistency: float = 0.0  # max relative difference of the posterior sigmas of the two passes
     covariance: np.ndarray | None = None  # posterior covariance of the parameter states (SI), not in to_dict
+    factor: np.ndarray | None = None  # R_pp: triangular factor of the parameter block (scaled), not in to_dict
     notes: tuple[str, ...] = field(default_factory=tuple)
 
     @property
@@ -187,6 +194,18 @@ class ObservabilityReport:
 
     def ratios(self) -> dict[str, float]:
         return {s.label: s.ratio for s in self.states}
+
+    def null_weight(self, label: str) -> float:
+        """Norm of the projection of one parameter state (unit vector in the scaled parameter
+        space) on the numerical null space of the parameter block (singular values at or below
+        :data:`RANK_TOL` times the largest): 0 for a state the path separates, 1 for one it
+        cannot see at all, whatever basis the (degenerate) null space is reported in."""
+        if self.factor is None:
+            raise ValueError("no factor kept")
+        j = [s.label for s in self.states].index(label)
+        _, sv, Vt = np.linalg.svd(self.factor)
+        null = Vt[sv <= RANK_TOL * sv[0]] if sv[0] > 0 else Vt
+        return float(np.linalg.norm(null[:, j]))
 
     def weakest_states(self, n: int = 5) -> list[StateResult]:
         return sorted(self.states, key=lambda s: -s.ratio)[:n]
@@ -342,7 +361,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     r = np.array([noise["velocity_sigma_m_s"] ** 2] * 3 + [noise["position_sigma_m"] ** 2] * 3)
     sig = np.concatenate([NAV_SIGMA, prior])
     out = res.pass_output  # the same pass: its per-step transitions (keep_passes keeps them)
-    Rf, growth = _triangular_factor(out.phinn, out.phinp, r / sig[3:9] ** 2)
+    Rf, growth = _triangular_factor(out.phinn, out.phinp, r / sig[3:9] ** 2, *_encoder_rows(out))
     # self-check: this pass's posterior must be the systematic() one (same trajectory, noise, priors)
     mismatch = float(np.max(np.abs(np.sqrt(np.maximum(np.diag(out.Pf)[N_NAV:], 0.0)) / ratio - 1.0)))
     full_sv = np.linalg.svd(Rf, compute_uv=False)
@@ -377,42 +396,70 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
         rate_hz=float(rate_hz), filter_rate_hz=float(res.diagnostics["filter_rate_hz"]), steps=int(out.steps), states=tuple(rows),
         singular_values=nsv, largest_singular_value=float(psv[0]), rank=int(np.sum(nsv > RANK_TOL)),
         full_singular_values=nfull, full_rank=int(np.sum(nfull > RANK_TOL)), weakest=tuple(weakest),
-        vertical_growth=float(growth), consistency=mismatch, covariance=res.covariance["P"],
+        vertical_growth=float(growth), consistency=mismatch, covariance=res.covariance["P"], factor=Rf[N_NAV:, N_NAV:],
         timing_s={"simulate": t_sim - t_start, "filter": t_filt - t_sim, "observability_matrix": t_obs - t_filt,
                   "total": t_obs - t_start},
         notes=tuple(notes))
 
 
-def _triangular_factor(phinn: np.ndarray, phinp: np.ndarray, r_scaled: np.ndarray) -> tuple[np.ndarray, float]:
+def _encoder_rows(out) -> tuple:
+    """``(W, used)`` of a pass with gimbal states: the encoder attitude rows of every step,
+    whitened, ``W_k = L_k^-1 H_k`` with ``L_k L_k^T = R_k`` (any square root gives the same
+    ``O^T O``; (M, 3, N), scaled states like ``Phi``) and ``used`` (M,) 1 where the step has them;
+    ``()`` without gimbal states (or without the stored rows)."""
+    H, Rm, used = getattr(out, "H_att", None), getattr(out, "R_att", None), getattr(out, "att_used", None)
+    if H is None or Rm is None or used is None or len(used) == 0:
+        return ()
+    M = out.phinn.shape[0]
+    used = np.asarray(used[:M], np.int8)
+    W = np.zeros((M,) + H.shape[1:])
+    k = np.flatnonzero(used)
+    if k.size:
+        L = np.linalg.cholesky(Rm[k])
+        W[k] = np.linalg.solve(L, H[k])
+    return W, used
+
+
+def _triangular_factor(phinn: np.ndarray, phinp: np.ndarray, r_scaled: np.ndarray, w_att: np.ndarray | None = None,
+                       att_used: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Upper-triangular ``R`` with ``R^T R = O^T O`` for the stacked, whitened observability
     matrix of the scaled state (module docstring), and ``max_k |A_k[8, 8]|`` (vertical-channel growth:
     the initial height error's factor, ``cosh(t / 570 s)``).
 
     ``phinn`` (M, 9, 9), ``phinp`` (M, 9, p): per-step scaled transitions; ``r_scaled`` (6,):
-    measurement variances of the scaled velocity and position."""
+    measurement variances of the scaled velocity and position.  Gimbal states: ``w_att`` (M, 3, 9 + p)
+    the whitened encoder attitude rows ``R^-1/2 H`` of each step (on the state after that step's
+    transition, like the velocity/position rows), ``att_used`` (M,) nonzero where a step has them."""
     M, _, p = phinp.shape
+    if w_att is None:
+        w_att, att_used = np.zeros((0, 3, N_NAV + p)), np.zeros(0, np.int8)
+    elif w_att.shape != (M, 3, N_NAV + p) or np.shape(att_used) != (M,):
+        raise ValueError(f"encoder rows must be ({M}, 3, {N_NAV + p}) with ({M},) flags, got {w_att.shape}")
     R = np.zeros((N_NAV + p, N_NAV + p))
     growth = _factor_kernel(np.ascontiguousarray(phinn, dtype=float), np.ascontiguousarray(phinp, dtype=float),
-                            1.0 / np.sqrt(np.asarray(r_scaled, float)), R)
+                            1.0 / np.sqrt(np.asarray(r_scaled, float)), np.ascontiguousarray(w_att, dtype=float),
+                            np.ascontiguousarray(att_used, dtype=np.int8), R)
     if not (np.all(np.isfinite(R)) and math.isfinite(growth)):
         raise ObservabilityError("observability matrix overflowed (path too long for the unstable vertical channel)")
     return R, growth
 
 
 @njit(cache=True)
-def _factor_kernel(phinn, phinp, w, R):
+def _factor_kernel(phinn, phinp, w, w_att, att_used, R):
     """``Psi_k`` recursion and a Householder update of ``R`` with the six whitened rows
-    ``w * H Psi_k`` of every step (``[R; X] = Q [R'; 0]``).  No BLAS: plain loops, so the
-    cost (~12 N^2 per step) does not depend on a threaded BLAS.  Returns ``max |A_k[8, 8]|``
-    (vertical-channel growth)."""
+    ``w * H Psi_k`` of every step (``[R; X] = Q [R'; 0]``), plus the three whitened encoder
+    attitude rows ``W_k Psi_k`` where ``att_used[k]`` (``w_att`` empty: none).  No BLAS: plain
+    loops, so the cost (~12 N^2 per step) does not depend on a threaded BLAS.  Returns
+    ``max |A_k[8, 8]|`` (vertical-channel growth)."""
     M = phinn.shape[0]
     p = phinp.shape[2]
     N = 9 + p
+    have_att = w_att.shape[0] > 0
     A = np.eye(9)
     B = np.zeros((9, p))
     A2 = np.empty((9, 9))
     B2 = np.empty((9, p))
-    X = np.empty((6, N))
+    X = np.empty((9, N))
     growth = 1.0
     for k in range(M):
         P = phinn[k]
@@ -436,17 +483,32 @@ def _factor_kernel(phinn, phinp, w, R):
                 X[a, j] = w[a] * A[3 + a, j]
             for j in range(p):
                 X[a, 9 + j] = w[a] * B[3 + a, j]
+        nr = 6
+        if have_att and att_used[k] != 0:
+            # W Psi_k = [W_n A_k, W_n B_k + W_p]
+            for a in range(3):
+                for j in range(9):
+                    s = 0.0
+                    for l in range(9):
+                        s += w_att[k, a, l] * A[l, j]
+                    X[6 + a, j] = s
+                for j in range(p):
+                    s = w_att[k, a, 9 + j]
+                    for l in range(9):
+                        s += w_att[k, a, l] * B[l, j]
+                    X[6 + a, 9 + j] = s
+            nr = 9
         # Householder: annihilate column j of X against R[j, j]
         for j in range(N):
             scale = abs(R[j, j])
-            for a in range(6):
+            for a in range(nr):
                 if abs(X[a, j]) > scale:
                     scale = abs(X[a, j])
             if scale == 0.0:
                 continue
             rj = R[j, j] / scale
             nx = 0.0
-            for a in range(6):
+            for a in range(nr):
                 nx += (X[a, j] / scale) ** 2
             if nx == 0.0:
                 continue
@@ -455,13 +517,13 @@ def _factor_kernel(phinn, phinp, w, R):
             beta = 1.0 / (alpha * v0)  # = -2 / (v^T v) with v = [v0, X[:, j]]
             for c in range(j + 1, N):
                 s = v0 * R[j, c]
-                for a in range(6):
+                for a in range(nr):
                     s += X[a, j] * X[a, c]
                 s *= beta
                 R[j, c] += s * v0
-                for a in range(6):
+                for a in range(nr):
                     X[a, c] += s * X[a, j]
             R[j, j] = alpha
-            for a in range(6):
+            for a in range(nr):
                 X[a, j] = 0.0
     return growth
