@@ -232,7 +232,8 @@ class ObservabilityReport:
             "groups": self.groups(),
             "svd": {
                 "definition": "O = [W H Psi_1; ...; W H Psi_M], scaled states (x / prior sigma), rows whitened by "
-                              "the measurement sigma; parameter block after projecting out the initial navigation state",
+                              "the measurement sigma (velocity, position and, with gimbal states, the encoder attitude "
+                              "rows); parameter block after projecting out the initial navigation state",
                 "singular_values": self.singular_values, "largest": self.largest_singular_value,
                 "rank": self.rank, "n": self.n_params, "rank_tolerance": RANK_TOL,
                 "full_state": {"singular_values": self.full_singular_values, "rank": self.full_rank,
