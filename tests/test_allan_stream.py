@@ -118,3 +118,26 @@ def test_nan_in_window_is_one_line(tmp_path):
         h5["dvel"][2500, 1] = np.nan
     r = CliRunner().invoke(app, ["allan", str(path)])
     assert r.exit_code == 2 and "dvel has NaN" in r.stderr and "sample 2500" in r.stderr
+
+
+def test_bias_instability_without_flat_bottom_is_an_upper_bound(tmp_path):
+    """White noise only: the deviation falls to the longest tau, so the 'bias instability'
+    read at the minimum is only an upper bound, flagged in the JSON and shown as '< x'."""
+    path = _record(tmp_path / "white.h5", 60_000)
+    res = run_allan(path, 0.0, None)
+    assert res["gyro_bias_instability_upper_bound"] == [True] * 3
+    assert res["accel_bias_instability_upper_bound"] == [True] * 3
+    r = CliRunner().invoke(app, ["allan", str(path)])
+    assert r.exit_code == 0 and "< " in r.stdout and "not measured" in r.stdout
+    assert "ARW [deg/rt(h)]" in r.stdout  # the units of the table (Rich markup ate them once)
+    # a flicker floor (a slowly wandering bias) gives a measured minimum
+    rng = np.random.default_rng(3)
+    n, dt = 200_000, 1 / RATE
+    walk = np.cumsum(rng.normal(0, 2e-7, (n, 3)), axis=0)  # rad/s rate random walk: the deviation rises again
+    rec = io.read_record(path)
+    dth = rng.normal(0, 5.8e-6 * math.sqrt(dt), (n, 3)) + walk * dt
+    t = np.arange(1, n + 1) * dt
+    io.write_record(tmp_path / "rrw.h5", io.Record(t, dth, rec.dvel[:1].repeat(n, 0), np.zeros((n, 2)), RATE, rec.site,
+                                                   scenario="rrw"))
+    res = run_allan(tmp_path / "rrw.h5", 0.0, None)
+    assert not any(res["gyro_bias_instability_upper_bound"])

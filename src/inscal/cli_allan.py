@@ -140,6 +140,10 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         "gyro_bias_instability_deg_h": units.from_si(g.bias_instability, "deg/h"),
         "accel_bias_instability_ug": units.from_si(a.bias_instability, "ug"),
     }
+    # a minimum at the longest tau is no flat bottom: the record is too short to see the bias
+    # instability, and the figure is only an upper bound
+    res["gyro_bias_instability_upper_bound"] = (np.asarray(g.tau_bi) >= g.taus[-1]).tolist()
+    res["accel_bias_instability_upper_bound"] = (np.asarray(a.tau_bi) >= a.taus[-1]).tolist()
     res["warnings"] = warnings
     if plot is not None:
         from .report import allan_plot
@@ -174,10 +178,19 @@ def register(app: typer.Typer) -> None:
         from rich.console import Console
         from rich.table import Table
 
-        tab = Table(title=f"Allan deviation of {data}")
+        from rich.markup import escape
+
+        tab = Table(title=escape(f"Allan deviation of {data}"))
         for col in ("axis", "ARW [deg/rt(h)]", "gyro BI [deg/h]", "VRW [ug/rt(Hz)]", "accel BI [ug]"):
-            tab.add_column(col)
+            tab.add_column(escape(col))  # brackets are Rich markup otherwise (the units vanished)
+        def bi(key, k):
+            ub = res[key.split("_bias")[0] + "_bias_instability_upper_bound"][k]
+            return ("< " if ub else "") + f"{res[key][k]:.4g}"
+
         for k, ax in enumerate("xyz"):
-            tab.add_row(ax, f"{res['arw_deg_rth'][k]:.4g}", f"{res['gyro_bias_instability_deg_h'][k]:.4g}",
-                        f"{res['vrw_ug_rthz'][k]:.4g}", f"{res['accel_bias_instability_ug'][k]:.4g}")
+            tab.add_row(ax, f"{res['arw_deg_rth'][k]:.4g}", bi("gyro_bias_instability_deg_h", k),
+                        f"{res['vrw_ug_rthz'][k]:.4g}", bi("accel_bias_instability_ug", k))
         Console().print(tab)
+        if any(res["gyro_bias_instability_upper_bound"] + res["accel_bias_instability_upper_bound"]):
+            typer.echo("'<': the deviation still falls at the longest tau (no flat bottom in this window): "
+                       "the bias instability is below the figure, not measured")
