@@ -111,6 +111,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
         plt.close(fig)
         summary["arw_deg_rth"] = units.from_si(g.white, "deg/sqrt(h)").tolist()
         summary["vrw_ug_rthz"] = units.from_si(a.white, "ug/sqrt(Hz)").tolist()
+    path_section = _path_section(rec, summary)
     tables = []
     truth = errors_to_field(rec.truth.imu, rec.truth.gimbal) if rec.truth is not None else None
     for label, imu, gim, meta in param_sets or []:
@@ -132,19 +133,64 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
              "<p>" + ", ".join(f"{k}: {html.escape(str(v))}" for k, v in summary.items() if not isinstance(v, list)) + "</p>"]
     for title, b64 in figs:
         parts.append(f"<h2>{title}</h2><img src='data:image/png;base64,{b64}'/>")
+    if path_section:
+        parts.append(path_section)
     for label, method, rows in tables:
         parts.append(f"<h2>Parameters: {html.escape(label)} ({html.escape(method)})</h2><table><tr>"
                      + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
                      + "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows) + "</table>")
     doc = ("<!doctype html><html><head><meta charset='utf-8'><title>inscal report</title><style>"
            "body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
-           "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}</style></head><body>"
+           "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}section.path-report{overflow-x:auto}</style></head><body>"
            + "".join(parts) + "</body></html>")
     with atomic_path(path, overwrite) as tmp:
         tmp.write_text(doc, encoding="utf-8")
     summary["figures"] = [f[0] for f in figs]
     summary["parameter_tables"] = [t[0] for t in tables]
     return summary
+
+
+def _path_section(rec, summary: dict) -> str | None:
+    """The record's rotation path (issue 10 item 4): gimbal angles, the Cramér-Rao bound of the
+    51-state systematic model over time and what each move makes observable
+    (:mod:`inscal.report_path`), at the record's site, with the noise read from its first dwell
+    (else its simulation truth, else S16's).  None (and a note in ``summary``) without a path."""
+    path = getattr(rec, "path", None)
+    if path is None:
+        summary["path_bound"] = "no rotation path in the record"
+        return None
+    from .calibrate.crlb import BoundError, evaluate, make_setup
+    from .report_path import html_fragment, path_figure
+
+    arw = summary.get("arw_deg_rth")
+    vrw = summary.get("vrw_ug_rthz")
+    if arw is not None and vrw is not None and min(arw) > 0 and min(vrw) > 0:
+        from . import units
+
+        arw_si, vrw_si, src = units.to_si(np.asarray(arw), "deg/sqrt(h)"), units.to_si(np.asarray(vrw), "ug/sqrt(Hz)"), \
+            "the first dwell's white noise"
+    elif rec.truth is not None and not rec.truth.noise.is_zero:
+        arw_si, vrw_si, src = rec.truth.noise.arw, rec.truth.noise.vrw, "the simulation's noise"
+    else:
+        arw_si = vrw_si = None
+        src = "S16's noise (ARW 5e-5 deg/sqrt(h), VRW 1 ug/sqrt(Hz))"
+    gim = rec.truth.gimbal if rec.truth is not None else None
+    try:
+        setup = make_setup("51", rec.site, gim, arw_si, vrw_si)
+        bound = evaluate(setup, path)
+    except (BoundError, ValueError) as exc:
+        summary["path_bound"] = f"not computed: {exc}"
+        return None
+    plt = _figure()
+    fig = path_figure(bound, path, title=f"Path {path.name}: what it observes (51-state model)")
+    try:
+        frag = html_fragment(fig, bound, path, title=f"Path {path.name}: what each move makes observable",
+                             summary=f"Cramér-Rao bound of the 51-state systematic model on this path at the record's "
+                                     f"site, with {src}; the bound is what a calibration of this record can reach.")
+    finally:
+        plt.close(fig)
+    summary["path_bound"] = "51-state model, " + src
+    return frag
 
 
 def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> list[Path]:
