@@ -94,6 +94,16 @@ def update(P, idx, r, z, K, Sinv, x):
         for b in range(m):
             S[a, b] = PHt[idx[a], b]
         S[a, a] += r[a]
+    return gain_and_joseph(P, PHt, S, z, K, Sinv, x)
+
+
+@njit(cache=True)
+def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
+    """The common part of every update, given ``P H^T`` (N, m) and ``S = H P H^T + R`` (m, m):
+    symmetrise ``S``, write ``S^-1``, the gain ``K = P H^T S^-1`` and ``x = K z``, and update ``P``
+    in Joseph form (``P - K H P - (K H P)^T + K S K^T``, symmetric); returns ``z^T S^-1 z``."""
+    N = P.shape[0]
+    m = S.shape[0]
     for a in range(m):
         for b in range(a + 1, m):
             v = 0.5 * (S[a, b] + S[b, a])

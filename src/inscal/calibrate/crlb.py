@@ -76,6 +76,7 @@ from numba import njit
 
 from .. import earth, units
 from ..attitude import dcm_from_euler
+from ..simulate import _find_segment as _segment_at  # smallest s with seg_t1[s] > t
 from ..turntable import Path, outer_axis
 from .segment import CalibrationError
 from .systematic import (ARW_FLOOR, K_M1A, K_M1G, K_TAU, N_NAV, NAV_SIGMA0, VRW_FLOOR, StateSet, _column_values,
@@ -244,20 +245,6 @@ def _kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, 
     w[0] += (cz * ux + sz * uy) * wx
     w[1] += (-sz * ux + cz * uy) * wx
     w[2] += uz * wx + wz
-
-
-@njit(cache=True)
-def _segment_at(t, seg_t1):
-    """Smallest ``s`` with ``seg_t1[s] > t`` (clamped to the last segment)."""
-    lo = 0
-    hi = seg_t1.shape[0] - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if seg_t1[mid] > t:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
 
 
 @njit(cache=True)

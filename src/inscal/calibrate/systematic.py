@@ -122,6 +122,7 @@ from numba import njit
 from .. import earth, filters, units
 from ..attitude import axis_angle_dcm, quat_from_dcm, quat_from_rotvec_xyz as _qrv, rot_x, rot_y, rot_z
 from ..errors import ImuErrors, split_scale_misalignment
+from ..filters import gain_and_joseph
 from ..strapdown import _attitude_step, _qmul, _qrot, _two_sample, _velocity_step
 from .result import CalibrationResult
 from .segment import CalibrationError
@@ -677,31 +678,7 @@ def _update_h(P, H, R, nu, K, Sinv, x):
             for j in range(N):
                 s += H[a, j] * PHt[j, b]
             S[a, b] = s
-    for a in range(m):
-        for b in range(a + 1, m):
-            v = 0.5 * (S[a, b] + S[b, a])
-            S[a, b] = v
-            S[b, a] = v
-    Si = np.linalg.inv(S)
-    Sinv[:, :] = Si
-    K[:, :] = PHt @ Si
-    KPH = K @ PHt.T
-    KSK = (K @ S) @ K.T
-    for i in range(N):
-        for j in range(i, N):
-            v = P[i, j] - KPH[i, j] - KPH[j, i] + 0.5 * (KSK[i, j] + KSK[j, i])
-            P[i, j] = v
-            P[j, i] = v
-    sz = Si @ nu
-    nis = 0.0
-    for a in range(m):
-        nis += nu[a] * sz[a]
-    for i in range(N):
-        s = 0.0
-        for a in range(m):
-            s += K[i, a] * nu[a]
-        x[i] = s
-    return nis
+    return gain_and_joseph(P, PHt, S, nu, K, Sinv, x)
 
 
 @njit(cache=True)
