@@ -30,19 +30,13 @@ def _root(
 
 
 #: modules contributing subcommands (each has ``register(app)``)
-_SUBCOMMAND_MODULES = ["cli_simulate", "cli_calibrate", "cli_compensate", "cli_navigate", "cli_montecarlo", "cli_allan", "cli_demo", "cli_report", "cli_observability", "cli_import"]
-_SUBCOMMAND_MODULES.append("cli_design")  # inscal design (issue 10): path design from the Cramér-Rao bound
+_SUBCOMMAND_MODULES = ["cli_simulate", "cli_calibrate", "cli_compensate", "cli_navigate", "cli_montecarlo", "cli_allan",
+                       "cli_demo", "cli_report", "cli_observability", "cli_import", "cli_design"]
 
 
 def _register_all() -> None:
     for name in _SUBCOMMAND_MODULES:
-        try:
-            mod = importlib.import_module(f"inscal.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"inscal.{name}":
-                continue  # not built yet
-            raise
-        mod.register(app)
+        importlib.import_module(f"inscal.{name}").register(app)
 
 
 _register_all()

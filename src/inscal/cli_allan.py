@@ -183,13 +183,13 @@ def register(app: typer.Typer) -> None:
         tab = Table(title=escape(f"Allan deviation of {data}"))
         for col in ("axis", "ARW [deg/rt(h)]", "gyro BI [deg/h]", "VRW [ug/rt(Hz)]", "accel BI [ug]"):
             tab.add_column(escape(col))  # brackets are Rich markup otherwise (the units vanished)
-        def bi(key, k):
-            ub = res[key.split("_bias")[0] + "_bias_instability_upper_bound"][k]
-            return ("< " if ub else "") + f"{res[key][k]:.4g}"
+        def bi(sensor, unit, k):
+            ub = res[f"{sensor}_bias_instability_upper_bound"][k]
+            return ("< " if ub else "") + f"{res[f'{sensor}_bias_instability_{unit}'][k]:.4g}"
 
         for k, ax in enumerate("xyz"):
-            tab.add_row(ax, f"{res['arw_deg_rth'][k]:.4g}", bi("gyro_bias_instability_deg_h", k),
-                        f"{res['vrw_ug_rthz'][k]:.4g}", bi("accel_bias_instability_ug", k))
+            tab.add_row(ax, f"{res['arw_deg_rth'][k]:.4g}", bi("gyro", "deg_h", k),
+                        f"{res['vrw_ug_rthz'][k]:.4g}", bi("accel", "ug", k))
         Console().print(tab)
         if any(res["gyro_bias_instability_upper_bound"] + res["accel_bias_instability_upper_bound"]):
             typer.echo("'<': the deviation still falls at the longest tau (no flat bottom in this window): "

@@ -102,17 +102,23 @@ class Scenario:
 
 # ----------------------------------------------------------------------------- kernel
 @njit(cache=True)
+def _angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc):
+    """Gimbal angles and rates ``(theta_x, theta_z, w_x, w_z)`` at time t on segment s (angles
+    quadratic in time within a segment)."""
+    tau = t - seg_t0[s]
+    thx = seg_th0[s, 0] + seg_w0[s, 0] * tau + 0.5 * seg_acc[s, 0] * tau * tau
+    thz = seg_th0[s, 1] + seg_w0[s, 1] * tau + 0.5 * seg_acc[s, 1] * tau * tau
+    return thx, thz, seg_w0[s, 0] + seg_acc[s, 0] * tau, seg_w0[s, 1] + seg_acc[s, 1] * tau
+
+
+@njit(cache=True)
 def _eval(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_out, f_out):
     """Evaluate w_is^s and f^s at time t on segment s (writes into w_out, f_out; no allocation).
 
     ``C_s^n = C_b^n Rot(u, theta_x) R_z(theta_z)`` (N25 eq. 7-8); ``w_is^s`` per N25 eq. 9 with the
     outer rate about the tilted axis u, ``f^s = C_n^s [0, 0, g]`` (eq. 10, static base).
     """
-    tau = t - seg_t0[s]
-    thx = seg_th0[s, 0] + seg_w0[s, 0] * tau + 0.5 * seg_acc[s, 0] * tau * tau
-    thz = seg_th0[s, 1] + seg_w0[s, 1] * tau + 0.5 * seg_acc[s, 1] * tau * tau
-    wx = seg_w0[s, 0] + seg_acc[s, 0] * tau
-    wz = seg_w0[s, 1] + seg_acc[s, 1] * tau
+    thx, thz, wx, wz = _angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc)
     # Rodrigues rotation about the unit outer axis u (exact N25 eq. 5)
     c, sn = math.cos(thx), math.sin(thx)
     t1 = 1.0 - c

@@ -76,7 +76,7 @@ from numba import njit
 
 from .. import earth, units
 from ..attitude import dcm_from_euler
-from ..simulate import _find_segment as _segment_at  # smallest s with seg_t1[s] > t
+from ..simulate import _angles, _find_segment as _segment_at  # _segment_at: smallest s with seg_t1[s] > t
 from ..turntable import Path, outer_axis
 from .segment import CalibrationError
 from .systematic import (ARW_FLOOR, K_M1A, K_M1G, K_TAU, N_NAV, NAV_SIGMA0, VRW_FLOOR, StateSet, _column_values,
@@ -212,11 +212,7 @@ def _kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, 
     IMU): ``C_s^n = C_b^n Rot(u, theta_x) R_z(theta_z)`` (N25 eq. 7-8, exact Rodrigues rotation),
     ``w_is^s = C_n^s w_ie^n + R_z^T u w_x + e_z w_z`` (N25 eq. 9), ``f^s = C_n^s [0, 0, g]`` (eq. 10);
     the formulas of :func:`inscal.simulate._eval`."""
-    tau = t - seg_t0[s]
-    thx = seg_th0[s, 0] + seg_w0[s, 0] * tau + 0.5 * seg_acc[s, 0] * tau * tau
-    thz = seg_th0[s, 1] + seg_w0[s, 1] * tau + 0.5 * seg_acc[s, 1] * tau * tau
-    wx = seg_w0[s, 0] + seg_acc[s, 0] * tau
-    wz = seg_w0[s, 1] + seg_acc[s, 1] * tau
+    thx, thz, wx, wz = _angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc)
     c, sn = math.cos(thx), math.sin(thx)
     t1 = 1.0 - c
     ux, uy, uz = u[0], u[1], u[2]

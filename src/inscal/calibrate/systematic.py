@@ -207,6 +207,10 @@ STATE_OPTIONS = {
     "psins": "PSINS triangular convention: gyro matrix full (9), accelerometer matrix lower-triangular (6); "
               "the IMU frame is then defined by the accelerometers",
 }
+#: what each option sets on :class:`StateSet`
+_OPTION_FLAGS = {"51": {"extended": True}, "30": {"extended": False}, "lever9": {"lever9": True},
+                 "async": {"asynchrony": True}, "gimbal": {"gimbal": True},
+                 "unified": {"extended": True, "gimbal": True}, "psins": {"psins": True}}
 
 
 @dataclass(frozen=True)
@@ -228,23 +232,9 @@ class StateSet:
         toks = [t.strip() for t in str(spec).replace("+", ",").split(",") if t.strip()]
         kw = {"extended": True}
         for t in toks:
-            if t == "51":
-                kw["extended"] = True
-            elif t == "30":
-                kw["extended"] = False
-            elif t == "lever9":
-                kw["lever9"] = True
-            elif t == "async":
-                kw["asynchrony"] = True
-            elif t == "psins":
-                kw["psins"] = True
-            elif t == "gimbal":
-                kw["gimbal"] = True
-            elif t == "unified":
-                kw["extended"] = True
-                kw["gimbal"] = True
-            else:
+            if t not in _OPTION_FLAGS:
                 raise CalibrationError(f"unknown state option {t!r}; options: {', '.join(STATE_OPTIONS)}")
+            kw.update(_OPTION_FLAGS[t])
         if kw.get("lever9") and not kw["extended"]:
             raise CalibrationError("lever9 needs the extended (51-state) model")
         if kw.get("gimbal") and kw.get("psins"):
