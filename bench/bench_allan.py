@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from inscal import io
-from inscal.simulate import Site
+from inscal.core.earth import Site
 
 
 def write_static_record(path: Path, hours: float, rate_hz: float, chunk: int = 1 << 19, seed: int = 0) -> int:

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from inscal import scenarios, simulate
+from inscal.sim import scenarios, simulate
 from inscal.calibrate import calibrate
 
 

@@ -28,21 +28,21 @@ import time
 
 import numpy as np
 
-from inscal.calibrate import crlb as C
-from inscal.turntable import Path, psins19, rotmod16, s16_table1
+from inscal.plan import bound as C
+from inscal.core.turntable import RotationPath, psins19, rotmod16, s16_table1
 
 TARGET_S = 0.2
 
 
-def _rotmod_1h() -> Path:
+def _rotmod_1h() -> RotationPath:
     p = rotmod16(3600.0)
     moves, t = [], 0.0
     for m in p.moves:
         moves.append(m)
-        t = Path("x", tuple(moves), accel=p.accel, closed=False).duration
+        t = RotationPath("x", tuple(moves), accel=p.accel, closed=False).duration
         if t >= 3600.0:
             break
-    return Path("rotmod16-1h", tuple(moves), accel=p.accel, closed=False)
+    return RotationPath("rotmod16-1h", tuple(moves), accel=p.accel, closed=False)
 
 
 def _best(fn, repeats):
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
             verdict = f"< {TARGET_S:g} s per hour: {'OK' if hit else 'MISSED'}"
         print(f"  {lab:<{w}} {b.steps:>6d} {best:>8.3f} s {med:>6.3f} s {cpu:>7.3f} s   {verdict}")
     if not a.no_observability:
-        from inscal.calibrate.observability import observability
+        from inscal.plan.observability import observability
 
         t0 = time.perf_counter()
         o = observability("s16-table1")

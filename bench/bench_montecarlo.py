@@ -23,13 +23,15 @@ import numpy as np
 
 
 def _time_one(simulation: str) -> dict:
-    from inscal.analysis import experiments as E
+    from inscal.analysis.studies import common as E
     from inscal.analysis import montecarlo as mc
+    from inscal.analysis import studies
+    from inscal.cli.montecarlo import format_table
     from inscal.calibrate import calibrate
 
-    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0], "simulation": simulation})
+    exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0], "simulation": simulation})
     exp.warmup(exp)
-    key = E._scenario_key(exp.params, 7.0)
+    key = E.scenario_key(exp.params, 7.0)
     E.simulate_record(key, np.random.default_rng(0), simulation)  # fill the cache in reuse mode
     opts = {"uncertainty": exp.params["uncertainty"]}
     calibrate(E.simulate_record(key, np.random.default_rng(0), simulation), exp.params["method"], **opts)  # warm
@@ -68,9 +70,11 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
 
     from inscal.analysis import montecarlo as mc
+    from inscal.analysis import studies
+    from inscal.cli.montecarlo import format_table
 
     params = {} if a.simulation is None else {"simulation": a.simulation}
-    exp = mc.get_experiment("n25-fig5", params)
+    exp = studies.get_experiment("n25-fig5", params)
     sim_mode = exp.params["simulation"]
     n_points = len(exp.points)
     target_runs = 200
@@ -84,7 +88,7 @@ def main(argv=None) -> int:
             wall = time.perf_counter() - t0
             s = mc.summarize(exp, res)
             mc.write_outputs(exp, s, out)
-            mc.format_table(s, file=sys.stdout)
+            format_table(s, file=sys.stdout)
             report.update({"mode": "full", "runs": len(res.records), "new_runs": res.n_new, "wall_s": round(wall, 1),
                            "within_10_min": wall <= 600 if res.n_new == n_points * target_runs else None})
             print(f"full n25-fig5 study: {res.n_new} new runs of {n_points * target_runs} in {wall:.1f} s "

@@ -5,8 +5,8 @@ import time
 
 import numpy as np
 
-from inscal import scenarios
-from inscal.simulate import simulate
+from inscal.sim import scenarios
+from inscal.sim.simulate import simulate
 
 
 def main(repeats: int = 5) -> None:

@@ -26,7 +26,7 @@ def small_record(path: Path) -> None:
     import numpy as np
 
     from inscal import io
-    from inscal.simulate import Site
+    from inscal.core.earth import Site
 
     n, dt = 6000, 0.01  # 1 minute at 100 Hz
     rng = np.random.default_rng(0)

@@ -18,10 +18,11 @@ import time
 
 import numpy as np
 
-from inscal import turntable
-from inscal.errors import ImuErrors
-from inscal.simulate import Scenario, Site, simulate_chunks
-from inscal.strapdown import NavConfig, NavState, Strapdown
+from inscal.core import turntable
+from inscal.core.error_model import ImuErrors
+from inscal.sim.simulate import Scenario, simulate_chunks
+from inscal.core.earth import Site
+from inscal.nav.strapdown import NavConfig, NavState, Strapdown
 
 CHUNK = 1 << 20
 

@@ -44,9 +44,12 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit
 
-from inscal import filters, scenarios, simulate
+from inscal.core import kalman as filters
+from inscal.sim import scenarios, simulate
 from inscal.calibrate import calibrate
-from inscal.calibrate import systematic as S
+from inscal.calibrate.systematic.dynamics import nav_F
+from inscal.calibrate.systematic.kernel import _pass_kernel, run_pass
+from inscal.calibrate.systematic.states import IDX_MEAS
 
 TARGET_S, GOAL_S, TARGET_RATIO, TARGET_MB = 3.0, 1.0, 10.0, 500.0
 TIMED = ("run_pass", "_pass_kernel", "_smooth_kernel", "_history", "_jacobian", "estimate_white_noise")
@@ -122,7 +125,7 @@ def _engine_forward(P, phinn_st, phinp_st, Qd_st, rs, zs, hist_every, K_st, Si_s
             hist_Pm[ih] = P
             ih += 1
         z = zs[k]
-        filters.update(P, S.IDX_MEAS, rs, z, K, Si, xs)
+        filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
         K_st[k] = K
         Si_st[k] = Si
         sz_st[k] = Si @ z
@@ -140,7 +143,7 @@ def _engine_backward(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, his
     ih = hist_Pm.shape[0] - 1
     for k in range(M - 1, -1, -1):
         if part == 0 or part == 1:
-            filters.smoother_step(lam, Lam, S.IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
+            filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
         if (part == 0 or part == 3) and (k % hist_every == 0 or k == M - 1):
             x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
             hist_x[ih] = x
@@ -173,14 +176,14 @@ def _rebuild_qd(phinn_st, sig, lat0, h0, T, qgm, qam, Qd_st):
         fn[1] = ph[5, 0] / T
         fn[2] = ph[3, 1] / T
         for _ in range(6):
-            S._nav_F(lat0, h0, fn, F)
+            nav_F(lat0, h0, fn, F)
             F2 = F @ F
             F3 = F2 @ F
             model = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
             fn[0] -= (model[4, 2] - ph[4, 2]) / T
             fn[1] -= (model[5, 0] - ph[5, 0]) / T
             fn[2] -= (model[3, 1] - ph[3, 1]) / T
-        S._nav_F(lat0, h0, fn, F)
+        nav_F(lat0, h0, fn, F)
         F2 = F @ F
         F3 = F2 @ F
         model = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
@@ -346,7 +349,7 @@ def main(argv=None) -> int:
     with _timers({}, keep):
         calibrate(rec, "systematic51", max_passes=1)
     t_b, _ = _best(lambda: calibrate(rec, "systematic51", max_passes=1), reps1)
-    ba = inspect.signature(S.run_pass).bind(*keep["run_pass"][0], **keep["run_pass"][1])
+    ba = inspect.signature(run_pass).bind(*keep["run_pass"][0], **keep["run_pass"][1])
     ba.apply_defaults()
     pa = dict(ba.arguments)
     pa["keep_phi"] = True
@@ -354,7 +357,7 @@ def main(argv=None) -> int:
     for _ in range(reps1):
         accb: dict = {}
         with _timers(accb):
-            out = S.run_pass(**{**pa, "params": pa["params"].copy()})
+            out = run_pass(**{**pa, "params": pa["params"].copy()})
         runs_b.append(accb)
     B = min(runs_b, key=lambda r: r["run_pass"])
     t_pass, t_kern, t_smooth = B["run_pass"], B.get("_pass_kernel", math.nan), B.get("_smooth_kernel", math.nan)
@@ -363,7 +366,7 @@ def main(argv=None) -> int:
     t_kern9 = None
     try:
         kargs, _ = keep["_pass_kernel"]
-        names = list(inspect.signature(S._pass_kernel.py_func).parameters)
+        names = list(inspect.signature(_pass_kernel.py_func).parameters)
         kw = dict(zip(names, kargs))
         M = kw["K_st"].shape[0]
         nh = kw["hist_Pm"].shape[0]
@@ -373,10 +376,10 @@ def main(argv=None) -> int:
                   hist_Pf=np.empty((nh, 9)))
 
         def _k9():
-            return S._pass_kernel(*[np.copy(kw[nm]) if isinstance(kw[nm], np.ndarray) else kw[nm] for nm in names])
+            return _pass_kernel(*[np.copy(kw[nm]) if isinstance(kw[nm], np.ndarray) else kw[nm] for nm in names])
 
         def _k51():
-            return S._pass_kernel(*[np.copy(v) if isinstance(v, np.ndarray) else v for v in kargs])
+            return _pass_kernel(*[np.copy(v) if isinstance(v, np.ndarray) else v for v in kargs])
 
         _k9()
         t_kern9, _ = _best(_k9, reps1)
@@ -434,7 +437,7 @@ def main(argv=None) -> int:
             Qs = np.zeros((steps, N, N))
             Qs[:, :9, :9] = Qd
             H = np.zeros((6, N))
-            H[np.arange(6), S.IDX_MEAS] = 1.0
+            H[np.arange(6), IDX_MEAS] = 1.0
             tf, ts, dres = _filterpy_pass(Fs, Qs, np.diag(rs), H, zs)
             hs = out.hist_step
             pf = np.diag(out.Pf)

@@ -43,7 +43,7 @@ WEAK = 0.3
 
 
 def _scenario(name: str, rate_hz: float):
-    from inscal.scenarios import build
+    from inscal.sim.scenarios import build
 
     return replace(build(name), rate_hz=float(rate_hz))
 
@@ -51,8 +51,9 @@ def _scenario(name: str, rate_hz: float):
 def one_run(args) -> np.ndarray:
     """Error state (estimate - truth, SI) of one seeded noise-only systematic51 calibration."""
     name, rate_hz, seed, idx, run = args
-    from inscal.calibrate.systematic import CompParams, systematic51, truth_in_frame
-    from inscal.simulate import simulate
+    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+    from inscal.calibrate.systematic.driver import systematic51
+    from inscal.sim.simulate import simulate
 
     sc = _scenario(name, rate_hz)
     rng = np.random.default_rng(np.random.SeedSequence([seed, idx, run]))
@@ -64,8 +65,8 @@ def one_run(args) -> np.ndarray:
 
 
 def compare(name: str, errors: np.ndarray, rate_hz: float) -> dict:
-    from inscal import units
-    from inscal.calibrate.crlb import crlb, predicted_error
+    from inscal.core import units
+    from inscal.plan.bound import crlb, predicted_error
 
     sc = _scenario(name, rate_hz)
     b = crlb(sc, "51")

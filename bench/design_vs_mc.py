@@ -54,7 +54,7 @@ GROUPS = ("gyro_g_sensitivity", "accel_nonlinearity", "accel_cross_coupling", "a
 
 def _scenario(source: str, rate_hz: float):
     """A built-in scenario name or a scenario TOML, at ``rate_hz``."""
-    from inscal import scenarios
+    from inscal.sim import scenarios
 
     sc = scenarios.build(source) if source in scenarios.BUILTIN else scenarios.load_toml(Path(source))
     return replace(sc, rate_hz=float(rate_hz))
@@ -63,11 +63,11 @@ def _scenario(source: str, rate_hz: float):
 def one_run(args) -> tuple[np.ndarray, float]:
     """Error state (estimate - truth, SI) and NEES of one seeded noise-only calibration."""
     source, states, rate_hz, seed, idx, run = args
-    from inscal.analysis.experiments import systematic_statistics
+    from inscal.analysis.truth import systematic_statistics
     from inscal.calibrate import calibrate
-    from inscal.calibrate.systematic import CompParams, truth_in_frame
-    from inscal.io import Record, Truth
-    from inscal.simulate import simulate
+    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+    from inscal.io.records import Record, Truth
+    from inscal.sim.simulate import simulate
 
     sc = _scenario(source, rate_hz)
     rng = np.random.default_rng(np.random.SeedSequence([seed, idx, run]))
@@ -89,14 +89,14 @@ def one_run(args) -> tuple[np.ndarray, float]:
 
 def bound_of(source: str, states: str, rate_hz: float) -> dict:
     """Bound, fixed-truth predicted RMS error, labels, groups and units of one path."""
-    from inscal.calibrate.crlb import crlb, predicted_error
+    from inscal.plan.bound import crlb, predicted_error
 
     sc = _scenario(source, rate_hz)
     b = crlb(sc, states, keep_history=False)
     m, s = predicted_error(b, sc.imu) if not b.setup.states.gimbal else (None, None)
     if b.setup.states.gimbal:  # predicted_error maps the IMU truth only; add dth's truth by hand (the mount
         # attitude's prior is centred on the coarse alignment's, not on zero: no pull counted there)
-        from inscal.calibrate.systematic import CompParams, truth_in_frame
+        from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 
         st = b.setup.states
         x_nom = CompParams().error_state(st, truth_in_frame(sc.imu, st, sc.gimbal))
@@ -111,7 +111,7 @@ def bound_of(source: str, states: str, rate_hz: float) -> dict:
 
 
 def group_table(b: dict, errors: np.ndarray) -> dict:
-    from inscal import units
+    from inscal.core import units
 
     out = {}
     rms_mc = np.sqrt(np.mean(errors ** 2, axis=0))
@@ -125,8 +125,8 @@ def group_table(b: dict, errors: np.ndarray) -> dict:
 
 def match_minutes(minutes: list[float], states: str, candidates: int, seed: int, base: str) -> list[dict]:
     """Bound-only designs over the four Table 2 groups; worst component bound / S16 1-h bound per group."""
-    from inscal.calibrate.crlb import BiasNoise, make_setup
-    from inscal.calibrate.design import TABLE2_GROUPS, design
+    from inscal.plan.bound import BiasNoise, make_setup
+    from inscal.plan.design import TABLE2_GROUPS, design
 
     sc = _scenario(base, 50.0)
     setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise))
@@ -163,7 +163,7 @@ def main(argv=None) -> int:
         toml = a.design
         print(f"designed path: {toml}")
     else:
-        from inscal.cli_design import run_design
+        from inscal.cli.design import run_design
 
         toml = os.path.join(tmp, f"designed-{a.minutes:g}min.toml")
         res, _ = run_design(Path(toml), a.minutes, a.states, seed=a.seed, candidates=a.candidates, scheduler="none",

@@ -28,10 +28,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from inscal import scenarios
+from inscal.sim import scenarios
 from inscal.calibrate import calibrate
-from inscal.errors import PARAMETERS
-from inscal.simulate import simulate
+from inscal.core.error_model import PARAMETERS
+from inscal.sim.simulate import simulate
 
 GROUPS = [  # (parameter, label); the S16 Table 2 groups first
     ("gyro_g_sensitivity", "gyro g-sensitivity"),
@@ -73,13 +73,13 @@ def errors(res, sc) -> dict:
             e = np.abs(np.ravel(np.asarray(f[name]["error"], float)))
             s = np.ravel(np.asarray(f[name]["sigma"], float))
             if name in formal:  # the smoothed (formal) sigma, before any misfit scaling
-                from inscal import units
+                from inscal.core import units
 
                 s = np.ravel(units.from_si(np.asarray(formal[name], float), PARAMETERS[name][3]))
             ok = np.isfinite(s)
             out[name] = (e[ok], s[ok])
         else:
-            from inscal import units
+            from inscal.core import units
 
             obj, attr, _, unit, _ = PARAMETERS[name]
             t = np.ravel(units.from_si(np.asarray(getattr(sc.imu if obj == "imu" else sc.gimbal, attr), float), unit))

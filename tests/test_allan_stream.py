@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import io, units
+from inscal import io
+from inscal.core import units
 from inscal.analysis.allan import StreamingAllan, allan
-from inscal.cli import app
-from inscal.cli_allan import MotionStats, run_allan
-from inscal.simulate import Site
+from inscal.cli.app import app
+from inscal.analysis.allan import MotionStats
+from inscal.cli.allan import run_allan
+from inscal.core.earth import Site
 
 RATE = 100.0
 
@@ -81,7 +83,7 @@ def test_run_allan_matches_in_memory(tmp_path_factory, rotate, start, stop, monk
     path = tmp_path_factory.getbasetemp() / f"stream_{rotate}.h5"
     if not path.exists():
         _record(path, 250_000, rotate)
-    import inscal.cli_allan as ca
+    import inscal.cli.allan as ca
 
     real = ca.stream_allan
     monkeypatch.setattr(ca, "stream_allan", lambda data, win: real(data, win, chunk_size=30_011))  # many chunks

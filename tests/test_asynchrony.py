@@ -7,13 +7,18 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from inscal import io, simulate as sim, units
-from inscal import turntable as tt
+from inscal.sim.simulate import write_simulation, scenario_from_record
+from inscal import io
+from inscal.sim import simulate as sim
+from inscal.core import units
+from inscal.core import turntable as tt
 from inscal.calibrate.result import CalibrationResult
-from inscal.errors import GimbalErrors, ImuErrors, ImuNoise, errors_from_field, errors_to_field
-from inscal.paramfile import load_params, save_params
-from inscal.scenarios import load_toml, s16_errors
-from inscal.simulate import Scenario, Site, simulate, true_rates
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, errors_from_field, errors_to_field
+from inscal.io.paramfile import load_params, save_params
+from inscal.sim.scenarios import load_toml, s16_errors
+from inscal.sim.simulate import Scenario, simulate
+from inscal.core.earth import Site
+from inscal.core.kinematics import true_rates
 
 DEG = math.pi / 180
 SITE = Site(30.686651 * DEG, 120.664265 * DEG, 12.0)
@@ -23,7 +28,7 @@ DT = 0.01
 
 def _path():
     """Dwell 1 s, outer +47 deg, inner -60 deg at 10 deg/s with 50 deg/s^2 (trapezoids), dwell 1 s."""
-    return tt.Path("a", (tt.Move("outer", 47 * DEG, 10 * DEG, 0.5), tt.Move("inner", -60 * DEG, 10 * DEG, 1.0)),
+    return tt.RotationPath("a", (tt.Move("outer", 47 * DEG, 10 * DEG, 0.5), tt.Move("inner", -60 * DEG, 10 * DEG, 1.0)),
                    accel=50 * DEG, initial_dwell=1.0, closed=False)
 
 
@@ -221,9 +226,9 @@ def test_hdf5_truth_round_trip(tmp_path):
     imu = s16_errors().replace(time_asynchrony=-1.25e-3)
     sc = Scenario("h", _path(), SITE, imu=imu, gimbal=GIMBAL)
     f = tmp_path / "r.h5"
-    io.write_simulation(f, sc, None)
+    write_simulation(f, sc, None)
     rec = io.read_record(f)
     assert rec.truth.imu.time_asynchrony == -1.25e-3
     assert np.array_equal(rec.dvel, simulate(sc).dvel)
-    sc2 = io.scenario_from_record(rec)
+    sc2 = scenario_from_record(rec)
     assert sc2.imu.time_asynchrony == -1.25e-3

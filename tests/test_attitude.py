@@ -7,7 +7,7 @@ import pytest
 import scipy
 from scipy.spatial.transform import Rotation
 
-from inscal import attitude as at
+from inscal.core import attitude as at
 
 
 def test_elementary_rotations_are_active():

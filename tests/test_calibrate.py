@@ -9,14 +9,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from inscal.calibrate.twelve_position import TWELVE
+from inscal.calibrate.positions import TWELVE
 
-from inscal import scenarios, simulate
-from inscal.calibrate import CalibrationError, calibrate, window_means
-from inscal.calibrate.model import predict
+from inscal.sim import scenarios, simulate
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate import calibrate
+from inscal.calibrate.windows import window_means
+from inscal.calibrate.window_model import predict
 from inscal.calibrate.result import flatten
-from inscal.errors import ImuNoise
-from inscal.turntable import Move, Path
+from inscal.core.error_model import ImuNoise
+from inscal.core.turntable import Move, RotationPath
 
 DEG = math.pi / 180.0
 NAMES_ALL = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
@@ -101,7 +103,7 @@ def test_joint_noise_free_recovers_everything(n25_clean, ws_clean):
 
 
 def test_joint_from_zero_start(n25_clean, ws_clean):
-    from inscal.errors import GimbalErrors, ImuErrors
+    from inscal.core.error_model import GimbalErrors, ImuErrors
 
     sc, _ = n25_clean
     res = calibrate(ws_clean, "joint", initial=(ImuErrors(), GimbalErrors()), uncertainty=False)
@@ -148,9 +150,9 @@ def test_gimbal_jump_is_reported(n25_clean):
 
 
 def test_missing_positions_named(ws_clean):
-    from inscal.calibrate.segment import WindowSet
+    from inscal.calibrate.windows import WindowSet
 
-    from inscal.calibrate.six_position import nominal_position
+    from inscal.calibrate.positions import nominal_position
 
     drop = [w for w in ws_clean.windows if not (w.kind == "static" and nominal_position(w) == (90, 0))]
     assert len(drop) == len(ws_clean.windows) - 1
@@ -166,8 +168,8 @@ def test_missing_positions_named(ws_clean):
 def test_n25_needs_only_what_it_uses(n25_clean, ws_clean):
     """n25 runs on any inscribed set of inner-symmetric pairs that separates [tan b0, a0, dth]
     and points every accelerometer axis up and down; it names what is missing otherwise."""
-    from inscal.calibrate.segment import WindowSet
-    from inscal.calibrate.six_position import nominal_position
+    from inscal.calibrate.windows import WindowSet
+    from inscal.calibrate.positions import nominal_position
 
     sc, _ = n25_clean
 
@@ -192,7 +194,7 @@ def test_n25_needs_only_what_it_uses(n25_clean, ws_clean):
 
 
 def test_short_record_and_no_rate_tests():
-    sc = replace(scenarios.build("n25"), noise=ImuNoise(), path=Path("first-six", scenarios.n25_twelve().moves[:5],
+    sc = replace(scenarios.build("n25"), noise=ImuNoise(), path=RotationPath("first-six", scenarios.n25_twelve().moves[:5],
                                                                        initial_dwell=100.0, closed=False))
     rec = record(sc)
     with pytest.raises(CalibrationError, match="missing: z axis down"):
@@ -209,7 +211,7 @@ def test_joint_reports_unobservable_directions():
     accelerometer is always up (its scale factor and bias cannot be separated)."""
     moves = tuple(Move("inner", 90 * DEG, 10 * DEG, 60.0) for _ in range(4)) + (
         Move("inner", 730 * DEG, 10 * DEG, 20.0), Move("inner", -730 * DEG, 10 * DEG, 20.0))
-    sc = replace(scenarios.build("n25"), noise=ImuNoise(), path=Path("inner-only", moves, initial_dwell=60.0, closed=False))
+    sc = replace(scenarios.build("n25"), noise=ImuNoise(), path=RotationPath("inner-only", moves, initial_dwell=60.0, closed=False))
     # whole-turn rate windows only: the 90 deg turns' windows make the heading / gyro
     # misalignment direction weakly observable (1e-8), which changes the degenerate set
     res = calibrate(record(sc), "joint", partial_turns=False)

@@ -11,14 +11,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from inscal import scenarios, simulate
-from inscal.calibrate import calibrate, window_means
-from inscal.calibrate.model import C_n_s, ideal_up, predict
+from inscal.sim import scenarios, simulate
+from inscal.calibrate import calibrate
+from inscal.calibrate.windows import window_means
+from inscal.calibrate.window_model import C_n_s, ideal_up, predict
 from inscal.calibrate.n25 import design_rows, inner_pairs, L_vector, solve_X
 from inscal.calibrate.result import flatten
-from inscal.calibrate.six_position import leveling_deviation, predicted_scheme_errors, rate_test_groups
-from inscal.calibrate.twelve_position import accel_twelve, twelve_windows
-from inscal.errors import GimbalErrors, ImuNoise
+from inscal.calibrate.positions import leveling_deviation, predicted_scheme_errors, rate_test_groups
+from inscal.calibrate.positions import accel_twelve, twelve_windows
+from inscal.core.error_model import GimbalErrors, ImuNoise
 
 DEG = math.pi / 180.0
 ARCSEC = DEG / 3600.0
@@ -166,6 +167,6 @@ def test_twelve_position_cancels_leveling_in_installation(base):
 
 
 def _index(ws, pos):
-    from inscal.calibrate.six_position import positions
+    from inscal.calibrate.positions import positions
 
     return positions(ws)[tuple(pos)]

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import units
-from inscal.cli import app
-from inscal.paramfile import load_params
+from inscal.core import units
+from inscal.cli.app import app
+from inscal.io.paramfile import load_params
 
 runner = CliRunner()
 

@@ -7,10 +7,11 @@ import pytest
 import tomli_w
 from typer.testing import CliRunner
 
+from inscal.sim.simulate import scenario_from_record
 from inscal import io
-from inscal.cli import app
-from inscal.errors import errors_to_field
-from inscal.simulate import simulate
+from inscal.cli.app import app
+from inscal.core.error_model import errors_to_field
+from inscal.sim.simulate import simulate
 
 runner = CliRunner()
 
@@ -31,7 +32,7 @@ def test_compensate_with_true_parameters_round_trip(tmp_path):
     assert json.loads(res.stdout)["samples"] == r.n_samples
     c = io.read_record(out)
     assert c.truth is None
-    truth = simulate(io.scenario_from_record(r), keep_truth=True)
+    truth = simulate(scenario_from_record(r), keep_truth=True)
     static = np.all(np.abs(truth.true_dtheta) < 1e-6, axis=1)  # dwell samples (Earth rate only)
     assert static.sum() > 300000
     assert np.abs(c.dtheta[static] - truth.true_dtheta[static]).max() < 1e-16  # rad per sample

@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from inscal.cli import app
-from inscal.paramfile import load_params
+from inscal.cli.app import app
+from inscal.io.paramfile import load_params
 
 
 def test_demo_quick_json(tmp_path):

@@ -10,11 +10,12 @@ import pytest
 import tomli_w
 from typer.testing import CliRunner
 
-from inscal import __version__, io
-from inscal.cli import app
-from inscal.errors import GimbalErrors, ImuErrors, errors_to_field
-from inscal.paramfile import ParamFileError, load_params
-from inscal.simulate import Site
+from inscal import __version__
+from inscal import io
+from inscal.cli.app import app
+from inscal.core.error_model import GimbalErrors, ImuErrors, errors_to_field
+from inscal.io.paramfile import ParamFileError, load_params
+from inscal.core.earth import Site
 
 runner = CliRunner()
 RATE = 100.0
@@ -110,7 +111,7 @@ def test_allan_plot_guards(rec, tmp_path):
 
 
 def test_allan_unwritable_plot(rec, tmp_path, monkeypatch):
-    import inscal.report as report
+    import inscal.report.figures as report
 
     def denied(fig, path, overwrite=False):
         raise PermissionError(13, "Permission denied", str(path))
@@ -234,7 +235,7 @@ def test_long_names_are_cut():
 
 
 def test_short_helper():
-    from inscal.cliutil import short
+    from inscal.cli.common import short
 
     assert short("abc") == "abc"
     s = short("y" * 500)

@@ -4,7 +4,8 @@ import json
 
 from typer.testing import CliRunner
 
-from inscal.cli import app
+from inscal.sim.simulate import write_simulation
+from inscal.cli.app import app
 
 runner = CliRunner()
 
@@ -38,12 +39,13 @@ def test_report_path_section_and_its_absence(tmp_path):
 
     import numpy as np
 
-    from inscal import io, scenarios
-    from inscal.calibrate.crlb import evaluate, make_setup
-    from inscal.report import record_report
+    from inscal import io
+    from inscal.sim import scenarios
+    from inscal.plan.bound import evaluate, make_setup
+    from inscal.report.record import record_report
 
     sc = scenarios.build("psins19", rate_hz=20.0)
-    io.write_simulation(tmp_path / "p.h5", sc, np.random.default_rng(1))
+    write_simulation(tmp_path / "p.h5", sc, np.random.default_rng(1))
     rec = io.read_record(tmp_path / "p.h5")
     s = record_report(tmp_path / "p.html", rec)
     assert s["path_bound"].startswith("51-state model")

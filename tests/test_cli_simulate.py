@@ -13,7 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from inscal import io
-from inscal.cli import app
+from inscal.cli.app import app
 
 runner = CliRunner()
 

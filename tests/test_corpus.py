@@ -14,10 +14,11 @@ import pytest
 import tomli_w
 from typer.testing import CliRunner
 
-from inscal import __version__, io
-from inscal.cli import app
-from inscal.errors import GimbalErrors, ImuErrors, ImuNoise, errors_to_field
-from inscal.simulate import Site
+from inscal import __version__
+from inscal import io
+from inscal.cli.app import app
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, errors_to_field
+from inscal.core.earth import Site
 
 RATE = 100.0
 runner = CliRunner()

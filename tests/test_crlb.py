@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import filters, units
-from inscal.calibrate import crlb as C
-from inscal.calibrate.observability import observability
-from inscal.calibrate.systematic import N_NAV, StateSet
-from inscal.cli import app
-from inscal.errors import GimbalErrors
-from inscal.scenarios import S16_SITE
-from inscal.simulate import Scenario, _eval, true_attitude, true_rates
-from inscal.turntable import Move, Path, s16_table1
+from inscal.core import kalman as filters, units
+from inscal.plan import bound as C
+from inscal.plan.observability import observability
+from inscal.calibrate.systematic.states import N_NAV, StateSet
+from inscal.cli.app import app
+from inscal.core.error_model import GimbalErrors
+from inscal.sim.scenarios import S16_SITE
+from inscal.sim.simulate import Scenario
+from inscal.core.kinematics import kinematics, rates_at, segment_at, true_attitude, true_rates
+from inscal.core.turntable import Move, RotationPath, s16_table1
 
 DEG = math.pi / 180.0
 runner = CliRunner()
@@ -27,7 +28,7 @@ def short_path():
     mv = (Move("outer", 90 * DEG, 10 * DEG, 40.0), Move("inner", 180 * DEG, 10 * DEG, 40.0),
           Move("outer", -90 * DEG, 10 * DEG, 40.0), Move("inner", 3 * DEG, 10 * DEG, 40.0),
           Move("outer", 270 * DEG, 10 * DEG, 40.0))
-    return Path("short", mv, accel=20 * DEG, initial_dwell=30.0, closed=False)
+    return RotationPath("short", mv, accel=20 * DEG, initial_dwell=30.0, closed=False)
 
 
 def test_kinematics_match_the_simulator():
@@ -38,18 +39,18 @@ def test_kinematics_match_the_simulator():
     t = np.linspace(0.0, sc.path.duration, 997)
     w_ref, f_ref = true_rates(sc, t)
     C_ref = true_attitude(sc, t)
-    from inscal.turntable import outer_axis
-    from inscal.attitude import dcm_from_euler
+    from inscal.core.turntable import outer_axis
+    from inscal.core.attitude import dcm_from_euler
 
     u, Cbn = outer_axis(gim.nonorthogonality), dcm_from_euler(gim.mount_attitude)
     Cm, w, f = np.empty((3, 3)), np.empty(3), np.empty(3)
     for k, tk in enumerate(t):
-        s = C._segment_at(tk, seg.t1)
-        C._kinematics(tk, s, seg.t0, seg.th0, seg.w0, seg.acc, u, Cbn, sc.site.earth_rate_n, sc.site.gravity, Cm, w, f)
+        s = segment_at(tk, seg.t1)
+        kinematics(tk, s, seg.t0, seg.th0, seg.w0, seg.acc, u, Cbn, sc.site.earth_rate_n, sc.site.gravity, Cm, w, f)
         assert np.allclose(w, w_ref[k], atol=1e-15, rtol=1e-12)
         assert np.allclose(f, f_ref[k], atol=1e-13)
         assert np.allclose(Cm, C_ref[k], atol=1e-14)
-    assert _eval is not None  # the simulator function the kinematics replicate
+    assert rates_at is not None  # the simulator function the kinematics replicate
 
 
 @pytest.mark.parametrize("name", ["s16", "psins19"])
@@ -88,8 +89,8 @@ def _dense_bound(setup, path, q_extra):
     """Independent reference: the systematic filter's own per-step transitions (observability's pass,
     scaled states) through inscal.filters' structured predict (with a parameter random walk) and
     Joseph update."""
-    from inscal.calibrate.systematic import systematic
-    from inscal.simulate import simulate
+    from inscal.calibrate.systematic.driver import systematic
+    from inscal.sim.simulate import simulate
     from types import SimpleNamespace
     from dataclasses import replace
 
@@ -164,7 +165,7 @@ def test_timing_and_history_shape():
 
 def test_errors():
     with pytest.raises(C.BoundError):
-        C.crlb(Path("tiny", (Move("none", dwell=1.5),), closed=False))
+        C.crlb(RotationPath("tiny", (Move("none", dwell=1.5),), closed=False))
     with pytest.raises(C.BoundError):
         C.make_setup("51", arw=-1.0)
     with pytest.raises(C.BoundError):
@@ -196,9 +197,10 @@ def test_bound_vs_monte_carlo_psins19():
     from dataclasses import replace
     from types import SimpleNamespace
 
-    from inscal.calibrate.systematic import CompParams, systematic51, truth_in_frame
-    from inscal.scenarios import build
-    from inscal.simulate import simulate
+    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+    from inscal.calibrate.systematic.driver import systematic51
+    from inscal.sim.scenarios import build
+    from inscal.sim.simulate import simulate
 
     sc = replace(build("psins19"), rate_hz=20.0)
     b = C.crlb(sc)

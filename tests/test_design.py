@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal.calibrate import crlb as C
-from inscal.calibrate import design as D
-from inscal.cli import app
-from inscal.turntable import DEG, s16_table1
+from inscal.plan import bound as C
+from inscal.plan import design as D
+from inscal.cli.app import app
+from inscal.core.turntable import DEG, s16_table1
 
 runner = CliRunner()
 
@@ -117,7 +117,7 @@ def test_cli_design_bad_input(tmp_path, bad):
 def test_path_report_gains():
     """Per-move gains: non-negative (a bound never grows for constants) and, summed over the moves, the
     total reduction of each group from prior to the final bound."""
-    from inscal.report_path import group_history, move_gains
+    from inscal.report.path import group_history, move_gains
 
     p = s16_table1()
     b = C.evaluate(C.make_setup("51"), p)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from inscal import earth as E
+from inscal.core import earth as E
 
 
 def _q(s):

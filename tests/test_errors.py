@@ -5,9 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from inscal import units
-from inscal.errors import (GimbalErrors, ImuErrors, ImuNoise, errors_from_field, errors_to_field, from_s16,
-                           noise_from_field, off_diagonal, size_effect, split_scale_misalignment, to_s16)
+from inscal.core import units
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, errors_from_field, errors_to_field, from_s16, noise_from_field, off_diagonal, size_effect, split_scale_misalignment, to_s16
 
 
 def full_errors(rng) -> ImuErrors:

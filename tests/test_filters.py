@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inscal import filters
+from inscal.core import kalman as filters
 
 
 def _system(rng, n=3, p=2, m=2, M=40, qp=0.0):

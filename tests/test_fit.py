@@ -16,15 +16,20 @@ import pytest
 from scipy import stats
 from typer.testing import CliRunner
 
-from inscal import io, scenarios, simulate, units
-from inscal.calibrate import calibrate, window_means
-from inscal.calibrate.joint import COMPONENTS
-from inscal.calibrate.model import predict
-from inscal.calibrate.result import IMU_LINEAR, GIMBAL, estimator_reference, flatten, normalised_residuals, sensitivity
-from inscal.calibrate.six_position import predicted_scheme_errors
-from inscal.cli import app
-from inscal.errors import GimbalErrors
-from inscal.paramfile import load_params
+from inscal.sim.simulate import write_simulation
+from inscal import io
+from inscal.sim import scenarios, simulate
+from inscal.core import units
+from inscal.calibrate import calibrate
+from inscal.calibrate.windows import window_means
+from inscal.calibrate.window_model import COMPONENTS
+from inscal.calibrate.window_model import predict
+from inscal.calibrate.result import IMU_LINEAR, GIMBAL, flatten
+from inscal.calibrate.fit import estimator_reference, normalised_residuals, sensitivity
+from inscal.calibrate.positions import predicted_scheme_errors
+from inscal.cli.app import app
+from inscal.core.error_model import GimbalErrors
+from inscal.io.paramfile import load_params
 
 NAMES = IMU_LINEAR + GIMBAL
 RATE_HZ = 20.0  # the window-mean noise depends on the VRW / ARW densities, not on the rate
@@ -131,7 +136,7 @@ def test_six_position_note_gives_known_scheme_error_and_sigma_covers(n25_ws):
 
 
 def six_index(ws, pos):
-    from inscal.calibrate.six_position import positions
+    from inscal.calibrate.positions import positions
 
     return positions(ws)[tuple(pos)]
 
@@ -159,15 +164,15 @@ def test_n25_sigma_and_chi2_match_monte_carlo_of_window_noise(n25_ws):
     ref = calibrate(ws.replace_means(G0, A0), "n25")
     sig = flat_formal(ref, NAMES)
     from inscal.calibrate.n25 import _core
-    from inscal.calibrate.six_position import _imu_gim
-    from inscal.calibrate.twelve_position import twelve_windows
+    from inscal.calibrate.result import errors_from_values
+    from inscal.calibrate.positions import twelve_windows
 
     idx = twelve_windows(ws)
     rng = np.random.default_rng(42)
     est, chi2 = [], []
     for _ in range(150):  # the n25 estimator itself (calibrate(..., "n25") less its fit report)
         w2 = ws.replace_means(G0 + rng.standard_normal(G0.shape) * sg, A0 + rng.standard_normal(A0.shape) * sa)
-        imu, gim = _imu_gim(_core(w2, idx)[0])
+        imu, gim = errors_from_values(_core(w2, idx)[0])
         est.append(flatten(imu, gim, NAMES))
         rg, ra = normalised_residuals(imu, gim, w2)
         chi2.append(np.sum(rg ** 2) + np.sum(ra ** 2))
@@ -186,9 +191,9 @@ def test_n25_sigma_and_chi2_match_monte_carlo_of_window_noise(n25_ws):
 def test_estimator_reference_is_the_residual_projector_for_least_squares(n25_ws):
     """For a least-squares estimator the reference A is the residual projector: tr(A^T A) = dof."""
     sc, ws = n25_ws
-    from inscal.calibrate.joint import _Model
+    from inscal.calibrate.window_model import WindowModel
 
-    m = _Model(ws)
+    m = WindowModel(ws)
     J = m.jacobian(m.from_si(flatten(sc.imu, sc.gimbal, NAMES))) / m.scale[None, :]
     S = np.linalg.pinv(J)  # d estimate / d normalised mean
     A = estimator_reference(sc.imu, sc.gimbal, ws, S, np.arange(J.shape[0]), list(range(28)))
@@ -211,7 +216,7 @@ def test_sensitivity_columns_are_window_components(n25_ws):
 @pytest.fixture(scope="module")
 def n25_h5(tmp_path_factory):
     rec = tmp_path_factory.mktemp("fit") / "n25.h5"
-    io.write_simulation(rec, replace(scenarios.build("n25"), rate_hz=RATE_HZ), np.random.default_rng(2))
+    write_simulation(rec, replace(scenarios.build("n25"), rate_hz=RATE_HZ), np.random.default_rng(2))
     return rec
 
 

@@ -13,13 +13,19 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import earth, io, navigation as nv, scenarios, simulate, turntable
-from inscal.calibrate import calibrate, window_means
-from inscal.cli import app
-from inscal.earth import GravityModel, parse_gravity
-from inscal.errors import ImuNoise
-from inscal.simulate import Scenario, Site
-from inscal.strapdown import NavConfig
+from inscal.sim.simulate import write_simulation
+from inscal.core import earth, turntable
+from inscal import io
+from inscal import nav as nv
+from inscal.sim import scenarios, simulate
+from inscal.calibrate import calibrate
+from inscal.calibrate.windows import window_means
+from inscal.cli.app import app
+from inscal.core.earth import GravityModel, parse_gravity
+from inscal.core.error_model import ImuNoise
+from inscal.sim.simulate import Scenario
+from inscal.core.earth import Site
+from inscal.nav.strapdown import NavConfig
 
 DEG = math.pi / 180.0
 LAT34 = 34.0 * DEG
@@ -139,7 +145,7 @@ def test_record_without_gravity_attr_reads_as_wgs84(tmp_path):
 
     sc = Scenario("s", turntable.static(2.0), Site(LAT34, 0.0, 0.0, "psins"), rate_hz=10)
     p = tmp_path / "r.h5"
-    io.write_simulation(p, sc, None)
+    write_simulation(p, sc, None)
     assert io.read_record(p).site.gravity_model == earth.PSINS_GRAVITY
     with h5py.File(p, "a") as h5:
         del h5["site"].attrs["gravity_model"]
@@ -167,7 +173,7 @@ def test_import_stores_the_gravity_model(tmp_path):
     from typer.testing import CliRunner
 
     from inscal import io
-    from inscal.cli import app
+    from inscal.cli.app import app
 
     runner = CliRunner()
     rec = tmp_path / "st.h5"

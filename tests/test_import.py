@@ -15,11 +15,14 @@ import pytest
 import scipy.io
 from typer.testing import CliRunner
 
-from inscal import earth, importers, io, scenarios
+from inscal.sim.simulate import write_simulation
+from inscal.core import earth
+from inscal.io import importers, records as io
+from inscal.sim import scenarios
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import param_value
-from inscal.cli import app
-from inscal.errors import ImuNoise
+from inscal.cli.app import app
+from inscal.core.error_model import ImuNoise
 
 runner = CliRunner()
 BAD = Path(__file__).parent / "data" / "bad"
@@ -52,7 +55,7 @@ def p19(tmp_path_factory):
     d = tmp_path_factory.mktemp("p19")
     sc = replace(scenarios.build("psins19", rate_hz=20.0), noise=ImuNoise())
     f = d / "p19.h5"
-    io.write_simulation(f, sc, None)
+    write_simulation(f, sc, None)
     rec = io.read_record(f)
     path_toml = d / "path.toml"
     assert run("export", f, "--format", "psins", "--out", d / "first.bin", "--path-out", path_toml)[0] == 0

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from inscal.analysis import montecarlo as mc
+from inscal.analysis import studies
+from inscal.cli.montecarlo import format_cell, format_table
 
 
 # ------------------------------------------------------------------ a small dummy experiment
@@ -44,7 +46,7 @@ def dummy(mus=(0.0, 1.0, 5.0), sigma=1.0, fail_above=None):
                          tuple({"mu": float(m)} for m in mus), _dummy_run, _dummy_summarize, _dummy_plot)
 
 
-mc.register_experiment("test-dummy", dummy, "test only")
+studies.register_experiment("test-dummy", dummy, "test only")
 
 
 def results_of(res: mc.StudyResult) -> dict:
@@ -155,13 +157,13 @@ def test_bad_arguments(tmp_path):
     with pytest.raises(mc.StudyError):
         mc.run_study(dummy(), tmp_path, runs=1, seed=-1, scheduler="synchronous")
     with pytest.raises(mc.StudyError, match="unknown experiment"):
-        mc.get_experiment("nope")
+        studies.get_experiment("nope")
     with pytest.raises(mc.StudyError):
-        mc.get_experiment("n25-fig5", {"dtheta_arcsec": [1, 1]})
+        studies.get_experiment("n25-fig5", {"dtheta_arcsec": [1, 1]})
     with pytest.raises(mc.StudyError):
-        mc.get_experiment("n25-fig5", {"no_such_param": 1})
+        studies.get_experiment("n25-fig5", {"no_such_param": 1})
     with pytest.raises(mc.StudyError):
-        mc.get_experiment("n25-schemes", {"simulation": "fast"})
+        studies.get_experiment("n25-schemes", {"simulation": "fast"})
 
 
 # ------------------------------------------------------------------- failures and outputs
@@ -188,9 +190,9 @@ def test_outputs_written(tmp_path):
 
 
 def test_load_study_from_folder(tmp_path):
-    exp = mc.get_experiment("test-dummy", {"sigma": 0.5})
+    exp = studies.get_experiment("test-dummy", {"sigma": 0.5})
     mc.run_study(exp, tmp_path, runs=3, seed=9, scheduler="synchronous")
-    exp2, res2 = mc.load_study(tmp_path)
+    exp2, res2 = studies.load_study(tmp_path)
     assert exp2.params == exp.params and res2.runs == 3 and res2.complete()
 
 
@@ -223,7 +225,7 @@ def test_make_batches_groups_points_and_interleaves():
 def test_cli_run_resume_json_and_refusal(tmp_path):
     from typer.testing import CliRunner
 
-    from inscal.cli import app
+    from inscal.cli.app import app
 
     r = CliRunner()
     out = tmp_path / "study"
@@ -248,10 +250,10 @@ def test_cli_run_resume_json_and_refusal(tmp_path):
 
 # ------------------------------------------------------------------ built-in experiments
 def test_reuse_simulation_is_bit_identical_to_full():
-    from inscal.analysis import experiments as E
+    from inscal.analysis.studies import common as E
 
-    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0]})
-    key = E._scenario_key(exp.params, 7.0)
+    exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0]})
+    key = E.scenario_key(exp.params, 7.0)
     full = E.simulate_record(key, np.random.default_rng(np.random.SeedSequence(11)), "full")
     fast = E.simulate_record(key, np.random.default_rng(np.random.SeedSequence(11)), "reuse")
     for name in ("time", "dtheta", "dvel", "gimbal"):
@@ -264,8 +266,8 @@ def test_reuse_simulation_is_bit_identical_to_full():
 
 
 def test_parameter_errors_field_units():
-    from inscal.analysis.experiments import parameter_errors
-    from inscal.errors import GimbalErrors, ImuErrors
+    from inscal.analysis.truth import parameter_errors
+    from inscal.core.error_model import GimbalErrors, ImuErrors
 
     t = ImuErrors()
     e = ImuErrors(accel_bias=[0, 0, 9.80665e-5])  # 10 ug on z
@@ -298,7 +300,7 @@ def test_failed_runs_are_retried_on_resume_and_broken_setups_stop(tmp_path):
 
 def test_small_n25_fig5_rsd_decreases_with_dtheta(tmp_path):
     pytest.importorskip("inscal.calibrate")
-    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [2.0, 7.0, 30.0], "simulation": "reuse"})
+    exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [2.0, 7.0, 30.0], "simulation": "reuse"})
     res = mc.run_study(exp, tmp_path, runs=10, seed=0, scheduler="synchronous")
     s = mc.summarize(exp, res)
     rows = s.rows
@@ -318,7 +320,7 @@ def test_small_n25_fig5_rsd_decreases_with_dtheta(tmp_path):
 @pytest.mark.slow
 def test_small_n25_schemes_shows_the_n25_claims(tmp_path):
     pytest.importorskip("inscal.calibrate")
-    exp = mc.get_experiment("n25-schemes", {"simulation": "reuse"})
+    exp = studies.get_experiment("n25-schemes", {"simulation": "reuse"})
     assert exp.params["methods"] == ["n25", "six-position", "joint", "systematic30"]  # scheme 3 by default
     res = mc.run_study(exp, tmp_path, runs=3, seed=1, scheduler="synchronous")
     s = mc.summarize(exp, res)
@@ -354,9 +356,9 @@ def test_small_n25_schemes_shows_the_n25_claims(tmp_path):
 
 
 def test_result_errors_map_the_truth_and_drop_frame_fixed_components():
-    from inscal.analysis.experiments import result_errors
-    from inscal.calibrate import CalibrationResult
-    from inscal.errors import GimbalErrors, ImuErrors
+    from inscal.analysis.truth import result_errors
+    from inscal.calibrate.result import CalibrationResult
+    from inscal.core.error_model import GimbalErrors, ImuErrors
 
     arcsec = math.pi / 180 / 3600
     true = ImuErrors(gyro_misalignment=[5 * arcsec, 0, 0, 0, 0, 0], accel_bias=[0, 0, 9.80665e-5])
@@ -382,7 +384,7 @@ def test_cli_s16_table2_small(tmp_path):
     """``inscal montecarlo s16-table2`` end to end (1 run, 50 Hz, two passes: the plumbing, not the figures)."""
     from typer.testing import CliRunner
 
-    from inscal.cli import app
+    from inscal.cli.app import app
 
     out = tmp_path / "t2"
     r = CliRunner().invoke(app, ["montecarlo", "s16-table2", "--runs", "1", "--out", str(out), "--no-dask", "--json",
@@ -408,7 +410,7 @@ def test_cli_s16_table2_small(tmp_path):
 
 def test_local_cluster_runs_the_real_experiment_identically(tmp_path):
     pytest.importorskip("inscal.calibrate")
-    exp = mc.get_experiment("n25-fig5", {"dtheta_arcsec": [5.0, 20.0], "simulation": "reuse"})
+    exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [5.0, 20.0], "simulation": "reuse"})
     sync = mc.run_study(exp, tmp_path / "s", runs=2, seed=4, scheduler="synchronous")
     dask_ = mc.run_study(exp, tmp_path / "d", runs=2, seed=4, workers=2, batch_size=1)
     assert dask_.complete() and not any("error" in r for r in dask_.records.values())
@@ -449,11 +451,7 @@ def test_worker_kernels_are_cached_on_disk():
 
     import inscal
 
-    names = ["inscal.simulate", "inscal.earth", "inscal.attitude", "inscal.turntable"]
-    if importlib.util.find_spec("inscal.calibrate") is not None:
-        import inscal.calibrate as cal
-
-        names += [f"inscal.calibrate.{m.name}" for m in pkgutil.iter_modules(cal.__path__)]
+    names = [m.name for m in pkgutil.walk_packages(inscal.__path__, "inscal.") if not m.name.startswith("inscal.cli")]
     found = 0
     for name in names:
         mod = importlib.import_module(name)
@@ -506,16 +504,16 @@ def test_summary_table_fits_the_terminal_without_cutting_numbers(columns, monkey
     monkeypatch.setenv("COLUMNS", str(columns))
     s = _wide_summary()
     buf = _io.StringIO()
-    mc.format_table(s, file=buf)
+    format_table(s, file=buf)
     text = buf.getvalue()
     assert "…" not in text
     assert max(len(line) for line in text.splitlines()) <= columns
     for row in s.rows:  # every number in full (3-4 significant digits), on one line
         for k, _ in s.columns:
-            cell = mc._fmt(row.get(k))
+            cell = format_cell(row.get(k))
             assert (k in ("parameter", "unit") or len(cell) <= 9) and re.search(
                 rf"(^|\s){re.escape(cell)}(\s|$)", text, re.M), (k, cell)
-    assert mc._fmt(123456.789) == "1.23e5" and mc._fmt(0.000968) == "0.000968" and mc._fmt(-1.234e-6) == "-1.23e-6" and mc._fmt(-0.07524) == "-0.07524"
+    assert format_cell(123456.789) == "1.23e5" and format_cell(0.000968) == "0.000968" and format_cell(-1.234e-6) == "-1.23e-6" and format_cell(-0.07524) == "-0.07524"
     if columns == 80:
         assert "(part 2 of" in text  # split, with the parameter and unit repeated
         assert text.count("gimbal_nonorthogonality") >= 2
@@ -524,7 +522,7 @@ def test_summary_table_fits_the_terminal_without_cutting_numbers(columns, monkey
 def test_cli_table_at_80_columns(tmp_path):
     from typer.testing import CliRunner
 
-    from inscal.cli import app
+    from inscal.cli.app import app
 
     r = CliRunner().invoke(app, ["montecarlo", "test-dummy", "--runs", "3", "--out", str(tmp_path / "s"), "--no-dask"],
                            env={"COLUMNS": "80"})

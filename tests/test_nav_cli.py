@@ -11,10 +11,13 @@ import pytest
 import tomli_w
 from typer.testing import CliRunner
 
-from inscal import io, turntable
-from inscal.cli import app
-from inscal.errors import ImuErrors, errors_to_field
-from inscal.simulate import Scenario, Site
+from inscal.sim.simulate import write_simulation, scenario_from_record
+from inscal import io
+from inscal.core import turntable
+from inscal.cli.app import app
+from inscal.core.error_model import ImuErrors, errors_to_field
+from inscal.sim.simulate import Scenario
+from inscal.core.earth import Site
 
 DEGH = math.pi / 180 / 3600
 UG = 9.80665e-6
@@ -27,7 +30,7 @@ IMU = ImuErrors(gyro_bias=[0.02 * DEGH, -0.02 * DEGH, 0.02 * DEGH], accel_bias=[
 def record(tmp_path_factory):
     p = tmp_path_factory.mktemp("nav") / "rec.h5"
     scn = Scenario("nav-test", turntable.rotmod16(2400.0), Site(LAT, 2.1, 20.0), imu=IMU, rate_hz=20)
-    io.write_simulation(p, scn, None)
+    write_simulation(p, scn, None)
     return p
 
 
@@ -131,7 +134,7 @@ def test_navigate_plot_and_heading_beside_yaw(record, tmp_path):
     # yaw: counter-clockwise from East; heading: clockwise from North = 90 deg - yaw, in [0, 360)
     assert 0.0 <= att["heading"] < 360.0
     assert att["heading"] == pytest.approx((90.0 - att["yaw"]) % 360.0)
-    scn = io.scenario_from_record(io.record_info(record))
+    scn = scenario_from_record(io.record_info(record))
     assert att["yaw"] == pytest.approx(math.degrees(scn.gimbal.mount_attitude[2]), abs=0.01)
     r = invoke(record, "--plot", png)  # never overwritten without --force
     assert r.exit_code == 2 and "exists" in r.output

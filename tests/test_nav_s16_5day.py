@@ -17,7 +17,8 @@ import math
 import numpy as np
 import pytest
 
-from inscal import errors, scenarios, turntable, units
+from inscal.core import error_model as errors, turntable, units
+from inscal.sim import scenarios
 from inscal.analysis import nav5d
 
 SEED = 2016

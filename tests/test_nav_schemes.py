@@ -11,11 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from inscal import scenarios
+from inscal.sim import scenarios
 from inscal.calibrate import calibrate
-from inscal.errors import ImuNoise
-from inscal.navigation import navigate
-from inscal.simulate import simulate, simulate_chunks
+from inscal.core.error_model import ImuNoise
+from inscal.nav.run import navigate
+from inscal.sim.simulate import simulate, simulate_chunks
 
 
 @pytest.fixture(scope="module")

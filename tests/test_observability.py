@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import earth
-from inscal.calibrate.observability import (DEFAULT_VRW, RANK_TOL, ObservabilityError, _triangular_factor,
-                                            observability, verdict)
-from inscal.cli import app
-from inscal.scenarios import S16_SITE
-from inscal.turntable import Move, Path, static
+from inscal.core import earth
+from inscal.plan.observability import DEFAULT_VRW, RANK_TOL, ObservabilityError, _triangular_factor, observability, verdict
+from inscal.cli.app import app
+from inscal.sim.scenarios import S16_SITE
+from inscal.core.turntable import Move, RotationPath, static
 
 DEG = math.pi / 180.0
 runner = CliRunner()
@@ -25,7 +24,7 @@ SCALE_AND_QUADRATIC = ("gyro_matrix", "accel_matrix", "gyro_g_sensitivity", "acc
 def inner_only(dwell=60.0):
     """Turns about the inner axis only (IMU z stays up): 4 x +90 then 4 x -90 deg at 5 deg/s."""
     turns = [Move("inner", 90 * DEG, 5 * DEG, dwell)] * 4 + [Move("inner", -90 * DEG, 5 * DEG, dwell)] * 4
-    return Path("inner-only", tuple(turns), initial_dwell=dwell)
+    return RotationPath("inner-only", tuple(turns), initial_dwell=dwell)
 
 
 @pytest.fixture(scope="module")

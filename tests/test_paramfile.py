@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import io, scenarios
+from inscal.sim.simulate import write_simulation
+from inscal import io
+from inscal.sim import scenarios
 from inscal.calibrate import calibrate
-from inscal.cli import app
-from inscal.errors import ImuNoise
-from inscal.paramfile import ParamFileError, load_params, save_params
+from inscal.cli.app import app
+from inscal.core.error_model import ImuNoise
+from inscal.io.paramfile import ParamFileError, load_params, save_params
 
 DEG = math.pi / 180.0
 
@@ -22,7 +24,7 @@ DEG = math.pi / 180.0
 @pytest.fixture(scope="module")
 def h5(tmp_path_factory):
     p = tmp_path_factory.mktemp("cal") / "n25.h5"
-    io.write_simulation(p, replace(scenarios.build("n25"), noise=ImuNoise()), None)
+    write_simulation(p, replace(scenarios.build("n25"), noise=ImuNoise()), None)
     return p
 
 

@@ -21,12 +21,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import io, scenarios
+from inscal.sim.simulate import write_simulation
+from inscal import io
+from inscal.sim import scenarios
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import param_value
-from inscal.cli import app
-from inscal.errors import PARAMETERS, ImuNoise
-from inscal import units
+from inscal.cli.app import app
+from inscal.core.error_model import PARAMETERS, ImuNoise
+from inscal.core import units
 
 REL = 1e-6
 #: absolute limits for parameters whose truth is zero, in field units: 1e-6 arcsec for the
@@ -48,7 +50,7 @@ def imported(tmp_path_factory):
                          accel_cross_coupling=np.zeros(6), accel_lever_arm=np.zeros((3, 3)))
     sc = replace(sc, imu=imu, noise=ImuNoise())
     f = d / "lin.h5"
-    io.write_simulation(f, sc, None)
+    write_simulation(f, sc, None)
     original = io.read_record(f)
     assert run("export", f, "--format", "psins", "--out", d / "lin.bin", "--path-out", d / "path.toml")[0] == 0
     assert tomllib.loads((d / "path.toml").read_text())["path"]["name"] == "psins19"

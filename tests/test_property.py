@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from inscal import io
-from inscal.cli import app
-from inscal.errors import GimbalErrors, ImuErrors, ImuNoise
-from inscal.simulate import Site
+from inscal.cli.app import app
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+from inscal.core.earth import Site
 
 runner = CliRunner()
 SETTINGS = settings(max_examples=30, deadline=None, derandomize=True,

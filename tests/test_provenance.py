@@ -11,10 +11,13 @@ import pytest
 import tomli_w
 from typer.testing import CliRunner
 
-from inscal import io, turntable
-from inscal.cli import app
-from inscal.errors import ImuErrors, errors_to_field
-from inscal.simulate import Scenario, Site
+from inscal.sim.simulate import write_simulation
+from inscal import io
+from inscal.core import turntable
+from inscal.cli.app import app
+from inscal.core.error_model import ImuErrors, errors_to_field
+from inscal.sim.simulate import Scenario
+from inscal.core.earth import Site
 
 UG = 9.80665e-6
 IMU = ImuErrors(accel_bias=[100 * UG, -80 * UG, 50 * UG], gyro_scale_factor=[2e-4, -1e-4, 3e-4])
@@ -23,7 +26,7 @@ IMU = ImuErrors(accel_bias=[100 * UG, -80 * UG, 50 * UG], gyro_scale_factor=[2e-
 @pytest.fixture(scope="module")
 def record(tmp_path_factory):
     p = tmp_path_factory.mktemp("prov") / "rec.h5"
-    io.write_simulation(p, Scenario("prov-a", turntable.static(120.0), Site(math.radians(30.0), 2.0, 10.0), imu=IMU,
+    write_simulation(p, Scenario("prov-a", turntable.static(120.0), Site(math.radians(30.0), 2.0, 10.0), imu=IMU,
                                     rate_hz=10.0), None)
     with h5py.File(p, "a") as h5:
         h5.attrs["imu_serial"] = "SN-1"

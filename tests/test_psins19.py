@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import errors, io, scenarios
-from inscal import turntable as tt
-from inscal.attitude import axis_angle_dcm
-from inscal.cli import app
-from inscal.errors import ImuNoise
-from inscal.simulate import simulate, true_attitude, true_rates
+from inscal.core import error_model as errors
+from inscal import io
+from inscal.sim import scenarios
+from inscal.core import turntable as tt
+from inscal.core.attitude import axis_angle_dcm
+from inscal.cli.app import app
+from inscal.core.error_model import ImuNoise
+from inscal.sim.simulate import simulate
+from inscal.core.kinematics import true_attitude, true_rates
 
 DEG = math.pi / 180
 LETTER = {"E": [1, 0, 0], "N": [0, 1, 0], "U": [0, 0, 1], "W": [-1, 0, 0], "S": [0, -1, 0], "D": [0, 0, -1]}
@@ -94,7 +97,7 @@ def test_every_axis_up_and_down_timing_and_closure():
     assert path.duration == pytest.approx(1035.6, abs=1e-9)  # 90 + 18 x 9.2 + 780 s = 17.3 min
     print(f"psins19 path duration {path.duration:.1f} s = {path.duration / 60:.2f} min")
     assert path.to_dict()["moves"][0]["label"].startswith("psins19 #1")
-    assert tt.Path.from_dict(path.to_dict()) == path
+    assert tt.RotationPath.from_dict(path.to_dict()) == path
 
 
 def test_scenario_errors_in_s16_form_with_m_frame_equal_s_frame():

@@ -24,8 +24,8 @@ def command_block() -> list[str]:
 
 
 def test_readme_lists_every_scenario_and_subcommand():
-    from inscal import scenarios
-    from inscal.cli import app
+    from inscal.sim import scenarios
+    from inscal.cli.app import app
     from typer.main import get_command
 
     for name in scenarios.BUILTIN:

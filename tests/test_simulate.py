@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from inscal import earth, units
-from inscal import turntable as tt
+from inscal.core import earth, units
+from inscal.core import turntable as tt
 from inscal.analysis.allan import allan
-from inscal.errors import GimbalErrors, ImuErrors, ImuNoise
-from inscal.scenarios import s16_errors
-from inscal.simulate import Scenario, Site, simulate, simulate_chunks, true_attitude, true_rates
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+from inscal.sim.scenarios import s16_errors
+from inscal.sim.simulate import Scenario, simulate, simulate_chunks
+from inscal.core.earth import Site
+from inscal.core.kinematics import true_attitude, true_rates
 
 DEG = math.pi / 180
 SITE = Site(30.686651 * DEG, 120.664265 * DEG, 12.0)
@@ -19,7 +21,7 @@ GIMBAL = GimbalErrors(20 / 3600 * DEG, np.array([0.1, 0.1, 20]) * DEG)
 
 
 def test_static_mean_gyro_equals_projected_earth_rate():
-    path = tt.Path("s", (tt.Move("none", dwell=100.0),), initial=(0.7, 2.1))
+    path = tt.RotationPath("s", (tt.Move("none", dwell=100.0),), initial=(0.7, 2.1))
     sc = Scenario("s", path, SITE, gimbal=GIMBAL)
     d = simulate(sc)
     Csn = true_attitude(sc, [50.0])[0]
@@ -32,7 +34,7 @@ def test_static_mean_gyro_equals_projected_earth_rate():
 
 
 def _single_move_scenario(axis, angle_deg, rate_dps, dwell=10.0):
-    path = tt.Path("m", (tt.Move(axis, angle_deg * DEG, rate_dps * DEG, dwell),), initial_dwell=dwell, closed=False)
+    path = tt.RotationPath("m", (tt.Move(axis, angle_deg * DEG, rate_dps * DEG, dwell),), initial_dwell=dwell, closed=False)
     return Scenario("m", path, SITE, gimbal=GIMBAL)
 
 
@@ -83,7 +85,7 @@ def test_every_increment_exact_against_adaptive_quadrature():
 def test_measured_increments_with_all_error_terms_exact():
     """Nonlinear terms, g-sensitivity and the size effect including w-dot x r, during motion."""
     imu = s16_errors().replace(accel_lever_arm=np.array([[0.02, 0.01, -0.015], [0.005, 0.03, 0.01], [-0.01, 0.02, 0.025]]))
-    path = tt.Path("m", (tt.Move("outer", 60 * DEG, 20 * DEG, 1.0), tt.Move("inner", 60 * DEG, 20 * DEG, 1.0)),
+    path = tt.RotationPath("m", (tt.Move("outer", 60 * DEG, 20 * DEG, 1.0), tt.Move("inner", 60 * DEG, 20 * DEG, 1.0)),
                    accel=30 * DEG, initial_dwell=1.0, closed=False)
     sc = Scenario("m", path, SITE, imu=imu, gimbal=GIMBAL)
     d = simulate(sc)

@@ -9,11 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from inscal import earth, navigation as nv, turntable
-from inscal.attitude import small_angle_error
-from inscal.errors import GimbalErrors, ImuErrors
-from inscal.simulate import Scenario, Site, simulate, simulate_chunks, true_attitude
-from inscal.strapdown import NavConfig, NavState, Strapdown
+from inscal.core import earth, turntable
+from inscal import nav as nv
+from inscal.core.attitude import small_angle_error
+from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.sim.simulate import Scenario, simulate, simulate_chunks
+from inscal.core.earth import Site
+from inscal.core.kinematics import true_attitude
+from inscal.nav.strapdown import NavConfig, NavState, Strapdown
 
 DEGH = math.pi / 180 / 3600
 UG = 9.80665e-6

@@ -42,10 +42,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from inscal import earth, turntable
-from inscal.errors import ImuErrors
-from inscal.simulate import Scenario, Site, simulate_chunks
-from inscal.strapdown import NavConfig, NavState, Strapdown
+from inscal.core import earth, turntable
+from inscal.core.error_model import ImuErrors
+from inscal.sim.simulate import Scenario, simulate_chunks
+from inscal.core.earth import Site
+from inscal.nav.strapdown import NavConfig, NavState, Strapdown
 
 UG = 9.80665e-6
 LAT = math.radians(34.0)

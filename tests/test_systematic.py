@@ -11,12 +11,18 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from inscal import earth, scenarios, units
-from inscal.attitude import dcm_from_quat, quat_from_dcm
-from inscal.calibrate import CalibrationError, calibrate
-from inscal.calibrate import systematic as S
-from inscal.errors import ImuErrors, ImuNoise
-from inscal.simulate import simulate, true_attitude
+from inscal.core import earth, units
+from inscal.sim import scenarios
+from inscal.core.attitude import dcm_from_quat, quat_from_dcm
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate import calibrate
+from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec
+from inscal.calibrate.systematic.kernel import one_step
+from inscal.calibrate.systematic.params import CompParams, canonical_flat, truth_in_frame
+from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, StateSet
+from inscal.core.error_model import ImuErrors, ImuNoise
+from inscal.sim.simulate import simulate
+from inscal.core.kinematics import true_attitude
 
 # the issue's noise-free tolerances, per field unit
 TOL = {"ppm": 0.05, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.05, "ug/g^2": 0.05, "cm": 0.005, "ms": 0.01,
@@ -63,14 +69,14 @@ def test_F_blocks_match_finite_differences(s16_noise_free, t0):
     """Every column of Phi_np (all parameter groups, full lever arm and asynchrony included) and
     Phi_nn over one 1 s step: static, rotation start, cruise, inner-axis stop, later positions."""
     sc, d = s16_noise_free
-    st = S.StateSet.parse("51,lever9,async")
-    truth = S.truth_in_frame(sc.imu, st)
+    st = StateSet.parse("51,lever9,async")
+    truth = truth_in_frame(sc.imu, st)
     k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
     dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
     site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
     C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
     nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
-    x0, phinn, phinp = S.one_step(dth, dv, dt, nav0, site, truth, st)
+    x0, phinn, phinp = one_step(dth, dv, dt, nav0, site, truth, st)
     # the truth propagates without error (to the strapdown algorithm error: the step starts without
     # the previous sample that the two-sample sculling term needs, ~1e-7 m/s during acceleration)
     assert np.max(np.abs(_nav_error(x0, C1, site))) < 1e-6
@@ -78,11 +84,11 @@ def test_F_blocks_match_finite_differences(s16_noise_free, t0):
     groups = [g.name for g in st.groups for _ in g.labels]
     scale = {g: np.max(np.abs(phinp[rows][:, [i for i, x in enumerate(groups) if x == g]])) for g in set(groups)}
     for c, gname in enumerate(groups):
-        h = 1e-2 * S.DEFAULT_SIGMA0[gname]
+        h = 1e-2 * DEFAULT_SIGMA0[gname]
         e = np.zeros(len(groups))
         e[c] = h
-        xp = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
-        xm = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
+        xp = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
+        xm = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
         fd = (xp - xm) / (2 * h)
         err = np.max(np.abs(fd[rows] - phinp[rows, c]))
         floor = 1e-14 / h  # round-off of the propagated velocity (~1e-15 m/s) over the difference step
@@ -96,12 +102,12 @@ def test_F_blocks_match_finite_differences(s16_noise_free, t0):
             if c < 3:
                 dphi = np.zeros(3)
                 dphi[c] = sgn * h
-                nv[:4] = quat_from_dcm(S._rotvec_dcm(dphi) @ C0)
+                nv[:4] = quat_from_dcm(dcm_from_rotvec(dphi) @ C0)
             elif c < 6:
                 nv[4 + c - 3] += sgn * h
             else:
                 nv[9] += sgn * h
-            xs.append(_nav_error(S.one_step(dth, dv, dt, nv, site, truth, st)[0], C1, site))
+            xs.append(_nav_error(one_step(dth, dv, dt, nv, site, truth, st)[0], C1, site))
         fd = (xs[0] - xs[1]) / (2 * h)
         np.testing.assert_allclose(fd[rows], phinn[rows, c], rtol=2e-3, atol=2e-3 * np.max(np.abs(fd[rows])) + 1e-9)
 
@@ -158,7 +164,7 @@ def test_option_full_lever_arm():
     the starts and stops.  Sample means cannot resolve the kink of a trapezoidal rate profile
     (w-dot dt / 4 in the reconstructed rate change), so the path here ramps at 5 deg/s^2 rather
     than psins19's 50 deg/s^2 (at 50 deg/s^2 the noise-free fixed point is off by ~0.1 ug/g^2)."""
-    from inscal import turntable
+    from inscal.core import turntable
 
     sc = _noise_free("psins19")
     lever = units.to_si(np.array([[2.0, 0.5, -0.3], [0.4, 3.0, 0.6], [-0.2, 0.7, -1.5]]), "cm")
@@ -182,23 +188,23 @@ def test_option_psins_triangular_convention():
 
 
 def test_state_set_parsing_and_sizes():
-    assert S.StateSet.parse("51").n_states == 51
-    assert S.StateSet.parse("30").n_states == 30
-    assert S.StateSet.parse("51,lever9").n_states == 57
-    assert S.StateSet.parse("51,async").n_states == 52
-    assert S.StateSet.parse("30,psins").n_states == 30 + 3 - 3
+    assert StateSet.parse("51").n_states == 51
+    assert StateSet.parse("30").n_states == 30
+    assert StateSet.parse("51,lever9").n_states == 57
+    assert StateSet.parse("51,async").n_states == 52
+    assert StateSet.parse("30,psins").n_states == 30 + 3 - 3
     with pytest.raises(CalibrationError, match="unknown state option"):
-        S.StateSet.parse("51,bogus")
+        StateSet.parse("51,bogus")
     with pytest.raises(CalibrationError, match="lever9 needs"):
-        S.StateSet.parse("30,lever9")
+        StateSet.parse("30,lever9")
 
 
 def test_compensation_parameters_round_trip():
     imu = scenarios.build("s16").imu
-    p = S.CompParams.from_imu(imu)
-    q = S.CompParams.from_imu(p.to_imu())
+    p = CompParams.from_imu(imu)
+    q = CompParams.from_imu(p.to_imu())
     np.testing.assert_allclose(q.flat(), p.flat(), rtol=1e-12, atol=1e-18)
-    st = S.StateSet.parse("51,lever9,async")
+    st = StateSet.parse("51,lever9,async")
     x = np.linspace(-1, 1, st.n_params) * 1e-6
     np.testing.assert_allclose(p.corrected(st, x).error_state(st, p), -x, rtol=1e-5, atol=1e-14)
 
@@ -222,7 +228,7 @@ def test_noise_is_estimated_and_innovations_are_consistent(s16_noisy_short):
     assert 5.0 < inn["nis_mean"] < 7.0 and inn["p_value"] > 1e-3
     h = res.history
     # the filtered history converges to the final estimate with shrinking sigma
-    final = S._canon_flat(S.CompParams.from_imu(res.imu), h["names"])
+    final = canonical_flat(CompParams.from_imu(res.imu), h["names"])
     np.testing.assert_allclose(h["smoothed"][0], final)
     assert np.all(h["filtered_sigma"][-1] <= h["filtered_sigma"][0] + 1e-30)
 

@@ -28,7 +28,9 @@ import dataclasses
 import pytest
 
 from inscal.analysis import montecarlo as mc
-from inscal.analysis.experiments import S16_TABLE2, nees_band
+from inscal.analysis import studies
+from inscal.sim.scenarios import S16_TABLE2
+from inscal.analysis.studies.common import nees_band
 
 RUNS = 50
 TABLE2_RUNS = 10
@@ -38,7 +40,7 @@ PARAMS = {"methods": ["systematic51"], "rate_hz": 100.0, "max_passes": 2}
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("s16-table2")
-    exp = mc.get_experiment("s16-table2", PARAMS)
+    exp = studies.get_experiment("s16-table2", PARAMS)
     res = mc.run_study(exp, out, runs=RUNS, seed=0, scheduler="synchronous")
     assert res.complete() and not any("error" in r for r in res.records.values())
     return exp, res
@@ -103,10 +105,10 @@ def test_unified_nees_counts_the_gimbal_states():
     from scipy.stats import chi2
 
     from inscal.calibrate import calibrate
-    from inscal.analysis.experiments import systematic_statistics
-    from inscal.io import Record, Truth
-    from inscal.scenarios import build
-    from inscal.simulate import simulate
+    from inscal.analysis.truth import systematic_statistics
+    from inscal.io.records import Record, Truth
+    from inscal.sim.scenarios import build
+    from inscal.sim.simulate import simulate
 
     sc = dataclasses.replace(build("s16-gimbal"), rate_hz=20.0)
     d = simulate(sc, np.random.default_rng(5))

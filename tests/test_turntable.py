@@ -5,10 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from inscal import turntable as tt
-from inscal.attitude import euler_from_dcm, rot_x, rot_z
-from inscal.errors import GimbalErrors
-from inscal.simulate import Scenario, Site, true_attitude
+from inscal.core import turntable as tt
+from inscal.core.attitude import euler_from_dcm, rot_x, rot_z
+from inscal.core.error_model import GimbalErrors
+from inscal.sim.simulate import Scenario
+from inscal.core.earth import Site
+from inscal.core.kinematics import true_attitude
 
 DEG = math.pi / 180
 ARCSEC = DEG / 3600
@@ -48,14 +50,14 @@ def test_n25_twelve_positions_each_axis_up_and_down_inner_symmetric():
 
 
 def test_trapezoid_and_triangle_profiles():
-    p = tt.Path("p", (tt.Move("inner", 90 * DEG, 5 * DEG, 10.0), tt.Move("inner", -90 * DEG, 5 * DEG, 0.0)), accel=10 * DEG)
+    p = tt.RotationPath("p", (tt.Move("inner", 90 * DEG, 5 * DEG, 10.0), tt.Move("inner", -90 * DEG, 5 * DEG, 0.0)), accel=10 * DEG)
     seg = p.segments()
     assert p.duration == pytest.approx(2 * (18.0 + 0.5) + 10.0)  # A/w + w/a per move
     th, w, a = seg.angles(np.array([0.25, 9.0, 18.5, 20.0]))
     assert th[2, 1] == pytest.approx(90 * DEG, abs=1e-15) and w[2, 1] == 0.0
     assert w[1, 1] == pytest.approx(5 * DEG) and a[0, 1] == pytest.approx(10 * DEG)
     # small move: triangular profile reaches sqrt(A alpha) < cruise rate
-    q = tt.Path("q", (tt.Move("outer", 1 * DEG, 5 * DEG, 0.0), tt.Move("outer", -1 * DEG, 5 * DEG, 0.0)), accel=10 * DEG)
+    q = tt.RotationPath("q", (tt.Move("outer", 1 * DEG, 5 * DEG, 0.0), tt.Move("outer", -1 * DEG, 5 * DEG, 0.0)), accel=10 * DEG)
     _, w, _ = q.segments().angles(np.linspace(0, q.duration, 1001))
     assert np.max(np.abs(w[:, 0])) == pytest.approx(math.sqrt(10) * DEG, rel=1e-3)
 
@@ -67,7 +69,7 @@ def test_trapezoid_and_triangle_profiles():
 ])
 def test_path_validation(bad, msg):
     with pytest.raises(tt.PathError, match=msg):
-        tt.Path("bad", **bad)
+        tt.RotationPath("bad", **bad)
 
 
 def test_move_validation_and_dict_round_trip():
@@ -78,11 +80,11 @@ def test_move_validation_and_dict_round_trip():
     with pytest.raises(tt.PathError, match="dwell"):
         tt.Move("none", dwell=-1.0)
     p = tt.n25_twelve()
-    q = tt.Path.from_json(p.to_json())
+    q = tt.RotationPath.from_json(p.to_json())
     assert q.duration == pytest.approx(p.duration) and len(q.moves) == len(p.moves)
     with pytest.raises(tt.PathError, match="unknown path keys"):
-        tt.Path.from_dict({"moves": [], "speed": 1})
-    assert tt.Path.from_dict({"moves": [{"axis": "outer", "angle_deg": 90, "rate_dps": 5}], "closed": False}).final_angles()[0] == pytest.approx(90 * DEG)
+        tt.RotationPath.from_dict({"moves": [], "speed": 1})
+    assert tt.RotationPath.from_dict({"moves": [{"axis": "outer", "angle_deg": 90, "rate_dps": 5}], "closed": False}).final_angles()[0] == pytest.approx(90 * DEG)
 
 
 def test_rotmod16_returns_to_start_each_cycle():

@@ -13,13 +13,19 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from inscal import filters, scenarios, units
-from inscal.attitude import quat_from_dcm
-from inscal.calibrate import CalibrationError, calibrate
-from inscal.calibrate import systematic as S
+from inscal.core import kalman as filters, units
+from inscal.sim import scenarios
+from inscal.core.attitude import quat_from_dcm
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate import calibrate
+from inscal.calibrate.systematic.kernel import one_step
+from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, FRAME_GIMBAL, StateSet
+from inscal.core.kalman import smoother_step_dense, update_dense
 from inscal.calibrate.unified import measurement, predicted_attitude, residual, state_set
-from inscal.errors import ImuNoise
-from inscal.simulate import simulate, true_attitude
+from inscal.core.error_model import ImuNoise
+from inscal.sim.simulate import simulate
+from inscal.core.kinematics import true_attitude
 
 AS = units.to_si(1.0, "arcsec")
 TOL = {"ppm": 0.05, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.05, "ug/g^2": 0.05, "cm": 0.005, "deg/h/g": 0.001}
@@ -68,7 +74,7 @@ def test_H_columns_match_finite_differences(gim, tx, tz):
 
 
 def test_predicted_attitude_is_the_turntable_model():
-    from inscal.turntable import C_b_n, C_s_b
+    from inscal.core.turntable import C_b_n, C_s_b
 
     for gim in GIMBALS:
         for tx, tz in ANGLES:
@@ -111,7 +117,7 @@ def test_sequential_dense_update_and_smoother_equal_the_dense_rts():
         x = x + xa
         Kb, Sb, xb = np.empty((N, 3)), np.empty((3, 3)), np.empty(N)
         nu_b = zs[k, 2:] - Hb @ x
-        S._update_h(P, Hb, Rb, nu_b, Kb, Sb, xb)
+        update_dense(P, Hb, Rb, nu_b, Kb, Sb, xb)
         x = x + xb
         xf.append(x.copy())
         Pf.append(P.copy())
@@ -131,7 +137,7 @@ def test_sequential_dense_update_and_smoother_equal_the_dense_rts():
     lam, Lam = np.zeros(N), np.zeros((N, N))
     for k in range(M - 1, -1, -1):
         Ka, Sa, sza, Kb, Sb, szb = store[k]
-        S._smoother_step_h(lam, Lam, Hb, Kb, Sb, szb)
+        smoother_step_dense(lam, Lam, Hb, Kb, Sb, szb)
         filters.smoother_step(lam, Lam, idx, Ka, Sa, sza)
         dx, Ps = filters.smoothed(Pp[k + 1], lam, Lam)
         np.testing.assert_allclose(xp[k + 1] + dx, xs_d[k + 1], atol=1e-9)
@@ -145,32 +151,32 @@ def test_sequential_dense_update_and_smoother_equal_the_dense_rts():
     P1, P2 = P0.copy(), P0.copy()
     K1, S1, x1, K2, S2, x2 = np.empty((N, 2)), np.empty((2, 2)), np.empty(N), np.empty((N, 2)), np.empty((2, 2)), np.empty(N)
     n1 = filters.update(P1, idx, r, zs[0, :2], K1, S1, x1)
-    n2 = S._update_h(P2, np.eye(N)[idx], np.diag(r), zs[0, :2], K2, S2, x2)
+    n2 = update_dense(P2, np.eye(N)[idx], np.diag(r), zs[0, :2], K2, S2, x2)
     np.testing.assert_allclose([n1, *x1, *P1.ravel()], [n2, *x2, *P2.ravel()], rtol=1e-12, atol=1e-14)
     l1, L1 = rng.standard_normal(N), np.eye(N) + 0.1
     l2, L2 = l1.copy(), L1.copy()
     filters.smoother_step(l1, L1, idx, K1, S1, S1 @ zs[0, :2])
-    S._smoother_step_h(l2, L2, np.eye(N)[idx], K1, S1, S1 @ zs[0, :2])
+    smoother_step_dense(l2, L2, np.eye(N)[idx], K1, S1, S1 @ zs[0, :2])
     np.testing.assert_allclose(l1, l2, atol=1e-13)
     np.testing.assert_allclose(L1, L2, atol=1e-13)
 
 
 # ----------------------------------------------------------------------------- state sets
 def test_state_set_options():
-    st = S.StateSet.parse("unified")
+    st = StateSet.parse("unified")
     assert st.n_states == 58 and st.gimbal and st.extended and st.frame == "gimbal"
     assert st == state_set()
-    assert S.StateSet.parse("51,gimbal") == st
-    assert S.StateSet.parse("30,gimbal").n_states == 30 + 3 + 4
-    assert S.StateSet.parse("unified,lever9").n_states == 58 + 6
+    assert StateSet.parse("51,gimbal") == st
+    assert StateSet.parse("30,gimbal").n_states == 30 + 3 + 4
+    assert StateSet.parse("unified,lever9").n_states == 58 + 6
     labels = st.labels()
     assert labels[-4:] == ["gimbal_nonorthogonality", "mount_attitude[alpha0]", "mount_attitude[beta0]",
                            "mount_attitude[gamma0]"]
     assert sum(1 for lab in labels if lab.startswith("gyro_matrix")) == 9
     with pytest.raises(CalibrationError, match="exclude"):
-        S.StateSet.parse("51,psins,gimbal")
+        StateSet.parse("51,psins,gimbal")
     # round trip of the gimbal part of the parameters
-    p = S.CompParams()
+    p = CompParams()
     p.gim = GIMBALS[0].copy()
     x = np.linspace(-1, 1, st.n_params) * 1e-6
     np.testing.assert_allclose(p.corrected(st, x).error_state(st, p), -x, rtol=1e-5, atol=1e-14)
@@ -197,15 +203,15 @@ def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free):
     from test_systematic import _nav_error
 
     sc, d = s16_gimbal_noise_free
-    st = S.StateSet.parse("unified")
-    truth = S.truth_in_frame(sc.imu, st, sc.gimbal)
+    st = StateSet.parse("unified")
+    truth = truth_in_frame(sc.imu, st, sc.gimbal)
     t0 = 180.2
     k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
     dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
     site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
     C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
     nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
-    x0, phinn, phinp = S.one_step(dth, dv, dt, nav0, site, truth, st)
+    x0, phinn, phinp = one_step(dth, dv, dt, nav0, site, truth, st)
     assert np.max(np.abs(_nav_error(x0, C1, site))) < 1e-6
     labels = st.labels()[9:]
     cols = [labels.index(f"gyro_matrix[{ij}]") for ij in ("xy", "xz", "yz")]
@@ -213,11 +219,11 @@ def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free):
     rows = [0, 1, 2, 3, 4, 5, 8]
     for c in cols:
         gname = labels[c].split("[")[0]
-        h = 1e-2 * S.DEFAULT_SIGMA0[gname]
+        h = 1e-2 * DEFAULT_SIGMA0[gname]
         e = np.zeros(st.n_params)
         e[c] = h
-        xp = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
-        xm = _nav_error(S.one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
+        xp = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
+        xm = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
         fd = (xp - xm) / (2 * h)
         if gname == "gyro_matrix":
             assert np.max(np.abs(fd[rows] - phinp[rows, c])) <= 2e-3 * np.max(np.abs(fd[rows])) + 1e-12, labels[c]
@@ -235,7 +241,7 @@ def test_noise_free_recovery_s16_gimbal(s16_gimbal_noise_free):
     rec = _rec(d, sc)
     res = calibrate(rec, "unified")
     assert res.method == "unified" and res.diagnostics["states"] == 58 and res.diagnostics["converged"]
-    assert res.diagnostics["frame"] == S.FRAME_GIMBAL and res.diagnostics["encoder"]["updates"] > 3800
+    assert res.diagnostics["frame"] == FRAME_GIMBAL and res.diagnostics["encoder"]["updates"] > 3800
     errs = {}
     for name, e in res.to_field((sc.imu, sc.gimbal)).items():
         errs[name] = float(np.nanmax(np.abs(e["error"])))
@@ -288,8 +294,8 @@ def test_cli_unified_on_a_noisy_record(tmp_path):
 
     from typer.testing import CliRunner
 
-    from inscal.cli import app
-    from inscal.paramfile import load_params
+    from inscal.cli.app import app
+    from inscal.io.paramfile import load_params
 
     runner = CliRunner()
     run = lambda *a: runner.invoke(app, [str(x) for x in a])  # noqa: E731
@@ -298,7 +304,7 @@ def test_cli_unified_on_a_noisy_record(tmp_path):
     r = run("calibrate", data, "--method", "unified", "--encoder-sigma", 1, "--out", tmp_path / "p.toml", "--json")
     assert r.exit_code == 0, r.stdout
     rep = json.loads(r.stdout)
-    assert rep["method"] == "unified" and rep["states"] == 58 and rep["frame"] == S.FRAME_GIMBAL
+    assert rep["method"] == "unified" and rep["states"] == 58 and rep["frame"] == FRAME_GIMBAL
     enc = rep["encoder"]
     assert enc["sigma_arcsec"] == 1.0 and 2.0 <= enc["nis_expected"] <= 3.0
     assert abs(enc["nis_mean"] - enc["nis_expected"]) < 0.05 * enc["nis_expected"]

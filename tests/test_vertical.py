@@ -7,10 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from inscal import earth, navigation as nv, turntable
-from inscal.errors import ImuErrors
-from inscal.simulate import Scenario, Site, simulate, true_attitude
-from inscal.strapdown import NavConfig, NavState
+from inscal.core import earth, turntable
+from inscal import nav as nv
+from inscal.core.error_model import ImuErrors
+from inscal.sim.simulate import Scenario, simulate
+from inscal.core.earth import Site
+from inscal.core.kinematics import true_attitude
+from inscal.nav.strapdown import NavConfig, NavState
 
 LAT = math.radians(30.686651)
 LON = math.radians(120.664265)

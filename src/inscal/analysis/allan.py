@@ -8,9 +8,17 @@ at the flat bottom as ``sigma_min / sqrt(2 ln 2 / pi) = sigma_min / 0.664`` (IEE
 from __future__ import annotations
 
 import math
+
 from dataclasses import dataclass
 
 import numpy as np
+
+from pathlib import Path
+
+from inscal.io.records import iter_window
+
+
+
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 
@@ -184,3 +192,84 @@ def allan_of(increments, stop: int, rate_hz: float, chunk: int = 1 << 18, **kw) 
     for a in range(0, stop, chunk):
         acc.update(np.asarray(increments[a:min(stop, a + chunk)], dtype=float))
     return acc.result(**kw)
+
+
+#: Earth rotation rate [rad/s] (WGS84; inscal.earth.OMEGA_IE, not imported: it loads numba)
+OMEGA_IE = 7.292115e-5
+
+
+def motion_warning(rec, sel) -> str | None:
+    """One line when the window ``sel`` of ``rec`` is not static: the gyro rate (block means of
+    about 1 s) departs from its median by more than 10x the Earth rate (and 6x its noise) in more
+    than 1 % of the window, or the gimbal angles change by more than 1 mrad."""
+    mot = MotionStats(int(sel.sum()), rec.rate_hz)
+    mot.update(np.asarray(rec.dtheta[sel], dtype=float),
+               None if getattr(rec, "gimbal", None) is None else np.asarray(rec.gimbal[sel], dtype=float))
+    return mot.warning()
+
+
+class MotionStats:
+    """What :func:`motion_warning` needs, gathered chunk by chunk: the gyro increments summed over
+    blocks of about 1 s (at least 20 blocks) and the span of the gimbal angles."""
+
+    def __init__(self, n: int, rate_hz: float):
+        self.rate_hz = rate_hz
+        self.m = max(1, min(n // 20, int(round(rate_hz))))  # ~1 s blocks (at least 20 of them)
+        self.k = n // self.m
+        self.sums = np.empty((self.k, 3))
+        self.nb = 0
+        self.rest = np.zeros((0, 3))
+        self.gmin = self.gmax = None
+
+    def update(self, dtheta, gimbal=None) -> None:
+        if self.nb < self.k:
+            x = np.concatenate([self.rest, dtheta]) if self.rest.shape[0] else dtheta
+            nfull = min(x.shape[0] // self.m, self.k - self.nb)
+            take = nfull * self.m
+            self.sums[self.nb: self.nb + nfull] = x[:take].reshape(nfull, self.m, 3).sum(axis=1)
+            self.nb += nfull
+            self.rest = x[take:] if self.nb < self.k else np.zeros((0, 3))
+        if gimbal is not None and gimbal.shape[0]:
+            lo, hi = gimbal.min(axis=0), gimbal.max(axis=0)
+            self.gmin = lo if self.gmin is None else np.minimum(self.gmin, lo)
+            self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
+
+    def warning(self) -> str | None:
+        k, m = self.k, self.m
+        rates = self.sums[: self.nb] * self.rate_hz / m
+        dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
+        d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
+        sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
+        thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
+        frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
+        moving = frac > 0.01
+        why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
+        if not moving and self.gmin is not None:
+            span = float(np.max(self.gmax - self.gmin))
+            if span > 1e-3:
+                moving, why = True, f"the gimbal turns by {np.degrees(span):.3g} deg in it"
+        if not moving:
+            return None
+        return (f"the window is not static ({why}): the Allan deviation mixes rotation into the noise; "
+                "use --start/--stop on a static part of the record")
+
+
+def stream_allan(data: Path, win, chunk_size: int = 1 << 18):
+    """Gyro and accelerometer Allan deviations of the window ``win`` (:func:`inscal.io.record_window`)
+    and its motion statistics, streamed in chunks: two passes (gyro with /time and /gimbal, then
+    accelerometers), so memory holds about a quarter of one sensor's window, never the record.
+    Returns ``(gyro AllanResult, accel AllanResult, MotionStats, (t_first, t_last))``."""
+    n = win.n
+    acc, mot = StreamingAllan(n, win.rate_hz), MotionStats(n, win.rate_hz)
+    t_first = t_last = None
+    for t, dth, g in iter_window(data, ("time", "dtheta", "gimbal"), win.i0, win.i1, chunk_size):
+        t_first = float(t[0]) if t_first is None else t_first
+        t_last = float(t[-1])
+        acc.update(dth)
+        mot.update(dth, g)
+    gyro = acc.result()
+    acc = None  # one phase history at a time
+    acc = StreamingAllan(n, win.rate_hz)
+    for (dv,) in iter_window(data, ("dvel",), win.i0, win.i1, chunk_size):
+        acc.update(dv)
+    return gyro, acc.result(), mot, (t_first, t_last)

@@ -41,21 +41,32 @@ Outputs
 from __future__ import annotations
 
 import csv
-import dataclasses
+
+
 import datetime as _dt
+
 import json
+
 import math
+
 import os
+
 import shutil
+
 import sys
+
 import time
+
 from dataclasses import dataclass, field
+
 from pathlib import Path
+
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..jsonutil import to_jsonable
+from inscal.io.jsonfile import to_jsonable
+
 
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
@@ -115,38 +126,6 @@ class Experiment:
         return ", ".join(f"{k}={v}" for k, v in self.points[p].items())
 
 
-# ------------------------------------------------------------------------------ registry
-_REGISTRY: dict[str, tuple[Callable[..., Experiment], str]] = {}
-
-
-def register_experiment(name: str, factory: Callable[..., Experiment], description: str = "") -> None:
-    """Make ``factory(**params) -> Experiment`` available as ``name``."""
-    _REGISTRY[name] = (factory, description)
-
-
-def _load_builtins() -> None:
-    from . import experiments  # noqa: F401  (registers the built-in experiments)
-
-
-def available_experiments() -> dict[str, str]:
-    _load_builtins()
-    return {k: d for k, (_, d) in sorted(_REGISTRY.items())}
-
-
-def get_experiment(name: str, params: dict | None = None) -> Experiment:
-    """The registered experiment ``name`` with ``params`` overriding its defaults."""
-    _load_builtins()
-    if name not in _REGISTRY:
-        raise StudyError(f"unknown experiment {name!r}; available: {', '.join(sorted(_REGISTRY))}")
-    factory, _ = _REGISTRY[name]
-    try:
-        exp = factory(**(params or {}))
-    except TypeError as exc:  # unknown keyword
-        raise StudyError(f"{name}: {exc}") from None
-    # the header records the registry name, so load_study() can rebuild the experiment
-    return exp if exp.name == name else dataclasses.replace(exp, name=name)
-
-
 # -------------------------------------------------------------------------------- seeds
 def run_layout(n_points: int, runs: int) -> list[tuple[int, int, int]]:
     """``(run id, point, repetition)`` for every run of a study, run-major
@@ -165,7 +144,7 @@ def _canonical(o) -> str:
 
 
 def make_header(experiment: Experiment, seed: int) -> dict:
-    from .. import __version__ as inscal_version
+    from inscal import __version__ as inscal_version
 
     return {
         "type": "header",
@@ -669,96 +648,6 @@ def write_outputs(experiment: Experiment, summary: Summary, out) -> dict[str, Pa
         finally:
             plt.close("all")
     return paths
-
-
-def load_study(out, runs: int | None = None) -> tuple[Experiment, StudyResult]:
-    """Rebuild a study from its folder (experiment from the registry with the recorded
-    parameters; ``runs`` defaults to the largest complete repetition count)."""
-    path = Path(out) / RUNS_FILE
-    if not path.exists():
-        raise StudyError(f"no study in {out} ({RUNS_FILE} missing)")
-    header, records = read_results(path)
-    exp = get_experiment(header["experiment"], header["params"])
-    P = len(exp.points)
-    if runs is None:
-        runs = 0
-        while all((runs * P + p) in records for p in range(P)):
-            runs += 1
-        runs = max(runs, 1)
-    return exp, StudyResult(Path(out), header, records, runs, 0, 0.0)
-
-
-def format_table(summary: Summary, file=None, width: int | None = None):
-    """Print the summary as Rich table(s) (stdout by default) that fit ``width`` columns (default:
-    ``$COLUMNS``, else the terminal's width, else 80) without cutting a number: numbers with 4
-    significant digits, headers wrap at spaces, and a table too wide is split into parts that
-    repeat the leading label columns (parameter, unit)."""
-    import shutil
-
-    from rich import box
-    from rich.console import Console
-    from rich.table import Table
-
-    f = file or sys.stdout
-    if width is None:
-        width = shutil.get_terminal_size((80, 24)).columns
-    width = max(40, int(width))
-    con = Console(file=f, width=width, soft_wrap=False, highlight=False)
-    cols = list(summary.columns)
-    cells = [[_fmt(row.get(k)) for k, _ in cols] for row in summary.rows]
-    # leading label columns (no numbers in them): repeated in every part
-    nkey = 0
-    for i, (k, _) in enumerate(cols[:-1]):
-        if i >= 2 or any(isinstance(row.get(k), (int, float)) and not isinstance(row.get(k), bool) for row in summary.rows):
-            break
-        nkey = i + 1
-
-    import io as _io
-
-    def need(i) -> int:  # a column's width: its widest cell, or its header's longest word
-        words = cols[i][1].split()
-        return max([len(c[i]) for c in cells] + [max((len(w) for w in words), default=1)])
-
-    def table(idx, title=None):
-        t = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, title_justify="left")
-        for i in idx:
-            t.add_column(cols[i][1], justify="left" if i < nkey else "right", width=need(i), overflow="fold")
-        for c in cells:
-            t.add_row(*[c[i] for i in idx])
-        return t
-
-    def fits(idx) -> bool:
-        buf = _io.StringIO()
-        Console(file=buf, width=10 * width, soft_wrap=False).print(table(idx))
-        return max((len(line) for line in buf.getvalue().splitlines()), default=0) <= width
-
-    keys = list(range(nkey))
-    parts, cur = [], []
-    for i in range(nkey, len(cols)):
-        if cur and not fits(keys + cur + [i]):
-            parts.append(cur)
-            cur = []
-        cur.append(i)
-    parts.append(cur)
-    for n, part in enumerate(parts):
-        title = summary.title if len(parts) == 1 else f"{summary.title} (part {n + 1} of {len(parts)})"
-        con.print(table(keys + part, title))
-    for n in summary.notes:
-        con.print(f"note: {n}")
-
-
-def _fmt(v) -> str:
-    """A table cell: 4 significant digits (an exponent only outside 1e-3 .. 1e5, as ``1.23e-5``)."""
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "-"
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, float):
-        if v == 0 or 1e-3 <= abs(v) < 1e5:
-            return f"{v:.4g}"
-        m, e = f"{v:.3g}".split("e") if "e" in f"{v:.3g}" else (f"{v:.3g}", "")
-        return m + (f"e{int(e)}" if e else "")
-    return str(v)
 
 
 # ---------------------------------------------------------------------- small statistics

@@ -86,21 +86,34 @@ Run ``python -m inscal.analysis.nav5d`` for the table (``--help`` for options).
 from __future__ import annotations
 
 import argparse
+
 import json
+
 import math
+
 import time
+
 from dataclasses import replace
 
 import numpy as np
 
-from .. import scenarios, units
-from ..calibrate import calibrate
-from ..errors import ImuErrors, ImuNoise
-from ..jsonutil import to_jsonable
-from ..navigation import navigate
-from ..simulate import Scenario, simulate, simulate_chunks
-from ..strapdown import NavConfig, NavState
-from ..turntable import Move, Path, rotmod16
+from inscal.sim import scenarios
+from inscal.core import units
+
+from inscal.calibrate import calibrate
+
+from inscal.core.error_model import ImuErrors, ImuNoise
+
+from inscal.io.jsonfile import to_jsonable
+
+from inscal.nav.run import navigate
+
+from inscal.sim.simulate import Scenario, simulate, simulate_chunks
+
+from inscal.nav.strapdown import NavConfig, NavState
+
+from inscal.core.turntable import Move, RotationPath, rotmod16
+
 
 DEG = math.pi / 180.0
 DAY = 86400.0
@@ -122,11 +135,11 @@ CAL_KW = {"filter_rate_hz": 1.0, "max_passes": 5, "tol": 0.01}
 OUTPUT_INTERVAL_S = 10.0
 
 
-def nav_path(orientation: str, duration_s: float) -> Path:
+def nav_path(orientation: str, duration_s: float) -> RotationPath:
     """The gimbal path of a navigation run in ``orientation`` (see the module docstring)."""
     if orientation in STATIC_ORIENTATIONS:
         tx, tz = STATIC_ORIENTATIONS[orientation]
-        return Path(f"static-{orientation}", (Move("none", dwell=float(duration_s)),), initial=(tx * DEG, tz * DEG))
+        return RotationPath(f"static-{orientation}", (Move("none", dwell=float(duration_s)),), initial=(tx * DEG, tz * DEG))
     if orientation == "rotmod16":
         return rotmod16(duration_s)
     raise ValueError(f"unknown orientation {orientation!r}; known: {', '.join(ORIENTATIONS)}")

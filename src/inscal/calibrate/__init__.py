@@ -38,14 +38,23 @@ from __future__ import annotations
 
 import inspect
 
-from .joint import joint
-from .n25 import n25
-from .result import CalibrationResult
-from .segment import CalibrationError, Window, WindowSet, window_means
-from .six_position import six_position
-from .systematic import systematic30, systematic51
-from .twelve_position import twelve_position
-from .unified import unified
+from inscal.calibrate.joint import joint
+
+from inscal.calibrate.n25 import n25
+
+from inscal.calibrate.result import CalibrationResult
+
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import Window, WindowSet, window_means
+
+from inscal.calibrate.six_position import six_position
+
+from inscal.calibrate.systematic.driver import systematic30, systematic51
+
+from inscal.calibrate.twelve_position import twelve_position
+
+from inscal.calibrate.unified import unified
+
 
 METHODS = {
     "six-position": six_position,
@@ -69,7 +78,7 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
         raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     fn = METHODS[method]
     if method in RECORD_METHODS:
-        from .systematic import systematic
+        from inscal.calibrate.systematic.driver import systematic
 
         meth_keys = set(inspect.signature(systematic).parameters) - {"ws_or_record", "method_name"}
         unknown = set(options) - meth_keys

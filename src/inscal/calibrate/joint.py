@@ -28,115 +28,29 @@ with the exact forward model of :mod:`.model` (no small-angle approximation).
 
 from __future__ import annotations
 
+from inscal.calibrate.window_model import NAMES
+
 import math
-import re
+
 
 import numpy as np
+
 from scipy.optimize import least_squares
 
-from ..errors import MISALIGN_NAMES, GimbalErrors, ImuErrors, off_diagonal
-from .model import window_inputs
-from .result import (ACCEL_FLOOR, GIMBAL, GYRO_FLOOR, IMU_LINEAR, CalibrationResult, fit_statistics, make_result,
-                     scaled_sigma)
-from .segment import CalibrationError, WindowSet
-
-NAMES = IMU_LINEAR + GIMBAL
-#: (parameter name, component label) of each internal parameter
-COMPONENTS = (
-    [("gyro_scale_factor", a) for a in "xyz"] + [("gyro_misalignment", m) for m in MISALIGN_NAMES]
-    + [("gyro_bias", a) for a in "xyz"] + [("accel_scale_factor", a) for a in "xyz"]
-    + [("accel_misalignment", m) for m in MISALIGN_NAMES] + [("accel_bias", a) for a in "xyz"]
-    + [("gimbal_nonorthogonality", "")] + [("mount_attitude", a) for a in ("alpha0", "beta0", "gamma0")]
-)
-NP = len(COMPONENTS)
+from inscal.core.error_model import GimbalErrors, ImuErrors
 
 
-def component_label(i: int) -> str:
-    n, c = COMPONENTS[i]
-    return f"{n}[{c}]" if c else n
+from inscal.calibrate.fit import fit_statistics, scaled_sigma
+from inscal.calibrate.result import CalibrationResult, make_result
 
-
-def _parse_component(key: str) -> list[int]:
-    m = re.fullmatch(r"([a-z_]+)(?:\[([a-z0-9]+)\])?", key.strip())
-    if not m or m.group(1) not in NAMES:
-        raise CalibrationError(f"cannot fix {key!r}: expected NAME or NAME[component] with NAME in {', '.join(NAMES)}")
-    idx = [i for i, (n, c) in enumerate(COMPONENTS) if n == m.group(1) and (m.group(2) is None or c == m.group(2))]
-    if not idx:
-        raise CalibrationError(f"cannot fix {key!r}: unknown component")
-    return idx
-
-
-class _Model:
-    def __init__(self, ws: WindowSet):
-        self.ws = ws
-        self.Om = float(np.linalg.norm(ws.site.earth_rate_n))
-        self.g = ws.site.gravity
-        self.G = np.array([w.gyro for w in ws.windows])
-        self.A = np.array([w.accel for w in ws.windows])
-        self.sg = np.maximum(np.array([w.gyro_sigma for w in ws.windows]), GYRO_FLOOR)
-        self.sa = np.maximum(np.array([w.accel_sigma for w in ws.windows]), ACCEL_FLOOR)
-        # internal scaling: eps / w_ie, nabla / g; other parameters in rad or dimensionless
-        self.scale = np.ones(NP)
-        self.scale[9:12] = self.Om
-        self.scale[21:24] = self.g
-
-    def to_si(self, p):
-        return p * self.scale
-
-    def from_si(self, x):
-        return x / self.scale
-
-    @staticmethod
-    def unpack(x):
-        return x[0:3], x[3:9], x[9:12], x[12:15], x[15:21], x[21:24], x[24], x[25:28]
-
-    def inputs(self, x):
-        return window_inputs(self.ws, x[24], x[25:28])
-
-    def residual(self, p):
-        x = self.to_si(p)
-        kg, eg, eps, ka, ea, nab, dth, mount = self.unpack(x)
-        W, F = window_inputs(self.ws, dth, mount)
-        Mg = (np.eye(3) + np.diag(kg)) @ (np.eye(3) + off_diagonal(eg))
-        Ma = (np.eye(3) + np.diag(ka)) @ (np.eye(3) + off_diagonal(ea))
-        rg = (W @ Mg.T + eps - self.G) / self.sg
-        ra = (F @ Ma.T + nab - self.A) / self.sa
-        return np.concatenate([rg.ravel(), ra.ravel()])
-
-    def jacobian(self, p, h: float = 1e-6):
-        x = self.to_si(p)
-        kg, eg, eps, ka, ea, nab, dth, mount = self.unpack(x)
-        n = len(self.ws.windows)
-        W, F = window_inputs(self.ws, dth, mount)
-        Eg, Ea = np.eye(3) + off_diagonal(eg), np.eye(3) + off_diagonal(ea)
-        Mg, Ma = (np.eye(3) + np.diag(kg)) @ Eg, (np.eye(3) + np.diag(ka)) @ Ea
-        Jg = np.zeros((n, 3, NP))
-        Ja = np.zeros((n, 3, NP))
-        from ..errors import MISALIGN_INDEX
-        for blk, (J, V, E, k, off_k, off_e, off_b) in enumerate(((Jg, W, Eg, kg, 0, 3, 9), (Ja, F, Ea, ka, 12, 15, 21))):
-            EV = V @ E.T
-            for i in range(3):
-                J[:, i, off_k + i] = EV[:, i]  # d/dK_i
-                J[:, i, off_b + i] = 1.0  # d/d bias_i
-            for m, (i, j) in enumerate(MISALIGN_INDEX):
-                J[:, i, off_e + m] = (1.0 + k[i]) * V[:, j]  # d/dE_ij
-        for q in range(4):
-            xp, xm = x.copy(), x.copy()
-            xp[24 + q] += h
-            xm[24 + q] -= h
-            Wp, Fp = self.inputs(xp)
-            Wm, Fm = self.inputs(xm)
-            Jg[:, :, 24 + q] = (Wp - Wm) @ Mg.T / (2 * h)
-            Ja[:, :, 24 + q] = (Fp - Fm) @ Ma.T / (2 * h)
-        Jg /= self.sg[:, :, None]
-        Ja /= self.sa[:, :, None]
-        J = np.concatenate([Jg.reshape(3 * n, NP), Ja.reshape(3 * n, NP)])
-        return J * self.scale[None, :]
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import WindowSet
+from inscal.calibrate.window_model import NP, WindowModel, component_label, parse_component
 
 
 def _initial(ws: WindowSet) -> tuple[np.ndarray, str]:
     """Start point: the n25 estimate when the record allows it, else zeros."""
-    from .n25 import n25
+    from inscal.calibrate.n25 import n25
 
     try:
         r = n25(ws, uncertainty=False)
@@ -186,7 +100,7 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     """
     if len(ws.windows) < 5:
         raise CalibrationError(f"joint calibration needs at least 5 windows, found {len(ws.windows)}")
-    model = _Model(ws)
+    model = WindowModel(ws)
     if initial is not None:
         imu0, gim0 = initial
         x0 = np.concatenate([imu0.gyro_scale_factor, imu0.gyro_misalignment, imu0.gyro_bias, imu0.accel_scale_factor,
@@ -197,10 +111,10 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     free = np.ones(NP, bool)
     notes = []
     for key, val in (fix or {}).items():
-        for i in _parse_component(key):
+        for i in parse_component(key):
             free[i] = False
             x0[i] = float(np.ravel(val)[0]) if np.ndim(val) == 0 or len(np.ravel(val)) == 1 else float(
-                np.ravel(val)[_parse_component(key).index(i)])
+                np.ravel(val)[parse_component(key).index(i)])
         notes.append(f"{key} held fixed at the given value")
     p0 = model.from_si(x0)
     # structural observability at a generic point near the start: exactly zero angles would
@@ -254,7 +168,7 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
             Sf = (cov @ J.T) * model.scale[fi][:, None]  # d x_i / d residual_j (residuals in sigma units)
             S = np.full((NP, J.shape[0]), 0.0)
             S[fi] = Sf
-            idx = np.arange(J.shape[0])  # residual order of _Model: gyro (window-major), then accelerometer
+            idx = np.arange(J.shape[0])  # residual order of WindowModel: gyro (window-major), then accelerometer
         except np.linalg.LinAlgError:
             notes.append("Jacobian singular at the solution: no uncertainties")
     if S is not None:

@@ -45,15 +45,23 @@ import math
 
 import numpy as np
 
-from .model import C_b_s, C_n_s
-from .result import (IMU_LINEAR, GIMBAL, CalibrationResult, estimator_reference, finish_sigma, fit_statistics, flatten,
-                     make_result, nparams, sensitivity)
-from .segment import CalibrationError, WindowSet
-from .model import ideal_up
-from .six_position import (_imu_gim, _values, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position,
-                           positions)
-from .twelve_position import TWELVE, accel_twelve
-from ..attitude import rot_x, rot_y
+from inscal.calibrate.window_model import C_b_s, C_n_s
+
+from inscal.calibrate.result import IMU_LINEAR, GIMBAL, CalibrationResult, flatten, make_result, nparams
+from inscal.calibrate.fit import estimator_reference, finish_sigma, fit_statistics, sensitivity
+
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import WindowSet
+
+from inscal.calibrate.window_model import ideal_up
+
+from inscal.calibrate.result import errors_from_values
+from inscal.calibrate.positions import values_from_matrices, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position, positions
+
+from inscal.calibrate.positions import TWELVE, accel_twelve
+
+from inscal.core.attitude import rot_x, rot_y
+
 
 NAMES = IMU_LINEAR + GIMBAL
 DEG = math.pi / 180.0
@@ -160,7 +168,7 @@ def _core(ws: WindowSet, idx: list[int]):
     sol, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
     wb, eps = sol[:3], sol[3:]
     gamma0 = heading_from_earth_rate(wb, alpha0, beta0)
-    vals = _values(Ma, nabla, Mg, eps)
+    vals = values_from_matrices(Ma, nabla, Mg, eps)
     vals["gimbal_nonorthogonality"] = dth
     vals["mount_attitude"] = np.array([alpha0, beta0, gamma0])
     return vals, used_rate, X, wb
@@ -207,11 +215,11 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     vals, used_rate, X, wb = _core(ws, idx)
 
     def est(w2):
-        return flatten(*_imu_gim(_core(w2, idx)[0]), NAMES)
+        return flatten(*errors_from_values(_core(w2, idx)[0]), NAMES)
 
     used = {k: (True, True) for k in idx}
     used.update({k: (True, False) for k in used_rate})
-    imu, gim = _imu_gim(vals)
+    imu, gim = errors_from_values(vals)
     S = comp = A = None
     if uncertainty:
         S, comp = sensitivity(est, ws, used, flatten(imu, gim, NAMES))

@@ -14,33 +14,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..turntable import N25_TWELVE_POSITIONS
-from .model import ideal_up
-from .result import IMU_LINEAR, CalibrationResult, flatten
-from .segment import CalibrationError, WindowSet
-from .six_position import (_imu_gim, _values, accel_least_squares, finish_ideal, gyro_matrix_from_rate_tests,
-                           nominal_position, positions)
-
-TWELVE = [tuple(p) for p in N25_TWELVE_POSITIONS]
 
 
-def twelve_windows(ws: WindowSet, method: str = "twelve-position") -> list[int]:
-    """Window indices of the twelve N25 positions, in N25 order; a clear error if any is missing."""
-    pos = positions(ws)
-    missing = [p for p in TWELVE if p not in pos]
-    if missing:
-        raise CalibrationError(
-            f"{method} calibration needs static windows at the twelve N25 positions (theta_x, theta_z) deg; "
-            f"missing {len(missing)}: " + ", ".join(f"({a}, {b})" for a, b in missing))
-    return [pos[p] for p in TWELVE]
+from inscal.calibrate.result import IMU_LINEAR, CalibrationResult, flatten
 
+from inscal.calibrate.windows import WindowSet
 
-def accel_twelve(ws: WindowSet, idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 24-26: the eq. 19 least squares over the twelve positions with ideal inputs."""
-    g = ws.site.gravity
-    N = np.array([ws.windows[k].accel for k in idx])
-    F = np.array([np.round(ideal_up(*ws.windows[k].theta)) * g for k in idx])
-    return accel_least_squares(N, F)
+from inscal.calibrate.result import errors_from_values
+from inscal.calibrate.positions import values_from_matrices, gyro_matrix_from_rate_tests, nominal_position
+from inscal.calibrate.ideal import finish_ideal
+from inscal.calibrate.positions import accel_twelve, twelve_windows
 
 
 def _core(ws: WindowSet, idx: list[int]):
@@ -53,10 +36,10 @@ def _core(ws: WindowSet, idx: list[int]):
 def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     idx = twelve_windows(ws)
     Ma, nabla, Mg, eps, used_rate = _core(ws, idx)
-    vals = _values(Ma, nabla, Mg, eps)
+    vals = values_from_matrices(Ma, nabla, Mg, eps)
 
     def est(w2):
-        return flatten(*_imu_gim(_values(*_core(w2, idx)[:4])), IMU_LINEAR)
+        return flatten(*errors_from_values(values_from_matrices(*_core(w2, idx)[:4])), IMU_LINEAR)
 
     used = {k: (True, True) for k in idx}
     used.update({k: (True, False) for k in used_rate})

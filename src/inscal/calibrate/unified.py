@@ -45,8 +45,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .result import CalibrationResult
-from .systematic import ENCODER_SIGMA, StateSet, _gimbal_attitude, systematic
+from inscal.calibrate.result import CalibrationResult
+
+from inscal.calibrate.systematic.states import ENCODER_SIGMA, StateSet
+from inscal.calibrate.systematic.dynamics import gimbal_attitude
+from inscal.calibrate.systematic.driver import systematic
+
 
 __all__ = ["unified", "predicted_attitude", "measurement", "residual", "ENCODER_SIGMA", "STATES"]
 
@@ -66,7 +70,7 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
 def predicted_attitude(gimbal, theta_x: float, theta_z: float) -> np.ndarray:
     """``C_s^n`` the gimbal model predicts (N25 eq. 5-8): ``gimbal = [dth, alpha0, beta0, gamma0]`` [rad]."""
     C, a, c, Hg = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 4))
-    _gimbal_attitude(np.asarray(gimbal, float), float(theta_x), float(theta_z), C, a, c, Hg)
+    gimbal_attitude(np.asarray(gimbal, float), float(theta_x), float(theta_z), C, a, c, Hg)
     return C
 
 
@@ -81,7 +85,7 @@ def measurement(gimbal, theta_x: float, theta_z: float, encoder_sigma: float = E
     units): ``z ~ H_phi phi + H_gimbal d[dth, alpha0, beta0, gamma0]`` with ``H_phi = I`` and
     ``R = s^2 (a a^T + c c^T) + (s/10)^2 I``."""
     C, a, c, Hg = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 4))
-    _gimbal_attitude(np.asarray(gimbal, float), float(theta_x), float(theta_z), C, a, c, Hg)
+    gimbal_attitude(np.asarray(gimbal, float), float(theta_x), float(theta_z), C, a, c, Hg)
     s2 = float(encoder_sigma) ** 2
     R = s2 * (np.outer(a, a) + np.outer(c, c)) + 0.01 * s2 * np.eye(3)
     return np.eye(3), -Hg, R

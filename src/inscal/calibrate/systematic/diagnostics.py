@@ -1,0 +1,173 @@
+"""Diagnostics of a systematic calibration: the chi-square fit of the innovations by time block, the
+encoder residuals, the mount attitude, and the per-pass history for convergence plots."""
+
+from __future__ import annotations
+
+import math
+
+
+import numpy as np
+
+
+from inscal.core import units
+
+
+from inscal.core.error_model import ImuErrors
+
+
+
+
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.systematic.kernel import PassOutput
+from inscal.calibrate.systematic.params import CompParams, canonical_flat, params_from_ref, truth_in_frame
+from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
+
+
+#: p-value below which the innovations are declared inconsistent with the noise model
+P_INCONSISTENT = 1e-3
+#: time blocks of the per-window innovation residuals (at most this many, at least 60 s each)
+FIT_BLOCKS = 24
+
+
+def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet) -> dict:
+    """The fit of a systematic-filter run, in the form of the window-mean methods' fit
+    (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
+    ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
+    mean NIS (expected 6) with the velocity / position innovation RMS.
+
+    When p < :data:`P_INCONSISTENT` the reported sigma are the formal (smoothed) ones times
+    ``scale = sqrt(chi2 / dof)`` (``sqrt(mean NIS / 6)``): the innovation sequence says the
+    noise model understates what the filter sees (unmodelled terms, a wrong path or wrong
+    gravity add to every innovation); the formal sigma are kept beside them."""
+    from scipy.stats import chi2 as _chi2
+
+    p = float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan")
+    consistent = not (p < P_INCONSISTENT)
+    scale = 1.0 if consistent else math.sqrt(max(chisq / dof, 1.0))
+    n = len(nis)
+    nb = int(max(1, min(FIT_BLOCKS, n * T // 60.0)))
+    edges = np.linspace(0, n, nb + 1).astype(int)
+    res = []
+    for k in range(nb):
+        a, b = edges[k], edges[k + 1]
+        if b <= a:
+            continue
+        res.append({"window": k, "label": f"t {a * T:7.0f}-{b * T:7.0f} s",
+                    "nis_mean": float(np.mean(nis[a:b])),
+                    "velocity_rms_m_s": float(np.sqrt(np.mean(z[a:b, :3] ** 2))),
+                    "position_rms_m": float(np.sqrt(np.mean(z[a:b, 3:] ** 2)))})
+    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": float(dof), "p_value": p, "consistent": consistent,
+           "scale": scale, "residuals": res, "cause": None, "note": None,
+           "sigma_rule": "systematic filter: sigma x sqrt(chi2/dof) of the innovations when p < 0.001"}
+    if not consistent:
+        worst = max(res, key=lambda r: r["nis_mean"])
+        if not st.extended:
+            cause = ("unmodelled terms (the 30-state set has no g-sensitivity, quadratic, cross-coupling or "
+                     "lever-arm states: try --states 51)")
+        else:
+            cause = ("unmodelled terms, wrong noise (--arw/--vrw), a wrong path or wrong gravity (--gravity); "
+                     f"worst block {worst['label'].strip()} (NIS {worst['nis_mean']:.3g})")
+        fit["cause"] = cause
+        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof (NIS mean {chisq / max(n, 1):.3g} "
+                       f"vs 6, p = {p:.2g}); likely cause: {cause}; sigma scaled by sqrt(chi2/dof) = {scale:.3g}, "
+                       "formal sigma kept")
+    return fit
+
+
+def encoder_angles(rec, n: int, dt: float) -> np.ndarray:
+    """Gimbal angles [outer, inner] (n, 2) [rad] at the end of every sample: the record's ``gimbal``
+    dataset (non-finite entries: no encoder sample), or, without one, its path's angles at the
+    sample times (noise-free: simulated records, the observability analysis)."""
+    g = getattr(rec, "gimbal", None)
+    if g is not None:
+        g = np.array(g, dtype=float)
+        if g.shape != (n, 2):
+            raise CalibrationError(f"encoder angles must be an ({n}, 2) array like the increments, got {g.shape}")
+        g[~np.all(np.isfinite(g), axis=1)] = np.nan
+        return g
+    path = getattr(rec, "path", None)
+    if path is None:
+        raise CalibrationError("the gimbal states need the encoder angles (the record's gimbal dataset) or its path")
+    t = getattr(rec, "time", None)
+    t = (np.arange(n) + 1) * dt if t is None else np.asarray(t, float)
+    return path.segments().angles(t)[0]
+
+
+def mount_from_attitude(C_s_n, angles, dth: float = 0.0) -> np.ndarray:
+    """``[alpha0, beta0, gamma0]`` of ``C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T`` (N25 eq. 7-8 inverted)."""
+    from inscal.core.turntable import C_s_b
+
+    return euler_of(np.asarray(C_s_n, float) @ C_s_b(float(angles[0]), float(angles[1]), float(dth)).T)
+
+
+def gimbal_diagnostics(res, last: PassOutput, st: StateSet, enc_sig: float, every: int) -> None:
+    """The unified filter's frame label and its encoder attitude innovations (``diagnostics["encoder"]``)."""
+    d = res.diagnostics
+    d["frame"] = FRAME_GIMBAL
+    if res.notes:
+        res.notes[0] = f"systematic {st.n_states}-state filter: parameters in the {FRAME_GIMBAL} frame"
+    used = np.asarray(last.att_used, bool)
+    nis = last.nis_att[used]
+    za = last.z_att[used]
+    # E[NIS] = tr(S^-1 (H P H^T + R_enc)) = 3 - floor tr(S^-1): the floor is not in the data (between 2 and 3)
+    Sia = last._smoother_data[8][used]
+    expected = float(np.mean(3.0 - last._enc_floor * np.trace(Sia, axis1=1, axis2=2))) if nis.size else float("nan")
+    d["encoder"] = {"sigma_arcsec": float(units.from_si(enc_sig, "arcsec")), "every_steps": every,
+                    "updates": int(used.sum()), "nis_mean": float(np.mean(nis)) if nis.size else float("nan"),
+                    "nis_expected": expected,
+                    "residual_rms_arcsec": (units.from_si(np.sqrt(np.mean(za**2, axis=0)), "arcsec").tolist()
+                                            if za.size else None)}
+
+
+def truth_gimbal(truth, st: StateSet):
+    from inscal.core.error_model import GimbalErrors
+
+    if not st.gimbal:
+        return GimbalErrors()
+    return truth[1] if isinstance(truth, tuple) else truth.gimbal
+
+
+def truth_imu(truth, st: StateSet) -> ImuErrors:
+    imu = truth[0] if isinstance(truth, tuple) else truth.imu
+    return truth_in_frame(imu, st).to_imu()
+
+
+def dcm_from_rotvec(v) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(np.asarray(v, float)).as_matrix()
+
+
+def euler_of(C) -> np.ndarray:
+    from inscal.core.attitude import euler_from_dcm
+
+    return np.asarray(euler_from_dcm(C))
+
+
+def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams, P_post) -> dict:
+    """Parameter histories in the canonical layout (SI) at the stored steps: ``filtered`` (the
+    reference before each stored update, 1 sigma from the predicted covariance) and ``smoothed``.
+
+    The parameters are constants, so their smoothed estimate and covariance at every step are the
+    final ones (the RTS smoother with zero parameter process noise); inscal uses that identity
+    rather than the adjoint recursion, whose parameter part loses precision early in the record
+    when the zero-velocity updates are ~1e8 times more informative than the prior.  The recursion's
+    own parameter estimates (``mbf``) are kept for checks; they agree with the final ones once the
+    record is well conditioned (tests/test_systematic.py)."""
+    sig_par = sig[N_NAV:]
+    t = (out.hist_step + 1).astype(float)
+    # canonical values to first order about the final estimate: canon(ref) = canon(final) + J x_ref,
+    # x_ref = the error state of each reference relative to the final (exact conversions at both ends)
+    fin = canonical_flat(final, names)
+    refs = [params_from_ref(r) for r in out.hist_ref]
+    xr = np.array([r.error_state(st, final) for r in refs])
+    filt = fin + xr @ J.T
+    filt[0] = canonical_flat(refs[0], names)
+    mbf = fin + (xr - out.hist_x[:, N_NAV:] * sig_par) @ J.T
+    Pm = out.hist_Pm[:, N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)
+    sf = np.sqrt(np.maximum(np.sum((J @ Pm) * J, axis=2), 0.0))
+    sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P_post, J), 0.0))
+    n = filt.shape[0]
+    return {"step": out.hist_step, "names": names, "filtered": filt, "filtered_sigma": sf,
+            "smoothed": np.tile(fin, (n, 1)), "smoothed_sigma": np.tile(sfin, (n, 1)), "mbf": mbf,
+            "t_steps": t}

@@ -1,0 +1,196 @@
+"""Compiled building blocks of the systematic filter: compensation of one sample (S16 eq. 1-12), the
+per-sample parameter Jacobian columns (S16 eq. 17-27), the navigation error dynamics F_nn and the
+encoder attitude of the gimbal model (N25 eq. 5-8)."""
+
+from __future__ import annotations
+
+import math
+
+
+import numpy as np
+
+from numba import njit
+
+from inscal.core import earth
+
+from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
+
+
+
+
+
+
+
+# ----------------------------------------------------------------------------- the kernel
+@njit(cache=True, inline="always")
+def affine(A, b, x, idt, out):
+    """``out = A x / dt - b`` (the linear part of the compensation, a rate)."""
+    for i in range(3):
+        out[i] = (A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]) * idt - b[i]
+
+
+@njit(cache=True)
+def compensate_sample(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0m, f0p, wlm, wlp, ug, ua, w, f, fdot, wdot):
+    """S16 compensation of one sample (module docstring); fills ug, ua, w, f (rates), the
+    centred derivatives ``fdot`` (of the accelerometer output) and ``wdot``.
+
+    ``f0m``/``f0p`` and ``wlm``/``wlp``: the linearly compensated specific force and rate of the
+    previous and next samples (equal to this sample's at the ends of the record).  Time asynchrony:
+    the accelerometer increment over [t_k-1 - tau, t_k - tau] is moved to [t_k-1, t_k] by a quadratic
+    interpolation of the integrated output, ``fb_k += tau (fb_k+1 - fb_k-1) / (2 dt)
+    + tau^2 (fb_k+1 - 2 fb_k + fb_k-1) / (2 dt^2)`` (error of order tau dt^2 times the third
+    derivative of f).  The size effect's w-dot is the centred difference ``(wb_k+1 - wb_k-1) / (2 dt)``."""
+    idt = 1.0 / dt
+    for i in range(3):
+        ug[i] = (Ag[i, 0] * dth[0] + Ag[i, 1] * dth[1] + Ag[i, 2] * dth[2]) * idt
+        ua[i] = (Aa[i, 0] * dv[0] + Aa[i, 1] * dv[1] + Aa[i, 2] * dv[2]) * idt
+    f0x = ua[0] - ba[0]
+    f0y = ua[1] - ba[1]
+    f0z = ua[2] - ba[2]
+    fdot[0] = (f0p[0] - f0m[0]) * 0.5 * idt
+    fdot[1] = (f0p[1] - f0m[1]) * 0.5 * idt
+    fdot[2] = (f0p[2] - f0m[2]) * 0.5 * idt
+    for i in range(3):
+        wdot[i] = (wlp[i] - wlm[i]) * 0.5 * idt
+    if tau != 0.0:
+        c2 = 0.5 * tau * tau * idt * idt
+        f0x += tau * fdot[0] + c2 * (f0p[0] - 2.0 * f0x + f0m[0])
+        f0y += tau * fdot[1] + c2 * (f0p[1] - 2.0 * f0y + f0m[1])
+        f0z += tau * fdot[2] + c2 * (f0p[2] - 2.0 * f0z + f0m[2])
+    fx, fy, fz = f0x, f0y, f0z
+    for i in range(3):
+        w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
+    if nl:
+        d0, d1, d2 = wdot[0], wdot[1], wdot[2]
+        for _ in range(3):  # S16 eq. 8 (fixed point)
+            c0, c1, c2_ = fx * fy, fx * fz, fy * fz
+            w0, w1, w2 = w[0], w[1], w[2]
+            ww = w0 * w0 + w1 * w1 + w2 * w2
+            wp0 = w0 * lev[0, 0] + w1 * lev[0, 1] + w2 * lev[0, 2]
+            wp1 = w0 * lev[1, 0] + w1 * lev[1, 1] + w2 * lev[1, 2]
+            wp2 = w0 * lev[2, 0] + w1 * lev[2, 1] + w2 * lev[2, 2]
+            s0 = w0 * wp0 - lev[0, 0] * ww + (d1 * lev[0, 2] - d2 * lev[0, 1])  # S16 eq. 9-11 (+ w-dot)
+            s1 = w1 * wp1 - lev[1, 1] * ww + (d2 * lev[1, 0] - d0 * lev[1, 2])
+            s2 = w2 * wp2 - lev[2, 2] * ww + (d0 * lev[2, 1] - d1 * lev[2, 0])
+            nx = f0x - (K2[0] * fx * fx + Kx[0, 0] * c0 + Kx[0, 1] * c1 + Kx[0, 2] * c2_) - s0  # S16 eq. 12
+            ny = f0y - (K2[1] * fy * fy + Kx[1, 0] * c0 + Kx[1, 1] * c1 + Kx[1, 2] * c2_) - s1
+            nz = f0z - (K2[2] * fz * fz + Kx[2, 0] * c0 + Kx[2, 1] * c1 + Kx[2, 2] * c2_) - s2
+            fx, fy, fz = nx, ny, nz
+            for i in range(3):
+                w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
+    f[0], f[1], f[2] = fx, fy, fz
+
+
+@njit(cache=True)
+def column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
+    """Per-sample value of each parameter column of dw (kinds 0-2) or df (kinds 3-9): the column
+    is ``C[:, axes[c]] * vals[c]`` except for the asynchrony (``C fdot``, handled by the caller)."""
+    ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    for c in range(kinds.shape[0]):
+        k = kinds[c]
+        i = axes[c]
+        j = js[c]
+        if k == 0:  # dKG u_g
+            vals[c] = ug[j]
+        elif k == 1 or k == 4:  # -db
+            vals[c] = -1.0
+        elif k == 2:  # -dG f
+            vals[c] = -f[j]
+        elif k == 3:  # dKA u_a
+            vals[c] = ua[j]
+        elif k == 5:  # -dK2 f_i^2
+            vals[c] = -f[i] * f[i]
+        elif k == 6:  # -dKx f_a f_b
+            if j == 0 or j == 2:
+                vals[c] = -f[0] * f[1]
+            elif j == 1 or j == 4:
+                vals[c] = -f[0] * f[2]
+            else:
+                vals[c] = -f[1] * f[2]
+        elif k == 7:  # diagonal lever arm: -d a_size_i / d r_i = |w|^2 - w_i^2
+            vals[c] = ww - w[i] * w[i]
+        elif k == 8:  # full lever arm p_ij: -(w_i w_j - delta_ij |w|^2 + (wdot x e_j)_i)
+            cr = 0.0
+            if j == 0:
+                cr = 0.0 if i == 0 else (wd[2] if i == 1 else -wd[1])
+            elif j == 1:
+                cr = -wd[2] if i == 0 else (0.0 if i == 1 else wd[0])
+            else:
+                cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
+            vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + cr)
+        else:
+            vals[c] = 0.0
+
+
+@njit(cache=True)
+def nav_F(lat, h, fn, F, g_scale=1.0):
+    """Continuous F_nn (9 x 9) of the static-base error model (module docstring); ``g_scale``:
+    site gravity model / WGS-84 normal gravity."""
+    for i in range(9):
+        for j in range(9):
+            F[i, j] = 0.0
+    W = earth.OMEGA_IE
+    sl, cl = math.sin(lat), math.cos(lat)
+    rm, rn = earth.radii(lat)
+    rm += h
+    rn += h
+    wn, wu = W * cl, W * sl
+    # phi' = phi x w_ie  = -[w_ie x] phi
+    F[0, 1] = wu
+    F[0, 2] = -wn
+    F[1, 0] = -wu
+    F[2, 0] = wn
+    # - dw_en(dv):  dw_en = [-dvN/RM, dvE/RN, dvE tanL/RN]
+    F[0, 4] = 1.0 / rm
+    F[1, 3] = -1.0 / rn
+    F[2, 3] = -sl / cl / rn
+    # - dw_ie(dL), dL = dpN / RM: dw_ie = W [0, -sinL, cosL] dL
+    F[1, 7] = W * sl / rm
+    F[2, 7] = -W * cl / rm
+    # dv' = phi x f^n = -[f x] phi
+    F[3, 1] = fn[2]
+    F[3, 2] = -fn[1]
+    F[4, 0] = -fn[2]
+    F[4, 2] = fn[0]
+    F[5, 0] = fn[1]
+    F[5, 1] = -fn[0]
+    # - 2 w_ie x dv
+    F[3, 4] = 2.0 * wu
+    F[3, 5] = -2.0 * wn
+    F[4, 3] = -2.0 * wu
+    F[5, 3] = 2.0 * wn
+    # gravity gradient: g_U = -gamma(h), d(dv_U)/d(h) = +2 gamma / R
+    F[5, 8] = 2.0 * earth.normal_gravity(lat, h) * g_scale / math.sqrt(rm * rn)
+    # dp' = dv
+    F[6, 3] = 1.0
+    F[7, 4] = 1.0
+    F[8, 5] = 1.0
+
+
+@njit(cache=True)
+def gimbal_attitude(gim, tx, tz, C, a, c, Hg):
+    """The gimbal model's IMU attitude ``C = C_b^n Rot(u, tx) R_z(tz)`` (N25 eq. 5-8, 34; exact
+    Rodrigues rotation about ``u = [cos dth, 0, sin dth]``), the outer and inner axes in n (``a``,
+    ``c``: the directions of the encoder noise) and ``Hg = d psi / d[dth, alpha0, beta0, gamma0]``
+    (3 x 4), ``psi`` the n-frame rotation of ``C`` for a change of the gimbal parameters (module
+    docstring); ``gim = [dth, alpha0, beta0, gamma0]``."""
+    dth = gim[0]
+    u = np.array([math.cos(dth), 0.0, math.sin(dth)])
+    du = np.array([-math.sin(dth), 0.0, math.cos(dth)])
+    Rzg = rot_z(gim[3])
+    RzRy = Rzg @ rot_y(gim[2])
+    Cbn = RzRy @ rot_x(gim[1])  # N25 eq. 8
+    Rx = axis_angle_dcm(u, tx)  # N25 eq. 5 (exact)
+    C[:, :] = Cbn @ (Rx @ rot_z(tz))  # N25 eq. 7
+    s1, c1 = math.sin(tx), 1.0 - math.cos(tx)
+    # left Jacobian of Rot(u, tx) for a change du of the unit axis (du perpendicular to u)
+    w0 = s1 * du[0] + c1 * (u[1] * du[2] - u[2] * du[1])
+    w1 = s1 * du[1] + c1 * (u[2] * du[0] - u[0] * du[2])
+    w2 = s1 * du[2] + c1 * (u[0] * du[1] - u[1] * du[0])
+    for i in range(3):
+        a[i] = Cbn[i, 0] * u[0] + Cbn[i, 1] * u[1] + Cbn[i, 2] * u[2]
+        c[i] = Cbn[i, 0] * Rx[0, 2] + Cbn[i, 1] * Rx[1, 2] + Cbn[i, 2] * Rx[2, 2]
+        Hg[i, 0] = Cbn[i, 0] * w0 + Cbn[i, 1] * w1 + Cbn[i, 2] * w2  # N25 eq. 35-36 (d dth)
+        Hg[i, 1] = RzRy[i, 0]  # d alpha0: R_z R_y e_x
+        Hg[i, 2] = Rzg[i, 1]  # d beta0: R_z e_y
+        Hg[i, 3] = 1.0 if i == 2 else 0.0  # d gamma0: e_z

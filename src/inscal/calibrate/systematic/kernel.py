@@ -1,0 +1,531 @@
+"""The compiled forward pass of the systematic filter (strapdown navigation, compensation, Phi and the
+velocity/position and encoder updates) and its modified Bryson-Frazier smoother, with their drivers."""
+
+from __future__ import annotations
+
+import math
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from numba import njit
+
+from inscal.core import earth, kalman as filters
+
+from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz as _qrv
+
+
+
+from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
+
+
+from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.systematic.dynamics import affine, column_values, compensate_sample, gimbal_attitude, nav_F
+from inscal.calibrate.systematic.params import CompParams
+from inscal.calibrate.systematic.states import ENCODER_SIGMA, IDX_MEAS, K_GIM, N_NAV, StateSet
+from inscal.core.kalman import smoother_step_dense, update_dense
+
+
+@njit(cache=True)
+def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, est_tau,
+                 kinds, axes, js, sig, qg, qa, r, P, hist_every,
+                 K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st,
+                 hist_Pm, hist_ref, hist_Pf, nav_out,
+                 gim, enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st):
+    """One closed-loop filter pass over the record (see the module docstring).
+
+    ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
+    gravity model / WGS-84 normal gravity, 1 when absent); parameter arrays are
+    updated in place by the feedback.  ``sig``: state scaling (the filter works on x / sig).
+    Stores per step the smoother data; every ``hist_every`` steps the predicted covariance
+    and the pre-update reference parameters.  Returns the number of steps.
+
+    Gimbal states: ``gim = [dth, alpha0, beta0, gamma0]`` (updated in place by the feedback);
+    ``enc`` (M, 2) the encoder angles at the end of each step (NaN: no attitude rows that step; shape
+    (0, 2) without gimbal states), ``enc_var``/``enc_floor`` the encoder and floor variances; the
+    attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
+    step (``att_used[k] = 1`` where it ran).
+    """
+    N = sig.shape[0]
+    npar = N - 9
+    M = dth.shape[0] // n_per
+    T = n_per * dt
+    q0, q1, q2, q3 = nav0[0], nav0[1], nav0[2], nav0[3]
+    ve, vn, vu = nav0[4], nav0[5], nav0[6]
+    lat, lon, h = nav0[7], nav0[8], nav0[9]
+    lat0, lon0, h0 = site[0], site[1], site[2]
+    g_scale = site[3] if site.shape[0] > 3 else 1.0
+    ug = np.empty(3)
+    ua = np.empty(3)
+    w = np.empty(3)
+    f = np.empty(3)
+    fdot = np.empty(3)
+    f0m = np.empty(3)  # linear-compensated specific force / rate of the previous, this, next sample
+    f0c = np.empty(3)
+    f0n = np.empty(3)
+    wlm = np.empty(3)
+    wlc = np.empty(3)
+    wln = np.empty(3)
+    wd = np.zeros(3)
+    idt = 1.0 / dt
+    if M > 0:
+        affine(Aa, ba, dv[0], idt, f0c)
+        affine(Ag, bg, dth[0], idt, wlc)
+        f0m[:] = f0c
+        wlm[:] = wlc
+    vals = np.empty(npar)
+    M0 = np.zeros((6, npar))
+    M1 = np.zeros((6, npar))
+    M2 = np.zeros((6, npar))
+    F = np.zeros((9, 9))
+    fn = np.zeros(3)
+    K = np.empty((N, 6))
+    Si = np.empty((6, 6))
+    xs = np.empty(N)
+    z = np.empty(6)
+    rs = np.empty(6)
+    for a in range(6):
+        rs[a] = r[a] / sig[3 + a] ** 2
+    have_enc = enc.shape[0] > 0
+    Cp = np.empty((3, 3))
+    Ce = np.empty((3, 3))
+    ga = np.empty(3)
+    gc = np.empty(3)
+    Hg = np.empty((3, 4))
+    Ha = np.zeros((3, N))
+    Ra = np.empty((3, 3))
+    Ka = np.empty((N, 3))
+    Sia = np.empty((3, 3))
+    za = np.empty(3)
+    nu = np.empty(3)
+    xa = np.empty(N)
+    p0, p1, p2 = 0.0, 0.0, 0.0
+    u0, u1, u2 = 0.0, 0.0, 0.0
+    have_prev = False
+    qgm = (qg[0] + qg[1] + qg[2]) / 3.0
+    qam = (qa[0] + qa[1] + qa[2]) / 3.0
+    ih = 0
+    for k in range(M):
+        for a in range(6):
+            for c in range(npar):
+                M0[a, c] = 0.0
+                M1[a, c] = 0.0
+                M2[a, c] = 0.0
+        fn[0] = 0.0
+        fn[1] = 0.0
+        fn[2] = 0.0
+        for jj in range(n_per):
+            s = k * n_per + jj
+            if s + 1 < dth.shape[0]:
+                affine(Aa, ba, dv[s + 1], idt, f0n)
+                affine(Ag, bg, dth[s + 1], idt, wln)
+            else:
+                f0n[:] = f0c
+                wln[:] = wlc
+            compensate_sample(dth[s], dv[s], dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau[0], nl, f0m, f0n, wlm, wln,
+                        ug, ua, w, f, fdot, wd)
+            f0m[:] = f0c
+            f0c[:] = f0n
+            wlm[:] = wlc
+            wlc[:] = wln
+            a0, a1, a2 = w[0] * dt, w[1] * dt, w[2] * dt
+            b0, b1, b2 = f[0] * dt, f[1] * dt, f[2] * dt
+            r0, r1, r2, c0, c1, c2 = two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, have_prev)
+            nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u = velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu,
+                                                                            lat, h, dt, g_scale)
+            # attitude with the midpoint transport rate
+            mve = 0.5 * (ve + nve)
+            mvn = 0.5 * (vn + nvn)
+            oq0, oq1, oq2, oq3 = q0, q1, q2, q3
+            q0, q1, q2, q3 = attitude_step(q0, q1, q2, q3, r0, r1, r2, -mvn / rmh * dt, (wie_n + mve / rnh) * dt,
+                                            (wie_u + mve * sl / (cl * rnh)) * dt)
+            lat += 0.5 * (vn + nvn) / rmh * dt
+            lon += 0.5 * (ve + nve) / (rnh * cl) * dt
+            h += 0.5 * (vu + nvu) * dt
+            ve, vn, vu = nve, nvn, nvu
+            p0, p1, p2 = a0, a1, a2
+            u0, u1, u2 = b0, b1, b2
+            have_prev = True
+            # ---- Jacobian accumulation with the mid-sample attitude
+            m0, m1, m2, m3 = oq0 + q0, oq1 + q1, oq2 + q2, oq3 + q3
+            mn = 1.0 / math.sqrt(m0 * m0 + m1 * m1 + m2 * m2 + m3 * m3)
+            m0 *= mn
+            m1 *= mn
+            m2 *= mn
+            m3 *= mn
+            column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals)
+            sw = (n_per - jj - 0.5) * dt
+            wt0 = dt
+            wt1 = sw * dt
+            wt2 = 0.5 * sw * sw * dt
+            fe, fnn_, fu = qrot(m0, m1, m2, m3, f[0], f[1], f[2])
+            fn[0] += fe * dt
+            fn[1] += fnn_ * dt
+            fn[2] += fu * dt
+            # columns of C_m^n: C e_i
+            cx0, cx1, cx2 = qrot(m0, m1, m2, m3, 1.0, 0.0, 0.0)
+            cy0, cy1, cy2 = qrot(m0, m1, m2, m3, 0.0, 1.0, 0.0)
+            cz0, cz1, cz2 = qrot(m0, m1, m2, m3, 0.0, 0.0, 1.0)
+            for c in range(npar):
+                kk = kinds[c]
+                if kk == K_GIM:  # gimbal states: constants outside the navigation error dynamics
+                    continue
+                rb = 0 if kk <= 2 else 3
+                if kk == 9:
+                    if not est_tau:
+                        continue
+                    v0 = cx0 * fdot[0] + cy0 * fdot[1] + cz0 * fdot[2]
+                    v1 = cx1 * fdot[0] + cy1 * fdot[1] + cz1 * fdot[2]
+                    v2 = cx2 * fdot[0] + cy2 * fdot[1] + cz2 * fdot[2]
+                else:
+                    i = axes[c]
+                    vv = vals[c]
+                    if i == 0:
+                        v0, v1, v2 = cx0 * vv, cx1 * vv, cx2 * vv
+                    elif i == 1:
+                        v0, v1, v2 = cy0 * vv, cy1 * vv, cy2 * vv
+                    else:
+                        v0, v1, v2 = cz0 * vv, cz1 * vv, cz2 * vv
+                M0[rb, c] += v0 * wt0
+                M0[rb + 1, c] += v1 * wt0
+                M0[rb + 2, c] += v2 * wt0
+                M1[rb, c] += v0 * wt1
+                M1[rb + 1, c] += v1 * wt1
+                M1[rb + 2, c] += v2 * wt1
+                M2[rb, c] += v0 * wt2
+                M2[rb + 1, c] += v1 * wt2
+                M2[rb + 2, c] += v2 * wt2
+        # ---- discretisation (module docstring)
+        fn[0] /= T
+        fn[1] /= T
+        fn[2] /= T
+        nav_F(lat0, h0, fn, F, g_scale)
+        F2 = F @ F
+        F3 = F2 @ F
+        phinn = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
+        Fnp = np.zeros((9, npar))
+        Fnp[0:6, :] = M0
+        phinp = Fnp + np.ascontiguousarray(F[:, 0:6]) @ M1 + np.ascontiguousarray(F2[:, 0:6]) @ M2
+        Qc = np.zeros((9, 9))
+        for i in range(3):
+            Qc[i, i] = qgm
+            Qc[3 + i, 3 + i] = qam
+        FQ = F @ Qc
+        Qd = Qc * T + (FQ + FQ.T) * (T * T / 2.0) + (F2 @ Qc + 2.0 * FQ @ F.T + Qc @ F2.T) * (T * T * T / 6.0)
+        # scaling
+        for i in range(9):
+            for j in range(9):
+                phinn[i, j] *= sig[j] / sig[i]
+                Qd[i, j] /= sig[i] * sig[j]
+            for c in range(npar):
+                phinp[i, c] *= sig[9 + c] / sig[i]
+        filters.predict(P, 9, phinn, phinp, Qd, np.zeros(npar))
+        phinn_st[k] = phinn
+        phinp_st[k] = phinp
+        # ---- measurement: zero velocity, known position
+        rm0, rn0 = earth.radii(lat0)
+        z[0], z[1], z[2] = ve, vn, vu
+        z[3] = (lon - lon0) * (rn0 + h0) * math.cos(lat0)
+        z[4] = (lat - lat0) * (rm0 + h0)
+        z[5] = h - h0
+        for a in range(6):
+            z_st[k, a] = z[a]
+            z[a] /= sig[3 + a]
+        if k % hist_every == 0 or k == M - 1:
+            hist_Pm[ih] = P
+            hist_ref[ih, 0:9] = Ag.ravel()
+            hist_ref[ih, 9:12] = bg
+            hist_ref[ih, 12:21] = G.ravel()
+            hist_ref[ih, 21:30] = Aa.ravel()
+            hist_ref[ih, 30:33] = ba
+            hist_ref[ih, 33:36] = K2
+            hist_ref[ih, 36:45] = Kx.ravel()
+            hist_ref[ih, 45:54] = lev.ravel()
+            hist_ref[ih, 54] = tau[0]
+            hist_ref[ih, 55:59] = gim
+        nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
+        K_st[k] = K
+        Si_st[k] = Si
+        sz_st[k] = Si @ z
+        if have_enc and enc[k, 0] == enc[k, 0] and enc[k, 1] == enc[k, 1]:
+            # ---- encoder attitude rows (module docstring): z = vee(C_nav C_pred^T) ~ phi - psi
+            gimbal_attitude(gim, enc[k, 0], enc[k, 1], Cp, ga, gc, Hg)
+            e0, e1, e2 = qrot(q0, q1, q2, q3, 1.0, 0.0, 0.0)
+            Ce[0, 0], Ce[1, 0], Ce[2, 0] = e0, e1, e2
+            e0, e1, e2 = qrot(q0, q1, q2, q3, 0.0, 1.0, 0.0)
+            Ce[0, 1], Ce[1, 1], Ce[2, 1] = e0, e1, e2
+            e0, e1, e2 = qrot(q0, q1, q2, q3, 0.0, 0.0, 1.0)
+            Ce[0, 2], Ce[1, 2], Ce[2, 2] = e0, e1, e2
+            Em = Ce @ Cp.T
+            za[0] = 0.5 * (Em[2, 1] - Em[1, 2])
+            za[1] = 0.5 * (Em[0, 2] - Em[2, 0])
+            za[2] = 0.5 * (Em[1, 0] - Em[0, 1])
+            for i in range(3):
+                for j in range(N):
+                    Ha[i, j] = 0.0
+                Ha[i, i] = sig[i]
+            for c in range(npar):
+                if kinds[c] == K_GIM:
+                    for i in range(3):
+                        Ha[i, 9 + c] = -Hg[i, js[c]] * sig[9 + c]
+            for i in range(3):
+                for j in range(3):
+                    Ra[i, j] = enc_var * (ga[i] * ga[j] + gc[i] * gc[j])
+                Ra[i, i] += enc_floor
+            # sequential update: innovation against the pending velocity/position estimate xs (scaled)
+            for i in range(3):
+                s_ = za[i]
+                for j in range(N):
+                    s_ -= Ha[i, j] * xs[j]
+                nu[i] = s_
+            nisa_st[k] = update_dense(P, Ha, Ra, nu, Ka, Sia, xa)
+            for i in range(N):
+                xs[i] += xa[i]
+            Ka_st[k] = Ka
+            Sia_st[k] = Sia
+            sza_st[k] = Sia @ nu
+            Ha_st[k] = Ha
+            za_st[k] = za
+            Ra_st[k] = Ra
+            att_used[k] = 1
+        if k % hist_every == 0 or k == M - 1:
+            for i in range(N):
+                hist_Pf[ih, i] = P[i, i]
+            ih += 1
+        # ---- feedback (S16 eq. 27)
+        for i in range(N):
+            xs[i] *= sig[i]
+        e0, e1, e2, e3 = _qrv(-xs[0], -xs[1], -xs[2])
+        q0, q1, q2, q3 = qmul(e0, e1, e2, e3, q0, q1, q2, q3)
+        ve -= xs[3]
+        vn -= xs[4]
+        vu -= xs[5]
+        lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
+        lat -= xs[7] / (rm0 + h0)
+        h -= xs[8]
+        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim)
+    nav_out[0], nav_out[1], nav_out[2], nav_out[3] = q0, q1, q2, q3
+    nav_out[4], nav_out[5], nav_out[6] = ve, vn, vu
+    nav_out[7], nav_out[8], nav_out[9] = lat, lon, h
+    return M
+
+
+@njit(cache=True)
+def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim):
+    """Remove the parameter estimates (physical, ``xs[9:]``) from the compensation (in place)."""
+    npar = kinds.shape[0]
+    Dg = np.zeros((3, 3))
+    Da = np.zeros((3, 3))
+    for c in range(npar):
+        v = xs[9 + c]
+        k = kinds[c]
+        i = axes[c]
+        j = js[c]
+        if k == 0:
+            Dg[i, j] = v
+        elif k == 1:
+            bg[i] -= v
+        elif k == 2:
+            G[i, j] -= v
+        elif k == 3:
+            Da[i, j] = v
+        elif k == 4:
+            ba[i] -= v
+        elif k == 5:
+            K2[i] -= v
+        elif k == 6:
+            col = 0 if (j == 0 or j == 2) else (1 if (j == 1 or j == 4) else 2)
+            Kx[i, col] -= v
+        elif k == 7:
+            lev[i, i] -= v
+        elif k == 8:
+            lev[i, j] -= v
+        elif k == K_GIM:
+            gim[j] -= v
+        else:
+            tau[0] -= v
+    nA = Ag - Dg @ Ag
+    Ag[:, :] = nA
+    nA = Aa - Da @ Aa
+    Aa[:, :] = nA
+
+
+@njit(cache=True)
+def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
+                   att_used, Ka_st, Sia_st, sza_st, Ha_st):
+    """Backward MBF pass (inscal.filters): smoothed errors and covariances at the stored steps and at
+    the start (``x0``, ``Pc0``).  Steps with encoder attitude rows (``att_used``) undo that second,
+    later update first."""
+    N = P0.shape[0]
+    lam = np.zeros(N)
+    Lam = np.zeros((N, N))
+    ih = hist_Pm.shape[0] - 1
+    for k in range(M - 1, -1, -1):
+        if att_used.shape[0] > 0 and att_used[k]:
+            smoother_step_dense(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
+        filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
+        if k % hist_every == 0 or k == M - 1:
+            x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
+            hist_x[ih] = x
+            hist_P[ih] = Ps
+            ih -= 1
+        filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
+    x, Ps = filters.smoothed(P0, lam, Lam)
+    x0[:] = x
+    Pc0[:, :] = Ps
+
+
+@njit(cache=True)
+def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_st, sza_st, Ha_st):
+    """The adjoint recursion for the smoothed state at the start only (``x0 = P_0 lambda_0`` with
+    ``P_0 = I``): what the passes before the last need (the initial attitude)."""
+    N = x0.shape[0]
+    lam = np.zeros(N)
+    d = np.empty(3)
+    for k in range(M - 1, -1, -1):
+        if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
+            for a in range(3):
+                s = sza_st[k, a]
+                for i in range(N):
+                    s -= Ka_st[k, i, a] * lam[i]
+                d[a] = s
+            for i in range(N):
+                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
+        K = K_st[k]
+        ktl = K.T @ lam
+        for a in range(IDX_MEAS.shape[0]):
+            lam[IDX_MEAS[a]] += sz_st[k, a] - ktl[a]
+        ln = lam[:9].copy()
+        lam[9:] = lam[9:] + phinp_st[k].T @ ln
+        lam[:9] = phinn_st[k].T @ ln
+    x0[:] = lam
+
+
+@dataclass
+class PassOutput:
+    params: CompParams
+    P0s: np.ndarray  # smoothed covariance at the start (scaled)
+    x0s: np.ndarray  # smoothed error at the start (scaled)
+    nis: np.ndarray
+    z: np.ndarray
+    steps: int
+    hist_step: np.ndarray
+    hist_ref: np.ndarray
+    hist_x: np.ndarray
+    hist_P: np.ndarray
+    hist_Pm: np.ndarray
+    Pf: np.ndarray | None = None  # filtered covariance after the last update (scaled)
+    phinn: np.ndarray | None = None
+    phinp: np.ndarray | None = None
+    att_used: np.ndarray | None = None  # per step: 1 where the encoder attitude rows were used
+    nis_att: np.ndarray | None = None  # their NIS (3 dof; NaN where unused)
+    z_att: np.ndarray | None = None  # their raw residual vee(C_nav C_pred^T) [rad] (NaN where unused)
+    # with keep_phi: the encoder rows' H (M, 3, N; scaled states, as Phi) and R (M, 3, 3; rad^2) per step,
+    # for an observability matrix with the encoder rows (whitened by R^-1/2; zero where att_used is 0)
+    H_att: np.ndarray | None = None
+    R_att: np.ndarray | None = None
+
+
+def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
+             keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA) -> PassOutput:
+    """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
+    the adjoint recursion for the smoothed initial state (:func:`smooth_pass` completes it).
+    Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
+    (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring)."""
+    N = states.n_states
+    npar = N - N_NAV
+    M = dth.shape[0] // n_per
+    if M < 2:
+        raise CalibrationError(f"record too short for the filter: {dth.shape[0] * dt:g} s at a {n_per * dt:g} s step")
+    nh = (M - 1) // hist_every + 1 + (1 if (M - 1) % hist_every else 0)
+    p = params.copy()
+    kinds, axes, js = states.columns()
+    q = quat_from_dcm(C0)
+    nav0 = np.concatenate([q / np.linalg.norm(q), np.zeros(3), [site[0], site[1], site[2]]])
+    P = np.eye(N)
+    K_st = np.empty((M, N, 6))
+    Si_st = np.empty((M, 6, 6))
+    sz_st = np.empty((M, 6))
+    phinn_st = np.empty((M, 9, 9))
+    phinp_st = np.empty((M, 9, npar))
+    nis = np.empty(M)
+    z_st = np.empty((M, 6))
+    hist_Pm = np.empty((nh, N, N))
+    hist_ref = np.empty((nh, 59))
+    hist_Pf = np.empty((nh, N))
+    nav_out = np.empty(10)
+    if states.gimbal:
+        if enc is None or np.shape(enc)[0] < M or np.shape(enc)[1:] != (2,):
+            raise CalibrationError("the gimbal states need the encoder angles at every filter step")
+        enc_a = np.ascontiguousarray(np.asarray(enc, float)[:M])
+    else:
+        enc_a = np.empty((0, 2))
+    Ma = enc_a.shape[0]
+    att_used = np.zeros(Ma, np.int8)
+    Ka_st, Sia_st, sza_st = np.zeros((Ma, N, 3)), np.zeros((Ma, 3, 3)), np.zeros((Ma, 3))
+    Ha_st, nisa_st, za_st = np.zeros((Ma, 3, N)), np.full(Ma, np.nan), np.full((Ma, 3), np.nan)
+    Ra_st = np.zeros((Ma, 3, 3))
+    nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
+    Mk = _pass_kernel(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
+                      int(n_per), nav0, np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever,
+                      p.tau, nl, bool(states.asynchrony), kinds, axes, js, sig, qg, qa, r, P, int(hist_every),
+                      K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out,
+                      p.gim, enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st,
+                      sza_st, Ha_st, nisa_st, za_st, Ra_st)
+    x0 = np.empty(N)
+    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
+    steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
+    out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, P)
+    out._smoother_data = (K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st, sza_st,
+                          Ha_st)
+    out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
+    out._enc_floor = (0.1 * float(enc_sigma)) ** 2
+    if keep_phi and Ma:
+        out.H_att, out.R_att = Ha_st, Ra_st
+    if keep_phi:
+        out.phinn, out.phinp = phinn_st, phinp_st
+    if smooth:
+        smooth_pass(out)
+    return out
+
+
+def smooth_pass(out: PassOutput) -> PassOutput:
+    """Run the full smoother (states and covariances at the stored steps and at the start) on a
+    pass's stored data, in place."""
+    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st = out._smoother_data
+    N = K_st.shape[1]
+    nh = out.hist_Pm.shape[0]
+    out.hist_x = np.empty((nh, N))
+    out.hist_P = np.empty((nh, N, N))
+    x0 = np.empty(N)
+    out.P0s = np.empty((N, N))
+    _smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
+                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st)
+    out.x0s = x0
+    return out
+
+
+def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
+    """Propagate the navigation over the samples given (one filter step, no update) from the
+    navigation state ``nav0 = [q(4), v(3), lat, lon, h]``; returns the final state (10) and the
+    step's physical ``(Phi_nn, Phi_np)``.  For tests of the F blocks against finite differences
+    of this same nonlinear propagation."""
+    N = states.n_states
+    n = dth.shape[0]
+    p = params.copy()
+    kinds, axes, js = states.columns()
+    P = np.eye(N)
+    one = lambda *s: np.empty((1,) + s)  # noqa: E731
+    K_st, Si_st, sz_st = one(N, 6), one(6, 6), one(6)
+    phinn, phinp = one(9, 9), one(9, N - N_NAV)
+    nis, z = np.empty(1), one(6)
+    hP, hr, hf = one(N, N), one(59), one(N)
+    out = np.empty(10)
+    _pass_kernel(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
+                 np.asarray(nav0, float), np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx,
+                 p.lever, p.tau, True, bool(states.asynchrony), kinds, axes, js, np.ones(N), np.zeros(3),
+                 np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out,
+                 p.gim, np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
+                 np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
+    return out, phinn[0], phinp[0]

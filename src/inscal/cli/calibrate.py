@@ -1,0 +1,175 @@
+"""``inscal calibrate``: estimate IMU and gimbal errors from a turntable record."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from inscal.cli.common import CliError, check_not_input, check_output, fail, np, print_json, read_record  # np: lazy (fast start)
+
+
+def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
+                  min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
+                  filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
+                  gravity: str | None = None, encoder_sigma: float | None = None) -> dict:
+    """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
+    Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
+    ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
+    (wgs84 | psins | m/s^2) overrides the record's gravity model.  ``encoder_sigma`` [arcsec]: white
+    noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``)."""
+    from inscal import io
+    from inscal.core import units
+    from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
+    from inscal.calibrate.result import CalibrationError
+    from inscal.io.paramfile import ParamFileError, save_params
+
+    if method not in METHODS:
+        raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
+    systematic = method in RECORD_METHODS
+    if not systematic and (states or plots or arw is not None or vrw is not None or encoder_sigma is not None):
+        raise CliError(f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {method}")
+    if encoder_sigma is not None and not (np.isfinite(encoder_sigma) and encoder_sigma > 0):
+        raise CliError(f"--encoder-sigma must be > 0 arcsec, got {encoder_sigma}")
+    if not data.is_file():
+        raise CliError(f"{data}: no such data file")
+    check_output(out, force)
+    check_not_input(out, data)
+    if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
+        raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
+    try:
+        rec = read_record(data)
+    except OSError as exc:
+        raise CliError(str(exc)) from None
+    if gravity is not None:
+        import dataclasses
+
+        from inscal.cli.common import parse_gravity_option
+
+        rec = dataclasses.replace(rec, site=rec.site.with_gravity(parse_gravity_option(gravity)))
+    try:
+        if systematic:
+            opts = {"states": states, "filter_rate_hz": filter_rate_hz}
+            if arw is not None:
+                opts["arw"] = units.to_si(arw, "deg/sqrt(h)")
+            if vrw is not None:
+                opts["vrw"] = units.to_si(vrw, "ug/sqrt(Hz)")
+            if encoder_sigma is not None:
+                opts["encoder_sigma"] = units.to_si(encoder_sigma, "arcsec")
+            res = calibrate(rec, method, **opts)
+        else:
+            res = calibrate(rec, method, settle=settle, min_static=min_static)
+    except CalibrationError as exc:
+        raise CliError(f"{data}: {exc}") from None
+    truth = rec.truth
+    from inscal.io.records import record_attrs
+
+    meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
+            "windows": len(res.windows.windows) if res.windows else None}
+    if systematic:
+        d = res.diagnostics
+        meta.update({"frame": d["frame"], "states": d["state_options"], "state_count": d["states"],
+                     "filter_rate_hz": d["filter_rate_hz"], "nis_mean": d["innovations"]["nis_mean"],
+                     "chi2": d["innovations"]["chi2"], "dof": d["innovations"]["dof"],
+                     "p_value": d["innovations"]["p_value"]})
+    try:
+        save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
+    except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
+        raise CliError(str(exc)) from None
+    report = {"method": res.method, "gravity": {**rec.site.gravity_model.to_json(), "g_site_m_s2": rec.site.gravity},
+              "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
+    if res.fit is not None:
+        report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
+    if systematic:
+        d = res.diagnostics
+        report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
+                       "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
+                       "converged": d["converged"]})
+        if "encoder" in d:  # unified / gimbal states: the encoder attitude innovations
+            report["encoder"] = d["encoder"]
+        if plots is not None:
+            from inscal.report.figures import convergence_plots
+
+            try:
+                plots.mkdir(exist_ok=True)  # created once the calibration succeeded
+                report["plots"] = [str(p) for p in convergence_plots(plots, res, truth, overwrite=force)]
+            except (FileExistsError, FileNotFoundError, OSError) as exc:
+                raise CliError(f"--plots: {exc}") from None
+    return report
+
+
+def fit_lines(fit: dict) -> list[str]:
+    """The printed fit of a window-mean method: chi2, dof, p, verdict and the residuals of
+    every window (RMS of the normalised residuals, gyro / accelerometer)."""
+    exp = "" if fit.get("expected_chi2", fit["dof"]) == fit["dof"] else f", {fit['expected_chi2']:.4g} expected"
+    ref = "expected" if exp else "dof"
+    verdict = ("consistent" if fit["consistent"]
+               else f"INCONSISTENT (sqrt(chi2/{ref}) = {fit['scale']:.3g}), sigma adjusted: see the note")
+    out = [f"  fit: chi2 {fit['chi2']:.4g} on {fit['dof']} dof{exp}, p = {fit['p_value']:.3g}: {verdict}"]
+    res = fit["residuals"]
+    if res and "nis_mean" in res[0]:  # systematic filter: time blocks of its innovations
+        out.append("  innovations per time block (mean NIS, expected 6; velocity RMS m/s, position RMS m):")
+        out += [f"    {r['window']:3d} {r['label']:24s} {r['nis_mean']:9.3g}  {r['velocity_rms_m_s']:9.3g}  "
+                f"{r['position_rms_m']:9.3g}" for r in res]
+        return out
+    out.append("  residuals per window (normalised RMS, gyro / accel):")
+    out += [f"    {r['window']:3d} {r['label']:44s} {r['gyro']:9.3g} / {r['accel']:9.3g}" for r in res]
+    return out
+
+
+def _fmt(v) -> str:
+    a = np.ravel(np.asarray(v, dtype=float))
+    return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def calibrate(
+        data: Path = typer.Argument(..., help="HDF5 record (inscal simulate, or a recorded run)"),
+        method: str = typer.Option(..., "--method", "-m",
+                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
+                                        "unified"),
+        out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
+        force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
+        settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
+        min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
+        states: str = typer.Option(None, "--states", help="systematic: 51 | 30, plus options lever9, async, psins, "
+                                   "gimbal (e.g. 51,lever9); unified: extra options (e.g. lever9)"),
+        plots: Path = typer.Option(None, "--plots", help="systematic: folder for the convergence plots (PNG)"),
+        filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
+        arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),
+        vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)] (default: from the data)"),
+        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+                                    "(default: the record's)"),
+        encoder_sigma: float = typer.Option(None, "--encoder-sigma", help="unified / gimbal states: white noise of "
+                                            "each encoder angle [arcsec] (default 1)"),
+        json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
+    ):
+        """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
+        try:
+            rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
+                                gravity, encoder_sigma)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json({k: v for k, v in rep.items() if k not in ("out", "notes")} | {"notes": rep["notes"]})
+            return
+        typer.echo(f"{rep['method']}: parameters -> {rep['out']}")
+        for name, e in rep["parameters"].items():
+            line = f"  {name:24s} {_fmt(e['value'])} +- {_fmt(e['sigma'])} {e['unit']}"
+            if "sigma_formal" in e:
+                line += f" (formal +- {_fmt(e['sigma_formal'])})"
+            if "error" in e:
+                line += f"   (error {_fmt(e['error'])})"
+            typer.echo(line)
+        if "fit" in rep:
+            for line in fit_lines(rep["fit"]):
+                typer.echo(line)
+        if "innovations" in rep:
+            inn = rep["innovations"]
+            typer.echo(f"  filter: NIS mean {inn['nis_mean']:.3f} (expected 6); {len(rep['passes'])} passes"
+                       + ("" if rep["converged"] else " (not converged)"))
+        for p in rep.get("plots", []):
+            typer.echo(f"  plot: {p}")
+        for n in rep["notes"]:
+            typer.echo(f"  note: {n}")

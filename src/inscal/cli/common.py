@@ -1,0 +1,139 @@
+"""Small helpers shared by the ``cli_*`` modules (no domain logic here)."""
+
+from __future__ import annotations
+
+import importlib
+
+import json
+
+import re
+
+from pathlib import Path
+
+import typer
+
+import contextlib
+
+
+
+
+class LazyModule:
+    """A module imported on first attribute access: ``np = LazyModule("numpy")`` keeps NumPy (and
+    heavier modules) off the start of ``inscal --help`` / ``--version`` (see bench/bench_startup.py)."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr):
+        return getattr(importlib.import_module(self._name), attr)
+
+    def __repr__(self) -> str:
+        return f"<lazy module {self._name!r}>"
+
+
+np = LazyModule("numpy")
+
+
+class CliError(Exception):
+    """An error to report to the user as one line (exit code 2)."""
+
+
+def fail(msg: str, code: int = 2) -> typer.Exit:
+    """Print a one-line error to stderr and return an Exit to raise: ``raise fail("...")``."""
+    msg = re.sub(r"\S{%d,}" % (MAX_ECHO + 1), lambda m: short(m.group()), " ".join(str(msg).split("\n")))
+    if len(msg) > 5 * MAX_ECHO:  # a message quoting a very long user string
+        msg = short(msg, 5 * MAX_ECHO)
+    typer.echo(f"inscal: error: {msg}", err=True)
+    return typer.Exit(code)
+
+
+def check_output(path: Path, force: bool) -> None:
+    """Refuse to overwrite an existing output unless ``force``; the parent folder must exist."""
+    if path.exists() and not force:
+        raise CliError(f"{short(path)} exists; use --force to overwrite it")
+    if not path.parent.exists():
+        raise CliError(f"folder {short(path.parent)} does not exist")
+
+
+def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: str = "input") -> None:
+    """Refuse (one line, exit 2 via :class:`CliError`) an output that is one of the inputs, so that
+    ``--force`` never destroys an input record or parameter file (paths are resolved, links followed)."""
+    try:
+        ro = Path(out).resolve()
+    except (OSError, RuntimeError):
+        return
+    for inp in inputs:
+        if inp is None:
+            continue
+        try:
+            same = Path(inp).resolve() == ro or (ro.exists() and Path(inp).exists() and ro.samefile(inp))
+        except (OSError, RuntimeError):
+            continue
+        if same:
+            raise CliError(f"{what} must differ from the {role} {short(inp)} (writing it would destroy it)")
+
+
+def read_record(path: Path):
+    """``io.read_record`` with every failure of a malformed record (a missing attribute, a
+    non-numeric dataset) turned into a one-line :class:`CliError`."""
+    from inscal import io
+
+    try:
+        rec = io.read_record(path)
+    except io.DataFileError as exc:
+        raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(path)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
+    bad = [n for n in ("dtheta", "dvel") if not np.issubdtype(np.asarray(getattr(rec, n)).dtype, np.floating)]
+    if bad:
+        raise CliError(f"{short(path)}: {', '.join(bad)} must be floating point (rad, m/s), got "
+                       f"{np.asarray(getattr(rec, bad[0])).dtype}")
+    return rec
+
+
+#: echoed user strings longer than this are cut (a 100,000-character name is not echoed in full)
+MAX_ECHO = 200
+
+
+def short(value, limit: int = MAX_ECHO) -> str:
+    """``str(value)`` cut to ``limit`` characters (with an ellipsis and the full length) for messages."""
+    s = str(value)
+    if len(s) <= limit:
+        return s
+    return f"{s[:limit - 1]}… ({len(s)} characters)"
+
+
+def print_json(obj) -> None:
+    """Print ``obj`` as JSON on stdout (NumPy types converted, NaN/inf -> null)."""
+    from inscal.io.jsonfile import to_jsonable
+
+    typer.echo(json.dumps(to_jsonable(obj), indent=2))
+
+
+@contextlib.contextmanager
+def progress_bar(description: str, total: int, enabled: bool = True):
+    """A Rich progress bar on stderr; yields ``update(done, total)``."""
+    console = None
+    if enabled:
+        from rich.console import Console
+
+        console = Console(stderr=True)
+    if console is None or not console.is_terminal:  # no bar (nor its stray newline) in a log or a pipe
+        yield lambda done, tot: None
+        return
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                  TimeRemainingColumn(), console=console, transient=True) as prog:
+        task = prog.add_task(description, total=total)
+        yield lambda done, tot: prog.update(task, completed=done)
+
+
+def parse_gravity_option(text: str):
+    """``--gravity wgs84|psins|VALUE`` (VALUE in m/s^2, measured at the site height)."""
+    from inscal.core.earth import parse_gravity
+
+    try:
+        return parse_gravity(text)
+    except ValueError as exc:
+        raise CliError(f"--gravity: {exc}") from None

@@ -1,0 +1,175 @@
+"""``inscal import`` and ``inscal export``: convert other tools' IMU files to a record and back.
+
+``import`` converts once (PSINS ``.bin``/``.mat``, csv or whitespace text through a mapping
+TOML), with the checks of :mod:`inscal.importers`; every other command reads the record.
+``export`` writes a record as csv (17 significant digits), PSINS ``.bin`` (float64) or
+``.mat``, so that export -> import gives back the same doubles.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pathlib import Path
+
+import typer
+
+from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json
+
+
+def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
+    """The site from --lat/--lon/--height, completed by the mapping's [site]; None: from the mapping / missing."""
+    from inscal.io.mapping import DEG, load_mapping
+    from inscal.core.earth import Site
+
+    given = {"--lat": lat, "--lon": lon, "--height": height}
+    if all(v is None for v in given.values()):
+        return None
+    base = None
+    if mapping is not None:
+        base = load_mapping(mapping, fmt)[1]
+    if base is None and any(v is None for v in given.values()):
+        missing = [k for k, v in given.items() if v is None]
+        raise CliError(f"give --lat, --lon and --height together (missing {', '.join(missing)}), "
+                       "or a [site] table in the mapping")
+    for k, v in given.items():
+        if v is not None and not math.isfinite(v):
+            raise CliError(f"{k} must be finite, got {v}")
+    try:
+        return Site((lat if lat is not None else base.latitude / DEG) * DEG,
+                    (lon if lon is not None else base.longitude / DEG) * DEG,
+                    height if height is not None else base.height)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+
+
+def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path: Path | None = None,
+               path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str = "deg",
+               lat: float | None = None, lon: float | None = None, height: float | None = None,
+               rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
+               rates: bool = False, skip: list[str] | None = None, force: bool = False,
+               gravity: str | None = None) -> dict:
+    from inscal.io.mapping import CHECKS, FORMATS, ImportFileError
+    from inscal.io.importers import import_file
+    from inscal.io.records import DataFileError
+
+    if fmt not in FORMATS:
+        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+    bad = sorted(set(skip or ()) - set(CHECKS))
+    if bad:
+        raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(CHECKS)}")
+    if gimbal_unit not in ("deg", "rad"):
+        raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
+    if not src.is_file():
+        raise CliError(f"{src}: no such file")
+    check_output(out, force)
+    check_not_input(out, src, role="source file")
+    check_not_input(out, mapping, path, gimbal)
+    try:
+        site = _site(lat, lon, height, mapping, fmt)
+        if gravity is not None:
+            from inscal.cli.common import parse_gravity_option
+
+            site = site.with_gravity(parse_gravity_option(gravity))
+        return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
+                           variable, rates, tuple(skip or ()), overwrite=force)
+    except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
+
+
+def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
+               force: bool = False) -> dict:
+    from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
+    from inscal.io.importers import export_record
+    from inscal.io.records import DataFileError
+
+    if fmt not in EXPORT_FORMATS:
+        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+    if not data.is_file():
+        raise CliError(f"{data}: no such data file")
+    outs = [p for p in (out, gimbal_out, path_out) if p is not None]
+    for p in outs:
+        check_output(p, force)
+    resolved = [p.resolve() for p in outs]
+    if len(set(resolved)) != len(resolved):
+        raise CliError("--out, --gimbal-out and --path-out must be different files")
+    for p in outs:
+        check_not_input(p, data, what="the outputs" if p == out else ("--gimbal-out" if p == gimbal_out else "--path-out"),
+                        role="input record")
+    try:
+        return export_record(data, out, fmt, overwrite=force, gimbal_out=gimbal_out, path_out=path_out)
+    except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError, OSError) as exc:
+        raise CliError(str(exc)) from None
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("import")
+    def import_(
+        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text)"),
+        fmt: str = typer.Option(..., "--format", "-f", help="psins | mat | csv | txt"),
+        out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
+        mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
+        path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
+        path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
+                                         "(default: the start of the first sample)"),
+        gimbal: Path = typer.Option(None, "--gimbal", help="encoder angles file: columns time (s), outer, inner"),
+        gimbal_unit: str = typer.Option("deg", "--gimbal-unit", help="unit of the --gimbal angles: deg | rad"),
+        lat: float = typer.Option(None, "--lat", help="site latitude (deg)"),
+        lon: float = typer.Option(None, "--lon", help="site longitude (deg)"),
+        height: float = typer.Option(None, "--height", help="site ellipsoidal height (m)"),
+        rate_hz: float = typer.Option(None, "--rate-hz", help="sample rate (Hz) (default: from the timestamps, which must "
+                                      "then be uniform; given: slightly jittery timestamps are regridded)"),
+        dtype: str = typer.Option("float64", "--dtype", help="psins .bin: float64 | float32"),
+        variable: str = typer.Option(None, "--variable", help=".mat: the N x 7 variable (default: the first one)"),
+        rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
+        skip: list[str] = typer.Option(None, "--skip-check", help="skip a plausibility check: constant | saturation | "
+                                       "magnitudes | motion (repeatable)"),
+        gravity: str = typer.Option(None, "--gravity", help="site gravity model stored in the record: wgs84 (default) | "
+                                    "psins | a measured value in m/s^2 at the site height"),
+        force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
+        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+    ):
+        """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
+        try:
+            res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
+                             rate_hz, dtype, variable, rates, skip, force, gravity)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(res)
+            return
+        extra = []
+        if res["gimbal"]:
+            extra.append(f"gimbal angles from {res['gimbal']}")
+        if res["path"]:
+            extra.append(f"path {res['path']}")
+        if res["time_regridded"]:
+            extra.append("time regridded")
+        typer.echo(f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "
+                   f"from {res['source']} -> {res['out']}" + (f" ({'; '.join(extra)})" if extra else ""))
+
+    @app.command("export")
+    def export(
+        data: Path = typer.Argument(..., help="HDF5 record"),
+        fmt: str = typer.Option(..., "--format", "-f", help="csv | psins | mat"),
+        out: Path = typer.Option(..., "--out", "-o", help="file to write"),
+        gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
+                                        "(time in s, outer and inner in rad) for import --gimbal --gimbal-unit rad"),
+        path_out: Path = typer.Option(None, "--path-out", help="also write the record's rotation path (TOML) for "
+                                      "import --path"),
+        force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
+        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+    ):
+        """Export a record as csv (17 digits), PSINS .bin (float64 rows dθ, dv, t) or .mat."""
+        try:
+            res = run_export(data, fmt, out, gimbal_out, path_out, force)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(res)
+        else:
+            typer.echo(f"exported {res['samples']} samples ({res['format']}) -> {res['out']}"
+                       + (f"; gimbal angles -> {gimbal_out}" if gimbal_out else "")
+                       + (f"; path -> {path_out}" if path_out else ""))

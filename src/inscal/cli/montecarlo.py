@@ -1,0 +1,204 @@
+"""``inscal montecarlo``: seeded, resumable Monte Carlo studies (locally or on Dask)."""
+
+from __future__ import annotations
+
+
+
+
+import json
+
+import math
+
+
+
+import sys
+
+
+
+from pathlib import Path
+
+
+
+
+import typer
+
+from inscal.cli.common import CliError, fail, print_json, short
+from inscal.analysis.montecarlo import Summary
+
+
+def parse_set(items: list[str] | None) -> dict:
+    """``KEY=VALUE`` pairs; VALUE is JSON when it parses (numbers, lists), else a string."""
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise CliError(f"--set expects KEY=VALUE, got {it!r}")
+        k, v = it.split("=", 1)
+        k = k.strip().replace("-", "_")
+        if not k:
+            raise CliError(f"--set expects KEY=VALUE, got {it!r}")
+        try:
+            out[k] = json.loads(v)
+        except ValueError:
+            out[k] = v
+    return out
+
+
+def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params: dict | None = None,
+                   scheduler: str | None = None, workers: int | None = None, batch_size: int | None = None,
+                   no_dask: bool = False, force: bool = False, progress: bool = True,
+                   max_new_runs: int | None = None) -> tuple[dict, object, object]:
+    """Run or resume a study and write its summary; returns (summary dict, Summary, paths)."""
+    from inscal.analysis import montecarlo as mc
+    from inscal.analysis import studies
+
+    if no_dask:
+        if scheduler not in (None, "synchronous", "sync"):
+            raise CliError("--no-dask and --scheduler ADDRESS contradict each other")
+        scheduler = "synchronous"
+    if runs < 1:
+        raise CliError(f"--runs must be >= 1, got {runs}")
+    if seed < 0:
+        raise CliError(f"--seed must be >= 0, got {seed}")
+    if workers is not None and workers < 1:
+        raise CliError(f"--workers must be >= 1, got {workers}")
+    if workers is not None and scheduler not in (None, "local"):
+        raise CliError("--workers applies to the default LocalCluster only")
+    if batch_size is not None and batch_size < 1:
+        raise CliError(f"--batch-size must be >= 1, got {batch_size}")
+    try:
+        exp = studies.get_experiment(experiment, params)
+        res = mc.run_study(exp, out, runs, seed, scheduler=scheduler, workers=workers, batch_size=batch_size,
+                           force=force, progress=progress, max_new_runs=max_new_runs)
+        summ = mc.summarize(exp, res)
+        paths = mc.write_outputs(exp, summ, out)
+    except mc.StudyError as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write the study in {short(out)}: {exc.strerror or exc}") from None
+    d = summ.to_dict()
+    d["out"] = str(out)
+    d["files"] = {k: str(v) for k, v in {**paths, "runs": Path(out) / mc.RUNS_FILE}.items()}
+    d["new_runs"] = res.n_new
+    d["wall_s"] = round(res.elapsed_s, 3)
+    d["complete"] = res.complete()
+    return d, summ, paths
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def montecarlo(
+        experiment: str = typer.Argument(None, help="built-in experiment (n25-fig5, n25-schemes); --list shows them"),
+        runs: int = typer.Option(None, "--runs", "-n", help="runs per configuration point"),
+        out: Path = typer.Option(None, "--out", "-o", help="study folder (results, summary, plot); rerun to resume"),
+        seed: int = typer.Option(0, help="root seed: run i uses SeedSequence(seed).spawn(total)[i]"),
+        set_: list[str] = typer.Option(None, "--set", help="experiment parameter KEY=VALUE (VALUE as JSON), repeatable"),
+        scheduler: str = typer.Option(None, help="Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"),
+        workers: int = typer.Option(None, help="LocalCluster worker processes (default: CPU cores)"),
+        batch_size: int = typer.Option(None, "--batch-size", help="runs per Dask task (default: about 4 tasks per worker, at most 25)"),
+        no_dask: bool = typer.Option(False, "--no-dask", help="run in this process, one run after another"),
+        force: bool = typer.Option(False, "--force", help="discard a different study found in --out"),
+        json_: bool = typer.Option(False, "--json", help="print the summary as JSON"),
+        no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar"),
+        list_: bool = typer.Option(False, "--list", help="list the built-in experiments and their parameters"),
+    ):
+        """Seeded Monte Carlo study of a calibration experiment, resumable, on Dask."""
+        from inscal.analysis import studies
+
+        if list_:
+            exps = studies.available_experiments()
+            info = {k: {"description": d, "defaults": studies.get_experiment(k).params} for k, d in exps.items()}
+            if json_:
+                print_json(info)
+            else:
+                for k, v in info.items():
+                    typer.echo(f"{k}: {v['description']}\n    defaults: {json.dumps(v['defaults'])}")
+            return
+        if experiment is None or runs is None or out is None:
+            raise fail("EXPERIMENT, --runs and --out are required (or --list)")
+        try:
+            d, summ, _ = run_montecarlo(experiment, runs, out, seed, parse_set(set_), scheduler, workers, batch_size,
+                                        no_dask, force, progress=not (no_progress or json_))
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        except KeyboardInterrupt:
+            typer.echo("inscal: interrupted; finished runs are saved, rerun the same command to resume", err=True)
+            raise typer.Exit(130) from None
+        if json_:
+            print_json(d)
+        else:
+            format_table(summ, file=sys.stdout)
+            typer.echo(f"{d['new_runs']} new run(s) in {d['wall_s']:.1f} s; files: "
+                       + ", ".join(f"{v}" for v in d["files"].values()))
+
+
+def format_table(summary: Summary, file=None, width: int | None = None):
+    """Print the summary as Rich table(s) (stdout by default) that fit ``width`` columns (default:
+    ``$COLUMNS``, else the terminal's width, else 80) without cutting a number: numbers with 4
+    significant digits, headers wrap at spaces, and a table too wide is split into parts that
+    repeat the leading label columns (parameter, unit)."""
+    import shutil
+
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    f = file or sys.stdout
+    if width is None:
+        width = shutil.get_terminal_size((80, 24)).columns
+    width = max(40, int(width))
+    con = Console(file=f, width=width, soft_wrap=False, highlight=False)
+    cols = list(summary.columns)
+    cells = [[format_cell(row.get(k)) for k, _ in cols] for row in summary.rows]
+    # leading label columns (no numbers in them): repeated in every part
+    nkey = 0
+    for i, (k, _) in enumerate(cols[:-1]):
+        if i >= 2 or any(isinstance(row.get(k), (int, float)) and not isinstance(row.get(k), bool) for row in summary.rows):
+            break
+        nkey = i + 1
+
+    import io as _io
+
+    def need(i) -> int:  # a column's width: its widest cell, or its header's longest word
+        words = cols[i][1].split()
+        return max([len(c[i]) for c in cells] + [max((len(w) for w in words), default=1)])
+
+    def table(idx, title=None):
+        t = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, title_justify="left")
+        for i in idx:
+            t.add_column(cols[i][1], justify="left" if i < nkey else "right", width=need(i), overflow="fold")
+        for c in cells:
+            t.add_row(*[c[i] for i in idx])
+        return t
+
+    def fits(idx) -> bool:
+        buf = _io.StringIO()
+        Console(file=buf, width=10 * width, soft_wrap=False).print(table(idx))
+        return max((len(line) for line in buf.getvalue().splitlines()), default=0) <= width
+
+    keys = list(range(nkey))
+    parts, cur = [], []
+    for i in range(nkey, len(cols)):
+        if cur and not fits(keys + cur + [i]):
+            parts.append(cur)
+            cur = []
+        cur.append(i)
+    parts.append(cur)
+    for n, part in enumerate(parts):
+        title = summary.title if len(parts) == 1 else f"{summary.title} (part {n + 1} of {len(parts)})"
+        con.print(table(keys + part, title))
+    for n in summary.notes:
+        con.print(f"note: {n}")
+
+
+def format_cell(v) -> str:
+    """A table cell: 4 significant digits (an exponent only outside 1e-3 .. 1e5, as ``1.23e-5``)."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float):
+        if v == 0 or 1e-3 <= abs(v) < 1e5:
+            return f"{v:.4g}"
+        m, e = f"{v:.3g}".split("e") if "e" in f"{v:.3g}" else (f"{v:.3g}", "")
+        return m + (f"e{int(e)}" if e else "")
+    return str(v)

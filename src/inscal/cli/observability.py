@@ -1,0 +1,193 @@
+"""``inscal observability``: which systematic-filter states a rotation path makes observable,
+from the path alone (no data).  See :mod:`inscal.calibrate.observability`."""
+
+from __future__ import annotations
+
+import math
+
+import typer
+
+from inscal.cli.common import CliError, fail, print_json
+
+
+def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
+                      vrw: float | None = None):
+    """The :class:`~inscal.calibrate.observability.ObservabilityReport` of ``source``; ``arw`` in
+    deg/sqrt(h), ``vrw`` in ug/sqrt(Hz) (field units, converted here)."""
+    from inscal.core import units
+    from inscal.plan.observability import ObservabilityError, observability
+
+    for name, v in (("--rate-hz", rate_hz), ("--arw", arw), ("--vrw", vrw)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise CliError(f"{name} must be a positive number, got {v:g}")
+    try:
+        return observability(source, states, rate_hz=rate_hz,
+                             arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
+                             vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"))
+    except ObservabilityError as exc:
+        raise CliError(str(exc)) from None
+
+
+def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
+             filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
+             bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None):
+    """The Cramér-Rao bound (:func:`inscal.calibrate.crlb.crlb`) of ``source``.  Field units:
+    ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
+    ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
+    ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s)."""
+    from inscal.core import units
+    from inscal.plan.bound import BiasNoise, BoundError, crlb
+
+    for name, v in (("--arw", arw), ("--vrw", vrw), ("--filter-rate-hz", filter_rate_hz), ("--bi-tau", bi_tau)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise CliError(f"{name} must be a positive number, got {v:g}")
+    for name, v in (("--gyro-bi", gyro_bi), ("--accel-bi", accel_bi), ("--gyro-rrw", gyro_rrw),
+                    ("--accel-rrw", accel_rrw)):
+        if v is not None and not (math.isfinite(v) and v >= 0):
+            raise CliError(f"{name} must be a number >= 0, got {v:g}")
+    bias = None
+    if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+        per_sqrt_h = 1.0 / math.sqrt(3600.0)  # x per sqrt(h) = x / 60 per sqrt(s)
+        bias = BiasNoise(gyro_rw=units.to_si(gyro_rrw or 0.0, "deg/h") * per_sqrt_h,
+                         accel_rw=units.to_si(accel_rrw or 0.0, "ug"),
+                         gyro_gm=units.to_si(gyro_bi or 0.0, "deg/h"), gyro_tau=bi_tau,
+                         accel_gm=units.to_si(accel_bi or 0.0, "ug"), accel_tau=bi_tau)
+    try:
+        return crlb(source, states, arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
+                    vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"), bias_noise=bias,
+                    filter_rate_hz=filter_rate_hz, keep_history=False)
+    except BoundError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _print_crlb(source: str, b) -> None:
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console()
+    d = b.to_dict()
+    tab = Table(title=f"Cramér-Rao bound of {source} (path {b.path_name!r}, {b.duration_s:.0f} s), "
+                      f"{b.setup.states.n_states}-state model ({d['states']})", box=box.SIMPLE_HEAD)
+    for col in ("parameter", "unit", "prior 1σ", "bound 1σ", "bound / prior"):
+        tab.add_column(col, justify="left" if col in ("parameter", "unit") else "right", no_wrap=True)
+    rms = b.group_rms()
+    current = None
+    for r in d["parameters"]:
+        if r["group"] != current:
+            current = r["group"]
+            tab.add_row(f"[bold]{current}[/bold]", r["unit"], f"{r['prior']:.4g}", f"RMS {rms[current]:.3g}", "")
+        tab.add_row(f"  {r['label'][len(current):].strip('[]') or current}", "", "", f"{r['bound']:.3g}",
+                    f"{r['ratio']:.3g}")
+    con.print(tab)
+    n = d["noise"]
+    arw = ", ".join(f"{x:.3g}" for x in sorted(set(n["arw_deg_sqrt_h"])))
+    vrw = ", ".join(f"{x:.3g}" for x in sorted(set(n["vrw_ug_sqrt_hz"])))
+    site = d["site"]
+    con.print(f"bound = posterior 1σ of the linear-Gaussian error-state model (smoothed = final filtered for "
+              f"constants); site {site['latitude_deg']:.4g} N {site['longitude_deg']:.4g} E "
+              f"{site['height_m']:.4g} m; ARW {arw} deg/√h, VRW {vrw} µg/√Hz"
+              + ("; bias instability as process noise" if n["bias"] else "")
+              + f"; {b.steps} steps at {d['filter_rate_hz']:g} Hz ({b.seconds:.3f} s)")
+
+
+def _print_report(rep) -> None:
+    from rich import box
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    from inscal.plan.observability import RANK_TOL, THRESHOLDS
+
+    con = Console()
+    noise = rep.noise
+    arw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["arw_deg_sqrt_h"])))
+    vrw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["vrw_ug_sqrt_hz"])))
+    site = rep.site
+    tab = Table(title=f"Observability of {rep.source} ({rep.kind} {rep.path_name!r}, {rep.duration_s:.0f} s), "
+                      f"{rep.n_states}-state filter ({rep.state_spec})", box=box.SIMPLE_HEAD)
+    for col, just in (("state", "left"), ("prior 1σ", "right"), ("posterior 1σ", "right"), ("ratio", "right"),
+                      ("verdict", "left")):
+        tab.add_column(col, justify=just, no_wrap=True, min_width=13 if col == "verdict" else None)
+    style = {"well observed": "green", "observed": "green", "weak": "yellow", "unobservable": "red"}
+    groups = rep.groups()
+    current = None
+    for s in rep.states:
+        if s.group != current:
+            current = s.group
+            g = groups[current]
+            tab.add_row(f"[bold]{current}[/bold]", f"{s.prior:.4g} {s.unit}", "worst:", f"[bold]{g['max_ratio']:.3g}[/bold]",
+                        f"[bold {style[g['verdict']]}]{g['verdict']}[/]")
+        tab.add_row(f"  {s.component or s.group}", "", f"{s.posterior:.3g}", f"{s.ratio:.3g}",
+                    f"[{style[s.verdict]}]{s.verdict}[/]")
+    con.print(tab)
+    lim = ", ".join(f"{n} < {v:g}" for n, v in THRESHOLDS)
+    con.print(f"ratio = posterior / prior 1σ; {lim}, else unobservable.  Site {site['latitude_deg']:.4g} N "
+              f"{site['longitude_deg']:.4g} E {site['height_m']:.4g} m; ARW {arw} deg/√h, VRW {vrw} µg/√Hz "
+              f"({noise['source']}); {rep.steps} filter steps at {rep.filter_rate_hz:g} Hz from a noise-free "
+              f"{rep.rate_hz:g} Hz simulation.")
+    sv = rep.singular_values
+    con.print(f"\n[bold]Observability matrix[/bold] (whitened, states scaled by their prior σ; parameter block after "
+              f"projecting out the initial navigation state): rank {rep.rank} of {rep.n_params} at tolerance "
+              f"{RANK_TOL:g} x largest (full state: {rep.full_rank} of {rep.n_states}); singular values / largest, "
+              f"smallest 10: " + " ".join(f"{x:.1e}" for x in sv[-10:]))
+    wt = Table(title="weakest directions (right singular vectors, scaled parameters)")
+    wt.add_column("σ / σmax", justify="right")
+    wt.add_column("dominant combination")
+    for d in rep.weakest:
+        wt.add_row(f"{d.singular_value:.2e}", escape(d.describe()))
+    con.print(wt)
+    for n in rep.notes:
+        con.print(f"note: {escape(n)}")
+    con.print(f"({rep.timing_s['total']:.2f} s)")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("observability")
+    def observability_cmd(
+        source: str = typer.Argument(..., metavar="PATH_OR_SCENARIO",
+                                     help="built-in scenario (s16, psins19, n25, ...) or path (s16-table1, "
+                                          "n25-twelve, ...), a scenario TOML, or a path TOML (a [path] table)"),
+        states: str = typer.Option("51", "--states", help="state set: 51 | 30, options ,lever9 ,async ,psins"),
+        rate_hz: float = typer.Option(20.0, "--rate-hz", help="rate of the noise-free simulation [Hz]"),
+        arw: float = typer.Option(None, "--arw", help="gyro angle random walk [deg/sqrt(h)] (default: the "
+                                                      "scenario's, else S16's 5e-5)"),
+        vrw: float = typer.Option(None, "--vrw", help="accelerometer velocity random walk [ug/sqrt(Hz)] (default: "
+                                                      "the scenario's, else S16's 1)"),
+        crlb: bool = typer.Option(False, "--crlb", help="print the Cramér-Rao bound of every parameter (fast, "
+                                                        "from the path kinematics; no simulation)"),
+        filter_rate_hz: float = typer.Option(1.0, "--filter-rate-hz", help="filter rate of the bound [Hz]"),
+        gyro_bi: float = typer.Option(None, "--gyro-bi", help="with --crlb: gyro bias instability, Gauss-Markov "
+                                                              "sigma [deg/h]"),
+        accel_bi: float = typer.Option(None, "--accel-bi", help="with --crlb: accelerometer bias instability, "
+                                                                "Gauss-Markov sigma [ug]"),
+        bi_tau: float = typer.Option(3600.0, "--bi-tau", help="with --crlb: correlation time of the bias "
+                                                              "instability [s]"),
+        gyro_rrw: float = typer.Option(None, "--gyro-rrw", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
+        accel_rrw: float = typer.Option(None, "--accel-rrw", help="with --crlb: accelerometer bias random walk "
+                                                                  "[ug/sqrt(s)]"),
+        json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
+    ):
+        """Observability of the systematic filter's states on a rotation path, without data: posterior /
+        prior σ per state and the SVD of the observability matrix."""
+        if crlb:
+            try:
+                b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw)
+            except CliError as exc:
+                raise fail(str(exc)) from None
+            if json_:
+                print_json({"source": source, "crlb": b.to_dict()})
+            else:
+                _print_crlb(source, b)
+            return
+        if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+            raise fail("--gyro-bi, --accel-bi, --gyro-rrw and --accel-rrw need --crlb (the systematic filter has no "
+                       "bias process noise)")
+        try:
+            rep = run_observability(source, states, rate_hz, arw, vrw)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(rep.to_dict())
+            return
+        _print_report(rep)

@@ -1,0 +1,157 @@
+"""Attitude conventions and helpers.
+
+Conventions (used throughout inscal):
+
+* A direction cosine matrix ``C_a^b`` maps vectors from frame a to frame b:
+  ``v^b = C_a^b v^a``.  Its columns are the axes of frame a expressed in b.
+* Elementary rotations are *active*: ``rot_x(t) = exp(t [e_x x])`` is the DCM
+  ``C_a^b`` of a frame a obtained by a right-handed rotation ``t`` of b about x.
+  (S16 Table 1 checks this: +90 deg about East takes the IMU y-axis from North to Up.)
+* Euler angles follow N25 eq. 8: ``C_b^n = R_z(yaw) R_y(pitch) R_x(roll)`` (z-y-x
+  order), returned/accepted as ``[roll, pitch, yaw]`` = ``[alpha, beta, gamma]``.
+* Quaternions are scalar-first ``[w, x, y, z]`` in the numba kernels (scipy uses
+  scalar-last; conversion helpers below).
+
+The vectorised helpers sit on ``scipy.spatial.transform.Rotation``; the small
+``@njit`` kernels are for the hot loops (simulation, strapdown).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from numba import njit
+
+from scipy.spatial.transform import Rotation
+
+
+@njit(cache=True)
+def skew(v):
+    """Cross-product matrix [v x]."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@njit(cache=True)
+def axis_angle_dcm(axis, angle):
+    """Exact DCM of a right-handed rotation ``angle`` about unit ``axis`` (Rodrigues).
+
+    Used for the tilted outer gimbal axis (N25 eq. 5, exact instead of first order).
+    """
+    n = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+    x, y, z = axis[0] / n, axis[1] / n, axis[2] / n
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    return np.array(
+        [
+            [c + x * x * t, x * y * t - z * s, x * z * t + y * s],
+            [y * x * t + z * s, c + y * y * t, y * z * t - x * s],
+            [z * x * t - y * s, z * y * t + x * s, c + z * z * t],
+        ]
+    )
+
+
+@njit(cache=True)
+def rot_x(t):
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+@njit(cache=True)
+def rot_y(t):
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+@njit(cache=True)
+def rot_z(t):
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def dcm_from_euler(att) -> np.ndarray:
+    """``C_b^n = R_z(yaw) R_y(pitch) R_x(roll)`` (N25 eq. 8) from ``[roll, pitch, yaw]`` [rad].
+
+    Accepts shape (3,) or (N, 3); returns (3, 3) or (N, 3, 3).
+    """
+    att = np.asarray(att, dtype=float)
+    # intrinsic Z-Y-X sequence == R_z R_y R_x (scipy: upper case = intrinsic)
+    r = Rotation.from_euler("ZYX", att[..., ::-1])
+    return r.as_matrix()
+
+
+def euler_from_dcm(c) -> np.ndarray:
+    """Inverse of :func:`dcm_from_euler` (N25 eq. 36): ``[roll, pitch, yaw]`` [rad]."""
+    c = np.asarray(c, dtype=float)
+    roll = np.arctan2(c[..., 2, 1], c[..., 2, 2])
+    pitch = -np.arcsin(np.clip(c[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(c[..., 1, 0], c[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def small_angle_error(c_est, c_true) -> np.ndarray:
+    """Rotation vector phi of ``C_est C_true^T = exp([phi x])`` (error in the reference frame
+    of the columns' target, e.g. the n-frame for ``C_b^n``).  Exact, not first order."""
+    e = np.einsum("...ij,...kj->...ik", np.asarray(c_est), np.asarray(c_true))
+    return Rotation.from_matrix(e).as_rotvec()
+
+
+def quat_from_dcm(c) -> np.ndarray:
+    """Scalar-first quaternion from DCM(s)."""
+    q = Rotation.from_matrix(np.asarray(c, dtype=float)).as_quat()  # scalar-last
+    return np.roll(q, 1, axis=-1)
+
+
+def dcm_from_quat(q) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    return Rotation.from_quat(np.roll(q, -1, axis=-1)).as_matrix()
+
+
+# ---------------------------------------------------------------- numba kernels
+@njit(cache=True)
+def quat_mul(p, q):
+    """Hamilton product p*q, scalar-first."""
+    return np.array(
+        [
+            p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
+            p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
+            p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
+            p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0],
+        ]
+    )
+
+
+@njit(cache=True, inline="always")
+def quat_from_rotvec_xyz(x, y, z):
+    """Exact quaternion ``(w, x, y, z)`` of the rotation vector (x, y, z), as scalars (for the
+    allocation-free kernels).  Series near zero: cos(a/2) and sin(a/2)/a to O(a^6), exact to
+    round-off for a < 1e-4."""
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-8:
+        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    else:
+        a = math.sqrt(a2)
+        c = math.cos(0.5 * a)
+        s = math.sin(0.5 * a) / a
+    return c, s * x, s * y, s * z
+
+
+@njit(cache=True)
+def quat_from_rotvec(v):
+    """Exact quaternion of rotation vector ``v`` (series near zero)."""
+    c, x, y, z = quat_from_rotvec_xyz(v[0], v[1], v[2])
+    return np.array([c, x, y, z])
+
+
+@njit(cache=True)
+def quat_to_dcm(q):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return np.array(
+        [
+            [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+        ]
+    )

@@ -1,0 +1,276 @@
+"""Kalman filter and Rauch-Tung-Striebel smoother for error states whose tail is constant.
+
+The engine knows nothing about IMUs.  It serves state vectors ``x = [n | p]`` made of ``n``
+*dynamic* states and ``p`` *parameter* states that are constants, except for an optional
+random walk on the diagonal (``q_p``).  The transition and noise then have the block form::
+
+    Phi = [[Phi_nn, Phi_np],        Q = [[Q_nn, 0      ],
+           [0,      I     ]]             [0,    diag q_p]]
+
+and the measurements see the dynamic states only: ``z = H x + v`` with ``H = [H_n, 0]``
+selecting ``m`` dynamic states (``idx``), ``v ~ N(0, diag R)``.
+
+Prediction (structure only: the parameter block ``P_pp`` moves only by ``q_p``)::
+
+    P_np' = Phi_nn P_np + Phi_np P_pp
+    P_nn' = (Phi_nn P_nn + Phi_np P_pn) Phi_nn^T + P_np' Phi_np^T + Q_nn
+    P_pp' = P_pp + diag(q_p)
+
+Update in Joseph form, written with ``K = P H^T S^-1``::
+
+    P+ = (I - K H) P (I - K H)^T + K R K^T = P - K (P H^T)^T - (P H^T) K^T + K S K^T
+
+(each term computed separately, then symmetrised), which keeps ``P`` symmetric and
+positive to round-off even when ``R`` is tiny.
+
+Smoother.  The fixed-interval RTS smoother of S16 eq. 13-16,
+``A_{j-1} = P_{j-1} Phi^T P_{j|j-1}^-1``, ``x_{j-1|M} = x_{j-1} + A (x_{j|M} - x_{j|j-1})``,
+``P_{j-1|M} = P_{j-1} + A (P_{j|M} - P_{j|j-1}) A^T``, is evaluated in its algebraically
+identical *modified Bryson-Frazier* form (Bierman 1977, ch. X), which needs no inverse of
+``P`` and stores per step only ``Phi_nn``, ``Phi_np``, ``K``, ``S^-1`` and ``S^-1 nu``:
+with the adjoint ``lambda``, ``Lambda`` (zero after the last update), backwards::
+
+    lt_k = H^T S_k^-1 nu_k + (I - K_k H)^T l_k
+    Lt_k = H^T S_k^-1 H    + (I - K_k H)^T L_k (I - K_k H)
+    x_{k|M} = x_{k|k-1} + P_{k|k-1} lt_k,     P_{k|M} = P_{k|k-1} - P_{k|k-1} Lt_k P_{k|k-1}
+    l_{k-1} = Phi_k^T lt_k,                   L_{k-1} = Phi_k^T Lt_k Phi_k
+
+so ``P_{k|k-1}`` is only needed at the steps where a smoothed estimate is wanted
+(``tests/test_filters.py`` checks the equality with the dense eq. 13-16 form).
+
+Feedback.  A closed-loop filter removes its estimate from the reference after every
+update (S16 eq. 27), so ``x_{k|k-1} = 0`` always and the innovation is the raw measurement.
+A known input does not change the innovations, the gains or the adjoint recursion, so
+the smoothed error of the *pre-update reference at step k* is simply ``P_{k|k-1} lt_k``; the
+caller keeps the references it needs.  At the start (``k = 0``), ``x_{0|M} = x_0 + P_0 l_0``
+and ``P_{0|M} = P_0 - P_0 L_0 P_0``.
+
+All functions are ``@njit`` and work in place on float64 arrays; they are meant to be
+called from the model's compiled loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from numba import njit
+
+
+
+
+
+
+
+
+
+
+
+@njit(cache=True)
+def predict(P, n, phi_nn, phi_np, q_nn, q_p):
+    """Structured prediction ``P <- Phi P Phi^T + Q`` in place (see the module docstring)."""
+    N = P.shape[0]
+    Pnn = np.ascontiguousarray(P[:n, :n])
+    Pnp = np.ascontiguousarray(P[:n, n:])
+    Ppp = np.ascontiguousarray(P[n:, n:])
+    new_np = phi_nn @ Pnp + phi_np @ Ppp
+    t1 = phi_nn @ Pnn + phi_np @ Pnp.T
+    new_nn = t1 @ phi_nn.T + new_np @ phi_np.T + q_nn
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (new_nn[i, j] + new_nn[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    for i in range(n):
+        for j in range(n, N):
+            P[i, j] = new_np[i, j - n]
+            P[j, i] = new_np[i, j - n]
+    for j in range(n, N):
+        P[j, j] += q_p[j - n]
+
+
+@njit(cache=True)
+def update(P, idx, r, z, K, Sinv, x):
+    """Joseph-form update with ``H`` selecting states ``idx`` (m), noise variances ``r`` (m) and
+    measurement ``z`` (m).  Writes the gain ``K`` (N, m), ``S^-1`` (m, m) and the estimate
+    ``x = K z`` (N); returns the normalised innovation squared ``z^T S^-1 z``."""
+    N = P.shape[0]
+    m = idx.shape[0]
+    PHt = np.empty((N, m))
+    for i in range(N):
+        for a in range(m):
+            PHt[i, a] = P[i, idx[a]]
+    S = np.empty((m, m))
+    for a in range(m):
+        for b in range(m):
+            S[a, b] = PHt[idx[a], b]
+        S[a, a] += r[a]
+    return gain_and_joseph(P, PHt, S, z, K, Sinv, x)
+
+
+@njit(cache=True)
+def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
+    """The common part of every update, given ``P H^T`` (N, m) and ``S = H P H^T + R`` (m, m):
+    symmetrise ``S``, write ``S^-1``, the gain ``K = P H^T S^-1`` and ``x = K z``, and update ``P``
+    in Joseph form (``P - K H P - (K H P)^T + K S K^T``, symmetric); returns ``z^T S^-1 z``."""
+    N = P.shape[0]
+    m = S.shape[0]
+    for a in range(m):
+        for b in range(a + 1, m):
+            v = 0.5 * (S[a, b] + S[b, a])
+            S[a, b] = v
+            S[b, a] = v
+    Si = np.linalg.inv(S)
+    Sinv[:, :] = Si
+    K[:, :] = PHt @ Si
+    KPH = K @ PHt.T
+    KSK = (K @ S) @ K.T
+    for i in range(N):
+        for j in range(i, N):
+            v = P[i, j] - KPH[i, j] - KPH[j, i] + 0.5 * (KSK[i, j] + KSK[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    nis = 0.0
+    sz = Si @ z
+    for a in range(m):
+        nis += z[a] * sz[a]
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += K[i, a] * z[a]
+        x[i] = s
+    return nis
+
+
+@njit(cache=True)
+def smoother_step(lam, Lam, idx, K, Sinv, sz):
+    """Adjoint at the predicted time of one step (``lt``, ``Lt`` of the module docstring),
+    in place: ``lam <- H^T S^-1 nu + (I - K H)^T lam``, ``Lam <- H^T S^-1 H + (I-KH)^T Lam (I-KH)``."""
+    N = lam.shape[0]
+    m = idx.shape[0]
+    # (I - K H)^T lam = lam - H^T (K^T lam)
+    ktl = K.T @ lam
+    for a in range(m):
+        lam[idx[a]] += sz[a] - ktl[a]
+    LK = Lam @ K  # (N, m)
+    KtLK = K.T @ LK  # (m, m)
+    # Lam - H^T (K^T Lam) - (Lam K) H + H^T (K^T Lam K) H + H^T S^-1 H
+    for i in range(N):
+        for a in range(m):
+            Lam[i, idx[a]] -= LK[i, a]
+    for a in range(m):
+        for j in range(N):
+            Lam[idx[a], j] -= LK[j, a]
+    for a in range(m):
+        for b in range(m):
+            Lam[idx[a], idx[b]] += KtLK[a, b] + Sinv[a, b]
+    for i in range(N):
+        for j in range(i + 1, N):
+            v = 0.5 * (Lam[i, j] + Lam[j, i])
+            Lam[i, j] = v
+            Lam[j, i] = v
+
+
+@njit(cache=True)
+def adjoint_back(lam, Lam, n, phi_nn, phi_np):
+    """``lam <- Phi^T lam``, ``Lam <- Phi^T Lam Phi`` for the block transition, in place."""
+    N = lam.shape[0]
+    ln = lam[:n].copy()
+    lp = lam[n:]
+    lam[:n] = phi_nn.T @ ln
+    lam[n:] = lp + phi_np.T @ ln
+    Lnn = Lam[:n, :n].copy()
+    Lnp = Lam[:n, n:].copy()
+    a = Lnn @ phi_np + Lnp  # (n, p)
+    new_nn = phi_nn.T @ Lnn @ phi_nn
+    new_np = phi_nn.T @ a
+    new_pp = phi_np.T @ a + Lnp.T @ phi_np
+    for i in range(n):
+        for j in range(n):
+            Lam[i, j] = new_nn[i, j]
+    for i in range(n):
+        for j in range(n, N):
+            Lam[i, j] = new_np[i, j - n]
+            Lam[j, i] = new_np[i, j - n]
+    p = N - n
+    for i in range(p):
+        for j in range(i, p):
+            v = Lam[n + i, n + j] + 0.5 * (new_pp[i, j] + new_pp[j, i])
+            Lam[n + i, n + j] = v
+            Lam[n + j, n + i] = v
+
+
+@njit(cache=True)
+def smoothed(Pm, lam, Lam):
+    """Smoothed error and covariance from the predicted covariance ``Pm`` and the adjoint:
+    ``(Pm lam, Pm - Pm Lam Pm)``."""
+    x = Pm @ lam
+    PL = Pm @ Lam
+    Ps = Pm - PL @ Pm
+    return x, 0.5 * (Ps + Ps.T)
+
+
+def dense_rts(xf, Pf, xp, Pp, Phis):
+    """Textbook RTS smoother (S16 eq. 13-16), dense, for checks: ``xf[k], Pf[k]`` filtered,
+    ``xp[k], Pp[k]`` predicted (from k-1), ``Phis[k]`` the transition k-1 -> k (k = 1..M;
+    index 0 is the prior).  Returns the smoothed ``(x, P)`` for k = 0..M."""
+    M = len(xf) - 1
+    xs = [None] * (M + 1)
+    Ps = [None] * (M + 1)
+    xs[M], Ps[M] = xf[M], Pf[M]  # S16 eq. 16
+    for j in range(M, 0, -1):
+        A = Pf[j - 1] @ Phis[j].T @ np.linalg.inv(Pp[j])  # S16 eq. 14
+        xs[j - 1] = xf[j - 1] + A @ (xs[j] - xp[j])  # S16 eq. 13
+        Ps[j - 1] = Pf[j - 1] + A @ (Ps[j] - Pp[j]) @ A.T  # S16 eq. 15
+    return xs, Ps
+
+
+@njit(cache=True)
+def update_dense(P, H, R, nu, K, Sinv, x):
+    """:func:`inscal.filters.update` for a dense ``H`` (m x N) and a full ``R`` (m x m): Joseph-form
+    update, writes ``K``, ``S^-1`` and ``x = K nu``; returns ``nu^T S^-1 nu``."""
+    N = P.shape[0]
+    m = H.shape[0]
+    PHt = np.zeros((N, m))
+    for i in range(N):
+        for a in range(m):
+            s = 0.0
+            for j in range(N):
+                s += P[i, j] * H[a, j]
+            PHt[i, a] = s
+    S = np.empty((m, m))
+    for a in range(m):
+        for b in range(m):
+            s = R[a, b]
+            for j in range(N):
+                s += H[a, j] * PHt[j, b]
+            S[a, b] = s
+    return gain_and_joseph(P, PHt, S, nu, K, Sinv, x)
+
+
+@njit(cache=True)
+def smoother_step_dense(lam, Lam, H, K, Sinv, sz):
+    """:func:`inscal.filters.smoother_step` for a dense ``H``: ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
+    ``Lam <- H^T S^-1 H + (I - K H)^T Lam (I - K H)``, in place."""
+    N = lam.shape[0]
+    m = H.shape[0]
+    d = np.empty(m)
+    for a in range(m):
+        s = sz[a]
+        for i in range(N):
+            s -= K[i, a] * lam[i]
+        d[a] = s
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += H[a, i] * d[a]
+        lam[i] += s
+    LK = Lam @ K  # (N, m)
+    C = K.T @ LK + Sinv  # (m, m)
+    B = LK @ H  # Lam K H (N, N)
+    HtC = H.T @ C  # (N, m)
+    add = HtC @ H
+    for i in range(N):
+        for j in range(i, N):
+            v = 0.5 * (Lam[i, j] + Lam[j, i]) - B[i, j] - B[j, i] + 0.5 * (add[i, j] + add[j, i])
+            Lam[i, j] = v
+            Lam[j, i] = v

@@ -1,0 +1,145 @@
+"""Unit conversion between the field's units and SI, in one place.
+
+Everything inside inscal is SI (rad, rad/s, m/s^2, m, s).  Configuration files,
+reports and the CLI use the field's units; they are converted here and only here.
+
+Each unit has a factor such that ``si = value * FACTOR[unit]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+#: Standard gravity used for g-based units (µg, µg/g², °/h/g).  This is the
+#: conventional 9.80665 m/s^2, not local gravity: a µg is a fixed quantity.
+G0 = 9.80665
+
+DEG = math.pi / 180.0
+ARCSEC = DEG / 3600.0
+HOUR = 3600.0
+
+#: SI factor of every unit the project accepts.  Keys are the canonical spellings;
+#: ALIASES maps common alternatives onto them.
+FACTOR: dict[str, float] = {
+    # dimensionless
+    "1": 1.0,
+    "ppm": 1e-6,
+    # angles
+    "rad": 1.0,
+    "deg": DEG,
+    "arcsec": ARCSEC,
+    # angular rate
+    "rad/s": 1.0,
+    "deg/s": DEG,
+    "deg/h": DEG / HOUR,
+    # angle random walk
+    "rad/sqrt(s)": 1.0,
+    "deg/sqrt(h)": DEG / math.sqrt(HOUR),
+    # specific force
+    "m/s^2": 1.0,
+    "g": G0,
+    "mg": 1e-3 * G0,
+    "ug": 1e-6 * G0,
+    # velocity random walk
+    "m/s/sqrt(s)": 1.0,
+    "ug/sqrt(Hz)": 1e-6 * G0,  # (m/s^2)/sqrt(Hz) == m/s/sqrt(s)
+    # accelerometer nonlinearity (output per input squared)
+    "1/(m/s^2)": 1.0,
+    "ug/g^2": 1e-6 * G0 / G0**2,
+    # gyro g-sensitivity ((rad/s) per (m/s^2))
+    "(rad/s)/(m/s^2)": 1.0,
+    "deg/h/g": DEG / HOUR / G0,
+    # lengths
+    "m": 1.0,
+    "cm": 1e-2,
+    "mm": 1e-3,
+    "nmi": 1852.0,  # international nautical mile
+    # time
+    "s": 1.0,
+    "ms": 1e-3,
+    "h": HOUR,
+    "min": 60.0,
+    # angle quantisation
+    "urad": 1e-6,
+    # velocity
+    "m/s": 1.0,
+    "mm/s": 1e-3,
+}
+
+ALIASES: dict[str, str] = {
+    "µg": "ug",
+    "μg": "ug",
+    "µg/g²": "ug/g^2",
+    "μg/g²": "ug/g^2",
+    "ug/g2": "ug/g^2",
+    "µg/√Hz": "ug/sqrt(Hz)",
+    "ug/√Hz": "ug/sqrt(Hz)",
+    "°": "deg",
+    "°/s": "deg/s",
+    "°/h": "deg/h",
+    "°/√h": "deg/sqrt(h)",
+    "deg/rt(h)": "deg/sqrt(h)",
+    "°/h/g": "deg/h/g",
+    "″": "arcsec",
+    "\"": "arcsec",
+    "asec": "arcsec",
+    "m/s2": "m/s^2",
+    "m/s²": "m/s^2",
+    "hz": "Hz",
+}
+
+
+class UnitError(ValueError):
+    """An unknown unit, or a unit of the wrong kind for a quantity."""
+
+
+#: Physical kind of each unit, so a value given in a unit of the wrong kind is refused.
+KIND: dict[str, str] = {
+    "1": "dimensionless", "ppm": "dimensionless",
+    "rad": "angle", "deg": "angle", "arcsec": "angle", "urad": "angle",
+    "rad/s": "rate", "deg/s": "rate", "deg/h": "rate",
+    "rad/sqrt(s)": "arw", "deg/sqrt(h)": "arw",
+    "m/s^2": "accel", "g": "accel", "mg": "accel", "ug": "accel",
+    "m/s/sqrt(s)": "vrw", "ug/sqrt(Hz)": "vrw",
+    "1/(m/s^2)": "nonlinearity", "ug/g^2": "nonlinearity",
+    "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
+    "m": "length", "cm": "length", "mm": "length", "nmi": "length",
+    "s": "time", "ms": "time", "h": "time", "min": "time",
+    "m/s": "velocity", "mm/s": "velocity",
+}
+
+
+def canonical(unit: str) -> str:
+    u = unit.strip()
+    u = ALIASES.get(u, u)
+    if u not in FACTOR:
+        raise UnitError(f"unknown unit {unit!r}; known units: {', '.join(sorted(FACTOR))}")
+    return u
+
+
+def check_kind(unit: str, kind: str) -> str:
+    """Canonical spelling of ``unit``; raises UnitError if it is not of ``kind``."""
+    u = canonical(unit)
+    if KIND[u] != kind:
+        good = sorted(k for k, v in KIND.items() if v == kind)
+        raise UnitError(f"unit {unit!r} is a {KIND[u]} unit, expected a {kind} unit ({', '.join(good)})")
+    return u
+
+
+def to_si(value, unit: str, kind: str | None = None):
+    """Convert ``value`` given in ``unit`` to SI (checking its kind if given)."""
+    f = FACTOR[check_kind(unit, kind) if kind else canonical(unit)]
+    if isinstance(value, (int, float)):
+        return value * f
+    return np.asarray(value, dtype=float) * f
+
+
+def from_si(value, unit: str, kind: str | None = None):
+    """Convert an SI ``value`` to ``unit`` (checking its kind if given)."""
+    f = FACTOR[check_kind(unit, kind) if kind else canonical(unit)]
+    if isinstance(value, (int, float)):
+        return value / f
+    return np.asarray(value, dtype=float) / f

@@ -1,0 +1,10 @@
+"""Files: the HDF5 record format (``/time``, ``/dtheta``, ``/dvel``, ``/gimbal``, ``/truth``), parameter
+files, JSON and TOML helpers, the importers and exporters of other tools' formats, and atomic writes.
+
+This face re-exports the record and file helpers, so ``from inscal import io; io.read_record(path)``
+works; parameter files are :mod:`inscal.io.paramfile`, the importers :mod:`inscal.io.importers`."""
+
+from inscal.io.files import (REMOVED_PARTS, cancel, check_cancel, atomic_path, remove_part, remove_live_parts, file_hash)
+from inscal.io.records import (KIND, UNITS, DataFileError, Truth, Record, write_stream, write_record, validate_arrays, truth_groups, read_record, RecordInfo, record_info, iter_chunks, check_datasets, Window, record_window, iter_window, LazyArray, open_record, record_attrs, compensated_with)
+
+__all__ = ['REMOVED_PARTS', 'cancel', 'check_cancel', 'atomic_path', 'remove_part', 'remove_live_parts', 'file_hash', 'KIND', 'UNITS', 'DataFileError', 'Truth', 'Record', 'write_stream', 'write_record', 'validate_arrays', 'truth_groups', 'read_record', 'RecordInfo', 'record_info', 'iter_chunks', 'check_datasets', 'Window', 'record_window', 'iter_window', 'LazyArray', 'open_record', 'record_attrs', 'compensated_with']

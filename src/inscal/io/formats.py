@@ -1,0 +1,308 @@
+"""Readers of the raw formats of other tools (PSINS binary, MATLAB ``.mat``, CSV and text tables, gimbal
+angle files): each returns a :class:`Raw` block of increments in the source's own units."""
+
+from __future__ import annotations
+
+from inscal.io.mapping import CHANNELS
+
+
+
+
+
+from dataclasses import dataclass
+
+from io import StringIO
+
+from pathlib import Path as FsPath
+
+import numpy as np
+
+from inscal.core import units
+from inscal.io.mapping import EXPORT_HEADER, EXPORT_HEADER_GIMBAL, ImportFileError, Mapping, default_mapping
+
+
+
+
+
+# ----------------------------------------------------------------------------- raw sources
+@dataclass
+class Raw:
+    """Columns read from a source, converted to SI but not yet checked."""
+
+    time: np.ndarray | None  # (N,) s, or None (then a rate is required)
+    gyro: np.ndarray  # (N, 3) rad (increments) or rad/s (rates), IMU axes
+    accel: np.ndarray  # (N, 3) m/s or m/s^2
+    kind: str  # "increments" | "rates"
+    gimbal: np.ndarray | None  # (N, 2) rad, from columns of the same file
+    labels: tuple  # names of the 6 channels (for messages)
+    lines: np.ndarray | None = None  # file line of each row (text); None: rows counted from 1
+    hint: str = ""  # appended to time-base messages (e.g. a dtype hint)
+    raw_channels: np.ndarray | None = None  # (N, 6) as read (before scaling), for the plausibility checks
+    counts: tuple = (False, False)  # gyro / accel given in counts (whole numbers expected)
+    time_label: str = "time"
+
+    def at(self, i: int) -> str:
+        return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
+
+
+def _file_bytes(p: FsPath) -> bytes:
+    if not p.is_file():
+        raise ImportFileError(f"{p}: no such file")
+    b = p.read_bytes()
+    if not b:
+        raise ImportFileError(f"{p}: file is empty")
+    return b
+
+
+def _rows7(a: np.ndarray, where: str, rates: bool, hint: str = "") -> Raw:
+    """A (N, 7) PSINS array ``[gyro(3) accel(3) t]`` as a :class:`Raw`."""
+    if a.shape[0] < 2:
+        raise ImportFileError(f"{where}: {a.shape[0]} row(s); at least 2 samples are needed")
+    a = np.asarray(a, dtype=float)
+    kind = "rates" if rates else "increments"
+    labels = (("wx", "wy", "wz", "fx", "fy", "fz") if rates else ("dthx", "dthy", "dthz", "dvx", "dvy", "dvz"))
+    labels = tuple(f"{n} (column {k + 1})" for k, n in enumerate(labels))
+    return Raw(a[:, 6].copy(), a[:, 0:3].copy(), a[:, 3:6].copy(), kind, None, labels, None, hint, a[:, :6])
+
+
+def read_psins_bin(path, dtype: str = "float64", rates: bool = False) -> Raw:
+    """PSINS raw binary: little-endian rows of 7 float64 (or float32) values."""
+    p = FsPath(path)
+    if dtype not in ("float64", "float32"):
+        raise ImportFileError(f"--dtype must be float64 or float32, got {dtype!r}")
+    b = _file_bytes(p)
+    item = 8 if dtype == "float64" else 4
+    row = 7 * item
+    if len(b) % row:
+        other = "float32" if dtype == "float64" else "float64"
+        raise ImportFileError(f"{p}: {len(b)} bytes is not a whole number of 7-value {dtype} rows ({row} bytes each; "
+                              f"truncated, or {other}?)")
+    a = np.frombuffer(b, dtype="<f8" if item == 8 else "<f4").reshape(-1, 7)
+    hint = ""
+    if _plausible_rows(b, 12 - item):  # the other width reads as a clean time base: say so on time errors
+        hint = " (is the file float32? try --dtype float32)" if dtype == "float64" else " (is the file float64? drop --dtype float32)"
+    return _rows7(a, str(p), rates, hint)
+
+
+def _plausible_rows(b: bytes, item: int) -> bool:
+    """Whether ``b`` read as 7-value rows of ``item``-byte floats has a finite, increasing, uniform time column."""
+    if len(b) % (7 * item) or len(b) < 3 * 7 * item:
+        return False
+    with np.errstate(all="ignore"):
+        t = np.frombuffer(b, dtype="<f8" if item == 8 else "<f4").reshape(-1, 7)[:, 6].astype(float)
+        st = np.diff(t)
+        med = np.median(st) if st.size else 0.0
+        return bool(np.all(np.isfinite(t)) and med > 0 and np.all(np.abs(st - med) < 0.01 * med))
+
+
+def _mat_variables(p: FsPath) -> list[tuple[str, np.ndarray]]:
+    import scipy.io
+
+    try:
+        d = scipy.io.loadmat(str(p))
+    except NotImplementedError:  # MATLAB v7.3 = HDF5, arrays stored transposed
+        import h5py
+
+        out = []
+        with h5py.File(p, "r") as h5:
+            for k, v in h5.items():
+                if isinstance(v, h5py.Dataset) and not k.startswith("#"):
+                    a = v[()]
+                    out.append((k, a.T if np.ndim(a) == 2 else a))
+        return out
+    except Exception as exc:  # scipy raises assorted errors (ValueError, struct.error, ...) on files that are not MAT
+        raise ImportFileError(f"{p}: not a readable MAT file ({type(exc).__name__}: {exc})") from None
+    return [(k, v) for k, v in d.items() if not k.startswith("__")]
+
+
+def _describe(a) -> str:
+    a = np.asarray(a)
+    return f"{'x'.join(map(str, a.shape))} {a.dtype}"
+
+
+def read_mat(path, variable: str | None = None, rates: bool = False) -> Raw:
+    """A MAT file: the first 2-D numeric variable with 7 columns, or ``variable``."""
+    p = FsPath(path)
+    _file_bytes(p)
+    vars_ = _mat_variables(p)
+
+    def usable(a) -> bool:
+        return isinstance(a, np.ndarray) and a.ndim == 2 and a.shape[1] == 7 and a.dtype.kind in "fiu"
+
+    if variable is not None:
+        found = dict(vars_)
+        if variable not in found:
+            raise ImportFileError(f"{p}: no variable {variable!r}; variables: {', '.join(found) or 'none'}")
+        a = found[variable]
+        if not usable(a):
+            raise ImportFileError(f"{p}: variable {variable!r} is {_describe(a)}; expected an N x 7 floating-point array")
+        name = variable
+    else:
+        cand = [(k, v) for k, v in vars_ if usable(v)]
+        if not cand:
+            listing = ", ".join(f"{k} ({_describe(v)})" for k, v in vars_) or "none"
+            raise ImportFileError(f"{p}: no 2-D numeric variable with 7 columns [dθ dv t]; variables: {listing}")
+        name, a = cand[0]
+    if a.dtype.kind in "iu":
+        raise ImportFileError(f"{p}: variable {name!r} holds integers ({a.dtype}): PSINS rows are floating-point "
+                              "rad, m/s and s (raw counts: export them as csv and import with a mapping)")
+    return _rows7(a, f"{p} variable {name!r}", rates)
+
+
+def _split(line: str, delim: str | None) -> list[str]:
+    return line.split() if delim is None else [f.strip() for f in line.split(delim)]
+
+
+def _parse_table(p: FsPath, m: Mapping) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
+    """Data rows as floats, the file line of each row, and the header names (last header row)."""
+    b = _file_bytes(p)
+    if b"\x00" in b[:4096]:
+        raise ImportFileError(f"{p}: not a text file (binary data)")
+    try:
+        text = b.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
+    lines = text.splitlines()
+    if len(lines) < m.header_rows:
+        raise ImportFileError(f"{p}: {len(lines)} line(s), fewer than header_rows = {m.header_rows}")
+    names = _split(lines[m.header_rows - 1], m.delimiter) if m.header_rows else None
+    if names is not None:
+        names = [n.strip().strip('"').strip("'").strip() for n in names]
+    body = [(k + 1, ln) for k, ln in enumerate(lines[m.header_rows:], start=m.header_rows)
+            if ln.strip() and not ln.lstrip().startswith(m.comment)]
+    if not body:
+        raise ImportFileError(f"{p}: no data rows after the {m.header_rows} header row(s)")
+    line_no = np.fromiter((k for k, _ in body), dtype=np.int64, count=len(body))
+    try:
+        data = np.loadtxt(StringIO("\n".join(ln for _, ln in body)), delimiter=m.delimiter, comments=None,
+                          dtype=float, ndmin=2)
+        if data.shape[0] == len(body):
+            return data, line_no, names
+    except ValueError:
+        pass
+    # slow path: find the first bad row and say what is wrong with it
+    first = _split(body[0][1], m.delimiter)
+    ncol = len(first)
+    for k, ln in body:
+        fields = _split(ln, m.delimiter)
+        if len(fields) != ncol:
+            raise ImportFileError(f"{p}: line {k} has {len(fields)} field(s), expected {ncol} (as on line {body[0][0]})")
+        for c, tok in enumerate(fields):
+            try:
+                float(tok)
+            except ValueError:
+                what = f"{tok!r} is not a number" if tok else "empty field"
+                col = f"column {c}" + (f" ({names[c]!r})" if names and c < len(names) else "")
+                hint = ("; a header line? set header_rows" if m.columns and k == body[0][0] and m.header_rows == 0
+                        else "")
+                raise ImportFileError(f"{p}: line {k}, {col}: {what}{hint}") from None
+    raise ImportFileError(f"{p}: cannot parse the data rows")  # pragma: no cover - loadtxt and the scan disagree
+
+
+def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
+    """A delimited text file read through ``mapping`` (None: the inscal export layout)."""
+    p = FsPath(path)
+    if mapping is None:
+        if fmt != "csv":
+            raise ImportFileError(f"--format {fmt} needs --mapping M.toml (the columns and their units)")
+        b = _file_bytes(p)
+        try:
+            head = b.decode("utf-8-sig").splitlines()[0] if b else ""
+        except UnicodeDecodeError:
+            raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
+        names = [n.strip() for n in head.split(",")]
+        if names == EXPORT_HEADER:
+            mapping = default_mapping(False)
+        elif names == EXPORT_HEADER + EXPORT_HEADER_GIMBAL:
+            mapping = default_mapping(True)
+        else:
+            raise ImportFileError(f"{p}: the first line is not the inscal export header ({','.join(EXPORT_HEADER)}); "
+                                  "give --mapping M.toml")
+    m = mapping
+    data, line_no, names = _parse_table(p, m)
+    ncol = data.shape[1]
+    idx = {}
+    for key, col in m.columns.items():
+        if isinstance(col, str):
+            hits = [k for k, n in enumerate(names) if n == col] or [k for k, n in enumerate(names) if n.lower() == col.lower()]
+            if len(hits) != 1:
+                what = "no column" if not hits else f"{len(hits)} columns"
+                raise ImportFileError(f"{p}: {what} named {col!r} (for {key}); header: {names}")
+            col = hits[0]
+        if col >= ncol:
+            raise ImportFileError(f"{p}: column index {col} (for {key}) is out of range: rows have {ncol} columns "
+                                  f"(indexes 0-{ncol - 1})")
+        idx[key] = col
+    if data.shape[0] < 2:
+        raise ImportFileError(f"{p}: {data.shape[0]} data row(s); at least 2 samples are needed")
+    raw6 = data[:, [idx[c] for c in CHANNELS]]
+    inc = m.kind == "increments"
+
+    def conv(x, unit, scale, kind):
+        return x * scale if unit == "counts" else units.to_si(x, unit, kind)
+
+    g = conv(raw6[:, 0:3], m.gyro_unit, m.gyro_scale, "angle" if inc else "rate")
+    a = conv(raw6[:, 3:6], m.accel_unit, m.accel_scale, "velocity" if inc else "accel")
+    gyro = np.empty_like(g)
+    accel = np.empty_like(a)
+    for i in range(3):
+        gyro[:, m.axes[i]] = m.signs[i] * g[:, i]
+        accel[:, m.axes[i]] = m.signs[i] * a[:, i]
+    t = units.to_si(data[:, idx["time"]], m.time_unit, "time") if "time" in idx else None
+    gim = units.to_si(data[:, [idx["outer"], idx["inner"]]], m.gimbal_unit, "angle") if "outer" in idx else None
+    labels = tuple(f"{c} (column {idx[c]}" + (f" {names[idx[c]]!r})" if names and idx[c] < len(names) else ")")
+                   for c in CHANNELS)
+    counts = (m.gyro_unit == "counts", m.accel_unit == "counts")
+    tl = f"time (column {idx['time']})" if "time" in idx else "time"
+    return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl)
+
+
+def read_gimbal_file(path, unit: str = "deg") -> tuple[np.ndarray, np.ndarray]:
+    """Encoder angles: rows ``time [s], outer, inner`` in ``unit`` -> ``(t, angles [rad] (M, 2))``, unwrapped."""
+    p = FsPath(path)
+    try:
+        u = units.check_kind(unit, "angle")
+    except units.UnitError as exc:
+        raise ImportFileError(f"--gimbal-unit: {exc}") from None
+    b = _file_bytes(p)
+    try:
+        text = b.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise ImportFileError(f"{p}: no gimbal rows")
+    delim = "," if "," in lines[0] else None
+    try:
+        float(_split(lines[0], delim)[0])
+        header = 0
+    except ValueError:
+        header = 1
+    m = Mapping({}, delimiter=delim, header_rows=header)
+    data, line_no, _ = _parse_table(p, m)
+    if data.shape[1] != 3:
+        raise ImportFileError(f"{p}: gimbal rows need 3 columns (time, outer, inner), got {data.shape[1]}")
+    if data.shape[0] < 2:
+        raise ImportFileError(f"{p}: fewer than 2 gimbal rows")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        k = int(np.argmax(bad.any(axis=1)))
+        raise ImportFileError(f"{p}: NaN/Inf in the gimbal angles at line {line_no[k]}")
+    t = data[:, 0]
+    st = np.diff(t)
+    if np.any(st <= 0):
+        k = int(np.argmax(st <= 0))
+        raise ImportFileError(f"{p}: gimbal time does not increase at line {line_no[k + 1]} "
+                              f"(t = {t[k + 1]:.9g} s after {t[k]:.9g} s)")
+    med = float(np.median(st))
+    if st.max() > 10 * med:
+        k = int(np.argmax(st))
+        raise ImportFileError(f"{p}: gimbal time has a gap of {st[k]:.6g} s at line {line_no[k + 1]} "
+                              f"(t = {t[k]:.9g} -> {t[k + 1]:.9g} s; usual step {med:.6g} s)")
+    ang = np.unwrap(units.to_si(data[:, 1:3], u, "angle"), axis=0)
+    return t, ang
+
+
+# ----------------------------------------------------------------------------- export
+def write_rows(fh, a: np.ndarray) -> None:
+    np.savetxt(fh, a, fmt="%.17g", delimiter=",")

@@ -1,0 +1,300 @@
+"""Importing IMU data from other tools into an inscal record, and exporting records.
+
+``inscal import`` converts once; every other command reads the HDF5 record (:mod:`inscal.io`).
+
+Sources
+-------
+``psins``  raw binary (PSINS ``.bin``): little-endian float64 (default) or float32 rows of 7
+           values ``[dθx dθy dθz dvx dvy dvz t]`` (rad, m/s, s), or with ``rates=True`` the
+           rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
+           interval.  ``t`` is the END time of each sample interval (PSINS convention and the
+           record's).
+``mat``    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
+           the first 2-D numeric variable with 7 columns, or the named ``variable``.
+``csv``    delimited text described by a mapping TOML (below); without a mapping, the file
+``txt``    must start with the header line that :func:`export_record` writes.  ``txt``
+           defaults to whitespace-separated columns.
+
+Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
+
+    kind = "increments"            # default; or "rates" (then multiplied by the sample interval)
+    delimiter = ","                # one character, or "whitespace"; default "," (csv), whitespace (txt)
+    header_rows = 1                # default 0; lines before the data (names are read from the last one)
+    comment = "#"                  # default; lines starting with it (and blank lines) are skipped
+    axes = ["x", "y", "z"]         # IMU axis each file channel (1st, 2nd, 3rd) measures
+    signs = [1, 1, 1]              # and its sign: imu[axes[i]] = signs[i] * file[i]
+    [columns]                      # 0-based index or header name; time optional (then --rate-hz)
+    time = 0
+    gx = 1
+    gy = 2
+    gz = 3
+    ax = 4
+    ay = 5
+    az = 6
+    outer = 7                      # optional gimbal angle columns (both or neither)
+    inner = 8
+    [units]
+    time = "s"                     # default; s | ms
+    gyro = "deg"                   # required; increments: rad | deg | arcsec | urad; rates: rad/s | deg/s | deg/h
+    accel = "m/s"                  # required; increments: m/s | mm/s; rates: m/s^2 | g | mg | ug
+    # gyro = "counts"              # raw counts need a scale: "VALUE UNIT" (an angle unit for increments,
+    # gyro_scale = "0.1 arcsec"    #   a rate unit for rates) or a number in SI (rad, rad/s per count)
+    # accel = "counts"             #   likewise for the accelerometers (m/s or m/s^2 per count)
+    # accel_scale = 1e-6
+    gimbal = "deg"                 # deg | rad; required with the outer/inner columns
+    [site]                         # optional; --lat/--lon/--height override it
+    latitude_deg = 34.2
+    longitude_deg = 108.9
+    height_m = 400.0
+
+For ``psins``/``mat`` a mapping may only hold ``[site]``.
+
+Gimbal angles from encoders at another rate (``gimbal_file``: columns time, outer, inner;
+an optional header line; comma or whitespace separated) are unwrapped and interpolated
+linearly to the sample end times; they must cover the record.  Without encoders a rotation
+path (a ``[path]`` table as in scenario files) is stored in the record; the record's time is
+then shifted so that the path starts at 0 (``path_start``: the source time at which the path
+starts, default the start of the first sample interval).
+
+Checks (each refusal is one line): empty or header-only files, wrong column counts, text in
+numbers, integer data, NaN/Inf, the time base (backwards steps, repeats, gaps, jitter, a rate
+inconsistent with the timestamps), and the plausibility checks that ``skip`` may name:
+``constant`` (a channel that never changes), ``saturation`` (a channel pinned at its extreme
+while the others move), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
+m/s^2, degrees vs radians, rates vs increments) and ``motion`` (the gyros must turn when the
+gimbal angles / path say so, and only then).
+
+Exports (:func:`export_record`): ``csv`` (one header line with units; time, dtheta, dvel and
+the gimbal angles if recorded, ``%.17g`` so that importing gives back the same doubles),
+``psins`` (float64 ``.bin`` rows ``[dθ dv t]``) and ``mat`` (variable ``imu``, N x 7); the
+gimbal angles of a psins/mat export can go to a separate CSV that ``gimbal_file`` reads, and
+the rotation path to a TOML that ``path_file`` reads.  The site is not exported: give it again
+on import.
+
+An imported record has no ``/truth``; its root attribute ``source`` (JSON) names the file, its
+SHA-256, the format, the mapping / gimbal / path files, the checks skipped, whether the time
+was regridded and the time offset subtracted (the path start).
+"""
+
+from __future__ import annotations
+
+import json
+
+import math
+
+
+from contextlib import ExitStack
+
+
+
+from pathlib import Path
+
+import numpy as np
+
+
+from inscal.io.records import DataFileError, Record, RecordInfo, iter_chunks, record_info, validate_arrays, write_stream
+from inscal.io.files import atomic_path, file_hash
+
+from inscal.core.earth import Site
+
+from inscal.core.turntable import RotationPath
+from inscal.core.units import DEG
+from inscal.io.checks import check_constant, check_finite, check_integers, check_magnitudes, check_motion, check_saturation, time_base
+from inscal.io.formats import Raw, read_gimbal_file, read_mat, read_psins_bin, read_text, write_rows
+from inscal.io.mapping import CHECKS, EXPORT_FORMATS, EXPORT_HEADER, EXPORT_HEADER_GIMBAL, FORMATS, GIMBAL_HEADER, ImportFileError, Mapping, load_mapping, load_path
+
+
+# ----------------------------------------------------------------------------- import
+def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "float64", variable: str | None = None,
+                rates: bool = False) -> Raw:
+    """Read ``src`` in ``fmt`` (see the module docstring) into a :class:`Raw`."""
+    if fmt not in FORMATS:
+        raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+    p = Path(src)
+    if fmt == "psins":
+        return read_mat(p, variable, rates) if p.suffix.lower() == ".mat" else read_psins_bin(p, dtype, rates)
+    if fmt == "mat":
+        return read_mat(p, variable, rates)
+    return read_text(p, mapping, fmt)
+
+
+def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,
+                 path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
+                 skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
+                 gimbal_name: str = "gimbal angles") -> tuple[Record, dict]:
+    """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
+    ``(record, info)``; raises :class:`ImportFileError` with one line on any problem."""
+    unknown = set(skip) - set(CHECKS)
+    if unknown:
+        raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(CHECKS)}")
+    n = raw.gyro.shape[0]
+    check_finite(raw, where)
+    check_integers(raw, where)
+    time, rate, info = time_base(raw, n, rate_hz, where)
+    dt = 1.0 / rate
+    if "constant" not in skip:
+        check_constant(raw, where)
+    if "saturation" not in skip:
+        check_saturation(raw, where)
+    if raw.kind == "rates":
+        dth, dv = raw.gyro * dt, raw.accel * dt
+    else:
+        dth, dv = raw.gyro, raw.accel
+    if "magnitudes" not in skip:
+        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc)
+    gim = raw.gimbal
+    if gimbal is not None:
+        if gim is not None:
+            raise ImportFileError(f"{where} has gimbal angle columns; --gimbal would give them twice")
+        tg, ag = gimbal
+        if tg[0] > time[0] + 1e-9 * dt or tg[-1] < time[-1] - 1e-9 * dt:
+            raise ImportFileError(f"{gimbal_name}: the angles cover t = {tg[0]:.9g} .. {tg[-1]:.9g} s; the record needs "
+                                  f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)")
+        gim = np.column_stack([np.interp(time, tg, ag[:, 0]), np.interp(time, tg, ag[:, 1])])
+        info["gimbal"] = "file"
+    elif gim is not None:
+        gim = np.unwrap(gim, axis=0)
+        info["gimbal"] = "columns"
+    else:
+        info["gimbal"] = None
+    if gim is not None and "motion" not in skip:
+        check_motion(dth, gim, dt, "gimbal angles", time)
+    if path is not None:
+        start = time[0] - dt if path_start is None else float(path_start)
+        if not math.isfinite(start):
+            raise ImportFileError(f"--path-start-s must be finite, got {start}")
+        if time[0] - dt < start - 1e-6 * dt:
+            raise ImportFileError(f"the record starts at t = {time[0] - dt:.9g} s, before the path start {start:.9g} s")
+        span = time[-1] - start
+        if span > path.duration + 1e-6 * dt:
+            raise ImportFileError(f"path {path.name!r} lasts {path.duration:.6g} s, but the record runs {span:.6g} s "
+                                  f"from the path start (t = {start:.9g} s): wrong path or --path-start-s?")
+        time = time - start if start != 0.0 else time
+        info["path_start_s"] = float(start)
+        if gim is None and "motion" not in skip:
+            theta, _, _ = path.segments().angles(time)
+            check_motion(dth, theta, dt, f"path {path.name!r}", time)
+    rec = Record(np.ascontiguousarray(time, float), np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float),
+                 None if gim is None else np.ascontiguousarray(gim, float), rate, site, path, None, "", where)
+    try:
+        validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz, where=where)
+    except DataFileError as exc:
+        raise ImportFileError(str(exc)) from None
+    return rec, info
+
+
+def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False) -> int:
+    """Write an imported record atomically (the source is kept as a JSON attribute ``source``)."""
+    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None)
+    return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite,
+                        extra_attrs={"source": json.dumps(source_attrs)})
+
+
+def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
+                path_start: float | None = None, gimbal_file=None, gimbal_unit: str = "deg",
+                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
+                rates: bool = False, skip=(), overwrite: bool = False) -> dict:
+    """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary."""
+    src = Path(src)
+    if fmt not in FORMATS:
+        raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+    if dtype != "float64" and fmt != "psins":
+        raise ImportFileError("--dtype applies to --format psins (.bin)")
+    if variable is not None and fmt not in ("psins", "mat"):
+        raise ImportFileError("--variable applies to .mat files")
+    if rates and fmt in ("csv", "txt"):
+        raise ImportFileError("--rates applies to psins/mat; for csv/txt set kind = \"rates\" in the mapping")
+    if path_start is not None and path_file is None:
+        raise ImportFileError("--path-start-s applies with --path")
+    mapping, msite = load_mapping(mapping_file, fmt) if mapping_file is not None else (None, None)
+    site = site if site is not None else msite
+    if site is None:
+        raise ImportFileError("no site: give --lat, --lon and --height (or a [site] table in the mapping)")
+    path = load_path(path_file) if path_file is not None else None
+    gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
+    raw = read_source(src, fmt, mapping, dtype, variable, rates)
+    if mapping is not None:
+        ud = (mapping.gyro_unit, mapping.accel_unit)
+    else:
+        ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
+    rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file))
+    attrs = {"file": src.name, "hash": file_hash(src), "format": fmt,
+             "mapping": None if mapping_file is None else str(mapping_file),
+             "gimbal_file": None if gimbal_file is None else str(gimbal_file),
+             "path_file": None if path_file is None else str(path_file),
+             "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
+             "time_offset_s": info.get("path_start_s", 0.0)}
+    n = write_imported(out, rec, attrs, overwrite)
+    return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
+            "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
+            "path": None if path is None else path.name, "time_regridded": info["regridded"],
+            "time_offset_s": info.get("path_start_s", 0.0),
+            "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
+            "skipped_checks": sorted(skip)}
+
+
+def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,
+                  chunk_size: int = 1 << 18) -> dict:
+    """Export the record ``data`` as ``csv``, ``psins`` (.bin float64) or ``mat`` (atomic writes).
+
+    ``gimbal_out``: a CSV of ``time, outer, inner`` [s, rad, rad] (psins / mat only; the csv
+    export carries the angles in its own columns).  ``path_out``: the record's rotation path
+    as a TOML ``[path]`` table (what ``--path`` reads).  All outputs are written, or none."""
+    import tomli_w
+
+    if fmt not in EXPORT_FORMATS:
+        raise ImportFileError(f"unknown export format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+    info = record_info(data)
+    if gimbal_out is not None:
+        if fmt == "csv":
+            raise ImportFileError("--gimbal-out applies to psins/mat (a csv export has the gimbal columns)")
+        if not info.has_gimbal:
+            raise ImportFileError(f"{data}: the record has no gimbal angles for --gimbal-out")
+    if path_out is not None and info.path is None:
+        raise ImportFileError(f"{data}: the record has no rotation path for --path-out")
+    out = Path(out)
+    with ExitStack() as stack:
+        tmp = stack.enter_context(atomic_path(out, overwrite))
+        gtmp = stack.enter_context(atomic_path(gimbal_out, overwrite)) if gimbal_out is not None else None
+        if path_out is not None:
+            ptmp = stack.enter_context(atomic_path(path_out, overwrite))
+            ptmp.write_text(tomli_w.dumps({"path": info.path.to_dict()}))
+        _export_main(data, tmp, fmt, info, chunk_size, gtmp)
+    res = {"data": str(data), "format": fmt, "out": str(out), "samples": info.n_samples, "rate_hz": info.rate_hz,
+           "gimbal": "columns" if fmt == "csv" and info.has_gimbal else (str(gimbal_out) if gimbal_out else None),
+           "site": {"latitude_deg": info.site.latitude / DEG, "longitude_deg": info.site.longitude / DEG,
+                    "height_m": info.site.height},
+           "path": None if info.path is None else info.path.name,
+           "path_out": None if path_out is None else str(path_out)}
+    return res
+
+
+def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, gtmp: Path | None) -> None:
+    gfh = open(gtmp, "w") if gtmp is not None else None
+    try:
+        if gfh is not None:
+            gfh.write(",".join(GIMBAL_HEADER) + "\n")
+        if fmt == "mat":
+            import scipy.io
+
+            parts = []
+            for t, dth, dv, g in iter_chunks(data, chunk_size):
+                parts.append(np.column_stack([dth, dv, t]))
+                if gfh is not None:
+                    write_rows(gfh, np.column_stack([t, g]))
+            with open(tmp, "wb") as fh:
+                scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
+            return
+        with open(tmp, "w" if fmt == "csv" else "wb") as fh:
+            if fmt == "csv":
+                fh.write(",".join(EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])) + "\n")
+            for t, dth, dv, g in iter_chunks(data, chunk_size):
+                if fmt == "csv":
+                    write_rows(fh, np.column_stack([t, dth, dv] + ([g] if g is not None else [])))
+                else:
+                    np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
+                if gfh is not None:
+                    write_rows(gfh, np.column_stack([t, g]))
+    finally:
+        if gfh is not None:
+            gfh.close()

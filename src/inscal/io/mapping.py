@@ -1,0 +1,233 @@
+"""Import mappings: which column of a text file is which channel, in which unit and sign, and the
+formats, channels and checks the importers know (see :mod:`inscal.io.importers`)."""
+
+from __future__ import annotations
+
+
+import math
+
+from inscal.io.tomlfile import read_toml
+
+
+from dataclasses import dataclass
+
+
+from pathlib import Path
+
+
+from inscal.core import units
+
+from inscal.io.records import DataFileError
+
+from inscal.core.earth import Site
+
+from inscal.core.turntable import BUILTIN_PATHS, RotationPath, PathError
+
+
+FORMATS = ("psins", "csv", "txt", "mat")
+EXPORT_FORMATS = ("csv", "psins", "mat")
+CHECKS = ("constant", "saturation", "magnitudes", "motion")
+CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
+DEG = math.pi / 180.0
+
+#: the header line :func:`export_record` writes (csv); a csv without a mapping must start with it
+EXPORT_HEADER = ["time [s]", "dtheta_x [rad]", "dtheta_y [rad]", "dtheta_z [rad]",
+                 "dvel_x [m/s]", "dvel_y [m/s]", "dvel_z [m/s]"]
+EXPORT_HEADER_GIMBAL = ["outer [rad]", "inner [rad]"]
+GIMBAL_HEADER = ["time [s]", "outer [rad]", "inner [rad]"]
+
+#: timestamps must be uniform to this fraction of the step unless a rate is given
+JITTER_TOL = 1e-6
+#: with a given rate, steps may deviate by this fraction of the interval (they are regridded)
+REGRID_TOL = 0.1
+
+
+class ImportFileError(DataFileError):
+    """A source file that cannot be imported, with the reason (one line)."""
+
+
+# ----------------------------------------------------------------------------- mapping
+@dataclass(frozen=True)
+class Mapping:
+    """How to read a delimited text file (SI conversions come from :mod:`inscal.units`)."""
+
+    columns: dict
+    kind: str = "increments"
+    time_unit: str = "s"
+    gyro_unit: str = "rad"
+    accel_unit: str = "m/s"
+    gyro_scale: float | None = None
+    accel_scale: float | None = None
+    gimbal_unit: str = "rad"
+    axes: tuple = (0, 1, 2)
+    signs: tuple = (1.0, 1.0, 1.0)
+    delimiter: str | None = ","
+    header_rows: int = 0
+    comment: str = "#"
+
+
+_TOP = {"kind", "delimiter", "header_rows", "comment", "axes", "signs", "columns", "units", "site"}
+_COLS = {"time", "gx", "gy", "gz", "ax", "ay", "az", "outer", "inner"}
+_UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal"}
+_SITE = {"latitude_deg", "longitude_deg", "height_m"}
+
+
+def _keys(where: str, d, allowed: set) -> None:
+    if not isinstance(d, dict):
+        raise ImportFileError(f"{where} must be a table")
+    unknown = set(d) - allowed
+    if unknown:
+        raise ImportFileError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+
+
+def _scale(value, unit_kind: str, name: str) -> float:
+    """A counts scale: a number in SI, or "VALUE UNIT" in a unit of ``unit_kind``."""
+    if isinstance(value, bool):
+        raise ImportFileError(f"[units] {name} must be a number or \"VALUE UNIT\", got {value!r}")
+    if isinstance(value, (int, float)):
+        s = float(value)
+    elif isinstance(value, str):
+        parts = value.split(None, 1)
+        try:
+            s = float(units.to_si(float(parts[0]), parts[1], unit_kind))
+        except (IndexError, ValueError) as exc:  # UnitError is a ValueError
+            raise ImportFileError(f"[units] {name} = {value!r}: expected \"VALUE UNIT\" with a {unit_kind} unit ({exc})") from None
+    else:
+        raise ImportFileError(f"[units] {name} must be a number or \"VALUE UNIT\", got {value!r}")
+    if not (math.isfinite(s) and s != 0):
+        raise ImportFileError(f"[units] {name} must be finite and non-zero, got {value!r}")
+    return s
+
+
+def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
+    """Check a mapping document; returns ``(mapping or None, site or None)``."""
+    _keys("mapping", d, _TOP)
+    site = None
+    if "site" in d:
+        s = d["site"]
+        _keys("[site]", s, _SITE)
+        missing = _SITE - set(s)
+        if missing:
+            raise ImportFileError(f"[site] needs {sorted(_SITE)}; missing {sorted(missing)}")
+        try:
+            site = Site(float(s["latitude_deg"]) * DEG, float(s["longitude_deg"]) * DEG, float(s["height_m"]))
+        except (TypeError, ValueError) as exc:
+            raise ImportFileError(f"[site]: {exc}") from None
+    rest = set(d) - {"site"}
+    if fmt in ("psins", "mat"):
+        if rest:
+            raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format csv|txt; a {fmt} mapping may only hold [site]")
+        return None, site
+    if "columns" not in d:
+        raise ImportFileError("mapping needs a [columns] table (gx, gy, gz, ax, ay, az, and time)")
+    kind = d.get("kind", "increments")
+    if kind not in ("increments", "rates"):
+        raise ImportFileError(f"kind must be \"increments\" or \"rates\", got {kind!r}")
+    cols = d["columns"]
+    _keys("[columns]", cols, _COLS)
+    missing = [c for c in CHANNELS if c not in cols]
+    if missing:
+        raise ImportFileError(f"[columns] needs {list(CHANNELS)}; missing {missing}")
+    if ("outer" in cols) != ("inner" in cols):
+        raise ImportFileError("[columns] outer and inner go together (both or neither)")
+    for k, v in cols.items():
+        if isinstance(v, bool) or not isinstance(v, (int, str)) or (isinstance(v, int) and v < 0):
+            raise ImportFileError(f"[columns] {k} must be a 0-based column index or a header name, got {v!r}")
+    seen = {}
+    for k, v in cols.items():
+        if v in seen:
+            raise ImportFileError(f"[columns] {seen[v]} and {k} both read column {v!r}")
+        seen[v] = k
+    u = d.get("units", {})
+    _keys("[units]", u, _UNITS)
+    for k in ("gyro", "accel"):
+        if k not in u:
+            raise ImportFileError(f"[units] needs {k} (e.g. gyro = \"deg\", accel = \"m/s\" for increments)")
+    inc = kind == "increments"
+    gk, ak = ("angle", "velocity") if inc else ("rate", "accel")
+    conv = {}
+    for k, uk in (("gyro", gk), ("accel", ak)):
+        unit = u[k]
+        if not isinstance(unit, str):
+            raise ImportFileError(f"[units] {k} must be a string, got {unit!r}")
+        if unit == "counts":
+            if f"{k}_scale" not in u:
+                raise ImportFileError(f"[units] {k} = \"counts\" needs {k}_scale (value of one count)")
+            conv[k] = ("counts", _scale(u[f"{k}_scale"], uk, f"{k}_scale"))
+        else:
+            if f"{k}_scale" in u:
+                raise ImportFileError(f"[units] {k}_scale applies to {k} = \"counts\" only")
+            try:
+                conv[k] = (units.check_kind(unit, uk), None)
+            except units.UnitError as exc:
+                raise ImportFileError(f"[units] {k}: {exc} (kind = {kind!r})") from None
+    try:
+        tu = units.check_kind(str(u.get("time", "s")), "time")
+        gu = units.check_kind(str(u.get("gimbal", "rad")), "angle")
+    except units.UnitError as exc:
+        raise ImportFileError(f"[units]: {exc}") from None
+    if "outer" in cols and "gimbal" not in u:
+        raise ImportFileError("[units] needs gimbal = \"deg\" or \"rad\" with the outer/inner columns")
+    axes = d.get("axes", ["x", "y", "z"])
+    if not (isinstance(axes, list) and sorted(map(str, axes)) == ["x", "y", "z"]):
+        raise ImportFileError(f"axes must be a permutation of [\"x\", \"y\", \"z\"], got {axes!r}")
+    signs = d.get("signs", [1, 1, 1])
+    if not (isinstance(signs, list) and len(signs) == 3 and all(s in (1, -1) and not isinstance(s, bool) for s in signs)):
+        raise ImportFileError(f"signs must be three of 1 / -1, got {signs!r}")
+    delim = d.get("delimiter", "," if fmt == "csv" else "whitespace")
+    if not isinstance(delim, str) or not (delim == "whitespace" or len(delim) == 1):
+        raise ImportFileError(f"delimiter must be one character or \"whitespace\", got {delim!r}")
+    hr = d.get("header_rows", 0)
+    if isinstance(hr, bool) or not isinstance(hr, int) or hr < 0:
+        raise ImportFileError(f"header_rows must be an integer >= 0, got {hr!r}")
+    if hr == 0 and any(isinstance(v, str) for v in cols.values()):
+        raise ImportFileError("columns given by name need header_rows >= 1")
+    comment = d.get("comment", "#")
+    if not isinstance(comment, str) or len(comment) != 1:
+        raise ImportFileError(f"comment must be one character, got {comment!r}")
+    m = Mapping(dict(cols), kind, tu, conv["gyro"][0], conv["accel"][0], conv["gyro"][1], conv["accel"][1], gu,
+                tuple("xyz".index(a) for a in axes), tuple(float(s) for s in signs),
+                None if delim == "whitespace" else delim, hr, comment)
+    return m, site
+
+
+def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:
+    p = Path(path)
+    d = read_toml(p, ImportFileError, "mapping file")
+    try:
+        return parse_mapping(d, fmt)
+    except ImportFileError as exc:
+        raise ImportFileError(f"{p}: {exc}") from None
+
+
+def default_mapping(gimbal: bool) -> Mapping:
+    """The mapping of a csv written by :func:`export_record`."""
+    cols = {"time": 0, "gx": 1, "gy": 2, "gz": 3, "ax": 4, "ay": 5, "az": 6}
+    if gimbal:
+        cols.update(outer=7, inner=8)
+    return Mapping(cols, "increments", "s", "rad", "m/s", None, None, "rad", (0, 1, 2), (1.0, 1.0, 1.0), ",", 1, "#")
+
+
+def load_path(path) -> RotationPath:
+    """A rotation path from a TOML file holding one ``[path]`` table (as in scenario files)."""
+    p = Path(path)
+    d = read_toml(p, ImportFileError, "path file")
+    if set(d) - {"path"} or "path" not in d:
+        raise ImportFileError(f"{p}: a path file holds one [path] table, got key(s) {sorted(d)}")
+    pd = dict(d["path"]) if isinstance(d["path"], dict) else None
+    if pd is None:
+        raise ImportFileError(f"{p}: [path] must be a table")
+    try:
+        if "builtin" in pd:
+            name = pd.pop("builtin")
+            if name not in BUILTIN_PATHS or name in ("static", "rotmod16"):
+                known = sorted(set(BUILTIN_PATHS) - {"static", "rotmod16"})
+                raise ImportFileError(f"{p}: [path] builtin {name!r} is not a fixed path; known: {known}")
+            if pd:
+                raise ImportFileError(f"{p}: [path] with builtin takes no other keys, got {sorted(pd)}")
+            return BUILTIN_PATHS[name]()
+        return RotationPath.from_dict(pd)
+    except (PathError, TypeError, ValueError) as exc:
+        if isinstance(exc, ImportFileError):
+            raise
+        raise ImportFileError(f"{p}: [path]: {exc}") from None

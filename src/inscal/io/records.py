@@ -1,0 +1,572 @@
+"""Data files: IMU records in HDF5 (simulated or recorded).
+
+Layout (schema version :data:`inscal.SCHEMA_VERSION`)::
+
+    /                attrs: kind="inscal-record", schema_version, inscal_version, created,
+                            scenario, rate_hz, units (JSON: dataset -> unit), path (JSON or "")
+    /time            (N,)   s       end time of each increment interval
+    /dtheta          (N, 3) rad     angular increments, IMU s-frame
+    /dvel            (N, 3) m/s     velocity increments, IMU s-frame
+    /gimbal          (N, 2) rad     recorded gimbal angles (outer, inner) at /time (optional)
+    /site            attrs: latitude_rad, longitude_rad, height_m, gravity_model (JSON
+                            {"kind": "wgs84"|"psins"|"measured", "value": m/s^2 or null};
+                            absent: wgs84)
+    /truth           (simulated data only) groups imu/, gimbal/, noise/ with SI datasets
+
+Files are written to a temporary name in the same folder and renamed when complete,
+so a crash never leaves a half-written file under the requested name, and an existing
+file is never overwritten unless asked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import datetime as _dt
+
+
+import json
+
+import math
+
+
+
+from contextlib import contextmanager
+
+from dataclasses import dataclass
+
+from pathlib import Path
+
+from typing import TYPE_CHECKING, Iterator
+
+import h5py
+
+import numpy as np
+
+from inscal import SCHEMA_VERSION, __version__
+
+if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
+    from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+    from inscal.core.earth import Site
+    from inscal.core.turntable import RotationPath
+
+
+from inscal.io.files import atomic_path, check_cancel
+
+
+
+
+#: names this module re-exports from the domain modules, imported on first use (PEP 562)
+KIND = "inscal-record"
+UNITS = {"time": "s", "dtheta": "rad", "dvel": "m/s", "gimbal": "rad"}
+
+
+class DataFileError(ValueError):
+    """A data file that cannot be used, with the reason."""
+
+
+@dataclass(frozen=True)
+class Truth:
+    imu: ImuErrors
+    gimbal: GimbalErrors
+    noise: ImuNoise
+
+
+@dataclass
+class Record:
+    """An IMU record in memory (SI)."""
+
+    time: np.ndarray
+    dtheta: np.ndarray
+    dvel: np.ndarray
+    gimbal: np.ndarray | None
+    rate_hz: float
+    site: Site
+    path: RotationPath | None = None
+    truth: Truth | None = None
+    scenario: str = ""
+    source: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.time.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.n_samples / self.rate_hz)
+
+
+# ----------------------------------------------------------------------------- writing
+def _write_dataclass(group, obj) -> None:
+    for f in dataclasses.fields(obj):
+        group.create_dataset(f.name, data=np.asarray(getattr(obj, f.name), dtype=float))
+
+
+def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
+    h5.attrs["kind"] = KIND
+    h5.attrs["schema_version"] = SCHEMA_VERSION
+    h5.attrs["inscal_version"] = __version__
+    h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    h5.attrs["scenario"] = scenario_name
+    h5.attrs["rate_hz"] = float(rate_hz)
+    h5.attrs["units"] = json.dumps(UNITS)
+    h5.attrs["path"] = path.to_json() if path is not None else ""
+    s = h5.create_group("site")
+    s.attrs["latitude_rad"] = site.latitude
+    s.attrs["longitude_rad"] = site.longitude
+    s.attrs["height_m"] = site.height
+    s.attrs["gravity_model"] = json.dumps(site.gravity_model.to_json())
+    ch = min(max(n, 1), 1 << 16)
+    h5.create_dataset("time", shape=(n,), dtype="f8", chunks=(ch,))
+    h5.create_dataset("dtheta", shape=(n, 3), dtype="f8", chunks=(ch, 3))
+    h5.create_dataset("dvel", shape=(n, 3), dtype="f8", chunks=(ch, 3))
+    if has_gimbal:
+        h5.create_dataset("gimbal", shape=(n, 2), dtype="f8", chunks=(ch, 2))
+
+
+def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None) -> int:
+    """Write a record chunk by chunk from an iterator of ``(time, dtheta, dvel, gimbal)``
+    (atomic; only one chunk in memory).  ``info`` gives the metadata; its truth, if any, is
+    written under /truth."""
+    k = 0
+    with atomic_path(path, overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            _create_layout(h5, info.scenario, info.rate_hz, info.site, info.path, info.n_samples, info.has_gimbal)
+            for key, val in (extra_attrs or {}).items():
+                h5.attrs[key] = val
+            for t, dth, dv, g in chunks:
+                check_cancel()
+                sl = slice(k, k + t.shape[0])
+                h5["time"][sl] = t
+                h5["dtheta"][sl] = dth
+                h5["dvel"][sl] = dv
+                if info.has_gimbal:
+                    h5["gimbal"][sl] = g
+                k = sl.stop
+            if k != info.n_samples:
+                raise DataFileError(f"wrote {k} samples, expected {info.n_samples}")
+            if info.truth is not None:
+                t = h5.create_group("truth")
+                _write_dataclass(t.create_group("imu"), info.truth.imu)
+                _write_dataclass(t.create_group("gimbal"), info.truth.gimbal)
+                _write_dataclass(t.create_group("noise"), info.truth.noise)
+    return k
+
+
+def write_record(path, rec: Record, overwrite: bool = False) -> None:
+    """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
+    validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
+    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, rec.truth, rec.scenario, rec.gimbal is not None)
+    write_stream(path, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite)
+
+
+# ----------------------------------------------------------------------------- reading
+def _rate(h5, path) -> float:
+    if "rate_hz" not in h5.attrs:
+        raise DataFileError(f"{path}: missing attribute rate_hz (not an inscal record, or a damaged one)")
+    try:
+        return float(h5.attrs["rate_hz"])
+    except (TypeError, ValueError):
+        raise DataFileError(f"{path}: attribute rate_hz is not a number") from None
+
+
+def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") -> None:
+    """Shape, finiteness and time-grid checks with messages that say what is wrong."""
+    n = np.shape(time)[0] if np.ndim(time) == 1 else None
+    if n is None:
+        raise DataFileError(f"{where}: time must be a 1-D array, got shape {np.shape(time)}")
+    for name, a, cols in (("dtheta", dtheta, 3), ("dvel", dvel, 3), ("gimbal", gimbal, 2)):
+        if a is None:
+            continue
+        if not np.issubdtype(np.asarray(a).dtype, np.floating):
+            raise DataFileError(f"{where}: {name} must be floating point (SI units), got {np.asarray(a).dtype}")
+        if np.shape(a) != (n, cols):
+            raise DataFileError(f"{where}: {name} has shape {np.shape(a)}, expected ({n}, {cols}) to match time")
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise DataFileError(f"{where}: rate_hz must be positive, got {rate_hz}")
+    if n < 2:
+        raise DataFileError(f"{where}: fewer than 2 samples")
+    for name, a in (("time", time), ("dtheta", dtheta), ("dvel", dvel), ("gimbal", gimbal)):
+        if a is None:
+            continue
+        bad = ~np.isfinite(np.asarray(a))
+        if bad.any():
+            idx = int(np.argmax(bad.reshape(n, -1).any(axis=1)))
+            raise DataFileError(f"{where}: {name} has {int(bad.sum())} NaN/inf value(s), first at sample {idx} (t = {time[idx]} s)")
+    dt = np.diff(time)
+    nominal = 1.0 / rate_hz
+    gaps = np.flatnonzero(np.abs(dt - nominal) > 0.01 * nominal)
+    if gaps.size:
+        k = int(gaps[0])
+        raise DataFileError(
+            f"{where}: time is not uniform at {rate_hz:g} Hz: {gaps.size} irregular step(s), first between "
+            f"t = {time[k]:.6f} s and {time[k + 1]:.6f} s (step {dt[k]:.6g} s, expected {nominal:.6g} s)"
+        )
+
+
+#: what HDF5 and the decoding of a damaged file raise (h5py: OSError, RuntimeError, KeyError, ...)
+_DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError, AttributeError, UnicodeDecodeError,
+           OverflowError)
+
+
+@contextmanager
+def _reading(path):
+    """Turn the errors of a damaged file (HDF5 metadata, attributes that do not decode) into one
+    :class:`DataFileError` that names the file."""
+    try:
+        yield
+    except DataFileError:
+        raise
+    except _DAMAGE as exc:
+        msg = " ".join(str(exc).split())
+        raise DataFileError(f"{path}: damaged or not an inscal record ({type(exc).__name__}: "
+                            f"{msg[:200] + '...' if len(msg) > 200 else msg})") from None
+
+
+def _open(path) -> h5py.File:
+    p = Path(path)
+    if not p.exists():
+        raise DataFileError(f"{p}: no such file")
+    try:
+        h5 = h5py.File(p, "r")
+    except OSError as exc:
+        raise DataFileError(f"{p}: not a readable HDF5 file (truncated or not HDF5?): {exc}") from None
+    try:
+        with _reading(p):
+            _check_header(h5, p)
+    except BaseException:
+        h5.close()
+        raise
+    return h5
+
+
+def _check_header(h5, p) -> None:
+    kind = h5.attrs.get("kind", "")
+    if kind != KIND:
+        raise DataFileError(f"{p}: not an inscal record (kind={kind!r})")
+    ver = int(h5.attrs.get("schema_version", -1))
+    if ver != SCHEMA_VERSION:
+        raise DataFileError(f"{p}: schema version {ver}, this inscal ({__version__}) reads version {SCHEMA_VERSION}")
+    units = json.loads(h5.attrs.get("units", "{}"))
+    if not isinstance(units, dict):
+        raise DataFileError(f"{p}: attribute units is not a JSON table")
+    for k, u in UNITS.items():
+        if k in h5 and units.get(k) != u:
+            raise DataFileError(f"{p}: dataset {k} is in {units.get(k)!r}, expected {u!r}")
+    for k in ("time", "dtheta", "dvel", "site"):
+        if k not in h5:
+            raise DataFileError(f"{p}: missing /{k}")
+
+
+#: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
+def truth_groups() -> dict:
+    from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+
+    return {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
+
+
+def _read_dataclass(group, cls, where: str = ""):
+    """Every field of ``cls`` from the datasets of ``group``.  A missing field is an error that
+    names it: the truth is optional as a whole (measured records have none), but a partial
+    truth is never completed with silent zeros."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    keys = set(group.keys())
+    unknown = keys - set(names)
+    if unknown:
+        raise DataFileError(f"{where}truth{group.name.removeprefix('/truth')}: unknown parameters {sorted(unknown)} "
+                            "(file from another version?)")
+    missing = [n for n in names if n not in keys]
+    if missing:
+        raise DataFileError(f"{where}partial truth: {group.name} lacks {', '.join(missing)} (a record's truth is "
+                            "complete or absent; delete /truth to use it as a measured record)")
+    kw = {}
+    for k in names:
+        ds = group[k]
+        if not isinstance(ds, h5py.Dataset) or not np.issubdtype(ds.dtype, np.number):
+            raise DataFileError(f"{where}truth {group.name}/{k} is not a numeric dataset (SI units)")
+        v = ds[()]
+        kw[k] = float(v) if np.ndim(v) == 0 else np.asarray(v, dtype=float)
+    try:
+        return cls(**kw)
+    except (TypeError, ValueError) as exc:
+        raise DataFileError(f"{where}truth {group.name}: {exc}") from None
+
+
+def _read_truth(h5, p) -> "Truth | None":
+    """The /truth group (None when absent); an incomplete one is a :class:`DataFileError`."""
+    if "truth" not in h5:
+        return None
+    t = h5["truth"]
+    missing = []
+    for g, cls in truth_groups().items():
+        if g not in t or not isinstance(t[g], h5py.Group):
+            missing.append(f"{g}/ (all of it)")
+        else:
+            missing += [f"{g}/{f.name}" for f in dataclasses.fields(cls) if f.name not in t[g]]
+    if missing:
+        raise DataFileError(f"{p}: partial truth: /truth lacks {', '.join(missing)} (a record's truth is complete "
+                            "or absent; delete /truth to use it as a measured record)")
+    parts = {g: _read_dataclass(t[g], cls, where=f"{p}: ") for g, cls in truth_groups().items()}
+    return Truth(parts["imu"], parts["gimbal"], parts["noise"])
+
+
+def _meta(h5, p):
+    from inscal.core.earth import GravityModel
+    from inscal.core.earth import Site
+    from inscal.core.turntable import RotationPath, PathError
+
+    s = h5["site"].attrs
+    try:
+        gm = s.get("gravity_model")
+        gravity = GravityModel.from_json(json.loads(gm) if gm else None)
+    except (ValueError, TypeError) as exc:
+        raise DataFileError(f"{p}: stored gravity model is invalid: {exc}") from None
+    site = Site(float(s["latitude_rad"]), float(s["longitude_rad"]), float(s["height_m"]), gravity)
+    pj = h5.attrs.get("path", "")
+    try:
+        path = RotationPath.from_json(pj) if pj else None
+    except (PathError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{p}: stored rotation path is invalid: {exc}") from None
+    return site, path, _read_truth(h5, p)
+
+
+def read_record(path) -> Record:
+    """Read a whole record, validated (shapes, NaN, uniform time, schema version)."""
+    with _open(path) as h5, _reading(path):
+        try:
+            time = h5["time"][()]
+            dth = h5["dtheta"][()]
+            dv = h5["dvel"][()]
+            gim = h5["gimbal"][()] if "gimbal" in h5 else None
+        except OSError as exc:
+            raise DataFileError(f"{path}: cannot read data (truncated file?): {exc}") from None
+        rate = _rate(h5, path)
+        site, p, truth = _meta(h5, path)
+        scen = str(h5.attrs.get("scenario", ""))
+    validate_arrays(time, dth, dv, gim, rate, where=str(path))
+    return Record(time, dth, dv, gim, rate, site, p, truth, scen, str(path))
+
+
+@dataclass
+class RecordInfo:
+    n_samples: int
+    rate_hz: float
+    site: Site
+    path: RotationPath | None
+    truth: Truth | None
+    scenario: str
+    has_gimbal: bool
+
+
+def record_info(path) -> RecordInfo:
+    """Metadata of a record without reading its samples."""
+    with _open(path) as h5, _reading(path):
+        check_datasets(h5, path)
+        site, p, truth = _meta(h5, path)
+        return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
+                          str(h5.attrs.get("scenario", "")), "gimbal" in h5)
+
+
+def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """Yield ``(time, dtheta, dvel, gimbal)`` slices of a record, validated per chunk,
+    holding only one chunk in memory (for multi-day records)."""
+    with _open(path) as h5, _reading(path):
+        rate = _rate(h5, path)
+        n = h5["time"].shape[0]
+        last_t = None
+        for k0 in range(0, n, chunk_size):
+            check_cancel()
+            sl = slice(k0, min(n, k0 + chunk_size))
+            try:
+                t = h5["time"][sl]
+                dth = h5["dtheta"][sl]
+                dv = h5["dvel"][sl]
+                g = h5["gimbal"][sl] if "gimbal" in h5 else None
+            except OSError as exc:
+                raise DataFileError(f"{path}: cannot read samples {sl.start}..{sl.stop} (truncated file?): {exc}") from None
+            tt = t if last_t is None else np.concatenate([[last_t], t])
+            if tt.shape[0] >= 2:
+                validate_arrays(tt, None, None, None, rate, where=f"{path} samples {sl.start}..{sl.stop}")
+            for name, a in (("dtheta", dth), ("dvel", dv), ("gimbal", g)):
+                if a is not None and not np.all(np.isfinite(a)):
+                    raise DataFileError(f"{path}: {name} has NaN/inf in samples {sl.start}..{sl.stop}")
+            last_t = t[-1]
+            yield t, dth, dv, g
+
+
+#: columns of the sample datasets (None: 1-D)
+_COLUMNS = {"time": None, "dtheta": 3, "dvel": 3, "gimbal": 2}
+
+
+def check_datasets(h5, path) -> int:
+    """Shapes and types of a record's sample datasets, checked without reading them (floating point,
+    (N,), (N, 3), (N, 3), (N, 2)); returns N.  :class:`DataFileError` names what is wrong."""
+    n = None
+    for name, cols in _COLUMNS.items():
+        if name not in h5:
+            continue
+        ds = h5[name]
+        if not isinstance(ds, h5py.Dataset):
+            raise DataFileError(f"{path}: /{name} is not a dataset")
+        if not np.issubdtype(ds.dtype, np.floating):
+            raise DataFileError(f"{path}: {name} must be floating point (SI units: {UNITS[name]}), got {ds.dtype}")
+        if n is None:
+            n = int(ds.shape[0]) if len(ds.shape) == 1 else -1
+            if n < 0:
+                raise DataFileError(f"{path}: time must be a 1-D array, got shape {ds.shape}")
+        elif ds.shape != (n, cols):
+            raise DataFileError(f"{path}: {name} has shape {ds.shape}, expected ({n}, {cols}) to match time")
+    return int(n)
+
+
+@dataclass(frozen=True)
+class Window:
+    """The samples ``i0 .. i1 - 1`` of a record whose time lies in ``(start_s, stop_s]``."""
+
+    path: str
+    n_total: int
+    rate_hz: float
+    i0: int
+    i1: int
+    has_gimbal: bool
+
+    @property
+    def n(self) -> int:
+        return self.i1 - self.i0
+
+
+def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Window:
+    """Locate the samples with ``start_s < time <= stop_s`` by bisection of /time (a few reads,
+    not the whole record), after the layout checks of :func:`check_datasets`.  The samples
+    themselves are validated as they are streamed (:func:`iter_window`)."""
+    import bisect
+
+    with _open(path) as h5, _reading(path):
+        rate = _rate(h5, path)
+        n = check_datasets(h5, path)
+        if not (math.isfinite(rate) and rate > 0):
+            raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
+        t = h5["time"]
+        try:
+            i0 = bisect.bisect_right(t, start_s)
+            i1 = n if stop_s is None else bisect.bisect_right(t, stop_s)
+        except OSError as exc:
+            raise DataFileError(f"{path}: cannot read /time (truncated file?): {exc}") from None
+        return Window(str(path), n, rate, i0, max(i0, i1), "gimbal" in h5)
+
+
+def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int = 1 << 18) -> Iterator[tuple]:
+    """Yield tuples of the datasets ``names`` (None for an absent gimbal) over samples ``i0 .. i1 - 1``,
+    one chunk at a time (bounded memory); each chunk is checked (finite values; /time uniform at
+    rate_hz, across chunk boundaries too, when "time" is among ``names``)."""
+    with _open(path) as h5, _reading(path):
+        rate = _rate(h5, path)
+        check_datasets(h5, path)
+        last_t = None
+        for k0 in range(i0, i1, chunk_size):
+            check_cancel()
+            sl = slice(k0, min(i1, k0 + chunk_size))
+            try:
+                out = tuple(h5[nm][sl] if nm in h5 else None for nm in names)
+            except OSError as exc:
+                raise DataFileError(f"{path}: cannot read samples {sl.start}..{sl.stop} (truncated file?): {exc}") from None
+            for nm, a in zip(names, out):
+                if a is None:
+                    continue
+                if not np.all(np.isfinite(a)):
+                    bad = ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+                    raise DataFileError(f"{path}: {nm} has NaN/inf value(s), first at sample {sl.start + int(np.argmax(bad))}")
+                if nm == "time":
+                    tt = a if last_t is None else np.concatenate([[last_t], a])
+                    if tt.shape[0] >= 2:
+                        validate_arrays(tt, None, None, None, rate, where=f"{path} samples {sl.start}..{sl.stop}")
+                    last_t = a[-1]
+            yield out
+
+
+class LazyArray:
+    """A record dataset read on demand (the samples stay on disk): ``a[i:j]`` reads those rows,
+    ``a[::step]`` / ``a[::step, k]`` reads the decimated rows chunk by chunk (contiguous reads,
+    cached per step) for plots; ``np.asarray(a)`` reads it all (avoid it on long records)."""
+
+    def __init__(self, ds, chunk_size: int = 1 << 18, where=""):
+        self._ds, self._chunk, self._dec, self._where = ds, chunk_size, {}, where or ds.name
+        self.shape, self.dtype, self.ndim = ds.shape, ds.dtype, ds.ndim
+
+    def __len__(self) -> int:
+        return int(self.shape[0])
+
+    def decimated(self, step: int) -> np.ndarray:
+        """Rows 0, step, 2 step, ... (read in contiguous chunks)."""
+        if step not in self._dec:
+            n, parts = self.shape[0], []
+            block = max(step, (self._chunk // step) * step)
+            for a in range(0, n, block):
+                check_cancel()
+                with _reading(self._where):
+                    parts.append(self._ds[a:min(n, a + block)][::step].copy())  # not a view of the block
+            self._dec[step] = np.concatenate(parts) if parts else self._ds[0:0]
+        return self._dec[step]
+
+    def __getitem__(self, key):
+        first, rest = (key[0], key[1:]) if isinstance(key, tuple) else (key, ())
+        if isinstance(first, slice) and first.step not in (None, 1) and first.start is None and first.stop is None:
+            d = self.decimated(int(first.step))
+            return d[(slice(None), *rest)] if rest else d
+        with _reading(self._where):
+            return self._ds[key]
+
+    def __array__(self, dtype=None, copy=None):
+        a = self._ds[()]
+        return a if dtype is None else a.astype(dtype)
+
+
+@contextmanager
+def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
+    """A :class:`Record` whose samples stay on disk (:class:`LazyArray` datasets), for reports of
+    multi-day records in bounded memory; the file is open inside the ``with`` block.  With
+    ``validate`` the samples are first streamed once through the checks of :func:`read_record`
+    (finite values, uniform time), one chunk at a time."""
+    with _open(path) as h5:
+        with _reading(path):
+            n = check_datasets(h5, path)
+            rate = _rate(h5, path)
+            if not (math.isfinite(rate) and rate > 0):
+                raise DataFileError(f"{path}: rate_hz must be positive, got {rate}")
+            if n < 2:
+                raise DataFileError(f"{path}: fewer than 2 samples")
+            site, p, truth = _meta(h5, path)
+            scen = str(h5.attrs.get("scenario", ""))
+            if validate:
+                for _ in iter_chunks(path, chunk_size):
+                    pass
+            lazy = {k: LazyArray(h5[k], where=path) for k in ("time", "dtheta", "dvel", "gimbal") if k in h5}
+        yield Record(lazy["time"], lazy["dtheta"], lazy["dvel"], lazy.get("gimbal"), rate, site, p, truth, scen, str(path))
+
+
+def record_attrs(path: RotationPath, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:
+    """String attributes of a record file (None when absent or empty)."""
+    import h5py
+
+    out = {}
+    try:
+        with h5py.File(path, "r") as h5:
+            for n in names:
+                v = h5.attrs.get(n)
+                v = v.decode() if isinstance(v, bytes) else (None if v is None else str(v))
+                out[n] = v or None
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError, AttributeError):  # a damaged file: no attributes
+        out = {n: None for n in names}
+    return out
+
+
+def compensated_with(attrs: dict) -> str | None:
+    """A short description of a record's ``compensated_with`` attribute, None if not compensated."""
+    raw = attrs.get("compensated_with")
+    if not raw:
+        return None
+    try:
+        cw = json.loads(raw)
+        return f"{cw.get('file', '?')} ({cw.get('method', '?')})"
+    except (ValueError, AttributeError):
+        return str(raw)

@@ -1,0 +1,190 @@
+"""Navigation errors against the truth, and their Schuler, Foucault and Earth-rate oscillations."""
+
+from __future__ import annotations
+
+import math
+
+from dataclasses import dataclass
+
+
+import numpy as np
+
+
+
+from scipy.optimize import least_squares
+
+from inscal.core import earth
+
+from inscal.core.attitude import dcm_from_euler, euler_from_dcm, small_angle_error
+
+from inscal.core.error_model import GimbalErrors
+
+from inscal.nav.strapdown import NavOutput
+
+
+DAY = 86400.0
+
+
+# ============================================================================ truth and errors
+@dataclass
+class NavErrors:
+    """Errors of a navigation output against a static-site truth (SI).  Without a simulation
+    truth (recorded data) only the position and velocity errors are known (the site is
+    static and surveyed); ``attitude`` and ``vehicle`` are then None."""
+
+    time: np.ndarray
+    attitude: np.ndarray | None  # IMU attitude error phi, n-frame (N, 3) [rad]
+    vehicle: np.ndarray | None  # vehicle [roll, pitch, yaw] error (N, 3) [rad]
+    velocity: np.ndarray  # (N, 3) [m/s]
+    position: np.ndarray  # East, North, Up (N, 3) [m]
+
+    @property
+    def horizontal(self) -> np.ndarray:
+        return np.hypot(self.position[:, 0], self.position[:, 1])
+
+
+def _wrap(a):
+    return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
+
+
+def navigation_errors(out: NavOutput, scenario=None, gimbal_model: GimbalErrors | None = None,
+                      site=None) -> NavErrors:
+    """Errors of ``out`` against the truth of a simulated static-site ``scenario``: the site
+    position, zero velocity, the true IMU attitude (:func:`inscal.simulate.true_attitude`)
+    and the true vehicle attitude (the gimbal mount attitude, N25 eq. 8).  With only a
+    ``site`` (recorded data on a static base), position and velocity errors."""
+    from inscal.core.kinematics import true_attitude
+
+    if scenario is not None:
+        site = scenario.site
+        C_true = true_attitude(scenario, out.time)
+        phi = small_angle_error(out.C_s_n, C_true)
+        if out.gimbal is not None:
+            veh_true = euler_from_dcm(dcm_from_euler(scenario.gimbal.mount_attitude))
+        else:  # no gimbal angles recorded: compare the IMU attitude's Euler angles
+            veh_true = euler_from_dcm(C_true)
+        veh = _wrap(out.vehicle_attitude(gimbal_model) - veh_true)
+    elif site is None:
+        raise ValueError("navigation errors need a scenario (truth) or at least the static site")
+    else:
+        phi = veh = None
+    rm, rn = earth.radii(site.latitude)
+    pos = np.stack([
+        _wrap(out.position[:, 1] - site.longitude) * (rn + site.height) * math.cos(site.latitude),
+        (out.position[:, 0] - site.latitude) * (rm + site.height),
+        out.position[:, 2] - site.height,
+    ], axis=-1)
+    return NavErrors(out.time.copy(), phi, veh, out.velocity.copy(), pos)
+
+
+# ----------------------------------------------------------------------- oscillations
+def schuler_frequency(lat: float, h: float = 0.0) -> float:
+    """w_s = sqrt(g / R) with R the geometric mean radius (T&W ch. 12)."""
+    return 2.0 * math.pi / earth.schuler_period(lat, h)
+
+
+def foucault_frequency(lat: float) -> float:
+    return earth.OMEGA_IE * abs(math.sin(lat))
+
+
+def fit_oscillation(t: np.ndarray, x: np.ndarray, period_guess: float, trend: bool = True) -> dict:
+    """Least-squares fit of ``x = c0 [+ c1 t] + A cos(2 pi t / P + p)`` with the period P free
+    (variable projection: the linear coefficients are solved for each P).
+    Returns period, amplitude, phase, offset, slope and the rms residual."""
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    tc = t - t[0]
+    tn = tc / max(tc[-1], 1.0)
+
+    def design(P):
+        w = 2 * math.pi / P
+        cols = [np.ones_like(tc)] + ([tn] if trend else []) + [np.cos(w * tc), np.sin(w * tc)]
+        return np.stack(cols, axis=-1)
+
+    def resid(p):
+        A = design(p[0])
+        c, *_ = np.linalg.lstsq(A, x, rcond=None)
+        return A @ c - x
+
+    r = least_squares(resid, [period_guess], x_scale=[period_guess * 0.01], xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    P = float(r.x[0])
+    A = design(P)
+    c, *_ = np.linalg.lstsq(A, x, rcond=None)
+    a, b = c[-2], c[-1]
+    return {"period": P, "amplitude": float(math.hypot(a, b)), "phase": float(math.atan2(-b, a)),
+            "offset": float(c[0]), "slope": float(c[1] / max(tc[-1], 1.0)) if trend else 0.0,
+            "rms_residual": float(np.sqrt(np.mean((A @ c - x) ** 2)))}
+
+
+def oscillation_components(t: np.ndarray, x: np.ndarray, lat: float) -> dict:
+    """Amplitudes of the Schuler (84.4 min), Earth (24 h) and Foucault components of an error
+    time series, by linear least squares on fixed frequencies with an offset and a trend.
+
+    * Schuler: the Schuler-band oscillation.  When the record resolves the Foucault
+      splitting (duration >= one Foucault period 2 pi/(W sin L)), the band is modelled as
+      the two lines ``w_s +- w_F`` with amplitudes A+ and A-; ``schuler`` = A+ + A- (the
+      peak of the envelope) and ``foucault`` = min(A+, A-) (half the envelope's
+      peak-to-peak modulation over a Foucault period).  Otherwise one line at w_s and
+      ``foucault`` = None.  Needs at least one Schuler period.
+    * Earth: the line at W (needs >= 24 h, else None).
+    Amplitudes in the unit of ``x``; ``trend`` per second.
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    tc = t - t[0]
+    T = float(tc[-1]) if tc.size else 0.0
+    ws = schuler_frequency(lat)
+    wf = foucault_frequency(lat)
+    W = earth.OMEGA_IE
+    res: dict = {"schuler": None, "foucault": None, "earth": None, "trend": None, "duration": T}
+    if T <= 0:
+        return res
+    cols = [np.ones_like(tc), tc / T]
+    names = []
+    if T >= 2 * math.pi / ws:
+        freqs = [ws - wf, ws + wf] if (wf > 0 and T >= 2 * math.pi / wf) else [ws]
+        for f in freqs:
+            cols += [np.cos(f * tc), np.sin(f * tc)]
+            names.append(("schuler", f))
+    if T >= 2 * math.pi / W:
+        cols += [np.cos(W * tc), np.sin(W * tc)]
+        names.append(("earth", W))
+    A = np.stack(cols, axis=-1)
+    c, *_ = np.linalg.lstsq(A, x, rcond=None)
+    res["trend"] = float(c[1] / T)
+    amps: dict = {}
+    for i, (name, f) in enumerate(names):
+        amps.setdefault(name, []).append(float(math.hypot(c[2 + 2 * i], c[3 + 2 * i])))
+    if "schuler" in amps:
+        a = amps["schuler"]
+        res["schuler"] = float(sum(a))
+        res["foucault"] = float(min(a)) if len(a) == 2 else None
+    if "earth" in amps:
+        res["earth"] = amps["earth"][0]
+    return res
+
+
+def summarize(err: NavErrors, lat: float) -> dict:
+    """Summary figures (SI): maxima, final values, oscillation components."""
+    hor = err.horizontal
+    out = {
+        "duration_s": float(err.time[-1] - err.time[0]) if err.time.size else 0.0,
+        "max_position_error_m": float(np.max(hor)),
+        "final_position_error_m": float(hor[-1]),
+        "max_velocity_error_mps": float(np.max(np.linalg.norm(err.velocity[:, 0:2], axis=-1))),
+        "max_velocity_error_enu_mps": np.max(np.abs(err.velocity), axis=0),
+        "final_position_error_en_m": err.position[-1, 0:2],
+        "max_attitude_error_rad": None,
+        "max_imu_attitude_error_rad": None,
+    }
+    series = [("position_east", err.position[:, 0]), ("position_north", err.position[:, 1]),
+              ("velocity_east", err.velocity[:, 0]), ("velocity_north", err.velocity[:, 1])]
+    if err.vehicle is not None:
+        out["max_attitude_error_rad"] = np.max(np.abs(err.vehicle), axis=0)  # roll, pitch, yaw
+        out["max_imu_attitude_error_rad"] = np.max(np.abs(err.attitude), axis=0)  # phi E, N, U
+        series += [("roll", err.vehicle[:, 0]), ("pitch", err.vehicle[:, 1]), ("yaw", err.vehicle[:, 2])]
+    comps = {}
+    for name, x in series:
+        comps[name] = oscillation_components(err.time, x, lat)
+    out["components"] = comps
+    return out

@@ -1,0 +1,255 @@
+"""Navigation runs: initialisation (truth or static alignment), orchestration over
+chunked records, error analysis against the truth, oscillation components, and the
+linear error model / closed forms used to check the mechanization.
+
+Error conventions (SI, ENU):
+
+* attitude error ``phi`` with ``C_est = exp([phi x]) C_true`` (the rotation vector of
+  :func:`inscal.attitude.small_angle_error`), so a level error of the computed
+  frame about North is ``phi_N``; with this sign an East accelerometer bias ``b``
+  settles at ``phi_N = -b/g`` (T&W ch. 12, tilt = -bias/g);
+* velocity error ``v_est - v_true``; position error in metres East/North/Up
+  ``[(lambda_est - lambda) (R_N + h) cos L, (L_est - L)(R_M + h), h_est - h]``.
+
+Linear error model (phi-angle form, ENU, vertical channel held; T&W ch. 12, S16 eq. 17
+without the vertical terms), derived for ``C_est = (I + [phi x]) C``::
+
+    phi'  = -w_ie x phi - dw_en(dv) - dw_ie(dL) + C_s^n eps          dw_ie = W [0, -sin L, cos L] dL
+    dv'   =  phi x f^n + C_s^n nabla - 2 w_ie x dv      (horizontal)   dw_en = [-dv_N/R_M, dv_E/R_N, dv_E tan L/R_N]
+    dL'   =  dv_N / R_M,        dlambda' = dv_E / (R_N cos L)
+"""
+
+from __future__ import annotations
+
+from inscal.nav.accuracy import summarize
+
+import math
+
+from dataclasses import dataclass
+
+from typing import Callable, Iterable
+
+import numpy as np
+
+
+
+
+
+
+from inscal.core.error_model import GimbalErrors, ImuErrors
+
+from inscal.nav.strapdown import S_HREF, NavConfig, NavOutput, NavState, Strapdown
+from inscal.nav.accuracy import NavErrors, navigation_errors
+from inscal.nav.align import AlignConfig, AlignResult, align
+from inscal.nav.stream import SampleStream, compensated_chunks
+
+
+# ============================================================================ height reference
+class HeightReference:
+    """External height for the vertical channel (a barometer, a survey, a depth gauge): a
+    constant ``height_m`` or a profile ``time_s``, ``height_m`` (linearly interpolated, held at
+    its end values outside its span).  The damped vertical loop ("damped") tracks it, "hold"
+    follows it; the navigator updates the reference once per ``UPDATE_S`` seconds."""
+
+    #: how often the navigator reads the reference [s] (the third-order loop's tau is ~100 s)
+    UPDATE_S = 1.0
+
+    def __init__(self, height_m=None, time_s=None):
+        if time_s is None:
+            h = float(height_m)
+            if not math.isfinite(h):
+                raise ValueError(f"reference height must be finite, got {height_m!r}")
+            self.time = None
+            self.height = np.array([h])
+            return
+        t = np.asarray(time_s, dtype=float).ravel()
+        h = np.asarray(height_m, dtype=float).ravel()
+        if t.size != h.size or t.size == 0:
+            raise ValueError(f"height reference needs as many heights as times (got {t.size} and {h.size}), at least one")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(h))):
+            raise ValueError("height reference: times and heights must be finite numbers")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0))
+            raise ValueError(f"height reference: times must increase (row {k + 2}: {t[k + 1]:g} s after {t[k]:g} s)")
+        self.time, self.height = t, h
+
+    @property
+    def constant(self) -> bool:
+        return self.time is None
+
+    def __call__(self, t):
+        if self.time is None:
+            return np.full(np.shape(t), self.height[0]) if np.ndim(t) else float(self.height[0])
+        return np.interp(t, self.time, self.height)
+
+    def span(self) -> tuple[float, float] | None:
+        return None if self.time is None else (float(self.time[0]), float(self.time[-1]))
+
+    @classmethod
+    def read_csv(cls, path) -> "HeightReference":
+        """A CSV file with a header row naming the columns ``time_s`` and ``height_m`` (any order,
+        other columns ignored; ``#`` comments allowed)."""
+        import csv
+
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = [r for r in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#"))]
+        if not rows:
+            raise ValueError(f"{path}: empty height reference (expected a header time_s,height_m and rows)")
+        head = [c.strip() for c in rows[0]]
+        if "time_s" not in head or "height_m" not in head:
+            raise ValueError(f"{path}: the header must name the columns time_s and height_m, got {','.join(head)[:80]!r}")
+        it, ih = head.index("time_s"), head.index("height_m")
+        t, h = [], []
+        for n, r in enumerate(rows[1:], start=2):
+            try:
+                t.append(float(r[it]))
+                h.append(float(r[ih]))
+            except (IndexError, ValueError):
+                raise ValueError(f"{path}: row {n} is not two numbers time_s, height_m: {','.join(r)[:80]!r}") from None
+        if not t:
+            raise ValueError(f"{path}: no rows after the header")
+        try:
+            return cls(h, t)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+
+# ============================================================================ orchestration
+@dataclass
+class NavResult:
+    output: NavOutput
+    errors: NavErrors | None
+    summary: dict | None
+    alignment: AlignResult | None
+    config: NavConfig
+    init: str
+
+
+def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=None,
+             params: ImuErrors | None = None, gimbal_model: GimbalErrors | None = None,
+             config: NavConfig | None = None, align_config: AlignConfig | None = None,
+             vref=None, progress: Callable[[float], None] | None = None,
+             height_ref: "HeightReference | float | None" = None) -> NavResult:
+    """Navigate a chunked record.
+
+    ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
+    :func:`chunks_of`) or :class:`inscal.simulate.Chunk` objects.  ``site``: the known static site
+    (latitude, longitude, height; its ``gravity_model``, when it has one, is used throughout).
+    ``init``: "truth" (needs ``scenario``), "align" (static coarse +
+    fine alignment, navigation continues from its end), or a :class:`NavState` at the start.
+    ``params``: calibration set applied on the fly (S16 compensation form); ``gimbal_model``: the
+    gimbal non-orthogonality used to map the IMU attitude to the vehicle.  With a ``scenario``,
+    errors against its truth and a summary are computed.  ``height_ref``: an external height
+    (:class:`HeightReference`, or a constant in metres) for the vertical channel's reference in
+    place of the initial height ("damped" tracks it, "hold" follows it; "free" refuses it).
+    """
+    config = config or NavConfig()
+    dt = 1.0 / rate_hz
+    gravity = getattr(site, "gravity_model", None)
+    stream = SampleStream(chunks)
+    if params is not None and (params.has_asynchrony or np.any(params.accel_lever_arm - np.diag(np.diag(params.accel_lever_arm)))):
+        # sample-to-sample terms (time asynchrony, tangential size effect) need the next sample:
+        # compensate ahead of the kernel exactly as the systematic calibration does
+        stream = SampleStream(compensated_chunks(stream.chunks(), params, dt))
+        params = None
+    head = stream.peek()
+    if head is None or head[0].shape[0] == 0:
+        raise ValueError("record has no samples")
+    t0 = float(head[0][0]) - dt  # time of the start of the first sample
+    alignment = None
+    if isinstance(init, NavState):
+        state, k0, label = init, 0, "given"
+    elif init == "truth":
+        if scenario is None:
+            raise ValueError("initialisation from truth needs the simulation scenario (record has no truth)")
+        state, k0, label = NavState.from_truth(scenario, t0), 0, "truth"
+    elif init == "align":
+        alignment = align(stream, dt, site.latitude, site.longitude, site.height, align_config, params, t0=t0,
+                          gravity=gravity)
+        state, k0, label = alignment.state, alignment.k_end, "align"
+    else:
+        raise ValueError(f"init must be 'truth', 'align' or a NavState, got {init!r}")
+    nav = Strapdown(state, dt, config, params, k0=k0, t0=t0, gravity=gravity)
+    if alignment is not None and (align_config or AlignConfig()).apply_bias_estimates:
+        nav.set_extra_bias(alignment.gyro_bias, alignment.accel_bias)
+    if height_ref is not None and not isinstance(height_ref, HeightReference):
+        height_ref = HeightReference(height_ref)
+    if height_ref is not None and config.vertical == "free":
+        raise ValueError("a height reference needs a damped (or held) vertical channel, not vertical 'free'")
+    profile = height_ref is not None and not height_ref.constant
+    if height_ref is not None and not profile:
+        nav.st[S_HREF] = height_ref.height[0]
+    blk = max(1, int(round(HeightReference.UPDATE_S * rate_hz)))
+    parts = []
+    for t, dth, dv, g in stream.chunks():
+        vr = None
+        if vref is not None:
+            vr = vref(t) if callable(vref) else vref
+        if profile:  # the reference once per UPDATE_S, at the middle of each block of samples
+            per = vr is not None and np.ndim(vr) == 2 and np.shape(vr)[0] == t.shape[0]
+            for a in range(0, t.shape[0], blk):
+                b = min(a + blk, t.shape[0])
+                nav.st[S_HREF] = height_ref(0.5 * (t[a] + t[b - 1]))
+                parts.append(nav.run(dth[a:b], dv[a:b], None if g is None else g[a:b], vr[a:b] if per else vr))
+        else:
+            parts.append(nav.run(dth, dv, g, vr))
+        if progress is not None:
+            progress(float(t[-1]))
+    if not parts:
+        raise ValueError("no samples left to navigate after the alignment")
+    out = NavOutput.concatenate(parts)
+    # static base: position and velocity are known even without a simulation truth
+    errors = navigation_errors(out, scenario, gimbal_model, site=site)
+    summary = summarize(errors, site.latitude)
+    return NavResult(out, errors, summary, alignment, config, label)
+
+
+def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = False) -> None:
+    """Write a navigation result to HDF5 (SI datasets, atomic; see ``inscal navigate``)::
+
+        /time (N,) s; /quaternion (N,4) C_s^n scalar-first; /velocity (N,3) m/s ENU;
+        /position (N,3) lat rad, lon rad, h m; /vehicle_attitude (N,3) rad roll/pitch/yaw;
+        /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
+        attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
+    """
+    import json
+
+    import h5py
+
+    from inscal import SCHEMA_VERSION, __version__
+    from inscal.io.files import atomic_path
+
+    def _js(o):
+        return json.dumps(o, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v))
+
+    out = res.output
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["kind"] = "inscal-navigation"
+            h5.attrs["schema_version"] = SCHEMA_VERSION
+            h5.attrs["inscal_version"] = __version__
+            h5.attrs["mode"] = res.config.mode
+            h5.attrs["vertical"] = res.config.vertical
+            h5.attrs["init"] = res.init
+            h5.attrs["meta"] = _js(meta or {})
+            h5.attrs["summary"] = _js(res.summary or {})
+            h5.attrs["units"] = json.dumps({"time": "s", "quaternion": "1", "velocity": "m/s", "position": "rad,rad,m",
+                                            "vehicle_attitude": "rad", "gimbal": "rad", "errors/position": "m",
+                                            "errors/velocity": "m/s", "errors/attitude": "rad", "errors/vehicle": "rad"})
+            h5["time"] = out.time
+            h5["quaternion"] = out.quaternion
+            h5["velocity"] = out.velocity
+            h5["position"] = out.position
+            gm = None
+            if meta and meta.get("gimbal_nonorthogonality_rad"):
+                gm = GimbalErrors(meta["gimbal_nonorthogonality_rad"])
+            h5["vehicle_attitude"] = out.vehicle_attitude(gm)
+            if out.gimbal is not None:
+                h5["gimbal"] = out.gimbal
+            if res.errors is not None:
+                g = h5.create_group("errors")
+                g["position"] = res.errors.position
+                g["velocity"] = res.errors.velocity
+                if res.errors.attitude is not None:
+                    g["attitude"] = res.errors.attitude
+                    g["vehicle"] = res.errors.vehicle

@@ -1,0 +1,806 @@
+"""Cramér-Rao bound of a calibration experiment without running it (issue 10 item 2).
+
+What it is.  The systematic filter (:mod:`inscal.calibrate.systematic`) is a Kalman filter on
+the linearised error state ``x = [phi, dv, dp | parameters]``.  For a linear-Gaussian model the
+filter's covariance does not depend on the data, only on the trajectory, the noise and the
+prior; the posterior covariance of the constant parameter states (smoothed = final filtered,
+because their process noise is zero) is the Bayesian Cramér-Rao bound of the experiment: the
+inverse of the Fisher information of the data plus that of the prior.  No unbiased-in-the-mean
+estimator that uses the same prior can do better; the iterated systematic filter attains it
+to first order (``bench/crlb_vs_mc.py`` checks that against Monte Carlo).
+
+How it is computed (no sensor simulation, no navigation).  Per filter step ``k`` over
+``[kT, (k+1)T]`` (``T = 1 / filter_rate_hz``, 1 s by default, as the systematic filter):
+
+* Kinematics from the path: ``C_s^n(t)``, ``w_is^s(t)``, ``f^s(t)`` from the piecewise
+  quadratic gimbal angles (:class:`inscal.turntable.Segments`), the gimbal geometry (N25 eq.
+  5-8: mount attitude, outer-axis non-orthogonality), the Earth rate and the site's gravity
+  (:func:`kinematics`, the formulas of ``inscal.simulate._eval`` plus the attitude).  The
+  IMU is ideal: the nominal parameters are the filter's linearisation point in its first pass.
+* ``Phi_np = M0 + F M1 + F^2 M2``, ``M_i = sum_j (T - t_j)^i / i! F_np(t_j) h`` with the
+  parameter columns of :func:`inscal.calibrate.systematic._column_values` (the same column
+  kinds, so every state set of :class:`~inscal.calibrate.systematic.StateSet` is supported),
+  exactly as the systematic kernel accumulates them per sample.  A step inside a dwell takes
+  one evaluation with the exact moments ``T, T^2/2, T^3/6``; a step with motion takes
+  ``n_sub`` mid-point sub-samples (``sub_rate_hz``, 20 Hz by default; 50 sub-samples change
+  the s16 bound by < 0.1 %).
+* ``Phi_nn = I + F T + F^2 T^2/2 + F^3 T^3/6`` with ``F`` = :func:`~inscal.calibrate.systematic._nav_F`
+  at ``f^n = [0, 0, g]`` (a static base: one ``Phi_nn`` for the whole path), and ``Q_d`` the
+  same third-order Van Loan series of the white ARW/VRW as the systematic kernel.
+* Measurements as the systematic filter: zero velocity and the known position every step,
+  ``sigma_v = 0.05 VRW sqrt(T)``, ``sigma_p = sigma_v T`` (its defaults), with its noise floors.
+* Covariance only: structured prediction (parameters constant) and the update
+  ``P <- P - K (P H^T)^T`` (symmetrised), in the scaled state ``x / sigma0`` like the filter.
+
+Bias instability (not in the systematic filter, which has none): ``bias_noise`` adds
+process noise on the bias states, either a random walk (``P_bb += q T`` per step, ``q`` the
+rate random-walk PSD) or a first-order Gauss-Markov bias ``(sigma, tau)`` as the simulator
+draws it (:class:`inscal.errors.ImuNoise`): three extra states per triad with the bias
+columns of ``Phi_np``, ``phi = exp(-T / tau)`` and ``q = sigma^2 (1 - phi^2)``, stationary
+prior ``sigma``.  The reported bound of a bias is then that of its constant part (the GM
+states are marginalised); with a random walk it is the bias at the end of the record.
+
+Extra measurement rows.  A state set whose error model has other observations (e.g. encoder
+attitude rows of a unified gimbal model) plugs them in through :func:`register_rows`: a builder
+returns per-step rows ``H`` (physical units) and variances, applied after the velocity/position
+update (scalar sequential updates).
+
+Agreement with the filter (``tests/test_crlb.py``): the bound equals the covariance view of
+:func:`inscal.calibrate.observability.observability` (one pass of the systematic filter on a
+noise-free 20 Hz simulation, i.e. the ``systematic()`` posterior) per parameter within 3e-5 on s16,
+5e-5 on psins19, 1e-5 on n25 (states 51; also 30, psins, async and unified within 3e-4); with
+``lever9`` the filter's own discretisation of the angular acceleration (centred differences of
+the 20 Hz samples smear the turntable's acceleration steps) costs it up to 6 % on the
+off-diagonal lever arms at 20 Hz, 1.2 % at 100 Hz, converging to this bound.  Filter rate:
+1 Hz vs 5 Hz differ by < 1 % (worst: the lever arm), as the filter's own (0.2 % on s16).
+Speed (``bench/bench_crlb.py``): ~0.06 s of CPU for the 1.07-h S16 path (3,861 steps, 51
+states), against ~1 s for the simulation and filter pass of ``observability()``.
+Monte Carlo (``bench/crlb_vs_mc.py``): 50 noise-only ``systematic51`` runs per path on s16, n25
+and psins19: the RMS of the normalised errors is 1.00-1.01 on each path.
+
+Time series.  The filtered covariance after step ``k`` is the bound of the experiment cut at
+``(k+1) T`` (constant parameters): :attr:`Bound.history` keeps its diagonal at every step,
+which gives the bound over time and the information each move adds
+(:mod:`inscal.report_path`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import time
+
+from dataclasses import dataclass, field
+
+from typing import Callable
+
+import numpy as np
+
+from numba import njit
+
+from inscal.core import earth, units
+
+from inscal.core.attitude import dcm_from_euler
+
+from inscal.core.kinematics import segment_at as _segment_at  # _segment_at: smallest s with seg_t1[s] > t
+
+from inscal.core.turntable import RotationPath, outer_axis
+
+from inscal.calibrate.result import CalibrationError
+
+from inscal.calibrate.systematic.states import ARW_FLOOR, K_M1A, K_M1G, K_TAU, N_NAV, NAV_SIGMA0, VRW_FLOOR, StateSet
+from inscal.calibrate.systematic.dynamics import column_values, nav_F
+from inscal.core.kinematics import kinematics
+
+
+#: velocity-measurement sigma of the systematic filter: VELOCITY_FACTOR * mean(VRW) * sqrt(T) (its default)
+VELOCITY_FACTOR = 0.05
+#: default sub-sample rate of the kinematics inside steps with motion [Hz]
+SUB_RATE_HZ = 20.0
+
+
+class BoundError(ValueError):
+    """A path, state set or noise model the bound cannot use."""
+
+
+# ----------------------------------------------------------------------------- noise
+@dataclass(frozen=True)
+class BiasNoise:
+    """Bias instability as process noise on the bias states (SI, per axis).
+
+    ``*_rw``: rate random walk PSD root [rad/s/sqrt(s)], [m/s^2/sqrt(s)]; ``*_gm``: first-order
+    Gauss-Markov sigma [rad/s], [m/s^2] with correlation time ``*_tau`` [s]."""
+
+    gyro_rw: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_rw: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_gm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_tau: float = 3600.0
+    accel_gm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_tau: float = 3600.0
+
+    def __post_init__(self):
+        for n in ("gyro_rw", "accel_rw", "gyro_gm", "accel_gm"):
+            a = np.broadcast_to(np.asarray(getattr(self, n), float), (3,)).copy()
+            if not np.all(np.isfinite(a)) or np.any(a < 0):
+                raise BoundError(f"bias noise {n} must be >= 0, got {getattr(self, n)}")
+            object.__setattr__(self, n, a)
+        for n in ("gyro_tau", "accel_tau"):
+            v = float(getattr(self, n))
+            if not (math.isfinite(v) and v > 0):
+                raise BoundError(f"bias noise {n} must be > 0 s, got {v}")
+            object.__setattr__(self, n, v)
+
+    @property
+    def active(self) -> bool:
+        return bool(np.any(self.gyro_rw) or np.any(self.accel_rw) or np.any(self.gyro_gm) or np.any(self.accel_gm))
+
+    @classmethod
+    def from_imu_noise(cls, noise) -> "BiasNoise":
+        """The Gauss-Markov bias instability of an :class:`inscal.errors.ImuNoise` (the simulator's model)."""
+        return cls(gyro_gm=noise.gyro_bias_instability, gyro_tau=noise.gyro_bias_tau,
+                   accel_gm=noise.accel_bias_instability, accel_tau=noise.accel_bias_tau)
+
+    def to_dict(self) -> dict:
+        return {"gyro_rw_deg_h_sqrt_h": (units.from_si(self.gyro_rw, "deg/h") * math.sqrt(3600.0)).tolist(),
+                "accel_rw_ug_sqrt_s": units.from_si(self.accel_rw, "ug").tolist(),
+                "gyro_gm_deg_h": units.from_si(self.gyro_gm, "deg/h").tolist(), "gyro_tau_s": self.gyro_tau,
+                "accel_gm_ug": units.from_si(self.accel_gm, "ug").tolist(), "accel_tau_s": self.accel_tau}
+
+
+# ----------------------------------------------------------------------------- extra measurement rows
+#: (predicate(StateSet) -> bool, builder) pairs; see :func:`register_rows`
+_ROW_BUILDERS: list[tuple[Callable, Callable]] = []
+
+
+def register_rows(applies: Callable[[StateSet], bool], builder: Callable) -> None:
+    """Plug in a state set's extra measurement rows.  ``builder(states, scenario, t, options)`` gets
+    the :class:`StateSet`, the :class:`~inscal.simulate.Scenario`, the update times ``t`` (M,) [s]
+    (the end of each filter step) and the setup's ``row_options`` dict, and returns ``(H, r)``:
+    rows ``H`` (M, m, n_states) on the physical error state (navigation first, then the parameters
+    in ``states.groups`` order) and their noise variances ``r`` (M, m), independent rows (whiten
+    correlated ones first).  Used for every state set where ``applies(states)``."""
+    _ROW_BUILDERS.append((applies, builder))
+
+
+def encoder_rows(st: StateSet, sc, t: np.ndarray, options: dict):
+    """The unified model's encoder attitude rows (:mod:`inscal.calibrate.unified`, the systematic
+    filter's ``gimbal`` option): ``z = vee(C_nav C_pred^T) ~ phi - psi(d dth, d alpha0, d beta0,
+    d gamma0)`` with ``R = s^2 (a a^T + c c^T) + (s/10)^2 I`` at the path's encoder angles at the end
+    of each step, linearised at the scenario's gimbal geometry (:func:`~inscal.calibrate.systematic._gimbal_attitude`);
+    whitened by the Cholesky factor of ``R`` (three independent unit-variance rows).
+    ``options["encoder_sigma"]``: encoder white noise [rad] (default the filter's 1")."""
+    from inscal.calibrate.systematic.states import ENCODER_SIGMA, K_GIM
+    from inscal.calibrate.systematic.dynamics import gimbal_attitude
+
+    s = float(options.get("encoder_sigma") or ENCODER_SIGMA)
+    th, _, _ = sc.path.segments().angles(t)
+    gim = np.concatenate([[sc.gimbal.nonorthogonality], np.asarray(sc.gimbal.mount_attitude, float)])
+    kinds, _, js = st.columns()
+    cols = [(N_NAV + c, int(js[c])) for c in range(kinds.size) if kinds[c] == K_GIM]
+    M = t.size
+    # a, c, Hg and R depend on the outer angle only (not on the inner one): one evaluation per distinct angle
+    tx_u, inv = np.unique(th[:, 0], return_inverse=True)
+    Hu = np.zeros((tx_u.size, 3, st.n_states))
+    Cp, a, c3, Hg = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 4))
+    for k, tx in enumerate(tx_u):
+        gimbal_attitude(gim, float(tx), 0.0, Cp, a, c3, Hg)
+        R = s * s * (np.outer(a, a) + np.outer(c3, c3)) + 0.01 * s * s * np.eye(3)
+        Li = np.linalg.inv(np.linalg.cholesky(R))
+        Hk = np.zeros((3, st.n_states))
+        Hk[:, 0:3] = np.eye(3)
+        for col, j in cols:
+            Hk[:, col] = -Hg[:, j]
+        Hu[k] = Li @ Hk
+    H = Hu[inv.ravel()]
+    return H, np.ones((M, 3))
+
+
+def _extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray, options: dict | None = None):
+    Hs, rs = [], []
+    for applies, builder in _ROW_BUILDERS:
+        if applies(st):
+            H, r = builder(st, sc, t, options or {})
+            H = np.asarray(H, float)
+            r = np.asarray(r, float)
+            if H.ndim != 3 or H.shape[0] != t.size or H.shape[2] != st.n_states or r.shape != H.shape[:2]:
+                raise BoundError(f"extra measurement rows: expected H ({t.size}, m, {st.n_states}) and r "
+                                 f"({t.size}, m), got {H.shape} and {r.shape}")
+            Hs.append(H)
+            rs.append(r)
+    if not Hs:
+        return np.zeros((t.size, 0, sig.size)), np.ones((t.size, 0))
+    H = np.concatenate(Hs, axis=1)
+    r = np.concatenate(rs, axis=1)
+    return H, r
+
+
+register_rows(lambda st: bool(getattr(st, "gimbal", False)), encoder_rows)
+
+
+@njit(cache=True)
+def _is_static(s, seg_w0, seg_acc):
+    return seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
+
+
+@njit(cache=True)
+def _values(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes, js, C, w, f,
+            wd, fd, vals, V):
+    """The parameter columns of ``[dphi'; dv']`` at ``t``: ``V`` (6, p) = ``C[:, axis] * value``
+    (rows 0-2 gyro kinds, 3-5 accelerometer kinds; the asynchrony column is ``C fdot``)."""
+    s = _segment_at(t, seg_t1)
+    kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f)
+    if need_rates:  # centred differences (the filter's own w-dot and f-dot are centred differences too)
+        h = 1e-3
+        Ct = np.empty((3, 3))
+        wp = np.empty(3)
+        fp = np.empty(3)
+        wm = np.empty(3)
+        fm = np.empty(3)
+        sp = _segment_at(t + h, seg_t1)
+        kinematics(t + h, sp, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, Ct, wp, fp)
+        sm = _segment_at(t - h, seg_t1)
+        kinematics(t - h, sm, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, Ct, wm, fm)
+        for i in range(3):
+            wd[i] = (wp[i] - wm[i]) / (2 * h)
+            fd[i] = (fp[i] - fm[i]) / (2 * h)
+    else:
+        for i in range(3):
+            wd[i] = 0.0
+            fd[i] = 0.0
+    column_values(kinds, axes, js, w, f, w, f, wd, fd, vals)
+    p = kinds.shape[0]
+    for c in range(p):
+        k = kinds[c]
+        rb = 0 if k <= 2 else 3
+        for a in range(6):
+            V[a, c] = 0.0
+        if k == 9:
+            for r in range(3):
+                V[rb + r, c] = C[r, 0] * fd[0] + C[r, 1] * fd[1] + C[r, 2] * fd[2]
+        elif k < 9:
+            i = axes[c]
+            for r in range(3):
+                V[rb + r, c] = C[r, i] * vals[c]
+        # kinds >= 10: states outside the navigation dynamics (e.g. gimbal geometry): zero columns
+
+
+# ----------------------------------------------------------------------------- the kernel
+@njit(cache=True, fastmath=True)
+def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
+                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist):
+    """Covariance-only pass (module docstring) in the scaled state; ``P`` (N, N) in/out, ``hist``
+    (M, N) receives diag(P) after each update.  ``phinn``, ``F``, ``F2``, ``qd``: physical;
+    ``phi_p``/``q_p``: scaled parameter transition (diagonal) and process noise; ``xH`` (M, m, N)
+    scaled extra rows, ``xr`` (M, m) their scaled variances."""
+    N = P.shape[0]
+    p = N - 9
+    C = np.empty((3, 3))
+    w = np.empty(3)
+    f = np.empty(3)
+    wd = np.empty(3)
+    fd = np.empty(3)
+    vals = np.empty(p)
+    V = np.empty((6, p))
+    M0 = np.empty((6, p))
+    M1 = np.empty((6, p))
+    M2 = np.empty((6, p))
+    phinp = np.empty((9, p))
+    # scaled Phi_nn, Q_d, and G6 = T [I6; 0] + T^2/2 F[:, :6] + T^3/6 F^2[:, :6] (row-scaled): on a dwell
+    # Phi_np = G6 V with V constant over the step
+    Pn = np.empty((9, 9))
+    Qs = np.empty((9, 9))
+    G6 = np.empty((9, 6))
+    for i in range(9):
+        for j in range(9):
+            Pn[i, j] = phinn[i, j] * sig[j] / sig[i]
+            Qs[i, j] = qd[i, j] / (sig[i] * sig[j])
+        for r in range(6):
+            G6[i, r] = (F[i, r] * (T * T / 2.0) + F2[i, r] * (T * T * T / 6.0) + (T if i == r else 0.0)) / sig[i]
+    rbase = np.empty(p, np.int64)  # first row of each column's non-zero block in V (0: gyro, 3: accelerometer)
+    for c in range(p):
+        rbase[c] = 0 if kinds[c] <= 2 else 3
+    Vs = np.zeros((6, p))  # V with the parameter scaling
+    W = np.empty((6, p))  # Vs P_pp
+    new_np = np.empty((9, p))
+    t1 = np.empty((9, 9))
+    new_nn = np.empty((9, 9))
+    PHt = np.empty((6, N))
+    S = np.empty((6, 6))
+    K = np.empty((6, N))
+    dyn_p = False
+    for c in range(p):
+        if phi_p[c] != 1.0 or q_p[c] != 0.0:
+            dyn_p = True
+    mx = xH.shape[1]
+    ph = np.empty(N)
+    kg = np.empty(N)
+    h = T / n_sub
+    last_seg = -1
+    for k in range(M):
+        a = k * T
+        b = a + T
+        # ---- is the whole step on a dwell?
+        s = _segment_at(a + 1e-9 * T, seg_t1)
+        s_first = s
+        static = True
+        while True:
+            if not _is_static(s, seg_w0, seg_acc):
+                static = False
+                break
+            if seg_t1[s] >= b or s == seg_t1.shape[0] - 1:
+                break
+            s += 1
+        if static:
+            if s_first != last_seg:  # a new dwell: new V (the same on every step of a dwell)
+                _values(a + 0.5 * T, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, False, kinds, axes,
+                        js, C, w, f, wd, fd, vals, V)
+                for r in range(6):
+                    for c in range(p):
+                        Vs[r, c] = V[r, c] * sig[9 + c]
+                for i in range(9):
+                    for c in range(p):
+                        phinp[i, c] = 0.0
+                    for r in range(6):
+                        gi = G6[i, r]
+                        if gi != 0.0:
+                            for c in range(p):
+                                phinp[i, c] += gi * Vs[r, c]
+                last_seg = s_first
+            # W = Vs P_pp (three non-zero rows per column of Vs)
+            for r in range(6):
+                for c in range(p):
+                    W[r, c] = 0.0
+            for l in range(p):
+                r0 = rbase[l]
+                for r in range(r0, r0 + 3):
+                    v = Vs[r, l]
+                    if v != 0.0:
+                        for c in range(p):
+                            W[r, c] += v * P[9 + l, 9 + c]
+            for i in range(9):
+                for c in range(p):
+                    new_np[i, c] = 0.0
+                for r in range(6):
+                    gi = G6[i, r]
+                    if gi != 0.0:
+                        for c in range(p):
+                            new_np[i, c] += gi * W[r, c]
+        else:
+            last_seg = -1
+            for r in range(6):
+                for c in range(p):
+                    M0[r, c] = 0.0
+                    M1[r, c] = 0.0
+                    M2[r, c] = 0.0
+            for jj in range(n_sub):
+                tj = a + (jj + 0.5) * h
+                _values(tj, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes,
+                        js, C, w, f, wd, fd, vals, V)
+                sw = b - tj
+                w1 = sw * h
+                w2 = 0.5 * sw * sw * h
+                for r in range(6):
+                    for c in range(p):
+                        v = V[r, c]
+                        M0[r, c] += v * h
+                        M1[r, c] += v * w1
+                        M2[r, c] += v * w2
+            # Phi_np = [M0; 0] + F[:, :6] M1 + F^2[:, :6] M2, scaled
+            for i in range(9):
+                for c in range(p):
+                    phinp[i, c] = M0[i, c] if i < 6 else 0.0
+                for r in range(6):
+                    f1 = F[i, r]
+                    f2 = F2[i, r]
+                    for c in range(p):
+                        phinp[i, c] += f1 * M1[r, c] + f2 * M2[r, c]
+                si = sig[i]
+                for c in range(p):
+                    phinp[i, c] *= sig[9 + c] / si
+            for i in range(9):
+                for c in range(p):
+                    new_np[i, c] = 0.0
+                for l in range(p):
+                    al = phinp[i, l]
+                    if al != 0.0:
+                        for c in range(p):
+                            new_np[i, c] += al * P[9 + l, 9 + c]
+        # ---- predict: P_np' = Pn P_np + Phi_np P_pp;  P_nn' = (Pn P_nn + Phi_np P_pn) Pn^T + P_np' Phi_np^T + Q
+        for i in range(9):
+            for l in range(9):
+                al = Pn[i, l]
+                if al != 0.0:
+                    for c in range(p):
+                        new_np[i, c] += al * P[l, 9 + c]
+        for i in range(9):
+            for j in range(9):
+                acc = 0.0
+                for l in range(9):
+                    acc += Pn[i, l] * P[l, j]
+                for l in range(p):
+                    acc += phinp[i, l] * P[j, 9 + l]
+                t1[i, j] = acc
+        for i in range(9):
+            for j in range(9):
+                acc = Qs[i, j]
+                for l in range(9):
+                    acc += t1[i, l] * Pn[j, l]
+                for l in range(p):
+                    acc += new_np[i, l] * phinp[j, l]
+                new_nn[i, j] = acc
+        for i in range(9):
+            for j in range(i, 9):
+                v = 0.5 * (new_nn[i, j] + new_nn[j, i])
+                P[i, j] = v
+                P[j, i] = v
+            for c in range(p):
+                P[i, 9 + c] = new_np[i, c]
+                P[9 + c, i] = new_np[i, c]
+        if dyn_p:
+            for c in range(p):
+                for i in range(9):
+                    P[i, 9 + c] *= phi_p[c]
+                    P[9 + c, i] = P[i, 9 + c]
+                for d in range(p):
+                    P[9 + c, 9 + d] *= phi_p[c] * phi_p[d]
+                P[9 + c, 9 + c] += q_p[c]
+        # ---- update: zero velocity, known position (states 3..8); P <- P - K^T PHt (row layout)
+        for a_ in range(6):
+            for i in range(N):
+                PHt[a_, i] = P[3 + a_, i]
+        for a_ in range(6):
+            for b_ in range(6):
+                S[a_, b_] = 0.5 * (PHt[a_, 3 + b_] + PHt[b_, 3 + a_])
+            S[a_, a_] += rs[a_]
+        Si = np.linalg.inv(S)
+        for a_ in range(6):
+            for i in range(N):
+                K[a_, i] = 0.0
+            for b_ in range(6):
+                sab = Si[a_, b_]
+                for i in range(N):
+                    K[a_, i] += sab * PHt[b_, i]
+        for i in range(N):
+            for a_ in range(6):
+                ki = K[a_, i]
+                for j in range(i, N):
+                    P[i, j] -= ki * PHt[a_, j]
+        for i in range(N):
+            for j in range(i + 1, N):
+                P[j, i] = P[i, j]
+        # ---- extra rows (scalar sequential updates)
+        for m in range(mx):
+            hr = xH[k, m]
+            for i in range(N):
+                acc = 0.0
+                for j in range(N):
+                    acc += P[i, j] * hr[j]
+                ph[i] = acc
+            sv = xr[k, m]
+            for i in range(N):
+                sv += hr[i] * ph[i]
+            for i in range(N):
+                kg[i] = ph[i] / sv
+            for i in range(N):
+                for j in range(i, N):
+                    v = P[i, j] - kg[i] * ph[j]
+                    P[i, j] = v
+                    P[j, i] = v
+        for i in range(N):
+            hist[k, i] = P[i, i]
+
+
+# ----------------------------------------------------------------------------- setup and result
+@dataclass(frozen=True)
+class Setup:
+    """Everything of a bound that does not depend on the path (for repeated evaluation, e.g.
+    path design): state set, site, gimbal geometry, noise, filter rate, prior and the
+    constant matrices.  Build with :func:`make_setup`."""
+
+    states: StateSet
+    site: object  # inscal.simulate.Site
+    gimbal: object  # inscal.errors.GimbalErrors
+    arw: np.ndarray
+    vrw: np.ndarray
+    bias: BiasNoise
+    T: float
+    n_sub: int
+    sig: np.ndarray  # scaling (prior sigma) of the full state incl. any GM states
+    n_gm: int  # appended Gauss-Markov bias states
+    kinds: np.ndarray
+    axes: np.ndarray
+    js: np.ndarray
+    phinn: np.ndarray
+    F: np.ndarray
+    F2: np.ndarray
+    qd: np.ndarray
+    rs: np.ndarray  # scaled measurement variances
+    phi_p: np.ndarray
+    q_p: np.ndarray
+    velocity_sigma: float
+    position_sigma: float
+    floored: bool
+    need_rates: bool
+    row_options: dict  # options of the extra measurement rows (e.g. encoder_sigma)
+    labels: tuple[str, ...]  # parameter labels (without GM states)
+    groups: tuple[str, ...]  # group of each parameter
+    units_: tuple[str, ...]  # field unit of each parameter
+
+    @property
+    def n_params(self) -> int:
+        return len(self.labels)
+
+    @property
+    def prior(self) -> np.ndarray:
+        """Prior sigma of the parameters (SI)."""
+        return self.sig[N_NAV:N_NAV + self.n_params]
+
+    def scenario(self, path: RotationPath):
+        from inscal.sim.simulate import Scenario
+
+        return Scenario(path.name, path, self.site, gimbal=self.gimbal)
+
+
+def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, vrw=None,
+               bias_noise: BiasNoise | None = None, filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ,
+               prior: dict | None = None, velocity_sigma: float | None = None,
+               position_sigma: float | None = None, encoder_sigma: float | None = None) -> Setup:
+    """The path-independent part of a bound (:class:`Setup`).  ``site``: a
+    :class:`~inscal.simulate.Site` (default S16's, 30 N 114 E); ``gimbal``: a
+    :class:`~inscal.errors.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
+    [m/s/sqrt(s)], scalar or per axis (default S16's 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz));
+    ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
+    encoder noise of the gimbal states' attitude rows (default the filter's)."""
+    from inscal.core.error_model import GimbalErrors
+    from inscal.sim.scenarios import S16_SITE
+    from inscal.plan.observability import DEFAULT_ARW, DEFAULT_VRW
+
+    try:
+        st = states if isinstance(states, StateSet) else StateSet.parse(states)
+    except CalibrationError as exc:
+        raise BoundError(str(exc)) from None
+    site = S16_SITE if site is None else site
+    gimbal = GimbalErrors() if gimbal is None else gimbal
+    for n, v in (("filter rate", filter_rate_hz), ("sub-sample rate", sub_rate_hz)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise BoundError(f"{n} must be > 0 Hz, got {v}")
+    T = 1.0 / float(filter_rate_hz)
+    n_sub = max(1, int(round(sub_rate_hz * T)))
+    nz = []
+    for n, v, d in (("arw", arw, DEFAULT_ARW), ("vrw", vrw, DEFAULT_VRW)):
+        a = np.broadcast_to(np.asarray(d if v is None else v, float), (3,)).copy()
+        if not np.all(np.isfinite(a)) or np.any(a <= 0):
+            raise BoundError(f"{n} must be a positive number, got {v}")
+        nz.append(a)
+    arw_v, vrw_v = nz
+    floored = bool(np.any(arw_v < ARW_FLOOR) or np.any(vrw_v < VRW_FLOOR))
+    arw_v = np.maximum(arw_v, ARW_FLOOR)
+    vrw_v = np.maximum(vrw_v, VRW_FLOOR)
+    bias = BiasNoise() if bias_noise is None else bias_noise
+    # prior scaling
+    pri = {}
+    for k, v in (prior or {}).items():
+        if k not in {g.name for g in st.groups}:
+            raise BoundError(f"prior: unknown group {k!r}; groups: {', '.join(g.name for g in st.groups)}")
+        if not (math.isfinite(float(v)) and float(v) > 0):
+            raise BoundError(f"prior {k} must be > 0, got {v}")
+        pri[k] = float(v)
+    labels, groups, unit_l, sig_p = [], [], [], []
+    for gr in st.groups:
+        for lab in gr.labels:
+            labels.append(f"{gr.name}[{lab}]" if lab else gr.name)
+            groups.append(gr.name)
+            unit_l.append(gr.unit)
+            sig_p.append(pri.get(gr.name, gr.sigma0))
+    kinds, axes, js = st.columns()
+    p = len(labels)
+    phi_p = np.ones(p)
+    q_p = np.zeros(p)
+    off = st.offsets()
+    for gname, rw in (("gyro_bias", bias.gyro_rw), ("accel_bias", bias.accel_rw)):
+        if np.any(rw) and gname in off:
+            for i in range(3):
+                c = off[gname] - N_NAV + i
+                q_p[c] = rw[i] ** 2 * T / sig_p[c] ** 2
+    n_gm = 0
+    extra_k, extra_a, extra_s, extra_phi, extra_q = [], [], [], [], []
+    for gname, kind, gm, tau in (("gyro_bias", K_M1G, bias.gyro_gm, bias.gyro_tau),
+                                 ("accel_bias", K_M1A, bias.accel_gm, bias.accel_tau)):
+        if np.any(gm) and gname in off:
+            ph = math.exp(-T / tau)
+            for i in range(3):
+                sg = max(float(gm[i]), 1e-30)
+                extra_k.append(kind)
+                extra_a.append(i)
+                extra_s.append(sg)
+                extra_phi.append(ph)
+                extra_q.append(1.0 - ph * ph)  # scaled: sigma^2 (1 - phi^2) / sigma^2
+                n_gm += 1
+    if n_gm:
+        kinds = np.concatenate([kinds, np.array(extra_k, np.int64)])
+        axes = np.concatenate([axes, np.array(extra_a, np.int64)])
+        js = np.concatenate([js, np.array(extra_a, np.int64)])
+        phi_p = np.concatenate([phi_p, extra_phi])
+        q_p = np.concatenate([q_p, extra_q])
+    sig = np.array(list(NAV_SIGMA0) + sig_p + extra_s)
+    need_rates = bool(np.any(kinds == K_TAU) or np.any(kinds == 8))
+    # constant matrices (static base: f^n = [0, 0, g])
+    lat, h = site.latitude, site.height
+    gsc = float(site.gravity_scale)
+    F = np.zeros((9, 9))
+    nav_F(lat, h, np.array([0.0, 0.0, float(site.gravity)]), F, gsc)
+    F2 = F @ F
+    F3 = F2 @ F
+    phinn = np.eye(9) + F * T + F2 * (T * T / 2) + F3 * (T**3 / 6)
+    Qc = np.zeros((9, 9))
+    Qc[0:3, 0:3] = np.eye(3) * float(np.mean(arw_v**2))
+    Qc[3:6, 3:6] = np.eye(3) * float(np.mean(vrw_v**2))
+    FQ = F @ Qc
+    qd = Qc * T + (FQ + FQ.T) * (T * T / 2) + (F2 @ Qc + 2.0 * FQ @ F.T + Qc @ F2.T) * (T**3 / 6)
+    vsig = float(velocity_sigma) if velocity_sigma is not None else VELOCITY_FACTOR * float(np.mean(vrw_v)) * math.sqrt(T)
+    psig = float(position_sigma) if position_sigma is not None else vsig * T
+    r = np.array([vsig**2] * 3 + [psig**2] * 3)
+    rs = r / sig[3:9] ** 2
+    return Setup(st, site, gimbal, arw_v, vrw_v, bias, T, n_sub, sig, n_gm, kinds, axes, js, phinn, F, F2, qd, rs,
+                 phi_p, q_p, vsig, psig, floored, need_rates, {"encoder_sigma": encoder_sigma}, tuple(labels),
+                 tuple(groups), tuple(unit_l))
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The bound of one experiment (SI inside; :meth:`table` gives field units)."""
+
+    path_name: str
+    duration_s: float
+    setup: Setup
+    steps: int
+    covariance: np.ndarray  # (p, p) posterior covariance of the parameters (SI)
+    history: np.ndarray | None  # (steps, p) posterior variance after each step (SI)
+    seconds: float
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return self.setup.labels
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """Bound (1 sigma, SI) of each parameter."""
+        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+
+    @property
+    def prior(self) -> np.ndarray:
+        return self.setup.prior
+
+    @property
+    def t_steps(self) -> np.ndarray:
+        """Time of each update (end of each filter step) [s]."""
+        return (np.arange(self.steps) + 1.0) * self.setup.T
+
+    def sigma_history(self) -> np.ndarray:
+        """(steps, p) bound over time (SI): the bound of the experiment cut at :attr:`t_steps`."""
+        if self.history is None:
+            raise BoundError("the bound was computed without its history")
+        return np.sqrt(np.maximum(self.history, 0.0))
+
+    def by_label(self) -> dict[str, float]:
+        return dict(zip(self.labels, self.sigma.tolist()))
+
+    def table(self) -> list[dict]:
+        """Per parameter: label, group, field unit, prior, bound and bound / prior."""
+        out = []
+        s, p0 = self.sigma, self.prior
+        for k, lab in enumerate(self.labels):
+            u = self.setup.units_[k]
+            out.append({"label": lab, "group": self.setup.groups[k], "unit": u,
+                        "prior": float(units.from_si(p0[k], u)), "bound": float(units.from_si(s[k], u)),
+                        "ratio": float(s[k] / p0[k])})
+        return out
+
+    def group_rms(self, sigma: np.ndarray | None = None) -> dict[str, float]:
+        """RMS of the bound per group (field units): ``sqrt(mean sigma^2)`` over its components."""
+        s = self.sigma if sigma is None else sigma
+        out: dict[str, list] = {}
+        for k, g in enumerate(self.setup.groups):
+            out.setdefault(g, []).append(float(units.from_si(s[k], self.setup.units_[k])))
+        return {g: float(np.sqrt(np.mean(np.square(v)))) for g, v in out.items()}
+
+    def to_dict(self) -> dict:
+        su = self.setup
+        return {"path": {"name": self.path_name, "duration_s": self.duration_s}, "states": _spec(su.states),
+                "n_params": su.n_params, "filter_rate_hz": 1.0 / su.T, "sub_rate_hz": su.n_sub / su.T,
+                "steps": self.steps,
+                "site": {"latitude_deg": math.degrees(su.site.latitude), "longitude_deg": math.degrees(su.site.longitude),
+                         "height_m": su.site.height},
+                "noise": {"arw_deg_sqrt_h": units.from_si(su.arw, "deg/sqrt(h)").tolist(),
+                          "vrw_ug_sqrt_hz": units.from_si(su.vrw, "ug/sqrt(Hz)").tolist(), "floored": su.floored,
+                          "velocity_sigma_m_s": su.velocity_sigma, "position_sigma_m": su.position_sigma,
+                          "bias": su.bias.to_dict() if su.bias.active else None},
+                "parameters": self.table(), "group_rms": self.group_rms(), "seconds": self.seconds}
+
+
+def _spec(st: StateSet) -> str:
+    from inscal.calibrate.systematic.states import state_spec
+
+    try:
+        return state_spec(st)
+    except Exception:  # a state set the helper does not know
+        return str(st)
+
+
+def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bound:
+    """The bound of ``path`` under ``setup`` (module docstring)."""
+    t0 = time.perf_counter()
+    seg = path.segments()
+    T = setup.T
+    M = int(math.floor(float(seg.t1[-1]) / T + 1e-9))
+    if M < 2:
+        raise BoundError(f"path {path.name!r} is too short ({seg.t1[-1]:g} s) for a {T:g} s filter step")
+    N = setup.sig.size
+    u = outer_axis(setup.gimbal.nonorthogonality)
+    Cbn = dcm_from_euler(setup.gimbal.mount_attitude)
+    wie = earth.earth_rate_n(setup.site.latitude)
+    t_up = (np.arange(M) + 1.0) * T
+    xH, xr = _extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states],
+                         setup.row_options)
+    if xH.shape[1]:
+        pad = N - setup.states.n_states
+        if pad:
+            xH = np.concatenate([xH, np.zeros(xH.shape[:2] + (pad,))], axis=2)
+        xH = xH * setup.sig[None, None, :]
+    P = np.eye(N)
+    hist = np.empty((M, N))
+    _bound_kernel(M, T, setup.n_sub, np.ascontiguousarray(seg.t0, float), np.ascontiguousarray(seg.t1, float),
+                  np.ascontiguousarray(seg.th0, float), np.ascontiguousarray(seg.w0, float),
+                  np.ascontiguousarray(seg.acc, float), u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
+                  setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd, setup.rs,
+                  setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH), np.ascontiguousarray(xr, float), P,
+                  hist)
+    p = setup.n_params
+    sp = setup.sig[N_NAV:N_NAV + p]
+    cov = P[N_NAV:N_NAV + p, N_NAV:N_NAV + p] * np.outer(sp, sp)
+    h = hist[:, N_NAV:N_NAV + p] * sp**2 if keep_history else None
+    return Bound(path.name, float(seg.t1[-1]), setup, M, cov, h, time.perf_counter() - t0)
+
+
+def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_noise: BiasNoise | None = None,
+         filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ, prior: dict | None = None,
+         keep_history: bool = True) -> Bound:
+    """The bound of an experiment from a Scenario, RotationPath, built-in name or TOML file (as
+    :func:`inscal.calibrate.observability.load_source`): the scenario's site, gimbal geometry
+    and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
+    bare path at the S16 site with the S16 noise."""
+    from inscal.plan.observability import ObservabilityError, _noise, load_source
+
+    try:
+        sc, kind, _ = load_source(source)
+        arw_v, vrw_v, _ = _noise(sc, kind, arw, vrw)
+    except ObservabilityError as exc:
+        raise BoundError(str(exc)) from None
+    if bias_noise is None and kind == "scenario":
+        bias_noise = BiasNoise.from_imu_noise(sc.noise)
+    setup = make_setup(states, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior)
+    return evaluate(setup, sc.path, keep_history)
+
+
+def predicted_error(b: Bound, imu) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of the error (estimate - truth, the filter's parameter error
+    state, SI) of a linear-Gaussian calibration of an IMU whose truth ``imu`` (canonical
+    :class:`~inscal.errors.ImuErrors`) is fixed while only the noise varies (a noise-only Monte
+    Carlo).  With the bound ``P``, the prior ``P0 = diag(sigma0^2)`` centred on the nominal (ideal)
+    parameters and the data information ``L = P^-1 - P0^-1``, the posterior mean is
+    ``x^ = P (L x + P0^-1 mu)``, so ``x^ - x`` has mean ``P P0^-1 (mu - x)`` (the prior's pull) and
+    covariance ``P L P = P - P P0^-1 P`` (the noise).  Both are zero / equal to ``P`` where the data
+    dominate the prior (bound << prior); where they do not, a fixed-truth spread is smaller than
+    the bound.  Constant parameters only (no Gauss-Markov bias states)."""
+    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+
+    su = b.setup
+    if su.n_gm:
+        raise BoundError("predicted_error needs constant parameter states (no Gauss-Markov bias states)")
+    st = su.states
+    x_nom = CompParams().error_state(st, truth_in_frame(imu, st))  # nominal - truth (first order)
+    P = b.covariance
+    L0 = 1.0 / su.prior**2
+    mean = P @ (L0 * x_nom)
+    cov = P - (P * L0) @ P
+    return mean, np.sqrt(np.maximum(np.diag(cov), 0.0))

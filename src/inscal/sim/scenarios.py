@@ -1,0 +1,430 @@
+"""Built-in simulation scenarios and custom scenarios from TOML files.
+
+Built-in (``inscal simulate NAME``):
+
+``s16``
+    S16 section 4.1: gyro and accelerometer scale factors 300 ppm, misalignments 180"
+    (S16 form: 3 gyro angles in the gyro-defined m-frame, 6 accelerometer angles),
+    gyro bias 0.05 deg/h, ARW 0.00005 deg/sqrt(h), accelerometer bias 200 ug, white noise
+    1 ug/sqrt(Hz), g-sensitivity 0.001 deg/h/g (all 9 terms), nonlinearity and
+    cross-coupling 300 ug/g^2, lever arms 2 cm, turntable (mount) attitude error 1"
+    on each axis; S16 Table 1 path (18 rotations, 5 deg/s, 180 s dwell), 100 Hz,
+    latitude 30 deg N (S16 does not state its site; stated here).
+``n25``
+    N25 section 5: site 120.664265 E, 30.686651 N; carrier (mount) attitude
+    [0.1, 0.1, 20] deg; ARW 0.02 deg/sqrt(h), VRW 20 ug/sqrt(Hz); gimbal
+    non-orthogonality 20"; FOG-grade IMU errors (N25 Table 2 is not in the text; the
+    values are :data:`N25_ERRORS`); twelve positions of 100 s at 4 deg/s plus CW/CCW
+    rate tests at 10 deg/s.
+``static``, ``static-24h``
+    Static base, IMU level and E-N-U, N25 site, error-free (``static-24h``: 24 h): a
+    perfect IMU, the reference run for the navigator (compensating it adds errors).
+``n25-static``
+    The ``n25`` IMU errors and noise on a static base (1 h by default, ``--duration-h``):
+    the record for ``inscal allan`` and for static navigation of a real-looking IMU.
+``rotmod16``, ``rotmod16-6h``
+    16-sequence rotation modulation (300 s per position, 10 deg/s) at the N25 site and
+    mount attitude, error-free (``rotmod16-6h``: 6 h).
+``n25-rotmod``
+    The ``n25`` IMU errors, gimbal non-orthogonality, mount attitude and noise under
+    16-sequence rotation modulation (6 h by default): the N25 section 6 navigation check.
+``psins19``
+    PSINS-style 19-position systematic calibration (:func:`inscal.turntable.psins19`: 18
+    turns of 90 deg at 10 deg/s, 50 deg/s^2, 9.2 s each, 20-90 s stops, 1035.6 s), 100 Hz,
+    site 34 N, 108 E, 380 m; no gimbal non-orthogonality, zero mount attitude.  A
+    navigation-grade IMU whose truth includes the quadratic terms and lever arms
+    (:data:`PSINS19_ERRORS`), given in the S16 compensation form with the m-frame equal to
+    the s-frame (gyro misalignment lower-triangular, 3 angles) like ``s16``, so a filter
+    estimating in the gyro-defined frame compares with the truth without a rotation:
+    gyro scale factors 20-40 ppm, misalignments 10-35", gyro bias 0.015-0.035 deg/h,
+    g-sensitivity 1e-4 to 8e-4 deg/h/g on 5 entries, accelerometer bias 60-95 ug, scale
+    factors 60-95 ppm, nonlinearity 15-25 ug/g^2, cross-coupling 10-28 ug/g^2, lever arms
+    [2.0, 3.0, -1.5] cm along the axes.  Noise of a navigation-grade FOG IMU: ARW
+    0.002 deg/sqrt(h), VRW 5 ug/sqrt(Hz).
+``s16-table3``
+    An ultra-high-accuracy IMU (the "0.1 nmi / 5 d" INS of S16 section 4.3) whose truth
+    includes the extra terms at the magnitudes of S16 Table 3 (the calibrated values of S16's
+    real dual-axis RINS), in the S16 form with the m-frame equal to the s-frame like ``s16``
+    (:data:`S16_TABLE3_ERRORS`): g-sensitivity G = 1e-5 deg/h/g x [[0.09, 0.25, -0.22],
+    [0.35, 0.81, -0.24], [-0.07, -0.50, -1.02]]; nonlinearity K_a2 = [17.1, -20.4, 25.2]
+    ug/g^2; cross-coupling [xy, xz, yx, yz, zx, zy] = [-2.0, -22.6, 7.8, 16.5, -0.5, 1.6]
+    ug/g^2; lever arms [-4.1, 2.2, -2.4] cm (Table 3's numbers taken as inscal lever arms,
+    i.e. accelerometer positions; S16's printed eq. 12 sign would report their negatives:
+    the sign is immaterial here).  Linear errors of a real unit before calibration (not from
+    S16; chosen "tens of ppm / arcsec"): gyro scale factors [20, -15, 25] ppm, gyro
+    misalignment gamma [yz, zx, zy] = [15, -20, 10]", gyro bias [0.010, -0.008, 0.012] deg/h;
+    accelerometer scale factors [40, -30, 50] ppm, misalignment alpha [xy, xz, yx, yz, zx,
+    zy] = [20, -25, 15, -10, 30, -20]", bias [50, -40, 60] ug.  Noise (:data:`S16_TABLE3_NOISE`):
+    ARW 5e-6 deg/sqrt(h), VRW 0.5 ug/sqrt(Hz), no bias instability.  Why: S16 expects atomic
+    gyros better than 5e-6 deg/h; the 5-day position error that ARW N alone leaves in free
+    inertial navigation grows about R N sqrt(t) (6 m here), and 0.5 ug/sqrt(Hz) is a good quartz
+    accelerometer (its effect is Schuler-bounded): navigating 5 days with the true parameters
+    and this noise leaves 10-21 m (0.005-0.011 nmi, :mod:`inscal.analysis.nav5d` with
+    ``--nav-noise``), so the sensors are those of an INS well inside 0.1 nmi / 5 d and what the
+    calibration leaves decides the error.
+    Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
+    S16 Table 1 path, 100 Hz.
+``s16-gimbal``
+    The ``s16`` scenario (S16 section 4.1 IMU errors and noise, S16 Table 1 path, 100 Hz, 30 N)
+    on a gimbal with N25's geometry: non-orthogonality 20" and mount (carrier) attitude
+    [0.1, 0.1, 20] deg (N25 section 5), encoders recorded with 1" white noise.  The case of
+    the ``unified`` method (S16 filter + gimbal states + encoder attitude).
+
+Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
+
+    base = "n25"                    # optional: start from a built-in scenario
+    [scenario]
+    name = "my-bench"
+    rate_hz = 200
+    duration_h = 2.0                # for static/rotmod paths
+    [site]
+    latitude_deg = 45.0
+    longitude_deg = 7.6
+    height_m = 250.0
+    [errors]                        # bare value = field unit; or {value = ..., unit = "..."}
+    gyro_bias = [0.01, -0.02, 0.005]
+    gimbal_nonorthogonality = 15
+    mount_attitude = {value = [0.1, 0.1, 20], unit = "deg"}
+    [noise]
+    arw = 0.02
+    vrw = 20
+    [path]
+    builtin = "n25-twelve"          # or: name, accel_dps2, closed, moves = [{axis, angle_deg, rate_dps, dwell_s}, ...]
+"""
+
+from __future__ import annotations
+
+import math
+
+from inscal.io.tomlfile import read_toml
+
+from dataclasses import replace
+
+from pathlib import Path
+
+import numpy as np
+
+from inscal.core import units
+
+from inscal.core.earth import GravityModel, parse_gravity
+
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, S16Parameters, errors_from_field, errors_to_field, from_s16, noise_from_field
+
+from inscal.sim.simulate import Scenario
+from inscal.core.earth import Site
+
+from inscal.core.turntable import BUILTIN_PATHS, RotationPath, PathError, n25_twelve, psins19, rotmod16, s16_table1, static
+
+
+
+
+
+
+
+
+DEG = math.pi / 180.0
+N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
+S16_SITE = Site(latitude=30.0 * DEG, longitude=114.0 * DEG, height=0.0)
+
+#: FOG-grade IMU errors chosen for the N25 scenario (field units).
+N25_ERRORS = {
+    "gyro_scale_factor": [50.0, -40.0, 30.0],
+    "gyro_misalignment": [20.0, -15.0, 10.0, -25.0, 15.0, -10.0],
+    "gyro_bias": [0.02, -0.03, 0.015],
+    "accel_scale_factor": [80.0, -60.0, 100.0],
+    "accel_misalignment": [30.0, -20.0, 25.0, -35.0, 20.0, -15.0],
+    "accel_bias": [50.0, -80.0, 100.0],
+    "gimbal_nonorthogonality": 20.0,
+    "mount_attitude": {"value": [0.1, 0.1, 20.0], "unit": "deg"},
+}
+N25_NOISE = {"arw": 0.02, "vrw": 20.0}
+
+#: Site of the ``psins19`` scenario (34 N, 108 E, 380 m).
+PSINS19_SITE = Site(latitude=34.0 * DEG, longitude=108.0 * DEG, height=380.0)
+
+#: Navigation-grade IMU errors of the ``psins19`` scenario, in the S16 compensation form
+#: (:class:`~inscal.errors.S16Parameters`, m-frame = s-frame), field units.  Keys are the
+#: S16Parameters fields: ``K_g``/``K_a`` are given as ``K - 1`` in ppm; ``gamma`` = [yz, zx, zy]
+#: and ``alpha`` = [xy, xz, yx, yz, zx, zy] in arcsec; ``G`` (3x3, rows: gyro x, y, z) in
+#: deg/h/g; ``K_a2`` = [xx, yy, zz] and ``K_cross`` = [xy, xz, yx, yz, zx, zy] (the entries of
+#: S16 eq. 12: x gets ``Kxy fx fy + Kxz fx fz`` ...) in ug/g^2; ``lever_arm`` = [rx, ry, rz]
+#: along each accelerometer's own axis in cm.
+PSINS19_ERRORS = {
+    "K_g": {"value": [30.0, -20.0, 40.0], "unit": "ppm"},
+    "gamma": {"value": [20.0, -30.0, 15.0], "unit": "arcsec"},
+    "b_g": {"value": [0.02, -0.035, 0.015], "unit": "deg/h"},
+    "G": {"value": [[5e-4, 0.0, 2e-4], [0.0, -3e-4, 0.0], [0.0, 1e-4, 8e-4]], "unit": "deg/h/g"},
+    "K_a": {"value": [80.0, -60.0, 95.0], "unit": "ppm"},
+    "alpha": {"value": [25.0, -15.0, 30.0, -20.0, 10.0, -35.0], "unit": "arcsec"},
+    "b_a": {"value": [60.0, -80.0, 95.0], "unit": "ug"},
+    "K_a2": {"value": [15.0, -25.0, 20.0], "unit": "ug/g^2"},
+    "K_cross": {"value": [12.0, -18.0, 22.0, -10.0, 28.0, -15.0], "unit": "ug/g^2"},
+    "lever_arm": {"value": [2.0, 3.0, -1.5], "unit": "cm"},
+}
+#: Noise of the ``psins19`` scenario (navigation-grade FOG IMU), field units.
+PSINS19_NOISE = {"arw": 0.002, "vrw": 5.0}
+
+#: IMU errors of the ``s16-table3`` scenario in the S16 compensation form (m-frame = s-frame),
+#: field units, keys and layout as :data:`PSINS19_ERRORS`.  G, K_a2, K_cross and lever_arm are
+#: S16 Table 3 (the calibrated extra terms of S16's real dual-axis RINS); the linear terms are
+#: those of a real unit before calibration (chosen, not from S16).
+S16_TABLE3_ERRORS = {
+    "K_g": {"value": [20.0, -15.0, 25.0], "unit": "ppm"},
+    "gamma": {"value": [15.0, -20.0, 10.0], "unit": "arcsec"},
+    "b_g": {"value": [0.010, -0.008, 0.012], "unit": "deg/h"},
+    "G": {"value": [[0.09e-5, 0.25e-5, -0.22e-5], [0.35e-5, 0.81e-5, -0.24e-5], [-0.07e-5, -0.50e-5, -1.02e-5]],
+          "unit": "deg/h/g"},
+    "K_a": {"value": [40.0, -30.0, 50.0], "unit": "ppm"},
+    "alpha": {"value": [20.0, -25.0, 15.0, -10.0, 30.0, -20.0], "unit": "arcsec"},
+    "b_a": {"value": [50.0, -40.0, 60.0], "unit": "ug"},
+    "K_a2": {"value": [17.1, -20.4, 25.2], "unit": "ug/g^2"},
+    "K_cross": {"value": [-2.0, -22.6, 7.8, 16.5, -0.5, 1.6], "unit": "ug/g^2"},
+    "lever_arm": {"value": [-4.1, 2.2, -2.4], "unit": "cm"},
+}
+#: Noise of the ``s16-table3`` scenario (an INS at the 0.1 nmi / 5 d level), field units.
+S16_TABLE3_NOISE = {"arw": 5e-6, "vrw": 0.5}
+
+
+def s16_errors() -> ImuErrors:
+    """S16 section 4.1 error values, expressed in the S16 form then converted (m-frame = s-frame)."""
+    sf, mis = 300e-6, units.to_si(180.0, "arcsec")
+    ug, ug_g2 = units.to_si(1.0, "ug"), units.to_si(1.0, "ug/g^2")
+    s16 = S16Parameters(
+        K_g=np.full(3, 1.0 + sf), gamma=np.full(3, mis), b_g=np.full(3, units.to_si(0.05, "deg/h")),
+        G=np.full((3, 3), units.to_si(0.001, "deg/h/g")),
+        K_a=np.full(3, 1.0 + sf), alpha=np.full(6, mis), b_a=np.full(3, 200 * ug),
+        K_a2=np.full(3, 300 * ug_g2), K_cross=np.zeros((3, 3)), lever_arm=np.full(3, 0.02),
+    )
+    kc = 300 * ug_g2
+    s16 = replace(s16, K_cross=np.array([[kc, kc, 0.0], [kc, 0.0, kc], [0.0, kc, kc]]))
+    return from_s16(s16)
+
+
+def _s16_form(table: dict) -> S16Parameters:
+    """A field-unit table in the :data:`PSINS19_ERRORS` layout as :class:`~inscal.errors.S16Parameters` (SI)."""
+    v = {k: units.to_si(e["value"], e["unit"]) for k, e in table.items()}
+    kx = v["K_cross"]  # [xy, xz, yx, yz, zx, zy] -> S16 eq. 12 rows
+    return S16Parameters(
+        K_g=1.0 + v["K_g"], gamma=v["gamma"], b_g=v["b_g"], G=v["G"],
+        K_a=1.0 + v["K_a"], alpha=v["alpha"], b_a=v["b_a"], K_a2=v["K_a2"],
+        K_cross=np.array([[kx[0], kx[1], 0.0], [kx[2], 0.0, kx[3]], [0.0, kx[4], kx[5]]]),
+        lever_arm=v["lever_arm"],
+    )
+
+
+def psins19_s16() -> S16Parameters:
+    """:data:`PSINS19_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    return _s16_form(PSINS19_ERRORS)
+
+
+def s16_table3_s16() -> S16Parameters:
+    """:data:`S16_TABLE3_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    return _s16_form(S16_TABLE3_ERRORS)
+
+
+def s16_table3_errors() -> ImuErrors:
+    """The ``s16-table3`` IMU errors in the canonical form (``from_s16`` with ``C_s^m = I``)."""
+    return from_s16(s16_table3_s16())
+
+
+def psins19_errors() -> ImuErrors:
+    """The ``psins19`` IMU errors in the canonical form (``from_s16`` with ``C_s^m = I``)."""
+    return from_s16(psins19_s16())
+
+
+def _psins19() -> Scenario:
+    return Scenario("psins19", psins19(), PSINS19_SITE, imu=psins19_errors(), gimbal=GimbalErrors(),
+                    noise=noise_from_field(PSINS19_NOISE), rate_hz=100.0)
+
+
+def _s16() -> Scenario:
+    return Scenario(
+        "s16", s16_table1(), S16_SITE, imu=s16_errors(),
+        gimbal=GimbalErrors(0.0, units.to_si([1.0, 1.0, 1.0], "arcsec")),
+        noise=ImuNoise(arw=units.to_si(0.00005, "deg/sqrt(h)"), vrw=units.to_si(1.0, "ug/sqrt(Hz)")),
+        rate_hz=100.0,
+    )
+
+
+def _s16_table3() -> Scenario:
+    return Scenario("s16-table3", s16_table1(), S16_SITE, imu=s16_table3_errors(),
+                    gimbal=GimbalErrors(0.0, units.to_si([1.0, 1.0, 1.0], "arcsec")),
+                    noise=noise_from_field(S16_TABLE3_NOISE), rate_hz=100.0)
+
+
+def _s16_gimbal() -> Scenario:
+    base = _s16()
+    gim = GimbalErrors(units.to_si(20.0, "arcsec"), units.to_si([0.1, 0.1, 20.0], "deg"))
+    return replace(base, name="s16-gimbal", gimbal=gim,
+                   noise=replace(base.noise, encoder_noise=units.to_si(1.0, "arcsec")))
+
+
+def _n25() -> Scenario:
+    imu, gim = errors_from_field(N25_ERRORS)
+    return Scenario("n25", n25_twelve(), N25_SITE, imu=imu, gimbal=gim, noise=noise_from_field(N25_NOISE), rate_hz=100.0)
+
+
+def _static(duration_s: float = 3600.0) -> Scenario:
+    return Scenario("static", static(duration_s), N25_SITE, rate_hz=100.0)
+
+
+def _rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
+    _, gim = errors_from_field({"mount_attitude": N25_ERRORS["mount_attitude"]})
+    return Scenario("rotmod16", rotmod16(duration_s), N25_SITE, gimbal=gim, rate_hz=100.0)
+
+
+def _n25_static(duration_s: float = 3600.0) -> Scenario:
+    """The N25 IMU errors, mount attitude and noise on a static base."""
+    return replace(_n25(), name="n25-static", path=static(duration_s))
+
+
+def _n25_rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
+    """The N25 IMU, gimbal and noise under 16-sequence rotation modulation (N25 section 6 navigation check)."""
+    base = _n25()
+    return replace(base, name="n25-rotmod", path=rotmod16(duration_s))
+
+
+BUILTIN = {
+    "s16": lambda d: _s16(),
+    "n25": lambda d: _n25(),
+    "static": lambda d: _static(d or 3600.0),
+    "static-24h": lambda d: _static(d or 86400.0),
+    "rotmod16": lambda d: _rotmod(d or 6 * 3600.0),
+    "rotmod16-6h": lambda d: _rotmod(d or 6 * 3600.0),
+    "n25-rotmod": lambda d: _n25_rotmod(d or 6 * 3600.0),
+    "n25-static": lambda d: _n25_static(d or 3600.0),
+    "psins19": lambda d: _psins19(),
+    "s16-table3": lambda d: _s16_table3(),
+    "s16-gimbal": lambda d: _s16_gimbal(),
+}
+DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static"}
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be built."""
+
+
+def build(name: str, duration_s: float | None = None, rate_hz: float | None = None) -> Scenario:
+    """A built-in scenario by name, or a custom one from a ``.toml`` file."""
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ScenarioError(f"duration must be > 0, got {duration_s} s")
+    if name.endswith(".toml") or Path(name).is_file():
+        sc = load_toml(name, duration_s)
+    elif name in BUILTIN:
+        if duration_s is not None and name not in DURATION_SCENARIOS:
+            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration applies to {sorted(DURATION_SCENARIOS)}")
+        sc = BUILTIN[name](duration_s)
+    else:
+        raise ScenarioError(f"unknown scenario {name!r}; built-in: {', '.join(BUILTIN)}, or a .toml file")
+    if rate_hz is not None:
+        try:
+            sc = replace(sc, rate_hz=float(rate_hz))
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+    return sc
+
+
+_TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "path"}
+
+
+def load_toml(file, duration_s: float | None = None) -> Scenario:
+    p = Path(file)
+    d = read_toml(p, ScenarioError, "scenario file")
+    try:
+        return scenario_from_dict(d, duration_s, default_name=p.stem)
+    except (ValueError, PathError, TypeError) as exc:
+        raise ScenarioError(f"{p}: {exc}") from None
+
+
+def gravity_from_field(g) -> GravityModel:
+    """``[site] gravity``: "wgs84" | "psins" | {value = 9.79, unit = "m/s^2"(, height_m = h)}
+    (a measured value, at the site height unless ``height_m`` says where it was taken)."""
+    if isinstance(g, str):
+        if g.strip().lower() not in ("wgs84", "psins"):
+            raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
+        return parse_gravity(g)
+    if isinstance(g, dict):
+        _check_keys("site.gravity", g, {"value", "unit", "height_m"})
+        if "value" not in g or "unit" not in g:
+            raise ScenarioError("[site] gravity = {value = ..., unit = ...} needs both value and unit")
+        v = units.to_si(float(g["value"]), str(g["unit"]), "accel")
+        return GravityModel("measured", float(v), None if "height_m" not in g else float(g["height_m"]))
+    raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
+
+
+def gravity_to_field(m: GravityModel):
+    """Inverse of :func:`gravity_from_field` (SI value in m/s^2)."""
+    if m.kind != "measured":
+        return m.kind
+    d = {"value": m.value, "unit": "m/s^2"}
+    if m.height is not None:
+        d["height_m"] = m.height
+    return d
+
+
+def _check_keys(section: str, d: dict, allowed: set) -> None:
+    if not isinstance(d, dict):
+        raise ScenarioError(f"[{section}] must be a table")
+    unknown = set(d) - allowed
+    if unknown:
+        raise ScenarioError(f"[{section}]: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+
+
+def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: str = "custom") -> Scenario:
+    from inscal import SCHEMA_VERSION
+
+    _check_keys("top level", d, _TOP_KEYS)
+    if "schema_version" in d and d["schema_version"] != SCHEMA_VERSION:
+        raise ScenarioError(f"schema_version {d['schema_version']} is not supported (this inscal reads {SCHEMA_VERSION})")
+    meta = d.get("scenario", {})
+    _check_keys("scenario", meta, {"name", "rate_hz", "duration_h", "duration_s"})
+    if "duration_h" in meta and duration_s is None:
+        duration_s = float(meta["duration_h"]) * 3600.0
+    if "duration_s" in meta and duration_s is None:
+        duration_s = float(meta["duration_s"])
+    if "base" in d:
+        base = build(str(d["base"]), duration_s if str(d["base"]) in DURATION_SCENARIOS else None)
+    else:
+        base = Scenario(default_name, static(duration_s or 3600.0), N25_SITE)
+    name = str(meta.get("name", default_name))
+    rate = float(meta.get("rate_hz", base.rate_hz))
+    if not (math.isfinite(rate) and rate > 0):
+        raise ScenarioError(f"[scenario] rate_hz must be positive, got {rate}")
+    site = base.site
+    if "site" in d:
+        s = d["site"]
+        _check_keys("site", s, {"latitude_deg", "longitude_deg", "height_m", "gravity"})
+        site = Site(float(s.get("latitude_deg", site.latitude / DEG)) * DEG,
+                    float(s.get("longitude_deg", site.longitude / DEG)) * DEG,
+                    float(s.get("height_m", site.height)),
+                    gravity_from_field(s["gravity"]) if "gravity" in s else site.gravity_model)
+    imu, gim = base.imu, base.gimbal
+    if "errors" in d:
+        merged = errors_to_field(base.imu, base.gimbal)
+        merged.update(d["errors"])
+        imu, gim = errors_from_field(merged)
+    noise = base.noise
+    if "noise" in d:
+        noise = noise_from_field(d["noise"])
+    path = base.path
+    if "path" in d:
+        pd = dict(d["path"])
+        if "builtin" in pd:
+            bname = pd.pop("builtin")
+            if bname not in BUILTIN_PATHS:
+                raise ScenarioError(f"[path] unknown builtin {bname!r}; known: {sorted(BUILTIN_PATHS)}")
+            if pd:
+                raise ScenarioError(f"[path] with builtin takes no other keys, got {sorted(pd)}")
+            fn = BUILTIN_PATHS[bname]
+            path = fn(duration_s or 3600.0) if bname in ("static", "rotmod16") else fn()
+        else:
+            path = RotationPath.from_dict(pd)
+    elif duration_s is not None and "base" not in d:
+        path = static(duration_s)
+    return Scenario(name, path, site, imu, gim, noise, rate)
+
+
+# ---------------------------------------------------------------------------- s16-table2
+#: S16 Table 2 "after filter" figures (field units of :data:`inscal.errors.PARAMETERS`)
+S16_TABLE2 = {"gyro_g_sensitivity": 0.0002, "accel_nonlinearity": 1.3, "accel_cross_coupling": 1.5,
+              "accel_lever_arm": 0.01}
