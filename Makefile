@@ -24,6 +24,7 @@ demo: $(STAMP)
 	$(BIN)/inscal demo --out demo-output --force
 
 test: $(STAMP)
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: $(BSTAMP)

@@ -83,10 +83,10 @@ def test_run_allan_matches_in_memory(tmp_path_factory, rotate, start, stop, monk
     path = tmp_path_factory.getbasetemp() / f"stream_{rotate}.h5"
     if not path.exists():
         _record(path, 250_000, rotate)
-    import inscal.cli.allan as ca
+    import inscal.analysis.allan as aa
 
-    real = ca.stream_allan
-    monkeypatch.setattr(ca, "stream_allan", lambda data, win: real(data, win, chunk_size=30_011))  # many chunks
+    real = aa.stream_allan
+    monkeypatch.setattr(aa, "stream_allan", lambda data, win: real(data, win, chunk_size=30_011))  # many chunks
     res = run_allan(path, start, stop)
     rec, sel, g, a = _in_memory(path, start, stop)
     assert res["window_s"] == pytest.approx([rec.time[sel][0] - 1 / RATE, rec.time[sel][-1]], rel=1e-12)

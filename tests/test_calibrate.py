@@ -12,7 +12,7 @@ import pytest
 from inscal.calibrate.positions import TWELVE
 
 from inscal.sim import scenarios, simulate
-from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.windows import window_means
 from inscal.calibrate.window_model import predict

@@ -10,6 +10,8 @@ from typer.testing import CliRunner
 
 from inscal.core import kalman as filters, units
 from inscal.plan import bound as C
+from inscal.plan import rows as plan_rows
+from inscal.plan.rows import register_rows
 from inscal.plan.observability import observability
 from inscal.calibrate.systematic.states import N_NAV, StateSet
 from inscal.cli.app import app
@@ -149,8 +151,8 @@ def test_extra_rows_hook(monkeypatch):
         H[:, 0, off] = 1.0
         return H, np.full((t.size, 1), s * s)
 
-    monkeypatch.setattr(C, "_ROW_BUILDERS", [])
-    C.register_rows(lambda st: st.extended, rows)
+    monkeypatch.setattr(plan_rows, "_ROW_BUILDERS", [])
+    register_rows(lambda st: st.extended, rows)
     b = C.crlb(short_path())
     k = off - N_NAV
     assert b.sigma[k] == pytest.approx(s / math.sqrt(b.steps), rel=0.02)

@@ -14,7 +14,7 @@ import pytest
 from inscal.core import earth, units
 from inscal.sim import scenarios
 from inscal.core.attitude import dcm_from_quat, quat_from_dcm
-from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec
 from inscal.calibrate.systematic.kernel import one_step

@@ -16,7 +16,7 @@ import pytest
 from inscal.core import kalman as filters, units
 from inscal.sim import scenarios
 from inscal.core.attitude import quat_from_dcm
-from inscal.calibrate.result import CalibrationError
+from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.kernel import one_step
 from inscal.calibrate.systematic.params import CompParams, truth_in_frame

@@ -8,17 +8,12 @@ at the flat bottom as ``sigma_min / sqrt(2 ln 2 / pi) = sigma_min / 0.664`` (IEE
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from pathlib import Path
-
 from inscal.io.records import iter_window
-
-
-
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 

@@ -41,32 +41,33 @@ Outputs
 from __future__ import annotations
 
 import csv
-
-
 import datetime as _dt
-
+import fcntl
 import json
-
+import logging
 import math
-
 import os
-
 import shutil
-
 import sys
-
 import time
-
+import warnings
 from dataclasses import dataclass, field
-
 from pathlib import Path
-
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from scipy.stats import chi2
 
+from inscal import __version__ as inscal_version
 from inscal.io.jsonfile import to_jsonable
-
 
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
@@ -144,7 +145,6 @@ def _canonical(o) -> str:
 
 
 def make_header(experiment: Experiment, seed: int) -> dict:
-    from inscal import __version__ as inscal_version
 
     return {
         "type": "header",
@@ -312,7 +312,6 @@ class _FolderLock:
     def __init__(self, out: Path):
         self.fh = open(out / ".lock", "a")
         try:
-            import fcntl
 
             fcntl.flock(self.fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except ImportError:  # pragma: no cover - non-POSIX
@@ -469,8 +468,6 @@ def _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, f
 
 
 def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=None) -> None:
-    import logging
-    import warnings
 
     from distributed import Client, LocalCluster, as_completed
 
@@ -543,8 +540,6 @@ class _Progress:
         self.next_pct = 10
         if not enabled:
             return
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         con = Console(stderr=True)
         if not con.is_terminal:
@@ -653,7 +648,6 @@ def write_outputs(experiment: Experiment, summary: Summary, out) -> dict[str, Pa
 # ---------------------------------------------------------------------- small statistics
 def std_ci(std: float, n: int, level: float = 0.95) -> tuple[float, float]:
     """Confidence interval of a standard deviation from ``n`` normal samples (chi-square)."""
-    from scipy.stats import chi2
 
     if n < 2 or not np.isfinite(std):
         return (math.nan, math.nan)

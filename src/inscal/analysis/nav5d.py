@@ -86,36 +86,24 @@ Run ``python -m inscal.analysis.nav5d`` for the table (``--help`` for options).
 from __future__ import annotations
 
 import argparse
-
 import json
-
 import math
-
 import time
-
 from dataclasses import replace
 
 import numpy as np
 
-from inscal.sim import scenarios
-from inscal.core import units
-
 from inscal.calibrate import calibrate
-
+from inscal.core import units
 from inscal.core.error_model import ImuErrors, ImuNoise
-
+from inscal.core.turntable import Move, RotationPath, rotmod16
+from inscal.core.units import DEG
 from inscal.io.jsonfile import to_jsonable
-
 from inscal.nav.run import navigate
-
+from inscal.nav.strapdown import NavConfig, NavState
+from inscal.sim import scenarios
 from inscal.sim.simulate import Scenario, simulate, simulate_chunks
 
-from inscal.nav.strapdown import NavConfig, NavState
-
-from inscal.core.turntable import Move, RotationPath, rotmod16
-
-
-DEG = math.pi / 180.0
 DAY = 86400.0
 NMI = 1852.0
 

@@ -3,20 +3,19 @@ group, and the normalised errors (NEES) of a systematic result."""
 
 from __future__ import annotations
 
-
-
 import math
-
-
-
 
 import numpy as np
 
+from inscal.calibrate import RECORD_METHODS
+from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 from inscal.core import units
-
-from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors
-from inscal.core.error_model import parameter_components
-
+from inscal.core.error_model import (
+    PARAMETERS,
+    GimbalErrors,
+    ImuErrors,
+    parameter_components,
+)
 
 
 def parameter_errors(imu: ImuErrors, gimbal: GimbalErrors | None, true_imu: ImuErrors, true_gimbal: GimbalErrors,
@@ -43,7 +42,6 @@ def estimated_parameter_names(result) -> list[str]:
 
 def is_record_method(method: str) -> bool:
     """Methods that read the increments (the systematic filter), not window means."""
-    from inscal.calibrate import RECORD_METHODS
 
     return method in RECORD_METHODS
 
@@ -88,7 +86,6 @@ def systematic_statistics(res, true_imu: ImuErrors, true_gimbal: GimbalErrors | 
     per-state ``z = e / sqrt(diag P)``.  State sets with the gimbal states (``unified``): the
     estimate's ``res.gimbal`` against ``true_gimbal`` (default ideal) enter ``e``, so the NEES
     counts ``dth`` and the mount attitude too."""
-    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 
     tg = GimbalErrors() if true_gimbal is None else true_gimbal
     err, sig = result_errors(res, true_imu, tg)

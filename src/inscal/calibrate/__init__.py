@@ -1,4 +1,4 @@
-"""Discrete calibration of the IMU and the dual-axis gimbal from turntable records (issue 4).
+"""Discrete calibration of the IMU and the dual-axis gimbal from turntable records.
 
 Public API::
 
@@ -39,22 +39,13 @@ from __future__ import annotations
 import inspect
 
 from inscal.calibrate.joint import joint
-
 from inscal.calibrate.n25 import n25
-
 from inscal.calibrate.result import CalibrationResult
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import Window, WindowSet, window_means
-
 from inscal.calibrate.six_position import six_position
-
-from inscal.calibrate.systematic.driver import systematic30, systematic51
-
+from inscal.calibrate.systematic.driver import systematic, systematic30, systematic51
 from inscal.calibrate.twelve_position import twelve_position
-
 from inscal.calibrate.unified import unified
-
+from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means
 
 METHODS = {
     "six-position": six_position,
@@ -78,7 +69,6 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
         raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     fn = METHODS[method]
     if method in RECORD_METHODS:
-        from inscal.calibrate.systematic.driver import systematic
 
         meth_keys = set(inspect.signature(systematic).parameters) - {"ws_or_record", "method_name"}
         unknown = set(options) - meth_keys

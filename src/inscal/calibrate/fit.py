@@ -4,19 +4,22 @@ chi-square of the normalised residuals, the likely cause of a misfit, and sigma 
 from __future__ import annotations
 
 import math
-
-
 from typing import Callable
 
 import numpy as np
+from scipy.stats import chi2 as _chi2
 
-from inscal.core import units
-
-from inscal.core.error_model import GimbalErrors, ImuErrors
-
-from inscal.calibrate.windows import WindowSet
 from inscal.calibrate.result import GIMBAL, IMU_LINEAR, flatten, nparams, unflatten
+from inscal.calibrate.window_model import (
+    ACCEL_FLOOR,
+    GYRO_FLOOR,
+    WindowModel,
+    predict,
+    window_inputs,
+)
+from inscal.calibrate.windows import WindowSet
 from inscal.core.attitude import rot_z
+from inscal.core.error_model import GimbalErrors, ImuErrors
 from inscal.core.turntable import outer_axis
 
 
@@ -66,8 +69,6 @@ def propagate(estimator: Callable[[WindowSet], np.ndarray], ws: WindowSet, used:
 #: a fit with p below this is reported as inconsistent and its sigma are scaled
 P_INCONSISTENT = 1e-3
 #: floors of the window-mean sigma (noise-free data stay well conditioned): 1e-6 deg/h, 1e-6 ug
-GYRO_FLOOR = units.to_si(1e-6, "deg/h")
-ACCEL_FLOOR = units.to_si(1e-6, "ug")
 CHANNELS = ("gyro", "accel")
 
 SIGMA_RULE = ("consistent fit: sigma = formal (measured window noise); inconsistent fit (p < 0.001): for each channel "
@@ -82,7 +83,6 @@ SIGMA_RULE = ("consistent fit: sigma = formal (measured window noise); inconsist
 def normalised_residuals(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet) -> tuple[np.ndarray, np.ndarray]:
     """``(predicted - measured) / sigma`` of every window mean, gyro and accelerometer (n, 3)
     each, with the exact forward model (:func:`.model.predict`) and the floored sigma."""
-    from inscal.calibrate.window_model import predict
 
     Ng, Na = predict(imu, gimbal, ws)
     G = np.array([w.gyro for w in ws.windows])
@@ -93,7 +93,6 @@ def normalised_residuals(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet) ->
 
 
 def chi2_sf(chi2: float, dof: int) -> float:
-    from scipy.stats import chi2 as _chi2
 
     return float(_chi2.sf(chi2, dof))
 
@@ -107,7 +106,6 @@ def estimator_reference(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, S: 
     ``A = (I - P_nuisance)(I - J S)``.  For a least-squares estimator ``A`` is the residual
     projector and chi^2 has ``dof`` degrees of freedom; an estimator that is not least
     squares leaves more of the noise in the residuals (``tr A^T A >= dof``)."""
-    from inscal.calibrate.window_model import WindowModel
 
     m = WindowModel(ws)
     J = m.jacobian(m.from_si(flatten(imu, gimbal, IMU_LINEAR + GIMBAL))) / m.scale[None, :]
@@ -208,7 +206,6 @@ def remove_geometry(fit: dict, imu: ImuErrors, gimbal: GimbalErrors, ws: WindowS
     tilt and non-orthogonality (columns 24-26 of :data:`.joint.COMPONENTS`) are fitted out
     with the model.  Their effect on the estimates is the scheme's known error, which the
     caller accounts for (N25 eq. 21-26, 29)."""
-    from inscal.calibrate.window_model import WindowModel
 
     rg, ra = normalised_residuals(imu, gimbal, ws)
     r = np.concatenate([rg.ravel(), ra.ravel()])
@@ -230,7 +227,6 @@ def remove_geometry(fit: dict, imu: ImuErrors, gimbal: GimbalErrors, ws: WindowS
 def _signatures(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, geometry: bool, model_jac, wvec) -> dict:
     """Candidate causes of a misfit as columns over the 6n normalised residual components
     (gyro rows first, window-major; ``wvec`` the sigma of each component)."""
-    from inscal.calibrate.window_model import window_inputs
 
     n = len(ws.windows)
     g = ws.site.gravity
@@ -276,7 +272,6 @@ def likely_cause(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, rg: np.nda
     angles there), else the candidate signature (:func:`_signatures`) that explains the
     largest share of chi^2 once what the fitted model absorbs is projected out (from the
     residuals and from the signatures)."""
-    from inscal.calibrate.window_model import WindowModel
 
     r = np.concatenate([rg.ravel(), ra.ravel()])
     chi2 = float(r @ r)

@@ -6,20 +6,32 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
-from inscal.core.error_model import GimbalErrors
-
-from inscal.core.units import from_si
-
-
-from inscal.calibrate.result import IMU_LINEAR, CalibrationResult, flatten, make_result, nparams, unflatten
-from inscal.calibrate.fit import estimator_reference, finish_sigma, fit_note, fit_statistics, normalised_residuals, remove_geometry, sensitivity
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import WindowSet
+from inscal.calibrate.fit import (
+    estimator_reference,
+    finish_sigma,
+    fit_note,
+    fit_statistics,
+    normalised_residuals,
+    remove_geometry,
+    sensitivity,
+)
+from inscal.calibrate.joint import joint
 from inscal.calibrate.positions import predicted_scheme_errors, rate_test_groups
-from inscal.calibrate.result import errors_from_values
-from inscal.core.units import DEG
+from inscal.calibrate.result import (
+    IMU_LINEAR,
+    CalibrationResult,
+    errors_from_values,
+    flatten,
+    make_result,
+    nparams,
+    unflatten,
+)
+from inscal.calibrate.window_model import predict
+from inscal.calibrate.windows import CalibrationError, WindowSet
+from inscal.core.error_model import GimbalErrors
+from inscal.core.units import DEG, from_si
 
 
 def fit_heading(imu, ws: WindowSet) -> float:
@@ -27,7 +39,6 @@ def fit_heading(imu, ws: WindowSet) -> float:
     level, orthogonal turntable (a nuisance of the ideal-input schemes).  The predicted means
     are exactly ``P0 + cos(g0) Pc + sin(g0) Ps`` there (``C_n^b = R_z(g0)^T``), so chi^2 is
     minimised on a 0.1 deg grid of that form, then refined (bounded 1-D search)."""
-    from scipy.optimize import minimize_scalar
 
     def res(g0):
         rg, ra = normalised_residuals(imu, GimbalErrors(0.0, [0.0, 0.0, g0]), ws)
@@ -98,8 +109,6 @@ def scheme_error_note(ws: WindowSet, static_used: list, rate_axes: list, equatio
     (``predicted_scheme_errors``, N25 eq. 21-26, 29) in words, and the error to all orders
     (``est`` run on the exact model's means for the joint estimates, minus them; flat, SI,
     :data:`IMU_LINEAR` order; None without ``est`` or a joint fit)."""
-    from inscal.calibrate.joint import joint
-    from inscal.calibrate.window_model import predict
 
     try:
         ref = joint(ws, uncertainty=False)

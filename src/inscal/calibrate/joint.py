@@ -28,29 +28,27 @@ with the exact forward model of :mod:`.model` (no small-angle approximation).
 
 from __future__ import annotations
 
-from inscal.calibrate.window_model import NAMES
-
 import math
 
-
 import numpy as np
-
 from scipy.optimize import least_squares
 
-from inscal.core.error_model import GimbalErrors, ImuErrors
-
-
 from inscal.calibrate.fit import fit_statistics, scaled_sigma
+from inscal.calibrate.n25 import n25
 from inscal.calibrate.result import CalibrationResult, make_result
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import WindowSet
-from inscal.calibrate.window_model import NP, WindowModel, component_label, parse_component
+from inscal.calibrate.window_model import (
+    NAMES,
+    NP,
+    WindowModel,
+    component_label,
+    parse_component,
+)
+from inscal.calibrate.windows import CalibrationError, WindowSet
+from inscal.core.error_model import GimbalErrors, ImuErrors
 
 
 def _initial(ws: WindowSet) -> tuple[np.ndarray, str]:
     """Start point: the n25 estimate when the record allows it, else zeros."""
-    from inscal.calibrate.n25 import n25
 
     try:
         r = n25(ws, uncertainty=False)

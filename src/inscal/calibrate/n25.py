@@ -45,26 +45,36 @@ import math
 
 import numpy as np
 
-from inscal.calibrate.window_model import C_b_s, C_n_s
-
-from inscal.calibrate.result import IMU_LINEAR, GIMBAL, CalibrationResult, flatten, make_result, nparams
-from inscal.calibrate.fit import estimator_reference, finish_sigma, fit_statistics, sensitivity
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import WindowSet
-
-from inscal.calibrate.window_model import ideal_up
-
-from inscal.calibrate.result import errors_from_values
-from inscal.calibrate.positions import values_from_matrices, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position, positions
-
-from inscal.calibrate.positions import TWELVE, accel_twelve
-
+from inscal.calibrate.fit import (
+    estimator_reference,
+    finish_sigma,
+    fit_statistics,
+    sensitivity,
+)
+from inscal.calibrate.positions import (
+    TWELVE,
+    accel_least_squares,
+    accel_twelve,
+    gyro_matrix_from_rate_tests,
+    nominal_position,
+    positions,
+    values_from_matrices,
+)
+from inscal.calibrate.result import (
+    GIMBAL,
+    IMU_LINEAR,
+    CalibrationResult,
+    errors_from_values,
+    flatten,
+    make_result,
+    nparams,
+)
+from inscal.calibrate.window_model import C_b_s, C_n_s, ideal_up
+from inscal.calibrate.windows import CalibrationError, WindowSet
 from inscal.core.attitude import rot_x, rot_y
-
+from inscal.core.units import DEG
 
 NAMES = IMU_LINEAR + GIMBAL
-DEG = math.pi / 180.0
 
 
 def design_rows(theta_x: float, theta_z: float) -> np.ndarray:

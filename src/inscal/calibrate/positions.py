@@ -8,25 +8,13 @@ import math
 
 import numpy as np
 
-from inscal.core.error_model import off_diagonal_angles, split_scale_misalignment
-
-
 from inscal.calibrate.window_model import ideal_up
-
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import Window, WindowSet
-
-from inscal.core.turntable import N25_TWELVE_POSITIONS
+from inscal.calibrate.windows import CalibrationError, Window, WindowSet
 from inscal.core.attitude import rot_z
-from inscal.core.turntable import outer_axis
+from inscal.core.error_model import off_diagonal_angles, split_scale_misalignment
+from inscal.core.turntable import N25_TWELVE_POSITIONS, outer_axis
+from inscal.core.units import DEG
 
-
-
-
-
-
-DEG = math.pi / 180.0
 AXIS_NAMES = ("x", "y", "z")
 
 

@@ -1,33 +1,17 @@
-""""""
+"""The result of every calibration method (:class:`CalibrationResult`) and the helpers that turn
+named parameter values into error-model objects and flat vectors (names of
+:data:`inscal.core.error_model.PARAMETERS`)."""
 
 from __future__ import annotations
 
-
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
-
-from typing import Callable
-
+from inscal.calibrate.windows import CalibrationError, WindowSet  # noqa: F401  (CalibrationError: re-exported)
 from inscal.core import units
-
 from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors
-
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:  # the window set is only named in annotations (windows imports this module)
-    from inscal.calibrate.windows import WindowSet
-
-
-
-
-
-
-
-class CalibrationError(ValueError):
-    """Data that cannot be calibrated with the requested method, with the reason."""
-
 
 #: Parameters of the linear N25 model the calibration methods work with.
 IMU_LINEAR = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias",
@@ -150,8 +134,6 @@ def make_result(method: str, values: dict, sigma: dict, estimated, ws: WindowSet
 
 
 def errors_from_values(vals: dict):
-    from inscal.core.error_model import GimbalErrors, ImuErrors
-    from inscal.core.error_model import PARAMETERS as P
-
-    return ImuErrors(**{P[n][1]: v for n, v in vals.items() if P[n][0] == "imu"}), GimbalErrors(
-        **{P[n][1]: v for n, v in vals.items() if P[n][0] == "gimbal"})
+    """``(ImuErrors, GimbalErrors)`` from ``{parameter name: value}`` (names of :data:`PARAMETERS`)."""
+    return ImuErrors(**{PARAMETERS[n][1]: v for n, v in vals.items() if PARAMETERS[n][0] == "imu"}), GimbalErrors(
+        **{PARAMETERS[n][1]: v for n, v in vals.items() if PARAMETERS[n][0] == "gimbal"})

@@ -19,20 +19,26 @@ the tilt and non-orthogonality of this record, taken from a joint fit of the sam
 
 from __future__ import annotations
 
-
 import numpy as np
 
-
-
-from inscal.calibrate.window_model import ideal_up
-
-from inscal.calibrate.result import IMU_LINEAR, CalibrationResult, flatten
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.windows import WindowSet
 from inscal.calibrate.ideal import finish_ideal
-from inscal.calibrate.positions import AXIS_NAMES, accel_least_squares, gyro_matrix_from_rate_tests, nominal_position, orientation, positions, values_from_matrices
-from inscal.calibrate.result import errors_from_values
+from inscal.calibrate.positions import (
+    AXIS_NAMES,
+    accel_least_squares,
+    gyro_matrix_from_rate_tests,
+    nominal_position,
+    orientation,
+    positions,
+    values_from_matrices,
+)
+from inscal.calibrate.result import (
+    IMU_LINEAR,
+    CalibrationResult,
+    errors_from_values,
+    flatten,
+)
+from inscal.calibrate.window_model import ideal_up
+from inscal.calibrate.windows import CalibrationError, WindowSet
 
 
 def _need_orientations(ws: WindowSet, pos: dict) -> dict[str, int]:

@@ -14,16 +14,21 @@ from __future__ import annotations
 
 import numpy as np
 
-
-
-from inscal.calibrate.result import IMU_LINEAR, CalibrationResult, flatten
-
-from inscal.calibrate.windows import WindowSet
-
-from inscal.calibrate.result import errors_from_values
-from inscal.calibrate.positions import values_from_matrices, gyro_matrix_from_rate_tests, nominal_position
 from inscal.calibrate.ideal import finish_ideal
-from inscal.calibrate.positions import accel_twelve, twelve_windows
+from inscal.calibrate.positions import (
+    accel_twelve,
+    gyro_matrix_from_rate_tests,
+    nominal_position,
+    twelve_windows,
+    values_from_matrices,
+)
+from inscal.calibrate.result import (
+    IMU_LINEAR,
+    CalibrationResult,
+    errors_from_values,
+    flatten,
+)
+from inscal.calibrate.windows import WindowSet
 
 
 def _core(ws: WindowSet, idx: list[int]):

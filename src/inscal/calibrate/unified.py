@@ -1,4 +1,4 @@
-"""The unified estimator (issue 10 item 1): S16's systematic filter with N25's gimbal states.
+"""The unified estimator: S16's systematic filter with N25's gimbal states.
 
 One closed-loop error-state Kalman filter and smoother (:mod:`inscal.calibrate.systematic`) over
 the whole turntable record estimates, at once, the 51 S16 states (navigation errors, linear IMU
@@ -46,11 +46,9 @@ from __future__ import annotations
 import numpy as np
 
 from inscal.calibrate.result import CalibrationResult
-
-from inscal.calibrate.systematic.states import ENCODER_SIGMA, StateSet
-from inscal.calibrate.systematic.dynamics import gimbal_attitude
 from inscal.calibrate.systematic.driver import systematic
-
+from inscal.calibrate.systematic.dynamics import gimbal_attitude
+from inscal.calibrate.systematic.states import ENCODER_SIGMA, StateSet
 
 __all__ = ["unified", "predicted_attitude", "measurement", "residual", "ENCODER_SIGMA", "STATES"]
 

@@ -18,28 +18,21 @@ C_n^b w_ie + w u)`` (N25 eq. 9); the specific force likewise without the turntab
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
-from inscal.core.attitude import axis_angle_dcm, dcm_from_euler
-
-from inscal.core.error_model import GimbalErrors, ImuErrors
-
-from inscal.calibrate.windows import WindowSet
-
-import re
-
-
-from inscal.core.error_model import MISALIGN_NAMES, off_diagonal
-
-
-from inscal.calibrate.fit import ACCEL_FLOOR, GYRO_FLOOR
 from inscal.calibrate.result import GIMBAL, IMU_LINEAR
-
-from inscal.calibrate.result import CalibrationError
-
-
-from inscal.core.attitude import rot_z, skew
+from inscal.calibrate.windows import CalibrationError, WindowSet
+from inscal.core import units
+from inscal.core.attitude import axis_angle_dcm, dcm_from_euler, rot_z, skew
+from inscal.core.error_model import (
+    MISALIGN_INDEX,
+    MISALIGN_NAMES,
+    GimbalErrors,
+    ImuErrors,
+    off_diagonal,
+)
 from inscal.core.turntable import outer_axis
 
 E3 = np.array([0.0, 0.0, 1.0])
@@ -181,7 +174,6 @@ class WindowModel:
         Mg, Ma = (np.eye(3) + np.diag(kg)) @ Eg, (np.eye(3) + np.diag(ka)) @ Ea
         Jg = np.zeros((n, 3, NP))
         Ja = np.zeros((n, 3, NP))
-        from inscal.core.error_model import MISALIGN_INDEX
         for blk, (J, V, E, k, off_k, off_e, off_b) in enumerate(((Jg, W, Eg, kg, 0, 3, 9), (Ja, F, Ea, ka, 12, 15, 21))):
             EV = V @ E.T
             for i in range(3):
@@ -201,3 +193,9 @@ class WindowModel:
         Ja /= self.sa[:, :, None]
         J = np.concatenate([Jg.reshape(3 * n, NP), Ja.reshape(3 * n, NP)])
         return J * self.scale[None, :]
+
+
+GYRO_FLOOR = units.to_si(1e-6, "deg/h")
+
+
+ACCEL_FLOOR = units.to_si(1e-6, "ug")

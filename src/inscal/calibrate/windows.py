@@ -37,17 +37,16 @@ inside a rotating window), divided by ``sqrt(n)``.
 from __future__ import annotations
 
 import math
-
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from inscal.core.earth import Site
-from inscal.calibrate.result import CalibrationError
+from inscal.core.units import ARCSEC, DEG
 
 
-DEG = math.pi / 180.0
-ARCSEC = DEG / 3600.0
+class CalibrationError(ValueError):
+    """Data that cannot be calibrated with the requested method, with the reason."""
 
 
 @dataclass(frozen=True)
@@ -108,7 +107,6 @@ class WindowSet:
 
     def replace_means(self, gyro: np.ndarray, accel: np.ndarray) -> "WindowSet":
         """A copy with the window means replaced (rows in window order); used for error propagation."""
-        from dataclasses import replace
 
         ws = [replace(w, gyro=np.asarray(gyro[k], float), accel=np.asarray(accel[k], float)) for k, w in enumerate(self.windows)]
         return WindowSet(ws, self.site, self.rate_hz, self.info)

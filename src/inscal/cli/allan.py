@@ -6,9 +6,15 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, check_not_input, check_output, fail, print_json, short
-from inscal.analysis.allan import stream_allan
-
+from inscal.cli.common import (
+    CliError,
+    LazyModule,
+    check_not_input,
+    check_output,
+    fail,
+    print_json,
+    short,
+)
 
 np = LazyModule("numpy")
 units = LazyModule("inscal.core.units")
@@ -38,6 +44,8 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         win = io.record_window(data, start_s, stop_s)
         if win.n < 1000:
             raise CliError(f"only {win.n} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+        from inscal.analysis.allan import stream_allan
+
         g, a, mot, (t0, t1) = stream_allan(data, win)
     except io.DataFileError as exc:
         raise CliError(str(exc)) from None
@@ -96,9 +104,8 @@ def register(app: typer.Typer) -> None:
             print_json(res)
             return
         from rich.console import Console
-        from rich.table import Table
-
         from rich.markup import escape
+        from rich.table import Table
 
         tab = Table(title=escape(f"Allan deviation of {data}"))
         for col in ("axis", "ARW [deg/rt(h)]", "gyro BI [deg/h]", "VRW [ug/rt(Hz)]", "accel BI [ug]"):

@@ -7,11 +7,9 @@ Subcommands live one per module: ``inscal.cli.<name>`` modules each define
 from __future__ import annotations
 
 import importlib
-
 import sys
 
 import typer
-
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 

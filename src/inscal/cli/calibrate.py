@@ -6,7 +6,15 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, np, print_json, read_record  # np: lazy (fast start)
+from inscal.cli.common import (  # np: lazy (fast start)
+    CliError,
+    check_not_input,
+    check_output,
+    fail,
+    np,
+    print_json,
+    read_record,
+)
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
@@ -19,9 +27,9 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     (wgs84 | psins | m/s^2) overrides the record's gravity model.  ``encoder_sigma`` [arcsec]: white
     noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``)."""
     from inscal import io
-    from inscal.core import units
     from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
-    from inscal.calibrate.result import CalibrationError
+    from inscal.calibrate.windows import CalibrationError
+    from inscal.core import units
     from inscal.io.paramfile import ParamFileError, save_params
 
     if method not in METHODS:

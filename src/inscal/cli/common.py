@@ -2,19 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
-
 import json
-
 import re
-
 from pathlib import Path
 
 import typer
-
-import contextlib
-
-
 
 
 class LazyModule:

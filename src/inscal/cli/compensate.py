@@ -15,16 +15,19 @@ only when both sides have it); a record that was already compensated (its
 from __future__ import annotations
 
 import json
-
 from dataclasses import replace
-
 from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
-from inscal.io.paramfile import provenance_mismatch
-from inscal.io.records import compensated_with, record_attrs
+from inscal.cli.common import (
+    CliError,
+    check_not_input,
+    check_output,
+    fail,
+    print_json,
+    short,
+)
 
 
 def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None) -> dict:
@@ -45,6 +48,9 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
         raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
     if info.n_samples < 2:
         raise CliError(f"{short(data)}: {info.n_samples} sample(s); nothing to compensate")
+    from inscal.io.paramfile import provenance_mismatch
+    from inscal.io.records import compensated_with, record_attrs
+
     attrs = record_attrs(data)
     warnings = []
     done = compensated_with(attrs)

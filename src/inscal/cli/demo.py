@@ -15,13 +15,11 @@
 from __future__ import annotations
 
 import time
-
 from pathlib import Path
 
 import typer
 
 from inscal.cli.common import CliError, fail, print_json, short
-
 
 #: the report's files (besides the records and parameter files of the steps)
 REPORT_FILES = ("report.html", "summary.json", "allan.png", "s16-table2.png", "nav-comparison.png")
@@ -30,8 +28,8 @@ NAV_RUNS = ("uncalibrated", "six-position", "n25", "joint")
 
 
 def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool, log) -> dict:
-    from inscal.cli.simulate import run_simulate
     from inscal.cli.common import check_output
+    from inscal.cli.simulate import run_simulate
 
     out.mkdir(parents=True, exist_ok=True)
     for name in REPORT_FILES + tuple(f"nav-{label}.png" for label in NAV_RUNS):
@@ -45,8 +43,8 @@ def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool
         res["steps"][f"simulate_{name}"] = r
         log(f"simulated {name}: {r['samples']} samples, {r['duration_s'] / 3600:.2f} h -> {r['out']}")
     from inscal import io
-    from inscal.core import units
     from inscal.cli.allan import run_allan
+    from inscal.core import units
 
     a = run_allan(out / "n25.h5", 0.0, 100.0)
     noise = io.record_info(out / "n25.h5").truth.noise
@@ -120,16 +118,16 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
     import numpy as np
 
     from inscal import io
-    from inscal.core import units
-    from inscal.sim.scenarios import S16_TABLE2
     from inscal.analysis.truth import result_errors
-    from inscal.calibrate.result import CalibrationError
     from inscal.calibrate import calibrate
-    from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.systematic.params import truth_in_frame
+    from inscal.calibrate.systematic.states import StateSet
+    from inscal.calibrate.windows import CalibrationError
     from inscal.cli.common import check_output
+    from inscal.core import units
     from inscal.core.error_model import PARAMETERS
     from inscal.io.paramfile import ParamFileError, save_params
+    from inscal.sim.scenarios import S16_TABLE2
 
     data = out / "s16.h5"
     rec = io.read_record(data)
@@ -194,8 +192,11 @@ def _components(r, err: dict, sig: dict) -> dict:
 
     import numpy as np
 
-    from inscal.core.error_model import parameter_components
-    from inscal.core.error_model import PARAMETERS, errors_to_field
+    from inscal.core.error_model import (
+        PARAMETERS,
+        errors_to_field,
+        parameter_components,
+    )
 
     est = errors_to_field(r.imu, r.gimbal)
     out = {}

@@ -4,7 +4,6 @@ bound within a time budget and the turntable's limits.  See :mod:`inscal.calibra
 from __future__ import annotations
 
 import math
-
 from pathlib import Path as FsPath
 
 import typer
@@ -39,7 +38,13 @@ class _Progress:
         self.err = sys.stderr
         con = Console(stderr=True)
         if con.is_terminal:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+            )
 
             self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                               TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=con)
@@ -90,9 +95,10 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     import tomli_w
 
     from inscal.core import units
-    from inscal.plan.bound import BiasNoise, BoundError, make_setup
-    from inscal.plan.design import DesignError, Limits, design
     from inscal.io.files import atomic_path
+    from inscal.plan.bound import make_setup
+    from inscal.plan.rows import BiasNoise, BoundError
+    from inscal.plan.design import DesignError, Limits, design
     from inscal.sim.scenarios import BUILTIN, ScenarioError, scenario_from_dict
 
     out = FsPath(out)

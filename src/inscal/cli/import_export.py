@@ -9,7 +9,6 @@ TOML), with the checks of :mod:`inscal.importers`; every other command reads the
 from __future__ import annotations
 
 import math
-
 from pathlib import Path
 
 import typer
@@ -19,8 +18,8 @@ from inscal.cli.common import CliError, check_not_input, check_output, fail, pri
 
 def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
     """The site from --lat/--lon/--height, completed by the mapping's [site]; None: from the mapping / missing."""
-    from inscal.io.mapping import DEG, load_mapping
     from inscal.core.earth import Site
+    from inscal.io.mapping import DEG, load_mapping
 
     given = {"--lat": lat, "--lon": lon, "--height": height}
     if all(v is None for v in given.values()):
@@ -49,8 +48,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
                gravity: str | None = None) -> dict:
-    from inscal.io.mapping import CHECKS, FORMATS, ImportFileError
     from inscal.io.importers import import_file
+    from inscal.io.mapping import CHECKS, FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
     if fmt not in FORMATS:
@@ -81,8 +80,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
                force: bool = False) -> dict:
-    from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.importers import export_record
+    from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
     if fmt not in EXPORT_FORMATS:

@@ -2,28 +2,18 @@
 
 from __future__ import annotations
 
-
-
-
 import json
-
 import math
-
-
-
 import sys
-
-
-
 from pathlib import Path
-
-
-
+from typing import TYPE_CHECKING
 
 import typer
 
+if TYPE_CHECKING:
+    from inscal.analysis.montecarlo import Summary
+
 from inscal.cli.common import CliError, fail, print_json, short
-from inscal.analysis.montecarlo import Summary
 
 
 def parse_set(items: list[str] | None) -> dict:
@@ -131,7 +121,7 @@ def register(app: typer.Typer) -> None:
                        + ", ".join(f"{v}" for v in d["files"].values()))
 
 
-def format_table(summary: Summary, file=None, width: int | None = None):
+def format_table(summary: "Summary", file=None, width: int | None = None):
     """Print the summary as Rich table(s) (stdout by default) that fit ``width`` columns (default:
     ``$COLUMNS``, else the terminal's width, else 80) without cutting a number: numbers with 4
     significant digits, headers wrap at spaces, and a table too wide is split into parts that

@@ -6,8 +6,16 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, check_not_input, check_output, fail, np, print_json, short
-
+from inscal.cli.common import (
+    CliError,
+    LazyModule,
+    check_not_input,
+    check_output,
+    fail,
+    np,
+    print_json,
+    short,
+)
 
 units = LazyModule("inscal.core.units")  # np, units: imported on first use (fast start of the command line)
 
@@ -115,9 +123,9 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
                   gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None):
     """:func:`run_navigate` returning ``(report, NavResult, gimbal model)`` (the demo draws the run)."""
     from inscal import io
-    from inscal.sim import simulate as sim
     from inscal import nav as nv
     from inscal.nav.strapdown import NavConfig
+    from inscal.sim import simulate as sim
 
     if out is not None:
         check_output(out, force)
@@ -155,8 +163,8 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
             imu, gim, pmeta = load_params(params)
         except ValueError as exc:
             raise CliError(str(exc)) from None
-        from inscal.io.records import compensated_with, record_attrs
         from inscal.io.paramfile import provenance_mismatch
+        from inscal.io.records import compensated_with, record_attrs
 
         attrs = record_attrs(data)
         mismatch = provenance_mismatch(data, params, pmeta, attrs)

@@ -36,7 +36,8 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s)."""
     from inscal.core import units
-    from inscal.plan.bound import BiasNoise, BoundError, crlb
+    from inscal.plan.bound import crlb
+    from inscal.plan.rows import BiasNoise, BoundError
 
     for name, v in (("--arw", arw), ("--vrw", vrw), ("--filter-rate-hz", filter_rate_hz), ("--bi-tau", bi_tau)):
         if v is not None and not (math.isfinite(v) and v > 0):

@@ -6,7 +6,14 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
+from inscal.cli.common import (
+    CliError,
+    check_not_input,
+    check_output,
+    fail,
+    print_json,
+    short,
+)
 
 
 def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -> dict:

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
-
 import math
-
 from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, check_output, fail, print_json, short
-from inscal.cli.common import parse_gravity_option, progress_bar
-
+from inscal.cli.common import (
+    CliError,
+    LazyModule,
+    check_output,
+    fail,
+    parse_gravity_option,
+    print_json,
+    progress_bar,
+    short,
+)
 
 np = LazyModule("numpy")
 
@@ -81,8 +86,8 @@ def check_size(sc, out: Path) -> int:
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
                  rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
                  no_noise: bool = False, gravity: str | None = None) -> dict:
-    from inscal.sim import simulate as sim
     from inscal.sim import scenarios
+    from inscal.sim import simulate as sim
 
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
         raise CliError(f"--rate-hz must be positive, got {rate_hz:g}")

@@ -7,22 +7,12 @@ References: NIMA TR8350.2 (WGS-84), Titterton & Weston ch. 3.
 from __future__ import annotations
 
 import math
-
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-
 from numba import njit
 
-from dataclasses import replace
-
-
-
 from inscal.core import earth
-
-
-
-
 
 # --- WGS-84 defining and derived constants (TR8350.2 Tables 3.1-3.3) ---
 A = 6378137.0  # semi-major axis [m]

@@ -39,26 +39,14 @@ removes it to first order in ``tau`` (:meth:`ImuErrors.compensate`).
 from __future__ import annotations
 
 import dataclasses
-
 import math
-
 from dataclasses import dataclass, field
-
 from typing import Any
 
 import numpy as np
-
 from scipy.linalg import rq
 
 from inscal.core import units
-
-
-
-
-
-
-
-
 
 MISALIGN_INDEX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 MISALIGN_NAMES = ("xy", "xz", "yx", "yz", "zx", "zy")

@@ -52,17 +52,7 @@ called from the model's compiled loop.
 from __future__ import annotations
 
 import numpy as np
-
 from numba import njit
-
-
-
-
-
-
-
-
-
 
 
 @njit(cache=True)

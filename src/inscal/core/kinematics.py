@@ -6,26 +6,11 @@ from __future__ import annotations
 
 import math
 
-
-
 import numpy as np
-
 from numba import njit
 
-
-
 from inscal.core.attitude import dcm_from_euler
-
-
 from inscal.core.turntable import C_s_b, outer_axis
-
-
-
-
-
-
-
-
 
 
 # ----------------------------------------------------------------------------- kernel

@@ -19,17 +19,14 @@ integrates exactly.
 from __future__ import annotations
 
 import json
-
 import math
-
 from dataclasses import dataclass
 
 import numpy as np
 
-from inscal.core.attitude import axis_angle_dcm, dcm_from_euler, rot_z
+from inscal.core.attitude import axis_angle_dcm, dcm_from_euler, euler_from_dcm, rot_z
+from inscal.core.units import DEG
 
-
-DEG = math.pi / 180.0
 AXES = ("outer", "inner")
 
 
@@ -261,7 +258,6 @@ def C_b_n(mount_attitude) -> np.ndarray:
 def vehicle_attitude_from_imu(C_s_n, theta_x, theta_z, dtheta_model: float = 0.0) -> np.ndarray:
     """Vehicle (base) attitude ``[roll, pitch, yaw]`` from the IMU attitude and gimbal
     angles, using a gimbal model with non-orthogonality ``dtheta_model`` (N25 eq. 34-36)."""
-    from inscal.core.attitude import euler_from_dcm
 
     Csb = C_s_b(theta_x, theta_z, dtheta_model)
     Cbn = np.einsum("...ij,...kj->...ik", C_s_n, Csb)  # C_s^n (C_s^b)^T

@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 
-
 #: Standard gravity used for g-based units (µg, µg/g², °/h/g).  This is the
 #: conventional 9.80665 m/s^2, not local gravity: a µg is a fixed quantity.
 G0 = 9.80665

@@ -4,7 +4,37 @@ files, JSON and TOML helpers, the importers and exporters of other tools' format
 This face re-exports the record and file helpers, so ``from inscal import io; io.read_record(path)``
 works; parameter files are :mod:`inscal.io.paramfile`, the importers :mod:`inscal.io.importers`."""
 
-from inscal.io.files import (REMOVED_PARTS, cancel, check_cancel, atomic_path, remove_part, remove_live_parts, file_hash)
-from inscal.io.records import (KIND, UNITS, DataFileError, Truth, Record, write_stream, write_record, validate_arrays, truth_groups, read_record, RecordInfo, record_info, iter_chunks, check_datasets, Window, record_window, iter_window, LazyArray, open_record, record_attrs, compensated_with)
+from inscal.io.files import (
+    REMOVED_PARTS,
+    atomic_path,
+    cancel,
+    check_cancel,
+    file_hash,
+    remove_live_parts,
+    remove_part,
+)
+from inscal.io.records import (
+    KIND,
+    UNITS,
+    DataFileError,
+    LazyArray,
+    Record,
+    RecordInfo,
+    Truth,
+    Window,
+    check_datasets,
+    compensated_with,
+    iter_chunks,
+    iter_window,
+    open_record,
+    read_record,
+    record_attrs,
+    record_info,
+    record_window,
+    truth_groups,
+    validate_arrays,
+    write_record,
+    write_stream,
+)
 
 __all__ = ['REMOVED_PARTS', 'cancel', 'check_cancel', 'atomic_path', 'remove_part', 'remove_live_parts', 'file_hash', 'KIND', 'UNITS', 'DataFileError', 'Truth', 'Record', 'write_stream', 'write_record', 'validate_arrays', 'truth_groups', 'read_record', 'RecordInfo', 'record_info', 'iter_chunks', 'check_datasets', 'Window', 'record_window', 'iter_window', 'LazyArray', 'open_record', 'record_attrs', 'compensated_with']

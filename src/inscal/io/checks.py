@@ -3,24 +3,15 @@ channels, increment magnitudes against Earth rate and gravity, encoder angles ag
 
 from __future__ import annotations
 
-
 import math
-
-
-
-
-
 
 import numpy as np
 
 from inscal.core import earth, units
-
-
 from inscal.core.earth import Site
 from inscal.core.units import DEG
 from inscal.io.formats import Raw
-from inscal.io.mapping import ImportFileError, JITTER_TOL, REGRID_TOL
-
+from inscal.io.mapping import JITTER_TOL, REGRID_TOL, ImportFileError
 
 
 # ----------------------------------------------------------------------------- checks

@@ -3,25 +3,12 @@ partial outputs on an interrupt, and file hashes."""
 
 from __future__ import annotations
 
-
-
 import hashlib
-
-
-
 import os
-
 import tempfile
-
 from contextlib import contextmanager
-
-
 from pathlib import Path as FsPath
-
 from typing import TYPE_CHECKING
-
-
-
 
 if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
     pass

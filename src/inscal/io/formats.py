@@ -3,25 +3,22 @@ angle files): each returns a :class:`Raw` block of increments in the source's ow
 
 from __future__ import annotations
 
-from inscal.io.mapping import CHANNELS
-
-
-
-
-
 from dataclasses import dataclass
-
 from io import StringIO
-
 from pathlib import Path as FsPath
 
+import h5py
 import numpy as np
 
 from inscal.core import units
-from inscal.io.mapping import EXPORT_HEADER, EXPORT_HEADER_GIMBAL, ImportFileError, Mapping, default_mapping
-
-
-
+from inscal.io.mapping import (
+    CHANNELS,
+    EXPORT_HEADER,
+    EXPORT_HEADER_GIMBAL,
+    ImportFileError,
+    Mapping,
+    default_mapping,
+)
 
 
 # ----------------------------------------------------------------------------- raw sources
@@ -101,7 +98,6 @@ def _mat_variables(p: FsPath) -> list[tuple[str, np.ndarray]]:
     try:
         d = scipy.io.loadmat(str(p))
     except NotImplementedError:  # MATLAB v7.3 = HDF5, arrays stored transposed
-        import h5py
 
         out = []
         with h5py.File(p, "r") as h5:

@@ -79,29 +79,55 @@ was regridded and the time offset subtracted (the path start).
 from __future__ import annotations
 
 import json
-
 import math
-
-
 from contextlib import ExitStack
-
-
-
 from pathlib import Path
 
 import numpy as np
-
-
-from inscal.io.records import DataFileError, Record, RecordInfo, iter_chunks, record_info, validate_arrays, write_stream
-from inscal.io.files import atomic_path, file_hash
+import tomli_w
 
 from inscal.core.earth import Site
-
 from inscal.core.turntable import RotationPath
 from inscal.core.units import DEG
-from inscal.io.checks import check_constant, check_finite, check_integers, check_magnitudes, check_motion, check_saturation, time_base
-from inscal.io.formats import Raw, read_gimbal_file, read_mat, read_psins_bin, read_text, write_rows
-from inscal.io.mapping import CHECKS, EXPORT_FORMATS, EXPORT_HEADER, EXPORT_HEADER_GIMBAL, FORMATS, GIMBAL_HEADER, ImportFileError, Mapping, load_mapping, load_path
+from inscal.io.checks import (
+    check_constant,
+    check_finite,
+    check_integers,
+    check_magnitudes,
+    check_motion,
+    check_saturation,
+    time_base,
+)
+from inscal.io.files import atomic_path, file_hash
+from inscal.io.formats import (
+    Raw,
+    read_gimbal_file,
+    read_mat,
+    read_psins_bin,
+    read_text,
+    write_rows,
+)
+from inscal.io.mapping import (
+    CHECKS,
+    EXPORT_FORMATS,
+    EXPORT_HEADER,
+    EXPORT_HEADER_GIMBAL,
+    FORMATS,
+    GIMBAL_HEADER,
+    ImportFileError,
+    Mapping,
+    load_mapping,
+    load_path,
+)
+from inscal.io.records import (
+    DataFileError,
+    Record,
+    RecordInfo,
+    iter_chunks,
+    record_info,
+    validate_arrays,
+    write_stream,
+)
 
 
 # ----------------------------------------------------------------------------- import
@@ -240,7 +266,6 @@ def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None,
     ``gimbal_out``: a CSV of ``time, outer, inner`` [s, rad, rad] (psins / mat only; the csv
     export carries the angles in its own columns).  ``path_out``: the record's rotation path
     as a TOML ``[path]`` table (what ``--path`` reads).  All outputs are written, or none."""
-    import tomli_w
 
     if fmt not in EXPORT_FORMATS:
         raise ImportFileError(f"unknown export format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")

@@ -3,32 +3,21 @@ formats, channels and checks the importers know (see :mod:`inscal.io.importers`)
 
 from __future__ import annotations
 
-
 import math
-
-from inscal.io.tomlfile import read_toml
-
-
 from dataclasses import dataclass
-
-
 from pathlib import Path
 
-
 from inscal.core import units
-
-from inscal.io.records import DataFileError
-
 from inscal.core.earth import Site
-
-from inscal.core.turntable import BUILTIN_PATHS, RotationPath, PathError
-
+from inscal.core.turntable import BUILTIN_PATHS, PathError, RotationPath
+from inscal.core.units import DEG
+from inscal.io.records import DataFileError
+from inscal.io.tomlfile import read_toml
 
 FORMATS = ("psins", "csv", "txt", "mat")
 EXPORT_FORMATS = ("csv", "psins", "mat")
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
-DEG = math.pi / 180.0
 
 #: the header line :func:`export_record` writes (csv); a csv without a mapping must start with it
 EXPORT_HEADER = ["time [s]", "dtheta_x [rad]", "dtheta_y [rad]", "dtheta_z [rad]",

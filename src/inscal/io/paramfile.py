@@ -49,26 +49,23 @@ renamed, so an existing file is never half-overwritten, and never overwritten un
 from __future__ import annotations
 
 import datetime as _dt
-
 import tomllib
-
+from pathlib import Path
 
 import numpy as np
-
 import tomli_w
 
 from inscal import __version__
-
-from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors, errors_from_field
-
-
-
-from pathlib import Path
-from inscal.io.files import file_hash
+from inscal.core import units
+from inscal.core.error_model import (
+    PARAMETERS,
+    GimbalErrors,
+    ImuErrors,
+    errors_from_field,
+)
+from inscal.io.files import atomic_path, file_hash
+from inscal.io.jsonfile import to_jsonable
 from inscal.io.records import record_attrs
-
-
-
 
 PARAM_SCHEMA_VERSION = 1
 KIND = "inscal-parameters"
@@ -105,7 +102,6 @@ LIMITS: dict[str, tuple[float, str]] = {
 
 def _check_plausible(p, name: str, entry: dict, kind: str) -> None:
     """Non-finite values, and values beyond :data:`LIMITS`, raise :class:`ParamFileError`."""
-    from inscal.core import units
 
     raw = np.asarray(entry["value"], dtype=float)
     if not np.all(np.isfinite(raw)):
@@ -126,7 +122,6 @@ def _check_plausible(p, name: str, entry: dict, kind: str) -> None:
 
 
 def _atomic_write_text(path: Path, text: str, overwrite: bool) -> None:
-    from inscal.io.files import atomic_path
 
     with atomic_path(path, overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -162,7 +157,6 @@ FIT_KEYS = ("chi2", "dof", "expected_chi2", "dof_effective", "p_value", "consist
 
 def fit_table(fit: dict) -> dict:
     """The ``[fit]`` table of a fit dict (plain TOML types; None and non-finite entries dropped)."""
-    from inscal.io.jsonfile import to_jsonable
 
     def clean(v):
         if isinstance(v, dict):
@@ -215,7 +209,6 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
     if not isinstance(params, dict) or not params:
         raise ParamFileError(f"{p}: no [parameters] section")
     values, sigma, sigma_formal = {}, {}, {}
-    from inscal.core import units
 
     for name, entry in params.items():
         if name not in PARAMETERS:

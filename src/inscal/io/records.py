@@ -21,40 +21,28 @@ file is never overwritten unless asked.
 from __future__ import annotations
 
 import dataclasses
-
 import datetime as _dt
-
-
 import json
-
 import math
-
-
-
 from contextlib import contextmanager
-
 from dataclasses import dataclass
-
 from pathlib import Path
-
 from typing import TYPE_CHECKING, Iterator
 
 import h5py
-
 import numpy as np
 
 from inscal import SCHEMA_VERSION, __version__
 
 if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
-    from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
     from inscal.core.earth import Site
+    from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
     from inscal.core.turntable import RotationPath
 
 
+import bisect
+
 from inscal.io.files import atomic_path, check_cancel
-
-
-
 
 #: names this module re-exports from the domain modules, imported on first use (PEP 562)
 KIND = "inscal-record"
@@ -311,9 +299,8 @@ def _read_truth(h5, p) -> "Truth | None":
 
 
 def _meta(h5, p):
-    from inscal.core.earth import GravityModel
-    from inscal.core.earth import Site
-    from inscal.core.turntable import RotationPath, PathError
+    from inscal.core.earth import GravityModel, Site
+    from inscal.core.turntable import PathError, RotationPath
 
     s = h5["site"].attrs
     try:
@@ -439,7 +426,6 @@ def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Wi
     """Locate the samples with ``start_s < time <= stop_s`` by bisection of /time (a few reads,
     not the whole record), after the layout checks of :func:`check_datasets`.  The samples
     themselves are validated as they are streamed (:func:`iter_window`)."""
-    import bisect
 
     with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
@@ -546,7 +532,6 @@ def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
 
 def record_attrs(path: RotationPath, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:
     """String attributes of a record file (None when absent or empty)."""
-    import h5py
 
     out = {}
     try:

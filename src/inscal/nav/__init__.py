@@ -5,10 +5,23 @@ against the truth, and the closed forms of static error propagation.
 This face re-exports the run-level API (``navigate``, ``align``, ``navigation_errors`` ...); the
 numba building blocks are in :mod:`inscal.nav.strapdown`."""
 
-from inscal.nav.stream import (SampleStream, chunks_of, compensated_chunks)
-from inscal.nav.align import (AlignConfig, AlignResult, coarse_align, align)
-from inscal.nav.accuracy import (DAY, NavErrors, navigation_errors, schuler_frequency, foucault_frequency, fit_oscillation, oscillation_components, summarize)
-from inscal.nav.run import (HeightReference, NavResult, navigate, write_nav)
-from inscal.nav.linear_model import (linear_error_model, gyro_bias_closed_form, accel_bias_closed_form)
+from inscal.nav.accuracy import (
+    DAY,
+    NavErrors,
+    fit_oscillation,
+    foucault_frequency,
+    navigation_errors,
+    oscillation_components,
+    schuler_frequency,
+    summarize,
+)
+from inscal.nav.align import AlignConfig, AlignResult, align, coarse_align
+from inscal.nav.linear_model import (
+    accel_bias_closed_form,
+    gyro_bias_closed_form,
+    linear_error_model,
+)
+from inscal.nav.run import HeightReference, NavResult, navigate, write_nav
+from inscal.nav.stream import SampleStream, chunks_of, compensated_chunks
 
 __all__ = ['SampleStream', 'chunks_of', 'compensated_chunks', 'AlignConfig', 'AlignResult', 'coarse_align', 'align', 'DAY', 'NavErrors', 'navigation_errors', 'schuler_frequency', 'foucault_frequency', 'fit_oscillation', 'oscillation_components', 'summarize', 'HeightReference', 'NavResult', 'navigate', 'write_nav', 'linear_error_model', 'gyro_bias_closed_form', 'accel_bias_closed_form']

@@ -3,24 +3,16 @@
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
-
 import numpy as np
-
-
-
 from scipy.optimize import least_squares
 
 from inscal.core import earth
-
 from inscal.core.attitude import dcm_from_euler, euler_from_dcm, small_angle_error
-
 from inscal.core.error_model import GimbalErrors
-
+from inscal.core.kinematics import true_attitude
 from inscal.nav.strapdown import NavOutput
-
 
 DAY = 86400.0
 
@@ -53,7 +45,6 @@ def navigation_errors(out: NavOutput, scenario=None, gimbal_model: GimbalErrors 
     position, zero velocity, the true IMU attitude (:func:`inscal.simulate.true_attitude`)
     and the true vehicle attitude (the gimbal mount attitude, N25 eq. 8).  With only a
     ``site`` (recorded data on a static base), position and velocity errors."""
-    from inscal.core.kinematics import true_attitude
 
     if scenario is not None:
         site = scenario.site

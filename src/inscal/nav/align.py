@@ -3,23 +3,25 @@
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
-
 import numpy as np
-
 from numba import njit
-
-
+from scipy.spatial.transform import Rotation
 
 from inscal.core import earth
-
-from inscal.core.attitude import quat_to_dcm
-
+from inscal.core.attitude import quat_from_rotvec_xyz, quat_to_dcm
 from inscal.core.error_model import ImuErrors
-
-from inscal.nav.strapdown import S_Q, S_V, NavConfig, NavState, Strapdown, qmul, qrot, _qrv, two_sample
+from inscal.nav.strapdown import (
+    S_Q,
+    S_V,
+    NavConfig,
+    NavState,
+    Strapdown,
+    qmul,
+    qrot,
+    two_sample,
+)
 from inscal.nav.stream import SampleStream
 
 
@@ -88,7 +90,7 @@ def _inertial_integrals(dth, dv, every, out_v):
         vx += x
         vy += y
         vz += z
-        e0, e1, e2, e3 = _qrv(r0, r1, r2)
+        e0, e1, e2, e3 = quat_from_rotvec_xyz(r0, r1, r2)
         q0, q1, q2, q3 = qmul(q0, q1, q2, q3, e0, e1, e2, e3)
         nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         q0, q1, q2, q3 = q0 * nq, q1 * nq, q2 * nq, q3 * nq
@@ -101,7 +103,6 @@ def _inertial_integrals(dth, dv, every, out_v):
 
 def _earth_rotation(w_n: np.ndarray, t) -> np.ndarray:
     """C_{n(t)}^{n0} = exp(t [w x]) for the constant Earth rate w_n of a static site, (N, 3, 3)."""
-    from scipy.spatial.transform import Rotation
 
     t = np.atleast_1d(t)
     return Rotation.from_rotvec(t[:, None] * w_n[None, :]).as_matrix()

@@ -5,18 +5,10 @@ from __future__ import annotations
 
 import math
 
-
-
 import numpy as np
-
-
 from scipy.linalg import expm
 
-
 from inscal.core import earth
-
-
-
 
 
 # ============================================================================ error model / closed forms

@@ -21,26 +21,21 @@ without the vertical terms), derived for ``C_est = (I + [phi x]) C``::
 
 from __future__ import annotations
 
-from inscal.nav.accuracy import summarize
-
+import csv
+import json
 import math
-
 from dataclasses import dataclass
-
 from typing import Callable, Iterable
 
+import h5py
 import numpy as np
 
-
-
-
-
-
+from inscal import SCHEMA_VERSION, __version__
 from inscal.core.error_model import GimbalErrors, ImuErrors
-
-from inscal.nav.strapdown import S_HREF, NavConfig, NavOutput, NavState, Strapdown
-from inscal.nav.accuracy import NavErrors, navigation_errors
+from inscal.io.files import atomic_path
+from inscal.nav.accuracy import NavErrors, navigation_errors, summarize
 from inscal.nav.align import AlignConfig, AlignResult, align
+from inscal.nav.strapdown import S_HREF, NavConfig, NavOutput, NavState, Strapdown
 from inscal.nav.stream import SampleStream, compensated_chunks
 
 
@@ -89,7 +84,6 @@ class HeightReference:
     def read_csv(cls, path) -> "HeightReference":
         """A CSV file with a header row naming the columns ``time_s`` and ``height_m`` (any order,
         other columns ignored; ``#`` comments allowed)."""
-        import csv
 
         with open(path, newline="", encoding="utf-8") as fh:
             rows = [r for r in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#"))]
@@ -212,12 +206,8 @@ def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = 
         /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
         attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
     """
-    import json
 
-    import h5py
 
-    from inscal import SCHEMA_VERSION, __version__
-    from inscal.io.files import atomic_path
 
     def _js(o):
         return json.dumps(o, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v))

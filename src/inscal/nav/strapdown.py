@@ -61,19 +61,23 @@ never need to be in memory more than once.  Output is decimated.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from numba import njit
 
 from inscal.core import earth
-
-from inscal.core.attitude import dcm_from_quat, euler_from_dcm, quat_from_dcm, quat_from_rotvec_xyz as _qrv
-
+from inscal.core.attitude import (
+    dcm_from_quat,
+    euler_from_dcm,
+    quat_from_dcm,
+    quat_from_rotvec,
+    quat_from_rotvec_xyz,
+    quat_mul,
+)
 from inscal.core.error_model import GimbalErrors, ImuErrors
-
+from inscal.core.kinematics import true_attitude
+from inscal.core.turntable import vehicle_attitude_from_imu
 
 # layout of the kernel's state vector ``st`` (float64)
 S_Q = 0  # 0..3 quaternion C_s^n (scalar first)
@@ -170,9 +174,9 @@ def qrot(q0, q1, q2, q3, x, y, z):
 def attitude_step(q0, q1, q2, q3, r0, r1, r2, z0, z1, z2):
     """``q(-zeta) * q * q(r)``, normalised: the body rotation vector ``r`` of the sample and the
     navigation-frame rotation ``zeta = (w_ie^n + w_en^n) dt`` (exact rotation-vector quaternions)."""
-    e0, e1, e2, e3 = _qrv(r0, r1, r2)
+    e0, e1, e2, e3 = quat_from_rotvec_xyz(r0, r1, r2)
     q0, q1, q2, q3 = qmul(q0, q1, q2, q3, e0, e1, e2, e3)
-    e0, e1, e2, e3 = _qrv(-z0, -z1, -z2)
+    e0, e1, e2, e3 = quat_from_rotvec_xyz(-z0, -z1, -z2)
     q0, q1, q2, q3 = qmul(e0, e1, e2, e3, q0, q1, q2, q3)
     qn = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     return q0 * qn, q1 * qn, q2 * qn, q3 * qn
@@ -419,7 +423,6 @@ class NavState:
     @classmethod
     def from_truth(cls, scenario, t: float = 0.0) -> "NavState":
         """The true state of a simulated static-site scenario at time ``t``."""
-        from inscal.core.kinematics import true_attitude
 
         site = scenario.site
         return cls(true_attitude(scenario, np.array([t]))[0], np.zeros(3), site.latitude, site.longitude, site.height)
@@ -497,7 +500,6 @@ class NavOutput:
         Csn = self.C_s_n
         if self.gimbal is None:
             return euler_from_dcm(Csn)
-        from inscal.core.turntable import vehicle_attitude_from_imu
 
         dth = 0.0 if gimbal_model is None else gimbal_model.nonorthogonality
         return vehicle_attitude_from_imu(Csn, self.gimbal[:, 0], self.gimbal[:, 1], dth)
@@ -597,7 +599,6 @@ class Strapdown:
     def correct(self, phi: np.ndarray, dv: np.ndarray) -> None:
         """Feedback correction: remove attitude error ``phi`` (``C_est = exp([phi x]) C_true``)
         and velocity error ``dv`` from the state."""
-        from inscal.core.attitude import quat_from_rotvec, quat_mul
 
         q = quat_mul(quat_from_rotvec(-np.asarray(phi, dtype=float)), self.st[S_Q:S_Q + 4].copy())
         self.st[S_Q:S_Q + 4] = q / np.linalg.norm(q)

@@ -3,19 +3,11 @@ parameter set on the fly."""
 
 from __future__ import annotations
 
-
-
 from typing import Iterable, Iterator
 
 import numpy as np
 
-
-
-
-
-
 from inscal.core.error_model import ImuErrors
-
 
 
 # =============================================================================== streams

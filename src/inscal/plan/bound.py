@@ -1,4 +1,4 @@
-"""Cramér-Rao bound of a calibration experiment without running it (issue 10 item 2).
+"""Cramér-Rao bound of a calibration experiment without running it.
 
 What it is.  The systematic filter (:mod:`inscal.calibrate.systematic`) is a Kalman filter on
 the linearised error state ``x = [phi, dv, dp | parameters]``.  For a linear-Gaussian model the
@@ -67,31 +67,44 @@ which gives the bound over time and the information each move adds
 from __future__ import annotations
 
 import math
-
 import time
-
-from dataclasses import dataclass, field
-
-from typing import Callable
+from dataclasses import dataclass
 
 import numpy as np
-
 from numba import njit
 
-from inscal.core import earth, units
-
-from inscal.core.attitude import dcm_from_euler
-
-from inscal.core.kinematics import segment_at as _segment_at  # _segment_at: smallest s with seg_t1[s] > t
-
-from inscal.core.turntable import RotationPath, outer_axis
-
-from inscal.calibrate.result import CalibrationError
-
-from inscal.calibrate.systematic.states import ARW_FLOOR, K_M1A, K_M1G, K_TAU, N_NAV, NAV_SIGMA0, VRW_FLOOR, StateSet
 from inscal.calibrate.systematic.dynamics import column_values, nav_F
+from inscal.calibrate.systematic.params import CompParams, truth_in_frame
+from inscal.calibrate.systematic.states import (
+    ARW_FLOOR,
+    K_M1A,
+    K_M1G,
+    K_TAU,
+    N_NAV,
+    NAV_SIGMA0,
+    VRW_FLOOR,
+    StateSet,
+    state_spec,
+)
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import earth, units
+from inscal.core.attitude import dcm_from_euler
+from inscal.core.error_model import GimbalErrors
 from inscal.core.kinematics import kinematics
-
+from inscal.core.kinematics import (
+    segment_at as _segment_at,  # _segment_at: smallest s with seg_t1[s] > t
+)
+from inscal.core.turntable import RotationPath, outer_axis
+from inscal.plan.observability import (
+    DEFAULT_ARW,
+    DEFAULT_VRW,
+    ObservabilityError,
+    load_source,
+    resolve_noise,
+)
+from inscal.plan.rows import BiasNoise, BoundError, extra_rows
+from inscal.sim.scenarios import S16_SITE
+from inscal.sim.simulate import Scenario
 
 #: velocity-measurement sigma of the systematic filter: VELOCITY_FACTOR * mean(VRW) * sqrt(T) (its default)
 VELOCITY_FACTOR = 0.05
@@ -99,122 +112,21 @@ VELOCITY_FACTOR = 0.05
 SUB_RATE_HZ = 20.0
 
 
-class BoundError(ValueError):
-    """A path, state set or noise model the bound cannot use."""
 
 
 # ----------------------------------------------------------------------------- noise
-@dataclass(frozen=True)
-class BiasNoise:
-    """Bias instability as process noise on the bias states (SI, per axis).
-
-    ``*_rw``: rate random walk PSD root [rad/s/sqrt(s)], [m/s^2/sqrt(s)]; ``*_gm``: first-order
-    Gauss-Markov sigma [rad/s], [m/s^2] with correlation time ``*_tau`` [s]."""
-
-    gyro_rw: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    accel_rw: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    gyro_gm: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    gyro_tau: float = 3600.0
-    accel_gm: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    accel_tau: float = 3600.0
-
-    def __post_init__(self):
-        for n in ("gyro_rw", "accel_rw", "gyro_gm", "accel_gm"):
-            a = np.broadcast_to(np.asarray(getattr(self, n), float), (3,)).copy()
-            if not np.all(np.isfinite(a)) or np.any(a < 0):
-                raise BoundError(f"bias noise {n} must be >= 0, got {getattr(self, n)}")
-            object.__setattr__(self, n, a)
-        for n in ("gyro_tau", "accel_tau"):
-            v = float(getattr(self, n))
-            if not (math.isfinite(v) and v > 0):
-                raise BoundError(f"bias noise {n} must be > 0 s, got {v}")
-            object.__setattr__(self, n, v)
-
-    @property
-    def active(self) -> bool:
-        return bool(np.any(self.gyro_rw) or np.any(self.accel_rw) or np.any(self.gyro_gm) or np.any(self.accel_gm))
-
-    @classmethod
-    def from_imu_noise(cls, noise) -> "BiasNoise":
-        """The Gauss-Markov bias instability of an :class:`inscal.errors.ImuNoise` (the simulator's model)."""
-        return cls(gyro_gm=noise.gyro_bias_instability, gyro_tau=noise.gyro_bias_tau,
-                   accel_gm=noise.accel_bias_instability, accel_tau=noise.accel_bias_tau)
-
-    def to_dict(self) -> dict:
-        return {"gyro_rw_deg_h_sqrt_h": (units.from_si(self.gyro_rw, "deg/h") * math.sqrt(3600.0)).tolist(),
-                "accel_rw_ug_sqrt_s": units.from_si(self.accel_rw, "ug").tolist(),
-                "gyro_gm_deg_h": units.from_si(self.gyro_gm, "deg/h").tolist(), "gyro_tau_s": self.gyro_tau,
-                "accel_gm_ug": units.from_si(self.accel_gm, "ug").tolist(), "accel_tau_s": self.accel_tau}
 
 
 # ----------------------------------------------------------------------------- extra measurement rows
 #: (predicate(StateSet) -> bool, builder) pairs; see :func:`register_rows`
-_ROW_BUILDERS: list[tuple[Callable, Callable]] = []
 
 
-def register_rows(applies: Callable[[StateSet], bool], builder: Callable) -> None:
-    """Plug in a state set's extra measurement rows.  ``builder(states, scenario, t, options)`` gets
-    the :class:`StateSet`, the :class:`~inscal.simulate.Scenario`, the update times ``t`` (M,) [s]
-    (the end of each filter step) and the setup's ``row_options`` dict, and returns ``(H, r)``:
-    rows ``H`` (M, m, n_states) on the physical error state (navigation first, then the parameters
-    in ``states.groups`` order) and their noise variances ``r`` (M, m), independent rows (whiten
-    correlated ones first).  Used for every state set where ``applies(states)``."""
-    _ROW_BUILDERS.append((applies, builder))
 
 
-def encoder_rows(st: StateSet, sc, t: np.ndarray, options: dict):
-    """The unified model's encoder attitude rows (:mod:`inscal.calibrate.unified`, the systematic
-    filter's ``gimbal`` option): ``z = vee(C_nav C_pred^T) ~ phi - psi(d dth, d alpha0, d beta0,
-    d gamma0)`` with ``R = s^2 (a a^T + c c^T) + (s/10)^2 I`` at the path's encoder angles at the end
-    of each step, linearised at the scenario's gimbal geometry (:func:`~inscal.calibrate.systematic._gimbal_attitude`);
-    whitened by the Cholesky factor of ``R`` (three independent unit-variance rows).
-    ``options["encoder_sigma"]``: encoder white noise [rad] (default the filter's 1")."""
-    from inscal.calibrate.systematic.states import ENCODER_SIGMA, K_GIM
-    from inscal.calibrate.systematic.dynamics import gimbal_attitude
-
-    s = float(options.get("encoder_sigma") or ENCODER_SIGMA)
-    th, _, _ = sc.path.segments().angles(t)
-    gim = np.concatenate([[sc.gimbal.nonorthogonality], np.asarray(sc.gimbal.mount_attitude, float)])
-    kinds, _, js = st.columns()
-    cols = [(N_NAV + c, int(js[c])) for c in range(kinds.size) if kinds[c] == K_GIM]
-    M = t.size
-    # a, c, Hg and R depend on the outer angle only (not on the inner one): one evaluation per distinct angle
-    tx_u, inv = np.unique(th[:, 0], return_inverse=True)
-    Hu = np.zeros((tx_u.size, 3, st.n_states))
-    Cp, a, c3, Hg = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 4))
-    for k, tx in enumerate(tx_u):
-        gimbal_attitude(gim, float(tx), 0.0, Cp, a, c3, Hg)
-        R = s * s * (np.outer(a, a) + np.outer(c3, c3)) + 0.01 * s * s * np.eye(3)
-        Li = np.linalg.inv(np.linalg.cholesky(R))
-        Hk = np.zeros((3, st.n_states))
-        Hk[:, 0:3] = np.eye(3)
-        for col, j in cols:
-            Hk[:, col] = -Hg[:, j]
-        Hu[k] = Li @ Hk
-    H = Hu[inv.ravel()]
-    return H, np.ones((M, 3))
 
 
-def _extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray, options: dict | None = None):
-    Hs, rs = [], []
-    for applies, builder in _ROW_BUILDERS:
-        if applies(st):
-            H, r = builder(st, sc, t, options or {})
-            H = np.asarray(H, float)
-            r = np.asarray(r, float)
-            if H.ndim != 3 or H.shape[0] != t.size or H.shape[2] != st.n_states or r.shape != H.shape[:2]:
-                raise BoundError(f"extra measurement rows: expected H ({t.size}, m, {st.n_states}) and r "
-                                 f"({t.size}, m), got {H.shape} and {r.shape}")
-            Hs.append(H)
-            rs.append(r)
-    if not Hs:
-        return np.zeros((t.size, 0, sig.size)), np.ones((t.size, 0))
-    H = np.concatenate(Hs, axis=1)
-    r = np.concatenate(rs, axis=1)
-    return H, r
 
 
-register_rows(lambda st: bool(getattr(st, "gimbal", False)), encoder_rows)
 
 
 @njit(cache=True)
@@ -536,7 +448,6 @@ class Setup:
         return self.sig[N_NAV:N_NAV + self.n_params]
 
     def scenario(self, path: RotationPath):
-        from inscal.sim.simulate import Scenario
 
         return Scenario(path.name, path, self.site, gimbal=self.gimbal)
 
@@ -551,9 +462,6 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     [m/s/sqrt(s)], scalar or per axis (default S16's 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz));
     ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
     encoder noise of the gimbal states' attitude rows (default the filter's)."""
-    from inscal.core.error_model import GimbalErrors
-    from inscal.sim.scenarios import S16_SITE
-    from inscal.plan.observability import DEFAULT_ARW, DEFAULT_VRW
 
     try:
         st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -719,7 +627,6 @@ class Bound:
 
 
 def _spec(st: StateSet) -> str:
-    from inscal.calibrate.systematic.states import state_spec
 
     try:
         return state_spec(st)
@@ -740,7 +647,7 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
     Cbn = dcm_from_euler(setup.gimbal.mount_attitude)
     wie = earth.earth_rate_n(setup.site.latitude)
     t_up = (np.arange(M) + 1.0) * T
-    xH, xr = _extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states],
+    xH, xr = extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states],
                          setup.row_options)
     if xH.shape[1]:
         pad = N - setup.states.n_states
@@ -769,11 +676,10 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
     :func:`inscal.calibrate.observability.load_source`): the scenario's site, gimbal geometry
     and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
     bare path at the S16 site with the S16 noise."""
-    from inscal.plan.observability import ObservabilityError, _noise, load_source
 
     try:
         sc, kind, _ = load_source(source)
-        arw_v, vrw_v, _ = _noise(sc, kind, arw, vrw)
+        arw_v, vrw_v, _ = resolve_noise(sc, kind, arw, vrw)
     except ObservabilityError as exc:
         raise BoundError(str(exc)) from None
     if bias_noise is None and kind == "scenario":
@@ -792,7 +698,6 @@ def predicted_error(b: Bound, imu) -> tuple[np.ndarray, np.ndarray]:
     covariance ``P L P = P - P P0^-1 P`` (the noise).  Both are zero / equal to ``P`` where the data
     dominate the prior (bound << prior); where they do not, a fixed-truth spread is smaller than
     the bound.  Constant parameters only (no Gauss-Markov bias states)."""
-    from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 
     su = b.setup
     if su.n_gm:

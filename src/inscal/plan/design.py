@@ -1,4 +1,4 @@
-"""Design of a calibration path from its Cramér-Rao bound (issue 10 item 4).
+"""Design of a calibration path from its Cramér-Rao bound.
 
 Problem.  Find a sequence of turntable moves (axis, angle, rate, dwell) of a given total
 duration that minimises a function of the bound (:mod:`inscal.calibrate.crlb`) of the
@@ -37,30 +37,34 @@ One evaluation of a 30-minute path costs ~30 ms (bench/bench_crlb.py).
 
 from __future__ import annotations
 
+import logging
 import math
-
 import time
-
+import warnings
 from dataclasses import dataclass, field
-
 from typing import Callable
 
 import numpy as np
 
 from inscal.core import units
-
-from inscal.core.turntable import AXES, DEG, Move, RotationPath, PathError, psins19, s16_table1
-
-from inscal.plan.bound import Bound, BoundError, Setup, evaluate, make_setup
-
+from inscal.core.turntable import (
+    AXES,
+    DEG,
+    Move,
+    PathError,
+    RotationPath,
+    psins19,
+    s16_table1,
+)
+from inscal.plan.bound import Bound, Setup, evaluate, make_setup
+from inscal.plan.rows import BoundError
+from inscal.sim.scenarios import S16_TABLE2
 
 #: angles of a move [deg] (either sense): 45-deg positions excite the cross-coupling (f_i f_j) and put
 #: a tilted gyro's g-sensitivity into the well-observed tilt channel; whole turns the lever arms
 ANGLES_DEG = (45.0, 90.0, 135.0, 180.0, 270.0, 360.0, 720.0)
 ANGLE_P = (0.15, 0.35, 0.1, 0.15, 0.05, 0.12, 0.08)
 #: S16 Table 2 "after filter" figures (field units of the groups)
-S16_TABLE2 = {"gyro_g_sensitivity": 0.0002, "accel_nonlinearity": 1.3, "accel_cross_coupling": 1.5,
-              "accel_lever_arm": 0.01}
 TABLE2_GROUPS = tuple(S16_TABLE2)
 OBJECTIVES = ("worst-normalised", "weighted")
 #: weight of the mean normalised bound added to the worst one when the search ranks candidates
@@ -350,8 +354,6 @@ class _Evaluator:
         self.cluster = None
         if scheduler in ("none", "synchronous", "sync"):
             return
-        import logging
-        import warnings
 
         from distributed import Client, LocalCluster
 

@@ -1,4 +1,4 @@
-"""Observability of a rotation path for the systematic filter, without data (issue item 5).
+"""Observability of a rotation path for the systematic filter, without data.
 
 Judge a rotation path before running it on hardware: which parameter states of the
 systematic filter (:mod:`inscal.calibrate.systematic`) the path makes observable, and how
@@ -71,32 +71,29 @@ own ARW/VRW (or these defaults when it has none), unless ``arw``/``vrw`` are giv
 from __future__ import annotations
 
 import math
-
 import time
-
-from inscal.io.tomlfile import read_toml
-
 from dataclasses import dataclass, field, replace
-
 from pathlib import Path
-
 from types import SimpleNamespace
 
 import numpy as np
-
 from numba import njit
 
-from inscal.core import units
-
-from inscal.core.error_model import ImuErrors, ImuNoise
-
-from inscal.core.turntable import BUILTIN_PATHS, RotationPath
-
-from inscal.calibrate.result import CalibrationError
-
-from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, N_NAV, NAV_SIGMA0, StateSet
 from inscal.calibrate.systematic.driver import systematic
-
+from inscal.calibrate.systematic.states import (
+    DEFAULT_SIGMA0,
+    N_NAV,
+    NAV_SIGMA0,
+    StateSet,
+)
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import units
+from inscal.core.error_model import ImuErrors, ImuNoise
+from inscal.core.turntable import BUILTIN_PATHS, RotationPath
+from inscal.io.tomlfile import read_toml
+from inscal.sim import scenarios
+from inscal.sim.scenarios import S16_SITE
+from inscal.sim.simulate import Scenario, simulate
 
 #: verdict thresholds on ratio = posterior / prior sigma (upper bounds, exclusive)
 THRESHOLDS = (("well observed", 0.01), ("observed", 0.1), ("weak", 0.5))
@@ -264,8 +261,6 @@ def load_source(source):
     """``(Scenario, kind, label)`` from a :class:`~inscal.simulate.Scenario`, a
     :class:`~inscal.turntable.Path`, a built-in scenario or path name, a scenario TOML or a
     path TOML (a ``[path]`` table only, or the path keys at the top level)."""
-    from inscal.sim import scenarios
-    from inscal.sim.simulate import Scenario
 
     if isinstance(source, Scenario):
         return source, "scenario", source.name
@@ -299,13 +294,11 @@ def load_source(source):
 
 
 def _bare(path: RotationPath):
-    from inscal.sim.scenarios import S16_SITE
-    from inscal.sim.simulate import Scenario
 
     return Scenario(path.name, path, S16_SITE)
 
 
-def _noise(sc, kind: str, arw, vrw) -> tuple[np.ndarray, np.ndarray, str]:
+def resolve_noise(sc, kind: str, arw, vrw) -> tuple[np.ndarray, np.ndarray, str]:
     sa, sv = np.asarray(sc.noise.arw, float), np.asarray(sc.noise.vrw, float)
     have = kind == "scenario" and np.all(sa > 0) and np.all(sv > 0)
     if arw is None:
@@ -329,7 +322,6 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     docstring).  ``scenario_or_path``: a Scenario, a RotationPath, a built-in scenario/path name or a
     TOML file.  ``arw`` [rad/sqrt(s)], ``vrw`` [m/s/sqrt(s)]: scalar or per axis; default
     the scenario's, else S16's.  ``rate_hz``: simulation rate of the noise-free record."""
-    from inscal.sim.simulate import simulate
 
     t_start = time.perf_counter()
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
@@ -341,7 +333,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     except CalibrationError as exc:
         raise ObservabilityError(str(exc)) from None
     sc, kind, label = load_source(scenario_or_path)
-    arw_v, vrw_v, noise_src = _noise(sc, kind, arw, vrw)
+    arw_v, vrw_v, noise_src = resolve_noise(sc, kind, arw, vrw)
     # ideal IMU, no noise; keep the site and the gimbal geometry
     sc0 = replace(sc, imu=ImuErrors(), noise=ImuNoise(), rate_hz=float(rate_hz))
     if sc0.n_samples * filter_rate_hz / rate_hz < 10:

@@ -2,11 +2,25 @@
 
 from __future__ import annotations
 
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+
+from inscal import __version__
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS, parameter_components
+from inscal.io.files import atomic_path
 from inscal.report.figures import navigation_figure, new_figure, time_axis
-from inscal.report.html import display_unit, escape, fmt_num, html_table, png_file_base64, z_cell
+from inscal.report.html import (
+    display_unit,
+    escape,
+    fmt_num,
+    html_table,
+    png_file_base64,
+    z_cell,
+)
+from inscal.sim.scenarios import S16_TABLE2
 
 
 def _param_rows(methods: dict[str, dict], truth: dict[str, dict] | None = None):
@@ -14,8 +28,6 @@ def _param_rows(methods: dict[str, dict], truth: dict[str, dict] | None = None):
     "error", "unit"}}}`` (field units, lists per component); the truth is value - error (or
     ``truth[name]["value"]``).  Angles of a parameter with a component of 1 degree or more
     (the mount yaw, ~20 deg) show their values in degrees, their errors in arcsec."""
-    from inscal.core.error_model import parameter_components
-    from inscal.core.error_model import PARAMETERS
 
     names = [n for n in PARAMETERS if any(n in m for m in methods.values())]
     rows = []
@@ -68,11 +80,7 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
     ``nav_runs``: ``{label: (NavResult, gimbal model)}`` of the navigation runs; ``allan_data``:
     the ``inscal allan`` result of the N25 first dwell (with ``true_arw_deg_rth``/``true_vrw_ug_rthz``).
     Returns ``{name: path}`` of the files written."""
-    from datetime import datetime, timezone
 
-    from inscal import __version__
-    from inscal.core import units
-    from inscal.io.files import atomic_path
 
     plt = new_figure()
     out_dir = Path(out_dir)
@@ -117,7 +125,6 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
 
     # ---- S16 Table 2 groups against the paper
     sysc = steps.get("systematic_s16", {})
-    from inscal.sim.scenarios import S16_TABLE2
 
     if sysc:
         methods = list(sysc)

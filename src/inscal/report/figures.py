@@ -3,9 +3,16 @@ imported on first use)."""
 
 from __future__ import annotations
 
+import base64
+import io as _io
 from pathlib import Path
 
 import numpy as np
+
+from inscal.calibrate.result import param_value
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS
+from inscal.io.files import atomic_path
 
 
 def new_figure():
@@ -18,7 +25,6 @@ def new_figure():
 
 
 def save_figure(fig, path, overwrite: bool = False) -> None:
-    from inscal.io.files import atomic_path
 
     path = Path(path)
     with atomic_path(path, overwrite) as tmp:
@@ -41,8 +47,6 @@ def allan_plot(path, taus, gyro_adev_deg_h, accel_adev_ug, overwrite: bool = Fal
 
 
 def png_base64(fig) -> str:
-    import base64
-    import io as _io
 
     buf = _io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
@@ -54,9 +58,6 @@ def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> l
     group: the filtered estimate (minus the truth when given, else the estimate) of every
     component against time, with its 1-sigma envelope, and the smoothed (final) value.
     Values in the field units of :data:`inscal.errors.PARAMETERS`.  Returns the files written."""
-    from inscal.core import units
-    from inscal.calibrate.result import param_value
-    from inscal.core.error_model import PARAMETERS
 
     h = result.history
     if h is None:
@@ -131,7 +132,6 @@ def navigation_figure(res, title: str = "", gimbal_model=None, max_points: int =
     North, Up [m]; the horizontal position error [nmi] (and m); the attitude error roll, pitch,
     yaw [arcsec] when the run has a truth, else the attitude (roll, pitch [deg] and the heading,
     clockwise from North [deg]).  Returns the matplotlib figure (the caller saves and closes it)."""
-    from inscal.core import units
 
     plt = new_figure()
     err = res.errors

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import base64
+import html
 from pathlib import Path
 
 import numpy as np
@@ -41,13 +43,11 @@ def fmt_num(x, digits: int = 4) -> str:
 
 
 def escape(s) -> str:
-    import html
 
     return html.escape(str(s))
 
 
 def png_file_base64(path) -> str:
-    import base64
 
     return base64.b64encode(Path(path).read_bytes()).decode("ascii")
 

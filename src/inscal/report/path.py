@@ -1,4 +1,4 @@
-"""Report section for a rotation path and its Cramér-Rao bound (issue 10 item 4).
+"""Report section for a rotation path and its Cramér-Rao bound (path design and the report's path section).
 
 Three panels (:func:`path_figure`), from a path and its :class:`~inscal.calibrate.crlb.Bound`
 (computed with its history):
@@ -18,18 +18,15 @@ HTML fragment (a ``<section>`` with the figure inline and the per-move table) at
 from __future__ import annotations
 
 import base64
-
 import html as _html
-
 import io as _io
-
 import math
-
 from pathlib import Path as FsPath
 
 import numpy as np
 
 from inscal.core import units
+from inscal.io.files import atomic_path
 
 
 def _group_index(bound) -> dict[str, list[int]]:
@@ -160,7 +157,6 @@ def write_path_report(out, bound, path, targets: np.ndarray | None = None, title
     """Write ``out`` (PNG) and the HTML fragment beside it (``.html``), atomically; returns both paths."""
     import matplotlib.pyplot as plt
 
-    from inscal.io.files import atomic_path
 
     png = FsPath(out)
     if png.suffix.lower() != ".png":

@@ -3,10 +3,19 @@ path section (gimbal angles and the Cramer-Rao bound) when it has a path."""
 
 from __future__ import annotations
 
+import html
 
 import numpy as np
+
+from inscal.analysis.allan import allan_of, first_dwell
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS, errors_to_field
+from inscal.io.files import atomic_path
+from inscal.plan.bound import evaluate, make_setup
+from inscal.plan.rows import BoundError
 from inscal.report.figures import new_figure, png_base64
 from inscal.report.html import fmt_value
+from inscal.report.path import html_fragment, path_figure
 
 
 def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] | None = None,
@@ -16,12 +25,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     ``param_sets``: ``[(label, ImuErrors, GimbalErrors, metadata)]`` from parameter files; each
     is tabulated in field units with its 1 sigma and, for simulated records, its error.
     """
-    import html
 
-    from inscal.core import units
-    from inscal.analysis.allan import allan_of, first_dwell
-    from inscal.core.error_model import PARAMETERS, errors_to_field
-    from inscal.io.files import atomic_path
 
     plt = new_figure()
     figs = []
@@ -107,7 +111,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
 
 
 def _path_section(rec, summary: dict) -> str | None:
-    """The record's rotation path (issue 10 item 4): gimbal angles, the Cramér-Rao bound of the
+    """The record's rotation path: gimbal angles, the Cramér-Rao bound of the
     51-state systematic model over time and what each move makes observable
     (:mod:`inscal.report_path`), at the record's site, with the noise read from its first dwell
     (else its simulation truth, else S16's).  None (and a note in ``summary``) without a path."""
@@ -115,13 +119,10 @@ def _path_section(rec, summary: dict) -> str | None:
     if path is None:
         summary["path_bound"] = "no rotation path in the record"
         return None
-    from inscal.plan.bound import BoundError, evaluate, make_setup
-    from inscal.report.path import html_fragment, path_figure
 
     arw = summary.get("arw_deg_rth")
     vrw = summary.get("vrw_ug_rthz")
     if arw is not None and vrw is not None and min(arw) > 0 and min(vrw) > 0:
-        from inscal.core import units
 
         arw_si, vrw_si, src = units.to_si(np.asarray(arw), "deg/sqrt(h)"), units.to_si(np.asarray(vrw), "ug/sqrt(Hz)"), \
             "the first dwell's white noise"

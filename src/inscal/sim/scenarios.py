@@ -95,34 +95,38 @@ Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
 from __future__ import annotations
 
 import math
-
-from inscal.io.tomlfile import read_toml
-
 from dataclasses import replace
-
 from pathlib import Path
 
 import numpy as np
 
+from inscal import SCHEMA_VERSION
 from inscal.core import units
-
-from inscal.core.earth import GravityModel, parse_gravity
-
-from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, S16Parameters, errors_from_field, errors_to_field, from_s16, noise_from_field
-
+from inscal.core.earth import GravityModel, Site, parse_gravity
+from inscal.core.error_model import (
+    GimbalErrors,
+    ImuErrors,
+    ImuNoise,
+    S16Parameters,
+    errors_from_field,
+    errors_to_field,
+    from_s16,
+    noise_from_field,
+)
+from inscal.core.turntable import (
+    BUILTIN_PATHS,
+    PathError,
+    RotationPath,
+    n25_twelve,
+    psins19,
+    rotmod16,
+    s16_table1,
+    static,
+)
+from inscal.core.units import DEG
+from inscal.io.tomlfile import read_toml
 from inscal.sim.simulate import Scenario
-from inscal.core.earth import Site
 
-from inscal.core.turntable import BUILTIN_PATHS, RotationPath, PathError, n25_twelve, psins19, rotmod16, s16_table1, static
-
-
-
-
-
-
-
-
-DEG = math.pi / 180.0
 N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
 S16_SITE = Site(latitude=30.0 * DEG, longitude=114.0 * DEG, height=0.0)
 
@@ -371,7 +375,6 @@ def _check_keys(section: str, d: dict, allowed: set) -> None:
 
 
 def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: str = "custom") -> Scenario:
-    from inscal import SCHEMA_VERSION
 
     _check_keys("top level", d, _TOP_KEYS)
     if "schema_version" in d and d["schema_version"] != SCHEMA_VERSION:

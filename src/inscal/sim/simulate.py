@@ -25,38 +25,19 @@ generator passed in, so results do not depend on the chunk size.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
-
 from typing import Callable, Iterator
 
 import numpy as np
-
 from numba import njit
-
 from scipy.signal import lfilter
 
-
 from inscal.core.attitude import dcm_from_euler
-
-from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
-
-from inscal.core.turntable import RotationPath, Segments, outer_axis
-
-
-
-
-
-
-
-
-
-
 from inscal.core.earth import Site
+from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 from inscal.core.kinematics import rates_at, segment_at
+from inscal.core.turntable import RotationPath, Segments, outer_axis
 from inscal.io.records import DataFileError, Record, RecordInfo, Truth, write_stream
-
-
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
 

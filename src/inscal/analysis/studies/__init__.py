@@ -63,8 +63,13 @@ import dataclasses
 from pathlib import Path
 from typing import Callable
 
-from inscal.analysis.montecarlo import Experiment, RUNS_FILE, StudyError, StudyResult, read_results
-
+from inscal.analysis.montecarlo import (
+    RUNS_FILE,
+    Experiment,
+    StudyError,
+    StudyResult,
+    read_results,
+)
 
 # ------------------------------------------------------------------------------ registry
 _REGISTRY: dict[str, tuple[Callable[..., Experiment], str]] = {}

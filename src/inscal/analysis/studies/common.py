@@ -4,24 +4,22 @@
 from __future__ import annotations
 
 import functools
+import json
+import math
+from dataclasses import replace
 from types import SimpleNamespace
 
-import json
-
-import math
-
-from dataclasses import replace
-
-
-
 import numpy as np
-
-from inscal.core import units
-
-from inscal.core.error_model import GimbalErrors
+from scipy.stats import chi2
 
 from inscal.analysis.montecarlo import Experiment, StudyError
-
+from inscal.calibrate import METHODS, calibrate
+from inscal.core import units
+from inscal.core.error_model import GimbalErrors
+from inscal.core.turntable import Move, RotationPath, n25_twelve
+from inscal.io.records import Record, Truth
+from inscal.sim.scenarios import build
+from inscal.sim.simulate import NoiseState, Scenario, simulate
 
 _SIMULATION_MODES = ("full", "reuse")
 
@@ -44,8 +42,6 @@ def check_common(p: dict) -> dict:
 
 @functools.lru_cache(maxsize=64)
 def scenario_cached(key: str):
-    from inscal.sim.scenarios import build
-    from inscal.core.turntable import n25_twelve
 
     p = json.loads(key)
     sc = build("n25")
@@ -66,7 +62,6 @@ def n25_scenario(params: dict, dtheta_arcsec: float | None = None):
 @functools.lru_cache(maxsize=12)
 def _clean_record(key: str):
     """The noise-free measured record of a scenario (cached per worker process)."""
-    from inscal.sim.simulate import simulate
 
     sc = scenario_cached(key)
     return simulate(replace(sc, noise=type(sc.noise)()), None)
@@ -74,8 +69,6 @@ def _clean_record(key: str):
 
 def simulate_record(scenario_key: str, rng: np.random.Generator, mode: str):
     """An :class:`inscal.io.Record` of the scenario behind ``scenario_key`` with noise from ``rng``."""
-    from inscal.io.records import Record, Truth
-    from inscal.sim.simulate import NoiseState, simulate
 
     sc = scenario_cached(scenario_key)
     if mode == "full":
@@ -100,8 +93,6 @@ def scenario_key(params: dict, dtheta_arcsec: float | None) -> str:
 
 def warmup(exp: Experiment) -> None:
     """Compile (and cache on disk) the numba kernels with a short simulation."""
-    from inscal.sim.simulate import Scenario, simulate
-    from inscal.core.turntable import Move, RotationPath
 
     sc = n25_scenario(exp.params, 1.0)
     short = RotationPath("warmup", (Move("outer", 0.1, 0.5, 0.1),), accel=1.0, initial_dwell=0.1, closed=False)
@@ -110,7 +101,6 @@ def warmup(exp: Experiment) -> None:
 
 def rms_z_band(runs: int, level: float = 0.95) -> tuple[float, float]:
     """Sampling band of the RMS of ``runs`` independent standard normal draws."""
-    from scipy.stats import chi2
 
     a = (1 - level) / 2
     return (math.sqrt(chi2.ppf(a, runs) / runs), math.sqrt(chi2.ppf(1 - a, runs) / runs))
@@ -118,7 +108,6 @@ def rms_z_band(runs: int, level: float = 0.95) -> tuple[float, float]:
 
 def nees_band(runs: int, dof: int, level: float = 0.95) -> tuple[float, float]:
     """Band of the mean of ``runs`` chi-square(``dof``) draws: ``chi2.ppf([a, 1-a], runs*dof) / runs``."""
-    from scipy.stats import chi2
 
     a = (1 - level) / 2
     return (float(chi2.ppf(a, runs * dof) / runs), float(chi2.ppf(1 - a, runs * dof) / runs))
@@ -131,7 +120,6 @@ def verdict(holds) -> str:
 
 
 def check_methods(methods) -> list[str]:
-    from inscal.calibrate import METHODS
 
     ms = [methods] if isinstance(methods, str) else list(methods)
     if not ms or not all(isinstance(m, str) for m in ms) or len(set(ms)) != len(ms):
@@ -150,10 +138,6 @@ def check_passes(max_passes) -> int:
 
 def warmup_systematic(exp: Experiment) -> None:
     """Compile (and cache on disk) the simulation and the systematic filter's kernels."""
-    from inscal.calibrate import calibrate
-    from inscal.sim.scenarios import build
-    from inscal.sim.simulate import Scenario, simulate
-    from inscal.core.turntable import Move, RotationPath
 
     sc = build("s16")
     short = RotationPath("warmup", (Move("outer", math.pi / 2, 0.2, 10.0), Move("inner", math.pi / 2, 0.2, 10.0)),

@@ -2,30 +2,27 @@
 
 from __future__ import annotations
 
-
-
 import math
-
-
 from pathlib import Path
-
 
 import numpy as np
 
-from inscal.core import units
-
-
-from inscal.analysis.montecarlo import Experiment, Summary, StudyError, std_ci
-from inscal.analysis.studies.common import check_common, scenario_key, simulate_record, warmup
+from inscal.analysis.montecarlo import Experiment, StudyError, Summary, std_ci
+from inscal.analysis.studies.common import (
+    check_common,
+    scenario_key,
+    simulate_record,
+    warmup,
+)
 from inscal.analysis.truth import estimated_parameter_names
-
+from inscal.calibrate import calibrate
+from inscal.core import units
 
 FIG5_DTHETA = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 40.0)
 
 
 # ------------------------------------------------------------------------------ n25-fig5
 def _fig5_run(exp: Experiment, p: int, rng: np.random.Generator) -> dict:
-    from inscal.calibrate import calibrate
 
     dtheta = exp.points[p]["dtheta_arcsec"]
     rec = simulate_record(scenario_key(exp.params, dtheta), rng, exp.params["simulation"])

@@ -2,25 +2,27 @@
 
 from __future__ import annotations
 
-
-
 import math
-
-
 from pathlib import Path
-
 
 import numpy as np
 
-
-from inscal.core.error_model import PARAMETERS
-
-from inscal.analysis.montecarlo import Experiment, Summary, StudyError
-from inscal.analysis.studies.common import verdict, check_common, scenario_cached, scenario_key, simulate_record, warmup
+from inscal.analysis.montecarlo import Experiment, StudyError, Summary
+from inscal.analysis.studies.common import (
+    check_common,
+    check_methods,
+    check_passes,
+    scenario_cached,
+    scenario_key,
+    simulate_record,
+    verdict,
+    warmup,
+    warmup_systematic,
+)
 from inscal.analysis.truth import is_record_method, result_errors
-from inscal.core.error_model import parameter_components
-from inscal.analysis.studies.common import check_methods, check_passes, warmup_systematic
-
+from inscal.calibrate import calibrate
+from inscal.calibrate.windows import window_means
+from inscal.core.error_model import PARAMETERS, parameter_components
 
 SCHEME_LABELS = {"n25": "scheme 1 (n25)", "six-position": "scheme 2 (six-position)", "joint": "joint LSQ",
                  "twelve-position": "twelve-position", "systematic30": "scheme 3 (systematic30, system-level Kalman)",
@@ -29,8 +31,6 @@ SCHEME_LABELS = {"n25": "scheme 1 (n25)", "six-position": "scheme 2 (six-positio
 
 # ---------------------------------------------------------------------------- n25-schemes
 def _schemes_run(exp: Experiment, p: int, rng: np.random.Generator) -> dict:
-    from inscal.calibrate import calibrate
-    from inscal.calibrate.windows import window_means
 
     key = scenario_key(exp.params, exp.params["dtheta_arcsec"])
     sc = scenario_cached(key)

@@ -2,29 +2,31 @@
 
 from __future__ import annotations
 
-
 import functools
-
-
 import math
-
 from dataclasses import replace
-
 from pathlib import Path
-
 
 import numpy as np
 
-from inscal.core import units
-
-from inscal.core.error_model import PARAMETERS
-
-from inscal.analysis.montecarlo import Experiment, Summary, StudyError
-from inscal.analysis.studies.common import verdict, nees_band, rms_z_band
+from inscal.analysis.montecarlo import Experiment, StudyError, Summary
+from inscal.analysis.studies.common import (
+    check_methods,
+    check_passes,
+    nees_band,
+    rms_z_band,
+    verdict,
+    warmup_systematic,
+)
 from inscal.analysis.truth import is_record_method, systematic_statistics
-from inscal.sim.scenarios import S16_TABLE2
-from inscal.analysis.studies.common import check_methods, check_passes, warmup_systematic
-
+from inscal.calibrate import calibrate
+from inscal.calibrate.systematic.params import truth_in_frame
+from inscal.calibrate.systematic.states import StateSet
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS
+from inscal.io.records import Record, Truth
+from inscal.sim.scenarios import S16_TABLE2, build
+from inscal.sim.simulate import simulate
 
 #: expected mean |x| of a zero-mean normal x per unit sigma
 _HALF_NORMAL_MEAN = math.sqrt(2.0 / math.pi)
@@ -32,7 +34,6 @@ _HALF_NORMAL_MEAN = math.sqrt(2.0 / math.pi)
 
 @functools.lru_cache(maxsize=8)
 def _s16_scenario(rate_hz: float):
-    from inscal.sim.scenarios import build
 
     sc = build("s16")
     return sc if rate_hz == sc.rate_hz else replace(sc, rate_hz=rate_hz)
@@ -40,8 +41,6 @@ def _s16_scenario(rate_hz: float):
 
 def s16_record(rate_hz: float, rng: np.random.Generator):
     """An :class:`inscal.io.Record` of the built-in ``s16`` scenario at ``rate_hz`` with noise from ``rng``."""
-    from inscal.io.records import Record, Truth
-    from inscal.sim.simulate import simulate
 
     sc = _s16_scenario(float(rate_hz))
     d = simulate(sc, rng)
@@ -50,7 +49,6 @@ def s16_record(rate_hz: float, rng: np.random.Generator):
 
 
 def _table2_run(exp: Experiment, p: int, rng: np.random.Generator) -> dict:
-    from inscal.calibrate import calibrate
 
     rec = s16_record(exp.params["rate_hz"], rng)
     sc = _s16_scenario(float(exp.params["rate_hz"]))
@@ -70,8 +68,6 @@ def _ordered_groups(keys) -> list[str]:
 def _true_magnitude(exp: Experiment) -> dict[str, float]:
     """Mean |true value| per group in the filter's (gyro-defined) frame, field units: the error
     a method leaves when it does not estimate the group."""
-    from inscal.calibrate.systematic.states import StateSet
-    from inscal.calibrate.systematic.params import truth_in_frame
 
     imu = truth_in_frame(_s16_scenario(float(exp.params["rate_hz"])).imu, StateSet.parse("51")).to_imu()
     out = {}
@@ -88,7 +84,6 @@ def _true_magnitude(exp: Experiment) -> dict[str, float]:
 
 
 def _table2_summarize(exp: Experiment, results: list[list[dict]]) -> Summary:
-    from inscal.calibrate.systematic.states import StateSet
 
     methods = exp.params["methods"]
     res = results[0]

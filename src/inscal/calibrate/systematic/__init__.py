@@ -111,8 +111,17 @@ NIS (dof 6 per step: the fit); the encoder rows' are in ``diagnostics["encoder"]
 expectation ``3 - floor tr(S^-1)`` (between 2 and 3: the floor direction carries no encoder noise).
 """
 
-from inscal.calibrate.systematic.driver import estimate_white_noise, systematic, systematic30, systematic51
-from inscal.calibrate.systematic.params import CompParams, frame_rotation, truth_in_frame
+from inscal.calibrate.systematic.driver import (
+           estimate_white_noise,
+           systematic,
+           systematic30,
+           systematic51,
+)
+from inscal.calibrate.systematic.params import (
+           CompParams,
+           frame_rotation,
+           truth_in_frame,
+)
 from inscal.calibrate.systematic.states import STATE_OPTIONS, StateSet
 
 __all__ = ["systematic", "systematic51", "systematic30", "estimate_white_noise", "StateSet", "STATE_OPTIONS",

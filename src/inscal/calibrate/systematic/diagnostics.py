@@ -5,23 +5,23 @@ from __future__ import annotations
 
 import math
 
-
 import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2 as _chi2
 
-
-from inscal.core import units
-
-
-from inscal.core.error_model import ImuErrors
-
-
-
-
-from inscal.calibrate.result import CalibrationError
 from inscal.calibrate.systematic.kernel import PassOutput
-from inscal.calibrate.systematic.params import CompParams, canonical_flat, params_from_ref, truth_in_frame
+from inscal.calibrate.systematic.params import (
+    CompParams,
+    canonical_flat,
+    params_from_ref,
+    truth_in_frame,
+)
 from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
-
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import units
+from inscal.core.attitude import euler_from_dcm
+from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.turntable import C_s_b
 
 #: p-value below which the innovations are declared inconsistent with the noise model
 P_INCONSISTENT = 1e-3
@@ -39,7 +39,6 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
     ``scale = sqrt(chi2 / dof)`` (``sqrt(mean NIS / 6)``): the innovation sequence says the
     noise model understates what the filter sees (unmodelled terms, a wrong path or wrong
     gravity add to every innovation); the formal sigma are kept beside them."""
-    from scipy.stats import chi2 as _chi2
 
     p = float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan")
     consistent = not (p < P_INCONSISTENT)
@@ -95,7 +94,6 @@ def encoder_angles(rec, n: int, dt: float) -> np.ndarray:
 
 def mount_from_attitude(C_s_n, angles, dth: float = 0.0) -> np.ndarray:
     """``[alpha0, beta0, gamma0]`` of ``C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T`` (N25 eq. 7-8 inverted)."""
-    from inscal.core.turntable import C_s_b
 
     return euler_of(np.asarray(C_s_n, float) @ C_s_b(float(angles[0]), float(angles[1]), float(dth)).T)
 
@@ -120,7 +118,6 @@ def gimbal_diagnostics(res, last: PassOutput, st: StateSet, enc_sig: float, ever
 
 
 def truth_gimbal(truth, st: StateSet):
-    from inscal.core.error_model import GimbalErrors
 
     if not st.gimbal:
         return GimbalErrors()
@@ -133,13 +130,11 @@ def truth_imu(truth, st: StateSet) -> ImuErrors:
 
 
 def dcm_from_rotvec(v) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
 
     return Rotation.from_rotvec(np.asarray(v, float)).as_matrix()
 
 
 def euler_of(C) -> np.ndarray:
-    from inscal.core.attitude import euler_from_dcm
 
     return np.asarray(euler_from_dcm(C))
 

@@ -5,25 +5,40 @@ from __future__ import annotations
 
 import math
 
-
 import numpy as np
+from scipy.stats import chi2 as _chi2
 
-
-from inscal.core import units
-
-
-from inscal.core.error_model import ImuErrors
-
-
-
-from inscal.calibrate.result import CalibrationResult
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec, encoder_angles, euler_of, gimbal_diagnostics, innovation_fit, mount_from_attitude, pass_history, truth_gimbal, truth_imu
+from inscal.calibrate.result import CalibrationResult, unflatten
+from inscal.calibrate.systematic.diagnostics import (
+    dcm_from_rotvec,
+    encoder_angles,
+    euler_of,
+    gimbal_diagnostics,
+    innovation_fit,
+    mount_from_attitude,
+    pass_history,
+    truth_gimbal,
+    truth_imu,
+)
 from inscal.calibrate.systematic.kernel import run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
-from inscal.calibrate.systematic.states import ARW_FLOOR, DEFAULT_SIGMA0, DEFLATE, ENCODER_SIGMA, NAV_SIGMA0, N_NAV, StateSet, VRW_FLOOR, estimated_names, fixed_mask, state_spec
-
+from inscal.calibrate.systematic.states import (
+    ARW_FLOOR,
+    DEFAULT_SIGMA0,
+    DEFLATE,
+    ENCODER_SIGMA,
+    N_NAV,
+    NAV_SIGMA0,
+    VRW_FLOOR,
+    StateSet,
+    estimated_names,
+    fixed_mask,
+    state_spec,
+)
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import units
+from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.nav.align import coarse_align
 
 #: body rate [rad/s] (0.5-s mean) above which a sample counts as turning, for the alignment window
 ALIGN_STATIC_RATE = 0.05 * math.pi / 180.0
@@ -113,7 +128,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sig_par = sig[N_NAV:]
     hist_every = max(1, int(round(history_s / T)))
     # coarse alignment (inertial-frame Wahba; valid while turning)
-    from inscal.nav.align import coarse_align
 
     n_al = min(dth.shape[0], max(int(round(min(align_s, dth.shape[0] * dt) * rate)), int(5 * rate) + 1))
     # ... but within the first dwell: the inertial-frame alignment is exact while turning only for
@@ -203,11 +217,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     fixed = fixed_mask(st, names)
     sflat[fixed] = np.nan
     imu = est.to_imu()
-    from inscal.core.error_model import GimbalErrors
-    from inscal.calibrate.result import unflatten
 
     # innovation statistics (normalised innovation squared; dof = 6 per step) and the fit
-    from scipy.stats import chi2 as _chi2
 
     nis = last.nis
     dof = 6 * last.steps

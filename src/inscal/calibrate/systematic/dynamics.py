@@ -6,19 +6,11 @@ from __future__ import annotations
 
 import math
 
-
 import numpy as np
-
 from numba import njit
 
 from inscal.core import earth
-
 from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
-
-
-
-
-
 
 
 # ----------------------------------------------------------------------------- the kernel

@@ -4,27 +4,32 @@ velocity/position and encoder updates) and its modified Bryson-Frazier smoother,
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np
-
 from numba import njit
 
-from inscal.core import earth, kalman as filters
-
-from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz as _qrv
-
-
-
-from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
-
-
-from inscal.calibrate.result import CalibrationError
-from inscal.calibrate.systematic.dynamics import affine, column_values, compensate_sample, gimbal_attitude, nav_F
+from inscal.calibrate.systematic.dynamics import (
+    affine,
+    column_values,
+    compensate_sample,
+    gimbal_attitude,
+    nav_F,
+)
 from inscal.calibrate.systematic.params import CompParams
-from inscal.calibrate.systematic.states import ENCODER_SIGMA, IDX_MEAS, K_GIM, N_NAV, StateSet
+from inscal.calibrate.systematic.states import (
+    ENCODER_SIGMA,
+    IDX_MEAS,
+    K_GIM,
+    N_NAV,
+    StateSet,
+)
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import earth
+from inscal.core import kalman as filters
+from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz
 from inscal.core.kalman import smoother_step_dense, update_dense
+from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
 
 
 @njit(cache=True)
@@ -296,7 +301,7 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
         # ---- feedback (S16 eq. 27)
         for i in range(N):
             xs[i] *= sig[i]
-        e0, e1, e2, e3 = _qrv(-xs[0], -xs[1], -xs[2])
+        e0, e1, e2, e3 = quat_from_rotvec_xyz(-xs[0], -xs[1], -xs[2])
         q0, q1, q2, q3 = qmul(e0, e1, e2, e3, q0, q1, q2, q3)
         ve -= xs[3]
         vn -= xs[4]

@@ -4,20 +4,14 @@ reference-history row layout, and the canonical flat parameter vector with its J
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import rq
 
-
-
-
-from inscal.core.error_model import ImuErrors, split_scale_misalignment
+from inscal.calibrate.result import flatten
 from inscal.calibrate.systematic.states import CROSS_PAIRS, StateSet
-
-
-
-
+from inscal.core.error_model import GimbalErrors, ImuErrors, split_scale_misalignment
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -64,7 +58,6 @@ class CompParams:
 
     def to_gimbal(self):
         """The gimbal parameters as :class:`~inscal.errors.GimbalErrors` (N25 eq. 5-8)."""
-        from inscal.core.error_model import GimbalErrors
 
         return GimbalErrors(float(self.gim[0]), np.array(self.gim[1:4]))
 
@@ -162,7 +155,6 @@ def _kx_col(a: int, b: int) -> int:
 def frame_rotation(imu: ImuErrors, frame: str = "gyro") -> np.ndarray:
     """``C_s^m``: the rotation from the canonical s-frame to the frame in which the chosen
     triad's compensation matrix is lower-triangular (QL decomposition, as errors.to_s16)."""
-    from scipy.linalg import rq
 
     A = np.linalg.inv(imu.M_g if frame == "gyro" else imu.M_a)
     R_, Q_ = rq(A.T)
@@ -202,7 +194,6 @@ def params_from_ref(row) -> CompParams:
 
 
 def canonical_flat(p: CompParams, names) -> np.ndarray:
-    from inscal.calibrate.result import flatten
 
     return flatten(p.to_imu(), p.to_gimbal(), names)
 

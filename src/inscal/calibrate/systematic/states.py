@@ -4,21 +4,14 @@ and the options (``51``, ``30``, ``lever9``, ``async``, ``psins``, ``gimbal``)."
 
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 
 import numpy as np
 
-
+from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
-
-
-
-
-
-
-from inscal.calibrate.result import CalibrationError
-
+from inscal.core.error_model import PARAMETERS
+from inscal.core.error_model import CROSS_NAMES
 
 N_NAV = 9
 IDX_MEAS = np.array([3, 4, 5, 6, 7, 8], dtype=np.int64)
@@ -34,7 +27,6 @@ LOWER = DIAG + ((1, 0), (2, 0), (2, 1))
 FULL = DIAG + OFFD
 AX = "xyz"
 CROSS_PAIRS = ((0, 0, 1), (0, 0, 2), (1, 0, 1), (1, 1, 2), (2, 0, 2), (2, 1, 2))  # (row, a, b): S16 eq. 12
-CROSS_NAMES = ("xy", "xz", "yx", "yz", "zx", "zy")
 
 
 # ----------------------------------------------------------------------------- state sets
@@ -210,7 +202,6 @@ def estimated_names(states: StateSet) -> tuple[str, ...]:
 def fixed_mask(states: StateSet, names) -> np.ndarray:
     """Components of the canonical vector that the state set does not estimate (NaN sigma):
     the misalignment angles fixed by the frame definition, off-diagonal lever arms (S16 form)."""
-    from inscal.core.error_model import PARAMETERS
 
     mask = []
     for n in names:
