@@ -101,8 +101,8 @@ def test_gimbal_matrix_exact_and_first_order_eq5():
     d = 20 * ARCSEC
     for tx in (0.3, 1.7, math.pi):
         C = tt.C_s_b(tx, 0.0, d)
-        # N25 eq. 5 (first order in d theta; its signs are lost in the extraction, restored here
-        # from Rodrigues' formula with u = [1, 0, d]) agrees to O(d theta^2)
+        # N25 eq. 5 (first order in d theta; signs from Rodrigues' formula with u = [1, 0, d])
+        # agrees to O(d theta^2)
         s, c = math.sin(tx), math.cos(tx)
         eq5 = np.array([[1, -d * s, d * (1 - c)], [d * s, c, -s], [d * (1 - c), s, c]])
         assert C == pytest.approx(eq5, abs=2 * d * d)

@@ -65,7 +65,7 @@ def test_H_columns_match_finite_differences(gim, tx, tz):
     J = np.column_stack([(residual(C, gim, tx + h, tz) - residual(C, gim, tx - h, tz)) / (2 * h),
                          (residual(C, gim, tx, tz + h) - residual(C, gim, tx, tz - h)) / (2 * h)])
     np.testing.assert_allclose(R, AS**2 * (J @ J.T + 0.01 * np.eye(3)), rtol=0, atol=1e-9 * AS**2)
-    # with dth = 0 the dth column is the seed-notes section 5 form C_b^n [0, -(1 - cos tx), sin tx]
+    # with dth = 0 the dth column is the derivative of Rot(u(dth), tx) at dth = 0: C_b^n [0, -(1 - cos tx), sin tx]
     g0 = gim.copy()
     g0[0] = 0.0
     Cbn = predicted_attitude(g0, 0.0, 0.0)

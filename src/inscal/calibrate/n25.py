@@ -9,7 +9,7 @@ non-orthogonality and the mounting (vehicle) attitude, without leveling or align
 2. ``L`` = x/y part of the roughly compensated difference of the outputs at
    inner-symmetric positions, divided by ``2 g``, minus its ideal value (eq. 40), and the
    least-squares solution ``X = [tan beta0, alpha0, dth]`` of ``L = A X`` (eq. 41-44).
-   The design matrix printed as eq. 42 is garbled; derived from the model (eq. 5-12),
+   The design matrix of eq. 42, derived from the model (eq. 5-12),
    per inner-symmetric pair at (theta_x, theta_z) and (theta_x, theta_z + 180 deg)::
 
        L_x = -cos(tz) tan(b0) + sin(tz) cos(tx) a0 + cos(tz) (1 - cos(tx)) dth

@@ -85,7 +85,8 @@ def rate_test_axis(axis: str, fixed_deg: float, dth: float) -> np.ndarray:
 
 def gyro_matrix_from_rate_tests(ws: WindowSet, dth: float = 0.0, ideal: bool = True) -> tuple[np.ndarray, list[int]]:
     """``M_g`` from CW/CCW rate tests: ``M_g a = (N+ - N-) / (w+ - w-)`` for each turning
-    axis ``a`` (N25 eq. 28, with the minus sign the extraction lost), solved by least
+    axis ``a`` (N25 eq. 28: the difference of the CW and CCW outputs over
+    the difference of the rates, ``w+ - w-``), solved by least
     squares over all pairs.  ``ideal``: round ``a`` to the nearest s-axis (the classical
     scheme, which ignores the non-orthogonality); otherwise ``a`` uses ``dth``."""
     groups = rate_test_groups(ws)

@@ -17,7 +17,9 @@ the size effect of accelerometer i at position ``p_i`` (row i of ``lever_arm``):
 
 With ``p_i = r_i e_i`` (S16) the centripetal part is ``-(|w|^2 - w_i^2) r_i``.
 
-Compensation model (S16 eq. 3, 6, 7-8 with the fixed point of seed-notes section 2),
+Compensation model (S16 eq. 3, 6, 7-8; eq. 8 as printed subtracts the
+correction again at every step, the model's intended form is the fixed point
+``f_n = f_0 - K2 f_{n-1}^(2) - Kx f_{n-1}^(x)``),
 used on data::
 
     f~ = M_a^-1 (N_a - nabla) - K2 f~^(2) - Kx f~^(x) - a_size(w~)     (iterated)
@@ -270,7 +272,7 @@ class ImuErrors:
         w, f = w0 - f0 @ self.gyro_g_sensitivity.T, f0
         if self.has_nonlinear or np.any(self.gyro_g_sensitivity):
             scale = max(1.0, float(np.max(np.abs(f0)))) if f0.size else 1.0
-            for _ in range(max_iter):  # S16 eq. 8 (corrected: fixed point, seed-notes section 2)
+            for _ in range(max_iter):  # S16 eq. 8 as the fixed point f_n = f_0 - K2 f_{n-1}^(2) - ...
                 sq, cr = quad_terms(f)
                 f_new = f0 - sq * self.accel_nonlinearity - cr @ self.K_cross.T - size_effect(self.accel_lever_arm, w, wdot)
                 w = w0 - f_new @ self.gyro_g_sensitivity.T

@@ -239,7 +239,7 @@ def _compensate(dth, dv, dt, cp, level, pw, have_prev, out):
     w2 = t2 - (cp[P_G + 2, 0] * g0 + cp[P_G + 2, 1] * g1 + cp[P_G + 2, 2] * g2)
     if level >= 2:
         idt = 1.0 / dt
-        for _ in range(3):  # S16 eq. 8 (fixed point, seed-notes section 2)
+        for _ in range(3):  # S16 eq. 8 as a fixed point (see core.error_model)
             # rates
             x0, x1, x2 = g0 * idt, g1 * idt, g2 * idt
             r0, r1, r2 = w0 * idt, w1 * idt, w2 * idt

@@ -98,7 +98,8 @@ filter step the navigated attitude ``C_nav`` (of the s-frame) is compared with t
 
 ``psi`` is the n-frame rotation of ``C_pred`` for an error of the gimbal parameters (``du = du/d dth``;
 the ``dth`` term is the left Jacobian of a rotation about a tilting axis: with ``dth = 0`` it is
-``C_b^n ddth [0, -(1 - cos tx), sin tx]``, seed-notes section 5).  White encoder noise (``s_enc`` per
+``C_b^n ddth [0, -(1 - cos tx), sin tx]``: the derivative of ``Rot(u(dth), tx)`` with
+``u = [cos dth, 0, sin dth]``, checked against finite differences in the tests).  White encoder noise (``s_enc`` per
 angle) turns ``C_pred`` about the outer axis ``a`` and the inner axis ``c`` only; the isotropic tenth
 is a floor for the third direction (unmodelled wobble; it keeps ``S`` well conditioned).  The
 encoder sample at the end of each filter step (``gimbal[(k+1) n_per - 1]``, the time of the

@@ -108,8 +108,8 @@ def gimbal_diagnostics(res, last: PassOutput, st: StateSet, enc_sig: float, ever
     nis = last.nis_att[used]
     za = last.z_att[used]
     # E[NIS] = tr(S^-1 (H P H^T + R_enc)) = 3 - floor tr(S^-1): the floor is not in the data (between 2 and 3)
-    Sia = last._smoother_data[8][used]
-    expected = float(np.mean(3.0 - last._enc_floor * np.trace(Sia, axis1=1, axis2=2))) if nis.size else float("nan")
+    Sia = last.smoother.Sia_st[used]
+    expected = float(np.mean(3.0 - last.smoother.enc_floor * np.trace(Sia, axis1=1, axis2=2))) if nis.size else float("nan")
     d["encoder"] = {"sigma_arcsec": float(units.from_si(enc_sig, "arcsec")), "every_steps": every,
                     "updates": int(used.sum()), "nis_mean": float(np.mean(nis)) if nis.size else float("nan"),
                     "nis_expected": expected,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -16,7 +17,7 @@ from inscal.calibrate.systematic.dynamics import (
     gimbal_attitude,
     nav_F,
 )
-from inscal.calibrate.systematic.params import CompParams
+from inscal.calibrate.systematic.params import REF_SLICES, REF_WIDTH, CompParams
 from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
@@ -32,13 +33,104 @@ from inscal.core.kalman import smoother_step_dense, update_dense
 from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
 
 
+# column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
+(_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
+    (_TAU0, _), (_GIM0, _GIM1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim")]
+
+
+class PassInputs(NamedTuple):
+    """What a filter pass reads and never writes."""
+
+    dth: np.ndarray  # (n, 3) gyro increments [rad]
+    dv: np.ndarray  # (n, 3) velocity increments [m/s]
+    dt: float  # sample interval [s]
+    n_per: int  # samples per filter step
+    nav0: np.ndarray  # [q(4), v(3), lat, lon, h] at the start
+    site: np.ndarray  # [lat0, lon0, h0(, g_scale)]
+    nl: bool  # evaluate the quadratic, cross-coupling, lever-arm and g-sensitivity terms
+    est_tau: bool  # the asynchrony is a state
+    kinds: np.ndarray  # per parameter state: its column kind (states.K_*)
+    axes: np.ndarray  # ... the axis or matrix element it feeds
+    js: np.ndarray  # ... its index into its parameter array
+    sig: np.ndarray  # (N,) state scaling: the filter works on x / sig
+    qg: np.ndarray  # (3,) gyro white-noise PSD
+    qa: np.ndarray  # (3,) accelerometer white-noise PSD
+    r: np.ndarray  # (6,) velocity/position measurement variances
+    hist_every: int  # steps between stored history rows
+
+
+class PassParams(NamedTuple):
+    """The compensation parameters (:class:`~inscal.calibrate.systematic.params.CompParams`),
+    updated in place by the feedback after every update."""
+
+    Ag: np.ndarray
+    bg: np.ndarray
+    G: np.ndarray
+    Aa: np.ndarray
+    ba: np.ndarray
+    K2: np.ndarray
+    Kx: np.ndarray
+    lev: np.ndarray
+    tau: np.ndarray
+    gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
+
+
+class PassStore(NamedTuple):
+    """What the pass writes per step (M steps) for the smoother, and every ``hist_every`` steps."""
+
+    K_st: np.ndarray  # (M, N, 6) gains
+    Si_st: np.ndarray  # (M, 6, 6) S^-1
+    sz_st: np.ndarray  # (M, 6) S^-1 nu
+    phinn_st: np.ndarray  # (M, 9, 9) Phi_nn
+    phinp_st: np.ndarray  # (M, 9, N - 9) Phi_np
+    nis_st: np.ndarray  # (M,) NIS
+    z_st: np.ndarray  # (M, 6) innovations
+    hist_Pm: np.ndarray  # (nh, N, N) predicted covariance
+    hist_ref: np.ndarray  # (nh, REF_WIDTH) pre-update reference parameters
+    hist_Pf: np.ndarray  # (nh, N) filtered variances
+    nav_out: np.ndarray  # (10,) the final navigation state
+
+
+class EncoderRows(NamedTuple):
+    """The encoder attitude update of the gimbal states (empty arrays without them)."""
+
+    enc: np.ndarray  # (M, 2) encoder angles at the end of each step (NaN: no rows that step)
+    enc_var: float  # encoder white-noise variance [rad^2]
+    enc_floor: float  # variance of the isotropic floor [rad^2]
+    att_used: np.ndarray  # (M,) 1 where the rows were used
+    Ka_st: np.ndarray  # (M, N, 3) gains
+    Sia_st: np.ndarray  # (M, 3, 3) S^-1
+    sza_st: np.ndarray  # (M, 3) S^-1 nu
+    Ha_st: np.ndarray  # (M, 3, N) scaled H
+    nisa_st: np.ndarray  # (M,) NIS
+    za_st: np.ndarray  # (M, 3) raw residuals
+    Ra_st: np.ndarray  # (M, 3, 3) R
+
+
+class SmootherData(NamedTuple):
+    """What the smoother needs of a pass (the forward pass's :class:`PassStore` and
+    :class:`EncoderRows` less what only the filter uses)."""
+
+    K_st: np.ndarray
+    Si_st: np.ndarray
+    sz_st: np.ndarray
+    phinn_st: np.ndarray
+    phinp_st: np.ndarray
+    hist_every: int
+    att_used: np.ndarray
+    Ka_st: np.ndarray
+    Sia_st: np.ndarray
+    sza_st: np.ndarray
+    Ha_st: np.ndarray
+    enc_floor: float
+
+
 @njit(cache=True)
-def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, est_tau,
-                 kinds, axes, js, sig, qg, qa, r, P, hist_every,
-                 K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st,
-                 hist_Pm, hist_ref, hist_Pf, nav_out,
-                 gim, enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st):
-    """One closed-loop filter pass over the record (see the module docstring).
+def _pass_kernel(inp, par, P, st, er):
+    """One closed-loop filter pass over the record (see the package docstring): inputs ``inp``
+    (:class:`PassInputs`), parameters ``par`` (:class:`PassParams`, updated in place), the
+    covariance ``P`` (scaled, updated in place), per-step outputs ``st`` (:class:`PassStore`) and
+    the encoder rows ``er`` (:class:`EncoderRows`).
 
     ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
     gravity model / WGS-84 normal gravity, 1 when absent); parameter arrays are
@@ -52,6 +144,10 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every = inp
+    Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim = par
+    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out = st
+    enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
     npar = N - 9
     M = dth.shape[0] // n_per
@@ -239,16 +335,16 @@ def _pass_kernel(dth, dv, dt, n_per, nav0, site, Ag, bg, G, Aa, ba, K2, Kx, lev,
             z[a] /= sig[3 + a]
         if k % hist_every == 0 or k == M - 1:
             hist_Pm[ih] = P
-            hist_ref[ih, 0:9] = Ag.ravel()
-            hist_ref[ih, 9:12] = bg
-            hist_ref[ih, 12:21] = G.ravel()
-            hist_ref[ih, 21:30] = Aa.ravel()
-            hist_ref[ih, 30:33] = ba
-            hist_ref[ih, 33:36] = K2
-            hist_ref[ih, 36:45] = Kx.ravel()
-            hist_ref[ih, 45:54] = lev.ravel()
-            hist_ref[ih, 54] = tau[0]
-            hist_ref[ih, 55:59] = gim
+            hist_ref[ih, _AG0:_AG1] = Ag.ravel()
+            hist_ref[ih, _BG0:_BG1] = bg
+            hist_ref[ih, _G0:_G1] = G.ravel()
+            hist_ref[ih, _AA0:_AA1] = Aa.ravel()
+            hist_ref[ih, _BA0:_BA1] = ba
+            hist_ref[ih, _K20:_K21] = K2
+            hist_ref[ih, _KX0:_KX1] = Kx.ravel()
+            hist_ref[ih, _LV0:_LV1] = lev.ravel()
+            hist_ref[ih, _TAU0] = tau[0]
+            hist_ref[ih, _GIM0:_GIM1] = gim
         nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
         K_st[k] = K
         Si_st[k] = Si
@@ -430,6 +526,7 @@ class PassOutput:
     # for an observability matrix with the encoder rows (whitened by R^-1/2; zero where att_used is 0)
     H_att: np.ndarray | None = None
     R_att: np.ndarray | None = None
+    smoother: SmootherData | None = None  # the stored data of the forward pass (run_pass sets it)
 
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
@@ -457,7 +554,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     nis = np.empty(M)
     z_st = np.empty((M, 6))
     hist_Pm = np.empty((nh, N, N))
-    hist_ref = np.empty((nh, 59))
+    hist_ref = np.empty((nh, REF_WIDTH))
     hist_Pf = np.empty((nh, N))
     nav_out = np.empty(10)
     if states.gimbal:
@@ -472,20 +569,21 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     Ha_st, nisa_st, za_st = np.zeros((Ma, 3, N)), np.full(Ma, np.nan), np.full((Ma, 3), np.nan)
     Ra_st = np.zeros((Ma, 3, 3))
     nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
-    Mk = _pass_kernel(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
-                      int(n_per), nav0, np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever,
-                      p.tau, nl, bool(states.asynchrony), kinds, axes, js, sig, qg, qa, r, P, int(hist_every),
-                      K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out,
-                      p.gim, enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st,
-                      sza_st, Ha_st, nisa_st, za_st, Ra_st)
+    inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
+                     int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
+                     qa, r, int(hist_every))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
+    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out)
+    er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
+                     Ha_st, nisa_st, za_st, Ra_st)
+    Mk = _pass_kernel(inp, par, P, st, er)
     x0 = np.empty(N)
     _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, P)
-    out._smoother_data = (K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st, sza_st,
-                          Ha_st)
+    out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,
+                                sza_st, Ha_st, er.enc_floor)
     out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
-    out._enc_floor = (0.1 * float(enc_sigma)) ** 2
     if keep_phi and Ma:
         out.H_att, out.R_att = Ha_st, Ra_st
     if keep_phi:
@@ -498,7 +596,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
 def smooth_pass(out: PassOutput) -> PassOutput:
     """Run the full smoother (states and covariances at the stored steps and at the start) on a
     pass's stored data, in place."""
-    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st = out._smoother_data
+    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st, _ = out.smoother
     N = K_st.shape[1]
     nh = out.hist_Pm.shape[0]
     out.hist_x = np.empty((nh, N))
@@ -511,6 +609,7 @@ def smooth_pass(out: PassOutput) -> PassOutput:
     return out
 
 
+# ----------------------------------------------------------------------------- for tests
 def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
     """Propagate the navigation over the samples given (one filter step, no update) from the
     navigation state ``nav0 = [q(4), v(3), lat, lon, h]``; returns the final state (10) and the
@@ -521,16 +620,15 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
     p = params.copy()
     kinds, axes, js = states.columns()
     P = np.eye(N)
-    one = lambda *s: np.empty((1,) + s)  # noqa: E731
-    K_st, Si_st, sz_st = one(N, 6), one(6, 6), one(6)
-    phinn, phinp = one(9, 9), one(9, N - N_NAV)
-    nis, z = np.empty(1), one(6)
-    hP, hr, hf = one(N, N), one(59), one(N)
+    one = lambda *shape: np.empty((1,) + shape)  # noqa: E731  (storage for the one step)
     out = np.empty(10)
-    _pass_kernel(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
-                 np.asarray(nav0, float), np.asarray(site, float), p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx,
-                 p.lever, p.tau, True, bool(states.asynchrony), kinds, axes, js, np.ones(N), np.zeros(3),
-                 np.zeros(3), np.full(6, 1e30), P, 1, K_st, Si_st, sz_st, phinn, phinp, nis, z, hP, hr, hf, out,
-                 p.gim, np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
-                 np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
-    return out, phinn[0], phinp[0]
+    inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
+                     np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1)
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
+    st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
+                   one(REF_WIDTH), one(N), out)
+    er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
+                     np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
+    _pass_kernel(inp, par, P, st, er)
+    return out, st.phinn_st[0], st.phinp_st[0]

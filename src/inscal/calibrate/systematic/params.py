@@ -168,7 +168,8 @@ def frame_rotation(imu: ImuErrors, frame: str = "gyro") -> np.ndarray:
 def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None) -> CompParams:
     """The true compensation parameters expressed in the filter's frame (the quadratic terms
     and lever arms are carried unchanged: exact when the frames coincide, as in the s16 and
-    psins19 scenarios; otherwise to first order in the rotation, seed-notes section 5).  With the
+    psins19 scenarios; otherwise to first order in the rotation: the quadratic terms
+    and lever arms of a rotated frame mix their axes, a second-order change for rotations of arcseconds).  With the
     gimbal states the frame is the canonical s-frame (no rotation) and ``gimbal`` (GimbalErrors)
     supplies the true gimbal parameters."""
     R = np.eye(3) if states.gimbal else frame_rotation(imu, states.frame)
@@ -187,6 +188,8 @@ def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None) -> CompParams:
 REF_SLICES = {"Ag": (0, 9, (3, 3)), "bg": (9, 12, (3,)), "G": (12, 21, (3, 3)), "Aa": (21, 30, (3, 3)),
               "ba": (30, 33, (3,)), "K2": (33, 36, (3,)), "Kx": (36, 45, (3, 3)), "lever": (45, 54, (3, 3)),
               "tau": (54, 55, (1,)), "gim": (55, 59, (4,))}
+#: width of a reference-history row (the end of the last slice)
+REF_WIDTH = max(b for _, b, _ in REF_SLICES.values())
 
 
 def params_from_ref(row) -> CompParams:
