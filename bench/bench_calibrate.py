@@ -1,7 +1,7 @@
 """Benchmark: one full n25 calibration (segmentation, the method, error propagation) of a
 simulated N25 record (246 500 samples at 100 Hz, with noise), timed after a warm-up.
 
-Run: ``python bench/bench_calibrate.py``.  Target (issue 4): under 1 s.
+Run: ``python bench/bench_calibrate.py``.  Target: under 1 s.
 """
 
 from __future__ import annotations

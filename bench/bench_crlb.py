@@ -1,4 +1,4 @@
-"""Benchmark: the Cramér-Rao bound of one candidate path (:mod:`inscal.calibrate.crlb`), after
+"""Benchmark: the Cramér-Rao bound of one candidate path (:mod:`inscal.plan.bound`), after
 compilation.
 
 Times (best of ``--repeats``, wall clock and CPU time of this process) of
@@ -12,7 +12,7 @@ Times (best of ``--repeats``, wall clock and CPU time of this process) of
 and, for comparison, the covariance view of ``observability()`` on S16 Table 1 (simulation +
 one pass of the systematic filter), with the largest relative difference of the two bounds.
 
-Target (issue 10 item 2): one 1-hour candidate path in < 0.2 s.  A busy machine (load average
+Target: one 1-hour candidate path in < 0.2 s.  A busy machine (load average
 above the core count, printed) inflates the wall-clock figures; the CPU time is then the
 better measure of the code.
 

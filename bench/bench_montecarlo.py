@@ -1,4 +1,4 @@
-"""Benchmark of the ``n25-fig5`` Monte Carlo study (issue 4: 2,000 runs within 10 minutes).
+"""Benchmark of the ``n25-fig5`` Monte Carlo study (target: the 2,000 runs of N25 Fig. 5 within 10 minutes).
 
 Default (about a minute): time one simulation and one calibration in this process, the
 LocalCluster start-up, and a reduced study on a LocalCluster; extrapolate to the full

@@ -11,7 +11,7 @@ Times, in this process (best of ``--repeats``):
     (``KalmanFilter(dim_x=51, dim_z=6)``, ``rts_smoother``) on the SAME per-step 51x51 Phi
     (built from the pass's ``Phi_nn``, ``Phi_np``), the SAME Q (the pass kernel's third-order
     Van Loan ``Q_d``, rebuilt from each step's ``Phi_nn``), R and scaled measurements; the
-    navigation is NOT part of (c).  The structured engine (``inscal.filters``) is timed on the
+    navigation is NOT part of (c).  The structured engine (``inscal.core.kalman``) is timed on the
     same inputs (a replay of predict/update and of the MBF smoother without the navigation),
     and the ratio (c) / engine is reported, with the conservative ratio (c) / whole pass;
 (d) peak memory of a fresh subprocess that runs one full calibration (its high-water mark
@@ -23,7 +23,7 @@ diagonal and estimate after the last update, and the smoothed states and covaria
 diagonals at every stored step (scaled states), and prints where the time of (a) goes.
 
 Run: ``python bench/bench_systematic.py [--repeats N] [--no-memory] [--no-filterpy]``.
-Targets (issue): (a) under 3 s on a 2-core machine, goal 1 s; (c) / filter+smoother >= 10x;
+Targets: (a) under 3 s on a 2-core machine, goal 1 s; (c) / filter+smoother >= 10x;
 peak memory under 500 MB.
 """
 
@@ -119,7 +119,7 @@ def _best(fn, repeats: int):
 # ----------------------------------------------------------------------------- the structured engine, replayed
 @njit(cache=True)
 def _engine_forward(P, phinn_st, phinp_st, Qd_st, rs, zs, hist_every, K_st, Si_st, sz_st, hist_Pm, xs_st, do_update):
-    """inscal.filters predict/update over the stored steps, as the pass kernel calls them
+    """inscal.core.kalman predict/update over the stored steps, as the pass kernel calls them
     (no navigation, no feedback bookkeeping: the closed-loop filter state is zero).
     ``do_update`` (for the profile): 2 both, 0 predict only, 1 update only."""
     N = P.shape[0]
@@ -147,7 +147,7 @@ def _engine_forward(P, phinn_st, phinp_st, Qd_st, rs, zs, hist_every, K_st, Si_s
 
 @njit(cache=True)
 def _engine_backward(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, hist_Pm, hist_x, hist_P, part):
-    """The MBF smoother of inscal.filters (as _smooth_kernel).  ``part`` (for the profile): 0 all;
+    """The MBF smoother of inscal.core.kalman (as _smooth_kernel).  ``part`` (for the profile): 0 all;
     1 smoother_step only; 2 adjoint_back only; 3 the smoothed estimates only."""
     N = P0.shape[0]
     M = K_st.shape[0]
@@ -511,7 +511,7 @@ def main(argv=None) -> int:
         print(f"  {'        => Jacobian accumulation + Phi_np (51 - 9 - engine fwd)':<{w}} "
               f"{t_kern - t_kern9 - t_fwd:>8.3f} s")
     print(f"  {'      smoother kernel':<{w}} {t_smooth:>8.3f} s")
-    print(f"  {'    structured engine alone (inscal.filters, replayed):':<{w}}")
+    print(f"  {'    structured engine alone (inscal.core.kalman, replayed):':<{w}}")
     print(f"  {'      predict':<{w}} {t_pred:>8.3f} s   ({t_pred / steps * 1e6:.1f} us/step)")
     print(f"  {'      update (Joseph)':<{w}} {t_upd:>8.3f} s   ({t_upd / steps * 1e6:.1f} us/step)")
     print(f"  {'      filter: predict + update (one loop)':<{w}} {t_fwd:>8.3f} s")

@@ -1,5 +1,4 @@
-"""The Cramér-Rao bound against a noise-only Monte Carlo of the ``systematic51`` calibration
-(issue 10 item 3).
+"""The Cramér-Rao bound against a noise-only Monte Carlo of the ``systematic51`` calibration.
 
 For each scenario (``s16``: S16 Table 1, ``n25``: N25 twelve positions + rate tests, ``psins19``:
 PSINS-style 19 positions; their own IMU truth, site, gimbal geometry and noise), ``--runs``
@@ -10,9 +9,9 @@ the filter's discretisation at 50 Hz costs < 1 %), each calibrated with ``system
 filter (estimate - truth in the filter's frame, :meth:`CompParams.error_state` against
 :func:`truth_in_frame`):
 
-* ``std`` of the errors over the runs, against the bound ``sigma`` (:func:`inscal.calibrate.crlb.crlb`
+* ``std`` of the errors over the runs, against the bound ``sigma`` (:func:`inscal.plan.bound.crlb`
   with the scenario's noise) and against the predicted fixed-truth spread ``s`` and mean ``m`` of
-  :func:`inscal.calibrate.crlb.predicted_error` (``s = sigma`` and ``m = 0`` where the data
+  :func:`inscal.plan.bound.predicted_error` (``s = sigma`` and ``m = 0`` where the data
   dominate the prior; where the bound is not far below the prior a fixed truth spreads less than
   the Bayesian bound and the prior pulls the mean);
 * per group: min / max of ``std / sigma`` and of ``std / s``, the RMS of ``(error - m) / s``;

@@ -1,12 +1,12 @@
-"""A designed calibration path checked by Monte Carlo against S16's own 1-hour path (issue 10).
+"""A designed calibration path checked by Monte Carlo against S16's own 1-hour path (path design).
 
-1. ``inscal design`` (:func:`inscal.cli_design.run_design`, the CLI's own code: the search of
-   :func:`inscal.calibrate.design.design` and the scenario TOML it writes, base ``s16`` or, with
+1. ``inscal design`` (:func:`inscal.cli.design.run_design`, the CLI's own code: the search of
+   :func:`inscal.plan.design.design` and the scenario TOML it writes, base ``s16`` or, with
    gimbal states, ``s16-gimbal``) finds a ``--minutes`` (30) path minimising the worst bound
    normalised by S16's 1-h path bound (``--states``, ``--candidates``, ``--seed``, in-process).
-2. The Cramér-Rao bound (:func:`inscal.calibrate.crlb.crlb`, the scenario's site, gimbal and
+2. The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`, the scenario's site, gimbal and
    noise) of the designed path and of the base scenario's path (S16 Table 1, 1.07 h), and the
-   fixed-truth prediction of :func:`inscal.calibrate.crlb.predicted_error` (RMS of the error
+   fixed-truth prediction of :func:`inscal.plan.bound.predicted_error` (RMS of the error
    expected over noise-only runs with this truth: ``sqrt(m^2 + s^2)``, equal to the bound where
    the data dominate the prior).
 3. ``--runs`` noise-only calibrations on each path (the truth fixed, the base scenario's IMU and

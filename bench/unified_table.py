@@ -1,4 +1,4 @@
-"""Unified estimator against systematic51 and n25 over seeded noisy records (issue 10 item 1).
+"""Unified estimator against systematic51 and n25 over seeded noisy records.
 
     .venv/bin/python bench/unified_table.py [--seeds 10] [--first-seed 1] [--json out.json]
 

@@ -189,7 +189,7 @@ def allan_of(increments, stop: int, rate_hz: float, chunk: int = 1 << 18, **kw) 
     return acc.result(**kw)
 
 
-#: Earth rotation rate [rad/s] (WGS84; inscal.earth.OMEGA_IE, not imported: it loads numba)
+#: Earth rotation rate [rad/s] (WGS84; inscal.core.earth.OMEGA_IE, not imported: it loads numba)
 OMEGA_IE = 7.292115e-5
 
 

@@ -21,7 +21,7 @@ The study (:func:`compare_5day`):
    calibrations alone; ``nav_noise=True`` adds the scenario's noise, one realisation
    shared by every parameter set);
 4. navigate each record free inertial (vertical channel held, initial state = truth,
-   :func:`inscal.navigation.navigate`, compensation on the fly) with the 51-state
+   :func:`inscal.nav.run.navigate`, compensation on the fly) with the 51-state
    parameters, the 30-state parameters, the true parameters (the floor: only the
    mechanisation, and with ``nav_noise`` the noise) and no compensation;
 5. report the maximum horizontal position error of each, in m and nmi, and the
@@ -42,7 +42,7 @@ Orientations (S16 gimbal: outer axis East at zero, inner axis = IMU z):
 ``tilt``      outer 54.74 deg, inner 45 deg: every axis sees g/sqrt(3), so the nonlinearity and
               cross-coupling reach the horizontal channels directly (K fi fj ~ 7 ug at 21 ug/g^2)
               and every column of G acts.
-``rotmod16``  16-sequence dual-axis rotation modulation (:func:`inscal.turntable.rotmod16`: 180 deg
+``rotmod16``  16-sequence dual-axis rotation modulation (:func:`inscal.core.turntable.rotmod16`: 180 deg
               turns at 10 deg/s, 300 s stops), S16's "dual-axis RINS": constant horizontal
               sensor errors are modulated out; what is left are the errors the rotation does not
               average (vertical-axis terms such as G_zz fz, scale-factor and misalignment errors

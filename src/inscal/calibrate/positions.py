@@ -130,7 +130,7 @@ def leveling_deviation(theta_x: float, theta_z: float, alpha0: float, beta0: flo
 
     For tx = 180 deg this is eq. 20 with ``-b0 + 2 dth`` where N25 prints ``b0 + 2 dth``:
     the printed pitch has the opposite sign to the z-y-x Euler pitch of eq. 8 used here
-    (the physics, checked against the exact model in tests/test_calibrate_schemes.py).
+    (the physics, checked against the exact model in tests/calibrate/test_calibrate_schemes.py).
     """
     cx, sx = math.cos(theta_x), math.sin(theta_x)
     return rot_z(theta_z).T @ np.array([-beta0 + (1.0 - cx) * dth, cx * alpha0, -sx * alpha0])

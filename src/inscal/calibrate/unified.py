@@ -19,7 +19,7 @@ Measurements, every filter step ``T`` (1 s by default):
 
   ``H`` has ``I`` on the attitude error ``phi`` and ``-d psi / d(gimbal)`` on the four gimbal
   states (:func:`measurement`; exact expressions in the docstring of the systematic module,
-  tested against finite differences of this nonlinear ``z`` in ``tests/test_unified.py``).  Noise:
+  tested against finite differences of this nonlinear ``z`` in ``tests/calibrate/test_unified.py``).  Noise:
   each encoder angle white with sigma ``encoder_sigma`` (default 1", ``--encoder-sigma``), i.e.
   ``R = s^2 (a a^T + c c^T)`` along the outer axis ``a`` and the inner axis ``c`` (n-frame), plus an
   isotropic floor ``(s / 10)^2``.
@@ -30,7 +30,7 @@ triad defines the frame.  The encoder rows do see it: the navigated attitude is 
 frame, the predicted one that of N25's s-frame (z = the inner axis, x = the outer axis's
 projection at zero angles, the encoders' zero).  Keeping the m-frame would need three more states
 for the rotation ``C_s^m`` in ``H``; instead the unified filter works in the s-frame itself, the
-canonical frame of :mod:`inscal.errors`, with a *full* gyro matrix (9 states instead of 6: the
+canonical frame of :mod:`inscal.core.error_model`, with a *full* gyro matrix (9 states instead of 6: the
 same three degrees of freedom).  Its misalignments are then N25's six installation angles per
 triad referred to the gimbal frame, directly comparable with ``n25`` and with the simulator's truth,
 and no frame conversion is needed.  The quadratic terms (``K_a2``, ``K_cross``) and lever arms are

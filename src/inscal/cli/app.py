@@ -56,7 +56,7 @@ class Interrupted(BaseException):
 _PENDING: list[int] = []
 
 
-def _interrupt_handler(signum, frame):  # pragma: no cover - runs in a subprocess (tests/test_signals.py)
+def _interrupt_handler(signum, frame):  # pragma: no cover - runs in a subprocess (tests/cli/test_signals.py)
     """SIGINT/SIGTERM (and the SIGALRM re-arm): raise :class:`Interrupted` in the main thread.
     Python may have to drop it (a handler that runs inside a weakref or ``__del__`` callback), so
     the writers of :mod:`inscal.io` are told too (they stop at their next chunk), and SIGALRM

@@ -186,7 +186,7 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
 
 def _components(r, err: dict, sig: dict) -> dict:
     """Per-parameter lists (field units) of a result's estimates with their errors and sigmas
-    (``{"group.comp": x}`` of :func:`inscal.analysis.experiments.result_errors`; NaN where a
+    (``{"group.comp": x}`` of :func:`inscal.analysis.truth.result_errors`; NaN where a
     component is not an estimate), as in ``inscal calibrate --json``."""
     import math
 

@@ -1,5 +1,5 @@
 """``inscal design``: search a calibration path that minimises a function of its Cramér-Rao
-bound within a time budget and the turntable's limits.  See :mod:`inscal.calibrate.design`."""
+bound within a time budget and the turntable's limits.  See :mod:`inscal.plan.design`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """``inscal import`` and ``inscal export``: convert other tools' IMU files to a record and back.
 
 ``import`` converts once (PSINS ``.bin``/``.mat``, csv or whitespace text through a mapping
-TOML), with the checks of :mod:`inscal.importers`; every other command reads the record.
+TOML), with the checks of :mod:`inscal.io.importers`; every other command reads the record.
 ``export`` writes a record as csv (17 significant digits), PSINS ``.bin`` (float64) or
 ``.mat``, so that export -> import gives back the same doubles.
 """

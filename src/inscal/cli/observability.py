@@ -1,5 +1,5 @@
 """``inscal observability``: which systematic-filter states a rotation path makes observable,
-from the path alone (no data).  See :mod:`inscal.calibrate.observability`."""
+from the path alone (no data).  See :mod:`inscal.plan.observability`."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from inscal.cli.common import CliError, fail, print_json
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
                       vrw: float | None = None):
-    """The :class:`~inscal.calibrate.observability.ObservabilityReport` of ``source``; ``arw`` in
+    """The :class:`~inscal.plan.observability.ObservabilityReport` of ``source``; ``arw`` in
     deg/sqrt(h), ``vrw`` in ug/sqrt(Hz) (field units, converted here)."""
     from inscal.core import units
     from inscal.plan.observability import ObservabilityError, observability
@@ -31,7 +31,7 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
 def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
              filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
              bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None):
-    """The Cramér-Rao bound (:func:`inscal.calibrate.crlb.crlb`) of ``source``.  Field units:
+    """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``source``.  Field units:
     ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s)."""

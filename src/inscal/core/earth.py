@@ -188,7 +188,7 @@ def parse_gravity(text, height: float | None = None) -> GravityModel:
 @dataclass(frozen=True)
 class Site:
     """A static site: geodetic latitude, longitude [rad], ellipsoidal height [m] and the
-    gravity model (:class:`~inscal.earth.GravityModel`, WGS-84 normal gravity by default)."""
+    gravity model (:class:`~inscal.core.earth.GravityModel`, WGS-84 normal gravity by default)."""
 
     latitude: float
     longitude: float = 0.0

@@ -26,7 +26,7 @@ used on data::
     w~ = M_g^-1 (N_g - eps) - G f~
 
 Compensating the forward model's output with the same parameters returns the true
-inputs to round-off (tests/test_errors.py).
+inputs to round-off (tests/core/test_error_model.py).
 
 Gyro-accelerometer time asynchrony ``tau = time_asynchrony`` [s]: the accelerometer
 triad has its own time base, lagging the gyros by ``tau`` (``tau < 0``: it leads).  The

@@ -36,7 +36,7 @@ with the adjoint ``lambda``, ``Lambda`` (zero after the last update), backwards:
     l_{k-1} = Phi_k^T lt_k,                   L_{k-1} = Phi_k^T Lt_k Phi_k
 
 so ``P_{k|k-1}`` is only needed at the steps where a smoothed estimate is wanted
-(``tests/test_filters.py`` checks the equality with the dense eq. 13-16 form).
+(``tests/core/test_kalman.py`` checks the equality with the dense eq. 13-16 form).
 
 Feedback.  A closed-loop filter removes its estimate from the reference after every
 update (S16 eq. 27), so ``x_{k|k-1} = 0`` always and the innovation is the raw measurement.
@@ -216,7 +216,7 @@ def dense_rts(xf, Pf, xp, Pp, Phis):
 
 @njit(cache=True)
 def update_dense(P, H, R, nu, K, Sinv, x):
-    """:func:`inscal.filters.update` for a dense ``H`` (m x N) and a full ``R`` (m x m): Joseph-form
+    """:func:`inscal.core.kalman.update` for a dense ``H`` (m x N) and a full ``R`` (m x m): Joseph-form
     update, writes ``K``, ``S^-1`` and ``x = K nu``; returns ``nu^T S^-1 nu``."""
     N = P.shape[0]
     m = H.shape[0]
@@ -239,7 +239,7 @@ def update_dense(P, H, R, nu, K, Sinv, x):
 
 @njit(cache=True)
 def smoother_step_dense(lam, Lam, H, K, Sinv, sz):
-    """:func:`inscal.filters.smoother_step` for a dense ``H``: ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
+    """:func:`inscal.core.kalman.smoother_step` for a dense ``H``: ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
     ``Lam <- H^T S^-1 H + (I - K H)^T Lam (I - K H)``, in place."""
     N = lam.shape[0]
     m = H.shape[0]

@@ -120,7 +120,7 @@ def kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f
     """``C_s^n`` (3 x 3), ``w_is^s`` and ``f^s`` at time ``t`` on segment ``s`` (static base, ideal
     IMU): ``C_s^n = C_b^n Rot(u, theta_x) R_z(theta_z)`` (N25 eq. 7-8, exact Rodrigues rotation),
     ``w_is^s = C_n^s w_ie^n + R_z^T u w_x + e_z w_z`` (N25 eq. 9), ``f^s = C_n^s [0, 0, g]`` (eq. 10);
-    the formulas of :func:`inscal.simulate._eval`."""
+    the formulas of :func:`inscal.core.kinematics.rates_at`."""
     thx, thz, wx, wz = gimbal_angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc)
     c, sn = math.cos(thx), math.sin(thx)
     t1 = 1.0 - c

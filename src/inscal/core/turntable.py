@@ -274,7 +274,7 @@ def attitude_error_nonorthogonality(theta_x, dtheta: float) -> np.ndarray:
     N25 eq. 37 prints ``[0, 2 dth sin^2(th_x/2) cos(th_z), dth sin(th_x)]``: the same
     magnitudes, but the exact model has no th_z dependence (the inner rotation is about
     the true inner axis and cancels) and the opposite pitch sign for the error defined
-    as computed minus true; at th_z = 180 deg both agree.  See tests/test_turntable.py.
+    as computed minus true; at th_z = 180 deg both agree.  See tests/core/test_turntable.py.
     """
     tx = np.asarray(theta_x, dtype=float)
     return np.stack([np.zeros_like(tx), -2.0 * dtheta * np.sin(tx / 2) ** 2, dtheta * np.sin(tx)], axis=-1)

@@ -38,7 +38,7 @@ class ImportFileError(DataFileError):
 # ----------------------------------------------------------------------------- mapping
 @dataclass(frozen=True)
 class Mapping:
-    """How to read a delimited text file (SI conversions come from :mod:`inscal.units`)."""
+    """How to read a delimited text file (SI conversions come from :mod:`inscal.core.units`)."""
 
     columns: dict
     kind: str = "increments"

@@ -41,7 +41,7 @@ Both additions (schema_version 1 still) are ignored by readers that predate them
 without them load as before.  The systematic methods report their fit as
 ``metadata.chi2/dof/p_value`` (innovations).
 
-Values are in the field units of :data:`inscal.errors.PARAMETERS` (ppm, arcsec, deg/h,
+Values are in the field units of :data:`inscal.core.error_model.PARAMETERS` (ppm, arcsec, deg/h,
 ug); ``load_params`` converts back to SI.  Files are written to a temporary name and
 renamed, so an existing file is never half-overwritten, and never overwritten unless asked.
 """

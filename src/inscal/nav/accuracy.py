@@ -42,7 +42,7 @@ def _wrap(a):
 def navigation_errors(out: NavOutput, scenario=None, gimbal_model: GimbalErrors | None = None,
                       site=None) -> NavErrors:
     """Errors of ``out`` against the truth of a simulated static-site ``scenario``: the site
-    position, zero velocity, the true IMU attitude (:func:`inscal.simulate.true_attitude`)
+    position, zero velocity, the true IMU attitude (:func:`inscal.core.kinematics.true_attitude`)
     and the true vehicle attitude (the gimbal mount attitude, N25 eq. 8).  With only a
     ``site`` (recorded data on a static base), position and velocity errors."""
 

@@ -5,7 +5,7 @@ linear error model / closed forms used to check the mechanization.
 Error conventions (SI, ENU):
 
 * attitude error ``phi`` with ``C_est = exp([phi x]) C_true`` (the rotation vector of
-  :func:`inscal.attitude.small_angle_error`), so a level error of the computed
+  :func:`inscal.core.attitude.small_angle_error`), so a level error of the computed
   frame about North is ``phi_N``; with this sign an East accelerometer bias ``b``
   settles at ``phi_N = -b/g`` (T&W ch. 12, tilt = -bias/g);
 * velocity error ``v_est - v_true``; position error in metres East/North/Up
@@ -127,7 +127,7 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     """Navigate a chunked record.
 
     ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
-    :func:`chunks_of`) or :class:`inscal.simulate.Chunk` objects.  ``site``: the known static site
+    :func:`chunks_of`) or :class:`inscal.sim.simulate.Chunk` objects.  ``site``: the known static site
     (latitude, longitude, height; its ``gravity_model``, when it has one, is used throughout).
     ``init``: "truth" (needs ``scenario``), "align" (static coarse +
     fine alignment, navigation continues from its end), or a :class:`NavState` at the start.

@@ -23,7 +23,7 @@ Algorithm (Savage, *Strapdown Analytics* ch. 7; Titterton & Weston (T&W) ch. 11)
   level rate).  With the velocity update's half rotation ``(I - [zeta x]/2)`` taken with the
   old velocity this makes the discrete Schuler loop neutral (its transition matrix has
   determinant 1).  Measured against a DOP853 (rtol 1e-13) integration of the continuous
-  equations (``tests/test_strapdown_reference.py``: static, 100 ug East accelerometer bias,
+  equations (``tests/nav/test_strapdown_reference.py``: static, 100 ug East accelerometer bias,
   34 deg N, 5 days, peak position error 1278 m): Schuler amplitude +1.3e-6 at 100 Hz
   (+5.4e-6 at 25 Hz), position within 0.052 m at 100 Hz (0.21 m at 25 Hz).  The *new*
   velocity would damp the amplitude by exp(-t w_s^2 dt / 4) (-1.65e-3 in 5 days at 100 Hz,
@@ -47,7 +47,7 @@ transport rate), giving the damped Schuler loop ``s^2 + k1 s + (1 + k2) w_s^2``
 (the classical velocity-damped Schuler loop); k1 = 2 xi w_n, k2 = (w_n/w_s)^2 - 1.
 
 Compensation on the fly (S16 eq. 3, 6, 7-8; the same model as
-:meth:`inscal.errors.ImuErrors.compensate`): each sample's increments are compensated
+:meth:`inscal.core.error_model.ImuErrors.compensate`): each sample's increments are compensated
 before integration, ``w~ = M_g^-1 (N_g - eps) - G f~``,
 ``f~ = M_a^-1 (N_a - nabla) - K2 f~^(2) - Kx f~^(x) - a_size(w~, w~-dot)`` with rates =
 increments / dt (the fixed point is iterated three times, converged to ~1e-12 of
@@ -526,7 +526,7 @@ class Strapdown:
     ``params``: an :class:`ImuErrors` calibration set applied to every sample before
     integration (S16 compensation form), or None.  ``k0``: global index of the next
     sample; ``t0``: the time at the start of sample k0 = 0 (time of sample k is
-    ``t0 + (k + 1) dt``).  ``gravity``: the site's :class:`~inscal.earth.GravityModel` (WGS-84
+    ``t0 + (k + 1) dt``).  ``gravity``: the site's :class:`~inscal.core.earth.GravityModel` (WGS-84
     normal gravity when None); the kernel scales its normal gravity by the model's ratio to it
     at the initial position.
     """

@@ -13,9 +13,9 @@ How it is computed (no sensor simulation, no navigation).  Per filter step ``k``
 ``[kT, (k+1)T]`` (``T = 1 / filter_rate_hz``, 1 s by default, as the systematic filter):
 
 * Kinematics from the path: ``C_s^n(t)``, ``w_is^s(t)``, ``f^s(t)`` from the piecewise
-  quadratic gimbal angles (:class:`inscal.turntable.Segments`), the gimbal geometry (N25 eq.
+  quadratic gimbal angles (:class:`inscal.core.turntable.Segments`), the gimbal geometry (N25 eq.
   5-8: mount attitude, outer-axis non-orthogonality), the Earth rate and the site's gravity
-  (:func:`kinematics`, the formulas of ``inscal.simulate._eval`` plus the attitude).  The
+  (:func:`kinematics`, the formulas of ``inscal.core.kinematics.rates_at`` plus the attitude).  The
   IMU is ideal: the nominal parameters are the filter's linearisation point in its first pass.
 * ``Phi_np = M0 + F M1 + F^2 M2``, ``M_i = sum_j (T - t_j)^i / i! F_np(t_j) h`` with the
   parameter columns of :func:`inscal.calibrate.systematic._column_values` (the same column
@@ -35,7 +35,7 @@ How it is computed (no sensor simulation, no navigation).  Per filter step ``k``
 Bias instability (not in the systematic filter, which has none): ``bias_noise`` adds
 process noise on the bias states, either a random walk (``P_bb += q T`` per step, ``q`` the
 rate random-walk PSD) or a first-order Gauss-Markov bias ``(sigma, tau)`` as the simulator
-draws it (:class:`inscal.errors.ImuNoise`): three extra states per triad with the bias
+draws it (:class:`inscal.core.error_model.ImuNoise`): three extra states per triad with the bias
 columns of ``Phi_np``, ``phi = exp(-T / tau)`` and ``q = sigma^2 (1 - phi^2)``, stationary
 prior ``sigma``.  The reported bound of a bias is then that of its constant part (the GM
 states are marginalised); with a random walk it is the bias at the end of the record.
@@ -45,8 +45,8 @@ attitude rows of a unified gimbal model) plugs them in through :func:`register_r
 returns per-step rows ``H`` (physical units) and variances, applied after the velocity/position
 update (scalar sequential updates).
 
-Agreement with the filter (``tests/test_crlb.py``): the bound equals the covariance view of
-:func:`inscal.calibrate.observability.observability` (one pass of the systematic filter on a
+Agreement with the filter (``tests/plan/test_bound.py``): the bound equals the covariance view of
+:func:`inscal.plan.observability.observability` (one pass of the systematic filter on a
 noise-free 20 Hz simulation, i.e. the ``systematic()`` posterior) per parameter within 3e-5 on s16,
 5e-5 on psins19, 1e-5 on n25 (states 51; also 30, psins, async and unified within 3e-4); with
 ``lever9`` the filter's own discretisation of the angular acceleration (centred differences of
@@ -61,7 +61,7 @@ and psins19: the RMS of the normalised errors is 1.00-1.01 on each path.
 Time series.  The filtered covariance after step ``k`` is the bound of the experiment cut at
 ``(k+1) T`` (constant parameters): :attr:`Bound.history` keeps its diagonal at every step,
 which gives the bound over time and the information each move adds
-(:mod:`inscal.report_path`).
+(:mod:`inscal.report.path`).
 """
 
 from __future__ import annotations
@@ -410,8 +410,8 @@ class Setup:
     constant matrices.  Build with :func:`make_setup`."""
 
     states: StateSet
-    site: object  # inscal.simulate.Site
-    gimbal: object  # inscal.errors.GimbalErrors
+    site: object  # inscal.core.earth.Site
+    gimbal: object  # inscal.core.error_model.GimbalErrors
     arw: np.ndarray
     vrw: np.ndarray
     bias: BiasNoise
@@ -457,8 +457,8 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
                prior: dict | None = None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, encoder_sigma: float | None = None) -> Setup:
     """The path-independent part of a bound (:class:`Setup`).  ``site``: a
-    :class:`~inscal.simulate.Site` (default S16's, 30 N 114 E); ``gimbal``: a
-    :class:`~inscal.errors.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
+    :class:`~inscal.core.earth.Site` (default S16's, 30 N 114 E); ``gimbal``: a
+    :class:`~inscal.core.error_model.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
     [m/s/sqrt(s)], scalar or per axis (default S16's 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz));
     ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
     encoder noise of the gimbal states' attitude rows (default the filter's)."""
@@ -673,7 +673,7 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
          filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ, prior: dict | None = None,
          keep_history: bool = True) -> Bound:
     """The bound of an experiment from a Scenario, RotationPath, built-in name or TOML file (as
-    :func:`inscal.calibrate.observability.load_source`): the scenario's site, gimbal geometry
+    :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry
     and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
     bare path at the S16 site with the S16 noise."""
 
@@ -691,7 +691,7 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
 def predicted_error(b: Bound, imu) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of the error (estimate - truth, the filter's parameter error
     state, SI) of a linear-Gaussian calibration of an IMU whose truth ``imu`` (canonical
-    :class:`~inscal.errors.ImuErrors`) is fixed while only the noise varies (a noise-only Monte
+    :class:`~inscal.core.error_model.ImuErrors`) is fixed while only the noise varies (a noise-only Monte
     Carlo).  With the bound ``P``, the prior ``P0 = diag(sigma0^2)`` centred on the nominal (ideal)
     parameters and the data information ``L = P^-1 - P0^-1``, the posterior mean is
     ``x^ = P (L x + P0^-1 mu)``, so ``x^ - x`` has mean ``P P0^-1 (mu - x)`` (the prior's pull) and

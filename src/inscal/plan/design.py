@@ -1,7 +1,7 @@
 """Design of a calibration path from its Cramér-Rao bound.
 
 Problem.  Find a sequence of turntable moves (axis, angle, rate, dwell) of a given total
-duration that minimises a function of the bound (:mod:`inscal.calibrate.crlb`) of the
+duration that minimises a function of the bound (:mod:`inscal.plan.bound`) of the
 systematic filter's parameters, within the turntable's limits.  Objectives, on the bound
 ``sigma_i`` normalised by a target ``t_i`` per parameter:
 
@@ -10,7 +10,7 @@ systematic filter's parameters, within the turntable's limits.  Objectives, on t
 * ``weighted``: ``sum_i (sigma_i / t_i)^2 / n`` (a mean squared normalised bound).
 
 Targets (``targets=``): ``"s16-path"`` (default): the bound of S16's own 1-hour path
-(:func:`inscal.turntable.s16_table1`, 5 deg/s, 180 s dwells) under the same site, gimbal and
+(:func:`inscal.core.turntable.s16_table1`, 5 deg/s, 180 s dwells) under the same site, gimbal and
 noise; ``"s16-table2"``: the S16 Table 2 "after filter" figures for its four groups
 (g-sensitivity 2e-4 deg/h/g, nonlinearity 1.3 and cross-coupling 1.5 ug/g^2, lever arm 0.01
 cm) and the S16-path bound for the others.
@@ -437,7 +437,7 @@ def design(minutes: float, states: str = "51", objective: str = "worst-normalise
            scheduler: str | None = "none", workers: int = 2, setup: Setup | None = None,
            progress: Callable[[int, int, float], None] | None = None, name: str | None = None) -> DesignResult:
     """Search a path of ``minutes`` minutes (module docstring).  ``setup``: the bound's site,
-    gimbal and noise (default :func:`~inscal.calibrate.crlb.make_setup` of ``states``: S16 site
+    gimbal and noise (default :func:`~inscal.plan.bound.make_setup` of ``states``: S16 site
     and noise); ``progress(done, total, best)`` after each generation."""
     t0 = time.perf_counter()
     if not (isinstance(minutes, (int, float)) and math.isfinite(minutes) and minutes > 0):

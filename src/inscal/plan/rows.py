@@ -47,7 +47,7 @@ class BiasNoise:
 
     @classmethod
     def from_imu_noise(cls, noise) -> "BiasNoise":
-        """The Gauss-Markov bias instability of an :class:`inscal.errors.ImuNoise` (the simulator's model)."""
+        """The Gauss-Markov bias instability of an :class:`inscal.core.error_model.ImuNoise` (the simulator's model)."""
         return cls(gyro_gm=noise.gyro_bias_instability, gyro_tau=noise.gyro_bias_tau,
                    accel_gm=noise.accel_bias_instability, accel_tau=noise.accel_bias_tau)
 
@@ -63,7 +63,7 @@ _ROW_BUILDERS: list[tuple[Callable, Callable]] = []
 
 def register_rows(applies: Callable[[StateSet], bool], builder: Callable) -> None:
     """Plug in a state set's extra measurement rows.  ``builder(states, scenario, t, options)`` gets
-    the :class:`StateSet`, the :class:`~inscal.simulate.Scenario`, the update times ``t`` (M,) [s]
+    the :class:`StateSet`, the :class:`~inscal.sim.simulate.Scenario`, the update times ``t`` (M,) [s]
     (the end of each filter step) and the setup's ``row_options`` dict, and returns ``(H, r)``:
     rows ``H`` (M, m, n_states) on the physical error state (navigation first, then the parameters
     in ``states.groups`` order) and their noise variances ``r`` (M, m), independent rows (whiten

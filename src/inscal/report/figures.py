@@ -57,7 +57,7 @@ def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> l
     """S16 Fig. 4-style convergence plots of a systematic calibration, one PNG per parameter
     group: the filtered estimate (minus the truth when given, else the estimate) of every
     component against time, with its 1-sigma envelope, and the smoothed (final) value.
-    Values in the field units of :data:`inscal.errors.PARAMETERS`.  Returns the files written."""
+    Values in the field units of :data:`inscal.core.error_model.PARAMETERS`.  Returns the files written."""
 
     h = result.history
     if h is None:
@@ -128,7 +128,7 @@ def time_axis(t_s):
 
 
 def navigation_figure(res, title: str = "", gimbal_model=None, max_points: int = 4000):
-    """Figure of one navigation run (:class:`inscal.navigation.NavResult`): position error East,
+    """Figure of one navigation run (:class:`inscal.nav.run.NavResult`): position error East,
     North, Up [m]; the horizontal position error [nmi] (and m); the attitude error roll, pitch,
     yaw [arcsec] when the run has a truth, else the attitude (roll, pitch [deg] and the heading,
     clockwise from North [deg]).  Returns the matplotlib figure (the caller saves and closes it)."""

@@ -1,6 +1,6 @@
 """Report section for a rotation path and its Cramér-Rao bound (path design and the report's path section).
 
-Three panels (:func:`path_figure`), from a path and its :class:`~inscal.calibrate.crlb.Bound`
+Three panels (:func:`path_figure`), from a path and its :class:`~inscal.plan.bound.Bound`
 (computed with its history):
 
 1. gimbal angles (outer, inner) over time [deg];

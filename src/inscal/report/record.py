@@ -113,7 +113,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
 def _path_section(rec, summary: dict) -> str | None:
     """The record's rotation path: gimbal angles, the Cramér-Rao bound of the
     51-state systematic model over time and what each move makes observable
-    (:mod:`inscal.report_path`), at the record's site, with the noise read from its first dwell
+    (:mod:`inscal.report.path`), at the record's site, with the noise read from its first dwell
     (else its simulation truth, else S16's).  None (and a note in ``summary``) without a path."""
     path = getattr(rec, "path", None)
     if path is None:

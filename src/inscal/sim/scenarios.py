@@ -29,7 +29,7 @@ Built-in (``inscal simulate NAME``):
     The ``n25`` IMU errors, gimbal non-orthogonality, mount attitude and noise under
     16-sequence rotation modulation (6 h by default): the N25 section 6 navigation check.
 ``psins19``
-    PSINS-style 19-position systematic calibration (:func:`inscal.turntable.psins19`: 18
+    PSINS-style 19-position systematic calibration (:func:`inscal.core.turntable.psins19`: 18
     turns of 90 deg at 10 deg/s, 50 deg/s^2, 9.2 s each, 20-90 s stops, 1035.6 s), 100 Hz,
     site 34 N, 108 E, 380 m; no gimbal non-orthogonality, zero mount attitude.  A
     navigation-grade IMU whose truth includes the quadratic terms and lever arms
@@ -147,7 +147,7 @@ N25_NOISE = {"arw": 0.02, "vrw": 20.0}
 PSINS19_SITE = Site(latitude=34.0 * DEG, longitude=108.0 * DEG, height=380.0)
 
 #: Navigation-grade IMU errors of the ``psins19`` scenario, in the S16 compensation form
-#: (:class:`~inscal.errors.S16Parameters`, m-frame = s-frame), field units.  Keys are the
+#: (:class:`~inscal.core.error_model.S16Parameters`, m-frame = s-frame), field units.  Keys are the
 #: S16Parameters fields: ``K_g``/``K_a`` are given as ``K - 1`` in ppm; ``gamma`` = [yz, zx, zy]
 #: and ``alpha`` = [xy, xz, yx, yz, zx, zy] in arcsec; ``G`` (3x3, rows: gyro x, y, z) in
 #: deg/h/g; ``K_a2`` = [xx, yy, zz] and ``K_cross`` = [xy, xz, yx, yz, zx, zy] (the entries of
@@ -205,7 +205,7 @@ def s16_errors() -> ImuErrors:
 
 
 def _s16_form(table: dict) -> S16Parameters:
-    """A field-unit table in the :data:`PSINS19_ERRORS` layout as :class:`~inscal.errors.S16Parameters` (SI)."""
+    """A field-unit table in the :data:`PSINS19_ERRORS` layout as :class:`~inscal.core.error_model.S16Parameters` (SI)."""
     v = {k: units.to_si(e["value"], e["unit"]) for k, e in table.items()}
     kx = v["K_cross"]  # [xy, xz, yx, yz, zx, zy] -> S16 eq. 12 rows
     return S16Parameters(
@@ -217,12 +217,12 @@ def _s16_form(table: dict) -> S16Parameters:
 
 
 def psins19_s16() -> S16Parameters:
-    """:data:`PSINS19_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    """:data:`PSINS19_ERRORS` as :class:`~inscal.core.error_model.S16Parameters` (SI; m-frame = s-frame)."""
     return _s16_form(PSINS19_ERRORS)
 
 
 def s16_table3_s16() -> S16Parameters:
-    """:data:`S16_TABLE3_ERRORS` as :class:`~inscal.errors.S16Parameters` (SI; m-frame = s-frame)."""
+    """:data:`S16_TABLE3_ERRORS` as :class:`~inscal.core.error_model.S16Parameters` (SI; m-frame = s-frame)."""
     return _s16_form(S16_TABLE3_ERRORS)
 
 
@@ -428,6 +428,6 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
 
 
 # ---------------------------------------------------------------------------- s16-table2
-#: S16 Table 2 "after filter" figures (field units of :data:`inscal.errors.PARAMETERS`)
+#: S16 Table 2 "after filter" figures (field units of :data:`inscal.core.error_model.PARAMETERS`)
 S16_TABLE2 = {"gyro_g_sensitivity": 0.0002, "accel_nonlinearity": 1.3, "accel_cross_coupling": 1.5,
               "accel_lever_arm": 0.01}

@@ -6,7 +6,7 @@ shared helpers in ``common``).
     N25 Figure 5: the relative standard deviation (std / true value) of the estimated
     gimbal non-orthogonality for dtheta in 1 ... 40 arcsec.  Scenario: the built-in ``n25``
     scenario (N25 site, mount attitude [0.1, 0.1, 20] deg, ARW 0.02 deg/sqrt(h),
-    VRW 20 ug/sqrt(Hz), FOG-grade IMU errors :data:`inscal.scenarios.N25_ERRORS`, twelve
+    VRW 20 ug/sqrt(Hz), FOG-grade IMU errors :data:`inscal.sim.scenarios.N25_ERRORS`, twelve
     positions of 100 s plus rate tests, 100 Hz) with its non-orthogonality set to each
     value.  Calibration method ``n25`` unless ``method`` says otherwise.
 ``n25-schemes``
@@ -50,11 +50,11 @@ systematic filter's passes); ``s16-table2``: ``methods`` (list of systematic met
 ``rate_hz`` (100), ``max_passes`` (5), ``z_rms_band`` ([0.8, 1.2]).
 
 Simulation (parameter ``simulation``): ``"full"`` simulates every run with
-:func:`inscal.simulate.simulate`.  ``"reuse"`` computes the noise-free part of the
+:func:`inscal.sim.simulate.simulate`.  ``"reuse"`` computes the noise-free part of the
 record (the deterministic kinematics and sensor errors, which do not depend on the
 seed) once per worker and configuration point, and adds the noise exactly as
 ``simulate`` does, from the same generator: the record is bit-for-bit the one ``simulate``
-returns (tests/test_montecarlo.py checks ``array_equal``), only faster.
+returns (tests/analysis/test_montecarlo.py checks ``array_equal``), only faster.
 """
 
 from __future__ import annotations

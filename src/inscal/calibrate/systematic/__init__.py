@@ -16,7 +16,7 @@ Compensation (the S16 form, eq. 3, 6-8, 12; rates = increments / dt)::
     f~  = f0 - K2 f~^(2) - Kx f~^(x) - a_size(w~, w~-dot)           (fixed point, eq. 7-8)
     w~  = u_g - b_g - G f~
 
-``a_size`` is the size effect of :func:`inscal.errors.size_effect`: with S16's diagonal
+``a_size`` is the size effect of :func:`inscal.core.error_model.size_effect`: with S16's diagonal
 lever arm ``a_size_i = -(|w|^2 - w_i^2) r_i`` (S16 eq. 9-11, the physics).  **S16 eq. 12 and
 block F29 as printed have the opposite sign; inscal keeps eq. 9, so inscal's r is the
 position of each accelerometer (S16's printed convention would report -r).**
@@ -37,7 +37,7 @@ and the error dynamics on the static base (S16 eq. 17, ENU, v = 0)::
     dp'  = dv
 
 The parameter rows of F are zero (eq. 21).  F-blocks are checked against finite
-differences of the nonlinear error propagation in ``tests/test_systematic.py``.
+differences of the nonlinear error propagation in ``tests/calibrate/test_systematic.py``.
 
 Discretisation.  The navigation runs at the IMU rate (compiled kernel, two-sample coning
 and sculling); the filter steps every ``T`` (default 1 s).  Over one step ``F_nn`` is constant
@@ -54,19 +54,19 @@ known position (S16 eq. 25-26 plus the fixed-position observation).
 Feedback and smoothing.  After every update the whole estimate is fed back (S16 eq. 27):
 the attitude, velocity and position of the navigator and every parameter of the
 compensation, so the filter's state is zero between updates.  The smoother
-(:mod:`inscal.filters`, the RTS smoother of S16 eq. 13-16 in modified Bryson-Frazier form)
+(:mod:`inscal.core.kalman`, the RTS smoother of S16 eq. 13-16 in modified Bryson-Frazier form)
 returns the smoothed error of the *pre-update reference* at each stored step; adding it to the
 reference kept at that step gives the smoothed estimate, consistent with the feedback.  The
 parameters are constants (zero process noise), so their smoothed estimate and covariance at
 every step equal the final filtered ones: the result and the smoothed history use that
 identity, and the recursion supplies the smoothed navigation states (the initial attitude
 of the next pass).  Its own parameter values agree with the identity where the record is well
-conditioned (``tests/test_systematic.py``); with zero-velocity updates ~1e8 times more
+conditioned (``tests/calibrate/test_systematic.py``); with zero-velocity updates ~1e8 times more
 informative than the prior, the recursion's parameter part loses digits early in the record.
 
 Sample-to-sample terms.  The time asynchrony and the size effect's w-dot use centred
 differences of the neighbouring samples (one sample of look-ahead), as
-:meth:`inscal.errors.ImuErrors.compensate` and the navigator do.
+:meth:`inscal.core.error_model.ImuErrors.compensate` and the navigator do.
 
 Passes.  Pass 1 linearises around the nominal parameters (prior mean); each later pass
 re-runs the record with the compensation of the previous result and the smoothed initial
@@ -85,7 +85,7 @@ also estimates the gimbal non-orthogonality ``dth`` and the mount (base) attitud
 gamma0]`` of N25 eq. 5-8 (errors estimate minus truth, additive; ``K_GIM`` columns, zero in
 ``Phi_np``: they do not enter the navigation error dynamics).  The IMU frame is then N25's s-frame
 (z = the inner axis, x = the outer axis's projection at zero angles, i.e. the encoders' zero; the
-canonical frame of :mod:`inscal.errors`), not the gyro-defined m-frame: the gimbal, not the gyro
+canonical frame of :mod:`inscal.core.error_model`), not the gyro-defined m-frame: the gimbal, not the gyro
 triad, fixes the frame, so the gyro matrix is full (9) like the accelerometer's (18 matrix states
 = 6 scale factors + the 12 installation angles of N25 eq. 1-4; without encoders the three extra
 states would be a frame rotation the velocity data cannot see).  At every ``encoder_every``-th

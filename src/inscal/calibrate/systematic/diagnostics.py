@@ -148,7 +148,7 @@ def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams
     rather than the adjoint recursion, whose parameter part loses precision early in the record
     when the zero-velocity updates are ~1e8 times more informative than the prior.  The recursion's
     own parameter estimates (``mbf``) are kept for checks; they agree with the final ones once the
-    record is well conditioned (tests/test_systematic.py)."""
+    record is well conditioned (tests/calibrate/test_systematic.py)."""
     sig_par = sig[N_NAV:]
     t = (out.hist_step + 1).astype(float)
     # canonical values to first order about the final estimate: canon(ref) = canon(final) + J x_ref,

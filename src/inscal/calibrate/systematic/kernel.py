@@ -455,7 +455,7 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, g
 @njit(cache=True)
 def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
                    att_used, Ka_st, Sia_st, sza_st, Ha_st):
-    """Backward MBF pass (inscal.filters): smoothed errors and covariances at the stored steps and at
+    """Backward MBF pass (inscal.core.kalman): smoothed errors and covariances at the stored steps and at
     the start (``x0``, ``Pc0``).  Steps with encoder attitude rows (``att_used``) undo that second,
     later update first."""
     N = P0.shape[0]

@@ -57,7 +57,7 @@ class CompParams:
                    np.array([float(getattr(imu, "time_asynchrony", 0.0))]))
 
     def to_gimbal(self):
-        """The gimbal parameters as :class:`~inscal.errors.GimbalErrors` (N25 eq. 5-8)."""
+        """The gimbal parameters as :class:`~inscal.core.error_model.GimbalErrors` (N25 eq. 5-8)."""
 
         return GimbalErrors(float(self.gim[0]), np.array(self.gim[1:4]))
 

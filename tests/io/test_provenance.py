@@ -1,4 +1,4 @@
-"""Provenance checks of ``inscal compensate`` and ``inscal navigate`` (issue 8): one warning
+"""Provenance checks of ``inscal compensate`` and ``inscal navigate``: one warning
 line when the parameter file's data hash, scenario or IMU serial differ from the record's,
 and no second compensation of a compensated record without ``--force``."""
 

@@ -1,4 +1,4 @@
-"""Calibration (issue 4): segmentation, the four methods on simulated records, bad input."""
+"""Calibration: segmentation, the four methods on simulated records, bad input."""
 
 from __future__ import annotations
 
@@ -32,9 +32,9 @@ def record(sc, rng=None):
 
 
 @pytest.fixture(scope="module")
-def n25_clean():
-    sc = replace(scenarios.build("n25"), noise=ImuNoise())
-    return sc, record(sc)
+def n25_clean(noise_free_data, as_record):
+    sc, d = noise_free_data("n25")
+    return sc, as_record(d, sc)
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Issue 9: a corpus of malformed inputs.  Every case must end with exit code 2, exactly one
+"""A corpus of malformed inputs.  Every case must end with exit code 2, exactly one
 line on stderr (``inscal: error: ...``) holding a key phrase, no traceback, and no file left
 behind (the folder holds the same files as before, no ``.part``)."""
 
@@ -278,7 +278,7 @@ def test_corpus(tmp_path, monkeypatch, setup, phrase):
 
 
 def test_corpus_size():
-    """Issue 9 asks for at least 40 malformed-input cases."""
+    """The corpus holds at least 40 malformed-input cases."""
     assert len(CASES) >= 40 and len({c[0] for c in CASES}) == len(CASES)
 
 

@@ -5,24 +5,20 @@ options, the 30-state baseline, and the smoother's consistency with the feedback
 from __future__ import annotations
 
 import dataclasses
-import math
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from inscal.core import earth, units
+from inscal.core import units
 from inscal.sim import scenarios
-from inscal.core.attitude import dcm_from_quat, quat_from_dcm
+from inscal.core.attitude import quat_from_dcm
 from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec
-from inscal.calibrate.systematic.kernel import one_step
 from inscal.calibrate.systematic.params import CompParams, canonical_flat, truth_in_frame
 from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, StateSet
-from inscal.core.error_model import ImuErrors, ImuNoise
 from inscal.sim.simulate import simulate
-from inscal.core.kinematics import true_attitude
 
 # the issue's noise-free tolerances, per field unit
 TOL = {"ppm": 0.05, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.05, "ug/g^2": 0.05, "cm": 0.005, "ms": 0.01,
@@ -34,11 +30,6 @@ def _record(sc, rng=None):
     return SimpleNamespace(dtheta=d.dtheta, dvel=d.dvel, rate_hz=sc.rate_hz, site=sc.site)
 
 
-def _noise_free(name, **kw):
-    sc = scenarios.build(name)
-    return dataclasses.replace(sc, noise=ImuNoise(), **kw)
-
-
 def _max_errors(res, sc):
     out = {}
     for name, e in res.to_field((sc.imu, sc.gimbal)).items():
@@ -48,38 +39,23 @@ def _max_errors(res, sc):
 
 
 # ----------------------------------------------------------------------------- F blocks
-def _nav_error(out, C_true, site):
-    E = dcm_from_quat(out[:4]) @ C_true.T
-    phi = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    rm, rn = earth.radii(site[0])
-    dp = np.array([(out[8] - site[1]) * (rn + site[2]) * math.cos(site[0]), (out[7] - site[0]) * (rm + site[2]),
-                   out[9] - site[2]])
-    return np.concatenate([phi, out[4:7], dp])
-
-
 @pytest.fixture(scope="module")
-def s16_noise_free():
-    sc = _noise_free("s16")
-    return sc, simulate(sc)
+def s16_noise_free(noise_free_data):
+    return noise_free_data("s16")
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("t0", [100.0, 180.2, 829.6, 1700.0])
-def test_F_blocks_match_finite_differences(s16_noise_free, t0):
+def test_F_blocks_match_finite_differences(s16_noise_free, step_columns, t0):
     """Every column of Phi_np (all parameter groups, full lever arm and asynchrony included) and
     Phi_nn over one 1 s step: static, rotation start, cruise, inner-axis stop, later positions."""
     sc, d = s16_noise_free
     st = StateSet.parse("51,lever9,async")
     truth = truth_in_frame(sc.imu, st)
-    k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
-    dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
-    site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
-    C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
-    nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
-    x0, phinn, phinp = one_step(dth, dv, dt, nav0, site, truth, st)
+    x0, phinn, phinp, propagate, nav0, C0 = step_columns(sc, d, st, truth, t0)
     # the truth propagates without error (to the strapdown algorithm error: the step starts without
     # the previous sample that the two-sample sculling term needs, ~1e-7 m/s during acceleration)
-    assert np.max(np.abs(_nav_error(x0, C1, site))) < 1e-6
+    assert np.max(np.abs(x0)) < 1e-6
     rows = [0, 1, 2, 3, 4, 5, 8]  # horizontal positions in radians are too coarse for differences
     groups = [g.name for g in st.groups for _ in g.labels]
     scale = {g: np.max(np.abs(phinp[rows][:, [i for i, x in enumerate(groups) if x == g]])) for g in set(groups)}
@@ -87,9 +63,7 @@ def test_F_blocks_match_finite_differences(s16_noise_free, t0):
         h = 1e-2 * DEFAULT_SIGMA0[gname]
         e = np.zeros(len(groups))
         e[c] = h
-        xp = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
-        xm = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
-        fd = (xp - xm) / (2 * h)
+        fd = (propagate(truth.corrected(st, -e)) - propagate(truth.corrected(st, e))) / (2 * h)
         err = np.max(np.abs(fd[rows] - phinp[rows, c]))
         floor = 1e-14 / h  # round-off of the propagated velocity (~1e-15 m/s) over the difference step
         assert err <= 2e-3 * max(np.max(np.abs(fd[rows])), 1e-2 * scale[gname]) + floor, \
@@ -107,7 +81,7 @@ def test_F_blocks_match_finite_differences(s16_noise_free, t0):
                 nv[4 + c - 3] += sgn * h
             else:
                 nv[9] += sgn * h
-            xs.append(_nav_error(one_step(dth, dv, dt, nv, site, truth, st)[0], C1, site))
+            xs.append(propagate(truth, nv))
         fd = (xs[0] - xs[1]) / (2 * h)
         np.testing.assert_allclose(fd[rows], phinn[rows, c], rtol=2e-3, atol=2e-3 * np.max(np.abs(fd[rows])) + 1e-9)
 
@@ -138,16 +112,16 @@ def test_noise_free_recovery_s16(s16_noise_free):
 
 
 @pytest.mark.slow
-def test_noise_free_recovery_psins19_without_encoders():
-    sc = _noise_free("psins19")
+def test_noise_free_recovery_psins19_without_encoders(noise_free):
+    sc = noise_free("psins19")
     rec = _record(sc)  # increments only: no gimbal angles
     res = calibrate(rec, "systematic51")
     _check_recovery(res, sc)
 
 
 @pytest.mark.slow
-def test_option_time_asynchrony():
-    sc = _noise_free("psins19")
+def test_option_time_asynchrony(noise_free):
+    sc = noise_free("psins19")
     sc = dataclasses.replace(sc, imu=sc.imu.replace(time_asynchrony=1e-3))
     rec = _record(sc)
     res = calibrate(rec, "systematic51", states="async")
@@ -159,14 +133,14 @@ def test_option_time_asynchrony():
 
 
 @pytest.mark.slow
-def test_option_full_lever_arm():
+def test_option_full_lever_arm(noise_free):
     """A 3-vector per accelerometer: the off-diagonal terms act through the tangential w-dot x r at
     the starts and stops.  Sample means cannot resolve the kink of a trapezoidal rate profile
     (w-dot dt / 4 in the reconstructed rate change), so the path here ramps at 5 deg/s^2 rather
     than psins19's 50 deg/s^2 (at 50 deg/s^2 the noise-free fixed point is off by ~0.1 ug/g^2)."""
     from inscal.core import turntable
 
-    sc = _noise_free("psins19")
+    sc = noise_free("psins19")
     lever = units.to_si(np.array([[2.0, 0.5, -0.3], [0.4, 3.0, 0.6], [-0.2, 0.7, -1.5]]), "cm")
     sc = dataclasses.replace(sc, imu=sc.imu.replace(accel_lever_arm=lever), path=turntable.psins19(accel_dps2=5.0))
     res = calibrate(_record(sc), "systematic51", states="lever9")
@@ -176,9 +150,9 @@ def test_option_full_lever_arm():
 
 
 @pytest.mark.slow
-def test_option_psins_triangular_convention():
+def test_option_psins_triangular_convention(noise_free):
     """Gyro matrix full, accelerometer matrix lower-triangular: the frame is the accelerometers'."""
-    sc = _noise_free("psins19")
+    sc = noise_free("psins19")
     res = calibrate(_record(sc), "systematic51", states="psins")
     assert "accelerometer-defined" in res.diagnostics["frame"]
     ea = res.imu.accel_misalignment  # the upper angles [xy, xz, yz] are zero by definition
@@ -263,9 +237,9 @@ def test_bad_input_is_refused():
 
 
 @pytest.mark.slow
-def test_noise_free_recovery_on_the_n25_path():
+def test_noise_free_recovery_on_the_n25_path(noise_free):
     """Any rotation record at a fixed site: the N25 twelve positions and rate tests, whose gimbal is
     non-orthogonal (dth = 20") and tilted (mount attitude) - the filter uses no gimbal angles."""
-    sc = _noise_free("n25")
+    sc = noise_free("n25")
     res = calibrate(_record(sc), "systematic51")
     _check_recovery(res, sc)

@@ -6,7 +6,7 @@ bias: the Schuler oscillation (b R / g ~ 64 m, Foucault-modulated, on top of the
 loop's ~1.3 km) must come out of the discrete mechanization neither damped nor grown.
 The reference integrates, with DOP853 at rtol 1e-13, the continuous equations (ENU;
 vertical channel held as NavConfig(vertical="hold"): v_U = 0, h fixed) with the same normal
-gravity and Earth rate as the kernel (:mod:`inscal.earth`), so the comparison measures the
+gravity and Earth rate as the kernel (:mod:`inscal.core.earth`), so the comparison measures the
 discrete integration only:
 
     dC_s^n/dt = C_s^n [w_is^s x] - [w_in^n x] C_s^n,   w_in^n = w_ie^n(L) + w_en^n(v, L)

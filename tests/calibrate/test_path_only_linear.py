@@ -1,4 +1,4 @@
-"""Issue 8: a 19-position +-90 deg record with no encoder channel, imported with a path TOML,
+"""A 19-position +-90 deg record with no encoder channel, imported with a path TOML,
 calibrates with ``joint`` and ``systematic51``; on noise-free data with only the linear
 errors both recover every parameter to 1e-6 relative.
 
@@ -15,7 +15,6 @@ are compared in absolute field units instead (:data:`ZERO_ABS`).
 import math
 import tomllib
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""inscal import / export (issue 8): round trips that calibrate identically, the mapping's
+"""inscal import / export: round trips that calibrate identically, the mapping's
 conversions, and a corpus of malformed files each refused with one line, exit 2, nothing written."""
 
 import json
@@ -25,7 +25,7 @@ from inscal.cli.app import app
 from inscal.core.error_model import ImuNoise
 
 runner = CliRunner()
-BAD = Path(__file__).parent / "data" / "bad"
+BAD = Path(__file__).resolve().parents[1] / "data" / "bad"
 
 
 def run(*args):

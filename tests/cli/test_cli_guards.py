@@ -1,4 +1,4 @@
-"""Issue 9 (subset): no traceback and no destroyed input.  Every refusal is one line on
+"""Hardening: no traceback and no destroyed input.  Every refusal is one line on
 stderr with exit code 2, the input is untouched and no output is left behind."""
 
 import hashlib

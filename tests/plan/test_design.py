@@ -1,5 +1,5 @@
-"""Path design from the Cramér-Rao bound (issue 10 item 4): inscal.calibrate.design, ``inscal design``
-and the path report (inscal.report_path)."""
+"""Path design from the Cramér-Rao bound: inscal.plan.design, ``inscal design``
+and the path report (inscal.report.path)."""
 
 import json
 import math

@@ -1,4 +1,4 @@
-"""Issue 9: SIGTERM / SIGINT during a long write remove the temporary ``.part`` file, print
+"""Interrupts: SIGTERM / SIGINT during a long write remove the temporary ``.part`` file, print
 exactly one line and exit with 143 / 130 (128 + signal number)."""
 
 import os

@@ -1,4 +1,4 @@
-"""Cramér-Rao bound of an experiment without running it (issue 10 item 2): inscal.calibrate.crlb
+"""Cramér-Rao bound of an experiment without running it: inscal.plan.bound
 and ``inscal observability --crlb``."""
 
 import json
@@ -89,7 +89,7 @@ def test_state_options_match_the_filter(spec):
 
 def _dense_bound(setup, path, q_extra):
     """Independent reference: the systematic filter's own per-step transitions (observability's pass,
-    scaled states) through inscal.filters' structured predict (with a parameter random walk) and
+    scaled states) through inscal.core.kalman' structured predict (with a parameter random walk) and
     Joseph update."""
     from inscal.calibrate.systematic.driver import systematic
     from inscal.sim.simulate import simulate
@@ -113,7 +113,7 @@ def _dense_bound(setup, path, q_extra):
 
 
 def test_bias_random_walk_matches_the_filter_engine():
-    """Bias random walk as process noise: the kernel = inscal.filters.predict with q_p on the same steps."""
+    """Bias random walk as process noise: the kernel = inscal.core.kalman.predict with q_p on the same steps."""
     bias = C.BiasNoise(gyro_rw=units.to_si(0.05, "deg/h") / 60.0, accel_rw=units.to_si(20.0, "ug") / 60.0)
     su = C.make_setup("51", bias_noise=bias)
     b = C.evaluate(su, short_path())

@@ -5,38 +5,32 @@ non-orthogonality errors (N25 eq. 20-26, 29) against their first-order predictio
 from __future__ import annotations
 
 import math
-from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from inscal.sim import scenarios, simulate
 from inscal.calibrate import calibrate
 from inscal.calibrate.windows import window_means
 from inscal.calibrate.window_model import C_n_s, ideal_up, predict
-from inscal.calibrate.n25 import design_rows, inner_pairs, L_vector, solve_X
+from inscal.calibrate.n25 import inner_pairs, L_vector, solve_X
 from inscal.calibrate.result import flatten
 from inscal.calibrate.positions import leveling_deviation, predicted_scheme_errors, rate_test_groups
 from inscal.calibrate.positions import accel_twelve, twelve_windows
-from inscal.core.error_model import GimbalErrors, ImuNoise
+from inscal.core.error_model import GimbalErrors
 
 DEG = math.pi / 180.0
 ARCSEC = DEG / 3600.0
 
 
 @pytest.fixture(scope="module")
-def base():
-    sc = replace(scenarios.build("n25"), noise=ImuNoise())
-    d = simulate.simulate(sc)
-    ws = window_means(SimpleNamespace(time=d.time, dtheta=d.dtheta, dvel=d.dvel, gimbal=d.gimbal, rate_hz=sc.rate_hz,
-                                      site=sc.site))
-    return sc, ws
+def base(noise_free_data, as_record):
+    sc, d = noise_free_data("n25")
+    return sc, window_means(as_record(d, sc))
 
 
 def exact(ws, imu, gim):
     """The same windows with the exact model means for other errors (the model matches the
-    simulator to 1e-12, tests/test_calibrate.py)."""
+    simulator to 1e-12, tests/calibrate/test_calibrate.py)."""
     return ws.replace_means(*predict(imu, gim, ws))
 
 

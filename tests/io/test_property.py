@@ -1,4 +1,4 @@
-"""Issue 9, property tests: randomly corrupted records (byte flips, truncation) and randomly
+"""Property tests: randomly corrupted records (byte flips, truncation) and randomly
 edited scenario files never produce a traceback: the exit code is 0 or 2, a failure is one
 line on stderr, and no partial output (``.part``, half-written file) is left behind."""
 

@@ -1,4 +1,4 @@
-"""Honest uncertainty of the window-mean calibrations (issue 8): every method reports its fit
+"""Honest uncertainty of the window-mean calibrations: every method reports its fit
 (chi^2, dof, p, per-window residuals); an inconsistent fit says so in one note naming the
 likely cause and scales the sigma so that they cover the actual errors; the n25 sigma
 (alpha0 included) match the scatter of the estimates."""
@@ -17,7 +17,6 @@ from scipy import stats
 from typer.testing import CliRunner
 
 from inscal.sim.simulate import write_simulation
-from inscal import io
 from inscal.sim import scenarios, simulate
 from inscal.core import units
 from inscal.calibrate import calibrate

@@ -15,17 +15,14 @@ import pytest
 
 from inscal.core import kalman as filters, units
 from inscal.sim import scenarios
-from inscal.core.attitude import quat_from_dcm
 from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
-from inscal.calibrate.systematic.kernel import one_step
 from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, FRAME_GIMBAL, StateSet
 from inscal.core.kalman import smoother_step_dense, update_dense
 from inscal.calibrate.unified import measurement, predicted_attitude, residual, state_set
 from inscal.core.error_model import ImuNoise
 from inscal.sim.simulate import simulate
-from inscal.core.kinematics import true_attitude
 
 AS = units.to_si(1.0, "arcsec")
 TOL = {"ppm": 0.05, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.05, "ug/g^2": 0.05, "cm": 0.005, "deg/h/g": 0.001}
@@ -191,28 +188,19 @@ def _rec(d, sc, gimbal=True):
 
 
 @pytest.fixture(scope="module")
-def s16_gimbal_noise_free():
-    sc = dataclasses.replace(scenarios.build("s16-gimbal"), noise=ImuNoise())
-    return sc, simulate(sc)
+def s16_gimbal_noise_free(noise_free_data):
+    return noise_free_data("s16-gimbal")
 
 
-def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free):
+def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free, step_columns):
     """The columns the unified set adds to Phi_np: the upper gyro-matrix entries (the s-frame set) and
     the gimbal states (zero: they do not enter the navigation), over 1 s at the start of an outer
-    rotation, against differences of the nonlinear propagation (test_systematic.py's method)."""
-    from test_systematic import _nav_error
-
+    rotation, against differences of the nonlinear propagation (the harness of test_systematic.py)."""
     sc, d = s16_gimbal_noise_free
     st = StateSet.parse("unified")
     truth = truth_in_frame(sc.imu, st, sc.gimbal)
-    t0 = 180.2
-    k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
-    dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
-    site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
-    C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
-    nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
-    x0, phinn, phinp = one_step(dth, dv, dt, nav0, site, truth, st)
-    assert np.max(np.abs(_nav_error(x0, C1, site))) < 1e-6
+    x0, phinn, phinp, propagate, _, _ = step_columns(sc, d, st, truth, 180.2)
+    assert np.max(np.abs(x0)) < 1e-6
     labels = st.labels()[9:]
     cols = [labels.index(f"gyro_matrix[{ij}]") for ij in ("xy", "xz", "yz")]
     cols += [c for c, lab in enumerate(labels) if lab.startswith(("gimbal_", "mount_"))]
@@ -222,9 +210,7 @@ def test_new_Phi_columns_match_finite_differences(s16_gimbal_noise_free):
         h = 1e-2 * DEFAULT_SIGMA0[gname]
         e = np.zeros(st.n_params)
         e[c] = h
-        xp = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, -e), st)[0], C1, site)
-        xm = _nav_error(one_step(dth, dv, dt, nav0, site, truth.corrected(st, e), st)[0], C1, site)
-        fd = (xp - xm) / (2 * h)
+        fd = (propagate(truth.corrected(st, -e)) - propagate(truth.corrected(st, e))) / (2 * h)
         if gname == "gyro_matrix":
             assert np.max(np.abs(fd[rows] - phinp[rows, c])) <= 2e-3 * np.max(np.abs(fd[rows])) + 1e-12, labels[c]
             assert np.max(np.abs(fd[rows])) > 1e-5  # a rotation about x turns the outer-rotation rate into y, z

@@ -1,4 +1,4 @@
-"""Observability of a rotation path without data (issue item 5): inscal.calibrate.observability
+"""Observability of a rotation path without data: inscal.plan.observability
 and ``inscal observability``."""
 
 import json

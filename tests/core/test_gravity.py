@@ -1,4 +1,4 @@
-"""Issue 8 item 2: the site's gravity model (WGS-84 normal gravity, the PSINS formula or a
+"""The site's gravity model (WGS-84 normal gravity, the PSINS formula or a
 measured value) in the record, the scenario files, the command line, every calibration
 method and the navigator."""
 

@@ -42,7 +42,7 @@ def test_error_free_24h_static_below_one_metre():
     r = run(scn)
     e = r.errors
     assert e.time[-1] == pytest.approx(86400.0)
-    assert np.max(e.horizontal) < 1.0  # issue 3: numerical floor
+    assert np.max(e.horizontal) < 1.0  # the strapdown algorithm's numerical floor
     assert np.max(np.abs(e.velocity)) < 1e-6
     assert np.max(np.abs(e.attitude)) < 1e-3 * AS
     assert r.summary["max_position_error_m"] == pytest.approx(np.max(e.horizontal))
