@@ -1,5 +1,23 @@
-"""inscal: calibration of high-accuracy IMUs and dual-axis rotational INS."""
+"""inscal: calibration of high-accuracy IMUs and dual-axis rotational INS (S16: systematic
+calibration, Sensors 2016; N25: gimbal non-orthogonality self-calibration, NAVIGATION 2025).
+
+Conventions, used by every module without re-explaining them:
+
+- Units: SI inside (rad, rad/s, m/s^2, m, s); the field's units (ppm, arcsec, deg/h, ug, ug/g^2,
+  deg/h/g, cm) only in files, reports and the command line, converted in :mod:`inscal.core.units`.
+- Frames: n = East-North-Up navigation frame; s = the IMU frame of N25 (z = inner gimbal axis,
+  x = projection of the outer axis at zero angle); b = the base of the turntable.
+- ``C_a_b`` / ``C_a^b`` maps a-frame vectors into b; elementary rotations are active (right-handed);
+  Euler angles ``[roll, pitch, yaw]`` with ``C_b^n = R_z(yaw) R_y(pitch) R_x(roll)`` (N25 eq. 8).
+- Errors are reported as estimate minus truth.
+
+Layers (each imports only from those below it; ``lint-imports`` checks it): ``core`` < ``io`` <
+``sim`` | ``nav`` < ``calibrate`` < ``plan`` | ``analysis`` < ``report`` < ``cli``.
+"""
 
 __version__ = "0.1.0"
-#: Version of the HDF5 data and TOML parameter file schemas written by this package.
+#: Version of the HDF5 record layout (:mod:`inscal.io.records`), the navigation output and the
+#: scenario and design TOML files.  Parameter files have their own
+#: (:data:`inscal.io.paramfile.PARAM_SCHEMA_VERSION`), as have Monte Carlo run files
+#: (:data:`inscal.analysis.montecarlo.SCHEMA_VERSION`).
 SCHEMA_VERSION = 1

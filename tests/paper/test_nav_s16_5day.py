@@ -9,7 +9,7 @@ S16: with the 51-state parameters the position error is at least 20 % smaller.  
 0.1 nmi: the 1 h S16 path does not resolve the Table 3 g-sensitivity at this noise, and the
 default 30-state filter does not converge.  In the other orientations of the full study (y-up,
 tilt, rotation modulation) the claim fails at seed 2016.  The full study and its findings:
-``python -m inscal.analysis.nav5d`` and that module's docstring.
+``python bench/nav5d.py`` and that module's docstring.
 """
 
 import math

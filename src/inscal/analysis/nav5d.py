@@ -80,13 +80,11 @@ rotmod16       298 m (0.16)    954 m (0.52)    780 m (0.42)      1.5 m       20.
   :mod:`inscal.calibrate.systematic`) was numerically inconsistent on this quiet IMU (NIS spikes
   of ~1e3, errors of 2-85 sigma) and gave 3-55 nmi level; the figures above are with the fix.
 
-Run ``python -m inscal.analysis.nav5d`` for the table (``--help`` for options).
+Run ``python bench/nav5d.py`` for the table (``--help`` for options).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import time
 from dataclasses import replace
@@ -98,7 +96,6 @@ from inscal.core import units
 from inscal.core.error_model import ImuErrors, ImuNoise
 from inscal.core.turntable import Move, RotationPath, rotmod16
 from inscal.core.units import DEG
-from inscal.io.jsonfile import to_jsonable
 from inscal.nav.run import navigate
 from inscal.nav.strapdown import NavConfig, NavState
 from inscal.sim import scenarios
@@ -283,29 +280,3 @@ def format_table(res: dict) -> str:
         lines.append(f"{ori:<12}{cells}{imp}")
     lines.append(f"total runtime {res['timing']['total_s']:.1f} s")
     return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m inscal.analysis.nav5d", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seed", type=int, default=2016)
-    ap.add_argument("--scenario", default="s16-table3")
-    ap.add_argument("--orientations", default=",".join(ORIENTATIONS))
-    ap.add_argument("--days", type=float, default=5.0)
-    ap.add_argument("--nav-rate", type=float, default=10.0)
-    ap.add_argument("--nav-noise", action="store_true", help="navigation record with the scenario's noise")
-    ap.add_argument("--cal-noise-scale", type=float, default=1.0, help="factor on the calibration record's ARW and VRW")
-    ap.add_argument("--no-consistent-30", action="store_true", help="skip the NIS-consistent 30-state calibration")
-    ap.add_argument("--json", help="also write the figures to this JSON file")
-    a = ap.parse_args(argv)
-    res = compare_5day(a.seed, scenario=a.scenario, orientations=tuple(a.orientations.split(",")), days=a.days,
-                       nav_rate_hz=a.nav_rate, nav_noise=a.nav_noise, cal_noise_scale=a.cal_noise_scale,
-                       consistent_30=not a.no_consistent_30)
-    print(format_table(res))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(to_jsonable(res), fh, indent=1)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

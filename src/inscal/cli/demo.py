@@ -35,8 +35,7 @@ def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool
     for name in REPORT_FILES + tuple(f"nav-{label}.png" for label in NAV_RUNS):
         check_output(out / name, force)  # before the work, not after it
     res: dict = {"out": str(out), "seed": seed, "quick": quick, "steps": {}}
-    ctx: dict = {"nav_runs": {}}
-    res["_ctx"] = ctx
+    ctx: dict = {"nav_runs": {}}  # what the report draws but summary.json does not hold (result objects)
     t0 = time.perf_counter()
     for name in ("s16", "n25"):
         r = run_simulate(name, out / f"{name}.h5", seed=seed, force=force, show_progress=show_progress)
@@ -56,13 +55,14 @@ def run_demo(out: Path, force: bool, seed: int, quick: bool, show_progress: bool
     log("Allan (N25 first dwell): ARW " + ", ".join(f"{v:.4f}" for v in a["arw_deg_rth"])
         + f" deg/rt(h) (true {a['true_arw_deg_rth'][0]:g}); VRW " + ", ".join(f"{v:.1f}" for v in a["vrw_ug_rthz"])
         + f" ug/rt(Hz) (true {a['true_vrw_ug_rthz'][0]:g})")
-    for stage in _STAGES:
-        stage(out, force, seed, quick, show_progress, log, res)
-    _report_stage(out, force, log, res, t0)
+    _calibrate_stage(out, force, seed, quick, show_progress, log, res)
+    _systematic_stage(out, force, seed, quick, show_progress, log, res)
+    _navigate_stage(out, force, seed, quick, show_progress, log, res, ctx["nav_runs"])
+    _report_stage(out, force, log, res, ctx, t0)
     return res
 
 
-def _report_stage(out, force, log, res, t0):
+def _report_stage(out, force, log, res, ctx, t0):
     """Figures, ``report.html`` and ``summary.json``."""
     import json
 
@@ -70,7 +70,6 @@ def _report_stage(out, force, log, res, t0):
     from inscal.io.jsonfile import to_jsonable
     from inscal.report.demo import demo_report
 
-    ctx = res.pop("_ctx")
     t1 = time.perf_counter()
     res["elapsed_s"] = t1 - t0
     try:
@@ -210,7 +209,7 @@ def _components(r, err: dict, sig: dict) -> dict:
     return out
 
 
-def _navigate_stage(out, force, seed, quick, show_progress, log, res):
+def _navigate_stage(out, force, seed, quick, show_progress, log, res, nav_runs):
     """Navigate a rotation-modulated run of the N25 IMU with each calibration (N25 section 6).
 
     The navigation record is noise-free: with the N25 noise (ARW 0.02 deg/sqrt(h)) the attitude
@@ -226,7 +225,7 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res):
     for label in NAV_RUNS:
         params = None if label == "uncalibrated" else out / f"params-{label}.toml"
         r, nav_res, gim = navigate_file(rec, params=params)
-        res["_ctx"]["nav_runs"][label] = (nav_res, gim)
+        nav_runs[label] = (nav_res, gim)
         keep = {k: r[k] for k in ("duration_h", "max_position_error_m", "final_position_error_m", "max_position_error_nmi",
                                   "max_attitude_error_arcsec", "max_velocity_error_mps", "final_attitude_deg") if k in r}
         res["steps"]["navigate"][label] = keep
@@ -235,9 +234,6 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res):
             f"{keep.get('max_position_error_m', float('nan')):8.1f} m, max attitude error (roll, pitch, yaw) "
             + ", ".join(f"{a:.1f}" for a in att) + " arcsec")
 
-
-#: later stages (calibration, systematic calibration, navigation)
-_STAGES: list = [_calibrate_stage, _systematic_stage, _navigate_stage]
 
 
 def register(app: typer.Typer) -> None:

@@ -155,10 +155,8 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
     imu = gim = None
     warnings = []
     if params is not None:
-        try:
-            from inscal.io.paramfile import load_params
-        except ImportError:  # pragma: no cover - the parameter-file module ships with inscal
-            raise CliError("this inscal cannot read parameter files") from None
+        from inscal.io.paramfile import load_params
+
         try:
             imu, gim, pmeta = load_params(params)
         except ValueError as exc:

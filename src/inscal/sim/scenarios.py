@@ -356,16 +356,6 @@ def gravity_from_field(g) -> GravityModel:
     raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
 
 
-def gravity_to_field(m: GravityModel):
-    """Inverse of :func:`gravity_from_field` (SI value in m/s^2)."""
-    if m.kind != "measured":
-        return m.kind
-    d = {"value": m.value, "unit": "m/s^2"}
-    if m.height is not None:
-        d["height_m"] = m.height
-    return d
-
-
 def _check_keys(section: str, d: dict, allowed: set) -> None:
     if not isinstance(d, dict):
         raise ScenarioError(f"[{section}] must be a table")

@@ -73,11 +73,6 @@ DEFAULT_SIGMA0 = {
 #: default white noise of each encoder angle (gimbal states)
 ENCODER_SIGMA = units.to_si(1.0, "arcsec")
 FRAME_GIMBAL = "gimbal-defined (N25 s-frame)"
-GROUP_UNITS = {
-    "gyro_matrix": "ppm", "gyro_bias": "deg/h", "gyro_g_sensitivity": "deg/h/g", "accel_matrix": "ppm",
-    "accel_bias": "ug", "accel_nonlinearity": "ug/g^2", "accel_cross_coupling": "ug/g^2", "accel_lever_arm": "cm",
-    "time_asynchrony": "ms", "gimbal_nonorthogonality": "arcsec", "mount_attitude": "arcsec",
-}
 
 #: named options of ``--states``
 STATE_OPTIONS = {
