@@ -80,7 +80,7 @@ def imported(p19):
     out = {}
     assert run("export", p19.file, "--format", "psins", "--out", d / "r.bin", "--gimbal-out", d / "ang.csv")[0] == 0
     code, so, se = run("import", d / "r.bin", "--format", "psins", "--out", d / "bin.h5", *p19.site,
-                       "--gimbal", d / "ang.csv", "--gimbal-unit", "rad", "--json")
+                       "--gimbal", d / "ang.csv", "--json")  # the file's header says rad: no --gimbal-unit
     assert code == 0, se
     out["psins"] = (io.read_record(d / "bin.h5"), json.loads(so))
     assert run("export", p19.file, "--format", "mat", "--out", d / "r.mat")[0] == 0
@@ -272,6 +272,36 @@ def test_path_that_does_not_follow_the_increments_is_refused(p19, tmp_path):
     code, _, se = run(*base, "--out", tmp_path / "b.h5", "--path-start-s", 0.5)
     assert code == 2 and "before the path start" in se
     assert run(*base, "--out", tmp_path / "c.h5")[0] == 0  # aligned: accepted
+
+
+def test_gimbal_file_units_from_its_header_and_a_unit_mix_up_named(p19, tmp_path):
+    """An exported gimbal file says its unit in its header and is read back in it; a header that
+    contradicts --gimbal-unit is refused; angles in radians read as degrees (no header) turn 57.3
+    times too slowly and the motion check says so (this once calibrated to 8e6 ppm silently)."""
+    o = p19.rec
+    src = tmp_path / "r.bin"
+    np.column_stack([o.dtheta, o.dvel, o.time]).astype("<f8").tofile(src)
+    rad = tmp_path / "rad.csv"
+    rad.write_text("time [s],outer [rad],inner [rad]\n" + "".join(
+        f"{t:.17g},{a:.17g},{b:.17g}\n" for t, (a, b) in zip(o.time, o.gimbal)))
+    code, _, se = run("import", src, "--format", "psins", "--out", tmp_path / "a.h5", *p19.site, "--gimbal", rad)
+    assert code == 0, se
+    assert np.abs(io.read_record(tmp_path / "a.h5").gimbal - o.gimbal).max() < 0.3 * math.pi / 180
+    code, _, se = run("import", src, "--format", "psins", "--out", tmp_path / "b.h5", *p19.site, "--gimbal", rad,
+                      "--gimbal-unit", "deg")
+    assert code == 2 and "header says the angles are in rad, --gimbal-unit says deg" in se
+    bare = tmp_path / "bare.csv"
+    bare.write_text("".join(f"{t:.17g},{a:.17g},{b:.17g}\n" for t, (a, b) in zip(o.time, o.gimbal)))
+    code, _, se = run("import", src, "--format", "psins", "--out", tmp_path / "c.h5", *p19.site, "--gimbal", bare)
+    assert code == 2 and "radians read as degrees" in se and not (tmp_path / "c.h5").exists(), se
+    assert len(se.strip().splitlines()) == 1
+    code, _, se = run("import", src, "--format", "psins", "--out", tmp_path / "d.h5", *p19.site, "--gimbal", bare,
+                      "--gimbal-unit", "rad")
+    assert code == 0, se
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("time [s],outer [rad],inner [deg]\n0,0,0\n1,0,0\n")
+    code, _, se = run("import", src, "--format", "psins", "--out", tmp_path / "e.h5", *p19.site, "--gimbal", mixed)
+    assert code == 2 and "different or missing units" in se
 
 
 def test_encoder_file_at_a_lower_rate_wrapped_in_degrees(p19, tmp_path):

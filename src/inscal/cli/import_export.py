@@ -43,7 +43,7 @@ def _site(lat: float | None, lon: float | None, height: float | None, mapping: P
 
 
 def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path: Path | None = None,
-               path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str = "deg",
+               path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str | None = None,
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
@@ -57,7 +57,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     bad = sorted(set(skip or ()) - set(CHECKS))
     if bad:
         raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(CHECKS)}")
-    if gimbal_unit not in ("deg", "rad"):
+    if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
     if not src.is_file():
         raise CliError(f"{src}: no such file")
@@ -114,7 +114,8 @@ def register(app: typer.Typer) -> None:
         path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
                                          "(default: the start of the first sample)"),
         gimbal: Path = typer.Option(None, "--gimbal", help="encoder angles file: columns time (s), outer, inner"),
-        gimbal_unit: str = typer.Option("deg", "--gimbal-unit", help="unit of the --gimbal angles: deg | rad"),
+        gimbal_unit: str = typer.Option(None, "--gimbal-unit", help="unit of the --gimbal angles: deg | rad (default: the "
+                                        "unit the file's header gives, as 'outer [rad]', else deg)"),
         lat: float = typer.Option(None, "--lat", help="site latitude (deg)"),
         lon: float = typer.Option(None, "--lon", help="site longitude (deg)"),
         height: float = typer.Option(None, "--height", help="site ellipsoidal height (m)"),
@@ -155,7 +156,7 @@ def register(app: typer.Typer) -> None:
         fmt: str = typer.Option(..., "--format", "-f", help="csv | psins | mat"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
-                                        "(time in s, outer and inner in rad) for import --gimbal --gimbal-unit rad"),
+                                        "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
         path_out: Path = typer.Option(None, "--path-out", help="also write the record's rotation path (TOML) for "
                                       "import --path"),
         force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),

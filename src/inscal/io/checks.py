@@ -211,15 +211,30 @@ def check_motion(dtheta: np.ndarray, theta: np.ndarray, dt: float, what: str, ti
     cs = static[1:-1] & static[:-2] & static[2:]
     steady = (np.abs(wg[:-2] - wg[1:-1]) < 0.1 * wg[1:-1]) & (np.abs(wg[2:] - wg[1:-1]) < 0.1 * wg[1:-1])
     cm = moving[1:-1] & moving[:-2] & moving[2:] & steady
+    # and where the gyros turn steadily (angles in the wrong unit turn 57 times too slowly or too fast,
+    # which the two tests above, keyed on the angles, do not see)
+    gmov = wm > 1.0 * DEG
+    gsteady = (np.abs(wm[:-2] - wm[1:-1]) < 0.1 * wm[1:-1]) & (np.abs(wm[2:] - wm[1:-1]) < 0.1 * wm[1:-1])
+    cg = gmov[1:-1] & gmov[:-2] & gmov[2:] & gsteady & np.isfinite(wg[1:-1]) & ~cm
     bad_s = cs & (wm[1:-1] > 0.5 * DEG)
     bad_m = cm & (np.abs(wm[1:-1] - wg[1:-1]) > 0.2 * wg[1:-1])
-    bad = bad_s | bad_m
-    clean = int(cs.sum() + cm.sum())
+    bad_g = cg & (np.abs(wg[1:-1] - wm[1:-1]) > 0.2 * wm[1:-1])
+    bad = bad_s | bad_m | bad_g
+    clean = int(cs.sum() + cm.sum() + cg.sum())
     if clean and bad.sum() > max(2, max_fraction * clean):
         b = int(np.argmax(bad)) + 1
         t = time[b * m + m - 1]
         state = "at rest" if static[b] else f"turning at {wg[b] / DEG:.3g} deg/s"
+        turning = (cm | cg) & (wm[1:-1] > 0) & (wg[1:-1] > 0)
+        ratio = float(np.median(wg[1:-1][turning] / wm[1:-1][turning])) if turning.any() else float("nan")
+        hint = ""
+        if abs(ratio * (180.0 / math.pi) - 1.0) < 0.05:
+            hint = " (the angles turn 57.3 times slower than the gyros: radians read as degrees? see --gimbal-unit)"
+        elif abs(ratio / (180.0 / math.pi) - 1.0) < 0.05:
+            hint = " (the angles turn 57.3 times faster than the gyros: degrees read as radians? see --gimbal-unit)"
+        elif math.isfinite(ratio) and abs(ratio - 1.0) > 0.2:
+            hint = f" (the angles turn {ratio:.3g} times as fast as the gyros: a scale or unit error?)"
         raise ImportFileError(
             f"the increments do not follow the {what}: {int(bad.sum())} of {clean} half-second blocks disagree "
-            f"(first ending at t = {t:.3f} s: {what} {state}, gyros {wm[b] / DEG:.3g} deg/s) "
+            f"(first ending at t = {t:.3f} s: {what} {state}, gyros {wm[b] / DEG:.3g} deg/s){hint} "
             "(--skip-check motion to import anyway)")

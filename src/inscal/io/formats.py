@@ -3,6 +3,8 @@ angle files): each returns a :class:`Raw` block of increments in the source's ow
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass
 from io import StringIO
 from pathlib import Path as FsPath
@@ -253,13 +255,33 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
     return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl)
 
 
-def read_gimbal_file(path, unit: str = "deg") -> tuple[np.ndarray, np.ndarray]:
-    """Encoder angles: rows ``time [s], outer, inner`` in ``unit`` -> ``(t, angles [rad] (M, 2))``, unwrapped."""
-    p = FsPath(path)
+def header_angle_unit(p, header: str) -> str | None:
+    """The angle unit a gimbal file's header gives its outer and inner columns (``outer [rad]``, as
+    ``inscal export --gimbal-out`` writes), or None when it gives none; both must agree."""
+    cells = [c.strip() for c in (header.split(",") if "," in header else header.split())]
+    found = [re.search(r"\[\s*([^\]]+?)\s*\]", c) for c in cells[1:3]]
+    names = {m.group(1) for m in found if m}
+    if not names:
+        return None
+    if len(names) > 1 or len(cells) < 3 or not all(found):
+        raise ImportFileError(f"{p}: the header gives the angle columns different or missing units ({header.strip()!r})")
     try:
-        u = units.check_kind(unit, "angle")
+        units.check_kind(names.pop(), "angle")
     except units.UnitError as exc:
-        raise ImportFileError(f"--gimbal-unit: {exc}") from None
+        raise ImportFileError(f"{p}: header unit: {exc}") from None
+    return found[0].group(1)
+
+
+def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Encoder angles: rows ``time [s], outer, inner`` -> ``(t, angles [rad] (M, 2))``, unwrapped.
+    The unit is the one the header gives (``outer [rad]``), else ``unit``, else degrees; a header
+    unit that contradicts an explicit ``unit`` is an error (one of them is wrong)."""
+    p = FsPath(path)
+    if unit is not None:
+        try:
+            units.check_kind(unit, "angle")
+        except units.UnitError as exc:
+            raise ImportFileError(f"--gimbal-unit: {exc}") from None
     b = _file_bytes(p)
     try:
         text = b.decode("utf-8-sig")
@@ -274,6 +296,10 @@ def read_gimbal_file(path, unit: str = "deg") -> tuple[np.ndarray, np.ndarray]:
         header = 0
     except ValueError:
         header = 1
+    in_file = header_angle_unit(p, lines[0]) if header else None
+    if in_file is not None and unit is not None and units.to_si(1.0, in_file, "angle") != units.to_si(1.0, unit, "angle"):
+        raise ImportFileError(f"{p}: the header says the angles are in {in_file}, --gimbal-unit says {unit}")
+    u = in_file or unit or "deg"
     m = Mapping({}, delimiter=delim, header_rows=header)
     data, line_no, _ = _parse_table(p, m)
     if data.shape[1] != 3:

@@ -217,7 +217,7 @@ def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False
 
 
 def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
-                path_start: float | None = None, gimbal_file=None, gimbal_unit: str = "deg",
+                path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary."""
