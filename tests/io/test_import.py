@@ -545,3 +545,86 @@ def test_skip_check_imports_a_flagged_file(tmp_path):
                        "--rate-hz", 10, "--json")
     assert code == 0, se
     assert json.loads(so)["time_regridded"] is True
+
+
+# ----------------------------------------------------------------------------- PSINS compact .imu
+def _write_psins_imu(path, time, dtheta, dvel, lat_deg, lon_deg, h, scales=(0.1, 0.1, 0.1, 125.0, 125.0, 125.0),
+                     g=9.7803267714, dither=False):
+    """A PSINS compact text log written from the format's description (header comment, attitude /
+    site / scale-factor rows, then whole counts of the running sums, so the rounding does not
+    accumulate), independently of inscal's reader."""
+    q = np.array(scales[:3]) * math.pi / 180 / 3600
+    qa = np.array(scales[3:]) * 1e-6 * g
+    counts = np.diff(np.vstack([np.zeros((1, 6)), np.trunc(np.cumsum(np.hstack([dtheta / q, dvel / qa]), axis=0))]),
+                     axis=0).astype(np.int64)
+    ts = float(time[1] - time[0])
+    t0 = float(time[0] - ts)
+    with open(path, "w") as fh:
+        fh.write("% PSINS-format SIMU log file. (DO NOT MODIFY!)\n% written by the inscal tests\n\n")
+        fh.write("0.000000 0.000000 0.000000 0.000000 0.000000 0.000000\n")
+        fh.write(f"{lat_deg:.8f} {lon_deg:.8f} {h:.3f} {t0:.8f} {ts * 1000:.8f} {g:f}\n")
+        fh.write(" ".join(f"{s:f}" for s in scales) + "\n\n")
+        if dither:
+            d = np.zeros((len(counts), 1), np.int64)
+            np.savetxt(fh, np.hstack([counts, d]), fmt="%d")
+        else:
+            np.savetxt(fh, counts, fmt="%d")
+    return q, qa
+
+
+def test_psins_imu_log_imports_with_its_header_site_rate_and_scales(p19, tmp_path):
+    """``--format psins-imu`` reads the site, start time, interval, g and scale factors from the
+    header (no --lat/--lon/--height): increments within one quantum of the original's running sums,
+    and the calibration of the quantized record within the quantum's share of the truth."""
+    o = p19.rec
+    lat, lon, h = math.degrees(o.site.latitude), math.degrees(o.site.longitude), o.site.height
+    src = tmp_path / "run.imu"
+    q, qa = _write_psins_imu(src, o.time, o.dtheta, o.dvel, lat, lon, h, dither=True)
+    out = tmp_path / "imu.h5"
+    code, so, se = run("import", src, "--format", "psins-imu", "--out", out, "--path", p19.path_toml, "--json")
+    assert code == 0, se
+    s = json.loads(so)
+    assert s["site"]["latitude_deg"] == pytest.approx(lat, abs=1e-8) and s["site"]["height_m"] == pytest.approx(h, abs=1e-3)
+    r = io.read_record(out)
+    assert r.rate_hz == pytest.approx(o.rate_hz, rel=1e-9) and np.allclose(r.time, o.time, atol=1e-9)
+    assert np.abs(np.cumsum(r.dtheta, 0) - np.cumsum(o.dtheta, 0)).max() <= 1.0001 * q.max()
+    assert np.abs(np.cumsum(r.dvel, 0) - np.cumsum(o.dvel, 0)).max() <= 1.0001 * qa.max()
+    res, ref = calibrate(r, "joint"), p19.cal("joint", encoders=False)
+    sf = np.abs(param_value(res.imu, res.gimbal, "gyro_scale_factor") - param_value(ref.imu, ref.gimbal, "gyro_scale_factor"))
+    ab = np.abs(param_value(res.imu, res.gimbal, "accel_bias") - param_value(ref.imu, ref.gimbal, "accel_bias"))
+    # a window mean's rounding error is at most two quanta over the window: 125 ug*s over >= 20 s dwells
+    assert sf.max() < 1e-6 and ab.max() < 2 * qa.max() / 20.0, (sf, ab)
+    # a site given on the command line wins over the header's
+    code, so, se = run("import", src, "--format", "psins-imu", "--out", tmp_path / "site.h5", "--lat", 10, "--lon", 0,
+                       "--height", 0, "--skip-check", "magnitudes", "--json")
+    assert code == 0, se
+    assert json.loads(so)["site"]["latitude_deg"] == 10
+
+
+@pytest.mark.parametrize("edit, phrase", [
+    (lambda t: t.replace("% PSINS-format SIMU log file", "% some other log"), "not a PSINS .imu log"),
+    (lambda t: t.rsplit("\n", 2)[0] + "\n1 2 3\n", "has 3 values, the rows before 7"),
+    (lambda t: t.rsplit("\n", 2)[0] + "\n1 2 3 4.5 5 6 0\n", "counts must be whole numbers"),
+    (lambda t: t.replace("9.780327", "0.000000", 1), "not a gravity value"),
+    (lambda t: "\n".join(t.splitlines()[:6]) + "\n", "needs 3 header rows and at least 2 samples"),
+])
+def test_psins_imu_damaged_logs_are_refused_in_one_line(p19, tmp_path, edit, phrase):
+    o = p19.rec
+    src = tmp_path / "run.imu"
+    _write_psins_imu(src, o.time[:200], o.dtheta[:200], o.dvel[:200], 34.0, 108.0, 400.0, dither=True)
+    src.write_text(edit(src.read_text()))
+    code, _, se = run("import", src, "--format", "psins-imu", "--out", tmp_path / "x.h5")
+    assert code == 2 and phrase in se and len(se.strip().splitlines()) == 1, se
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_ug_seconds_is_a_velocity_increment_unit_of_mappings():
+    from inscal.core import units
+    from inscal.io.mapping import parse_mapping
+
+    assert units.to_si(125.0, "ug*s", "velocity") == pytest.approx(125e-6 * units.G0)
+    assert units.to_si(1.0, "µg*s", "velocity") == units.to_si(1.0, "ug*s")
+    m, _ = parse_mapping({"columns": {"time": 0, "gx": 1, "gy": 2, "gz": 3, "ax": 4, "ay": 5, "az": 6},
+                                    "units": {"gyro": "counts", "gyro_scale": "0.1 arcsec", "accel": "counts",
+                                              "accel_scale": "125 ug*s"}}, "csv")
+    assert m.accel_scale == pytest.approx(125e-6 * units.G0) and m.gyro_scale == pytest.approx(0.1 * math.pi / 648000)

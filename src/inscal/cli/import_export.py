@@ -107,7 +107,7 @@ def register(app: typer.Typer) -> None:
     @app.command("import")
     def import_(
         src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text)"),
-        fmt: str = typer.Option(..., "--format", "-f", help="psins | mat | csv | txt"),
+        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt"),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
         mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
         path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),

@@ -66,6 +66,7 @@ FACTOR: dict[str, float] = {
     # velocity
     "m/s": 1.0,
     "mm/s": 1e-3,
+    "ug*s": 1e-6 * G0,  # a velocity increment of 1 ug over 1 s (PSINS's accelerometer quantum unit)
 }
 
 ALIASES: dict[str, str] = {
@@ -88,6 +89,11 @@ ALIASES: dict[str, str] = {
     "m/s2": "m/s^2",
     "m/s²": "m/s^2",
     "hz": "Hz",
+    "µg*s": "ug*s",
+    "μg*s": "ug*s",
+    "ug.s": "ug*s",
+    "ug·s": "ug*s",
+    "µg·s": "ug*s",
 }
 
 
@@ -107,7 +113,7 @@ KIND: dict[str, str] = {
     "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
     "m": "length", "cm": "length", "mm": "length", "nmi": "length",
     "s": "time", "ms": "time", "h": "time", "min": "time",
-    "m/s": "velocity", "mm/s": "velocity",
+    "m/s": "velocity", "mm/s": "velocity", "ug*s": "velocity",
 }
 
 

@@ -9,6 +9,10 @@ Sources
            rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
            interval.  ``t`` is the END time of each sample interval (PSINS convention and the
            record's).
+``psins-imu``  PSINS compact text log (``.imu``): a header with the initial attitude, the site, the
+           start time, the sampling interval, g and the scale factors (arcsec and ug*s per count),
+           then integer counts (see :func:`~inscal.io.formats.read_psins_imu`); the site comes from
+           the header unless one is given.
 ``mat``    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
            the first 2-D numeric variable with 7 columns, or the named ``variable``.
 ``csv``    delimited text described by a mapping TOML (below); without a mapping, the file
@@ -104,6 +108,7 @@ from inscal.io.formats import (
     read_gimbal_file,
     read_mat,
     read_psins_bin,
+    read_psins_imu,
     read_text,
     write_rows,
 )
@@ -141,6 +146,8 @@ def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "flo
         return read_mat(p, variable, rates) if p.suffix.lower() == ".mat" else read_psins_bin(p, dtype, rates)
     if fmt == "mat":
         return read_mat(p, variable, rates)
+    if fmt == "psins-imu":
+        return read_psins_imu(p)
     return read_text(p, mapping, fmt)
 
 
@@ -228,17 +235,20 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         raise ImportFileError("--dtype applies to --format psins (.bin)")
     if variable is not None and fmt not in ("psins", "mat"):
         raise ImportFileError("--variable applies to .mat files")
-    if rates and fmt in ("csv", "txt"):
+    if rates and fmt in ("csv", "txt", "psins-imu"):
         raise ImportFileError("--rates applies to psins/mat; for csv/txt set kind = \"rates\" in the mapping")
     if path_start is not None and path_file is None:
         raise ImportFileError("--path-start-s applies with --path")
     mapping, msite = load_mapping(mapping_file, fmt) if mapping_file is not None else (None, None)
     site = site if site is not None else msite
-    if site is None:
+    if site is None and fmt != "psins-imu":
         raise ImportFileError("no site: give --lat, --lon and --height (or a [site] table in the mapping)")
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     raw = read_source(src, fmt, mapping, dtype, variable, rates)
+    if site is None:  # a PSINS .imu log names its site in its header
+        lat, lon, h = raw.header_site
+        site = Site(lat * DEG, lon * DEG, h)
     if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
     else:

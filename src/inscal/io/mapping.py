@@ -14,7 +14,7 @@ from inscal.core.units import DEG
 from inscal.io.records import DataFileError
 from inscal.io.tomlfile import read_toml
 
-FORMATS = ("psins", "csv", "txt", "mat")
+FORMATS = ("psins", "psins-imu", "csv", "txt", "mat")
 EXPORT_FORMATS = ("csv", "psins", "mat")
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
