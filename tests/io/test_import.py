@@ -628,3 +628,28 @@ def test_ug_seconds_is_a_velocity_increment_unit_of_mappings():
                                     "units": {"gyro": "counts", "gyro_scale": "0.1 arcsec", "accel": "counts",
                                               "accel_scale": "125 ug*s"}}, "csv")
     assert m.accel_scale == pytest.approx(125e-6 * units.G0) and m.gyro_scale == pytest.approx(0.1 * math.pi / 648000)
+
+
+def test_systematic_calibrates_a_quantized_psins_imu_log_with_its_defaults(p19, tmp_path):
+    """A noise-free log quantized to 0.1" and 125 ug*s estimates a noise of exactly zero (most second
+    differences vanish); the filter's noise then comes from the data's own quantum, found in the
+    counts, and every parameter lies within 3 sigma of the truth (the sigma is conservative: the
+    running-sum rounding of a PSINS log does not accumulate as white noise would)."""
+    o = p19.rec
+    src = tmp_path / "run.imu"
+    _write_psins_imu(src, o.time, o.dtheta, o.dvel, math.degrees(o.site.latitude), math.degrees(o.site.longitude),
+                     o.site.height)
+    out = tmp_path / "imu.h5"
+    assert run("import", src, "--format", "psins-imu", "--out", out)[0] == 0
+    res = calibrate(io.read_record(out), "systematic51")
+    noise = res.diagnostics["noise"]
+    assert noise["resolution_floored"]
+    assert noise["resolution"]["gyro_arcsec"] == pytest.approx([0.1] * 3, rel=1e-6)
+    assert noise["resolution"]["accel_ug_s"] == pytest.approx([125.0 * 9.7803267714 / 9.80665] * 3, rel=1e-6)
+    truth = p19.rec.truth
+    bad = []
+    for name, e in res.to_field((truth.imu, truth.gimbal)).items():
+        err, sig = np.abs(np.asarray(e["error"], float)), np.asarray(e["sigma"], float)
+        if np.any(err > 3 * sig):
+            bad.append((name, err.tolist(), sig.tolist()))
+    assert not bad, bad

@@ -70,6 +70,30 @@ def estimate_white_noise(dtheta, dvel, dt) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
+def data_resolution(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
+    """The quantum of each column of ``x`` (N, k): the step ``q`` when every value is a whole
+    multiple of it (integer counts times a scale factor, as a quantized log holds), else 0.
+    Rounding to ``q`` adds white noise of variance ``q^2 / 12`` to each increment, whatever the
+    record's own noise: a filter tuned below it cannot fit the data (a noise-free record whose
+    second differences are mostly zero estimates a noise of exactly zero)."""
+    x = np.asarray(x, float)
+    step = max(1, x.shape[0] // max_rows)
+    out = np.zeros(x.shape[1])
+    for c in range(x.shape[1]):
+        v = np.unique(x[::step, c])
+        if v.size < 16:  # a handful of distinct values (the dwells of a noise-free record) show no grid
+            continue
+        d = np.diff(v)
+        d = d[d > 0]
+        if d.size == 0:
+            continue
+        q = float(d.min())
+        k = v / q
+        if q > 0 and np.all(np.abs(k - np.round(k)) < 1e-3):
+            out[c] = q
+    return out
+
+
 def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 5,
                tol: float = 0.2, arw=None, vrw=None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
@@ -110,10 +134,16 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     arw_v = np.broadcast_to(np.asarray(est_arw if arw is None else arw, float), (3,)).copy()
     vrw_v = np.broadcast_to(np.asarray(est_vrw if vrw is None else vrw, float), (3,)).copy()
     # floors: a filter tuned to (near) noise-free data loses its numerical footing; these are
-    # far below navigation-grade noise (S16: 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz))
+    # far below navigation-grade noise (S16: 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz)) ...
     floored = bool(np.any(arw_v < ARW_FLOOR) or np.any(vrw_v < VRW_FLOOR))
     arw_v = np.maximum(arw_v, ARW_FLOOR)
     vrw_v = np.maximum(vrw_v, VRW_FLOOR)
+    # ... and, for a quantized record, the rounding noise of its quantum (q / sqrt(12) per increment)
+    q_res = data_resolution(np.hstack([dth, dv]))
+    arw_q, vrw_q = q_res[:3] / math.sqrt(12.0 * dt), q_res[3:] / math.sqrt(12.0 * dt)
+    resolution_floored = bool(np.any(arw_v < arw_q) or np.any(vrw_v < vrw_q))
+    arw_v = np.maximum(arw_v, arw_q)
+    vrw_v = np.maximum(vrw_v, vrw_q)
     qg, qa = arw_v**2, vrw_v**2
     vsig = float(velocity_sigma) if velocity_sigma is not None else 0.05 * float(np.mean(vrw_v)) * math.sqrt(T)
     psig = float(position_sigma) if position_sigma is not None else vsig * T
@@ -169,8 +199,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sig_pass = sig.copy()
     first = None
     for ip in range(max_passes):
-        out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                       keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig)
+        try:
+            out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
+                           keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig)
+        except np.linalg.LinAlgError:
+            raise CalibrationError(
+                f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
+                f"definiteness; ARW {units.from_si(float(np.min(arw_v)), 'deg/sqrt(h)'):.3g} .. "
+                f"{units.from_si(float(np.max(arw_v)), 'deg/sqrt(h)'):.3g} deg/sqrt(h), VRW "
+                f"{units.from_si(float(np.min(vrw_v)), 'ug/sqrt(Hz)'):.3g} .. "
+                f"{units.from_si(float(np.max(vrw_v)), 'ug/sqrt(Hz)'):.3g} ug/sqrt(Hz): a noise far from the "
+                "data's, or a record the filter cannot follow; try --arw/--vrw)") from None
         if not (np.all(np.isfinite(out.Pf)) and np.all(np.isfinite(out.params.error_state(st, nominal)))):
             raise CalibrationError(f"systematic filter diverged in pass {ip + 1} (non-finite state): the linearisation "
                                    "is too far from the data (a coarse alignment off, or errors beyond the priors)")
@@ -233,6 +272,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         "noise": {"arw_deg_sqrt_h": units.from_si(arw_v, "deg/sqrt(h)").tolist(),
                   "vrw_ug_sqrt_hz": units.from_si(vrw_v, "ug/sqrt(Hz)").tolist(),
                   "estimated_from_data": arw is None and vrw is None, "floored": floored,
+                  "resolution_floored": resolution_floored,
+                  "resolution": {"gyro_arcsec": units.from_si(q_res[:3], "arcsec").tolist(),
+                                 "accel_ug_s": units.from_si(q_res[3:], "ug*s").tolist()},
                   "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
         "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": 6.0, "chi2": chisq, "dof": dof,
                         "p_value": float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan"),

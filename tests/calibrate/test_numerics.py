@@ -1,0 +1,35 @@
+"""Numerical footing of the systematic filter on other people's data: the resolution of quantized
+increments, and numerical failures reported in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inscal.calibrate import calibrate
+from inscal.calibrate.systematic import driver
+from inscal.calibrate.systematic.driver import data_resolution
+from inscal.calibrate.windows import CalibrationError
+
+
+def test_data_resolution_finds_the_quantum_of_counts_and_nothing_else():
+    rng = np.random.default_rng(3)
+    q = np.array([4.8e-7, 1.2e-3])
+    counts = rng.integers(-40, 40, size=(5000, 2)) + np.array([100, 5000])
+    assert data_resolution(counts * q) == pytest.approx(q, rel=1e-9)
+    assert np.all(data_resolution(rng.normal(size=(5000, 2))) == 0.0)  # float64 noise: no quantum
+    assert np.all(data_resolution(np.ones((100, 2))) == 0.0)  # a constant channel has no step to find
+    # float32 increments within one binade lie on its grid: 2^-27 between 0.0625 and 0.125
+    f32 = (rng.normal(size=(5000, 1)) * 1e-3 + 0.098).astype(np.float32).astype(float)
+    assert data_resolution(f32)[0] == 2.0**-27
+
+
+def test_a_numerical_failure_of_the_pass_is_one_calibration_error(noise_free_data, as_record, monkeypatch):
+    sc, d = noise_free_data("s16")
+
+    def failing(*a, **k):
+        raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+
+    monkeypatch.setattr(driver, "run_pass", failing)
+    with pytest.raises(CalibrationError, match="numerical failure in pass 1 .*covariance lost its positive definiteness"):
+        calibrate(as_record(d, sc), "systematic51")
