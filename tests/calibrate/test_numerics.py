@@ -33,3 +33,16 @@ def test_a_numerical_failure_of_the_pass_is_one_calibration_error(noise_free_dat
     monkeypatch.setattr(driver, "run_pass", failing)
     with pytest.raises(CalibrationError, match="numerical failure in pass 1 .*covariance lost its positive definiteness"):
         calibrate(as_record(d, sc), "systematic51")
+
+
+def test_a_chi2_far_below_its_dof_is_a_misfit_and_keeps_the_sigma(noise_free_data, as_record):
+    """A noise model far above the data's (here --vrw 1e5 ug/sqrt(Hz) on a noise-free record) leaves
+    innovations far below their expectation: reported as inconsistent, with that cause, and the
+    sigma not scaled (down) by the fit."""
+    from inscal.core import units
+
+    sc, d = noise_free_data("s16")
+    res = calibrate(as_record(d, sc), "systematic51", vrw=units.to_si(1e5, "ug/sqrt(Hz)"), max_passes=2)
+    fit = res.diagnostics["fit"]
+    assert not fit["consistent"] and fit["p_value_low"] < 1e-3 and fit["scale"] == 1.0
+    assert "the assumed noise is larger than the data's" in fit["cause"] and "conservative" in fit["note"]

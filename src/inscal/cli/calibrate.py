@@ -111,8 +111,12 @@ def fit_lines(fit: dict) -> list[str]:
     every window (RMS of the normalised residuals, gyro / accelerometer)."""
     exp = "" if fit.get("expected_chi2", fit["dof"]) == fit["dof"] else f", {fit['expected_chi2']:.4g} expected"
     ref = "expected" if exp else "dof"
-    verdict = ("consistent" if fit["consistent"]
-               else f"INCONSISTENT (sqrt(chi2/{ref}) = {fit['scale']:.3g}), sigma adjusted: see the note")
+    if fit["consistent"]:
+        verdict = "consistent"
+    elif fit.get("p_value_low", 1.0) < 1e-3:  # chi2 far below its dof: the noise model is too large
+        verdict = f"INCONSISTENT (chi2 far below its {ref}), sigma conservative: see the note"
+    else:
+        verdict = f"INCONSISTENT (sqrt(chi2/{ref}) = {fit['scale']:.3g}), sigma adjusted: see the note"
     out = [f"  fit: chi2 {fit['chi2']:.4g} on {fit['dof']} dof{exp}, p = {fit['p_value']:.3g}: {verdict}"]
     res = fit["residuals"]
     if res and "nis_mean" in res[0]:  # systematic filter: time blocks of its innovations

@@ -38,11 +38,18 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
     When p < :data:`P_INCONSISTENT` the reported sigma are the formal (smoothed) ones times
     ``scale = sqrt(chi2 / dof)`` (``sqrt(mean NIS / 6)``): the innovation sequence says the
     noise model understates what the filter sees (unmodelled terms, a wrong path or wrong
-    gravity add to every innovation); the formal sigma are kept beside them."""
+    gravity add to every innovation); the formal sigma are kept beside them.  A chi^2 far *below*
+    its dof (lower-tail p < :data:`P_INCONSISTENT`) is as much a misfit: the assumed noise is
+    larger than the data's (``--arw``/``--vrw`` too large, a noise floor above a noise-free
+    record's, or rounding that does not accumulate as white noise would).  It is reported as
+    inconsistent with that cause, and the sigma are left as they are: conservative, never scaled
+    down by a fit that says the noise model is wrong."""
 
     p = float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan")
-    consistent = not (p < P_INCONSISTENT)
-    scale = 1.0 if consistent else math.sqrt(max(chisq / dof, 1.0))
+    p_low = float(_chi2.cdf(chisq, dof)) if dof > 0 else float("nan")
+    too_high, too_low = p < P_INCONSISTENT, p_low < P_INCONSISTENT
+    consistent = not (too_high or too_low)
+    scale = math.sqrt(max(chisq / dof, 1.0)) if too_high else 1.0
     n = len(nis)
     nb = int(max(1, min(FIT_BLOCKS, n * T // 60.0)))
     edges = np.linspace(0, n, nb + 1).astype(int)
@@ -55,10 +62,18 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
                     "nis_mean": float(np.mean(nis[a:b])),
                     "velocity_rms_m_s": float(np.sqrt(np.mean(z[a:b, :3] ** 2))),
                     "position_rms_m": float(np.sqrt(np.mean(z[a:b, 3:] ** 2)))})
-    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": float(dof), "p_value": p, "consistent": consistent,
+    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": float(dof), "p_value": p, "p_value_low": p_low,
+           "consistent": consistent,
            "scale": scale, "residuals": res, "cause": None, "note": None,
            "sigma_rule": "systematic filter: sigma x sqrt(chi2/dof) of the innovations when p < 0.001"}
-    if not consistent:
+    if too_low:
+        cause = ("the assumed noise is larger than the data's: --arw/--vrw too large, a noise floor above a noise-free "
+                 "or quantized record's own, or rounding that does not accumulate as white noise would")
+        fit["cause"] = cause
+        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof is far below it (NIS mean "
+                       f"{chisq / max(n, 1):.3g} vs 6, lower-tail p = {p_low:.2g}); likely cause: {cause}; the sigma "
+                       "are conservative (not scaled down)")
+    elif not consistent:
         worst = max(res, key=lambda r: r["nis_mean"])
         if not st.extended:
             cause = ("unmodelled terms (the 30-state set has no g-sensitivity, quadratic, cross-coupling or "
