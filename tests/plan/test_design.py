@@ -12,7 +12,8 @@ from typer.testing import CliRunner
 from inscal.plan import bound as C
 from inscal.plan import design as D
 from inscal.cli.app import app
-from inscal.core.turntable import DEG, s16_table1
+from inscal.core.turntable import s16_table1
+from inscal.core.units import DEG
 
 runner = CliRunner()
 

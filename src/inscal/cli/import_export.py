@@ -19,7 +19,8 @@ from inscal.cli.common import CliError, check_not_input, check_output, fail, pri
 def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
     """The site from --lat/--lon/--height, completed by the mapping's [site]; None: from the mapping / missing."""
     from inscal.core.earth import Site
-    from inscal.io.mapping import DEG, load_mapping
+    from inscal.core.units import DEG
+    from inscal.io.mapping import load_mapping
 
     given = {"--lat": lat, "--lon": lon, "--height": height}
     if all(v is None for v in given.values()):

@@ -139,7 +139,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     arw_v = np.maximum(arw_v, ARW_FLOOR)
     vrw_v = np.maximum(vrw_v, VRW_FLOOR)
     # ... and, for a quantized record, the rounding noise of its quantum (q / sqrt(12) per increment)
-    q_res = data_resolution(np.hstack([dth, dv]))
+    q_res = np.concatenate([data_resolution(dth), data_resolution(dv)])  # no copy of the record
     arw_q, vrw_q = q_res[:3] / math.sqrt(12.0 * dt), q_res[3:] / math.sqrt(12.0 * dt)
     resolution_floored = bool(np.any(arw_v < arw_q) or np.any(vrw_v < vrw_q))
     arw_v = np.maximum(arw_v, arw_q)
