@@ -51,7 +51,7 @@ def one_run(args) -> np.ndarray:
     """Error state (estimate - truth, SI) of one seeded noise-only systematic51 calibration."""
     name, rate_hz, seed, idx, run = args
     from inscal.calibrate.systematic.params import CompParams, truth_in_frame
-    from inscal.calibrate.systematic.driver import systematic51
+    from inscal.calibrate.systematic.methods import systematic51
     from inscal.sim.simulate import simulate
 
     sc = _scenario(name, rate_hz)

@@ -35,7 +35,13 @@ def test_systematic51_json_parameter_file_and_plots(psins19):
                           "--json")
     assert code == 0, stdout
     rep = json.loads(stdout)
-    assert rep["method"] == "systematic51" and rep["states"] == 51 and "gyro-defined" in rep["frame"]
+    # the default state set is chosen from the data: psins19 has no asynchrony, a diagonal lever arm and
+    # off-diagonal g-sensitivities (1e-4 deg/h/g) far below this record's noise
+    sel = rep["selection"]
+    assert rep["method"] == "systematic51" and sel["base"] == "51" and sel["full"] == "51,lever9,async"
+    assert sel["chosen"] == rep["state_options"] == "51,gdiag" and rep["states"] == 45 and "gyro-defined" in rep["frame"]
+    assert {t["term"]: t["accepted"] for t in sel["tests"]} == {"async": False, "lever9": False, "gdiag": True,
+                                                                "nocross": False}
     inn = rep["innovations"]
     assert {"nis_mean", "chi2", "dof", "p_value"} <= set(inn) and 4.0 < inn["nis_mean"] < 8.0
     par = rep["parameters"]
@@ -49,7 +55,8 @@ def test_systematic51_json_parameter_file_and_plots(psins19):
     assert len(rep["plots"]) == 10 and all((plots / p.split("/")[-1]).stat().st_size > 5000 for p in rep["plots"])
     imu, gim, meta = load_params(d / "p.toml")
     assert imu.accel_nonlinearity[0] == pytest.approx(units.to_si(par["accel_nonlinearity"]["value"][0], "ug/g^2"))
-    assert meta["metadata"]["states"] == "51" and meta["metadata"]["dof"] == inn["dof"]
+    assert meta["metadata"]["states"] == "51,gdiag" and meta["metadata"]["dof"] == inn["dof"]
+    assert par["gyro_g_sensitivity"]["sigma"][0][1] is None  # not estimated: off-diagonal fixed at zero (JSON null)
 
 
 @pytest.mark.slow

@@ -200,7 +200,7 @@ def test_bound_vs_monte_carlo_psins19():
     from types import SimpleNamespace
 
     from inscal.calibrate.systematic.params import CompParams, truth_in_frame
-    from inscal.calibrate.systematic.driver import systematic51
+    from inscal.calibrate.systematic.methods import systematic51
     from inscal.sim.scenarios import build
     from inscal.sim.simulate import simulate
 

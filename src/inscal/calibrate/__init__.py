@@ -42,7 +42,8 @@ from inscal.calibrate.joint import joint
 from inscal.calibrate.n25 import n25
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.six_position import six_position
-from inscal.calibrate.systematic.driver import systematic, systematic30, systematic51
+from inscal.calibrate.systematic.driver import systematic
+from inscal.calibrate.systematic.methods import systematic30, systematic51
 from inscal.calibrate.twelve_position import twelve_position
 from inscal.calibrate.unified import unified
 from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means

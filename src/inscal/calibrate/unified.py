@@ -48,6 +48,7 @@ import numpy as np
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.systematic.driver import systematic
 from inscal.calibrate.systematic.dynamics import gimbal_attitude
+from inscal.calibrate.systematic.selection import select_states, with_auto
 from inscal.calibrate.systematic.states import ENCODER_SIGMA, StateSet
 
 __all__ = ["unified", "predicted_attitude", "measurement", "residual", "ENCODER_SIGMA", "STATES"]
@@ -60,8 +61,10 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
     """The unified estimator (module docstring): ``systematic`` with the ``unified`` state set
     (``states`` adds options, e.g. ``"lever9"``); ``encoder_sigma`` [rad], ``encoder_every`` and the
     other options of :func:`~inscal.calibrate.systematic.systematic`."""
-    extra = kw.pop("states", None)
+    extra, auto = with_auto(kw.pop("states", None), "")
     spec = STATES + ("," + extra if extra else "")
+    if auto:
+        return select_states(ws_or_record, spec, method_name="unified", **kw)
     return systematic(ws_or_record, spec, method_name="unified", **kw)
 
 

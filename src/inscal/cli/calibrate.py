@@ -57,7 +57,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         rec = dataclasses.replace(rec, site=rec.site.with_gravity(parse_gravity_option(gravity)))
     try:
         if systematic:
-            opts = {"states": states, "filter_rate_hz": filter_rate_hz}
+            # the state set: chosen from the data unless given (inscal.calibrate.systematic.selection)
+            opts = {"states": "auto" if states is None else states, "filter_rate_hz": filter_rate_hz}
             if arw is not None:
                 opts["arw"] = units.to_si(arw, "deg/sqrt(h)")
             if vrw is not None:
@@ -93,6 +94,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
                        "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
                        "converged": d["converged"]})
+        if "selection" in d:  # --states auto: every nested-model test
+            report["selection"] = d["selection"]
         if "encoder" in d:  # unified / gimbal states: the encoder attitude innovations
             report["encoder"] = d["encoder"]
         if plots is not None:
@@ -145,8 +148,10 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
         settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
         min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
-        states: str = typer.Option(None, "--states", help="systematic: 51 | 30, plus options lever9, async, psins, "
-                                   "gimbal (e.g. 51,lever9); unified: extra options (e.g. lever9)"),
+        states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
+                                   "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
+                                   "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
+                                   "auto,psins); unified: extra options (e.g. lever9, auto)"),
         plots: Path = typer.Option(None, "--plots", help="systematic: folder for the convergence plots (PNG)"),
         filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
         arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),
@@ -177,6 +182,14 @@ def register(app: typer.Typer) -> None:
         if "fit" in rep:
             for line in fit_lines(rep["fit"]):
                 typer.echo(line)
+        if "selection" in rep:
+            sel = rep["selection"]
+            typer.echo(f"  states: {sel['chosen']} (chosen from the data, {sel['fits']} fits; full model {sel['full']})")
+            for t in sel["tests"]:
+                verb = ("added" if t["accepted"] else "not needed") if t["step"] == "add" else \
+                    ("dropped" if t["accepted"] else "kept")
+                typer.echo(f"    {t['term']:8s} {verb:10s} statistic {t['statistic']:.4g} on {t['dk']} dof "
+                           f"(dispersion {t['dispersion']:.3g}), p = {t['p_value']:.3g}")
         if "innovations" in rep:
             inn = rep["innovations"]
             typer.echo(f"  filter: NIS mean {inn['nis_mean']:.3f} (expected 6); {len(rep['passes'])} passes"

@@ -132,6 +132,35 @@ def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
 
 
 @njit(cache=True)
+def robust_inflation(P, idx, r, z, cap, max_iter=30):
+    """Huber-type bounded influence of one update: the factor ``alpha >= 1`` on ``R`` that brings the
+    normalised innovation squared down to ``cap`` when it exceeds it, and the NIS with the nominal ``R``.
+
+    ``S(alpha) = H P H^T + alpha R``; ``alpha NIS(alpha) = nu^T (S(alpha) / alpha)^-1 nu`` never decreases
+    with ``alpha``, so the multiplicative iteration ``alpha <- alpha NIS(alpha) / cap`` rises monotonically
+    to the root (one step when ``R`` dominates ``S``).  Steps within ``cap`` keep ``alpha = 1``: on data the
+    model fits, the update is the plain Kalman update.  Returns ``(alpha, nis_nominal)``."""
+    m = idx.shape[0]
+    S = np.empty((m, m))
+    for a in range(m):
+        for b in range(m):
+            S[a, b] = 0.5 * (P[idx[a], idx[b]] + P[idx[b], idx[a]])
+    nis0 = 0.0
+    alpha = 1.0
+    for it in range(max_iter + 1):
+        Sa = S.copy()
+        for a in range(m):
+            Sa[a, a] += alpha * r[a]
+        nis = z @ np.linalg.solve(Sa, z)
+        if it == 0:
+            nis0 = nis
+        if not (nis > cap * (1.0 + 1e-3)) or not (nis == nis):
+            break
+        alpha *= nis / cap
+    return alpha, nis0
+
+
+@njit(cache=True)
 def smoother_step(lam, Lam, idx, K, Sinv, sz):
     """Adjoint at the predicted time of one step (``lt``, ``Lt`` of the module docstring),
     in place: ``lam <- H^T S^-1 nu + (I - K H)^T lam``, ``Lam <- H^T S^-1 H + (I-KH)^T Lam (I-KH)``."""

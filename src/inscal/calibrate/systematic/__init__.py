@@ -115,9 +115,9 @@ expectation ``3 - floor tr(S^-1)`` (between 2 and 3: the floor direction carries
 from inscal.calibrate.systematic.driver import (
            estimate_white_noise,
            systematic,
-           systematic30,
-           systematic51,
 )
+from inscal.calibrate.systematic.methods import systematic30, systematic51
+from inscal.calibrate.systematic.selection import select_states
 from inscal.calibrate.systematic.params import (
            CompParams,
            frame_rotation,
@@ -125,5 +125,5 @@ from inscal.calibrate.systematic.params import (
 )
 from inscal.calibrate.systematic.states import STATE_OPTIONS, StateSet
 
-__all__ = ["systematic", "systematic51", "systematic30", "estimate_white_noise", "StateSet", "STATE_OPTIONS",
+__all__ = ["systematic", "systematic51", "systematic30", "select_states", "estimate_white_noise", "StateSet", "STATE_OPTIONS",
            "CompParams", "frame_rotation", "truth_in_frame"]

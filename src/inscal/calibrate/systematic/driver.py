@@ -42,6 +42,10 @@ from inscal.nav.align import coarse_align
 
 #: body rate [rad/s] (0.5-s mean) above which a sample counts as turning, for the alignment window
 ALIGN_STATIC_RATE = 0.05 * math.pi / 180.0
+#: default NIS above which a filter step is down-weighted (chi2 with 6 dof exceeds 36 with probability 1e-6)
+NIS_CAP = 36.0
+#: the median of chi2 with 6 degrees of freedom
+CHI2_6_MEDIAN = 5.348
 
 
 def _first_motion(dth: np.ndarray, dt: float) -> int:
@@ -99,7 +103,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
                align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
                keep_passes: bool = False, encoder_sigma: float | None = None,
-               encoder_every: int = 1) -> CalibrationResult:
+               encoder_every: int = 1, nis_cap: float | None = NIS_CAP) -> CalibrationResult:
     """Systematic calibration of a static-site rotation record (S16 section 3).
 
     ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
@@ -109,6 +113,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     Gimbal states (``gimbal``/``unified``): ``encoder_sigma`` the white noise of each encoder angle
     [rad] (default :data:`ENCODER_SIGMA`, 1"), ``encoder_every`` the encoder attitude rows every n-th
     filter step (default every step); the record's ``gimbal`` dataset, else its ``path``.
+    ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`): a step whose NIS exceeds
+    it has its R inflated until its NIS equals the cap (default :data:`NIS_CAP`, a 1e-6 tail of chi2(6): on
+    data the model fits, no step reaches it); None: plain Kalman updates.
     """
     rec = ws_or_record
     st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -191,6 +198,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         mount0 = mount_from_attitude(C0, ang[0], start.gim[0])
         start.gim = np.concatenate([start.gim[:1], mount0])
         nominal.gim = np.concatenate([[0.0], mount0])
+    cap = np.inf if nis_cap is None else float(nis_cap)
+    if not cap > 0:
+        raise CalibrationError(f"nis_cap must be > 0 (or None for plain updates), got {nis_cap}")
+    cap_pass = cap
     passes = []
     p_start = start
     prev = None
@@ -201,7 +212,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     for ip in range(max_passes):
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                           keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig)
+                           keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig,
+                           nis_cap=cap_pass)
         except np.linalg.LinAlgError:
             raise CalibrationError(
                 f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
@@ -235,6 +247,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         if first is None:
             first = (out, sig_pass.copy())
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
+                       "downweighted_steps": int(np.sum(out.r_factor > 1.0)), "nis_cap": cap_pass,
                        "prior_deflation": float(np.max(sig_par / sp)),
                        "change_max_sigma": None if prev is None else
                        float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))})
@@ -244,6 +257,12 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             break
         prev = est
         p_start = est
+        # the next pass's cap follows the robust scale of this pass's innovations (median NIS against the
+        # chi2(6) median 5.35): on a noise-free record the noise floors make every NIS tiny, and a step
+        # that misfits by a fraction of a floor sigma is as much an outlier as one at 6 sigma on noisy data
+        # (never above NIS_CAP: a model that misfits everywhere must not lose its protection)
+        if math.isfinite(cap):
+            cap_pass = cap * min(max(float(np.median(out.nis)) / CHI2_6_MEDIAN, 1e-8), 1.0)
         # next pass: prior widths of at most DEFLATE posterior sigmas about the new start (its
         # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
         sig_pass = sig.copy()
@@ -302,17 +321,3 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if keep_passes:
         res.pass_output = last
     return res
-
-
-def systematic51(ws_or_record, **kw) -> CalibrationResult:
-    """S16's 51-state systematic calibration (``states="51"`` plus options)."""
-    extra = kw.pop("states", None)
-    spec = "51" + ("," + extra if extra else "")
-    return systematic(ws_or_record, spec, method_name="systematic51", **kw)
-
-
-def systematic30(ws_or_record, **kw) -> CalibrationResult:
-    """S16's traditional 30-state filter (no g-sensitivity, nonlinearity, cross-coupling, lever arm)."""
-    extra = kw.pop("states", None)
-    spec = "30" + ("," + extra if extra else "")
-    return systematic(ws_or_record, spec, method_name="systematic30", **kw)

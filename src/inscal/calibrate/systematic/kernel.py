@@ -57,6 +57,7 @@ class PassInputs(NamedTuple):
     qa: np.ndarray  # (3,) accelerometer white-noise PSD
     r: np.ndarray  # (6,) velocity/position measurement variances
     hist_every: int  # steps between stored history rows
+    nis_cap: float  # bounded influence: R inflated where a step's NIS exceeds it (inf: plain updates)
 
 
 class PassParams(NamedTuple):
@@ -89,6 +90,7 @@ class PassStore(NamedTuple):
     hist_ref: np.ndarray  # (nh, REF_WIDTH) pre-update reference parameters
     hist_Pf: np.ndarray  # (nh, N) filtered variances
     nav_out: np.ndarray  # (10,) the final navigation state
+    rw_st: np.ndarray  # (M,) the factor on R of each step (1: the model fits; see robust_inflation)
 
 
 class EncoderRows(NamedTuple):
@@ -144,9 +146,9 @@ def _pass_kernel(inp, par, P, st, er):
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
-    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every = inp
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap = inp
     Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim = par
-    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out = st
+    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st = st
     enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
     npar = N - 9
@@ -186,6 +188,7 @@ def _pass_kernel(inp, par, P, st, er):
     xs = np.empty(N)
     z = np.empty(6)
     rs = np.empty(6)
+    rsa = np.empty(6)
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
     have_enc = enc.shape[0] > 0
@@ -345,7 +348,20 @@ def _pass_kernel(inp, par, P, st, er):
             hist_ref[ih, _LV0:_LV1] = lev.ravel()
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
-        nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
+        # bounded influence: a step the model cannot fit (a misfit during moves, an outlier) is
+        # down-weighted to NIS = nis_cap instead of dragging the constants with a tiny R
+        alpha = 1.0
+        nis0 = 0.0
+        if nis_cap < np.inf:
+            alpha, nis0 = filters.robust_inflation(P, IDX_MEAS, rs, z, nis_cap)
+        if alpha > 1.0:
+            for a in range(6):
+                rsa[a] = rs[a] * alpha
+            filters.update(P, IDX_MEAS, rsa, z, K, Si, xs)
+            nis_st[k] = nis0
+        else:
+            nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
+        rw_st[k] = alpha
         K_st[k] = K
         Si_st[k] = Si
         sz_st[k] = Si @ z
@@ -527,12 +543,15 @@ class PassOutput:
     H_att: np.ndarray | None = None
     R_att: np.ndarray | None = None
     smoother: SmootherData | None = None  # the stored data of the forward pass (run_pass sets it)
+    r_factor: np.ndarray | None = None  # (M,) factor on R per step (bounded influence; 1 where the model fits)
 
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
-             keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA) -> PassOutput:
+             keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
+             nis_cap: float = np.inf) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
     the adjoint recursion for the smoothed initial state (:func:`smooth_pass` completes it).
+    ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`; inf: plain updates).
     Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
     (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring)."""
     N = states.n_states
@@ -571,9 +590,10 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
     inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
-                     qa, r, int(hist_every))
+                     qa, r, int(hist_every), float(nis_cap))
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
-    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out)
+    rw = np.ones(M)
+    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw)
     er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
                      Ha_st, nisa_st, za_st, Ra_st)
     Mk = _pass_kernel(inp, par, P, st, er)
@@ -581,6 +601,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, P)
+    out.r_factor = rw
     out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,
                                 sza_st, Ha_st, er.enc_floor)
     out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
@@ -624,10 +645,10 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
     out = np.empty(10)
     inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                      np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
-                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1)
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf)
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
     st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
-                   one(REF_WIDTH), one(N), out)
+                   one(REF_WIDTH), one(N), out, np.ones(1))
     er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
                      np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
     _pass_kernel(inp, par, P, st, er)

@@ -98,7 +98,8 @@ class CompParams:
             elif g.name == "accel_bias":
                 p.ba = p.ba - v
             elif g.name == "gyro_g_sensitivity":
-                p.G = p.G - v.reshape(3, 3)
+                for e, (i, j) in enumerate(zip(g.axes, g.js)):
+                    p.G[i, j] -= v[e]
             elif g.name == "accel_nonlinearity":
                 p.K2 = p.K2 - v
             elif g.name == "accel_cross_coupling":
@@ -130,7 +131,7 @@ class CompParams:
             elif g.name == "accel_bias":
                 out += list(self.ba - truth.ba)
             elif g.name == "gyro_g_sensitivity":
-                out += list((self.G - truth.G).ravel())
+                out += [self.G[i, j] - truth.G[i, j] for i, j in zip(g.axes, g.js)]
             elif g.name == "accel_nonlinearity":
                 out += list(self.K2 - truth.K2)
             elif g.name == "accel_cross_coupling":

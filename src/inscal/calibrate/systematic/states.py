@@ -86,11 +86,16 @@ STATE_OPTIONS = {
     "unified": "51,gimbal: the unified estimator (S16 51-state filter plus the N25 gimbal states)",
     "psins": "PSINS triangular convention: gyro matrix full (9), accelerometer matrix lower-triangular (6); "
               "the IMU frame is then defined by the accelerometers",
+    "gdiag": "g-sensitivity diagonal only (3 states instead of 9): the off-diagonal terms fixed at zero",
+    "nocross": "no accelerometer cross-coupling states (6 fewer): fixed at zero",
+    "auto": "chosen from the record: start from 51 and add or drop async, lever9, gdiag and nocross by an F-test "
+            "on the innovations (see inscal.calibrate.systematic.selection)",
 }
 #: what each option sets on :class:`StateSet`
 _OPTION_FLAGS = {"51": {"extended": True}, "30": {"extended": False}, "lever9": {"lever9": True},
                  "async": {"asynchrony": True}, "gimbal": {"gimbal": True},
-                 "unified": {"extended": True, "gimbal": True}, "psins": {"psins": True}}
+                 "unified": {"extended": True, "gimbal": True}, "psins": {"psins": True},
+                 "gdiag": {"gsens_offdiag": False}, "nocross": {"cross": False}}
 
 
 @dataclass(frozen=True)
@@ -102,6 +107,8 @@ class StateSet:
     asynchrony: bool = False
     psins: bool = False
     gimbal: bool = False  # dth + mount attitude, encoder attitude rows; frame = the gimbal's s-frame
+    gsens_offdiag: bool = True  # the six off-diagonal g-sensitivity terms (extended model)
+    cross: bool = True  # the six cross-coupling terms (extended model)
 
     @classmethod
     def parse(cls, spec: str | None) -> "StateSet":
@@ -115,8 +122,13 @@ class StateSet:
             if t not in _OPTION_FLAGS:
                 raise CalibrationError(f"unknown state option {t!r}; options: {', '.join(STATE_OPTIONS)}")
             kw.update(_OPTION_FLAGS[t])
-        if kw.get("lever9") and not kw["extended"]:
-            raise CalibrationError("lever9 needs the extended (51-state) model")
+        if "auto" in toks:
+            raise CalibrationError("'auto' is chosen by inscal.calibrate.systematic.selection.select_states, "
+                                   "not a fixed state set")
+        for opt in ("lever9", "gsens_offdiag", "cross"):
+            if opt in kw and kw[opt] != cls.__dataclass_fields__[opt].default and not kw["extended"]:
+                raise CalibrationError(f"{ {'gsens_offdiag': 'gdiag', 'cross': 'nocross'}.get(opt, opt)} needs the "
+                                       "extended (51-state) model")
         if kw.get("gimbal") and kw.get("psins"):
             raise CalibrationError("psins (accelerometer-defined frame) and gimbal (the gimbal's s-frame) exclude "
                                    "each other")
@@ -135,11 +147,13 @@ class StateSet:
                _vec_group("accel_bias", K_M1A, s["accel_bias"], "ug")]
         if self.extended:
             ij9 = tuple((i, j) for i in range(3) for j in range(3))
-            out.append(_matrix_group("gyro_g_sensitivity", ij9, K_MF, s["gyro_g_sensitivity"], "deg/h/g"))
+            out.append(_matrix_group("gyro_g_sensitivity", ij9 if self.gsens_offdiag else DIAG, K_MF,
+                                     s["gyro_g_sensitivity"], "deg/h/g"))
             out.append(Group("accel_nonlinearity", tuple(AX), (K_F2,) * 3, (0, 1, 2), (0, 1, 2),
                              s["accel_nonlinearity"], "ug/g^2"))
-            out.append(Group("accel_cross_coupling", CROSS_NAMES, (K_FX,) * 6, tuple(p[0] for p in CROSS_PAIRS),
-                             tuple(range(6)), s["accel_cross_coupling"], "ug/g^2"))
+            if self.cross:
+                out.append(Group("accel_cross_coupling", CROSS_NAMES, (K_FX,) * 6, tuple(p[0] for p in CROSS_PAIRS),
+                                 tuple(range(6)), s["accel_cross_coupling"], "ug/g^2"))
             if self.lever9:
                 out.append(_matrix_group("accel_lever_arm", ij9, K_LEVF, s["accel_lever_arm"], "cm"))
             else:
@@ -208,6 +222,10 @@ def fixed_mask(states: StateSet, names) -> np.ndarray:
             m[[0, 1, 3]] = True
         if n == "accel_lever_arm" and not states.lever9:
             m[[1, 2, 3, 5, 6, 7]] = True
+        if n == "gyro_g_sensitivity" and not states.gsens_offdiag:
+            m[[1, 2, 3, 5, 6, 7]] = True
+        if n == "accel_cross_coupling" and not states.cross:
+            m[:] = True
         mask.append(m)
     return np.concatenate(mask)
 
@@ -215,5 +233,6 @@ def fixed_mask(states: StateSet, names) -> np.ndarray:
 def state_spec(st: StateSet) -> str:
     parts = ["51" if st.extended else "30"]
     parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins),
-                             ("gimbal", st.gimbal)) if f]
+                             ("gimbal", st.gimbal), ("gdiag", st.extended and not st.gsens_offdiag),
+                             ("nocross", st.extended and not st.cross)) if f]
     return ",".join(parts)

@@ -1,0 +1,166 @@
+"""Automatic choice of the systematic filter's error terms (``--states auto``).
+
+The state set is chosen from the record by nested-model tests on the innovations of the converged
+fits.  The filter's innovations ``nu_k`` with covariances ``S_k`` are the prediction-error
+decomposition of the likelihood, so for two nested state sets (``k`` extra parameters) the drop in
+
+    chi2 = sum_k nu_k^T S_k^-1 nu_k          (6 rows per filter step, velocity and position)
+
+from the smaller to the larger model is chi2(k)-distributed when the extra terms are zero and the
+noise model is right.  A model misfit (a term still missing, or data from another integration
+scheme) inflates every step's NIS; the drop is then divided by the dispersion
+``phi = max(1, chi2 / dof)`` of the larger model (a quasi-likelihood F-type test).  ``phi`` is never
+taken below 1: on a noise-free record the floors of the noise model make ``chi2 / dof`` tiny, and a
+test scaled by it would accept any term that removes round-off.
+
+The search runs backwards from the full model: the base set plus every candidate term (``async``: the
+gyro-accelerometer time asynchrony; ``lever9``: the full inner lever arm) with every droppable group
+(the six off-diagonal g-sensitivity terms, dropped by ``gdiag``; the six cross-coupling terms, dropped
+by ``nocross``).  Each candidate is removed alone and tested against the full model; those whose
+removal is not significant (p >= ``alpha``) are then removed cumulatively, least significant first,
+while the joint removal stays insignificant against the full model.  Forward steps (adding one term
+at a time) fail on a record that needs two terms: with both missing the misfit is so large that
+either alone shows nothing; the full model fits when the truth is among the candidates.
+Each candidate is a fit of its own from the nominal start: started from the estimate of a model that
+misfits (a missing lever arm absorbed by the other terms), the Gauss-Newton passes crawl.
+
+Not decided from the data: the frame convention (``psins``: the accelerometer-defined frame is
+the same model in another frame, with the same likelihood) and the gimbal states (they add the
+encoder observations, so the likelihoods are of different data; ``--method unified`` chooses them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Callable
+
+from scipy.stats import chi2 as chi2_dist
+
+from inscal.calibrate.result import CalibrationResult
+from inscal.calibrate.systematic.driver import systematic
+from inscal.calibrate.systematic.states import StateSet, state_spec
+from inscal.calibrate.windows import CalibrationError
+
+#: terms added when significant: option -> (StateSet field, value)
+ADD = {"async": ("asynchrony", True), "lever9": ("lever9", True)}
+#: groups dropped when not significant
+DROP = {"gdiag": ("gsens_offdiag", False), "nocross": ("cross", False)}
+#: significance level of every test
+ALPHA = 1e-3
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One nested-model test: ``term`` added or dropped (``accepted``), with its statistic."""
+
+    step: str  # "add" or "drop"
+    term: str  # the state option (async, lever9, gdiag, nocross)
+    chi2_small: float  # chi2 of the smaller model
+    chi2_large: float  # chi2 of the larger model
+    dk: int  # parameters the larger model has in addition
+    dispersion: float  # phi = max(1, chi2_large / dof)
+    statistic: float  # (chi2_small - chi2_large) / phi, chi2(dk) under the smaller model
+    p_value: float
+    accepted: bool
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+    def line(self) -> str:
+        verb = {("add", True): "added", ("add", False): "not added", ("drop", True): "dropped",
+                ("drop", False): "kept"}[(self.step, self.accepted)]
+        what = self.term if self.step == "add" else {"gdiag": "g-sensitivity off-diagonals",
+                                                     "nocross": "cross-coupling"}[self.term]
+        return (f"{what} {verb}: chi2 {self.chi2_small:.6g} -> {self.chi2_large:.6g} with {self.dk} more "
+                f"parameters, dispersion {self.dispersion:.3g}, statistic {self.statistic:.4g}, p = {self.p_value:.3g}")
+
+
+def _chi2(res: CalibrationResult) -> tuple[float, int]:
+    inn = res.diagnostics["innovations"]
+    return float(inn["chi2"]), int(inn["dof"])
+
+
+def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResult, dk: int,
+          alpha: float) -> Decision:
+    c_s, _ = _chi2(small)
+    c_l, dof = _chi2(large)
+    phi = max(1.0, c_l / max(dof - dk, 1))
+    stat = max(0.0, (c_s - c_l) / phi)
+    p = float(chi2_dist.sf(stat, dk))
+    return Decision(step, term, c_s, c_l, dk, phi, stat, p, p < alpha if step == "add" else p >= alpha)
+
+
+def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, add=tuple(ADD),
+                  drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic,
+                  **options) -> CalibrationResult:
+    """The systematic calibration of ``record`` with its error terms chosen from the data (module
+    docstring).  ``base``: the starting state set (``"51"``, ``"30"``, ``"51,psins"``, ``"unified"``...);
+    ``add``/``drop``: the candidate options; ``options`` go to ``fit`` (:func:`systematic`).  The result
+    is the fit of the chosen set; ``diagnostics["selection"]`` lists every test and ``notes`` the
+    decisions."""
+    base_st = base if isinstance(base, StateSet) else StateSet.parse(base)
+    if not 0.0 < alpha < 1.0:
+        raise CalibrationError(f"alpha must be in (0, 1), got {alpha}")
+    for name in list(add) + list(drop):
+        if name not in ADD and name not in DROP:
+            raise CalibrationError(f"unknown candidate term {name!r}; candidates: {', '.join(ADD | DROP)}")
+    options = dict(options)
+    options.pop("initial", None)
+    ext_only = ("lever9", "gsens_offdiag", "cross")
+    # the candidates: terms the base lacks (added in the full model) and groups it has (droppable)
+    cands = {t: ADD[t] for t in add if getattr(base_st, ADD[t][0]) != ADD[t][1]
+             and (base_st.extended or ADD[t][0] not in ext_only)}
+    cands.update({t: DROP[t] for t in drop if getattr(base_st, DROP[t][0]) != DROP[t][1] and base_st.extended})
+    full_st = dataclasses.replace(base_st, **{f: v for t, (f, v) in cands.items() if t in ADD})
+    full = fit(record, full_st, **options)
+    fits = 1
+
+    def without(st: StateSet, terms) -> StateSet:
+        kw = {}
+        for t in terms:
+            f, v = cands[t]
+            kw[f] = (not v) if t in ADD else v
+        return dataclasses.replace(st, **kw)
+
+    # each candidate removed from the full model alone (the full model fits the record when the truth
+    # is among the candidates; a model missing two terms may misfit so badly that adding either alone
+    # shows nothing, which is why the search runs backwards)
+    tests: dict[str, Decision] = {}
+    singles: dict[str, CalibrationResult] = {}
+    for t in cands:
+        small_st = without(full_st, [t])
+        singles[t] = fit(record, small_st, **options)
+        fits += 1
+        tests[t] = _test("drop" if t in DROP else "add", t, singles[t], full, full_st.n_params - small_st.n_params,
+                         alpha)
+    # remove the insignificant ones, least significant first, while the joint removal stays insignificant
+    removable = sorted((t for t, d in tests.items() if d.p_value >= alpha), key=lambda t: -tests[t].p_value)
+    st, cur, gone = full_st, full, []
+    for t in removable:
+        trial_st = without(full_st, gone + [t])
+        if gone:
+            trial = fit(record, trial_st, **options)
+            fits += 1
+            if _test("drop", t, trial, full, full_st.n_params - trial_st.n_params, alpha).p_value < alpha:
+                break
+        else:
+            trial = singles[t]
+        gone.append(t)
+        st, cur = trial_st, trial
+    decided = {t: dataclasses.replace(d, accepted=(t not in gone) if t in ADD else (t in gone))
+               for t, d in tests.items()}
+    cur.diagnostics["selection"] = {"base": state_spec(base_st), "chosen": state_spec(st), "alpha": alpha,
+                                    "fits": fits, "full": state_spec(full_st),
+                                    "tests": [d.to_json() for d in decided.values()]}
+    cur.notes.append(f"state set chosen from the data (--states auto): {state_spec(st)}; "
+                     + "; ".join(d.line() for d in decided.values()))
+    return cur
+
+
+def with_auto(spec: str | None, default: str) -> tuple[str, bool]:
+    """``(spec without 'auto', auto requested)`` of a state spec; ``default`` when it names no base."""
+    toks = [t.strip() for t in str(spec or "").replace("+", ",").split(",") if t.strip()]
+    auto = "auto" in toks
+    toks = [t for t in toks if t != "auto"]
+    return ",".join(toks) if toks else default, auto
