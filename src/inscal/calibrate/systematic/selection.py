@@ -21,8 +21,9 @@ removal is not significant (p >= ``alpha``) are then removed cumulatively, least
 while the joint removal stays insignificant against the full model.  Forward steps (adding one term
 at a time) fail on a record that needs two terms: with both missing the misfit is so large that
 either alone shows nothing; the full model fits when the truth is among the candidates.
-Each candidate is a fit of its own from the nominal start: started from the estimate of a model that
-misfits (a missing lever arm absorbed by the other terms), the Gauss-Newton passes crawl.
+The full model starts from the nominal parameters; each smaller model starts from the full model's
+estimate with its removed terms at zero, so a removal that changes nothing converges in one or two
+passes (a start from the estimate of a model that misfits, as forward steps would use, crawls).
 
 Not decided from the data: the frame convention (``psins``: the accelerometer-defined frame is
 the same model in another frame, with the same likelihood) and the gimbal states (they add the
@@ -35,12 +36,14 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.systematic.driver import systematic
 from inscal.calibrate.systematic.states import StateSet, state_spec
 from inscal.calibrate.windows import CalibrationError
+from inscal.core.error_model import ImuErrors
 
 #: terms added when significant: option -> (StateSet field, value)
 ADD = {"async": ("asynchrony", True), "lever9": ("lever9", True)}
@@ -91,6 +94,22 @@ def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResu
     return Decision(step, term, c_s, c_l, dk, phi, stat, p, p < alpha if step == "add" else p >= alpha)
 
 
+def _removed(imu: ImuErrors, terms) -> ImuErrors:
+    """The full model's estimate with the removed terms at zero: the start of a smaller model's fit (a
+    removed term keeps the value it starts with, so it must start at zero)."""
+    kw = {}
+    for t in terms:
+        if t == "async":
+            kw["time_asynchrony"] = 0.0
+        elif t == "lever9":
+            kw["accel_lever_arm"] = np.diag(np.diag(imu.accel_lever_arm))
+        elif t == "gdiag":
+            kw["gyro_g_sensitivity"] = np.diag(np.diag(imu.gyro_g_sensitivity))
+        elif t == "nocross":
+            kw["accel_cross_coupling"] = np.zeros(6)
+    return imu.replace(**kw)
+
+
 def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, add=tuple(ADD),
                   drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic,
                   **options) -> CalibrationResult:
@@ -130,7 +149,7 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     singles: dict[str, CalibrationResult] = {}
     for t in cands:
         small_st = without(full_st, [t])
-        singles[t] = fit(record, small_st, **options)
+        singles[t] = fit(record, small_st, initial=_removed(full.imu, [t]), **options)
         fits += 1
         tests[t] = _test("drop" if t in DROP else "add", t, singles[t], full, full_st.n_params - small_st.n_params,
                          alpha)
@@ -140,7 +159,7 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     for t in removable:
         trial_st = without(full_st, gone + [t])
         if gone:
-            trial = fit(record, trial_st, **options)
+            trial = fit(record, trial_st, initial=_removed(full.imu, gone + [t]), **options)
             fits += 1
             if _test("drop", t, trial, full, full_st.n_params - trial_st.n_params, alpha).p_value < alpha:
                 break
