@@ -101,7 +101,8 @@ def test_auto_tests_are_nested_fits_and_options_are_checked():
     (t,) = res.diagnostics["selection"]["tests"]
     small = systematic(rec, "51")
     big = systematic(rec, "51,async")
-    assert t["chi2_small"] == pytest.approx(small.diagnostics["innovations"]["chi2"], rel=1e-12)
+    # the smaller model starts from the full estimate (async at zero): the same converged fit
+    assert t["chi2_small"] == pytest.approx(small.diagnostics["innovations"]["chi2"], rel=1e-4)
     assert t["chi2_large"] == pytest.approx(big.diagnostics["innovations"]["chi2"], rel=1e-12)
     assert t["dk"] == 1 and t["accepted"]
     assert res.imu.time_asynchrony == pytest.approx(1e-3, rel=0.02)
