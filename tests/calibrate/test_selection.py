@@ -111,3 +111,16 @@ def test_auto_tests_are_nested_fits_and_options_are_checked():
     with pytest.raises(CalibrationError, match="auto"):
         StateSet.parse("51,auto")
     assert math.isclose(StateSet.parse("51,gdiag,nocross").n_params, 42 - 12)
+
+
+def test_misfit_signature_names_where_the_innovations_misfit():
+    """51 states on a record with a 1 ms asynchrony: the fit is rejected and the note says where (NIS at
+    rest and turning, what the NIS correlates with, the worst steps); the JSON has the numbers."""
+    rec = _record(async_s=1e-3, noise=True, seed=2)
+    fit = systematic(rec, "51").diagnostics["fit"]
+    sig = fit["signature"]
+    assert not fit["consistent"] and "where: NIS mean" in fit["note"] and "worst steps ending at" in fit["note"]
+    assert sig["turning_steps"] > 100 and sig["nis_mean_turning"] > 100 * 6
+    assert len(sig["worst_steps"]) == 5 and sig["worst_steps"][0]["nis"] >= sig["worst_steps"][-1]["nis"]
+    assert set(sig["rank_correlation"]) == {"rate", "rate_squared", "angular_acceleration",
+                                            "angular_acceleration_at_step_end"}

@@ -29,7 +29,8 @@ P_INCONSISTENT = 1e-3
 FIT_BLOCKS = 24
 
 
-def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet) -> dict:
+def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet,
+                   signature: dict | None = None) -> dict:
     """The fit of a systematic-filter run, in the form of the window-mean methods' fit
     (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
     ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
@@ -81,11 +82,67 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
         else:
             cause = ("unmodelled terms, wrong noise (--arw/--vrw), a wrong path or wrong gravity (--gravity); "
                      f"worst block {worst['label'].strip()} (NIS {worst['nis_mean']:.3g})")
+        if signature is not None:
+            cause += f"; where: {signature_line(signature)}"
         fit["cause"] = cause
         fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof (NIS mean {chisq / max(n, 1):.3g} "
                        f"vs 6, p = {p:.2g}); likely cause: {cause}; sigma scaled by sqrt(chi2/dof) = {scale:.3g}, "
                        "formal sigma kept")
+    if signature is not None:
+        fit["signature"] = signature
     return fit
+
+
+#: a filter step turns when its mean body rate exceeds this [rad/s] (the Earth rate is 7e-5)
+TURNING_RATE = 0.1 * math.pi / 180.0
+
+
+def misfit_signature(nis: np.ndarray, dtheta: np.ndarray, dt: float, n_per: int) -> dict:
+    """Where and with what the innovations misfit: the mean NIS of the static and the turning filter
+    steps, the rank correlation of the per-step NIS with what the motion does in the step (mean rate
+    ``|w|``, its square, the largest rate change ``|w-dot|`` within the step and at its end, where a
+    velocity error of the angular acceleration's sampling shows), and the worst steps with their time.
+    A model that misses a term of the moves (asynchrony, a lever arm, a scheme difference) fits the
+    dwells and misfits the turns; wrong noise misfits both alike."""
+    M = nis.shape[0]
+    n = M * n_per
+    w = np.asarray(dtheta[:n], float).reshape(M, n_per, 3) / dt
+    rate = np.linalg.norm(w, axis=2)
+    mean_rate = rate.mean(axis=1)
+    dw = np.linalg.norm(np.diff(np.asarray(dtheta[:n + 1], float), axis=0), axis=1) / dt ** 2 if n > 1 else np.zeros(1)
+    dw = np.concatenate([dw, np.zeros(max(0, n - dw.shape[0]))])[:n].reshape(M, n_per)
+    feats = {"rate": mean_rate, "rate_squared": mean_rate ** 2, "angular_acceleration": dw.max(axis=1),
+             "angular_acceleration_at_step_end": dw[:, -1]}
+    turning = mean_rate > TURNING_RATE
+    rank = np.argsort(np.argsort(nis))
+    corr = {}
+    for k, v in feats.items():
+        if np.ptp(v) > 0:
+            rv = np.argsort(np.argsort(v))
+            corr[k] = float(np.corrcoef(rank, rv)[0, 1])
+    worst = np.argsort(-nis)[:5]
+    out = {"nis_mean_static": float(np.mean(nis[~turning])) if (~turning).any() else None,
+           "nis_mean_turning": float(np.mean(nis[turning])) if turning.any() else None,
+           "turning_steps": int(turning.sum()), "rank_correlation": corr,
+           "worst_steps": [{"t_s": float((k + 1) * n_per * dt), "nis": float(nis[k]), "turning": bool(turning[k]),
+                            "rate_deg_s": float(np.degrees(mean_rate[k]))} for k in worst]}
+    strongest = max(corr, key=lambda k: abs(corr[k])) if corr else None
+    out["strongest"] = strongest
+    return out
+
+
+def signature_line(sig: dict) -> str:
+    """One sentence of :func:`misfit_signature` for the fit's note."""
+    parts = []
+    if sig["nis_mean_static"] is not None and sig["nis_mean_turning"] is not None:
+        parts.append(f"NIS mean {sig['nis_mean_static']:.3g} at rest, {sig['nis_mean_turning']:.3g} turning")
+    if sig["strongest"]:
+        parts.append(f"most correlated with {sig['strongest'].replace('_', ' ')} "
+                     f"(rank correlation {sig['rank_correlation'][sig['strongest']]:.2f})")
+    ws = ", ".join(f"{w['t_s']:.0f} s ({w['nis']:.3g}{', turning' if w['turning'] else ''})"
+                   for w in sig["worst_steps"][:3])
+    parts.append(f"worst steps ending at {ws}")
+    return "; ".join(parts)
 
 
 def encoder_angles(rec, n: int, dt: float) -> np.ndarray:

@@ -15,6 +15,7 @@ from inscal.calibrate.systematic.diagnostics import (
     euler_of,
     gimbal_diagnostics,
     innovation_fit,
+    misfit_signature,
     mount_from_attitude,
     pass_history,
     truth_gimbal,
@@ -281,7 +282,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     nis = last.nis
     dof = 6 * last.steps
     chisq = float(np.sum(nis))
-    fit = innovation_fit(nis, last.z, T, chisq, dof, st)
+    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per))
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
     diag = {
