@@ -48,16 +48,19 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None) -> dict:
+               gravity: str | None = None, encoder_latency: float = 0.0) -> dict:
+    from inscal.io.checks import SKIPPABLE
     from inscal.io.importers import import_file
-    from inscal.io.mapping import CHECKS, FORMATS, ImportFileError
+    from inscal.io.mapping import FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
     if fmt not in FORMATS:
         raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
-    bad = sorted(set(skip or ()) - set(CHECKS))
+    bad = sorted(set(skip or ()) - set(SKIPPABLE))
     if bad:
-        raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(CHECKS)}")
+        raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(SKIPPABLE)}")
+    if not math.isfinite(encoder_latency):
+        raise CliError(f"--encoder-latency must be finite, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
     if not src.is_file():
@@ -72,7 +75,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
 
             site = site.with_gravity(parse_gravity_option(gravity))
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
-                           variable, rates, tuple(skip or ()), overwrite=force)
+                           variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -126,7 +129,10 @@ def register(app: typer.Typer) -> None:
         variable: str = typer.Option(None, "--variable", help=".mat: the N x 7 variable (default: the first one)"),
         rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
         skip: list[str] = typer.Option(None, "--skip-check", help="skip a plausibility check: constant | saturation | "
-                                       "magnitudes | motion (repeatable)"),
+                                       "magnitudes | motion | encoders (repeatable)"),
+        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="encoder latency (s) to correct: the angles "
+                                              "are shifted to theta(t + SECONDS) (the encoder check names it when it "
+                                              "is over a sample)", metavar="SECONDS"),
         gravity: str = typer.Option(None, "--gravity", help="site gravity model stored in the record: wgs84 (default) | "
                                     "psins | a measured value in m/s^2 at the site height"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
@@ -135,7 +141,7 @@ def register(app: typer.Typer) -> None:
         """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity)
+                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -146,6 +152,13 @@ def register(app: typer.Typer) -> None:
             extra.append(f"gimbal angles from {res['gimbal']}")
         if res["path"]:
             extra.append(f"path {res['path']}")
+        if res["encoder_latency_s"]:
+            extra.append(f"encoder latency {res['encoder_latency_s'] * 1e3:g} ms corrected")
+        enc = res["encoders"]
+        if enc is not None and enc["moves"]:
+            lat = "" if enc["latency_s"] is None else f", latency {enc['latency_s'] * 1e3:.2f} ms" + (
+                "" if enc["latency_sigma_s"] is None else f" +- {enc['latency_sigma_s'] * 1e3:.2f} ms")
+            extra.append(f"encoders agree with the gyros on {enc['moves']} moves to {enc['max_residual_deg']:.2g} deg{lat}")
         if res["time_regridded"]:
             extra.append("time regridded")
         typer.echo(f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "

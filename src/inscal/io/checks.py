@@ -10,8 +10,12 @@ import numpy as np
 from inscal.core import earth, units
 from inscal.core.earth import Site
 from inscal.core.units import DEG
+from inscal.io.encoders import EncoderCheck, compare_encoders
 from inscal.io.formats import Raw
-from inscal.io.mapping import JITTER_TOL, REGRID_TOL, ImportFileError
+from inscal.io.mapping import CHECKS, JITTER_TOL, REGRID_TOL, ImportFileError
+
+#: the checks ``skip`` may name: the mapping's, and ``encoders`` (:func:`check_encoders`)
+SKIPPABLE = CHECKS + ("encoders",)
 
 
 # ----------------------------------------------------------------------------- checks
@@ -229,12 +233,24 @@ def check_motion(dtheta: np.ndarray, theta: np.ndarray, dt: float, what: str, ti
         ratio = float(np.median(wg[1:-1][turning] / wm[1:-1][turning])) if turning.any() else float("nan")
         hint = ""
         if abs(ratio * (180.0 / math.pi) - 1.0) < 0.05:
-            hint = " (the angles turn 57.3 times slower than the gyros: radians read as degrees? see --gimbal-unit)"
+            hint = (" (the angles turn 57.3 times slower than the gyros: radians read as degrees? see --gimbal-unit rad, "
+                    "or gimbal = \"rad\" in a mapping)")
         elif abs(ratio / (180.0 / math.pi) - 1.0) < 0.05:
-            hint = " (the angles turn 57.3 times faster than the gyros: degrees read as radians? see --gimbal-unit)"
+            hint = (" (the angles turn 57.3 times faster than the gyros: degrees read as radians? see --gimbal-unit deg, "
+                    "or gimbal = \"deg\" in a mapping)")
         elif math.isfinite(ratio) and abs(ratio - 1.0) > 0.2:
             hint = f" (the angles turn {ratio:.3g} times as fast as the gyros: a scale or unit error?)"
         raise ImportFileError(
             f"the increments do not follow the {what}: {int(bad.sum())} of {clean} half-second blocks disagree "
             f"(first ending at t = {t:.3f} s: {what} {state}, gyros {wm[b] / DEG:.3g} deg/s){hint} "
             "(--skip-check motion to import anyway)")
+
+
+def check_encoders(dtheta: np.ndarray, gimbal: np.ndarray, rate_hz: float, time: np.ndarray) -> EncoderCheck:
+    """The encoder angles against the gyros, move by move, and the encoder latency
+    (:func:`inscal.io.encoders.compare_encoders`); a problem is one :class:`ImportFileError` line
+    naming the cause and its fix."""
+    res = compare_encoders(dtheta, gimbal, rate_hz, time)
+    if not res.ok:
+        raise ImportFileError(f"{res.message} (--skip-check encoders to import anyway)")
+    return res

@@ -65,8 +65,11 @@ numbers, integer data, NaN/Inf, the time base (backwards steps, repeats, gaps, j
 inconsistent with the timestamps), and the plausibility checks that ``skip`` may name:
 ``constant`` (a channel that never changes), ``saturation`` (a channel pinned at its extreme
 while the others move), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
-m/s^2, degrees vs radians, rates vs increments) and ``motion`` (the gyros must turn when the
-gimbal angles / path say so, and only then).
+m/s^2, degrees vs radians, rates vs increments), ``motion`` (the gyros must turn when the
+gimbal angles / path say so, and only then) and ``encoders`` (the encoder angles must give the
+gyros' rotation through every move, and no latency over a sample:
+:mod:`inscal.io.encoders`, which names a unit mix-up, a flipped sign, swapped columns or the
+latency to give as ``encoder_latency``, the shift applied to the angles before the checks).
 
 Exports (:func:`export_record`): ``csv`` (one header line with units; time, dtheta, dvel and
 the gimbal angles if recorded, ``%.17g`` so that importing gives back the same doubles),
@@ -94,7 +97,9 @@ from inscal.core.earth import Site
 from inscal.core.turntable import RotationPath
 from inscal.core.units import DEG
 from inscal.io.checks import (
+    SKIPPABLE,
     check_constant,
+    check_encoders,
     check_finite,
     check_integers,
     check_magnitudes,
@@ -102,6 +107,7 @@ from inscal.io.checks import (
     check_saturation,
     time_base,
 )
+from inscal.io.encoders import apply_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats import (
     Raw,
@@ -113,7 +119,6 @@ from inscal.io.formats import (
     write_rows,
 )
 from inscal.io.mapping import (
-    CHECKS,
     EXPORT_FORMATS,
     EXPORT_HEADER,
     EXPORT_HEADER_GIMBAL,
@@ -154,12 +159,16 @@ def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "flo
 def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,
                  path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
                  skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
-                 gimbal_name: str = "gimbal angles") -> tuple[Record, dict]:
+                 gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0) -> tuple[Record, dict]:
     """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
-    ``(record, info)``; raises :class:`ImportFileError` with one line on any problem."""
-    unknown = set(skip) - set(CHECKS)
+    ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
+    ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
+    (:func:`~inscal.io.encoders.apply_latency`) before the checks."""
+    unknown = set(skip) - set(SKIPPABLE)
     if unknown:
-        raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(CHECKS)}")
+        raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(SKIPPABLE)}")
+    if not math.isfinite(encoder_latency):
+        raise ImportFileError(f"--encoder-latency must be finite, got {encoder_latency}")
     n = raw.gyro.shape[0]
     check_finite(raw, where)
     check_integers(raw, where)
@@ -190,8 +199,16 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         info["gimbal"] = "columns"
     else:
         info["gimbal"] = None
+    if encoder_latency != 0.0:
+        if gim is None:
+            raise ImportFileError("--encoder-latency applies to encoder angles (--gimbal, or gimbal columns)")
+        gim = apply_latency(time, gim, encoder_latency)
+    info["encoder_latency_s"] = float(encoder_latency) if gim is not None else None
     if gim is not None and "motion" not in skip:
         check_motion(dth, gim, dt, "gimbal angles", time)
+    info["encoders"] = None
+    if gim is not None and "encoders" not in skip:
+        info["encoders"] = check_encoders(dth, gim, rate, time).summary()
     if path is not None:
         start = time[0] - dt if path_start is None else float(path_start)
         if not math.isfinite(start):
@@ -226,8 +243,10 @@ def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False
 def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
-                rates: bool = False, skip=(), overwrite: bool = False) -> dict:
-    """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary."""
+                rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0) -> dict:
+    """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary
+    (``encoders``: the encoder check's summary, its ``latency_s`` what remains after the applied
+    ``encoder_latency_s``)."""
     src = Path(src)
     if fmt not in FORMATS:
         raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
@@ -253,20 +272,22 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         ud = (mapping.gyro_unit, mapping.accel_unit)
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
-    rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file))
+    rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
+                             encoder_latency)
     attrs = {"file": src.name, "hash": file_hash(src), "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
-             "time_offset_s": info.get("path_start_s", 0.0)}
+             "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"]}
     n = write_imported(out, rec, attrs, overwrite)
     return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
             "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
             "path": None if path is None else path.name, "time_regridded": info["regridded"],
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
-            "skipped_checks": sorted(skip)}
+            "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
+            "encoders": info["encoders"]}
 
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,
