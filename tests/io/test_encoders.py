@@ -300,3 +300,32 @@ def test_encoder_latency_needs_encoder_angles_and_a_finite_value(exported, tmp_p
     code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", x.gimbal, "--out", tmp_path / "o.h5",
                       "--skip-check", "encoder")
     assert code == 2 and "known checks: constant, saturation, magnitudes, motion, encoders" in se, se
+
+
+def test_calibrate_checks_the_encoders_and_applies_a_latency(exported, tmp_path):
+    """``inscal calibrate`` compares the record's encoders with the gyros too: a record imported past the
+    check with 20-ms late encoders is refused in one line naming the fix; ``--encoder-latency 0.02``
+    calibrates it as the clean one; ``--skip-encoder-check`` calibrates it as it is."""
+    x = exported["n25"]
+    late = tmp_path / "late.csv"
+    _write_gimbal(late, x.rec.time, apply_latency(x.rec.time, x.rec.gimbal, -0.020))
+    code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", late, "--out", tmp_path / "raw.h5",
+                      "--skip-check", "encoders")
+    assert code == 0, se
+    out = tmp_path / "p.toml"
+    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", out)
+    assert code == 2 and se.count("\n") == 1 and "the encoders lag the IMU by" in se and "--skip-encoder-check" in se, se
+    assert abs(suggested_latency(se) - 0.02) < 0.5 * MS, se
+    assert not out.exists()
+    code, so, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", out, "--encoder-latency", 0.02,
+                       "--json")
+    assert code == 0, se
+    rep = json.loads(so)
+    assert rep["encoders"]["ok"] and abs(rep["encoders"]["latency_s"]) < 0.5 * MS
+    assert rep["encoders"]["latency_applied_s"] == 0.02
+    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", tmp_path / "q.toml",
+                      "--skip-encoder-check")
+    assert code == 0, se
+    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", tmp_path / "r.toml",
+                      "--encoder-latency", "nan")
+    assert code == 2 and "--encoder-latency must be" in se

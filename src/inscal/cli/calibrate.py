@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import typer
@@ -20,12 +22,16 @@ from inscal.cli.common import (  # np: lazy (fast start)
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
                   min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
                   filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
-                  gravity: str | None = None, encoder_sigma: float | None = None) -> dict:
+                  gravity: str | None = None, encoder_sigma: float | None = None, encoder_latency: float = 0.0,
+                  check_encoders: bool = True) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
     (wgs84 | psins | m/s^2) overrides the record's gravity model.  ``encoder_sigma`` [arcsec]: white
-    noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``)."""
+    noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``).
+    A record with encoder angles has them compared with the gyros first (:mod:`inscal.io.encoders`): a
+    unit, sign, column or time-offset error stops the calibration with one line unless
+    ``check_encoders`` is False; ``encoder_latency`` [s] shifts the angles before (encoders that lag: > 0)."""
     from inscal import io
     from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
     from inscal.calibrate.windows import CalibrationError
@@ -49,8 +55,23 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         rec = read_record(data)
     except OSError as exc:
         raise CliError(str(exc)) from None
+    if not math.isfinite(encoder_latency) or abs(encoder_latency) > 1.0:
+        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
+    enc_report = None
+    if rec.gimbal is not None:
+        from inscal.io.encoders import apply_latency, check_record_encoders
+
+        if encoder_latency:
+            rec = dataclasses.replace(rec, gimbal=apply_latency(np.asarray(rec.time), np.asarray(rec.gimbal),
+                                                                encoder_latency))
+        if check_encoders:
+            chk = check_record_encoders(rec)
+            if not chk.ok:
+                raise CliError(f"{data}: {chk.message} (--skip-encoder-check to calibrate anyway)")
+            enc_report = chk.summary() | {"latency_applied_s": encoder_latency}
+    elif encoder_latency:
+        raise CliError(f"--encoder-latency: {data} has no encoder angles")
     if gravity is not None:
-        import dataclasses
 
         from inscal.cli.common import parse_gravity_option
 
@@ -87,6 +108,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(str(exc)) from None
     report = {"method": res.method, "gravity": {**rec.site.gravity_model.to_json(), "g_site_m_s2": rec.site.gravity},
               "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
+    if enc_report is not None:
+        report["encoders"] = enc_report  # the encoders against the gyros: moves, residual, latency
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
     if systematic:
@@ -160,12 +183,16 @@ def register(app: typer.Typer) -> None:
                                     "(default: the record's)"),
         encoder_sigma: float = typer.Option(None, "--encoder-sigma", help="unified / gimbal states: white noise of "
                                             "each encoder angle [arcsec] (default 1)"),
+        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="shift the encoder angles by this many "
+                                              "seconds before calibrating (> 0: encoders that lag the IMU)"),
+        skip_encoder_check: bool = typer.Option(False, "--skip-encoder-check", help="calibrate even when the encoder "
+                                                "angles do not follow the gyros"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
-                                gravity, encoder_sigma)
+                                gravity, encoder_sigma, encoder_latency, not skip_encoder_check)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -179,6 +206,10 @@ def register(app: typer.Typer) -> None:
             if "error" in e:
                 line += f"   (error {_fmt(e['error'])})"
             typer.echo(line)
+        if "encoders" in rep:
+            e = rep["encoders"]
+            lat = "" if e["latency_s"] is None else f", latency {e['latency_s'] * 1e3:.3g} ms"
+            typer.echo(f"  encoders: agree with the gyros on {e['moves']} moves{lat}")
         if "fit" in rep:
             for line in fit_lines(rep["fit"]):
                 typer.echo(line)
