@@ -39,11 +39,12 @@ def test_robust_inflation_keeps_plain_updates_and_caps_outliers():
     r = rng.uniform(0.5, 2.0, 6)
     S = P[np.ix_(idx, idx)] + np.diag(r)
     z = np.linalg.cholesky(S) @ rng.normal(size=6) * 0.5  # a small innovation: no inflation
-    alpha, nis = robust_inflation(P, idx, r, z, 36.0)
+    hph = P[np.ix_(idx, idx)]
+    alpha, nis = robust_inflation(hph, r, z, 36.0)
     assert alpha == 1.0 and nis == pytest.approx(z @ np.linalg.solve(S, z), rel=1e-12)
     for scale in (10.0, 1e3, 1e6):  # outliers: the NIS with the inflated R equals the cap
         zz = z * scale
-        alpha, nis = robust_inflation(P, idx, r, zz, 36.0)
+        alpha, nis = robust_inflation(hph, r, zz, 36.0)
         assert nis == pytest.approx(zz @ np.linalg.solve(S, zz), rel=1e-12)
         Sa = P[np.ix_(idx, idx)] + alpha * np.diag(r)
         assert alpha > 1.0 and zz @ np.linalg.solve(Sa, zz) == pytest.approx(36.0, rel=2e-3)

@@ -112,3 +112,70 @@ def test_joseph_update_keeps_covariance_symmetric_positive_with_tiny_noise():
         filters.update(P, idx, np.full(3, 1e-14), rng.standard_normal(3), K, Si, x)
         assert np.array_equal(P, P.T)
         assert np.min(np.linalg.eigvalsh(P)) > -1e-12 * np.max(np.diag(P))
+
+
+# ----------------------------------------------------------------------------- square-root form
+def _upper_factor(P):
+    """An upper-triangular U with U U^T = P (the reversed Cholesky)."""
+    J = np.eye(P.shape[0])[::-1]
+    return J @ np.linalg.cholesky(J @ P @ J) @ J
+
+
+def _spd(rng, N, spread=0.0):
+    A = rng.normal(size=(N, N))
+    D = np.diag(10.0 ** rng.uniform(-spread, spread, N))
+    return D @ (A @ A.T + N * np.eye(N)) @ D
+
+
+@pytest.mark.parametrize("spread", [0.0, 3.0])
+def test_sr_predict_and_updates_equal_the_covariance_forms(spread):
+    rng = np.random.default_rng(7)
+    N, n = 20, 9
+    P = _spd(rng, N, spread)
+    U = _upper_factor(P)
+    assert np.allclose(np.triu(U), U) and np.allclose(U @ U.T, P, rtol=1e-12, atol=1e-12 * np.abs(P).max())
+    phi_nn = np.eye(n) + 0.1 * rng.normal(size=(n, n))
+    phi_np = 0.1 * rng.normal(size=(n, N - n))
+    B = rng.normal(size=(n, 4))
+    q = B @ B.T  # rank 4: semi-definite, as the navigation noise of the position rows
+    Pp = P.copy()
+    filters.predict(Pp, n, phi_nn, phi_np, q, np.zeros(N - n))
+    filters.sr_predict(U, n, phi_nn, phi_np, q)
+    assert np.allclose(np.triu(U), U)
+    assert np.allclose(U @ U.T, Pp, rtol=1e-10, atol=1e-10 * np.abs(Pp).max())
+    idx = np.array([3, 4, 5, 6, 7, 8])
+    r = rng.uniform(0.1, 2.0, 6)
+    z = rng.normal(size=6)
+    K1, S1, x1 = np.empty((N, 6)), np.empty((6, 6)), np.empty(N)
+    K2, S2, x2 = np.empty((N, 6)), np.empty((6, 6)), np.empty(N)
+    nis1 = filters.update(Pp, idx, r, z, K1, S1, x1)
+    nis2, alpha = filters.sr_update(U, idx, r, z, K2, S2, x2)
+    assert nis2 == pytest.approx(nis1, rel=1e-10) and alpha == 1.0
+    assert np.allclose(K2, K1, rtol=1e-9, atol=1e-12) and np.allclose(x2, x1, rtol=1e-9, atol=1e-12)
+    assert np.allclose(np.triu(U), U) and np.allclose(U @ U.T, Pp, rtol=1e-9, atol=1e-10 * np.abs(Pp).max())
+    H = rng.normal(size=(3, N))
+    C = rng.normal(size=(3, 3))
+    R = C @ C.T + np.eye(3)
+    nu = rng.normal(size=3)
+    K1, S1, x1 = np.empty((N, 3)), np.empty((3, 3)), np.empty(N)
+    K2, S2, x2 = np.empty((N, 3)), np.empty((3, 3)), np.empty(N)
+    nis1 = filters.update_dense(Pp, H, R, nu, K1, S1, x1)
+    nis2 = filters.sr_update_dense(U, H, R, nu, K2, S2, x2)
+    assert nis2 == pytest.approx(nis1, rel=1e-10) and np.allclose(K2, K1, rtol=1e-9, atol=1e-12)
+    assert np.allclose(U @ U.T, Pp, rtol=1e-9, atol=1e-10 * np.abs(Pp).max())
+
+
+def test_sr_update_stays_positive_semidefinite():
+    """Measurements 1e8 times more precise than the prior, repeated 50 times on a covariance spanning 1e8:
+    the factor stays finite and U U^T positive semi-definite to round-off, by construction."""
+    rng = np.random.default_rng(1)
+    N = 12
+    P = _spd(rng, N, 4.0)
+    U = _upper_factor(P)
+    idx = np.arange(6)
+    r = np.full(6, 1e-16) * np.diag(P)[:6]
+    K, S, x = np.empty((N, 6)), np.empty((6, 6)), np.empty(N)
+    for _ in range(50):
+        filters.sr_update(U, idx, r, rng.normal(size=6) * 1e-8, K, S, x)
+    ev = np.linalg.eigvalsh(U @ U.T)
+    assert ev.min() >= -1e-14 * ev.max() and np.all(np.isfinite(U))

@@ -132,24 +132,23 @@ def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
 
 
 @njit(cache=True)
-def robust_inflation(P, idx, r, z, cap, max_iter=30):
+def robust_inflation(hph, r, z, cap, max_iter=30):
     """Huber-type bounded influence of one update: the factor ``alpha >= 1`` on ``R`` that brings the
     normalised innovation squared down to ``cap`` when it exceeds it, and the NIS with the nominal ``R``.
 
-    ``S(alpha) = H P H^T + alpha R``; ``alpha NIS(alpha) = nu^T (S(alpha) / alpha)^-1 nu`` never decreases
-    with ``alpha``, so the multiplicative iteration ``alpha <- alpha NIS(alpha) / cap`` rises monotonically
-    to the root (one step when ``R`` dominates ``S``).  Steps within ``cap`` keep ``alpha = 1``: on data the
-    model fits, the update is the plain Kalman update.  Returns ``(alpha, nis_nominal)``."""
-    m = idx.shape[0]
-    S = np.empty((m, m))
-    for a in range(m):
-        for b in range(m):
-            S[a, b] = 0.5 * (P[idx[a], idx[b]] + P[idx[b], idx[a]])
+    ``hph = H P H^T`` (m x m); ``S(alpha) = H P H^T + alpha R``; ``alpha NIS(alpha) = nu^T (S(alpha) /
+    alpha)^-1 nu`` never decreases with ``alpha``, so the multiplicative iteration ``alpha <- alpha
+    NIS(alpha) / cap`` rises monotonically to the root (one step when ``R`` dominates ``S``).  Steps
+    within ``cap`` keep ``alpha = 1``: on data the model fits, the update is the plain Kalman update.
+    Returns ``(alpha, nis_nominal)``."""
+    m = hph.shape[0]
     nis0 = 0.0
     alpha = 1.0
     for it in range(max_iter + 1):
-        Sa = S.copy()
+        Sa = np.empty((m, m))
         for a in range(m):
+            for b in range(m):
+                Sa[a, b] = 0.5 * (hph[a, b] + hph[b, a])
             Sa[a, a] += alpha * r[a]
         nis = z @ np.linalg.solve(Sa, z)
         if it == 0:
@@ -158,6 +157,141 @@ def robust_inflation(P, idx, r, z, cap, max_iter=30):
             break
         alpha *= nis / cap
     return alpha, nis0
+
+
+# ----------------------------------------------------------------------------- square-root form
+@njit(cache=True)
+def sr_predict(U, n, phi_nn, phi_np, q_nn):
+    """Square-root form of :func:`predict` (no parameter noise): ``P = U U^T`` with ``U`` upper
+    triangular and the states ordered ``[n dynamic | p constants]``, so ``U = [[U_nn, U_np], [0, U_pp]]``
+    and ``Phi U = [[Phi_nn U_nn, Phi_nn U_np + Phi_np U_pp], [0, U_pp]]``: ``U_pp`` never changes (the
+    parameters' covariance is never formed, so it stays positive whatever its range), the new ``U_np``
+    is that product, and the new ``U_nn`` is the upper-triangular factor of the dynamic block
+    ``(Phi_nn U_nn)(Phi_nn U_nn)^T + Q_nn`` (n x n, a reversed Cholesky: ``J chol(J M J) J``, ``J`` the
+    exchange matrix)."""
+    N = U.shape[0]
+    Unn = np.ascontiguousarray(U[:n, :n])
+    new_np = phi_nn @ np.ascontiguousarray(U[:n, n:]) + phi_np @ np.ascontiguousarray(U[n:, n:])
+    A = phi_nn @ Unn
+    M = A @ A.T + q_nn
+    Mr = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Mr[i, j] = 0.5 * (M[n - 1 - i, n - 1 - j] + M[n - 1 - j, n - 1 - i])
+    L = np.linalg.cholesky(Mr)
+    for i in range(n):
+        for j in range(n):
+            U[i, j] = L[n - 1 - i, n - 1 - j] if i <= j else 0.0
+        for j in range(n, N):
+            U[i, j] = new_np[i, j - n]
+
+
+@njit(cache=True)
+def carlson_unit(U, i0, r):
+    """:func:`carlson` for ``h = e_i0`` (a measurement of one state): ``sigma_j = U[i0, j]``."""
+    N = U.shape[0]
+    w = np.zeros(N)
+    alpha = r
+    for j in range(i0, N):
+        sigma = U[i0, j]
+        if sigma == 0.0:
+            continue
+        beta = alpha
+        alpha = alpha + sigma * sigma
+        gamma = np.sqrt(alpha * beta)
+        eta = beta / gamma
+        zeta = sigma / gamma
+        for i in range(j + 1):
+            tau = U[i, j]
+            U[i, j] = eta * tau - zeta * w[i]
+            w[i] += tau * sigma
+
+
+@njit(cache=True)
+def carlson(U, h, r):
+    """Carlson's triangular square-root update (Grewal and Andrews, Kalman Filtering, sec. 6.5) of
+    ``P = U U^T`` for one scalar measurement ``h^T x + v``, ``var v = r``, in place: afterwards
+    ``U U^T = P - P h h^T P / (h^T P h + r)``, ``U`` still upper triangular."""
+    N = U.shape[0]
+    w = np.zeros(N)
+    alpha = r
+    for j in range(N):
+        sigma = 0.0
+        for i in range(j + 1):
+            sigma += U[i, j] * h[i]
+        if sigma == 0.0:
+            continue
+        beta = alpha
+        alpha = alpha + sigma * sigma
+        gamma = np.sqrt(alpha * beta)
+        eta = beta / gamma
+        zeta = sigma / gamma
+        w[j] = 0.0
+        for i in range(j + 1):
+            tau = U[i, j]
+            U[i, j] = eta * tau - zeta * w[i]
+            w[i] += tau * sigma
+
+
+@njit(cache=True)
+def sr_gain(U, Ht, R, nu, K, Sinv, x):
+    """The vector update's gain in square-root form, given ``F = U^T H^T`` (N x m, ``Ht``): ``P H^T = U F``,
+    ``S = F^T F + R``; writes ``S^-1``, ``K = P H^T S^-1`` and ``x = K nu``; returns ``nu^T S^-1 nu``."""
+    m = Ht.shape[1]
+    PHt = U @ Ht
+    S = Ht.T @ Ht + R
+    for a in range(m):
+        for b in range(a + 1, m):
+            v = 0.5 * (S[a, b] + S[b, a])
+            S[a, b] = v
+            S[b, a] = v
+    Si = np.linalg.inv(S)
+    Sinv[:, :] = Si
+    K[:, :] = PHt @ Si
+    x[:] = K @ nu
+    return nu @ (Si @ nu)
+
+
+@njit(cache=True)
+def sr_update(U, idx, r, z, K, Sinv, x, cap=np.inf):
+    """Square-root form of :func:`update`: the same ``K``, ``S^-1``, ``x`` and NIS (from ``U``), and ``U``
+    updated by one Carlson step per measurement (``R`` diagonal: the rows are independent).  With a
+    finite ``cap``, a step whose NIS exceeds it is updated with ``alpha R`` (:func:`robust_inflation`).
+    Returns ``(NIS with the nominal R, alpha)``."""
+    N = U.shape[0]
+    m = idx.shape[0]
+    F = np.empty((N, m))
+    for a in range(m):
+        for j in range(N):
+            F[j, a] = U[idx[a], j]
+    Rm = np.zeros((m, m))
+    for a in range(m):
+        Rm[a, a] = r[a]
+    nis = sr_gain(U, F, Rm, z, K, Sinv, x)
+    alpha = 1.0
+    if nis > cap:
+        alpha, _ = robust_inflation(F.T @ F, r, z, cap)
+        for a in range(m):
+            Rm[a, a] = alpha * r[a]
+        sr_gain(U, F, Rm, z, K, Sinv, x)
+    for a in range(m):
+        carlson_unit(U, idx[a], alpha * r[a])
+    return nis, alpha
+
+
+@njit(cache=True)
+def sr_update_dense(U, H, R, nu, K, Sinv, x):
+    """Square-root form of :func:`update_dense` (``H`` m x N, ``R`` full): the gain from ``U``, then the rows
+    decorrelated by ``R = L L^T`` (``L^-1 H``, unit variances) and one Carlson step each."""
+    N = U.shape[0]
+    m = H.shape[0]
+    F = U.T @ H.T
+    nis = sr_gain(U, np.ascontiguousarray(F), R, nu, K, Sinv, x)
+    L = np.linalg.cholesky(0.5 * (R + R.T))
+    Hw = np.linalg.solve(L, H)
+    for a in range(m):
+        carlson(U, np.ascontiguousarray(Hw[a]), 1.0)
+    return nis
 
 
 @njit(cache=True)

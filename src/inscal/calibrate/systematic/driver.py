@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.stats import chi2 as _chi2
 
 from inscal.calibrate.result import CalibrationResult, unflatten
@@ -231,9 +232,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
         # L_d = Pf^-1 - diag(sp^-2), posterior P = (L_d + diag(sig0^-2))^-1,
         # x = P (Pf^-1 x' + diag(sig0^-2) mu) with x' the pass's total correction and mu = p_start - nominal.
-        Pf = out.Pf[N_NAV:, N_NAV:] * np.outer(sp, sp)
-        Pf = 0.5 * (Pf + Pf.T)
-        Pf_inv = np.linalg.inv(Pf)
+        # P_pp = U_pp U_pp^T (U upper triangular, navigation first): its inverse from the factor, which has
+        # half the dynamic range of P
+        Ui = solve_triangular(out.Uf[N_NAV:, N_NAV:], np.eye(sp.shape[0]))
+        Pf_inv = (Ui.T @ Ui) / np.outer(sp, sp)
         Pf_inv = 0.5 * (Pf_inv + Pf_inv.T)
         L_d = Pf_inv - np.diag(1.0 / sp**2)
         P_post = np.linalg.inv(L_d + np.diag(inv_prior))

@@ -29,7 +29,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core import earth
 from inscal.core import kalman as filters
 from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz
-from inscal.core.kalman import smoother_step_dense, update_dense
+from inscal.core.kalman import smoother_step_dense
 from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
 
 
@@ -128,10 +128,11 @@ class SmootherData(NamedTuple):
 
 
 @njit(cache=True)
-def _pass_kernel(inp, par, P, st, er):
+def _pass_kernel(inp, par, U, st, er):
     """One closed-loop filter pass over the record (see the package docstring): inputs ``inp``
     (:class:`PassInputs`), parameters ``par`` (:class:`PassParams`, updated in place), the
-    covariance ``P`` (scaled, updated in place), per-step outputs ``st`` (:class:`PassStore`) and
+    covariance's upper-triangular square root ``U`` (``P = U U^T``, scaled states, updated in place: the
+    square-root filter of :func:`inscal.core.kalman.sr_predict`/``sr_update``), per-step outputs ``st`` (:class:`PassStore`) and
     the encoder rows ``er`` (:class:`EncoderRows`).
 
     ``nav0`` = [q(4), v(3), lat, lon, h]; ``site`` = [lat0, lon0, h0(, g_scale)] (g_scale: site
@@ -188,7 +189,6 @@ def _pass_kernel(inp, par, P, st, er):
     xs = np.empty(N)
     z = np.empty(6)
     rs = np.empty(6)
-    rsa = np.empty(6)
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
     have_enc = enc.shape[0] > 0
@@ -324,7 +324,7 @@ def _pass_kernel(inp, par, P, st, er):
                 Qd[i, j] /= sig[i] * sig[j]
             for c in range(npar):
                 phinp[i, c] *= sig[9 + c] / sig[i]
-        filters.predict(P, 9, phinn, phinp, Qd, np.zeros(npar))
+        filters.sr_predict(U, 9, phinn, phinp, Qd)
         phinn_st[k] = phinn
         phinp_st[k] = phinp
         # ---- measurement: zero velocity, known position
@@ -337,7 +337,7 @@ def _pass_kernel(inp, par, P, st, er):
             z_st[k, a] = z[a]
             z[a] /= sig[3 + a]
         if k % hist_every == 0 or k == M - 1:
-            hist_Pm[ih] = P
+            hist_Pm[ih] = U @ U.T
             hist_ref[ih, _AG0:_AG1] = Ag.ravel()
             hist_ref[ih, _BG0:_BG1] = bg
             hist_ref[ih, _G0:_G1] = G.ravel()
@@ -350,17 +350,7 @@ def _pass_kernel(inp, par, P, st, er):
             hist_ref[ih, _GIM0:_GIM1] = gim
         # bounded influence: a step the model cannot fit (a misfit during moves, an outlier) is
         # down-weighted to NIS = nis_cap instead of dragging the constants with a tiny R
-        alpha = 1.0
-        nis0 = 0.0
-        if nis_cap < np.inf:
-            alpha, nis0 = filters.robust_inflation(P, IDX_MEAS, rs, z, nis_cap)
-        if alpha > 1.0:
-            for a in range(6):
-                rsa[a] = rs[a] * alpha
-            filters.update(P, IDX_MEAS, rsa, z, K, Si, xs)
-            nis_st[k] = nis0
-        else:
-            nis_st[k] = filters.update(P, IDX_MEAS, rs, z, K, Si, xs)
+        nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rs, z, K, Si, xs, nis_cap)
         rw_st[k] = alpha
         K_st[k] = K
         Si_st[k] = Si
@@ -396,7 +386,7 @@ def _pass_kernel(inp, par, P, st, er):
                 for j in range(N):
                     s_ -= Ha[i, j] * xs[j]
                 nu[i] = s_
-            nisa_st[k] = update_dense(P, Ha, Ra, nu, Ka, Sia, xa)
+            nisa_st[k] = filters.sr_update_dense(U, Ha, Ra, nu, Ka, Sia, xa)
             for i in range(N):
                 xs[i] += xa[i]
             Ka_st[k] = Ka
@@ -408,7 +398,7 @@ def _pass_kernel(inp, par, P, st, er):
             att_used[k] = 1
         if k % hist_every == 0 or k == M - 1:
             for i in range(N):
-                hist_Pf[ih, i] = P[i, i]
+                hist_Pf[ih, i] = U[i, :] @ U[i, :]
             ih += 1
         # ---- feedback (S16 eq. 27)
         for i in range(N):
@@ -544,6 +534,7 @@ class PassOutput:
     R_att: np.ndarray | None = None
     smoother: SmootherData | None = None  # the stored data of the forward pass (run_pass sets it)
     r_factor: np.ndarray | None = None  # (M,) factor on R per step (bounded influence; 1 where the model fits)
+    Uf: np.ndarray | None = None  # upper-triangular square root of Pf (Pf = Uf Uf^T; scaled)
 
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
@@ -564,7 +555,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     kinds, axes, js = states.columns()
     q = quat_from_dcm(C0)
     nav0 = np.concatenate([q / np.linalg.norm(q), np.zeros(3), [site[0], site[1], site[2]]])
-    P = np.eye(N)
+    U = np.eye(N)
     K_st = np.empty((M, N, 6))
     Si_st = np.empty((M, 6, 6))
     sz_st = np.empty((M, 6))
@@ -596,11 +587,12 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw)
     er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
                      Ha_st, nisa_st, za_st, Ra_st)
-    Mk = _pass_kernel(inp, par, P, st, er)
+    Mk = _pass_kernel(inp, par, U, st, er)
     x0 = np.empty(N)
     _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
-    out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, P)
+    out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, U @ U.T)
+    out.Uf = U
     out.r_factor = rw
     out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,
                                 sza_st, Ha_st, er.enc_floor)
