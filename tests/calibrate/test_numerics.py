@@ -8,7 +8,7 @@ import pytest
 
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic import driver
-from inscal.calibrate.systematic.driver import data_resolution
+from inscal.calibrate.systematic.driver import data_resolution, float32_rounding
 from inscal.calibrate.windows import CalibrationError
 
 
@@ -46,3 +46,17 @@ def test_a_chi2_far_below_its_dof_is_a_misfit_and_keeps_the_sigma(noise_free_dat
     fit = res.diagnostics["fit"]
     assert not fit["consistent"] and fit["p_value_low"] < 1e-3 and fit["scale"] == 1.0
     assert "the assumed noise is larger than the data's" in fit["cause"] and "conservative" in fit["note"]
+
+
+def test_float32_records_show_their_rounding_noise():
+    """A record stored in single precision: each increment carries the rounding of its float32 grid
+    (2^-24 of its magnitude, ulp^2/12 in variance); float64 data and an all-zero column show none."""
+    rng = np.random.default_rng(0)
+    x = np.column_stack([0.098 + 1e-4 * rng.normal(size=5000), 1e-6 * rng.normal(size=5000), np.zeros(5000)])
+    f = x.astype(np.float32).astype(float)
+    q = float32_rounding(f)
+    assert q[0] == pytest.approx(np.spacing(np.float32(0.098)) / np.sqrt(12.0), rel=0.01)
+    assert 0 < q[1] < 1e-13 and q[2] == 0.0
+    assert np.all(float32_rounding(x) == 0.0)
+    # the empirical rounding error of the same values has that spread
+    assert np.std(f[:, 0] - x[:, 0]) == pytest.approx(q[0], rel=0.1)

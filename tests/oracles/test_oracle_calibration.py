@@ -53,6 +53,7 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
     r = runner.invoke(app, ["calibrate", str(rec), "--method", "systematic51", "--out", str(out), "--json"])
     assert r.exit_code == 0, r.output
     rep = json.loads(r.stdout)
+    assert rep["noise"]["float32"] and rep["noise"]["float32_rounding"]["accel_ug_s"][2] > 0  # single precision seen
     chosen = set(rep["selection"]["chosen"].split(","))
     assert {"async", "lever9"} <= chosen, rep["selection"]
     # the record has no truth: compare the parameter file with the generator's

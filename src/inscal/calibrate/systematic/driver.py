@@ -100,6 +100,23 @@ def data_resolution(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
     return out
 
 
+def float32_rounding(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
+    """The rounding noise [same unit as ``x``, per increment, 1 sigma] of each column of ``x`` (N, k) when
+    every value is a float32 number (a record written in single precision, e.g. a PSINS float32 ``.bin``),
+    else 0: rounding to the float32 grid adds white noise of variance ``ulp^2 / 12``, the grid spacing
+    ``ulp`` following each value's magnitude (2^-24 of it).  Far below any real IMU's noise; it shows a
+    noise-free float32 record's floor."""
+    x = np.asarray(x, float)
+    sub = x[::max(1, x.shape[0] // max_rows)]
+    out = np.zeros(x.shape[1])
+    for c in range(x.shape[1]):
+        v = sub[:, c]
+        f = v.astype(np.float32)
+        if v.size and np.all(f.astype(float) == v) and np.any(v != 0):
+            out[c] = math.sqrt(float(np.mean(np.spacing(np.abs(f)).astype(float) ** 2)) / 12.0)
+    return out
+
+
 def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 5,
                tol: float = 0.2, arw=None, vrw=None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
@@ -150,6 +167,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     # ... and, for a quantized record, the rounding noise of its quantum (q / sqrt(12) per increment)
     q_res = np.concatenate([data_resolution(dth), data_resolution(dv)])  # no copy of the record
     arw_q, vrw_q = q_res[:3] / math.sqrt(12.0 * dt), q_res[3:] / math.sqrt(12.0 * dt)
+    # ... or of float32 storage (white, ulp / sqrt(12) per increment)
+    f32 = np.concatenate([float32_rounding(dth), float32_rounding(dv)])
+    arw_q = np.maximum(arw_q, f32[:3] / math.sqrt(dt))
+    vrw_q = np.maximum(vrw_q, f32[3:] / math.sqrt(dt))
     resolution_floored = bool(np.any(arw_v < arw_q) or np.any(vrw_v < vrw_q))
     arw_v = np.maximum(arw_v, arw_q)
     vrw_v = np.maximum(vrw_v, vrw_q)
@@ -297,6 +318,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                   "resolution_floored": resolution_floored,
                   "resolution": {"gyro_arcsec": units.from_si(q_res[:3], "arcsec").tolist(),
                                  "accel_ug_s": units.from_si(q_res[3:], "ug*s").tolist()},
+                  "float32": bool(np.all(f32 > 0)),
+                  "float32_rounding": {"gyro_arcsec": units.from_si(f32[:3], "arcsec").tolist(),
+                                       "accel_ug_s": units.from_si(f32[3:], "ug*s").tolist()},
                   "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
         "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": 6.0, "chi2": chisq, "dof": dof,
                         "p_value": float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan"),
