@@ -30,7 +30,7 @@ FIT_BLOCKS = 24
 
 
 def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet,
-                   signature: dict | None = None) -> dict:
+                   signature: dict | None = None, expected: float | None = None) -> dict:
     """The fit of a systematic-filter run, in the form of the window-mean methods' fit
     (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
     ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
@@ -46,11 +46,13 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
     inconsistent with that cause, and the sigma are left as they are: conservative, never scaled
     down by a fit that says the noise model is wrong."""
 
-    p = float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan")
-    p_low = float(_chi2.cdf(chisq, dof)) if dof > 0 else float("nan")
+    e = float(dof) if expected is None else float(expected)  # the chi2's expectation (its dof, less the
+    # part of S the data do not carry: see the driver); tested as chi2 with that many degrees of freedom
+    p = float(_chi2.sf(chisq, e)) if dof > 0 else float("nan")
+    p_low = float(_chi2.cdf(chisq, e)) if dof > 0 else float("nan")
     too_high, too_low = p < P_INCONSISTENT, p_low < P_INCONSISTENT
     consistent = not (too_high or too_low)
-    scale = math.sqrt(max(chisq / dof, 1.0)) if too_high else 1.0
+    scale = math.sqrt(max(chisq / e, 1.0)) if too_high else 1.0
     n = len(nis)
     nb = int(max(1, min(FIT_BLOCKS, n * T // 60.0)))
     edges = np.linspace(0, n, nb + 1).astype(int)
@@ -63,7 +65,7 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
                     "nis_mean": float(np.mean(nis[a:b])),
                     "velocity_rms_m_s": float(np.sqrt(np.mean(z[a:b, :3] ** 2))),
                     "position_rms_m": float(np.sqrt(np.mean(z[a:b, 3:] ** 2)))})
-    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": float(dof), "p_value": p, "p_value_low": p_low,
+    fit = {"chi2": chisq, "dof": int(dof), "expected_chi2": e, "p_value": p, "p_value_low": p_low,
            "consistent": consistent,
            "scale": scale, "residuals": res, "cause": None, "note": None,
            "sigma_rule": "systematic filter: sigma x sqrt(chi2/dof) of the innovations when p < 0.001"}
@@ -71,8 +73,8 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
         cause = ("the assumed noise is larger than the data's: --arw/--vrw too large, a noise floor above a noise-free "
                  "or quantized record's own, or rounding that does not accumulate as white noise would")
         fit["cause"] = cause
-        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof is far below it (NIS mean "
-                       f"{chisq / max(n, 1):.3g} vs 6, lower-tail p = {p_low:.2g}); likely cause: {cause}; the sigma "
+        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof ({e:.5g} expected) is far below "
+                       f"it (NIS mean {chisq / max(n, 1):.3g} vs {e / max(n, 1):.3g}, lower-tail p = {p_low:.2g}); likely cause: {cause}; the sigma "
                        "are conservative (not scaled down)")
     elif not consistent:
         worst = max(res, key=lambda r: r["nis_mean"])
@@ -85,8 +87,8 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
         if signature is not None:
             cause += f"; where: {signature_line(signature)}"
         fit["cause"] = cause
-        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof (NIS mean {chisq / max(n, 1):.3g} "
-                       f"vs 6, p = {p:.2g}); likely cause: {cause}; sigma scaled by sqrt(chi2/dof) = {scale:.3g}, "
+        fit["note"] = (f"fit inconsistent: innovation chi2 = {chisq:.4g} on {dof} dof ({e:.5g} expected; NIS mean "
+                       f"{chisq / max(n, 1):.3g} vs {e / max(n, 1):.3g}, p = {p:.2g}); likely cause: {cause}; sigma scaled by sqrt(chi2/dof) = {scale:.3g}, "
                        "formal sigma kept")
     if signature is not None:
         fit["signature"] = signature

@@ -305,7 +305,15 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     nis = last.nis
     dof = 6 * last.steps
     chisq = float(np.sum(nis))
-    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per))
+    # expectation of the chi2: the zero-velocity/known-position pseudo-measurement noise R regularises the
+    # filter but is not in a static record's data, so E[nu^T S^-1 nu] = 6 - tr(S^-1 R) per step (the
+    # encoder rows' expectation is formed the same way); steps down-weighted by the cap count 6
+    rs_scaled = r / sig[3:N_NAV] ** 2
+    Si_diag = np.diagonal(last.smoother.Si_st[:last.steps], axis1=1, axis2=2)
+    per_step = 6.0 - Si_diag @ rs_scaled
+    per_step[last.r_factor[:last.steps] > 1.0] = 6.0
+    expected = float(np.sum(per_step))
+    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
     diag = {
@@ -322,8 +330,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                   "float32_rounding": {"gyro_arcsec": units.from_si(f32[:3], "arcsec").tolist(),
                                        "accel_ug_s": units.from_si(f32[3:], "ug*s").tolist()},
                   "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
-        "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": 6.0, "chi2": chisq, "dof": dof,
-                        "p_value": float(_chi2.sf(chisq, dof)) if dof > 0 else float("nan"),
+        "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": expected / max(len(nis), 1), "chi2": chisq,
+                        "dof": dof, "expected_chi2": expected,
+                        "p_value": float(_chi2.sf(chisq, expected)) if dof > 0 else float("nan"),
                         "velocity_rms_m_s": float(np.sqrt(np.mean(last.z[:, :3] ** 2))),
                         "position_rms_m": float(np.sqrt(np.mean(last.z[:, 3:] ** 2)))},
         "initial_attitude_deg": np.degrees(euler_of(C0)).tolist(),
