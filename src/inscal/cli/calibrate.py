@@ -146,7 +146,8 @@ def fit_lines(fit: dict) -> list[str]:
     out = [f"  fit: chi2 {fit['chi2']:.4g} on {fit['dof']} dof{exp}, p = {fit['p_value']:.3g}: {verdict}"]
     res = fit["residuals"]
     if res and "nis_mean" in res[0]:  # systematic filter: time blocks of its innovations
-        out.append("  innovations per time block (mean NIS, expected 6; velocity RMS m/s, position RMS m):")
+        per = fit.get("expected_chi2", fit["dof"]) / max(fit["dof"] / 6.0, 1.0)
+        out.append(f"  innovations per time block (mean NIS, expected {per:.3g}; velocity RMS m/s, position RMS m):")
         out += [f"    {r['window']:3d} {r['label']:24s} {r['nis_mean']:9.3g}  {r['velocity_rms_m_s']:9.3g}  "
                 f"{r['position_rms_m']:9.3g}" for r in res]
         return out
@@ -223,7 +224,8 @@ def register(app: typer.Typer) -> None:
                            f"(dispersion {t['dispersion']:.3g}), p = {t['p_value']:.3g}")
         if "innovations" in rep:
             inn = rep["innovations"]
-            typer.echo(f"  filter: NIS mean {inn['nis_mean']:.3f} (expected 6); {len(rep['passes'])} passes"
+            typer.echo(f"  filter: NIS mean {inn['nis_mean']:.3f} (expected {inn.get('nis_expected', 6.0):.3f}); "
+                       f"{len(rep['passes'])} passes"
                        + ("" if rep["converged"] else " (not converged)"))
         for p in rep.get("plots", []):
             typer.echo(f"  plot: {p}")

@@ -34,7 +34,8 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
     """The fit of a systematic-filter run, in the form of the window-mean methods' fit
     (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
     ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
-    mean NIS (expected 6) with the velocity / position innovation RMS.
+    mean NIS (expected 6 less the pseudo-measurement part, ``expected``) with the velocity / position
+    innovation RMS.
 
     When p < :data:`P_INCONSISTENT` the reported sigma are the formal (smoothed) ones times
     ``scale = sqrt(chi2 / dof)`` (``sqrt(mean NIS / 6)``): the innovation sequence says the
