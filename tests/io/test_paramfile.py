@@ -119,6 +119,9 @@ def test_cli_bad_input_writes_nothing(tmp_path, h5):
     io.write_record(jp, replace(rec, gimbal=g))
     out = tmp_path / "jump.toml"
     r = CliRunner().invoke(app, ["calibrate", str(jp), "--method", "joint", "--out", str(out)])
+    assert r.exit_code == 2 and "the inner by 1 deg" in r.output and "a jump or glitch" in r.output, r.output
+    assert not out.exists()
+    r = CliRunner().invoke(app, ["calibrate", str(jp), "--method", "joint", "--out", str(out), "--skip-encoder-check"])
     assert r.exit_code == 2 and "inner (theta_z) jumps by 3600.0 arcsec" in r.output, r.output
     assert not out.exists()
     r = CliRunner().invoke(app, ["calibrate", str(h5), "--method", "eight-position", "--out", str(tmp_path / "x.toml")])

@@ -496,10 +496,12 @@ def compare_encoders(dtheta, gimbal, rate_hz: float, time=None, *, tol_deg: floa
             if again.ok:
                 return EncoderCheck(False, "latency", _latency_message(delta, sigma, rate_hz), m, worst, delta, sigma,
                                     rate_hz, moves, tuple(tried))
+    d_out, d_in = (np.asarray(gimbal[i1[k]], float) - np.asarray(gimbal[i0[k]], float)) / DEG
     msg = (f"the encoders and the gyros disagree by {r0[p] / DEG:.3g} deg on move {k + 1} of {m} at "
-           f"t = {time[pts.j[p]]:.2f} s (the move: a {turned[k] / DEG:.4g} deg turn at t = {time[i0[k]]:.2f} .. "
-           f"{time[i1[k]]:.2f} s; tolerance {pts.tol[p] / DEG:.2g} deg; {int(bad0.sum())} move(s) disagree); no unit, "
-           "sign, column or latency error explains it")
+           f"t = {time[pts.j[p]]:.2f} s (the move: the gyros turn {turned[k] / DEG:.4g} deg, the outer angle changes by "
+           f"{d_out:.4g} deg and the inner by {d_in:.4g} deg, t = {time[i0[k]]:.2f} .. {time[i1[k]]:.2f} s; tolerance "
+           f"{pts.tol[p] / DEG:.2g} deg; {int(bad0.sum())} move(s) disagree); no unit, sign, column or latency error "
+           "explains it: a jump or glitch of an encoder?")
     return EncoderCheck(False, "disagree", msg, m, worst, nan, nan, rate_hz, moves, tuple(tried))
 
 
