@@ -39,6 +39,7 @@ from inscal.calibrate.systematic.states import (
 )
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
+from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors
 from inscal.nav.align import coarse_align
 
@@ -184,8 +185,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         if k not in sig0:
             raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
         sig0[k] = float(v)
-    sig = np.array(list(NAV_SIGMA0) + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
-    sig_par = sig[N_NAV:]
     hist_every = max(1, int(round(history_s / T)))
     # coarse alignment (inertial-frame Wahba; valid while turning)
 
@@ -196,6 +195,18 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     n_dwell = _first_motion(dth, dt)
     if n_dwell >= int(5 * rate) + 1:
         n_al = min(n_al, n_dwell)
+    # the heading of the coarse alignment is only as good as the horizontal Earth rate it measures: with
+    # white gyro noise, sigma_psi = (ARW / sqrt(window)) / (W_ie cos L).  A noisy gyro (10x the N25 unit's
+    # 0.02 deg/sqrt(h)) leaves it degrees off after a minute; a prior of 1 deg about that start would be
+    # 4 sigma wrong and the passes would crawl towards the truth.  The heading prior (and the mount azimuth
+    # of the gimbal states, which inherits it) widens to twice that sigma when it exceeds the default.
+    sigma_psi = float(np.mean(arw_v)) / math.sqrt(n_al * dt) / (OMEGA_IE * max(math.cos(site.latitude), 1e-3))
+    nav_sig0 = list(NAV_SIGMA0)
+    nav_sig0[2] = max(nav_sig0[2], 2.0 * sigma_psi)
+    if "mount_attitude" not in (prior or {}):
+        sig0["mount_attitude"] = max(sig0["mount_attitude"], 2.0 * sigma_psi)
+    sig = np.array(nav_sig0 + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
+    sig_par = sig[N_NAV:]
     start = CompParams() if initial is None else CompParams.from_imu(initial)
     nominal = CompParams()
     try:
