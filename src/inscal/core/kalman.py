@@ -98,11 +98,9 @@ def update(P, idx, r, z, K, Sinv, x):
 
 
 @njit(cache=True)
-def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
-    """The common part of every update, given ``P H^T`` (N, m) and ``S = H P H^T + R`` (m, m):
-    symmetrise ``S``, write ``S^-1``, the gain ``K = P H^T S^-1`` and ``x = K z``, and update ``P``
-    in Joseph form (``P - K H P - (K H P)^T + K S K^T``, symmetric); returns ``z^T S^-1 z``."""
-    N = P.shape[0]
+def gain(PHt, S, z, K, Sinv, x):
+    """The gain of an update, given ``P H^T`` (N, m) and ``S = H P H^T + R`` (m, m): symmetrise ``S`` (in
+    place), write ``S^-1``, ``K = P H^T S^-1`` and ``x = K z``; returns ``z^T S^-1 z``."""
     m = S.shape[0]
     for a in range(m):
         for b in range(a + 1, m):
@@ -112,6 +110,16 @@ def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
     Si = np.linalg.inv(S)
     Sinv[:, :] = Si
     K[:, :] = PHt @ Si
+    x[:] = K @ z
+    return z @ (Si @ z)
+
+
+@njit(cache=True)
+def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
+    """The common part of every update in covariance form: :func:`gain`, then ``P`` updated in Joseph
+    form (``P - K H P - (K H P)^T + K S K^T``, symmetric); returns ``z^T S^-1 z``."""
+    N = P.shape[0]
+    nis = gain(PHt, S, z, K, Sinv, x)
     KPH = K @ PHt.T
     KSK = (K @ S) @ K.T
     for i in range(N):
@@ -119,15 +127,6 @@ def gain_and_joseph(P, PHt, S, z, K, Sinv, x):
             v = P[i, j] - KPH[i, j] - KPH[j, i] + 0.5 * (KSK[i, j] + KSK[j, i])
             P[i, j] = v
             P[j, i] = v
-    nis = 0.0
-    sz = Si @ z
-    for a in range(m):
-        nis += z[a] * sz[a]
-    for i in range(N):
-        s = 0.0
-        for a in range(m):
-            s += K[i, a] * z[a]
-        x[i] = s
     return nis
 
 
@@ -186,32 +185,28 @@ def sr_predict(U, n, phi_nn, phi_np, q_nn):
             U[i, j] = new_np[i, j - n]
 
 
-@njit(cache=True)
-def carlson_unit(U, i0, r):
-    """:func:`carlson` for ``h = e_i0`` (a measurement of one state): ``sigma_j = U[i0, j]``."""
-    N = U.shape[0]
-    w = np.zeros(N)
-    alpha = r
-    for j in range(i0, N):
-        sigma = U[i0, j]
-        if sigma == 0.0:
-            continue
-        beta = alpha
-        alpha = alpha + sigma * sigma
-        gamma = np.sqrt(alpha * beta)
-        eta = beta / gamma
-        zeta = sigma / gamma
-        for i in range(j + 1):
-            tau = U[i, j]
-            U[i, j] = eta * tau - zeta * w[i]
-            w[i] += tau * sigma
+@njit(cache=True, inline="always")
+def carlson_column(U, j, sigma, alpha, w):
+    """One column ``j`` of Carlson's update (``sigma = (U^T h)_j``, ``alpha`` the running ``h^T P h + r`` so
+    far, ``w`` the unscaled gain), in place; returns the new ``alpha``."""
+    beta = alpha
+    alpha = alpha + sigma * sigma
+    gamma = np.sqrt(alpha * beta)
+    eta = beta / gamma
+    zeta = sigma / gamma
+    for i in range(j + 1):
+        tau = U[i, j]
+        U[i, j] = eta * tau - zeta * w[i]
+        w[i] += tau * sigma
+    return alpha
 
 
 @njit(cache=True)
 def carlson(U, h, r):
     """Carlson's triangular square-root update (Grewal and Andrews, Kalman Filtering, sec. 6.5) of
     ``P = U U^T`` for one scalar measurement ``h^T x + v``, ``var v = r``, in place: afterwards
-    ``U U^T = P - P h h^T P / (h^T P h + r)``, ``U`` still upper triangular."""
+    ``U U^T = P - P h h^T P / (h^T P h + r)``, ``U`` still upper triangular.  (``w[j]`` is zero until
+    column ``j``: the columns before it touch rows ``i < j`` only.)"""
     N = U.shape[0]
     w = np.zeros(N)
     alpha = r
@@ -219,37 +214,28 @@ def carlson(U, h, r):
         sigma = 0.0
         for i in range(j + 1):
             sigma += U[i, j] * h[i]
-        if sigma == 0.0:
-            continue
-        beta = alpha
-        alpha = alpha + sigma * sigma
-        gamma = np.sqrt(alpha * beta)
-        eta = beta / gamma
-        zeta = sigma / gamma
-        w[j] = 0.0
-        for i in range(j + 1):
-            tau = U[i, j]
-            U[i, j] = eta * tau - zeta * w[i]
-            w[i] += tau * sigma
+        if sigma != 0.0:
+            alpha = carlson_column(U, j, sigma, alpha, w)
+
+
+@njit(cache=True)
+def carlson_unit(U, i0, r):
+    """:func:`carlson` for ``h = e_i0`` (a measurement of one state): ``sigma_j = U[i0, j]``, zero for
+    ``j < i0``."""
+    N = U.shape[0]
+    w = np.zeros(N)
+    alpha = r
+    for j in range(i0, N):
+        sigma = U[i0, j]
+        if sigma != 0.0:
+            alpha = carlson_column(U, j, sigma, alpha, w)
 
 
 @njit(cache=True)
 def sr_gain(U, Ht, R, nu, K, Sinv, x):
     """The vector update's gain in square-root form, given ``F = U^T H^T`` (N x m, ``Ht``): ``P H^T = U F``,
-    ``S = F^T F + R``; writes ``S^-1``, ``K = P H^T S^-1`` and ``x = K nu``; returns ``nu^T S^-1 nu``."""
-    m = Ht.shape[1]
-    PHt = U @ Ht
-    S = Ht.T @ Ht + R
-    for a in range(m):
-        for b in range(a + 1, m):
-            v = 0.5 * (S[a, b] + S[b, a])
-            S[a, b] = v
-            S[b, a] = v
-    Si = np.linalg.inv(S)
-    Sinv[:, :] = Si
-    K[:, :] = PHt @ Si
-    x[:] = K @ nu
-    return nu @ (Si @ nu)
+    ``S = F^T F + R``; :func:`gain` of those; returns ``nu^T S^-1 nu``."""
+    return gain(U @ Ht, Ht.T @ Ht + R, nu, K, Sinv, x)
 
 
 @njit(cache=True)
