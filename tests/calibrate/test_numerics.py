@@ -3,6 +3,8 @@ increments, and numerical failures reported in one line."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,9 @@ from inscal.calibrate import calibrate
 from inscal.calibrate.systematic import driver
 from inscal.calibrate.systematic.driver import data_resolution, float32_rounding
 from inscal.calibrate.windows import CalibrationError
+from inscal.core import units
+from inscal.sim import scenarios
+from inscal.sim.simulate import simulate
 
 
 def test_data_resolution_finds_the_quantum_of_counts_and_nothing_else():
@@ -60,3 +65,18 @@ def test_float32_records_show_their_rounding_noise():
     assert np.all(float32_rounding(x) == 0.0)
     # the empirical rounding error of the same values has that spread
     assert np.std(f[:, 0] - x[:, 0]) == pytest.approx(q[0], rel=0.1)
+
+
+def test_a_large_valid_noise_calibrates_conservatively():
+    """--arw 1 deg/sqrt(h) on a 0.002 deg/sqrt(h) record: the discrete noise of the third-order series in T
+    went indefinite (a T^3 position-attitude term without the T^5 position variance that balances it) and
+    the square-root prediction's Cholesky failed.  By quadrature Q_d is PSD; the fit runs, says the assumed
+    noise is larger than the data's, and leaves the sigma conservative."""
+    sc = scenarios.build("psins19")
+    d = simulate(sc, np.random.default_rng(1))
+    rec = SimpleNamespace(time=d.time, dtheta=d.dtheta, dvel=d.dvel, gimbal=None, rate_hz=sc.rate_hz, site=sc.site)
+    res = calibrate(rec, "systematic51", arw=units.to_si(1.0, "deg/sqrt(h)"))
+    fit = res.diagnostics["fit"]
+    assert not fit["consistent"] and fit["p_value_low"] < 1e-3 and fit["scale"] == 1.0
+    err = res.to_field((sc.imu, None))["accel_scale_factor"]
+    assert np.all(np.abs(np.asarray(err["error"])) < 3 * np.asarray(err["sigma"]))

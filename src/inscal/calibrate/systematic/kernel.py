@@ -38,6 +38,11 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
     (_TAU0, _), (_GIM0, _GIM1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim")]
 
 
+#: 3-point Gauss-Legendre nodes and weights on [0, 1]
+GL3_NODES = (0.5 - 0.5 * math.sqrt(0.6), 0.5, 0.5 + 0.5 * math.sqrt(0.6))
+GL3_WEIGHTS = (5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0)
+
+
 class PassInputs(NamedTuple):
     """What a filter pass reads and never writes."""
 
@@ -315,8 +320,16 @@ def _pass_kernel(inp, par, U, st, er):
         for i in range(3):
             Qc[i, i] = qgm
             Qc[3 + i, 3 + i] = qam
-        FQ = F @ Qc
-        Qd = Qc * T + (FQ + FQ.T) * (T * T / 2.0) + (F2 @ Qc + 2.0 * FQ @ F.T + Qc @ F2.T) * (T * T * T / 6.0)
+        # Q_d = int_0^T Phi(s) Qc Phi(s)^T ds by 3-point Gauss-Legendre, Phi(s) = I + F s + F^2 s^2/2 + F^3 s^3/6:
+        # a positive-weight sum of PSD terms, so Q_d is PSD by construction (the third-order series in T had
+        # position-attitude terms of order T^3 without the T^5 position variance that balances them: with a
+        # large gyro noise, e.g. --arw 1 deg/sqrt(h), it went indefinite and the Cholesky of the square-root
+        # prediction failed)
+        Qd = np.zeros((9, 9))
+        for gq in range(3):
+            sq = T * GL3_NODES[gq]
+            Ph = np.eye(9) + F * sq + F2 * (sq * sq / 2.0) + F3 * (sq * sq * sq / 6.0)
+            Qd += (T * GL3_WEIGHTS[gq]) * (Ph @ Qc @ Ph.T)
         # scaling
         for i in range(9):
             for j in range(9):
