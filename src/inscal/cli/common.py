@@ -123,6 +123,22 @@ def progress_bar(description: str, total: int, enabled: bool = True):
         yield lambda done, tot: prog.update(task, completed=done)
 
 
+def check_scheduler(value: str | None, words: tuple[str, ...]) -> str | None:
+    """``--scheduler``: None, one of ``words`` (e.g. local, none, synchronous), or a Dask scheduler address
+    ``[tcp|tls|ucx|inproc]://HOST:PORT`` or ``HOST:PORT``; anything else is one line, not a traceback."""
+    if value is None or value in words:
+        return value
+    text = str(value).strip()
+    rest = text.split("://", 1)[1] if "://" in text else text
+    scheme = text.split("://", 1)[0] if "://" in text else "tcp"
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("tcp", "tls", "ucx", "inproc") or not host or not port.isdigit() or not 0 < int(port) < 65536 \
+            or any(c.isspace() for c in rest):
+        raise CliError(f"--scheduler {value!r}: not a Dask scheduler address (tcp://HOST:PORT or HOST:PORT) nor one of "
+                       f"{', '.join(w for w in words if w)}")
+    return text
+
+
 def parse_gravity_option(text: str):
     """``--gravity wgs84|psins|VALUE`` (VALUE in m/s^2, measured at the site height)."""
     from inscal.core.earth import parse_gravity

@@ -8,7 +8,7 @@ from pathlib import Path as FsPath
 
 import typer
 
-from inscal.cli.common import CliError, check_output, fail, print_json, short
+from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
 
 
 def _range(opt: str, v: str | None):
@@ -101,6 +101,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     from inscal.plan.design import DesignError, Limits, design
     from inscal.sim.scenarios import BUILTIN, ScenarioError, scenario_from_dict
 
+    scheduler = check_scheduler(scheduler, ("local", "none", "synchronous", "sync", ""))
     out = FsPath(out)
     if out.suffix != ".toml":
         raise CliError(f"--out must be a .toml file, got {short(out)}")

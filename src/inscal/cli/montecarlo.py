@@ -13,7 +13,7 @@ import typer
 if TYPE_CHECKING:
     from inscal.analysis.montecarlo import Summary
 
-from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
 
 
 def parse_set(items: list[str] | None) -> dict:
@@ -41,6 +41,7 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
     from inscal.analysis import montecarlo as mc
     from inscal.analysis import studies
 
+    scheduler = check_scheduler(scheduler, ("local", "synchronous", "sync"))
     if no_dask:
         if scheduler not in (None, "synchronous", "sync"):
             raise CliError("--no-dask and --scheduler ADDRESS contradict each other")
