@@ -479,6 +479,12 @@ def test_site_is_required_and_may_come_from_the_mapping(tmp_path):
                       "--height", 1000)  # a partial override of the mapping's site
     assert code == 0, se
     assert io.read_record(tmp_path / "p.h5").site.height == 1000.0
+    # --gravity with the site from the mapping's [site] table (was an AttributeError on the missing site)
+    code, _, se = run("import", good.txt, "--format", "txt", "--mapping", good.mapping, "--out", tmp_path / "g.h5",
+                      "--gravity", "9.780327")
+    assert code == 0, se
+    site = io.read_record(tmp_path / "g.h5").site
+    assert site.height == 50.0 and site.gravity == pytest.approx(9.780327)
 
 
 def test_force_semantics_for_import_and_export(tmp_path):

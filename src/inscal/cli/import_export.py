@@ -70,12 +70,14 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     check_not_input(out, mapping, path, gimbal)
     try:
         site = _site(lat, lon, height, mapping, fmt)
+        gmodel = None
         if gravity is not None:
             from inscal.cli.common import parse_gravity_option
 
-            site = site.with_gravity(parse_gravity_option(gravity))
+            gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
-                           variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency)
+                           variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
+                           gravity=gmodel)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:

@@ -243,8 +243,11 @@ def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False
 def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
-                rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0) -> dict:
-    """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary
+                rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
+                gravity=None) -> dict:
+    """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
+    ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
+    wherever the site comes from (the options, the mapping's ``[site]`` or a PSINS ``.imu`` header)
     (``encoders``: the encoder check's summary, its ``latency_s`` what remains after the applied
     ``encoder_latency_s``)."""
     src = Path(src)
@@ -268,6 +271,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     if site is None:  # a PSINS .imu log names its site in its header
         lat, lon, h = raw.header_site
         site = Site(lat * DEG, lon * DEG, h)
+    if gravity is not None:
+        site = site.with_gravity(gravity)
     if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
     else:
