@@ -43,6 +43,12 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     systematic = method in RECORD_METHODS
     if not systematic and (states or plots or arw is not None or vrw is not None or encoder_sigma is not None):
         raise CliError(f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {method}")
+    for name, v in (("--arw", arw), ("--vrw", vrw)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise CliError(f"{name} must be a white-noise level > 0 ({'deg/sqrt(h)' if name == '--arw' else 'ug/sqrt(Hz)'}), "
+                           f"got {v}")
+    if not (math.isfinite(filter_rate_hz) and filter_rate_hz > 0):
+        raise CliError(f"--filter-rate-hz must be > 0, got {filter_rate_hz}")
     if encoder_sigma is not None and not (np.isfinite(encoder_sigma) and encoder_sigma > 0):
         raise CliError(f"--encoder-sigma must be > 0 arcsec, got {encoder_sigma}")
     if not data.is_file():

@@ -184,6 +184,9 @@ def register(app: typer.Typer) -> None:
         if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
             raise fail("--gyro-bi, --accel-bi, --gyro-rrw and --accel-rrw need --crlb (the systematic filter has no "
                        "bias process noise)")
+        if filter_rate_hz != 1.0 or bi_tau != 3600.0:
+            raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
+                       "--rate-hz")
         try:
             rep = run_observability(source, states, rate_hz, arw, vrw)
         except CliError as exc:

@@ -541,6 +541,9 @@ class Strapdown:
         self.params = params
         self.k = int(k0)
         self.t0 = float(t0)
+        if self.config.output_rate_hz * self.dt > 1.0 + 1e-9:
+            raise ValueError(f"output rate {self.config.output_rate_hz:g} Hz is above the sample rate "
+                             f"{1.0 / self.dt:g} Hz")
         self.decim = max(1, int(round(1.0 / (self.dt * self.config.output_rate_hz))))
         self.st = np.zeros(N_STATE)
         self.set_state(init)

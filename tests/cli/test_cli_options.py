@@ -1,0 +1,57 @@
+"""Options that were tracebacks, clamped or ignored: ``--scheduler`` of ``design`` and ``montecarlo`` (a
+value neither a keyword nor a Dask address), ``--arw``/``--vrw``/``--filter-rate-hz`` of calibrate,
+``navigate --output-rate-hz`` above the sample rate, and ``observability --filter-rate-hz`` without
+``--crlb``: each is one line (exit 2), nothing written."""
+
+import pytest
+from typer.testing import CliRunner
+
+from inscal.cli.app import app
+from inscal.cli.common import CliError, check_scheduler
+
+
+@pytest.mark.parametrize("value", ["not an address", "nohostport", "tcp://host:notaport", "ftp://host:1",
+                                   "host:70000", ":8786"])
+def test_bad_addresses_are_refused(value):
+    with pytest.raises(CliError, match="not a Dask scheduler address"):
+        check_scheduler(value, ("local",))
+
+
+@pytest.mark.parametrize("value", [None, "local", "tcp://10.0.0.5:8786", "127.0.0.1:8786", "tls://h.example:443",
+                                   "inproc://a:1"])
+def test_good_values_pass(value):
+    assert check_scheduler(value, ("local",)) == value
+
+
+@pytest.mark.parametrize("args", [["design", "--minutes", "10"], ["montecarlo", "fig5", "--runs", "2"]])
+def test_cli_one_line_and_nothing_written(tmp_path, args):
+    out = tmp_path / ("d.toml" if args[0] == "design" else "mc")
+    r = CliRunner().invoke(app, args + ["--out", str(out), "--scheduler", "not an address"])
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1 and "not a Dask scheduler address" in r.stderr, r.output
+    assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- options no longer ignored
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    d = tmp_path_factory.mktemp("opts")
+    f = d / "p19.h5"
+    r = CliRunner().invoke(app, ["simulate", "psins19", "--out", str(f), "--seed", "1", "--rate-hz", "20"])
+    assert r.exit_code == 0, r.output
+    return f
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["calibrate", "{rec}", "--method", "systematic51", "--arw", "-1"], "--arw must be a white-noise level > 0"),
+    (["calibrate", "{rec}", "--method", "systematic51", "--vrw", "-5"], "--vrw must be a white-noise level > 0"),
+    (["calibrate", "{rec}", "--method", "systematic51", "--vrw", "nan"], "--vrw must be a white-noise level > 0"),
+    (["calibrate", "{rec}", "--method", "systematic51", "--filter-rate-hz", "0"], "--filter-rate-hz must be > 0"),
+    (["navigate", "{rec}", "--output-rate-hz", "1e6"], "output rate 1e+06 Hz is above the sample rate 20 Hz"),
+    (["observability", "psins19", "--filter-rate-hz", "100"], "apply to the bound (--crlb)"),
+])
+def test_options_refused_not_clamped_or_ignored(small, tmp_path, args, msg):
+    out = tmp_path / "x.toml"
+    argv = [a.format(rec=small) for a in args] + (["--out", str(out)] if args[0] == "calibrate" else [])
+    r = CliRunner().invoke(app, argv)
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1 and msg in r.stderr, r.output
+    assert not out.exists()
