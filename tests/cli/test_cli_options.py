@@ -3,6 +3,8 @@ value neither a keyword nor a Dask address), ``--arw``/``--vrw``/``--filter-rate
 ``navigate --output-rate-hz`` above the sample rate, and ``observability --filter-rate-hz`` without
 ``--crlb``: each is one line (exit 2), nothing written."""
 
+import os
+
 import pytest
 from typer.testing import CliRunner
 
@@ -55,3 +57,27 @@ def test_options_refused_not_clamped_or_ignored(small, tmp_path, args, msg):
     r = CliRunner().invoke(app, argv)
     assert r.exit_code == 2 and r.stderr.count("\n") == 1 and msg in r.stderr, r.output
     assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- directories and FIFOs as inputs
+@pytest.mark.parametrize("kind", ["fifo", "dir"])
+@pytest.mark.parametrize("args,what", [
+    (["navigate", "{x}"], "file"),
+    (["calibrate", "{x}", "--method", "joint", "--out", "{o}"], "data file"),
+    (["export", "{x}", "--format", "csv", "--out", "{o}"], "data file"),
+    (["import", "{x}", "--format", "csv", "--out", "{o}", "--lat", "1", "--lon", "1", "--height", "1"], "file"),
+    (["compensate", "{rec}", "--params", "{x}", "--out", "{o}"], "parameter file"),
+    (["simulate", "{xt}", "--out", "{o}"], "scenario file"),
+])
+def test_directory_or_fifo_named_as_such_and_nothing_blocks(small, tmp_path, kind, args, what):
+    """A FIFO given for a file blocked ``navigate`` forever (h5py opened it); a directory or FIFO was
+    reported as 'no such file'.  Now each is named for what it is."""
+    x, xt = tmp_path / "x.h5", tmp_path / "x.toml"
+    for p in (x, xt):
+        os.mkfifo(p) if kind == "fifo" else p.mkdir()
+    o = tmp_path / "o.out"
+    argv = [a.format(x=x, xt=xt, o=o, rec=small) for a in args]
+    r = CliRunner().invoke(app, argv)
+    phrase = "is a directory" if kind == "dir" else "not a regular file (a FIFO, socket or device)"
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1 and phrase in r.stderr, r.output
+    assert f"not a {what}" in r.stderr and not o.exists()

@@ -36,6 +36,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
+    from inscal.io.files import input_problem
     from inscal.io.paramfile import ParamFileError, save_params
 
     if method not in METHODS:
@@ -51,8 +52,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(f"--filter-rate-hz must be > 0, got {filter_rate_hz}")
     if encoder_sigma is not None and not (np.isfinite(encoder_sigma) and encoder_sigma > 0):
         raise CliError(f"--encoder-sigma must be > 0 arcsec, got {encoder_sigma}")
-    if not data.is_file():
-        raise CliError(f"{data}: no such data file")
+    if (msg := input_problem(data, "data file")) is not None:
+        raise CliError(msg)
     check_output(out, force)
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):

@@ -50,6 +50,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
                gravity: str | None = None, encoder_latency: float = 0.0) -> dict:
     from inscal.io.checks import SKIPPABLE
+    from inscal.io.files import input_problem
     from inscal.io.importers import import_file
     from inscal.io.mapping import FORMATS, ImportFileError
     from inscal.io.records import DataFileError
@@ -63,8 +64,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"--encoder-latency must be finite, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if not src.is_file():
-        raise CliError(f"{src}: no such file")
+    if (msg := input_problem(src, "file")) is not None:
+        raise CliError(msg)
     check_output(out, force)
     check_not_input(out, src, role="source file")
     check_not_input(out, mapping, path, gimbal)
@@ -86,14 +87,15 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
                force: bool = False) -> dict:
+    from inscal.io.files import input_problem
     from inscal.io.importers import export_record
     from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
     if fmt not in EXPORT_FORMATS:
         raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
-    if not data.is_file():
-        raise CliError(f"{data}: no such data file")
+    if (msg := input_problem(data, "data file")) is not None:
+        raise CliError(msg)
     outs = [p for p in (out, gimbal_out, path_out) if p is not None]
     for p in outs:
         check_output(p, force)

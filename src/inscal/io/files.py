@@ -95,6 +95,27 @@ def _umask() -> int:
     return mask
 
 
+def input_problem(path, what: str = "file") -> str | None:
+    """Why ``path`` cannot be read as an input ``what`` (one line), or None for a regular file: missing,
+    a directory, or not a regular file (a FIFO, socket or device, which a reader would block on or
+    read forever)."""
+    p = FsPath(path)
+    if not p.exists():
+        return f"{p}: no such {what}"
+    if p.is_dir():
+        return f"{p}: is a directory, not a {what}"
+    if not p.is_file():
+        return f"{p}: not a regular file (a FIFO, socket or device), not a {what}"
+    return None
+
+
+def check_input(path, what: str, error: type[Exception]) -> None:
+    """Raise ``error`` with :func:`input_problem`'s line when ``path`` is not a readable regular file."""
+    msg = input_problem(path, what)
+    if msg is not None:
+        raise error(msg)
+
+
 def file_hash(path) -> str:
     """SHA-256 of a file's bytes (recorded in calibration parameter files)."""
     h = hashlib.sha256()

@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 
 from inscal.core import units
+from inscal.io.files import check_input
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
@@ -47,8 +48,7 @@ class Raw:
 
 
 def _file_bytes(p: FsPath) -> bytes:
-    if not p.is_file():
-        raise ImportFileError(f"{p}: no such file")
+    check_input(p, "file", ImportFileError)
     b = p.read_bytes()
     if not b:
         raise ImportFileError(f"{p}: file is empty")

@@ -63,7 +63,7 @@ from inscal.core.error_model import (
     ImuErrors,
     errors_from_field,
 )
-from inscal.io.files import atomic_path, file_hash
+from inscal.io.files import atomic_path, check_input, file_hash
 from inscal.io.jsonfile import to_jsonable
 from inscal.io.records import record_attrs
 
@@ -189,8 +189,7 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
     Parameters not in the file are zero.  Raises :class:`ParamFileError` with the reason.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ParamFileError(f"{p}: no such parameter file")
+    check_input(p, "parameter file", ParamFileError)
     try:
         doc = tomllib.loads(p.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -42,7 +42,7 @@ if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (second
 
 import bisect
 
-from inscal.io.files import atomic_path, check_cancel
+from inscal.io.files import atomic_path, check_cancel, check_input
 
 #: names this module re-exports from the domain modules, imported on first use (PEP 562)
 KIND = "inscal-record"
@@ -213,8 +213,7 @@ def _reading(path):
 
 def _open(path) -> h5py.File:
     p = Path(path)
-    if not p.exists():
-        raise DataFileError(f"{p}: no such file")
+    check_input(p, "file", DataFileError)  # a FIFO would block h5py forever
     try:
         h5 = h5py.File(p, "r")
     except OSError as exc:

@@ -5,13 +5,14 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+from inscal.io.files import check_input
+
 
 def read_toml(path, error: type[Exception], what: str = "file") -> dict:
     """The parsed TOML document at ``path``; a missing file, malformed TOML or a non-text file
     raises ``error`` with one line naming the file (``what``: e.g. "scenario file")."""
     p = Path(path)
-    if not p.is_file():
-        raise error(f"{p}: no such {what}")
+    check_input(p, what, error)
     try:
         return tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as exc:
