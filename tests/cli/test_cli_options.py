@@ -3,6 +3,7 @@ value neither a keyword nor a Dask address), ``--arw``/``--vrw``/``--filter-rate
 ``navigate --output-rate-hz`` above the sample rate, and ``observability --filter-rate-hz`` without
 ``--crlb``: each is one line (exit 2), nothing written."""
 
+import json
 import os
 
 import pytest
@@ -81,3 +82,42 @@ def test_directory_or_fifo_named_as_such_and_nothing_blocks(small, tmp_path, kin
     phrase = "is a directory" if kind == "dir" else "not a regular file (a FIFO, socket or device)"
     assert r.exit_code == 2 and r.stderr.count("\n") == 1 and phrase in r.stderr, r.output
     assert f"not a {what}" in r.stderr and not o.exists()
+
+
+# ----------------------------------------------------------------------------- inputs accepted silently before
+def test_a_scenario_naming_no_motion_is_refused(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text('[scenario]\nname = "x"\nrate_hz = 100\n')
+    r = CliRunner().invoke(app, ["simulate", str(f), "--out", str(tmp_path / "o.h5")])
+    assert r.exit_code == 2 and "names no motion" in r.stderr and not (tmp_path / "o.h5").exists(), r.output
+    f.write_text('[scenario]\nname = "x"\nrate_hz = 10\nduration_s = 30\n')  # a static record, asked for
+    assert CliRunner().invoke(app, ["simulate", str(f), "--out", str(tmp_path / "o.h5")]).exit_code == 0
+
+
+@pytest.fixture(scope="module")
+def joint_params(small, tmp_path_factory):
+    p = tmp_path_factory.mktemp("jp") / "j.toml"
+    r = CliRunner().invoke(app, ["calibrate", str(small), "--method", "joint", "--out", str(p)])
+    assert r.exit_code == 0, r.output
+    return p
+
+
+@pytest.mark.parametrize("cmd", ["compensate", "report", "navigate"])
+def test_a_parameter_file_of_an_unknown_method_is_refused(small, joint_params, tmp_path, cmd):
+    bogus = tmp_path / "b.toml"
+    bogus.write_text(joint_params.read_text().replace('method = "joint"', 'method = "bogus"'))
+    out = tmp_path / ("o.html" if cmd == "report" else "o.h5")
+    argv = [cmd, str(small), "--params", str(bogus)] + ([] if cmd == "navigate" else ["--out", str(out)])
+    r = CliRunner().invoke(app, argv)
+    assert r.exit_code == 2 and "method 'bogus' is not an inscal calibration method" in r.stderr, r.output
+    assert not out.exists()
+
+
+def test_report_warns_when_the_parameters_come_from_another_record(joint_params, tmp_path):
+    other = tmp_path / "n25.h5"
+    assert CliRunner().invoke(app, ["simulate", "n25", "--out", str(other), "--seed", "1", "--rate-hz", "10"]).exit_code == 0
+    r = CliRunner().invoke(app, ["report", str(other), "--params", str(joint_params), "--out", str(tmp_path / "r"),
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    assert "inscal: warning:" in r.stderr and "calibrated from another record" in r.stderr
+    assert any("scenario 'psins19' vs the record's 'n25'" in w for w in json.loads(r.stdout)["warnings"])

@@ -123,6 +123,23 @@ def progress_bar(description: str, total: int, enabled: bool = True):
         yield lambda done, tot: prog.update(task, completed=done)
 
 
+def load_checked_params(path):
+    """``(imu, gimbal, meta)`` of a parameter file (:func:`inscal.io.paramfile.load_params`), its method one
+    of inscal's calibration methods or of :data:`~inscal.io.paramfile.HAND_METHODS` (a file whose ``method``
+    is unknown was not written by inscal and is not used as if it were); every problem is a :class:`CliError`."""
+    from inscal.calibrate import METHODS
+    from inscal.io.paramfile import HAND_METHODS, ParamFileError, load_params
+
+    try:
+        imu, gimbal, meta = load_params(path)
+    except (ParamFileError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    if meta.get("method") not in METHODS and meta.get("method") not in HAND_METHODS:
+        raise CliError(f"{path}: method {meta.get('method')!r} is not an inscal calibration method (known: "
+                       f"{', '.join(METHODS)}; a file made by hand says {', '.join(HAND_METHODS)})")
+    return imu, gimbal, meta
+
+
 def check_scheduler(value: str | None, words: tuple[str, ...]) -> str | None:
     """``--scheduler``: None, one of ``words`` (e.g. local, none, synchronous), or a Dask scheduler address
     ``[tcp|tls|ucx|inproc]://HOST:PORT`` or ``HOST:PORT``; anything else is one line, not a traceback."""

@@ -25,6 +25,7 @@ from inscal.cli.common import (
     check_not_input,
     check_output,
     fail,
+    load_checked_params,
     print_json,
     short,
 )
@@ -35,12 +36,12 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     record unless ``force``; ``warn(line)`` is called at once for each provenance warning
     (they are also in the result's ``warnings``)."""
     from inscal import io
-    from inscal.io.paramfile import ParamFileError, load_params
+    from inscal.io.paramfile import ParamFileError
 
     check_output(out, force)
     check_not_input(out, data, params)
+    imu, gimbal, meta = load_checked_params(params)
     try:
-        imu, gimbal, meta = load_params(params)
         info = io.record_info(data)
     except (ParamFileError, io.DataFileError) as exc:
         raise CliError(str(exc)) from None

@@ -12,6 +12,7 @@ from inscal.cli.common import (
     check_not_input,
     check_output,
     fail,
+    load_checked_params,
     np,
     print_json,
     short,
@@ -155,12 +156,7 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
     imu = gim = None
     warnings = []
     if params is not None:
-        from inscal.io.paramfile import load_params
-
-        try:
-            imu, gim, pmeta = load_params(params)
-        except ValueError as exc:
-            raise CliError(str(exc)) from None
+        imu, gim, pmeta = load_checked_params(params)
         from inscal.io.paramfile import provenance_mismatch
         from inscal.io.records import compensated_with, record_attrs
 

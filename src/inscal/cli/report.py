@@ -11,23 +11,31 @@ from inscal.cli.common import (
     check_not_input,
     check_output,
     fail,
+    load_checked_params,
     print_json,
     short,
 )
 
 
-def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -> dict:
-    from inscal.io.paramfile import ParamFileError, load_params
+def run_report(data: Path, params: list[Path], out: Path, force: bool = False, warn=None) -> dict:
+    """Write the report; ``warn(line)`` is called at once for each provenance warning (a parameter file
+    calibrated from another record, scenario or IMU serial: its errors against this record's truth
+    mean nothing), also in the result's ``warnings``."""
+    from inscal.io.files import input_problem
+    from inscal.io.paramfile import provenance_mismatch
     from inscal.report.record import record_report
 
     check_output(out, force)
     check_not_input(out, data, *params)
     from inscal import io
 
-    try:
-        sets = [(str(p), *load_params(p)) for p in params]
-    except ParamFileError as exc:
-        raise CliError(str(exc)) from None
+    sets = [(str(p), *load_checked_params(p)) for p in params]
+    if (msg := input_problem(data, "file")) is not None:
+        raise CliError(msg)
+    warnings = [w for p, _, _, meta in sets if (w := provenance_mismatch(data, Path(p), meta)) is not None]
+    for w in warnings:
+        if warn is not None:
+            warn(w)
     try:
         # the samples stay on disk: the report streams them (bounded memory for multi-day records)
         with io.open_record(data) as rec:
@@ -39,6 +47,7 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False) -
     except OSError as exc:
         raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
     res["out"] = str(out)
+    res["warnings"] = warnings
     return res
 
 
@@ -53,7 +62,7 @@ def register(app: typer.Typer) -> None:
     ):
         """Write an HTML report: gimbal motion, sensor outputs, Allan deviation, parameters vs truth."""
         try:
-            res = run_report(data, params, out, force)
+            res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

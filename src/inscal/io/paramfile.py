@@ -77,6 +77,9 @@ class ParamFileError(ValueError):
 
 _IMU_LINEAR = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
                "accel_bias")
+#: ``method`` of a parameter file not written by a calibration: true parameters of a simulation
+#: (``truth``), values typed in by hand (``manual``) or taken from another tool (``external``)
+HAND_METHODS = ("truth", "manual", "external")
 #: the tables a file written by each method always has (a file written by inscal that misses one
 #: was edited or cut: loading it would silently take that term as zero)
 REQUIRED: dict[str, tuple[str, ...]] = {

@@ -414,6 +414,11 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
             path = RotationPath.from_dict(pd)
     elif duration_s is not None and "base" not in d:
         path = static(duration_s)
+    if "base" not in d and "path" not in d and duration_s is None:
+        # a file with no base, no path and no duration says nothing about the motion: a silent one-hour
+        # static record is not what anyone asked for (checked after every table, so their errors come first)
+        raise ScenarioError("the scenario names no motion: give a [path] table, base = NAME (a built-in "
+                            "scenario), or a duration for a static record ([scenario] duration_h / duration_s)")
     return Scenario(name, path, site, imu, gim, noise, rate)
 
 
