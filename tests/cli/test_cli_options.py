@@ -121,3 +121,18 @@ def test_report_warns_when_the_parameters_come_from_another_record(joint_params,
     assert r.exit_code == 0, r.output
     assert "inscal: warning:" in r.stderr and "calibrated from another record" in r.stderr
     assert any("scenario 'psins19' vs the record's 'n25'" in w for w in json.loads(r.stdout)["warnings"])
+
+
+def test_a_read_only_output_folder_is_named_as_such(small, tmp_path, monkeypatch):
+    """A read-only folder was reported as too small ('would take about 855 kB ... but has 1.05 MB free').
+    (Run as root, permissions do not bind: the test makes os.access report the folder unwritable, as a
+    read-only mount does for every user.)"""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if os.fspath(p) == os.fspath(ro) else real(p, mode))
+    for argv in (["simulate", "psins19", "--out", str(ro / "s.h5")],
+                 ["calibrate", str(small), "--method", "joint", "--out", str(ro / "p.toml")]):
+        r = CliRunner().invoke(app, argv)
+        assert r.exit_code == 2 and "is read-only" in r.stderr and "free" not in r.stderr, r.output
+    assert not any(ro.iterdir())

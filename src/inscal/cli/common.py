@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import json
+import os
 import re
 from pathlib import Path
 
@@ -47,6 +48,11 @@ def check_output(path: Path, force: bool) -> None:
         raise CliError(f"{short(path)} exists; use --force to overwrite it")
     if not path.parent.exists():
         raise CliError(f"folder {short(path.parent)} does not exist")
+    if not path.parent.is_dir():
+        raise CliError(f"{short(path.parent)} is not a folder")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise CliError(f"folder {short(path.parent)} is read-only (or not writable by this user): nothing can be "
+                       "written there")
 
 
 def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: str = "input") -> None:
