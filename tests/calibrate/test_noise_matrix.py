@@ -87,8 +87,6 @@ PRIOR_SHARE = 0.01
 #: the magnitude fields of ImuNoise (scaled); the correlation times are kept
 NOISE_MAGNITUDES = ("arw", "vrw", "gyro_bias_instability", "accel_bias_instability", "gyro_quantization",
                     "accel_quantization", "encoder_noise")
-#: cells known to fail (module docstring), asserted to still fail
-KNOWN_FAILURES: dict = {}
 
 
 def _cells():
@@ -266,14 +264,11 @@ def test_cell(cell, store):
             problems.append("NIS mean outside (5, 7)")
         if not c["converged"]:
             problems.append("not converged")
-    if cell in KNOWN_FAILURES:
-        assert problems, f"{info}: known failure now passes; remove it from KNOWN_FAILURES"
-        pytest.xfail(f"{info}: {'; '.join(problems)} ({KNOWN_FAILURES[cell]})")
     assert not problems, f"{info}: {'; '.join(problems)}"
 
 
 def test_nees_95_percent_band_in_90_percent_of_noisy_cells(store):
-    """Over the 20 cells above the noise floors (the known failure included), the data-dominated NEES
+    """Over the 20 cells above the noise floors, the data-dominated NEES
     lies inside its 95 % chi-square band in at least 90 % of them."""
     rows = []
     for cell in CELLS:
