@@ -6,10 +6,20 @@ Subcommands live one per module: ``inscal.cli.<name>`` modules each define
 
 from __future__ import annotations
 
+import functools
 import importlib
 import sys
 
+import click
 import typer
+
+from inscal.cli.common import fail
+from inscal.cli.interrupts import (
+    Interrupted,
+    catch_interrupts,
+    pending_signal,
+    release_interrupts,
+)
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 
@@ -21,12 +31,20 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+def _release_outputs() -> None:
+    files = sys.modules.get("inscal.io.files")
+    if files is not None:
+        files.release_outputs()
+
+
 @app.callback()
 def _root(
+    ctx: typer.Context,
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                  help="print the inscal version and exit"),
 ) -> None:
     """inscal: calibrate high-accuracy IMUs and dual-axis rotational INS (S16, N25)."""
+    ctx.call_on_close(_release_outputs)  # the locks of the command's outputs (inscal.io.files.claim_output)
 
 
 #: modules contributing subcommands (each has ``register(app)``)
@@ -34,81 +52,62 @@ _SUBCOMMAND_MODULES = ["simulate", "calibrate", "compensate", "navigate", "monte
                        "observability", "import_export", "design"]
 
 
+#: commands whose outputs are not one unit: the demo is a pipeline whose later steps read the
+#: records and parameter files of the earlier ones (each output is still written atomically)
+_PIPELINES = ("demo",)
+
+
+def _one_unit(command):
+    """``command`` with all its outputs published together at its end, or none of them (an error,
+    an interrupt): :func:`inscal.io.files.output_unit` around the whole command."""
+
+    @functools.wraps(command)
+    def run(*args, **kwargs):
+        files = importlib.import_module("inscal.io.files")
+        try:
+            with files.output_unit():
+                try:
+                    return command(*args, **kwargs)
+                except click.exceptions.Exit as exc:
+                    if exc.exit_code:
+                        raise
+                    return None  # a command that ends early with success: its outputs stand
+        except FileExistsError as exc:  # an output that appeared while the command ran is not replaced
+            raise fail(str(exc)) from None
+
+    return run
+
+
 def _register_all() -> None:
     for name in _SUBCOMMAND_MODULES:
         importlib.import_module(f"inscal.cli.{name}").register(app)
+    for info in app.registered_commands:
+        if info.callback.__name__ not in _PIPELINES:
+            info.callback = _one_unit(info.callback)
 
 
 _register_all()
 
 
-class Interrupted(BaseException):
-    """SIGINT or SIGTERM: raised in the main thread by :func:`main`'s handler so that it unwinds
-    through the ``atomic_path`` context managers (whose cleanup removes the ``.part`` files).
-    A ``BaseException``: no ``except Exception`` and no click handler swallows it."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-#: the signal being handled (None: not interrupted)
-_PENDING: list[int] = []
-
-
-def _interrupt_handler(signum, frame):  # pragma: no cover - runs in a subprocess (tests/cli/test_signals.py)
-    """SIGINT/SIGTERM (and the SIGALRM re-arm): raise :class:`Interrupted` in the main thread.
-    Python may have to drop it (a handler that runs inside a weakref or ``__del__`` callback), so
-    the writers of :mod:`inscal.io` are told too (they stop at their next chunk), and SIGALRM
-    repeats the raise every 0.2 s until :func:`main` has caught it."""
-    import signal
-
-    if _PENDING and isinstance(sys.exc_info()[1], Interrupted):
-        return  # the interrupt is being handled (a cleanup runs): let it finish
-    if not _PENDING:
-        _PENDING.append(signum)
-        try:
-            signal.signal(signal.SIGALRM, _interrupt_handler)
-            signal.setitimer(signal.ITIMER_REAL, 0.2, 0.2)
-        except (ValueError, OSError, AttributeError):
-            pass
-    exc = Interrupted(_PENDING[0])
-    io = sys.modules.get("inscal.io.files")
-    if io is not None:
-        io.cancel(exc)
-    raise exc
-
-
-def _quiet_unraisable(unraisable) -> None:
-    """Drop the 'Exception ignored in ...' report of an interrupt Python could not propagate."""
-    if isinstance(unraisable.exc_value, Interrupted):
-        return
-    sys.__unraisablehook__(unraisable)
-
-
-def _interrupted(signum: int) -> int:
+def _interrupted(signum: int, old: dict) -> int:
     """Report an interrupt in one line (stderr) after the cleanup; return the exit code
     (128 + signal number: 130 for SIGINT, 143 for SIGTERM)."""
     import signal
 
-    try:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-    except (ValueError, OSError, AttributeError):
-        pass
-    for s in (signal.SIGINT, signal.SIGTERM):  # a second signal must not cut the report short
-        try:
-            signal.signal(s, signal.SIG_IGN)
-        except (ValueError, OSError):
-            pass
+    release_interrupts(old, ignore=True)  # a second signal must not cut the report short
     name = signal.Signals(signum).name
-    removed = []
-    io = sys.modules.get("inscal.io.files")
-    if io is not None:  # no output is written without inscal.io
-        io.remove_live_parts()
-        removed = [f"{tmp} ({target} not written)" for tmp, target in io.REMOVED_PARTS]
+    removed, published = [], []
+    files = sys.modules.get("inscal.io.files")
+    if files is not None:  # no output is written without inscal.io.files
+        files.remove_live_parts()
+        files.release_outputs()
+        removed = [f"{tmp} ({target} not written)" for tmp, target in files.REMOVED_PARTS]
+        published = [str(p) for p in files.PUBLISHED]
     msg = f"inscal: interrupted ({name})"
     if removed:
         msg += "; removed partial output " + ", ".join(removed)
+    elif published:  # the signal came after the outputs were renamed into place: they are whole
+        msg += " after its outputs were complete: " + ", ".join(published)
     sys.stderr.write(msg + "\n")
     sys.stderr.flush()
     return 128 + signum
@@ -119,19 +118,14 @@ def main() -> None:  # console-script entry point
     and exit with 130 / 143."""
     import signal
 
-    for s in (signal.SIGINT, signal.SIGTERM):
-        try:
-            signal.signal(s, _interrupt_handler)
-        except (ValueError, OSError):  # not the main thread: leave the handlers alone
-            pass
-    sys.unraisablehook = _quiet_unraisable
+    old = catch_interrupts()
     try:
         app(prog_name="inscal")
     except (Interrupted, KeyboardInterrupt) as exc:
-        signum = _PENDING[0] if _PENDING else getattr(exc, "signum", signal.SIGINT)
+        signum = pending_signal() or getattr(exc, "signum", signal.SIGINT)
         while True:
             try:
-                code = _interrupted(signum)
+                code = _interrupted(signum, old)
                 break
             except Interrupted:  # the SIGALRM re-arm fired before _interrupted disarmed it
                 continue

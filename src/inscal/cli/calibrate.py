@@ -32,12 +32,10 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     A record with encoder angles has them compared with the gyros first (:mod:`inscal.io.encoders`): a
     unit, sign, column or time-offset error stops the calibration with one line unless
     ``check_encoders`` is False; ``encoder_latency`` [s] shifts the angles before (encoders that lag: > 0)."""
-    from inscal import io
     from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
-    from inscal.io.files import input_problem
-    from inscal.io.paramfile import ParamFileError, save_params
+    from inscal.io.files import input_problem, output_unit
 
     if method not in METHODS:
         raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
@@ -98,7 +96,6 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
             res = calibrate(rec, method, settle=settle, min_static=min_static)
     except CalibrationError as exc:
         raise CliError(f"{data}: {exc}") from None
-    truth = rec.truth
     from inscal.io.records import record_attrs
 
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
@@ -109,6 +106,22 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                      "filter_rate_hz": d["filter_rate_hz"], "nis_mean": d["innovations"]["nis_mean"],
                      "chi2": d["innovations"]["chi2"], "dof": d["innovations"]["dof"],
                      "p_value": d["innovations"]["p_value"]})
+    try:
+        with output_unit():  # the parameter file and the plots: all published together, or none
+            report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic)
+    except FileExistsError as exc:  # a file that appeared at an output while this ran is not replaced
+        raise CliError(str(exc)) from None
+    return report
+
+
+def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,
+                   systematic: bool) -> dict:
+    """Write the parameter file and the plots of :func:`run_calibrate` (inside its output unit); returns the report."""
+    from inscal import io
+    from inscal.io.files import make_output_dir
+    from inscal.io.paramfile import ParamFileError, save_params
+
+    truth = rec.truth
     try:
         save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
     except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
@@ -132,7 +145,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
             from inscal.report.figures import convergence_plots
 
             try:
-                plots.mkdir(exist_ok=True)  # created once the calibration succeeded
+                make_output_dir(plots)  # created once the calibration succeeded (removed again if a plot fails)
                 report["plots"] = [str(p) for p in convergence_plots(plots, res, truth, overwrite=force)]
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None

@@ -43,9 +43,13 @@ def fail(msg: str, code: int = 2) -> typer.Exit:
 
 
 def check_output(path: Path, force: bool) -> None:
-    """Refuse to overwrite an existing output unless ``force``; the parent folder must exist."""
-    if path.exists() and not force:
-        raise CliError(f"{short(path)} exists; use --force to overwrite it")
+    """Refuse to overwrite an existing output unless ``force``; the parent folder must exist and be
+    writable.  Then take the output's lock for the rest of the command (:func:`inscal.io.files.claim_output`,
+    dropped when the command ends): a second inscal process writing the same output is refused
+    up front, before either does any work."""
+    from inscal.io.files import OutputBusyError, claim_output
+
+    path = Path(path)
     if not path.parent.exists():
         raise CliError(f"folder {short(path.parent)} does not exist")
     if not path.parent.is_dir():
@@ -53,6 +57,14 @@ def check_output(path: Path, force: bool) -> None:
     if not os.access(path.parent, os.W_OK | os.X_OK):
         raise CliError(f"folder {short(path.parent)} is read-only (or not writable by this user): nothing can be "
                        "written there")
+    try:
+        claim_output(path)
+    except OutputBusyError as exc:
+        raise CliError(short(exc, 5 * MAX_ECHO)) from None
+    except OSError as exc:
+        raise CliError(f"cannot lock {short(path)}: {exc.strerror or exc}") from None
+    if path.exists() and not force:
+        raise CliError(f"{short(path)} exists; use --force to overwrite it")
 
 
 def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: str = "input") -> None:

@@ -26,13 +26,19 @@ import importlib
 import json
 import os
 import pkgutil
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
+
+from inscal.cli.interrupts import (
+    Interrupted,
+    catch_interrupts,
+    pending_signal,
+    release_interrupts,
+)
 
 #: the records of the warm-up: name -> (base scenario, path builder and its arguments, extra TOML tables)
 RECORDS = {
@@ -192,59 +198,6 @@ def coverage(extra: dict[str, list[str]] | None = None, errors: dict | None = No
             "ready": sum(state[k] != "missing" for k in own), "missing": [k for k in own if state[k] == "missing"]}
 
 
-#: the signal that stopped the warm-up (empty: not interrupted); ``[-1]``: unwinding, no more raises
-INTERRUPTED: list[int] = []
-
-
-def _interrupt(signum, frame):
-    """SIGINT/SIGTERM: raise KeyboardInterrupt, and again every 0.2 s (SIGALRM) until :func:`warm_up` has
-    caught one: numba compiles inside ctypes callbacks, which swallow an exception raised there."""
-    if INTERRUPTED and INTERRUPTED[-1] == -1:
-        return
-    if not INTERRUPTED:
-        INTERRUPTED.append(signum)
-        try:
-            signal.signal(signal.SIGALRM, _interrupt)
-            signal.setitimer(signal.ITIMER_REAL, 0.2, 0.2)
-        except (ValueError, OSError, AttributeError):
-            pass
-    raise KeyboardInterrupt
-
-
-def _catch_interrupts() -> dict:
-    """Route SIGINT and SIGTERM to :func:`_interrupt` (main thread only; an ignored signal stays ignored);
-    returns the previous handlers."""
-    import threading
-
-    INTERRUPTED.clear()
-    old = {}
-    sys.unraisablehook = _quiet_unraisable
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            if signal.getsignal(sig) is not signal.SIG_IGN:
-                old[sig] = signal.signal(sig, _interrupt)
-        if old and hasattr(signal, "SIGALRM"):
-            old[signal.SIGALRM] = signal.getsignal(signal.SIGALRM)
-    return old
-
-
-def _quiet_unraisable(unraisable) -> None:
-    """Drop the 'Exception ignored in ...' report of an interrupt raised inside a numba callback."""
-    if not isinstance(unraisable.exc_value, KeyboardInterrupt):
-        sys.__unraisablehook__(unraisable)
-
-
-def _release_interrupts(old: dict) -> None:
-    INTERRUPTED.append(-1)
-    sys.unraisablehook = sys.__unraisablehook__
-    try:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-    except (ValueError, OSError, AttributeError):
-        pass
-    for sig, handler in old.items():
-        signal.signal(sig, handler)
-
-
 def _run_steps(steps, tmp: Path, progress, times: dict, errors: dict) -> None:
     for name in steps:
         t0 = time.perf_counter()
@@ -255,8 +208,8 @@ def _run_steps(steps, tmp: Path, progress, times: dict, errors: dict) -> None:
                 warnings.simplefilter("ignore")
                 STEP_FUNCTIONS[name](tmp)
         except Exception as exc:  # noqa: BLE001 - a step that fails leaves its kernels to the coverage check
-            if INTERRUPTED:  # an interrupt numba turned into another error
-                raise KeyboardInterrupt from None
+            if pending_signal() is not None:  # an interrupt numba turned into another error
+                raise Interrupted(pending_signal()) from None
             errors[name] = f"{type(exc).__name__}: {exc}"
         times[name] = time.perf_counter() - t0
         if progress is not None:
@@ -281,13 +234,14 @@ def warm_up(progress=None, jobs: int | None = None, steps=STEPS, folder: Path | 
     the steps read), then :func:`coverage`.  ``progress(step, text)`` is called at the start and the end
     of each step; ``jobs``: processes (default :func:`default_jobs`).  Returns the coverage dict with
     ``seconds``, ``step_seconds``, ``errors`` (step -> message), ``cache`` (:func:`cache_root`) and ``jobs``.
-    SIGINT and SIGTERM raise KeyboardInterrupt, after the temporary folder and the second process are gone."""
+    SIGINT and SIGTERM raise :class:`~inscal.cli.interrupts.Interrupted`, after the temporary folder and the second
+    process are gone."""
     t0 = time.perf_counter()
     jobs = jobs if jobs is not None else default_jobs()
     times: dict = {}
     errors: dict = {}
     extra: dict = {}
-    old = _catch_interrupts()
+    old = catch_interrupts()
     second = None
     try:
         with tempfile.TemporaryDirectory(prefix="inscal-warmup-") as tmpd:
@@ -313,8 +267,8 @@ def warm_up(progress=None, jobs: int | None = None, steps=STEPS, folder: Path | 
                         times.update(d["step_seconds"])
                         errors.update(d["errors"])
                     second = None
-            except KeyboardInterrupt:
-                _release_interrupts(old)
+            except (Interrupted, KeyboardInterrupt):
+                release_interrupts(old)
                 old = {}
                 raise
             finally:
@@ -326,7 +280,7 @@ def warm_up(progress=None, jobs: int | None = None, steps=STEPS, folder: Path | 
                         second.kill()
                         second.wait()
     finally:
-        _release_interrupts(old)
+        release_interrupts(old)
     cov = coverage(extra, errors)
     return cov | {"seconds": time.perf_counter() - t0, "step_seconds": times, "errors": errors, "cache": cache_root(),
                   "jobs": jobs}
@@ -375,10 +329,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         res = warm_up(progress, args.jobs, steps, args.folder)
-    except KeyboardInterrupt:
+    except (Interrupted, KeyboardInterrupt):
         print(f"inscal warm-up: interrupted after {time.perf_counter() - t0:.1f} s (what was compiled stays cached)",
               file=sys.stderr)
-        return 130
+        return 128 + (pending_signal() or 2)  # 130 for SIGINT, 143 for SIGTERM
     if args.report is not None:
         args.report.write_text(json.dumps(res, indent=1), encoding="utf-8")
     if not args.quiet:

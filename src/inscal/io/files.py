@@ -1,17 +1,22 @@
-"""Writing files safely: atomic outputs (a temporary file renamed into place), the removal of
-partial outputs on an interrupt, and file hashes."""
+"""Writing files safely: atomic outputs (a temporary file renamed into place), the outputs of one
+command published together or not at all, a lock beside every output being written (one writer
+per output, across processes), the removal of partial outputs on an interrupt, and file hashes."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import signal
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path as FsPath
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
-    pass
+try:  # POSIX advisory locks: released by the kernel when the holder dies, even by SIGKILL
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: outputs are not locked
+    fcntl = None
 
 
 #: temporaries of :func:`atomic_path` now being written (temporary -> final path), so that an
@@ -38,32 +43,226 @@ def check_cancel() -> None:
         raise _CANCEL[0]
 
 
+class OutputBusyError(FileExistsError):
+    """The output is being written by another process (its lock is held)."""
+
+
+#: outputs this process holds the lock of: resolved output path -> (lock file, its descriptor)
+_CLAIMS: dict[str, tuple[str, int]] = {}
+#: the open output units (:func:`output_unit`), innermost last
+_UNITS: list["_Unit"] = []
+#: outputs published by the last output unit (an interrupt after that point says they are complete)
+PUBLISHED: list[FsPath] = []
+
+
+def lock_path(path) -> FsPath:
+    """The lock file of an output: ``.NAME.lock`` beside it."""
+    path = FsPath(path)
+    return path.parent / f".{path.name}.lock"
+
+
+def _key(path) -> str:
+    return str(FsPath(path).absolute().resolve())
+
+
+def claim_output(path) -> bool:
+    """Take the lock of output ``path`` for this process (a ``.NAME.lock`` file beside it, locked with
+    ``flock``): True if taken now, False if this process already holds it.  Raises
+    :class:`OutputBusyError` (one line) if another process holds it.  The kernel drops the lock
+    of a process that dies however it dies, so a lock file left by a killed writer is taken over."""
+    key = _key(path)
+    if key in _CLAIMS or fcntl is None:
+        return False
+    lock = lock_path(path)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise OutputBusyError(f"{path} is being written by another process (pid {holder}, lock {lock.name}); "
+                                  "wait for it to finish or choose another output") from None
+        try:  # its releasing holder may have removed the file between our open and flock: retry on the new one
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    _CLAIMS[key] = (str(lock), fd)
+    return True
+
+
+def release_output(path) -> None:
+    """Drop this process's lock of output ``path`` (and remove its lock file)."""
+    entry = _CLAIMS.pop(_key(path), None)
+    if entry is None:
+        return
+    lock, fd = entry
+    with contextlib.suppress(OSError):
+        os.unlink(lock)  # while still locked: a waiting process then retries on a fresh file
+    with contextlib.suppress(OSError):
+        os.close(fd)
+
+
+def release_outputs() -> None:
+    """Drop every output lock this process holds (the end of a command, or an interrupt)."""
+    for key in list(_CLAIMS):
+        release_output(key)
+
+
+@contextmanager
+def held_output(path):
+    """Hold the lock of output ``path`` for the block (kept if the caller already held it)."""
+    taken = claim_output(path)
+    try:
+        yield
+    finally:
+        if taken:
+            release_output(path)
+
+
+class _Unit:
+    def __init__(self):
+        self.pending: list[tuple[str, FsPath, bool]] = []  # (temporary, output, overwrite)
+        self.made_dirs: list[FsPath] = []
+        self.claimed: list[FsPath] = []
+
+
+@contextmanager
+def output_unit():
+    """The outputs of one command as one unit: every :func:`atomic_path` inside the block keeps its
+    temporary until the block ends, then all of them are renamed into place together (SIGINT and
+    SIGTERM held off for those renames); if the block raises, is interrupted or cancelled, no
+    output is published and the folders made by :func:`make_output_dir` are removed again.  A unit
+    inside another hands its outputs to the outer one."""
+    unit = _Unit()
+    outer = _UNITS[-1] if _UNITS else None
+    _UNITS.append(unit)
+    if outer is None:
+        PUBLISHED.clear()
+    try:
+        try:
+            yield unit
+        finally:
+            _UNITS.remove(unit)
+        if outer is not None:  # a unit inside another: its outputs are published with the outer's
+            outer.pending += unit.pending
+            outer.made_dirs += unit.made_dirs
+            outer.claimed += unit.claimed
+            unit.claimed = []
+            return
+        with _signals_held():
+            check_cancel()
+            for tmp, path, overwrite in unit.pending:  # every target is checked before any is replaced
+                if not overwrite and os.path.lexists(path):
+                    raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force "
+                                          "to overwrite it)")
+            for tmp, path, overwrite in unit.pending:
+                _publish(tmp, path, overwrite)
+                PUBLISHED.append(path)
+    except BaseException:
+        for tmp, _, _ in unit.pending:
+            remove_part(tmp)
+        for path in unit.claimed:  # their lock files first: a folder made for the unit is empty then
+            release_output(path)
+        for d in reversed(unit.made_dirs):
+            with contextlib.suppress(OSError):
+                d.rmdir()  # only if empty: nothing of the user's is removed
+        raise
+    finally:
+        for path in unit.claimed:
+            release_output(path)
+
+
+def make_output_dir(path) -> FsPath:
+    """Make output folder ``path`` (if missing); inside an :func:`output_unit` it is removed again
+    (when empty) if the unit fails."""
+    path = FsPath(path)
+    if not path.is_dir():
+        path.mkdir()
+        if _UNITS:
+            _UNITS[-1].made_dirs.append(path)
+    return path
+
+
+@contextmanager
+def _signals_held():
+    """SIGINT/SIGTERM held off (delivered when the block ends) in the main thread."""
+    sigs = {signal.SIGINT, signal.SIGTERM}
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _publish(tmp: str, path: FsPath, overwrite: bool) -> None:
+    """Rename temporary ``tmp`` onto ``path``; without ``overwrite`` never replace a file that is there
+    now (one that appeared after the command checked its outputs)."""
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; outputs follow the umask like any file
+    if overwrite:
+        os.replace(tmp, path)
+    else:
+        try:
+            os.link(tmp, path)  # atomic and refuses an existing target, unlike a rename
+        except FileExistsError:
+            raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force to "
+                                  "overwrite it)") from None
+        except OSError:  # a file system without hard links
+            if os.path.lexists(path):
+                raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force to "
+                                      "overwrite it)") from None
+            os.replace(tmp, path)
+        else:
+            os.unlink(tmp)
+    _LIVE_PARTS.pop(tmp, None)
+
+
 @contextmanager
 def atomic_path(path, overwrite: bool = False):
     """Yield a temporary path next to ``path``; rename it onto ``path`` on success.
 
-    Refuses (FileExistsError) if ``path`` exists and not ``overwrite``.  On any
-    exception, ``BaseException`` included (KeyboardInterrupt, the interrupt of a SIGTERM),
-    the temporary file is removed and ``path`` is untouched; a pending :func:`cancel` is raised
-    before the rename, so an interrupted write is never published.
+    Refuses (FileExistsError) if ``path`` exists and not ``overwrite``, and
+    (:class:`OutputBusyError`) if another process holds the lock of ``path`` (:func:`claim_output`,
+    taken here for the write unless held already).  Without ``overwrite``, a file that appears at
+    ``path`` during the write is not replaced.  On any exception, ``BaseException`` included
+    (KeyboardInterrupt, the interrupt of a SIGTERM), the temporary file is removed and ``path`` is
+    untouched; a pending :func:`cancel` is raised before the rename, so an interrupted write is
+    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.
     """
     path = FsPath(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
     if not path.parent.exists():
         raise FileNotFoundError(f"folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    unit = _UNITS[-1] if _UNITS else None
+    taken = claim_output(path)
+    if taken and unit is not None:
+        unit.claimed.append(path)
     try:
-        _LIVE_PARTS[tmp] = path
-        os.close(fd)
-        yield FsPath(tmp)
-        check_cancel()
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; outputs follow the umask like any file
-        os.replace(tmp, path)
-        _LIVE_PARTS.pop(tmp, None)
-    except BaseException:
-        remove_part(tmp)
-        raise
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        try:
+            _LIVE_PARTS[tmp] = path
+            os.close(fd)
+            yield FsPath(tmp)
+            check_cancel()
+            if unit is not None:
+                unit.pending.append((tmp, path, overwrite))
+            else:
+                _publish(tmp, path, overwrite)
+        except BaseException:
+            remove_part(tmp)
+            raise
+    finally:
+        if taken and unit is None:
+            release_output(path)
 
 
 def remove_part(tmp: str) -> bool:
