@@ -7,7 +7,7 @@ BSTAMP   = $(VENV)/.bench-stamp
 WSTAMP   = $(VENV)/.warmup-stamp
 SOURCES := $(shell find src -name '*.py')
 
-.PHONY: demo test bench venv clean
+.PHONY: demo test bench bench-compare venv clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -40,6 +40,10 @@ test: $(WSTAMP)
 
 bench: $(BSTAMP) $(WSTAMP)
 	$(BIN)/python bench/run.py
+
+# the benchmarks of revision BASE beside this tree's, alternating, in one run: make bench-compare BASE=main~3
+bench-compare: $(BSTAMP) $(WSTAMP)
+	$(BIN)/python bench/compare.py --base $(BASE) $(SCRIPTS)
 
 clean:
 	rm -rf $(VENV) demo-output .pytest_cache
