@@ -137,6 +137,7 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
                        "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
                        "converged": d["converged"]})
+        report["unobservable"] = d.get("unobservable", [])  # components at (nearly) their prior sigma
         if "selection" in d:  # --states auto: every nested-model test
             report["selection"] = d["selection"]
         if "encoder" in d:  # unified / gimbal states: the encoder attitude innovations

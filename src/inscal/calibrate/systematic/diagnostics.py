@@ -20,13 +20,22 @@ from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.attitude import euler_from_dcm
-from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors, parameter_components
 from inscal.core.turntable import C_s_b
 
 #: p-value below which the innovations are declared inconsistent with the noise model
 P_INCONSISTENT = 1e-3
 #: time blocks of the per-window innovation residuals (at most this many, at least 60 s each)
 FIT_BLOCKS = 24
+#: posterior / prior sigma at or above which a parameter component is reported as not observable from
+#: the record (:func:`unobservable`).  Posterior precision = prior precision + data precision, so at 0.5
+#: the estimate owes at least a quarter of its precision to the prior (at 0.71, half): the record does not
+#: determine it on its own.  0.5 also catches a component that shares one observed combination with others
+#: (on a static base, the bias, scale factor and nonlinearity of the vertical accelerometer sit at 0.82
+#: each: only their sum along gravity is seen), which 0.9 would miss; it is the bound of the verdict
+#: "unobservable" of :mod:`inscal.plan.observability`, so the path analysis and the calibration of its
+#: record name the same components; on the s16 record the largest ratio is 0.18.
+UNOBSERVABLE_RATIO = 0.5
 
 
 def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet,
@@ -241,3 +250,38 @@ def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams
     return {"step": out.hist_step, "names": names, "filtered": filt, "filtered_sigma": sf,
             "smoothed": np.tile(fin, (n, 1)), "smoothed_sigma": np.tile(sfin, (n, 1)), "mbf": mbf,
             "t_steps": t}
+
+
+def unobservable(names, sigma: np.ndarray, prior: np.ndarray,
+                 threshold: float = UNOBSERVABLE_RATIO) -> tuple[list[dict], str | None]:
+    """The parameter components the record does not observe: formal posterior ``sigma`` at least
+    ``threshold`` times the ``prior`` sigma (canonical flat vectors of ``names``, SI; NaN: a component
+    the state set holds fixed, skipped).  Returns ``(entries, note)``: per component its parameter,
+    component, ``sigma_ratio`` and both sigmas in the parameter's field unit, and one note line naming
+    them (None when every component is observed)."""
+    entries, parts = [], []
+    k = 0
+    for n in names:
+        comps = parameter_components(n)
+        unit = PARAMETERS[n][3]
+        flagged = []
+        for c in comps:
+            s, s0 = float(sigma[k]), float(prior[k])
+            k += 1
+            if not (math.isfinite(s) and math.isfinite(s0) and s0 > 0) or s < threshold * s0:
+                continue
+            entries.append({"parameter": n, "component": c, "sigma_ratio": s / s0,
+                            "sigma": float(units.from_si(s, unit)), "prior_sigma": float(units.from_si(s0, unit)),
+                            "unit": unit})
+            flagged.append((c, s0))
+        if flagged:
+            s0s = sorted({f"{float(f'{float(units.from_si(v, unit)):.3g}'):g}" for _, v in flagged}, key=float)
+            prior_txt = " / ".join(s0s) + f" {unit}"
+            cs = ", ".join(c for c, _ in flagged if c)
+            parts.append(f"{n.replace('_', ' ')}{' ' + cs if cs else ''} (prior sigma {prior_txt})")
+    if not entries:
+        return entries, None
+    note = (f"not observable from this record (posterior sigma >= {threshold:g} x prior sigma): {'; '.join(parts)}; "
+            "their values are the prior's (zero) or close to it, not a calibration: a path that turns the IMU "
+            "through these axes observes them (inscal observability)")
+    return entries, note

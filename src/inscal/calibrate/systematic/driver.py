@@ -21,6 +21,7 @@ from inscal.calibrate.systematic.diagnostics import (
     pass_history,
     truth_gimbal,
     truth_imu,
+    unobservable,
 )
 from inscal.calibrate.systematic.kernel import run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
@@ -309,6 +310,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
     fixed = fixed_mask(st, names)
     sflat[fixed] = np.nan
+    # the prior in the same canonical components: the yardstick of what the record observed
+    prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
+    unobs, unobs_note = unobservable(names, sflat, prior_flat)
     imu = est.to_imu()
 
     # innovation statistics (normalised innovation squared; dof = 6 per step) and the fit
@@ -350,9 +354,12 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     }
     diag["fit"] = fit
     diag["formal_sigma"] = formal
+    diag["unobservable"] = unobs
     notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
     if fit["note"]:
         notes.append(fit["note"])
+    if unobs_note:
+        notes.append(unobs_note)
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
                             est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
     res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
