@@ -162,7 +162,8 @@ def register(app: typer.Typer) -> None:
         if enc is not None and enc["moves"]:
             lat = "" if enc["latency_s"] is None else f", latency {enc['latency_s'] * 1e3:.2f} ms" + (
                 "" if enc["latency_sigma_s"] is None else f" +- {enc['latency_sigma_s'] * 1e3:.2f} ms")
-            extra.append(f"encoders agree with the gyros on {enc['moves']} moves to {enc['max_residual_deg']:.2g} deg{lat}")
+            to = "" if enc["max_residual_deg"] is None else f" to {enc['max_residual_deg']:.2g} deg"
+            extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
         if res["time_regridded"]:
             extra.append("time regridded")
         typer.echo(f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "

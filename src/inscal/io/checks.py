@@ -1,5 +1,23 @@
-"""Plausibility checks of imported data: finite values, a regular time base, constant or saturated
-channels, increment magnitudes against Earth rate and gravity, encoder angles against the gyros."""
+"""Plausibility checks of imported data: finite values, a regular time base in the declared unit,
+physically possible values, constant or saturated channels, increment magnitudes against Earth rate
+and gravity, encoder angles against the gyros.
+
+Physical limits (:func:`check_values`, :func:`~inscal.io.formats.check_angles`; constants in
+:mod:`inscal.io.mapping`; not skippable: a value beyond them is not IMU data, and the arithmetic
+downstream would only overflow): an angular rate of ``MAX_RATE`` (100 rev/s = 36,000 deg/s, an
+order above the widest-range MEMS gyros and 36 times a fast turntable's 1,000 deg/s), a specific
+force of ``MAX_ACCEL`` (1,000 g, 20 times a tactical accelerometer's 50 g range), a gimbal angle
+of ``MAX_ANGLE`` (1.6 million turns, 19 days at 1 rev/s) or a jump between two encoder readings of
+more than a wrap (2 pi) plus ``MAX_RATE`` times the interval, and a timestamp of ``MAX_TIME``
+(1e12 s, 31,700 years: a Unix time in seconds is 1.7e9).
+
+Time unit (:func:`time_base`, :func:`check_magnitudes`): an IMU samples at ``MIN_RATE_HZ`` (2/3
+Hz) to ``MAX_RATE_HZ`` (50 kHz); a median interval outside that range, which a factor of 1e3, 1e6 or 1e9
+brings inside, is a time column in milliseconds, microseconds or nanoseconds read as seconds (or
+seconds declared as milliseconds), and so is an accelerometer magnitude of 1e-3 (1e-6) times
+gravity from increments over a time column: the increments are divided by an interval 1e3 (1e6)
+times too long.  The message names the unit and how to set it (:attr:`Raw.time_fix`).
+"""
 
 from __future__ import annotations
 
@@ -11,8 +29,19 @@ from inscal.core import earth, units
 from inscal.core.earth import Site
 from inscal.core.units import DEG
 from inscal.io.encoders import EncoderCheck, compare_encoders
-from inscal.io.formats import Raw
-from inscal.io.mapping import CHECKS, JITTER_TOL, REGRID_TOL, ImportFileError
+from inscal.io.formats import Raw, check_angles
+from inscal.io.mapping import (
+    CHECKS,
+    JITTER_TOL,
+    MAX_ACCEL,
+    MAX_RATE,
+    MAX_RATE_HZ,
+    MAX_TIME,
+    MIN_RATE_HZ,
+    REGRID_TOL,
+    TIME_FACTORS,
+    ImportFileError,
+)
 
 #: the checks ``skip`` may name: the mapping's, and ``encoders`` (:func:`check_encoders`)
 SKIPPABLE = CHECKS + ("encoders",)
@@ -35,12 +64,104 @@ def check_integers(raw: Raw, where: str) -> None:
     for k in range(6):
         if raw.counts[k // 3]:
             continue
+        # every double from 2^52 up is a whole number: such values (1e300) say nothing of counts, and are
+        # check_values' business
         x = raw.raw_channels[:, k]
-        if np.ptp(x) > 0 and np.all(x == np.round(x)):
+        x = x[np.abs(x) < 2.0**52]
+        if x.size and np.ptp(x) > 0 and np.all(x == np.round(x)):
             which = "gyro" if k < 3 else "accel"
             raise ImportFileError(f"{where}: {raw.labels[k]} holds only whole numbers (e.g. {x[np.argmax(x != 0)]:g}): "
                                   f"integer data (raw counts? import them as csv/txt with {which} = \"counts\" and "
                                   f"{which}_scale in the mapping)")
+
+
+def _time_candidates(declared: float) -> list[float]:
+    """Factors ``rho`` (the interval as read over the true one) of the units a time column could really be
+    in (seconds, or :data:`~inscal.io.mapping.TIME_FACTORS` below them) other than the ``declared`` one's
+    SI factor, the smallest correction first."""
+    true = [1.0] + [1.0 / f for f, _ in TIME_FACTORS]
+    return sorted((declared / f for f in true if not math.isclose(f, declared)),
+                  key=lambda r: abs(math.log(r)))
+
+
+def _time_name(factor: float) -> str:
+    """The name of the time unit of SI ``factor`` (seconds, milliseconds, ..., minutes, hours)."""
+    names = {1.0: "seconds", 60.0: "minutes", 3600.0: "hours", **{1.0 / f: name for f, name in TIME_FACTORS}}
+    return names[min(names, key=lambda f: abs(math.log(f / factor)))]
+
+
+def time_unit_message(raw: Raw, where: str, rho: float, evidence: str) -> str:
+    """The one line for a time column whose values are read ``rho`` times too long (declared seconds,
+    really milliseconds: ``rho`` = 1000), with ``evidence`` and how to declare the real unit
+    (:attr:`Raw.time_fix` with the unit, or, for a unit inscal has none of, how to convert)."""
+    declared = float(units.to_si(1.0, raw.time_unit, "time"))
+    true = declared / rho
+    unit = next((u for u, f in units.FACTOR.items() if units.KIND[u] == "time" and math.isclose(f, true)), None)
+    if unit is not None and raw.time_fix:
+        fix = raw.time_fix.format(unit=unit, factor=f"{rho:g}")
+    else:
+        known = ", ".join(u for u, k in units.KIND.items() if k == "time")
+        fix = (f"convert it to seconds before importing (divide by {rho:g}; the time units inscal reads: {known})"
+               if rho > 1 else f"convert it to seconds before importing (the time units inscal reads: {known})")
+    col = raw.time_label.replace("time", "the time column", 1)
+    return (f"{where}: {col} looks like {_time_name(true)}, not {_time_name(declared)} ({evidence}); {fix}"
+            f"{raw.hint}")
+
+
+def _per_second(hz: float) -> str:
+    return f"{hz / 1e3:.6g} kHz" if hz >= 1e3 else f"{hz:.6g} Hz"
+
+
+def _check_time_values(raw: Raw, where: str) -> None:
+    """Timestamps beyond :data:`MAX_TIME` while most of the column is within it, and single values out
+    of line with both neighbours (a corrupt row): named with their row, before the steps are judged."""
+    t = raw.time
+    with np.errstate(all="ignore"):
+        big = np.abs(t) > MAX_TIME
+    if big.any() and float(np.median(np.abs(t))) <= MAX_TIME:
+        k = int(np.argmax(big))
+        raise ImportFileError(f"{where}: {raw.time_label} is {t[k]:.6g} s at {raw.at(k)}: beyond any clock (limit "
+                              f"{MAX_TIME:.0e} s, 31,700 years; the column's median is {float(np.median(t)):.6g} s)"
+                              f"{raw.hint}")
+    if t.size < 3:
+        return
+    with np.errstate(all="ignore"):
+        st = np.diff(t)
+        # t[k] far above both neighbours (ten steps) while they are in order: not two rows swapped but one value
+        # that does not belong
+        far = 10.0 * float(np.median(np.abs(st)))
+        spike = (st[:-1] > far) & (st[1:] < -far) & (t[2:] > t[:-2])
+    if spike.any():
+        k = int(np.argmax(spike)) + 1
+        raise ImportFileError(f"{where}: {raw.time_label} is {t[k]:.9g} s at {raw.at(k)}, out of line with its "
+                              f"neighbours ({t[k - 1]:.9g} and {t[k + 1]:.9g} s): a corrupt timestamp{raw.hint}")
+
+
+def _check_time_unit(raw: Raw, st: np.ndarray, rate_hz: float | None, where: str) -> None:
+    """A median sample interval that a factor of 1e3, 1e6 or 1e9 explains: against ``rate_hz`` when it
+    is given, else against the rates an IMU samples at (module docstring)."""
+    med = float(np.median(st))
+    declared = float(units.to_si(1.0, raw.time_unit, "time"))
+    shown = f"median sample interval {med / declared:.6g} {raw.time_unit}"
+    if rate_hz is not None:
+        for rho in _time_candidates(declared):
+            if abs(med * rate_hz / rho - 1.0) < 0.01:
+                raise ImportFileError(time_unit_message(
+                    raw, where, rho, f"{shown}, {med * rate_hz:.6g} times the {1.0 / rate_hz:.6g} s of --rate-hz "
+                    f"{rate_hz:g}"))
+        return
+    lo, hi = 1.0 / MAX_RATE_HZ, 1.0 / MIN_RATE_HZ
+    if lo <= med <= hi:
+        return
+    for rho in _time_candidates(declared):
+        if lo <= med / rho <= hi:
+            raise ImportFileError(time_unit_message(
+                raw, where, rho, f"{shown}: {_per_second(1.0 / med)} as read, {_per_second(rho / med)} as "
+                f"{_time_name(declared / rho)}; if the samples really are {med:.6g} s apart, give --rate-hz "
+                f"{1.0 / med:.6g}"))
+    raise ImportFileError(f"{where}: {raw.time_label}: {shown} ({med:.6g} s) is no IMU's (expected {lo:g} .. {hi:g} "
+                          f"s, {MIN_RATE_HZ:.3g} Hz .. {MAX_RATE_HZ / 1e3:g} kHz): the wrong column, or a unit inscal "
+                          f"does not read?{raw.hint}")
 
 
 def time_base(raw: Raw, n: int, rate_hz: float | None, where: str) -> tuple[np.ndarray, float, dict]:
@@ -55,6 +176,7 @@ def time_base(raw: Raw, n: int, rate_hz: float | None, where: str) -> tuple[np.n
         return (np.arange(n) + 1.0) / rate_hz, float(rate_hz), info
     t = raw.time
     name = raw.time_label
+    _check_time_values(raw, where)
     st = np.diff(t)
     back = np.flatnonzero(st < 0)
     if back.size:
@@ -66,6 +188,10 @@ def time_base(raw: Raw, n: int, rate_hz: float | None, where: str) -> tuple[np.n
         k = int(rep[0])
         raise ImportFileError(f"{where}: {name} repeats at {raw.at(k + 1)} (t = {t[k]:.9g} s twice; "
                               f"{rep.size} repeated timestamp(s)){raw.hint}")
+    _check_time_unit(raw, st, rate_hz, where)
+    if np.all(np.abs(t) > MAX_TIME):
+        raise ImportFileError(f"{where}: {name} reads {t[0]:.6g} .. {t[-1]:.6g} s: beyond any clock (limit "
+                              f"{MAX_TIME:.0e} s, 31,700 years){raw.hint}")
     med = float(np.median(st))
     gaps = np.flatnonzero(st > 1.5 * med)
     if gaps.size:
@@ -107,6 +233,38 @@ def time_base(raw: Raw, n: int, rate_hz: float | None, where: str) -> tuple[np.n
     t0 = float(np.mean(t - k * nominal))
     info["regridded"] = True
     return t0 + k * nominal, float(rate_hz), info
+
+
+def check_values(raw: Raw, rate_hz: float, where: str, gyro_unit: str = "rad", accel_unit: str = "m/s") -> None:
+    """Every value within the physical limits (module docstring): the rate of each gyro and the specific
+    force of each accelerometer (an increment over the sample interval ``1 / rate_hz``, or the rate
+    itself), and the gimbal angles.  The first value beyond a limit is named with its file, column,
+    row, value as read and the limit."""
+    inc = raw.kind == "increments"
+    dt = 1.0 / rate_hz
+    for k in range(6):
+        si = (raw.gyro if k < 3 else raw.accel)[:, raw.axes[k % 3]]
+        with np.errstate(all="ignore"):
+            per_s = np.abs(si) * (rate_hz if inc else 1.0)
+        lim = MAX_RATE if k < 3 else MAX_ACCEL
+        bad = np.flatnonzero(per_s > lim)
+        if not bad.size:
+            continue
+        i = int(bad[0])
+        unit = gyro_unit if k < 3 else accel_unit
+        how = f"an increment in {unit} over {dt:.6g} s" if inc else f"a rate in {unit}"
+        more = f"; {bad.size} such values" if bad.size > 1 else ""
+        if bad.size > 0.5 * per_s.size:
+            more = f"; {bad.size} of the {per_s.size} values: a unit or scale error, not a corrupt value"
+        if k < 3:
+            what = (f"an angular rate of {per_s[i]:.3g} rad/s ({per_s[i] / DEG:.3g} deg/s, {how}), beyond any gyro "
+                    f"(limit {MAX_RATE:.0f} rad/s = 100 rev/s)")
+        else:
+            what = (f"a specific force of {per_s[i]:.3g} m/s^2 ({per_s[i] / units.G0:.3g} g, {how}), beyond any "
+                    f"accelerometer (limit {MAX_ACCEL / units.G0:.0f} g)")
+        raise ImportFileError(f"{where}: {raw.labels[k]} is {raw.raw_channels[i, k]:.6g} at {raw.at(i)}: {what}{more}")
+    if raw.gimbal is not None:
+        check_angles(raw.gimbal, dt, where, raw.at)
 
 
 def check_constant(raw: Raw, where: str) -> None:
@@ -157,8 +315,10 @@ def _blocks(x: np.ndarray, m: int) -> np.ndarray:
 
 
 def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site, where: str, kind: str,
-                      gyro_unit: str, accel_unit: str) -> None:
-    """Gravity and Earth rate judged from magnitudes (unit mix-ups give factors far from 1)."""
+                      gyro_unit: str, accel_unit: str, raw: Raw | None = None) -> None:
+    """Gravity and Earth rate judged from magnitudes (unit mix-ups give factors far from 1).  With the
+    ``raw`` source of increments over a time column, gravity 1e3 (1e6, 1e9) times too small or large
+    is named as the time column's unit (:func:`time_unit_message`)."""
     dt = 1.0 / rate_hz
     m = max(1, min(dth.shape[0], int(round(rate_hz))))
     T = m * dt
@@ -166,6 +326,14 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
     w = np.linalg.norm(_blocks(dth, m), axis=1) / T
     g = site.gravity
     ratio = float(np.median(f)) / g
+    if raw is not None and raw.time is not None and kind == "increments" and not 0.8 < ratio < 1.2:
+        declared = float(units.to_si(1.0, raw.time_unit, "time"))
+        for rho in _time_candidates(declared):
+            if 0.8 < ratio * rho < 1.2:  # increments divided by an interval rho times too long
+                raise ImportFileError(time_unit_message(
+                    raw, where, rho, f"the accelerometers read {ratio * g:.4g} m/s^2 over its {dt:.6g} s interval, "
+                    f"{ratio:.3g} of gravity: the interval is " +
+                    (f"{rho:g} times too long" if rho > 1 else f"{1 / rho:g} times too short")))
     if not 0.8 < ratio < 1.2:
         guesses = [("g, not m/s^2 (accel unit)", 1.0 / units.G0), ("m/s^2, not g (accel unit)", units.G0),
                    ("rates, not increments", rate_hz), ("increments, not rates", 1.0 / rate_hz),

@@ -14,11 +14,16 @@ import h5py
 import numpy as np
 
 from inscal.core import units
+from inscal.core.units import DEG
 from inscal.io.files import check_input
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
     EXPORT_HEADER_GIMBAL,
+    MAX_ANGLE,
+    MAX_RATE,
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
     ImportFileError,
     Mapping,
     default_mapping,
@@ -42,9 +47,36 @@ class Raw:
     counts: tuple = (False, False)  # gyro / accel given in counts (whole numbers expected)
     time_label: str = "time"
     header_site: tuple | None = None  # (latitude deg, longitude deg, height m) the file's own header gives
+    axes: tuple = (0, 1, 2)  # IMU axis of each file channel (1st, 2nd, 3rd of the gyros and of the accelerometers)
+    time_unit: str = "s"  # the unit the time column was read in
+    time_fix: str = ""  # how to declare the time column's unit here ("{unit}": the unit, "{factor}": the factor)
 
     def at(self, i: int) -> str:
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
+
+
+def check_angles(angles: np.ndarray, dt, where: str, at, names=("outer angle", "inner angle")) -> None:
+    """Gimbal angles [rad] (N, 2) within :data:`~inscal.io.mapping.MAX_ANGLE`, and no jump between two
+    readings beyond a wrap (2 pi) plus :data:`~inscal.io.mapping.MAX_RATE` times the interval ``dt`` (a
+    scalar or the (N - 1,) steps [s]): a value no encoder reads, named with ``at(i)`` (its row)."""
+    for c in range(2):
+        x = angles[:, c]
+        with np.errstate(all="ignore"):
+            big = np.abs(x) > MAX_ANGLE
+        if big.any():
+            i = int(np.argmax(big))
+            raise ImportFileError(f"{where}: {names[c]} is {x[i]:.6g} rad ({x[i] / DEG:.6g} deg) at {at(i)}: beyond "
+                                  f"any turntable (limit {MAX_ANGLE:.3g} rad, 1.6 million turns)")
+        with np.errstate(all="ignore"):
+            jump = np.abs(np.diff(x)) > 2.0 * math.pi + MAX_RATE * np.asarray(dt)
+        if jump.any():
+            j = int(np.argmax(jump))
+            i = j if abs(x[j]) > abs(x[j + 1]) else j + 1  # the reading that does not belong: the larger one
+            around = " and ".join(f"{x[m]:.6g}" for m in (i - 1, i + 1) if 0 <= m < x.size)
+            raise ImportFileError(
+                f"{where}: {names[c]} is {x[i]:.6g} rad ({x[i] / DEG:.6g} deg) at {at(i)}, {around} rad on the rows "
+                f"around it: a jump of {abs(x[j + 1] - x[j]):.3g} rad in one interval, beyond a wrap (2 pi) and any "
+                f"turntable's rate (limit {MAX_RATE:.0f} rad/s = 100 rev/s)")
 
 
 def _file_bytes(p: FsPath) -> bytes:
@@ -63,7 +95,9 @@ def _rows7(a: np.ndarray, where: str, rates: bool, hint: str = "") -> Raw:
     kind = "rates" if rates else "increments"
     labels = (("wx", "wy", "wz", "fx", "fy", "fz") if rates else ("dthx", "dthy", "dthz", "dvx", "dvy", "dvz"))
     labels = tuple(f"{n} (column {k + 1})" for k, n in enumerate(labels))
-    return Raw(a[:, 6].copy(), a[:, 0:3].copy(), a[:, 3:6].copy(), kind, None, labels, None, hint, a[:, :6])
+    return Raw(a[:, 6].copy(), a[:, 0:3].copy(), a[:, 3:6].copy(), kind, None, labels, None, hint, a[:, :6],
+               time_fix="the format holds seconds: divide its time column by {factor} before importing (or read the "
+                        "rows as csv through a mapping with [units] time = \"{unit}\")")
 
 
 def read_psins_bin(path, dtype: str = "float64", rates: bool = False) -> Raw:
@@ -124,6 +158,13 @@ def read_psins_imu(path) -> Raw:
         raise ImportFileError(f"{p}: header latitude {lat:g} / longitude {lon:g} deg out of range")
     if not (ts_ms > 0):
         raise ImportFileError(f"{p}: header sampling interval {ts_ms:g} ms must be positive")
+    lo, hi = 1e3 / MAX_RATE_HZ, 1e3 / MIN_RATE_HZ
+    if not lo <= ts_ms <= hi:
+        why = (f"it looks like seconds: write {ts_ms * 1e3:g} (ms)" if lo <= ts_ms * 1e3 <= hi else
+               f"it looks like microseconds: write {ts_ms * 1e-3:g} (ms)" if lo <= ts_ms * 1e-3 <= hi else
+               "wrong header row?")
+        raise ImportFileError(f"{p}: line {rows[1][0]}: header sampling interval {ts_ms:g} ms ({1e3 / ts_ms:.6g} Hz) "
+                              f"is no IMU's ({lo:g} .. {hi:g} ms; PSINS writes it in milliseconds): {why}")
     if not (9.7 < g < 9.9):
         raise ImportFileError(f"{p}: header gravity {g:g} m/s^2 is not a gravity value (9.7 .. 9.9)")
     if not np.all(scales > 0):
@@ -275,6 +316,7 @@ def _parse_table(p: FsPath, m: Mapping) -> tuple[np.ndarray, np.ndarray, list[st
 def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
     """A delimited text file read through ``mapping`` (None: the inscal export layout)."""
     p = FsPath(path)
+    given = mapping is not None
     if mapping is None:
         if fmt != "csv":
             raise ImportFileError(f"--format {fmt} needs --mapping M.toml (the columns and their units)")
@@ -327,7 +369,11 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
                    for c in CHANNELS)
     counts = (m.gyro_unit == "counts", m.accel_unit == "counts")
     tl = f"time (column {idx['time']})" if "time" in idx else "time"
-    return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl)
+    fix = ("set [units] time = \"{unit}\" in the mapping" if given else
+           "import it with --mapping M.toml that sets [units] time = \"{unit}\" (without a mapping a csv is read as "
+           "inscal's export, in seconds)")
+    return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl, axes=m.axes, time_unit=m.time_unit,
+               time_fix=fix)
 
 
 def header_angle_unit(p, header: str) -> str | None:
@@ -347,10 +393,24 @@ def header_angle_unit(p, header: str) -> str | None:
     return found[0].group(1)
 
 
+def header_time_unit(p, header: str) -> str:
+    """The time unit a gimbal file's header gives its first column (``time [ms]``), else seconds."""
+    cells = [c.strip() for c in (header.split(",") if "," in header else header.split())]
+    found = re.search(r"\[\s*([^\]]+?)\s*\]", cells[0]) if cells else None
+    if found is None:
+        return "s"
+    try:
+        return units.check_kind(found.group(1), "time")
+    except units.UnitError as exc:
+        raise ImportFileError(f"{p}: header unit of the time column: {exc}") from None
+
+
 def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Encoder angles: rows ``time [s], outer, inner`` -> ``(t, angles [rad] (M, 2))``, unwrapped.
+    """Encoder angles: rows ``time [s], outer, inner`` -> ``(t [s], angles [rad] (M, 2))``, unwrapped.
     The unit is the one the header gives (``outer [rad]``), else ``unit``, else degrees; a header
-    unit that contradicts an explicit ``unit`` is an error (one of them is wrong)."""
+    unit that contradicts an explicit ``unit`` is an error (one of them is wrong).  The header may
+    give the time column's unit too (``time [ms]``; default seconds).  Angles beyond the physical
+    limits (:func:`check_angles`) are refused with their line."""
     p = FsPath(path)
     if unit is not None:
         try:
@@ -372,6 +432,7 @@ def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndar
     except ValueError:
         header = 1
     in_file = header_angle_unit(p, lines[0]) if header else None
+    t_unit = header_time_unit(p, lines[0]) if header else "s"
     if in_file is not None and unit is not None and units.to_si(1.0, in_file, "angle") != units.to_si(1.0, unit, "angle"):
         raise ImportFileError(f"{p}: the header says the angles are in {in_file}, --gimbal-unit says {unit}")
     u = in_file or unit or "deg"
@@ -385,7 +446,7 @@ def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndar
     if bad.any():
         k = int(np.argmax(bad.any(axis=1)))
         raise ImportFileError(f"{p}: NaN/Inf in the gimbal angles at line {line_no[k]}")
-    t = data[:, 0]
+    t = units.to_si(data[:, 0], t_unit, "time")
     st = np.diff(t)
     if np.any(st <= 0):
         k = int(np.argmax(st <= 0))
@@ -396,8 +457,9 @@ def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndar
         k = int(np.argmax(st))
         raise ImportFileError(f"{p}: gimbal time has a gap of {st[k]:.6g} s at line {line_no[k + 1]} "
                               f"(t = {t[k]:.9g} -> {t[k + 1]:.9g} s; usual step {med:.6g} s)")
-    ang = np.unwrap(units.to_si(data[:, 1:3], u, "angle"), axis=0)
-    return t, ang
+    ang = units.to_si(data[:, 1:3], u, "angle")
+    check_angles(ang, st, str(p), lambda i: f"line {line_no[i]}")
+    return t, np.unwrap(ang, axis=0)
 
 
 # ----------------------------------------------------------------------------- export

@@ -38,7 +38,7 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
     outer = 7                      # optional gimbal angle columns (both or neither)
     inner = 8
     [units]
-    time = "s"                     # default; s | ms
+    time = "s"                     # default; s | ms | min | h (a column in another unit is named)
     gyro = "deg"                   # required; increments: rad | deg | arcsec | urad; rates: rad/s | deg/s | deg/h
     accel = "m/s"                  # required; increments: m/s | mm/s; rates: m/s^2 | g | mg | ug
     # gyro = "counts"              # raw counts need a scale: "VALUE UNIT" (an angle unit for increments,
@@ -54,15 +54,19 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 For ``psins``/``mat`` a mapping may only hold ``[site]``.
 
 Gimbal angles from encoders at another rate (``gimbal_file``: columns time, outer, inner;
-an optional header line; comma or whitespace separated) are unwrapped and interpolated
+an optional header line, which may give the units as ``time [ms],outer [deg],inner [deg]``;
+comma or whitespace separated) are unwrapped and interpolated
 linearly to the sample end times; they must cover the record.  Without encoders a rotation
 path (a ``[path]`` table as in scenario files) is stored in the record; the record's time is
 then shifted so that the path starts at 0 (``path_start``: the source time at which the path
 starts, default the start of the first sample interval).
 
 Checks (each refusal is one line): empty or header-only files, wrong column counts, text in
-numbers, integer data, NaN/Inf, the time base (backwards steps, repeats, gaps, jitter, a rate
-inconsistent with the timestamps), and the plausibility checks that ``skip`` may name:
+numbers, integer data, NaN/Inf, the time base (a corrupt timestamp, backwards steps, repeats, a
+time column in another unit than declared -- milliseconds read as seconds --, gaps, jitter, a
+rate inconsistent with the timestamps), values beyond the physical limits (a rate of 100 rev/s,
+1,000 g, a gimbal angle or encoder jump no turntable makes; :mod:`inscal.io.checks`, with the
+file, column, line and value), and the plausibility checks that ``skip`` may name:
 ``constant`` (a channel that never changes), ``saturation`` (a channel pinned at its extreme
 while the others move), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
 m/s^2, degrees vs radians, rates vs increments), ``motion`` (the gyros must turn when the
@@ -88,6 +92,7 @@ from __future__ import annotations
 import json
 import math
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -105,6 +110,7 @@ from inscal.io.checks import (
     check_magnitudes,
     check_motion,
     check_saturation,
+    check_values,
     time_base,
 )
 from inscal.io.encoders import apply_latency
@@ -171,8 +177,9 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         raise ImportFileError(f"--encoder-latency must be finite, got {encoder_latency}")
     n = raw.gyro.shape[0]
     check_finite(raw, where)
-    check_integers(raw, where)
     time, rate, info = time_base(raw, n, rate_hz, where)
+    check_integers(raw, where)
+    check_values(raw, rate, where, *units_desc)
     dt = 1.0 / rate
     if "constant" not in skip:
         check_constant(raw, where)
@@ -183,15 +190,20 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     else:
         dth, dv = raw.gyro, raw.accel
     if "magnitudes" not in skip:
-        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc)
+        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw)
     gim = raw.gimbal
     if gimbal is not None:
         if gim is not None:
             raise ImportFileError(f"{where} has gimbal angle columns; --gimbal would give them twice")
         tg, ag = gimbal
         if tg[0] > time[0] + 1e-9 * dt or tg[-1] < time[-1] - 1e-9 * dt:
+            hint = _gimbal_time_hint(tg, time, dt)
             raise ImportFileError(f"{gimbal_name}: the angles cover t = {tg[0]:.9g} .. {tg[-1]:.9g} s; the record needs "
-                                  f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)")
+                                  f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)"
+                                  + (f": {hint}" if hint else ""))
+        if tg[-1] - tg[0] > 100.0 * (time[-1] - time[0] + dt) and (hint := _gimbal_time_hint(tg, time, dt, close=True)):
+            raise ImportFileError(f"{gimbal_name}: the angles span t = {tg[0]:.9g} .. {tg[-1]:.9g} s, the record "
+                                  f"t = {time[0]:.9g} .. {time[-1]:.9g} s: {hint}")
         gim = np.column_stack([np.interp(time, tg, ag[:, 0]), np.interp(time, tg, ag[:, 1])])
         info["gimbal"] = "file"
     elif gim is not None:
@@ -233,6 +245,26 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     return rec, info
 
 
+def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool = False) -> str:
+    """Why encoder times miss the record by a unit: scaled by 1e-3 (1e-6) they would cover the record
+    (``close``: and start and end within a tenth of its span of its ends) -- a time column in
+    milliseconds (microseconds) read as seconds -- or scaled by 1e3 (seconds under a header that says
+    milliseconds).  "" when no scale explains them."""
+    span = time[-1] - time[0] + dt
+    for f, what, unit in ((1e-3, "milliseconds", "ms"), (1e-6, "microseconds", None), (1e3, "seconds", "s")):
+        a, b = tg[0] * f, tg[-1] * f
+        if close:
+            fits = abs(a - (time[0] - dt)) <= 0.1 * span and abs(b - time[-1]) <= 0.1 * span
+        else:
+            fits = a <= time[0] + 0.1 * span and b >= time[-1] - 0.1 * span and b - a < 2.0 * span
+        if fits:
+            how = (f"give its header the unit, as 'time [{unit}],outer [deg],inner [deg]'" if unit is not None
+                   else "convert its time column to seconds or milliseconds")
+            return (f"its time column looks like {what}, not {'seconds' if f < 1 else 'milliseconds'} "
+                    f"(t = {a:.9g} .. {b:.9g} s as {what}); {how}")
+    return ""
+
+
 def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False) -> int:
     """Write an imported record atomically (the source is kept as a JSON attribute ``source``)."""
     info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None)
@@ -268,6 +300,9 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     raw = read_source(src, fmt, mapping, dtype, variable, rates)
+    if mapping_file is not None and fmt in ("csv", "txt"):
+        safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
+        raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
     if site is None:  # a PSINS .imu log names its site in its header
         lat, lon, h = raw.header_site
         site = Site(lat * DEG, lon * DEG, h)

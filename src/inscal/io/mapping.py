@@ -30,6 +30,19 @@ JITTER_TOL = 1e-6
 #: with a given rate, steps may deviate by this fraction of the interval (they are regridded)
 REGRID_TOL = 0.1
 
+#: physical limits of imported values (:mod:`inscal.io.checks`): angular rate [rad/s] (100 rev/s),
+#: specific force [m/s^2] (1,000 g), gimbal angle [rad] (1.6 million turns), timestamp [s] (31,700 years)
+MAX_RATE = 2.0 * math.pi * 100.0
+MAX_ACCEL = 1000.0 * units.G0
+MAX_ANGLE = 2.0 * math.pi * 1.6e6
+MAX_TIME = 1e12
+#: sample rates an IMU record can have [Hz]: a slower log (over 1.5 s between samples) or a faster one
+#: (under 20 us) is a time column in another unit
+MIN_RATE_HZ = 1.0 / 1.5
+MAX_RATE_HZ = 5e4
+#: factors by which a time column's unit can be off, and the unit each makes of seconds
+TIME_FACTORS = ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds"))
+
 
 class ImportFileError(DataFileError):
     """A source file that cannot be imported, with the reason (one line)."""
