@@ -182,14 +182,14 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         raise CliError(f"--init must be auto, truth or align, got {init!r}")
     if init == "truth" and scenario is None:
         raise CliError(f"{data} has no truth (not a simulated record): use --init align")
-    if init == "align" and info.n_samples / info.rate_hz <= align_coarse_s + align_fine_s:
-        raise CliError(f"{data} lasts {info.n_samples / info.rate_hz:g} s, not longer than the alignment "
-                       f"({align_coarse_s:g} s coarse + {align_fine_s:g} s fine)")
+    needed, what = nv.samples_needed(info.rate_hz, config, init, align_cfg)
+    if info.n_samples < needed:
+        raise CliError(f"{data}: {nv.too_short(info.n_samples, info.rate_hz, needed, what)}")
     try:
         res = nv.navigate(io.iter_chunks(data), info.rate_hz, info.site, init=init, scenario=scenario,
                           params=imu, gimbal_model=gim, config=config, align_config=align_cfg, height_ref=href)
     except ValueError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(f"{data}: {exc}") from None
     if out is not None:
         meta = {"data": str(data), "params": None if params is None else str(params),
                 "gimbal_nonorthogonality_rad": 0.0 if gim is None else gim.nonorthogonality}

@@ -17,6 +17,10 @@ from inscal.cli.common import (
 )
 
 
+#: samples of the first dwell below which :func:`inscal.report.record.record_report` leaves out the noise section
+NOISE_MIN_SAMPLES = 2000
+
+
 def run_report(data: Path, params: list[Path], out: Path, force: bool = False, warn=None) -> dict:
     """Write the report; ``warn(line)`` is called at once for each provenance warning (a parameter file
     calibrated from another record, scenario or IMU serial: its errors against this record's truth
@@ -40,6 +44,15 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
         # the samples stay on disk: the report streams them (bounded memory for multi-day records)
         with io.open_record(data) as rec:
             res = record_report(out, rec, sets, overwrite=force)
+            if "arw_deg_rth" not in res:  # the noise section was left out: say why, in one line
+                from inscal.analysis.allan import first_dwell
+
+                first = first_dwell(rec.gimbal, rec.n_samples)
+                w = (f"{short(data)}: no noise (Allan deviation) section: the first dwell has {first} samples "
+                     f"({first / rec.rate_hz:.6g} s at {rec.rate_hz:g} Hz), it needs {NOISE_MIN_SAMPLES}")
+                warnings.append(w)
+                if warn is not None:
+                    warn(w)
     except io.DataFileError as exc:
         raise CliError(str(exc)) from None
     except (KeyError, TypeError, ValueError) as exc:

@@ -61,6 +61,10 @@ class AlignConfig:
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"alignment {n} must be > 0")
 
+    def samples(self, dt: float) -> tuple[int, int]:
+        """Samples of the coarse and of the fine alignment at the sample interval ``dt`` [s]."""
+        return int(round(self.coarse_time / dt)), int(round(self.fine_time / dt))
+
 
 @dataclass
 class AlignResult:
@@ -196,13 +200,12 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
     (attitude and velocity into the state, biases into the compensation).
     """
     cfg = cfg or AlignConfig()
-    nc = int(round(cfg.coarse_time / dt))
+    nc, nf = cfg.samples(dt)
     first = stream.take(nc)
     if first is None or first[0].shape[0] < nc:
         raise ValueError(f"record shorter than the coarse alignment time ({cfg.coarse_time:g} s)")
     C0 = coarse_align(first[1], first[2], dt, latitude, height, params, gravity=gravity)
     state = NavState(C0, np.zeros(3), latitude, longitude, height)
-    nf = int(round(cfg.fine_time / dt))
     gb = np.zeros(3)
     ab = np.zeros(3)
     sig = np.full(3, np.nan)

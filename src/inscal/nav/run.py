@@ -119,6 +119,27 @@ class NavResult:
     init: str
 
 
+def samples_needed(rate_hz: float, config: NavConfig | None = None, init="truth",
+                   align_config: AlignConfig | None = None) -> tuple[int, str]:
+    """The fewest samples :func:`navigate` can run on, and what they are for: one output row
+    (:meth:`NavConfig.decimation` samples), after the alignment's samples with ``init="align"``."""
+    config = config or NavConfig()
+    dt = 1.0 / rate_hz
+    dec = config.decimation(dt)
+    what = f"one output at {config.output_rate_hz:g} Hz"
+    if isinstance(init, str) and init == "align":
+        ac = align_config or AlignConfig()
+        nc, nf = ac.samples(dt)
+        return nc + nf + dec, f"the alignment ({ac.coarse_time:g} s coarse + {ac.fine_time:g} s fine) and {what}"
+    return dec, what
+
+
+def too_short(n: int, rate_hz: float, needed: int, what: str, task: str = "navigate") -> str:
+    """The one line for a record of ``n`` samples that ``task`` needs ``needed`` of (for ``what``)."""
+    return (f"{n} sample{'s' if n != 1 else ''} ({n / rate_hz:.6g} s at {rate_hz:g} Hz), too short to {task}: it needs "
+            f"{needed} samples ({needed / rate_hz:.6g} s) for {what}")
+
+
 def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=None,
              params: ImuErrors | None = None, gimbal_model: GimbalErrors | None = None,
              config: NavConfig | None = None, align_config: AlignConfig | None = None,
@@ -175,7 +196,9 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
         nav.st[S_HREF] = height_ref.height[0]
     blk = max(1, int(round(HeightReference.UPDATE_S * rate_hz)))
     parts = []
+    n_seen = k0
     for t, dth, dv, g in stream.chunks():
+        n_seen += t.shape[0]
         vr = None
         if vref is not None:
             vr = vref(t) if callable(vref) else vref
@@ -189,9 +212,9 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
             parts.append(nav.run(dth, dv, g, vr))
         if progress is not None:
             progress(float(t[-1]))
-    if not parts:
-        raise ValueError("no samples left to navigate after the alignment")
-    out = NavOutput.concatenate(parts)
+    out = NavOutput.concatenate(parts) if parts else None
+    if out is None or out.time.size == 0:  # no output row: nothing to judge the navigation by
+        raise ValueError(too_short(n_seen, rate_hz, *samples_needed(rate_hz, config, init, align_config)))
     # static base: position and velocity are known even without a simulation truth
     errors = navigation_errors(out, scenario, gimbal_model, site=site)
     summary = summarize(errors, site.latitude)

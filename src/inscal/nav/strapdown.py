@@ -458,6 +458,10 @@ class NavConfig:
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{n} must be a positive number, got {v}")
 
+    def decimation(self, dt: float) -> int:
+        """Samples per output row at the sample interval ``dt`` [s] (at least 1)."""
+        return max(1, int(round(1.0 / (dt * self.output_rate_hz))))
+
 
 def compensation_block(params: ImuErrors | None) -> tuple[np.ndarray, int]:
     """Kernel parameter block and compensation level (0 none, 1 linear, 2 full) for ``params``."""
@@ -544,7 +548,7 @@ class Strapdown:
         if self.config.output_rate_hz * self.dt > 1.0 + 1e-9:
             raise ValueError(f"output rate {self.config.output_rate_hz:g} Hz is above the sample rate "
                              f"{1.0 / self.dt:g} Hz")
-        self.decim = max(1, int(round(1.0 / (self.dt * self.config.output_rate_hz))))
+        self.decim = self.config.decimation(self.dt)
         self.st = np.zeros(N_STATE)
         self.set_state(init)
         self.cp, level = compensation_block(params)
