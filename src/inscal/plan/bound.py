@@ -103,6 +103,7 @@ from inscal.plan.observability import (
     resolve_noise,
 )
 from inscal.plan.rows import BiasNoise, BoundError, extra_rows
+from inscal.plan.slices import run_in_slices
 from inscal.sim.scenarios import S16_SITE
 from inscal.sim.simulate import Scenario
 
@@ -110,23 +111,11 @@ from inscal.sim.simulate import Scenario
 VELOCITY_FACTOR = 0.05
 #: default sub-sample rate of the kinematics inside steps with motion [Hz]
 SUB_RATE_HZ = 20.0
-
-
-
-
-# ----------------------------------------------------------------------------- noise
-
-
-# ----------------------------------------------------------------------------- extra measurement rows
-#: (predicate(StateSet) -> bool, builder) pairs; see :func:`register_rows`
-
-
-
-
-
-
-
-
+#: most filter steps of one bound (10^7: 116 days at 1 Hz, a day at 100 Hz; about 4 min of CPU with 51
+#: states, 8 min with the unified model's encoder rows): more is no sensible experiment
+MAX_STEPS = 10**7
+#: CPU time of one filter step with 51 states [s] (measured on one core: 1.5e-5 on the S16 path, 2e-5 on N25's)
+STEP_SECONDS = 2.5e-5
 
 
 @njit(cache=True)
@@ -178,12 +167,14 @@ def _values(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_
 
 # ----------------------------------------------------------------------------- the kernel
 @njit(cache=True, fastmath=True)
-def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
-                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist):
-    """Covariance-only pass (module docstring) in the scaled state; ``P`` (N, N) in/out, ``hist``
-    (M, N) receives diag(P) after each update.  ``phinn``, ``F``, ``F2``, ``qd``: physical;
-    ``phi_p``/``q_p``: scaled parameter transition (diagonal) and process noise; ``xH`` (M, m, N)
-    scaled extra rows, ``xr`` (M, m) their scaled variances."""
+def _bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
+                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist, last, phinp, Vs):
+    """Covariance-only pass (module docstring) in the scaled state over the filter steps ``k0 .. k1 - 1``
+    (:mod:`inscal.plan.slices`); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
+    update (``(0, N)``: not kept).  ``phinn``, ``F``, ``F2``, ``qd``: physical; ``phi_p``/``q_p``: scaled
+    parameter transition (diagonal) and process noise; ``xH`` (k1 - k0, m, N) scaled extra rows, ``xr``
+    (k1 - k0, m) their scaled variances.  Carried from one call to the next: ``last`` (1,) the dwell
+    whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p)."""
     N = P.shape[0]
     p = N - 9
     C = np.empty((3, 3))
@@ -196,7 +187,6 @@ def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn,
     M0 = np.empty((6, p))
     M1 = np.empty((6, p))
     M2 = np.empty((6, p))
-    phinp = np.empty((9, p))
     # scaled Phi_nn, Q_d, and G6 = T [I6; 0] + T^2/2 F[:, :6] + T^3/6 F^2[:, :6] (row-scaled): on a dwell
     # Phi_np = G6 V with V constant over the step
     Pn = np.empty((9, 9))
@@ -211,7 +201,6 @@ def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn,
     rbase = np.empty(p, np.int64)  # first row of each column's non-zero block in V (0: gyro, 3: accelerometer)
     for c in range(p):
         rbase[c] = 0 if kinds[c] <= 2 else 3
-    Vs = np.zeros((6, p))  # V with the parameter scaling
     W = np.empty((6, p))  # Vs P_pp
     new_np = np.empty((9, p))
     t1 = np.empty((9, 9))
@@ -227,8 +216,9 @@ def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn,
     ph = np.empty(N)
     kg = np.empty(N)
     h = T / n_sub
-    last_seg = -1
-    for k in range(M):
+    last_seg = last[0]
+    keep = hist.shape[0] > 0
+    for k in range(k0, k1):
         a = k * T
         b = a + T
         # ---- is the whole step on a dwell?
@@ -382,13 +372,13 @@ def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn,
                 P[j, i] = P[i, j]
         # ---- extra rows (scalar sequential updates)
         for m in range(mx):
-            hr = xH[k, m]
+            hr = xH[k - k0, m]
             for i in range(N):
                 acc = 0.0
                 for j in range(N):
                     acc += P[i, j] * hr[j]
                 ph[i] = acc
-            sv = xr[k, m]
+            sv = xr[k - k0, m]
             for i in range(N):
                 sv += hr[i] * ph[i]
             for i in range(N):
@@ -398,8 +388,10 @@ def _bound_kernel(M, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn,
                     v = P[i, j] - kg[i] * ph[j]
                     P[i, j] = v
                     P[j, i] = v
-        for i in range(N):
-            hist[k, i] = P[i, i]
+        if keep:
+            for i in range(N):
+                hist[k - k0, i] = P[i, i]
+    last[0] = last_seg
 
 
 # ----------------------------------------------------------------------------- setup and result
@@ -634,34 +626,58 @@ def _spec(st: StateSet) -> str:
         return str(st)
 
 
+def bound_steps(duration_s: float, filter_rate_hz: float) -> float:
+    """Filter steps of the bound of a ``duration_s`` path at ``filter_rate_hz``, counted as
+    :func:`evaluate` counts them (a float: an absurd request need not fit an int; inf if not finite)."""
+    x = float(duration_s) / (1.0 / float(filter_rate_hz)) + 1e-9
+    return float(math.floor(x)) if math.isfinite(x) else math.inf
+
+
+def bound_bytes(setup: Setup, steps: float, keep_history: bool = True) -> float:
+    """Memory [bytes] of a bound that grows with its ``steps``: the history (diag(P) per step, then
+    its parameter part in SI).  Without the history a bound runs in memory independent of its length
+    (the extra measurement rows are built one slice of steps at a time)."""
+    return 8.0 * steps * (setup.sig.size + setup.n_params) if keep_history else 0.0
+
+
 def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bound:
-    """The bound of ``path`` under ``setup`` (module docstring)."""
+    """The bound of ``path`` under ``setup`` (module docstring).  The kernel runs in slices of steps
+    (:func:`inscal.plan.slices.run_in_slices`), so an interrupt is honoured within a fraction of a second."""
     t0 = time.perf_counter()
     seg = path.segments()
     T = setup.T
-    M = int(math.floor(float(seg.t1[-1]) / T + 1e-9))
+    M = bound_steps(seg.t1[-1], 1.0 / T)
     if M < 2:
         raise BoundError(f"path {path.name!r} is too short ({seg.t1[-1]:g} s) for a {T:g} s filter step")
+    if M > MAX_STEPS:
+        raise BoundError(f"path {path.name!r} ({seg.t1[-1]:.4g} s) at a {T:g} s filter step is {M:.3g} steps, more "
+                         f"than the {MAX_STEPS:.0e} of a sensible bound")
+    M = int(M)
     N = setup.sig.size
+    ns = setup.states.n_states
     u = outer_axis(setup.gimbal.nonorthogonality)
     Cbn = dcm_from_euler(setup.gimbal.mount_attitude)
     wie = earth.earth_rate_n(setup.site.latitude)
-    t_up = (np.arange(M) + 1.0) * T
-    xH, xr = extra_rows(setup.states, setup.scenario(path), t_up, setup.sig[:setup.states.n_states],
-                         setup.row_options)
-    if xH.shape[1]:
-        pad = N - setup.states.n_states
-        if pad:
-            xH = np.concatenate([xH, np.zeros(xH.shape[:2] + (pad,))], axis=2)
-        xH = xH * setup.sig[None, None, :]
+    sc = setup.scenario(path)
+    segs = [np.ascontiguousarray(a, float) for a in (seg.t0, seg.t1, seg.th0, seg.w0, seg.acc)]
     P = np.eye(N)
-    hist = np.empty((M, N))
-    _bound_kernel(M, T, setup.n_sub, np.ascontiguousarray(seg.t0, float), np.ascontiguousarray(seg.t1, float),
-                  np.ascontiguousarray(seg.th0, float), np.ascontiguousarray(seg.w0, float),
-                  np.ascontiguousarray(seg.acc, float), u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
-                  setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd, setup.rs,
-                  setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH), np.ascontiguousarray(xr, float), P,
-                  hist)
+    hist = np.empty((M if keep_history else 0, N))
+    last = np.full(1, -1, np.int64)  # the kernel's state between slices: dwell, its Phi_np, its columns
+    phinp = np.empty((9, N - N_NAV))
+    Vs = np.zeros((6, N - N_NAV))
+
+    def kernel(k0: int, k1: int) -> None:
+        xH, xr = extra_rows(setup.states, sc, (np.arange(k0, k1) + 1.0) * T, setup.sig[:ns], setup.row_options)
+        if xH.shape[1]:
+            if N > ns:
+                xH = np.concatenate([xH, np.zeros(xH.shape[:2] + (N - ns,))], axis=2)
+            xH = xH * setup.sig[None, None, :]
+        _bound_kernel(k0, k1, T, setup.n_sub, *segs, u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
+                      setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
+                      setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
+                      np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs)
+
+    run_in_slices(M, kernel, first=max(1, 4096 // setup.n_sub))
     p = setup.n_params
     sp = setup.sig[N_NAV:N_NAV + p]
     cov = P[N_NAV:N_NAV + p, N_NAV:N_NAV + p] * np.outer(sp, sp)

@@ -56,7 +56,7 @@ from inscal.core.turntable import (
     psins19,
     s16_table1,
 )
-from inscal.plan.bound import Bound, Setup, evaluate, make_setup
+from inscal.plan.bound import MAX_STEPS, Bound, Setup, bound_bytes, bound_steps, evaluate, make_setup
 from inscal.plan.rows import BoundError
 from inscal.sim.scenarios import S16_TABLE2
 
@@ -70,6 +70,12 @@ OBJECTIVES = ("worst-normalised", "weighted")
 #: weight of the mean normalised bound added to the worst one when the search ranks candidates
 TIE_BREAK = 0.05
 TARGETS = ("s16-path", "s16-table2")
+#: most filter steps of a whole search, candidates x steps of one candidate's bound (10^9: about 7 h of
+#: CPU with 51 states on one core, inscal.plan.bound.STEP_SECONDS)
+MAX_SEARCH_STEPS = 10**9
+#: memory of one member of the population: its genes and the genes its path kept (6.6 kB measured with
+#: 40 genes), its bound and the bookkeeping
+MEMBER_BYTES = 16e3
 
 
 class DesignError(ValueError):
@@ -331,6 +337,36 @@ def group_summary(sigma: np.ndarray, setup: Setup, reference: np.ndarray) -> dic
     return res
 
 
+# ----------------------------------------------------------------------------- size
+@dataclass(frozen=True)
+class SearchSize:
+    """What a search asks for (:func:`search_size`)."""
+
+    steps: float  # filter steps of one candidate's bound
+    candidates: int
+    members: int  # population held at once: the survivors and one generation of children
+    history_bytes: float  # the history of the final bound (the only bound kept over time)
+    population_bytes: float
+
+    @property
+    def total_steps(self) -> float:
+        return self.steps * self.candidates
+
+    @property
+    def memory(self) -> float:
+        """Bytes that grow with the options (the search's own, beside the interpreter and the kernels)."""
+        return self.history_bytes + self.population_bytes
+
+
+def search_size(minutes: float, candidates: int, population: int, setup: Setup, workers: int = 1) -> SearchSize:
+    """The size of :func:`design`'s search (``workers``: evaluators in parallel, which set the children
+    per generation), before anything runs."""
+    steps = bound_steps(60.0 * float(minutes), 1.0 / setup.T)
+    mu = max(2, min(int(population), int(candidates) // 2))
+    members = mu + max(4, 4 * int(workers))
+    return SearchSize(steps, int(candidates), members, bound_bytes(setup, steps), members * MEMBER_BYTES)
+
+
 # ----------------------------------------------------------------------------- evaluation
 def evaluate_genes(setup: Setup, objective: Objective, budget: float, limits: Limits, batch: list) -> list:
     """Objective and bound of each genome of ``batch`` (a Dask task; also used in-process)."""
@@ -449,6 +485,13 @@ def design(minutes: float, states: str = "51", objective: str = "worst-normalise
     if budget <= limits.initial_dwell + limits.min_dwell + 10.0:
         raise DesignError(f"{minutes:g} min is too short for the initial dwell ({limits.initial_dwell:g} s) and a move")
     setup = setup or make_setup(states)
+    size = search_size(minutes, candidates, population, setup)
+    if size.steps > MAX_STEPS:
+        raise DesignError(f"{minutes:g} min at a {setup.T:g} s filter step is {size.steps:.3g} steps per candidate, "
+                          f"more than the {MAX_STEPS:.0e} of a sensible bound")
+    if size.total_steps > MAX_SEARCH_STEPS:
+        raise DesignError(f"{candidates} candidates x {size.steps:.3g} steps is {size.total_steps:.3g} filter steps, "
+                          f"more than the {MAX_SEARCH_STEPS:.0e} of a sensible search")
     obj = make_objective(setup, objective, targets, groups)
     ref_value = obj.value(obj.reference)
     rng = np.random.default_rng(seed)

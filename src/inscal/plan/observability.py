@@ -91,6 +91,7 @@ from inscal.core import units
 from inscal.core.error_model import ImuErrors, ImuNoise
 from inscal.core.turntable import BUILTIN_PATHS, RotationPath
 from inscal.io.tomlfile import read_toml
+from inscal.plan.slices import run_in_slices
 from inscal.sim import scenarios
 from inscal.sim.scenarios import S16_SITE
 from inscal.sim.simulate import Scenario, simulate
@@ -113,6 +114,11 @@ DEFAULT_VRW = units.to_si(1.0, "ug/sqrt(Hz)")
 #: navigation prior sigma of the observability matrix's initial state (scaling only; the
 #: parameter-block results do not depend on it): tilt 600", heading 1 deg, 1 cm/s, 1 cm
 NAV_SIGMA = NAV_SIGMA0
+#: most samples of the noise-free simulation (10^9: ~250 GB of memory, about an hour of CPU)
+MAX_SAMPLES = 10**9
+#: memory per sample of the in-memory simulation and the filter pass over it (measured 174 B with 51 states,
+#: 190 B with the unified model, n25 at 200-800 Hz; the simulation's chunks are joined into one record)
+BYTES_PER_SAMPLE = 256
 
 
 class ObservabilityError(ValueError):
@@ -315,6 +321,18 @@ def resolve_noise(sc, kind: str, arw, vrw) -> tuple[np.ndarray, np.ndarray, str]
     return out[0], out[1], src
 
 
+# ----------------------------------------------------------------------------- size
+def observability_bytes(n_samples: float, steps: float, states: StateSet) -> float:
+    """Memory [bytes] of :func:`observability` that grows with the path: the noise-free record
+    (:data:`BYTES_PER_SAMPLE` per sample) and, per filter step, what the filter pass keeps for the
+    smoother and this module (gains, innovation covariances, transitions ``Phi_nn``, ``Phi_np``: 6 N + 131
+    + 9 p floats; with gimbal states the encoder rows with their gains and covariances, 6 N + 25, and
+    their whitened copies here, 6 N + 9)."""
+    N = states.n_states
+    per_step = 6 * N + 131 + 9 * (N - N_NAV) + (12 * N + 34 if states.gimbal else 0)
+    return BYTES_PER_SAMPLE * float(n_samples) + 8.0 * per_step * float(steps)
+
+
 # ----------------------------------------------------------------------------- analysis
 def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: float = 20.0, arw=None, vrw=None,
                   filter_rate_hz: float = 1.0) -> ObservabilityReport:
@@ -333,6 +351,9 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     except CalibrationError as exc:
         raise ObservabilityError(str(exc)) from None
     sc, kind, label = load_source(scenario_or_path)
+    if not sc.path.duration * rate_hz <= MAX_SAMPLES:
+        raise ObservabilityError(f"{label}: {sc.path.duration * rate_hz:.3g} samples ({sc.path.duration:.4g} s at "
+                                 f"{rate_hz:g} Hz) is more than the {MAX_SAMPLES:.0e} of a sensible simulation")
     arw_v, vrw_v, noise_src = resolve_noise(sc, kind, arw, vrw)
     # ideal IMU, no noise; keep the site and the gimbal geometry
     sc0 = replace(sc, imu=ImuErrors(), noise=ImuNoise(), rate_hz=float(rate_hz))
@@ -441,32 +462,33 @@ def _triangular_factor(phinn: np.ndarray, phinp: np.ndarray, r_scaled: np.ndarra
     elif w_att.shape != (M, 3, N_NAV + p) or np.shape(att_used) != (M,):
         raise ValueError(f"encoder rows must be ({M}, 3, {N_NAV + p}) with ({M},) flags, got {w_att.shape}")
     R = np.zeros((N_NAV + p, N_NAV + p))
-    growth = _factor_kernel(np.ascontiguousarray(phinn, dtype=float), np.ascontiguousarray(phinp, dtype=float),
-                            1.0 / np.sqrt(np.asarray(r_scaled, float)), np.ascontiguousarray(w_att, dtype=float),
-                            np.ascontiguousarray(att_used, dtype=np.int8), R)
+    args = (np.ascontiguousarray(phinn, dtype=float), np.ascontiguousarray(phinp, dtype=float),
+            1.0 / np.sqrt(np.asarray(r_scaled, float)), np.ascontiguousarray(w_att, dtype=float),
+            np.ascontiguousarray(att_used, dtype=np.int8), R)
+    A, B, growth = np.eye(9), np.zeros((9, p)), np.ones(1)  # Psi_k and the growth, carried between slices
+    run_in_slices(M, lambda k0, k1: _factor_kernel(k0, k1, *args, A, B, growth))
+    growth = float(growth[0])
     if not (np.all(np.isfinite(R)) and math.isfinite(growth)):
         raise ObservabilityError("observability matrix overflowed (path too long for the unstable vertical channel)")
     return R, growth
 
 
 @njit(cache=True)
-def _factor_kernel(phinn, phinp, w, w_att, att_used, R):
+def _factor_kernel(k0, k1, phinn, phinp, w, w_att, att_used, R, A, B, growth):
     """``Psi_k`` recursion and a Householder update of ``R`` with the six whitened rows
     ``w * H Psi_k`` of every step (``[R; X] = Q [R'; 0]``), plus the three whitened encoder
-    attitude rows ``W_k Psi_k`` where ``att_used[k]`` (``w_att`` empty: none).  No BLAS: plain
-    loops, so the cost (~12 N^2 per step) does not depend on a threaded BLAS.  Returns
-    ``max |A_k[8, 8]|`` (vertical-channel growth)."""
-    M = phinn.shape[0]
+    attitude rows ``W_k Psi_k`` where ``att_used[k]`` (``w_att`` empty: none), over the steps
+    ``k0 .. k1 - 1`` (:mod:`inscal.plan.slices`).  No BLAS: plain loops, so the cost (~12 N^2 per
+    step) does not depend on a threaded BLAS.  Carried from one call to the next: ``R``, ``Psi_k``
+    = ``[[A, B], [0, I]]`` (``A`` (9, 9), ``B`` (9, p)) and ``growth`` (1,), ``max |A_k[8, 8]|``
+    (vertical-channel growth)."""
     p = phinp.shape[2]
     N = 9 + p
     have_att = w_att.shape[0] > 0
-    A = np.eye(9)
-    B = np.zeros((9, p))
     A2 = np.empty((9, 9))
     B2 = np.empty((9, p))
     X = np.empty((9, N))
-    growth = 1.0
-    for k in range(M):
+    for k in range(k0, k1):
         P = phinn[k]
         for i in range(9):
             for j in range(9):
@@ -481,8 +503,8 @@ def _factor_kernel(phinn, phinp, w, w_att, att_used, R):
                 B2[i, j] = s
         A[:, :] = A2
         B[:, :] = B2
-        if abs(A[8, 8]) > growth:
-            growth = abs(A[8, 8])
+        if abs(A[8, 8]) > growth[0]:
+            growth[0] = abs(A[8, 8])
         for a in range(6):
             for j in range(9):
                 X[a, j] = w[a] * A[3 + a, j]
@@ -531,4 +553,3 @@ def _factor_kernel(phinn, phinp, w, w_att, att_used, R):
             R[j, j] = alpha
             for a in range(nr):
                 X[a, j] = 0.0
-    return growth
