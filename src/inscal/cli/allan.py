@@ -15,12 +15,16 @@ from inscal.cli.common import (
     print_json,
     short,
 )
+from inscal.cli.limits import check_memory
 
 np = LazyModule("numpy")
 units = LazyModule("inscal.core.units")
 
 #: plot formats (from the --plot suffix)
 PLOT_FORMATS = ("png", "pdf", "svg")
+#: memory per sample of the window: the phase history of the streamed Allan deviation (about a quarter of
+#: the window's rows of 3 floats, inscal.analysis.allan.StreamingAllan) and the motion statistics
+BYTES_PER_SAMPLE = 8
 
 
 def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plot: Path | None = None,
@@ -44,6 +48,8 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         win = io.record_window(data, start_s, stop_s)
         if win.n < 1000:
             raise CliError(f"only {win.n} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+        check_memory(win.n * BYTES_PER_SAMPLE, f"the window of {short(data)} ({win.n} samples, {win.n / win.rate_hz:.4g} s "
+                     f"at {win.rate_hz:g} Hz)", "take a shorter window with --start/--stop")
         from inscal.analysis.allan import stream_allan
 
         g, a, mot, (t0, t1) = stream_allan(data, win)

@@ -9,6 +9,7 @@ from pathlib import Path as FsPath
 import typer
 
 from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
+from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory, human_seconds
 
 
 def _range(opt: str, v: str | None):
@@ -84,6 +85,32 @@ def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | Non
     return doc
 
 
+def check_size(minutes: float, candidates: int, population: int, workers: int, scheduler: str | None, setup) -> None:
+    """Refuse (one line) a search whose size options ask for more memory than there is or more filter
+    steps than :data:`~inscal.plan.design.MAX_SEARCH_STEPS`, before anything runs."""
+    from inscal.plan.bound import MAX_STEPS, STEP_SECONDS
+    from inscal.plan.design import MAX_SEARCH_STEPS, search_size
+
+    local = scheduler in (None, "", "local")
+    size = search_size(minutes, candidates, population, setup, workers if local else 1)
+    rate = f"{1.0 / setup.T:g} Hz"
+    check_memory(size.history_bytes, f"--minutes {minutes:g} ({size.steps:.3g} filter steps at {rate})",
+                 "shorten --minutes")
+    check_count(size.steps, MAX_STEPS, f"--minutes {minutes:g} is {size.steps:.3g} filter steps per candidate at {rate}",
+                "shorten --minutes")
+    check_count(size.total_steps, MAX_SEARCH_STEPS,
+                f"--candidates {candidates} x {size.steps:.3g} steps is {size.total_steps:.3g} filter steps, about "
+                f"{human_seconds(size.total_steps * STEP_SECONDS)} of CPU", "lower --candidates or --minutes")
+    if local:
+        check_memory(workers * DASK_WORKER_BYTES, f"--workers {workers} (a local Dask cluster of {workers} processes)",
+                     "lower --workers")
+    check_memory(size.population_bytes, f"--population {population} with --candidates {candidates} ({size.members} "
+                 "paths held at once)", "lower --population")
+    check_memory(size.memory + (workers * DASK_WORKER_BYTES if local else 0.0),
+                 f"--minutes {minutes:g} with --population {population} and --workers {workers}",
+                 "shorten --minutes or lower --population or --workers")
+
+
 def run_design(out: FsPath, minutes: float, states: str = "51", objective: str = "worst-normalised",
                targets: str = "s16-path", groups: str = "all", axes: str = "outer,inner", max_rate: float = 10.0,
                max_accel: float = 10.0, outer_range: str | None = None, inner_range: str | None = None,
@@ -135,6 +162,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
         setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise))
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    check_size(minutes, candidates, population, workers, scheduler, setup)
     bar = _Progress(candidates, f"design {minutes:g} min") if progress else None
     try:
         res = design(minutes, states, objective, targets, groups, limits, seed, candidates, population,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -14,6 +15,19 @@ if TYPE_CHECKING:
     from inscal.analysis.montecarlo import Summary
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
+from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
+
+#: most runs of a study, all configuration points together (10^6: weeks of CPU at 1-10 s a run)
+MAX_RUNS = 10**6
+#: memory the driver holds per run: its seed and place in the layout (~0.6 kB) and its result, parsed
+#: (about twice its runs.jsonl line: 4.6 kB for n25-schemes, 7.3 kB for s16-table2)
+RUN_BYTES = 16e3
+#: memory of one run per sample of its record: the simulation in memory and the calibrations (measured:
+#: 161 B for n25-schemes at 100-400 Hz), and per second of the path (the systematic filter's stores at 1 Hz)
+RUN_BYTES_PER_SAMPLE = 256
+RUN_BYTES_PER_SECOND = 16e3
+#: most samples of one run's record (10^9: about 250 GB in memory)
+MAX_RUN_SAMPLES = 10**9
 
 
 def parse_set(items: list[str] | None) -> dict:
@@ -31,6 +45,53 @@ def parse_set(items: list[str] | None) -> dict:
         except ValueError:
             out[k] = v
     return out
+
+
+def run_scenario(exp):
+    """The scenario one run of ``exp`` simulates (the built-in studies: N25's twelve positions with the
+    study's dwell and rate, or a named scenario at the study's rate), or None for one it cannot tell."""
+    from inscal.analysis.studies.common import n25_scenario
+    from inscal.sim.scenarios import build
+
+    params = exp.params
+    if "rate_hz" not in params:
+        return None
+    if "dwell_s" in params:
+        return n25_scenario(params)
+    name = exp.points[0].get("scenario") if exp.points else None
+    return None if name is None else build(name, rate_hz=float(params["rate_hz"]))
+
+
+def check_size(exp, runs: int, scheduler: str | None, workers: int | None) -> None:
+    """Refuse (one line) a study whose size asks for more memory than there is, or more runs than
+    :data:`MAX_RUNS`, before anything is written: the driver's runs, one run's record per worker process
+    (``--set rate_hz=`` / ``dwell_s=``) and the processes of a local Dask cluster."""
+    P = len(exp.points)
+    total = runs * P
+    what = f"--runs {runs} x {P} configuration point{'s' if P > 1 else ''} ({total} runs)"
+    hint = "lower --runs (a study resumes: raise --runs later to extend it)"
+    check_memory(total * RUN_BYTES, what, hint)
+    check_count(total, MAX_RUNS, what, hint)
+    local = scheduler in (None, "local")
+    procs = 1 if scheduler in ("synchronous", "sync") else (workers or os.cpu_count() or 1) if local else 0
+    if local and procs > 1:
+        check_memory(procs * DASK_WORKER_BYTES, f"--workers {procs}{' (the default: one per core)' if workers is None else ''}"
+                     f" (a local Dask cluster of {procs} processes)", "lower --workers")
+    try:
+        sc = run_scenario(exp)
+    except ValueError:  # the study's own checks name a bad parameter when it runs
+        sc = None
+    if sc is None:
+        return
+    dur, rate = sc.path.duration, sc.rate_hz
+    n = dur * rate
+    what = f"one run of {exp.name} ({n:.3g} samples: {dur:.4g} s at {rate:g} Hz)"
+    hint = "lower --set rate_hz=" + (" or dwell_s=" if "dwell_s" in exp.params else "")
+    if procs:
+        need = n * RUN_BYTES_PER_SAMPLE + dur * RUN_BYTES_PER_SECOND
+        check_memory(procs * need, what + (f" in each of {procs} worker processes" if procs > 1 else ""),
+                     hint + (" or --workers" if procs > 1 else ""))
+    check_count(n, MAX_RUN_SAMPLES, f"{what} is too long a record", hint)
 
 
 def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params: dict | None = None,
@@ -58,6 +119,10 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
         raise CliError(f"--batch-size must be >= 1, got {batch_size}")
     try:
         exp = studies.get_experiment(experiment, params)
+    except mc.StudyError as exc:
+        raise CliError(str(exc)) from None
+    check_size(exp, runs, scheduler, workers)
+    try:
         res = mc.run_study(exp, out, runs, seed, scheduler=scheduler, workers=workers, batch_size=batch_size,
                            force=force, progress=progress, max_new_runs=max_new_runs)
         summ = mc.summarize(exp, res)

@@ -7,19 +7,41 @@ import math
 
 import typer
 
-from inscal.cli.common import CliError, fail, print_json
+from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.limits import check_count, check_memory, human_seconds
 
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
                       vrw: float | None = None):
     """The :class:`~inscal.plan.observability.ObservabilityReport` of ``source``; ``arw`` in
     deg/sqrt(h), ``vrw`` in ug/sqrt(Hz) (field units, converted here)."""
+    from inscal.calibrate.systematic.states import StateSet
+    from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
-    from inscal.plan.observability import ObservabilityError, observability
+    from inscal.plan.observability import (
+        MAX_SAMPLES,
+        ObservabilityError,
+        load_source,
+        observability,
+        observability_bytes,
+    )
 
     for name, v in (("--rate-hz", rate_hz), ("--arw", arw), ("--vrw", vrw)):
         if v is not None and not (math.isfinite(v) and v > 0):
             raise CliError(f"{name} must be a positive number, got {v:g}")
+    try:  # the size first: the simulation is held in memory, and the filter's per-step stores
+        sc, _, label = load_source(source)
+        st = StateSet.parse(states)
+    except ObservabilityError as exc:
+        raise CliError(str(exc)) from None
+    except CalibrationError:
+        st = None  # observability() names the bad state set
+    if st is not None:
+        dur = sc.path.duration
+        what = f"--rate-hz {rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} ({dur * rate_hz:.3g} samples)"
+        hint = "lower --rate-hz (the default 20 Hz is enough for the filter) or take a shorter path"
+        check_memory(observability_bytes(dur * rate_hz, dur, st), what, hint)
+        check_count(dur * rate_hz, MAX_SAMPLES, what, hint)
     try:
         return observability(source, states, rate_hz=rate_hz,
                              arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
@@ -36,7 +58,8 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s)."""
     from inscal.core import units
-    from inscal.plan.bound import crlb
+    from inscal.plan.bound import MAX_STEPS, STEP_SECONDS, bound_steps, crlb
+    from inscal.plan.observability import ObservabilityError, load_source
     from inscal.plan.rows import BiasNoise, BoundError
 
     for name, v in (("--arw", arw), ("--vrw", vrw), ("--filter-rate-hz", filter_rate_hz), ("--bi-tau", bi_tau)):
@@ -46,6 +69,15 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
                     ("--accel-rrw", accel_rrw)):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise CliError(f"{name} must be a number >= 0, got {v:g}")
+    try:  # the size first: memory does not grow with the steps (no history kept), the time does
+        sc, _, label = load_source(source)
+    except ObservabilityError as exc:
+        raise CliError(str(exc)) from None
+    dur = sc.path.duration
+    steps = bound_steps(dur, filter_rate_hz)
+    check_count(steps, MAX_STEPS, f"--filter-rate-hz {filter_rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} "
+                f"is {steps:.3g} filter steps, about {human_seconds(steps * STEP_SECONDS)} of CPU",
+                "lower --filter-rate-hz (1 Hz is the systematic filter's rate) or take a shorter path")
     bias = None
     if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
         per_sqrt_h = 1.0 / math.sqrt(3600.0)  # x per sqrt(h) = x / 60 per sqrt(s)
