@@ -317,6 +317,17 @@ def test_small_n25_fig5_rsd_decreases_with_dtheta(tmp_path):
     assert paths["png"].stat().st_size > 1000
 
 
+def test_n25_fig5_with_one_run_per_value_draws_and_gives_no_verdict(tmp_path):
+    """One run per dθ value has no spread: the summary says the verdict is not known (not NO) and the
+    plot says why instead of failing on log axes of nothing."""
+    exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [7.0, 30.0], "simulation": "reuse"})
+    res = mc.run_study(exp, tmp_path, runs=1, seed=0, scheduler="synchronous")
+    s = mc.summarize(exp, res)
+    assert s.data["rsd_below_threshold"] is None and "not known" in s.notes[0]
+    paths = mc.write_outputs(exp, s, tmp_path)
+    assert paths["png"].stat().st_size > 1000
+
+
 @pytest.mark.slow
 def test_small_n25_schemes_shows_the_n25_claims(tmp_path):
     pytest.importorskip("inscal.calibrate")

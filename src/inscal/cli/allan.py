@@ -47,7 +47,9 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
     try:
         win = io.record_window(data, start_s, stop_s)
         if win.n < 1000:
-            raise CliError(f"only {win.n} samples between {start_s} s and {stop_s} s; need >= 1000 of a static window")
+            span = f"between {start_s:g} s and {stop_s:g} s" if stop_s is not None else f"from {start_s:g} s to its end"
+            raise CliError(f"{short(data)}: only {win.n} samples {span}; the Allan deviation needs >= 1000 samples "
+                           "of a static window")
         check_memory(win.n * BYTES_PER_SAMPLE, f"the window of {short(data)} ({win.n} samples, {win.n / win.rate_hz:.4g} s "
                      f"at {win.rate_hz:g} Hz)", "take a shorter window with --start/--stop")
         from inscal.analysis.allan import stream_allan

@@ -58,8 +58,13 @@ def _fig5_summarize(exp: Experiment, results: list[list[dict]]) -> Summary:
     thr, at = exp.params["rsd_threshold_pct"], exp.params["rsd_threshold_from_arcsec"]
     sel = [r for r in rows if r["dtheta_arcsec"] >= at and r["n"] > 1]
     ok = bool(sel) and all(r["rsd_pct"] < thr for r in sel)
-    notes = [f"RSD < {thr:g} % for every dtheta >= {at:g} arcsec: {'yes' if ok else 'NO'}"
-             + (f" (largest {max(r['rsd_pct'] for r in sel):.2f} %)" if sel else "")]
+    if sel:
+        notes = [f"RSD < {thr:g} % for every dtheta >= {at:g} arcsec: {'yes' if ok else 'NO'}"
+                 f" (largest {max(r['rsd_pct'] for r in sel):.2f} %)"]
+    else:  # no spread from one run: no verdict either way
+        notes = [f"RSD < {thr:g} % for every dtheta >= {at:g} arcsec: not known (an RSD needs at least 2 runs per "
+                 "value)"]
+        ok = None
     cols = [("dtheta_arcsec", "dθ true [″]"), ("n", "runs"), ("mean_arcsec", "mean [″]"), ("bias_arcsec", "bias [″]"),
             ("std_arcsec", "std [″]"), ("rsd_pct", "RSD [%]"), ("rsd_ci95_lo_pct", "RSD 95% lo"), ("rsd_ci95_hi_pct", "RSD 95% hi")]
     if any(r["sigma_formal_arcsec"] is not None for r in rows):
@@ -77,6 +82,15 @@ def _fig5_plot(exp: Experiment, s: Summary, path: Path) -> None:
     lo = np.array([r["rsd_ci95_lo_pct"] for r in rows])
     hi = np.array([r["rsd_ci95_hi_pct"] for r in rows])
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    if not rows:  # one run per value: no spread to draw (log axes of nothing cannot be drawn either)
+        for ax in (a1, a2):
+            ax.text(0.5, 0.5, "an RSD needs at least 2 runs per dθ value", ha="center", va="center",
+                    transform=ax.transAxes)
+            ax.set_axis_off()
+        a1.set_title("N25 Fig. 5 (1 run per value)")
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        return
     a1.errorbar(x, rsd, yerr=[rsd - lo, hi - rsd], fmt="o-", capsize=3, label="Monte Carlo (95 % CI)")
     a1.axhline(exp.params["rsd_threshold_pct"], color="r", ls="--", lw=1, label=f"{exp.params['rsd_threshold_pct']:g} %")
     a1.axvline(exp.params["rsd_threshold_from_arcsec"], color="gray", ls=":", lw=1)
@@ -100,6 +114,7 @@ def _fig5_plot(exp: Experiment, s: Summary, path: Path) -> None:
     a2.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def n25_fig5(dtheta_arcsec=FIG5_DTHETA, method: str = "n25", arw_deg_rt_h: float = 0.02, vrw_ug_rt_hz: float = 20.0,

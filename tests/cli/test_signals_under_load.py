@@ -1,0 +1,93 @@
+"""SIGTERM under load: 20 signals at random times (a seeded generator) during ``simulate``,
+``calibrate --method systematic51 --plots``, ``design``, ``observability --crlb`` and
+``navigate --out``, with two busy processes on the cores beside them.  Every command exits within
+2 s of its signal (exit 143, one line) and leaves the folder as it was; a command that finished
+before its signal left whole outputs."""
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+#: the most a command may take to exit after SIGTERM [s]
+LATENCY_S = 2.0
+#: command -> (arguments, outputs when it finishes, signal delays [s] after the start)
+COMMANDS = {
+    "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.6, 3.0)),
+    "calibrate": (["calibrate", "{p19}", "--method", "systematic51", "--out", "p.toml", "--plots", "plots"],
+                  ["p.toml", "plots"], (0.6, 5.0)),
+    "design": (["design", "--minutes", "60", "--candidates", "8", "--population", "4", "--scheduler", "none",
+                "--out", "d.toml"], ["d.toml"], (0.6, 4.0)),
+    "observability": (["observability", "s16", "--crlb"], [], (0.6, 2.0)),
+    "navigate": (["navigate", "{s4}", "--init", "truth", "--out", "n.h5"], ["n.h5"], (0.6, 2.5)),
+}
+
+
+def _launch(args, cwd):
+    code = "import sys; from inscal.cli import main; sys.argv = ['inscal'] + sys.argv[1:]; main()"
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=cwd, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    d = tmp_path_factory.mktemp("load-in")
+    for args in (["simulate", "psins19", "--out", d / "p19.h5"],
+                 ["simulate", "static-24h", "--duration-h", "4", "--out", d / "s4.h5"]):
+        p = _launch(args, d)
+        _, err = p.communicate(timeout=300)
+        assert p.returncode == 0, err
+    return {"p19": d / "p19.h5", "s4": d / "s4.h5"}
+
+
+def test_twenty_sigterms_under_load(records, tmp_path):
+    rng = np.random.default_rng(20261124)
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    report = []
+    try:
+        for i in range(20):
+            name = list(COMMANDS)[i % len(COMMANDS)]
+            args, outputs, (lo, hi) = COMMANDS[name]
+            folder = tmp_path / f"{i:02d}-{name}"
+            folder.mkdir()
+            proc = _launch([a.format(**records) for a in args], folder)
+            time.sleep(rng.uniform(lo, hi))
+            if proc.poll() is not None:  # finished before its signal
+                _, err = proc.communicate()
+                assert proc.returncode == 0, (name, err)
+                assert sorted(p.name for p in folder.iterdir()) == sorted(outputs), name
+                report.append((name, "finished", None))
+                continue
+            sent = time.monotonic()
+            proc.terminate()
+            try:
+                _, err = proc.communicate(timeout=30)
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+            latency = time.monotonic() - sent
+            names = sorted(p.name for p in folder.iterdir())
+            lines = [ln for ln in err.splitlines() if ln.strip()]
+            report.append((name, proc.returncode, round(latency, 2)))
+            assert latency < LATENCY_S, (name, latency, err)
+            if proc.returncode == 0 or "after its outputs were complete" in err:  # the signal came at the very end
+                assert names == sorted(outputs), (name, names, err)
+                continue
+            assert proc.returncode == 143, (name, proc.returncode, err)
+            assert len(lines) == 1 and lines[0].startswith("inscal: interrupted (SIGTERM)"), (name, err)
+            assert names == [], (name, names, err)
+            shutil.rmtree(folder)
+    finally:
+        for b in busy:
+            b.kill()
+            b.wait()
+    print("\n".join(f"{n:14s} {c!s:9s} {lat}" for n, c, lat in report))  # pytest -s: the figures of a run
+    interrupted = [r for r in report if r[1] == 143]
+    assert len(interrupted) >= 15, report  # the delays fall inside the runs: most signals hit a running command
+    assert {r[0] for r in interrupted} == set(COMMANDS), report
