@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 import pytest
 from test_cli_guards import make_record, one_line_error, params_file, run
+from test_signals_under_load import started
 
 from inscal import io
 from inscal.io.files import OutputBusyError, atomic_path, claim_output, lock_path, output_unit, release_output
@@ -206,12 +207,13 @@ def test_sigterm_during_calibrate_with_plots_leaves_all_or_nothing(tmp_path):
     assert code == 0, err
     rng = np.random.default_rng(7)
     outcomes = []
-    for delay in rng.uniform(0.5, 6.0, 4):
+    for delay in rng.uniform(0.0, 5.0, 4):
         for p in list(tmp_path.iterdir()):
             if p != rec:
                 p.unlink() if p.is_file() else __import__("shutil").rmtree(p)
         proc = _launch(["calibrate", rec.name, "--method", "systematic51", "--out", "p.toml", "--plots", "plots"],
                        tmp_path)
+        started(proc)
         time.sleep(delay)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)

@@ -12,21 +12,32 @@ import time
 
 import numpy as np
 import pytest
+from test_memory_caps import cpu_seconds
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 #: the most a command may take to exit after SIGTERM [s]
 LATENCY_S = 2.0
+#: CPU time after which a child has imported the command line and installed its signal handlers [s]
+STARTED_CPU_S = 0.5
 #: command -> (arguments, outputs when it finishes, signal delays [s] after the start)
 COMMANDS = {
-    "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.6, 3.0)),
+    "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.1, 3.0)),
     "calibrate": (["calibrate", "{p19}", "--method", "systematic51", "--out", "p.toml", "--plots", "plots"],
-                  ["p.toml", "plots"], (0.6, 5.0)),
+                  ["p.toml", "plots"], (0.1, 5.0)),
     "design": (["design", "--minutes", "60", "--candidates", "8", "--population", "4", "--scheduler", "none",
-                "--out", "d.toml"], ["d.toml"], (0.6, 4.0)),
-    "observability": (["observability", "s16", "--crlb"], [], (0.6, 2.0)),
-    "navigate": (["navigate", "{s4}", "--init", "truth", "--out", "n.h5"], ["n.h5"], (0.6, 2.5)),
+                "--out", "d.toml"], ["d.toml"], (0.1, 4.0)),
+    "observability": (["observability", "s16", "--crlb"], [], (0.1, 2.0)),
+    "navigate": (["navigate", "{s4}", "--init", "truth", "--out", "n.h5"], ["n.h5"], (0.1, 2.5)),
 }
+
+
+def started(proc, timeout: float = 60.0) -> None:
+    """Wait until ``proc`` has used :data:`STARTED_CPU_S` of CPU (on a loaded machine the wall time of its
+    start-up says nothing) or has ended."""
+    t_end = time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < t_end and cpu_seconds(proc.pid) < STARTED_CPU_S:
+        time.sleep(0.02)
 
 
 def _launch(args, cwd):
@@ -57,6 +68,7 @@ def test_twenty_sigterms_under_load(records, tmp_path):
             folder = tmp_path / f"{i:02d}-{name}"
             folder.mkdir()
             proc = _launch([a.format(**records) for a in args], folder)
+            started(proc)
             time.sleep(rng.uniform(lo, hi))
             if proc.poll() is not None:  # finished before its signal
                 _, err = proc.communicate()
