@@ -92,6 +92,14 @@ def quad_terms(f):
     return sq, cr
 
 
+def rows_times(m, x) -> np.ndarray:
+    """``x @ m.T`` for x of shape (..., 3), each component summed left to right
+    (``(m[i,0] x_0 + m[i,1] x_1) + m[i,2] x_2``) elementwise, so the result does not depend on the
+    BLAS library and equals a scalar loop doing the same products."""
+    x = np.asarray(x, dtype=float)
+    return np.stack([m[i, 0] * x[..., 0] + m[i, 1] * x[..., 1] + m[i, 2] * x[..., 2] for i in range(3)], axis=-1)
+
+
 def size_effect(lever_arm, w, wdot=None):
     """Size-effect specific force a_size (..., 3) for rates ``w`` (..., 3) (S16 eq. 9-11).
 
@@ -215,24 +223,39 @@ class ImuErrors:
         dv = np.asarray(dv, dtype=float)
         dvg = dv if dv_gyro is None else np.asarray(dv_gyro, dtype=float)
         dt = np.asarray(dt, dtype=float)[..., None] if np.ndim(dt) else dt
-        ng = (dth + dvg @ self.gyro_g_sensitivity.T) @ self.M_g.T + self.gyro_bias * dt
+        # Every product is written out element by element in one fixed order (no BLAS), the order of
+        # the simulator's compiled pass (inscal.sim.kernel.simulate_pass): both give the same bits.
+        # A term whose parameters are all zero is skipped (adding it would add exact zeros).
+        G = self.gyro_g_sensitivity
+        ng = rows_times(self.M_g, dth + rows_times(G, dvg) if np.any(G) else dth) + self.gyro_bias * dt
         fa = dv
-        if self.has_nonlinear:
-            fa = fa + f2 * self.accel_nonlinearity + fx @ self.K_cross.T
-            if np.any(self.accel_lever_arm):
-                p = self.accel_lever_arm
-                # int (w_i (w . p_i) - p_ii |w|^2) dt expressed with the integrated products
-                wx2, wy2, wz2, wxy, wxz, wyz = (wwT[..., k] for k in range(6))
-                cen = np.stack(
-                    [
-                        wx2 * p[0, 0] + wxy * p[0, 1] + wxz * p[0, 2] - p[0, 0] * (wx2 + wy2 + wz2),
-                        wxy * p[1, 0] + wy2 * p[1, 1] + wyz * p[1, 2] - p[1, 1] * (wx2 + wy2 + wz2),
-                        wxz * p[2, 0] + wyz * p[2, 1] + wz2 * p[2, 2] - p[2, 2] * (wx2 + wy2 + wz2),
-                    ],
-                    axis=-1,
-                )
-                fa = fa + cen + size_effect(p, np.zeros(3), dw)
-        na = fa @ self.M_a.T + self.accel_bias * dt
+        if np.any(self.accel_nonlinearity) or np.any(self.accel_cross_coupling):
+            fa = fa + f2 * self.accel_nonlinearity + rows_times(self.K_cross, fx)
+        if np.any(self.accel_lever_arm):
+            p = self.accel_lever_arm
+            # int (w_i (w . p_i) - p_ii |w|^2) dt expressed with the integrated products (S16 eq. 9-11)
+            wx2, wy2, wz2, wxy, wxz, wyz = (wwT[..., k] for k in range(6))
+            w2 = wx2 + wy2 + wz2
+            cen = np.stack(
+                [
+                    wx2 * p[0, 0] + wxy * p[0, 1] + wxz * p[0, 2] - p[0, 0] * w2,
+                    wxy * p[1, 0] + wy2 * p[1, 1] + wyz * p[1, 2] - p[1, 1] * w2,
+                    wxz * p[2, 0] + wyz * p[2, 1] + wz2 * p[2, 2] - p[2, 2] * w2,
+                ],
+                axis=-1,
+            )
+            # int (w-dot x p_i)_i dt = (delta w x p_i)_i: size_effect(p, 0, dw)
+            dw = np.asarray(dw, dtype=float)
+            rot = np.stack(
+                [
+                    dw[..., 1] * p[0, 2] - dw[..., 2] * p[0, 1],
+                    dw[..., 2] * p[1, 0] - dw[..., 0] * p[1, 2],
+                    dw[..., 0] * p[2, 1] - dw[..., 1] * p[2, 0],
+                ],
+                axis=-1,
+            )
+            fa = fa + cen + rot
+        na = rows_times(self.M_a, fa) + self.accel_bias * dt
         return ng, na
 
     # -- compensation model (S16 form) on rates (measured -> true)

@@ -14,7 +14,7 @@ from inscal.core.turntable import C_s_b, outer_axis
 
 
 # ----------------------------------------------------------------------------- kernel
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gimbal_angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc):
     """Gimbal angles and rates ``(theta_x, theta_z, w_x, w_z)`` at time t on segment s (angles
     quadratic in time within a segment)."""
@@ -32,8 +32,22 @@ def rates_at(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_out, f_
     outer rate about the tilted axis u, ``f^s = C_n^s [0, 0, g]`` (eq. 10, static base).
     """
     thx, thz, wx, wz = gimbal_angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc)
+    w0, w1, w2, f0, f1, f2 = rates_from_trig(math.cos(thx), math.sin(thx), math.cos(thz), math.sin(thz), wx, wz,
+                                             u, Cbn, wie_n, g)
+    w_out[0] = w0
+    w_out[1] = w1
+    w_out[2] = w2
+    f_out[0] = f0
+    f_out[1] = f1
+    f_out[2] = f2
+
+
+@njit(cache=True, inline="always")
+def rates_from_trig(c, sn, cz, sz, wx, wz, u, Cbn, wie_n, g):
+    """``(w_is^s, f^s)`` as a 6-tuple from the cosines and sines of the gimbal angles
+    ``(c, sn) = (cos, sin) theta_x``, ``(cz, sz) = (cos, sin) theta_z`` and the gimbal rates: the
+    arithmetic of :func:`rates_at`, for callers that reuse the trigonometry of an axis at rest."""
     # Rodrigues rotation about the unit outer axis u (exact N25 eq. 5)
-    c, sn = math.cos(thx), math.sin(thx)
     t1 = 1.0 - c
     ux, uy, uz = u[0], u[1], u[2]
     x00 = c + ux * ux * t1
@@ -45,7 +59,6 @@ def rates_at(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_out, f_
     x02 = ux * uz * t1 + uy * sn
     x12 = uy * uz * t1 - ux * sn
     x22 = c + uz * uz * t1
-    cz, sz = math.cos(thz), math.sin(thz)
     # columns of C_s^n = Cbn Cx Rz : x_s = Cbn (cz Cx[:,0] + sz Cx[:,1]), y_s = Cbn (-sz Cx[:,0] + cz Cx[:,1]), z_s = Cbn Cx[:,2]
     ax0 = cz * x00 + sz * x01
     ax1 = cz * x10 + sz * x11
@@ -71,12 +84,7 @@ def rates_at(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_out, f_
             f1_ = ys * g
             f2_ = zs * g
     # outer rate about u, expressed in s: Rz^T u wx (u is fixed in the inner-gimbal frame); inner rate wz e_z
-    w_out[0] = w0_ + (cz * ux + sz * uy) * wx
-    w_out[1] = w1_ + (-sz * ux + cz * uy) * wx
-    w_out[2] = w2_ + uz * wx + wz
-    f_out[0] = f0_
-    f_out[1] = f1_
-    f_out[2] = f2_
+    return (w0_ + (cz * ux + sz * uy) * wx, w1_ + (-sz * ux + cz * uy) * wx, w2_ + uz * wx + wz, f0_, f1_, f2_)
 
 
 @njit(cache=True)

@@ -20,12 +20,16 @@ the result does not depend on the chunk size; with ``tau == 0`` none of this run
 
 Random draws: each noise source has its own child generator spawned from the
 generator passed in, so results do not depend on the chunk size.
+
+Speed: the per-sample arithmetic (integrals, gimbal angles, error model, noise) is one compiled pass
+over each chunk (:func:`inscal.sim.kernel.simulate_pass`); only the normal draws are made in NumPy, in
+bulk (:meth:`NoiseState.draw`), and the asynchrony's boundary integrals in their own kernel.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -38,8 +42,28 @@ from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 from inscal.core.kinematics import rates_at, segment_at
 from inscal.core.turntable import RotationPath, Segments, outer_axis
 from inscal.io.records import DataFileError, Record, RecordInfo, Truth, write_stream
+from inscal.sim.kernel import (
+    O_ARW,
+    O_ASYNC,
+    O_ENCODER,
+    O_GM_A,
+    O_GM_G,
+    O_GSENS,
+    O_LEVER,
+    O_MEASURE,
+    O_QUAD,
+    O_QUANT_A,
+    O_QUANT_G,
+    O_RAW,
+    O_RECORD,
+    O_TRUTH,
+    O_VRW,
+    simulate_pass,
+)
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+#: samples per compiled pass (a chunk is done in passes of this many; the numbers do not depend on it)
+PASS_ROWS = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -63,92 +87,53 @@ class Scenario:
         return int(math.floor(self.path.duration * self.rate_hz + 1e-9))
 
 
-@njit(cache=True)
+def _rows(n: int, width: int) -> np.ndarray:
+    return np.zeros((n, width))
+
+
+@dataclass(frozen=True)
+class ModelArrays:
+    """The error model as the compiled pass takes it: option bits and contiguous writable arrays."""
+
+    opts: int
+    mg: np.ndarray
+    bg: np.ndarray
+    gs: np.ndarray
+    ma: np.ndarray
+    ba: np.ndarray
+    k2: np.ndarray
+    kc: np.ndarray
+    p: np.ndarray
+
+    @classmethod
+    def of(cls, imu: ImuErrors | None) -> ModelArrays:
+        """The arrays of ``imu`` (copies: writable and C-ordered, as numba compiles read-only arrays
+        apart) and the terms it has: a term whose parameters are all zero is left out, and a perfect
+        IMU (or None) has no error model at all."""
+        imu = ImuErrors() if imu is None else imu
+        m = cls(0, *(np.array(x, dtype=float) for x in (
+            imu.M_g, imu.gyro_bias, imu.gyro_g_sensitivity, imu.M_a, imu.accel_bias, imu.accel_nonlinearity,
+            imu.K_cross, imu.accel_lever_arm)))
+        eye = np.eye(3)
+        opts = ((O_QUAD if np.any(m.k2) or np.any(m.kc) else 0) | (O_LEVER if np.any(m.p) else 0)
+                | (O_GSENS if np.any(m.gs) else 0))
+        if opts or np.any(m.mg != eye) or np.any(m.ma != eye) or np.any(m.bg) or np.any(m.ba):
+            opts |= O_MEASURE
+        return replace(m, opts=opts)
+
+
 def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, glx, glw,
                      want_nl, dth, dv, f2, fx, ww, dw):
-    S = seg_t0.shape[0]
-    w = np.empty(3)
-    f = np.empty(3)
-    w_prev = np.empty(3)
-    w_end = np.empty(3)
-    a0 = k0 * dt
-    s = 0
-    while s < S - 1 and seg_t1[s] <= a0:
-        s += 1
-    static_seg = -1
-    ws = np.zeros(3)
-    fs = np.zeros(3)
-    if want_nl:
-        rates_at(a0, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_prev, f)
-    for j in range(n):
-        a = (k0 + j) * dt
-        b = (k0 + j + 1) * dt
-        for c in range(3):
-            dth[j, c] = 0.0
-            dv[j, c] = 0.0
-            if want_nl:
-                f2[j, c] = 0.0
-                fx[j, c] = 0.0
-                ww[j, c] = 0.0
-                ww[j, c + 3] = 0.0
-        sa = a
-        end_static = False
-        while True:
-            sb = seg_t1[s] if (seg_t1[s] < b and s < S - 1) else b
-            h = sb - sa
-            is_static = seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
-            if h > 0.0:
-                if is_static:
-                    if static_seg != s:
-                        rates_at(seg_t0[s], s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, ws, fs)
-                        static_seg = s
-                    nq = 1
-                else:
-                    nq = glx.shape[0]
-                for q in range(nq):
-                    if is_static:
-                        wq = h
-                        for c in range(3):
-                            w[c] = ws[c]
-                            f[c] = fs[c]
-                    else:
-                        tq = 0.5 * (sa + sb) + 0.5 * h * glx[q]
-                        wq = 0.5 * h * glw[q]
-                        rates_at(tq, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w, f)
-                    for c in range(3):
-                        dth[j, c] += wq * w[c]
-                        dv[j, c] += wq * f[c]
-                    if want_nl:
-                        f2[j, 0] += wq * f[0] * f[0]
-                        f2[j, 1] += wq * f[1] * f[1]
-                        f2[j, 2] += wq * f[2] * f[2]
-                        fx[j, 0] += wq * f[0] * f[1]
-                        fx[j, 1] += wq * f[0] * f[2]
-                        fx[j, 2] += wq * f[1] * f[2]
-                        ww[j, 0] += wq * w[0] * w[0]
-                        ww[j, 1] += wq * w[1] * w[1]
-                        ww[j, 2] += wq * w[2] * w[2]
-                        ww[j, 3] += wq * w[0] * w[1]
-                        ww[j, 4] += wq * w[0] * w[2]
-                        ww[j, 5] += wq * w[1] * w[2]
-            if sb >= b:
-                end_static = is_static and static_seg == s
-                break
-            s += 1
-            sa = sb
-        if want_nl:
-            # delta w = w(b) - w(a) (the integral of w-dot); w is continuous across segments
-            if end_static:
-                for c in range(3):
-                    w_end[c] = ws[c]
-            else:
-                rates_at(b, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_end, f)
-            for c in range(3):
-                dw[j, c] = w_end[c] - w_prev[c]
-                w_prev[c] = w_end[c]
-        # the next sample starts in segment s (or the one after, if s ends exactly at b)
-        if s < S - 1 and seg_t1[s] <= b:
-            s += 1
+    """The true integrals of samples ``k0 .. k0 + n - 1``: ``dth = int w``, ``dv = int f`` and, with
+    ``want_nl``, ``f2 = int f^(2)``, ``fx = int f^(x)``, ``ww = int w w^T`` (6 products), ``dw = delta w``
+    (the inputs of :meth:`~inscal.core.error_model.ImuErrors.measure_increments`): the first step of
+    the compiled pass alone."""
+    model = ModelArrays.of(None)
+    opts = O_TRUTH | O_RAW | ((O_QUAD | O_LEVER) if want_nl else 0)
+    simulate_pass(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, glx, glw, opts,
+                  model.mg, model.bg, model.gs, model.ma, model.ba, model.k2, model.kc, model.p,
+                  _rows(1, 3), _rows(1, 3), _rows(1, 3), _rows(1, 6), _rows(1, 3), *_no_noise(), np.zeros(4),
+                  np.zeros(1), _rows(1, 3), _rows(1, 3), _rows(1, 2), dth, dv, f2, fx, ww, dw)
 
 
 @njit(cache=True)
@@ -261,8 +246,26 @@ class Chunk:
     true_dvel: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class NoiseDraws:
+    """The standard normal draws of the noise sources for n samples (None: a source that is off):
+    ``arw``, ``vrw``, ``gyro_bias``, ``accel_bias`` (n, 3) and ``encoder`` (n, 2)."""
+
+    arw: np.ndarray | None
+    vrw: np.ndarray | None
+    gyro_bias: np.ndarray | None
+    accel_bias: np.ndarray | None
+    encoder: np.ndarray | None
+
+
 class NoiseState:
-    """Stateful, chunk-size-independent noise generator."""
+    """Stateful, chunk-size-independent noise generator.
+
+    Each source draws from its own child generator.  :meth:`draw` makes the standard normal draws of
+    the next samples and :meth:`apply` adds the noise to increments in NumPy; the simulator adds it in
+    its compiled pass from the same draws, with the same arithmetic, and updates the same state
+    (``zi_g``, ``zi_a``: Gauss-Markov filter states (1, 3); ``q_g``, ``q_a``: running totals and
+    emitted quanta)."""
 
     def __init__(self, noise: ImuNoise, rng: np.random.Generator, dt: float):
         self.noise = noise
@@ -272,16 +275,50 @@ class NoiseState:
         self.zi_a = None
         self.q_g = (np.zeros(3), np.zeros(3))
         self.q_a = (np.zeros(3), np.zeros(3))
+        self._buffers: dict[str, np.ndarray] = {}
+        # the coefficients as the compiled pass takes them (writable copies: numba types read-only arrays apart)
+        self._coef = {name: np.array(getattr(noise, name), dtype=float)
+                      for name in ("arw", "vrw", "gyro_bias_instability", "accel_bias_instability")}
+        self._unused = _no_noise()
 
-    def _gm(self, gen, sigma, tau, n, zi_name):
-        if not np.any(sigma):
-            return 0.0
+    def _normal(self, gen, name, n, width):
+        """n x width standard normals from ``gen`` (the numbers of ``gen.standard_normal((n, width))``)
+        into a buffer kept for the next chunk."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape[0] < n:
+            buf = self._buffers[name] = np.empty((n, width))
+        out = buf[:n]
+        gen.standard_normal(out=out)
+        return out
+
+    def gauss_markov(self, tau) -> tuple[float, float]:
+        """``(phi, sqrt(1 - phi^2))`` of the first-order Gauss-Markov process of correlation time tau."""
         phi = math.exp(-self.dt / tau)
-        zi = getattr(self, zi_name)
-        if zi is None:  # stationary start (drawn first, so results do not depend on chunking)
-            zi = (gen.standard_normal(3) * sigma * phi)[None, :]
-        drive = gen.standard_normal((n, 3)) * sigma * math.sqrt(1 - phi * phi)
-        out, zf = lfilter([1.0], [1.0, -phi], drive, axis=0, zi=zi)
+        return phi, math.sqrt(1 - phi * phi)
+
+    def _gm_draws(self, gen, sigma, tau, n, zi_name):
+        if not np.any(sigma):
+            return None
+        if getattr(self, zi_name) is None:  # stationary start (drawn first, so results do not depend on chunking)
+            setattr(self, zi_name, (gen.standard_normal(3) * sigma * self.gauss_markov(tau)[0])[None, :])
+        return self._normal(gen, zi_name, n, 3)
+
+    def draw(self, n: int) -> NoiseDraws:
+        """The draws of the next n samples.  The arrays are overwritten by the next call."""
+        nz = self.noise
+        return NoiseDraws(
+            self._normal(self.g_arw, "arw", n, 3) if np.any(nz.arw) else None,
+            self._normal(self.g_vrw, "vrw", n, 3) if np.any(nz.vrw) else None,
+            self._gm_draws(self.g_gbi, nz.gyro_bias_instability, nz.gyro_bias_tau, n, "zi_g"),
+            self._gm_draws(self.g_abi, nz.accel_bias_instability, nz.accel_bias_tau, n, "zi_a"),
+            self._normal(self.g_enc, "encoder", n, 2) if nz.encoder_noise > 0 else None,
+        )
+
+    def _gm(self, z, sigma, tau, zi_name):
+        if z is None:
+            return 0.0
+        phi, drive = self.gauss_markov(tau)
+        out, zf = lfilter([1.0], [1.0, -phi], z * sigma * drive, axis=0, zi=getattr(self, zi_name))
         setattr(self, zi_name, zf)
         return out
 
@@ -296,66 +333,128 @@ class NoiseState:
         acc = np.cumsum(np.vstack([total[None, :], x]), axis=0)[1:]
         counts = np.floor(acc / q)
         out = np.diff(np.vstack([emitted[None, :], counts]), axis=0) * q
-        return out, (acc[-1], counts[-1])
+        return out, (acc[-1].copy(), counts[-1].copy())
 
     def apply(self, dth, dv, gimbal):
+        """Noisy ``(dth, dv, gimbal)`` of the next ``dth.shape[0]`` samples (gimbal (n, 2))."""
         n, nz, dt = dth.shape[0], self.noise, self.dt
-        if np.any(nz.arw):
-            dth = dth + self.g_arw.standard_normal((n, 3)) * nz.arw * math.sqrt(dt)
-        if np.any(nz.vrw):
-            dv = dv + self.g_vrw.standard_normal((n, 3)) * nz.vrw * math.sqrt(dt)
-        dth = dth + self._gm(self.g_gbi, nz.gyro_bias_instability, nz.gyro_bias_tau, n, "zi_g") * dt
-        dv = dv + self._gm(self.g_abi, nz.accel_bias_instability, nz.accel_bias_tau, n, "zi_a") * dt
+        d = self.draw(n)
+        if d.arw is not None:
+            dth = dth + d.arw * nz.arw * math.sqrt(dt)
+        if d.vrw is not None:
+            dv = dv + d.vrw * nz.vrw * math.sqrt(dt)
+        dth = dth + self._gm(d.gyro_bias, nz.gyro_bias_instability, nz.gyro_bias_tau, "zi_g") * dt
+        dv = dv + self._gm(d.accel_bias, nz.accel_bias_instability, nz.accel_bias_tau, "zi_a") * dt
         dth, self.q_g = self._quantize(dth, nz.gyro_quantization, self.q_g)
         dv, self.q_a = self._quantize(dv, nz.accel_quantization, self.q_a)
-        if nz.encoder_noise > 0:
-            gimbal = gimbal + self.g_enc.standard_normal(gimbal.shape) * nz.encoder_noise
+        if d.encoder is not None:
+            gimbal = gimbal + d.encoder * nz.encoder_noise
         return dth, dv, gimbal
+
+    def pass_arguments(self, n: int) -> tuple[int, tuple]:
+        """Option bits and the noise arguments of :func:`inscal.sim.kernel.simulate_pass` for the next
+        n samples (draws made; the pass updates the Gauss-Markov and quantization states in place)."""
+        nz, d, c, off = self.noise, self.draw(n), self._coef, self._unused
+        opts = ((O_ARW if d.arw is not None else 0) | (O_VRW if d.vrw is not None else 0)
+                | (O_ENCODER if d.encoder is not None else 0))
+        gm = []
+        for z, sigma, tau, zi_name, bit in ((d.gyro_bias, "gyro_bias_instability", nz.gyro_bias_tau, "zi_g", O_GM_G),
+                                            (d.accel_bias, "accel_bias_instability", nz.accel_bias_tau, "zi_a", O_GM_A)):
+            if z is None:
+                gm += off[5:10]
+                continue
+            opts |= bit
+            phi, drive = self.gauss_markov(tau)
+            zi = getattr(self, zi_name)
+            if not (zi.dtype == np.float64 and zi.flags.c_contiguous and zi.flags.writeable):
+                zi = np.array(zi, dtype=float)
+                setattr(self, zi_name, zi)
+            gm += [z, c[sigma], drive, phi, zi[0]]
+        quant = []
+        for q, name, bit in ((nz.gyro_quantization, "q_g", O_QUANT_G), (nz.accel_quantization, "q_a", O_QUANT_A)):
+            state = getattr(self, name)
+            if q > 0:
+                opts |= bit
+                if not all(x.dtype == np.float64 and x.flags.c_contiguous and x.flags.writeable for x in state):
+                    state = tuple(np.array(x, dtype=float) for x in state)
+                    setattr(self, name, state)
+            quant += [float(q), state[0], state[1]]
+        args = (math.sqrt(self.dt), off[1] if d.arw is None else d.arw, c["arw"], off[3] if d.vrw is None else d.vrw,
+                c["vrw"], *gm, *quant, off[21] if d.encoder is None else d.encoder, float(nz.encoder_noise))
+        return opts, args
+
+
+def _no_noise() -> tuple:
+    """The noise arguments of :func:`~inscal.sim.kernel.simulate_pass` with no noise (never read)."""
+    r3 = _rows(1, 3)
+    return (0.0, r3, np.zeros(3), r3, np.zeros(3), r3, np.zeros(3), 0.0, 0.0, np.zeros(3), r3, np.zeros(3), 0.0, 0.0,
+            np.zeros(3), 0.0, np.zeros(3), np.zeros(3), 0.0, np.zeros(3), np.zeros(3), _rows(1, 2), 0.0)
 
 
 def simulate_chunks(scenario: Scenario, rng: np.random.Generator | None, chunk_size: int = 1 << 19,
                     keep_truth: bool = False, progress: Callable[[int, int], None] | None = None) -> Iterator[Chunk]:
     """Yield the simulation in chunks.  ``rng`` may be None only when the noise is zero."""
+    return _chunks(scenario, rng, chunk_size, keep_truth, progress, None, None)
+
+
+def _n_samples(scenario: Scenario, seg: Segments) -> int:
+    """:attr:`Scenario.n_samples` from the compiled path (which ``path.duration`` compiles again)."""
+    return int(math.floor(float(seg.t1[-1]) * scenario.rate_hz + 1e-9))
+
+
+def _chunks(scenario, rng, chunk_size, keep_truth, progress, seg, whole) -> Iterator[Chunk]:
+    """:func:`simulate_chunks` (``seg``: the compiled path, or None); with ``whole`` = (time, dtheta, dvel,
+    gimbal, true_dtheta, true_dvel) arrays of all the samples, the chunks are written into them (their
+    arrays are views of ``whole``)."""
     if rng is None and not scenario.noise.is_zero:
         raise ValueError("a seeded numpy Generator is required when the scenario has noise")
-    seg: Segments = scenario.path.segments()
+    seg = scenario.path.segments() if seg is None else seg
     dt = 1.0 / scenario.rate_hz
-    N = scenario.n_samples
+    N = _n_samples(scenario, seg)
     u = outer_axis(scenario.gimbal.nonorthogonality)
     Cbn = np.ascontiguousarray(dcm_from_euler(scenario.gimbal.mount_attitude))
-    wie_n = scenario.site.earth_rate_n
-    g = scenario.site.gravity
+    wie_n = np.array(scenario.site.earth_rate_n, dtype=float)
+    g = float(scenario.site.gravity)
     imu = scenario.imu
-    want_nl = imu.has_nonlinear
+    model = ModelArrays.of(imu)
+    want_nl = bool(model.opts & (O_QUAD | O_LEVER))
     noise = None if scenario.noise.is_zero else NoiseState(scenario.noise, rng, dt)
+    # the arrays of what a run does not use (never written: their option bits are off)
+    unused3 = _rows(1, 3)
+    unused_boundary = (unused3, unused3, unused3, _rows(1, 6), unused3)
+    unused_noise = _no_noise()
+    unused_raw = (unused3, unused3, _rows(1, 6), unused3)
     for k0 in range(0, N, chunk_size):
         n = min(chunk_size, N - k0)
-        dth = np.empty((n, 3))
-        dv = np.empty((n, 3))
-        m = n if want_nl else 1
-        f2, fx, dw = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
-        ww = np.empty((m, 6))
-        _simulate_kernel(k0, n, dt, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie_n, g, _GL_X, _GL_W,
-                         want_nl, dth, dv, f2, fx, ww, dw)
-        t = (k0 + 1 + np.arange(n)) * dt
-        th, _, _ = seg.angles(t)
-        if imu.has_asynchrony:
-            # accelerometer window [t_{k-1} - tau, t_k - tau] = gyro window - I_k + I_{k-1}
-            iv, if2, ifx, wdel = np.empty((n + 1, 3)), np.empty((m + 1, 3)), np.empty((m + 1, 3)), np.empty((m + 1, 3))
-            iww = np.empty((m + 1, 6))
-            _asynchrony_kernel(k0, n + 1, dt, imu.time_asynchrony, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn,
-                               wie_n, g, _GL_X, _GL_W, want_nl, iv, if2, ifx, iww, wdel)
-            dva = dv - iv[1:] + iv[:-1]
-            if want_nl:
-                f2, fx, ww = f2 - if2[1:] + if2[:-1], fx - ifx[1:] + ifx[:-1], ww - iww[1:] + iww[:-1]
-                dw = wdel[1:] - wdel[:-1]
-            mdth, mdv = imu.measure_increments(dt, dth, dva, f2, fx, ww, dw, dv_gyro=dv)
+        if whole is None:
+            t, mdth, mdv, gimbal = np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2))
+            dth, dv = (np.empty((n, 3)), np.empty((n, 3))) if keep_truth else (None, None)
         else:
-            mdth, mdv = imu.measure_increments(dt, dth, dv, f2, fx, ww, dw)
-        gimbal = th
-        if noise is not None:
-            mdth, mdv, gimbal = noise.apply(mdth, mdv, gimbal)
-        yield Chunk(k0, t, mdth, mdv, gimbal, dth if keep_truth else None, dv if keep_truth else None)
+            t, mdth, mdv, gimbal, dth, dv = (None if x is None else x[k0:k0 + n] for x in whole)
+        carry = np.zeros(4)  # each chunk starts afresh (the rates at its start evaluated), as it always did
+        # the chunk in passes of PASS_ROWS samples: the noise draws of a pass stay small and in cache
+        for j0 in range(0, n, PASS_ROWS):
+            j1 = min(n, j0 + PASS_ROWS)
+            k, m = k0 + j0, j1 - j0
+            opts = model.opts | O_RECORD | (O_TRUTH if keep_truth else 0)
+            boundary = unused_boundary
+            if imu.has_asynchrony:
+                # accelerometer window [t_{k-1} - tau, t_k - tau] = gyro window - I_k + I_{k-1}
+                mm = m if want_nl else 1
+                boundary = (np.empty((m + 1, 3)), np.empty((mm + 1, 3)), np.empty((mm + 1, 3)), np.empty((mm + 1, 6)),
+                            np.empty((mm + 1, 3)))
+                _asynchrony_kernel(k, m + 1, dt, imu.time_asynchrony, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn,
+                                   wie_n, g, _GL_X, _GL_W, want_nl, *boundary)
+                opts |= O_ASYNC
+            noise_args = unused_noise
+            if noise is not None:
+                noise_opts, noise_args = noise.pass_arguments(m)
+                opts |= noise_opts
+            simulate_pass(k, m, dt, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie_n, g, _GL_X, _GL_W, opts,
+                          model.mg, model.bg, model.gs, model.ma, model.ba, model.k2, model.kc, model.p,
+                          *boundary, *noise_args, carry, t[j0:j1], mdth[j0:j1], mdv[j0:j1], gimbal[j0:j1],
+                          unused3 if dth is None else dth[j0:j1], unused3 if dv is None else dv[j0:j1], *unused_raw)
+        yield Chunk(k0, t, mdth, mdv, gimbal, dth, dv)
         if progress is not None:
             progress(k0 + n, N)
 
@@ -375,10 +474,19 @@ class SimData:
 
 def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_truth: bool = False,
              chunk_size: int = 1 << 19) -> SimData:
-    """Simulate the whole scenario in memory (see :func:`simulate_chunks` for long runs)."""
-    parts = list(simulate_chunks(scenario, rng, chunk_size, keep_truth))
-    cat = lambda name: np.concatenate([getattr(p, name) for p in parts]) if parts and getattr(parts[0], name) is not None else None  # noqa: E731
-    return SimData(scenario, cat("time"), cat("dtheta"), cat("dvel"), cat("gimbal"), cat("true_dtheta"), cat("true_dvel"))
+    """Simulate the whole scenario in memory (see :func:`simulate_chunks` for long runs).  The chunks are
+    written into the arrays of the result: no copy, no more memory than the result."""
+    seg = scenario.path.segments()
+    n = _n_samples(scenario, seg)
+    if n < 1:
+        for _ in _chunks(scenario, rng, chunk_size, keep_truth, None, seg, None):
+            pass
+        return SimData(scenario, None, None, None, None)
+    whole = (np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2)),
+             np.empty((n, 3)) if keep_truth else None, np.empty((n, 3)) if keep_truth else None)
+    for _ in _chunks(scenario, rng, chunk_size, keep_truth, None, seg, whole):
+        pass
+    return SimData(scenario, *whole)
 
 
 def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, overwrite: bool = False,
