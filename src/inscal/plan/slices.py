@@ -1,43 +1,24 @@
-"""Long compiled loops run in slices, so that an interrupt is honoured within a fraction of a second.
+"""The plan kernels' slices (:mod:`inscal.core.slices`) with the cancellation of the file layer.
 
-A numba ``nopython`` call cannot be interrupted: Python runs a signal handler only when the call
-returns.  The kernels of this package that loop over filter steps (the covariance pass of
-:mod:`inscal.plan.bound`, the observability factor of :mod:`inscal.plan.observability`) therefore
-process a range of steps ``[k0, k1)`` and keep what one step hands to the next in arrays their
-caller owns.  :func:`run_in_slices` calls such a kernel over consecutive ranges, each sized to last
-about :data:`SLICE_S`, and between two calls runs :func:`inscal.io.files.check_cancel` (a SIGINT or
-SIGTERM whose exception Python had to drop).  Every step does the same arithmetic whatever the
-slicing, so the results are bit-identical to one call over all steps (``tests/plan/test_slices.py``).
+The covariance pass of :mod:`inscal.plan.bound` and the observability factor of
+:mod:`inscal.plan.observability` run in slices of steps through :func:`run_in_slices`, which is
+:func:`inscal.core.slices.run_in_slices` with :func:`inscal.io.files.check_cancel` (a SIGINT or
+SIGTERM whose exception Python had to drop) run between two calls.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
+from inscal.core import slices as core_slices
+from inscal.core.slices import GROWTH, SLICE_S
 from inscal.io.files import check_cancel
 
-#: target wall time of one kernel call [s]; an interrupt waits about this long (a few times it on a
-#: loaded machine)
-SLICE_S = 0.05
-#: a slice grows by at most this factor from one call to the next (the first call may include loading
-#: the compiled code, and a short slice costs only the call)
-GROWTH = 4
+__all__ = ["GROWTH", "SLICE_S", "check_cancel", "run_in_slices"]
 
 
 def run_in_slices(total: int, kernel: Callable[[int, int], None], first: int = 256,
                   target_s: float = SLICE_S) -> int:
-    """Call ``kernel(k0, k1)`` over ``[0, total)`` in consecutive slices of about ``target_s`` each,
-    starting with ``first`` steps, and check for a pending interrupt after each call.  Returns the
-    number of calls."""
-    k0, n, calls = 0, max(1, int(first)), 0
-    while k0 < total:
-        k1 = min(total, k0 + n)
-        t = time.perf_counter()
-        kernel(k0, k1)
-        dt = time.perf_counter() - t
-        calls += 1
-        check_cancel()
-        k0 = k1
-        n = max(1, min(GROWTH * n, int(n * target_s / max(dt, 1e-9))))
-    return calls
+    """:func:`inscal.core.slices.run_in_slices` with :func:`~inscal.io.files.check_cancel` after each call
+    (looked up when called, so that a test may replace it).  Returns the number of calls."""
+    return core_slices.run_in_slices(total, kernel, first=first, target_s=target_s, check=check_cancel)

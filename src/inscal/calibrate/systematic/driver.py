@@ -23,7 +23,7 @@ from inscal.calibrate.systematic.diagnostics import (
     truth_imu,
     unobservable,
 )
-from inscal.calibrate.systematic.kernel import run_pass, smooth_pass
+from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
 from inscal.calibrate.systematic.states import (
     ARW_FLOOR,
@@ -50,6 +50,36 @@ ALIGN_STATIC_RATE = 0.05 * math.pi / 180.0
 NIS_CAP = 36.0
 #: the median of chi2 with 6 degrees of freedom
 CHI2_6_MEDIAN = 5.348
+#: default interval between the stored history rows [s]
+HISTORY_S = 10.0
+#: peak memory of the driver's working copies of the increments, beyond the record itself [bytes per sample]:
+#: measured 143 B with 51 states (the second differences of the noise estimate, the cumulative sums of the
+#: first-motion search), 173 B with gimbal states (a copy of the encoder angles besides)
+WORK_BYTES_PER_SAMPLE = 176
+
+
+def samples_per_step(rate_hz: float, filter_rate_hz: float) -> int:
+    """Samples per filter step at ``filter_rate_hz`` on a record at ``rate_hz``."""
+    return max(1, int(round(rate_hz / filter_rate_hz)))
+
+
+def history_every(step_s: float, history_s: float = HISTORY_S) -> int:
+    """Filter steps between two stored history rows."""
+    return max(1, int(round(history_s / step_s)))
+
+
+def systematic_bytes(n_samples: float, rate_hz: float, states: StateSet, filter_rate_hz: float = 1.0,
+                     history_s: float = HISTORY_S) -> float:
+    """Peak memory [bytes] of :func:`systematic` beyond the record it is given (``n_samples`` at ``rate_hz``):
+    the working copies of the increments (:data:`WORK_BYTES_PER_SAMPLE`), one pass's stores
+    (:func:`~inscal.calibrate.systematic.kernel.pass_bytes`: a pass's stores are freed before the next
+    pass allocates its own) and what the first pass keeps for the history (its history rows, and per step
+    its NIS, innovations and factor on R)."""
+    n_per = samples_per_step(rate_hz, filter_rate_hz)
+    M = math.floor(float(n_samples) / n_per)
+    every = history_every(n_per / rate_hz, history_s)
+    return (WORK_BYTES_PER_SAMPLE * float(n_samples) + pass_bytes(M, states, every)
+            + pass_bytes(M, states, every, stores=False))
 
 
 def _first_motion(dth: np.ndarray, dt: float) -> int:
@@ -121,7 +151,7 @@ def float32_rounding(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
 
 def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 5,
                tol: float = 0.2, arw=None, vrw=None, velocity_sigma: float | None = None,
-               position_sigma: float | None = None, prior: dict | None = None, history_s: float = 10.0,
+               position_sigma: float | None = None, prior: dict | None = None, history_s: float = HISTORY_S,
                align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
                keep_passes: bool = False, encoder_sigma: float | None = None,
                encoder_every: int = 1, nis_cap: float | None = NIS_CAP) -> CalibrationResult:
@@ -153,7 +183,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     dt = 1.0 / rate
     if not (filter_rate_hz > 0 and math.isfinite(filter_rate_hz)):
         raise CalibrationError(f"filter rate must be > 0 Hz, got {filter_rate_hz}")
-    n_per = max(1, int(round(rate / filter_rate_hz)))
+    n_per = samples_per_step(rate, filter_rate_hz)
     T = n_per * dt
     site = rec.site
     site_v = np.array([site.latitude, site.longitude, site.height, site.gravity_scale])
@@ -186,7 +216,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         if k not in sig0:
             raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
         sig0[k] = float(v)
-    hist_every = max(1, int(round(history_s / T)))
+    hist_every = history_every(T, history_s)
     # coarse alignment (inertial-frame Wahba; valid while turning)
 
     n_al = min(dth.shape[0], max(int(round(min(align_s, dth.shape[0] * dt) * rate)), int(5 * rate) + 1))
@@ -245,6 +275,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sig_pass = sig.copy()
     first = None
     for ip in range(max_passes):
+        out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
                            keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig,
@@ -281,7 +312,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         phi0 = out.x0s[:3] * sig_pass[:3]
         C0 = dcm_from_rotvec(-phi0) @ C0
         if first is None:
-            first = (out, sig_pass.copy())
+            if max_passes > 1:  # its history needs only the smoothed rows: smoothed now, without the per-step stores
+                first = (smooth_pass(out).without_stores(), sig_pass.copy())
+            else:
+                first = (out, sig_pass.copy())
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
                        "downweighted_steps": int(np.sum(out.r_factor > 1.0)), "nis_cap": cap_pass,
                        "prior_deflation": float(np.max(sig_par / sp)),

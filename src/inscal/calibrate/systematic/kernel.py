@@ -1,10 +1,15 @@
 """The compiled forward pass of the systematic filter (strapdown navigation, compensation, Phi and the
-velocity/position and encoder updates) and its modified Bryson-Frazier smoother, with their drivers."""
+velocity/position and encoder updates) and its modified Bryson-Frazier smoother, with their drivers.
+
+Each compiled kernel processes a range of filter steps and keeps what one step hands the next in arrays its
+Python driver owns, which calls it in slices of about 50 ms (:func:`inscal.core.slices.run_in_slices`): a
+SIGINT or SIGTERM is honoured between two slices instead of after a whole pass, with results bit-identical
+to one call over all the steps.  :func:`pass_bytes` is what a pass keeps in memory."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -30,6 +35,7 @@ from inscal.core import earth
 from inscal.core import kalman as filters
 from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz
 from inscal.core.kalman import smoother_step_dense
+from inscal.core.slices import run_in_slices
 from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
 
 
@@ -41,6 +47,12 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
 #: 3-point Gauss-Legendre nodes and weights on [0, 1]
 GL3_NODES = (0.5 - 0.5 * math.sqrt(0.6), 0.5, 0.5 + 0.5 * math.sqrt(0.6))
 GL3_WEIGHTS = (5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0)
+
+# what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
+# a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
+# specific force and rate of the previous and current samples, the previous sample's angle and velocity
+# increments (two-sample coning and sculling) and whether there is one
+_C_NAV, _C_F0M, _C_F0C, _C_WLM, _C_WLC, _C_PA, _C_PV, _C_HAVE, _CARRY = 0, 10, 13, 16, 19, 22, 25, 28, 29
 
 
 class PassInputs(NamedTuple):
@@ -133,8 +145,9 @@ class SmootherData(NamedTuple):
 
 
 @njit(cache=True)
-def _pass_kernel(inp, par, U, st, er):
-    """One closed-loop filter pass over the record (see the package docstring): inputs ``inp``
+def _pass_steps(inp, par, U, st, er, cr, k0, k1):
+    """Filter steps ``k0 .. k1 - 1`` of one closed-loop pass over the record (see the package docstring;
+    :func:`_pass_kernel` runs the whole pass in slices): inputs ``inp``
     (:class:`PassInputs`), parameters ``par`` (:class:`PassParams`, updated in place), the
     covariance's upper-triangular square root ``U`` (``P = U U^T``, scaled states, updated in place: the
     square-root filter of :func:`inscal.core.kalman.sr_predict`/``sr_update``), per-step outputs ``st`` (:class:`PassStore`) and
@@ -144,7 +157,10 @@ def _pass_kernel(inp, par, U, st, er):
     gravity model / WGS-84 normal gravity, 1 when absent); parameter arrays are
     updated in place by the feedback.  ``sig``: state scaling (the filter works on x / sig).
     Stores per step the smoother data; every ``hist_every`` steps the predicted covariance
-    and the pre-update reference parameters.  Returns the number of steps.
+    and the pre-update reference parameters.  ``cr`` (:data:`_CARRY`): what step ``k0 - 1`` handed on
+    (set from ``nav0`` and the first sample when ``k0 == 0``), overwritten with what step ``k1 - 1``
+    hands on; ``nav_out`` receives the navigation state after step ``k1 - 1``.  Every step does the
+    same arithmetic whatever the slicing (tests/calibrate/test_kernel_slices.py).
 
     Gimbal states: ``gim = [dth, alpha0, beta0, gamma0]`` (updated in place by the feedback);
     ``enc`` (M, 2) the encoder angles at the end of each step (NaN: no attitude rows that step; shape
@@ -160,9 +176,6 @@ def _pass_kernel(inp, par, U, st, er):
     npar = N - 9
     M = dth.shape[0] // n_per
     T = n_per * dt
-    q0, q1, q2, q3 = nav0[0], nav0[1], nav0[2], nav0[3]
-    ve, vn, vu = nav0[4], nav0[5], nav0[6]
-    lat, lon, h = nav0[7], nav0[8], nav0[9]
     lat0, lon0, h0 = site[0], site[1], site[2]
     g_scale = site[3] if site.shape[0] > 3 else 1.0
     ug = np.empty(3)
@@ -178,11 +191,26 @@ def _pass_kernel(inp, par, U, st, er):
     wln = np.empty(3)
     wd = np.zeros(3)
     idt = 1.0 / dt
-    if M > 0:
-        affine(Aa, ba, dv[0], idt, f0c)
-        affine(Ag, bg, dth[0], idt, wlc)
-        f0m[:] = f0c
-        wlm[:] = wlc
+    if k0 == 0:  # the start of the pass
+        cr[:] = 0.0
+        cr[_C_NAV:_C_NAV + 10] = nav0
+        if M > 0:
+            affine(Aa, ba, dv[0], idt, f0c)
+            affine(Ag, bg, dth[0], idt, wlc)
+            cr[_C_F0M:_C_F0M + 3] = f0c
+            cr[_C_F0C:_C_F0C + 3] = f0c
+            cr[_C_WLM:_C_WLM + 3] = wlc
+            cr[_C_WLC:_C_WLC + 3] = wlc
+    q0, q1, q2, q3 = cr[_C_NAV], cr[_C_NAV + 1], cr[_C_NAV + 2], cr[_C_NAV + 3]
+    ve, vn, vu = cr[_C_NAV + 4], cr[_C_NAV + 5], cr[_C_NAV + 6]
+    lat, lon, h = cr[_C_NAV + 7], cr[_C_NAV + 8], cr[_C_NAV + 9]
+    f0m[:] = cr[_C_F0M:_C_F0M + 3]
+    f0c[:] = cr[_C_F0C:_C_F0C + 3]
+    wlm[:] = cr[_C_WLM:_C_WLM + 3]
+    wlc[:] = cr[_C_WLC:_C_WLC + 3]
+    p0, p1, p2 = cr[_C_PA], cr[_C_PA + 1], cr[_C_PA + 2]
+    u0, u1, u2 = cr[_C_PV], cr[_C_PV + 1], cr[_C_PV + 2]
+    have_prev = cr[_C_HAVE] != 0.0
     vals = np.empty(npar)
     M0 = np.zeros((6, npar))
     M1 = np.zeros((6, npar))
@@ -209,13 +237,10 @@ def _pass_kernel(inp, par, U, st, er):
     za = np.empty(3)
     nu = np.empty(3)
     xa = np.empty(N)
-    p0, p1, p2 = 0.0, 0.0, 0.0
-    u0, u1, u2 = 0.0, 0.0, 0.0
-    have_prev = False
     qgm = (qg[0] + qg[1] + qg[2]) / 3.0
     qam = (qa[0] + qa[1] + qa[2]) / 3.0
-    ih = 0
-    for k in range(M):
+    ih = _stored_before(k0, M, hist_every)
+    for k in range(k0, k1):
         for a in range(6):
             for c in range(npar):
                 M0[a, c] = 0.0
@@ -428,6 +453,41 @@ def _pass_kernel(inp, par, U, st, er):
     nav_out[0], nav_out[1], nav_out[2], nav_out[3] = q0, q1, q2, q3
     nav_out[4], nav_out[5], nav_out[6] = ve, vn, vu
     nav_out[7], nav_out[8], nav_out[9] = lat, lon, h
+    cr[_C_NAV:_C_NAV + 10] = nav_out
+    cr[_C_F0M:_C_F0M + 3] = f0m
+    cr[_C_F0C:_C_F0C + 3] = f0c
+    cr[_C_WLM:_C_WLM + 3] = wlm
+    cr[_C_WLC:_C_WLC + 3] = wlc
+    cr[_C_PA], cr[_C_PA + 1], cr[_C_PA + 2] = p0, p1, p2
+    cr[_C_PV], cr[_C_PV + 1], cr[_C_PV + 2] = u0, u1, u2
+    cr[_C_HAVE] = 1.0 if have_prev else 0.0
+
+
+@njit(cache=True)
+def _stored_before(k, M, hist_every):
+    """How many of the steps ``0 .. k - 1`` store a history row (every ``hist_every``-th step and the
+    last, ``M - 1``): the row index of the next stored step."""
+    n = (k + hist_every - 1) // hist_every
+    if k == M and (M - 1) % hist_every != 0:
+        n += 1
+    return n
+
+
+def _first_slice(n_per: int) -> int:
+    """The first slice of a pass [steps]: about 30 ms at ~1.5 us per sample and ~0.1 ms per step's update."""
+    return max(1, 30_000 // (n_per + 60))
+
+
+def _pass_kernel(inp: PassInputs, par: PassParams, U: np.ndarray, st: PassStore, er: EncoderRows) -> int:
+    """One closed-loop filter pass over the record (:func:`_pass_steps`), in slices of steps so that an
+    interrupt is honoured between two (:func:`inscal.core.slices.run_in_slices`): what one step hands
+    the next lives in ``U``, ``par``, the stores and a carry array owned here.  Returns the number of
+    steps."""
+    M = inp.dth.shape[0] // inp.n_per
+    cr = np.empty(_CARRY)
+    if M == 0:  # no step: the navigation state is the start
+        _pass_steps(inp, par, U, st, er, cr, 0, 0)
+    run_in_slices(M, lambda k0, k1: _pass_steps(inp, par, U, st, er, cr, k0, k1), first=_first_slice(inp.n_per))
     return M
 
 
@@ -472,16 +532,15 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, g
 
 
 @njit(cache=True)
-def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
-                   att_used, Ka_st, Sia_st, sza_st, Ha_st):
-    """Backward MBF pass (inscal.core.kalman): smoothed errors and covariances at the stored steps and at
-    the start (``x0``, ``Pc0``).  Steps with encoder attitude rows (``att_used``) undo that second,
-    later update first."""
-    N = P0.shape[0]
-    lam = np.zeros(N)
-    Lam = np.zeros((N, N))
-    ih = hist_Pm.shape[0] - 1
-    for k in range(M - 1, -1, -1):
+def _smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
+                  att_used, Ka_st, Sia_st, sza_st, Ha_st, lam, Lam, k0, k1):
+    """Steps ``k1 - 1`` down to ``k0`` of the backward MBF pass (inscal.core.kalman; :func:`_smooth_kernel`
+    runs them all in slices): smoothed errors and covariances at the stored steps and, with ``k0 == 0``,
+    at the start (``x0``, ``Pc0``).  ``lam``/``Lam``: the adjoint variables handed from step ``k1`` (zero
+    for ``k1 == M``) to step ``k0 - 1``, in place.  Steps with encoder attitude rows (``att_used``) undo
+    that second, later update first."""
+    ih = _stored_before(k1, M, hist_every) - 1
+    for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:
             smoother_step_dense(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
         filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
@@ -491,19 +550,40 @@ def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hi
             hist_P[ih] = Ps
             ih -= 1
         filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
-    x, Ps = filters.smoothed(P0, lam, Lam)
-    x0[:] = x
-    Pc0[:, :] = Ps
+    if k0 == 0:
+        x, Ps = filters.smoothed(P0, lam, Lam)
+        x0[:] = x
+        Pc0[:, :] = Ps
+
+
+def _backward(M: int, steps) -> None:
+    """Run ``steps(k0, k1)`` over ``M - 1 .. 0`` backwards in slices (the last call has ``k0 == 0``; one
+    call ``(0, 0)`` when ``M == 0``)."""
+    if M == 0:
+        steps(0, 0)
+    run_in_slices(M, lambda j0, j1: steps(M - j1, M - j0), first=2048)
+
+
+def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
+                   att_used, Ka_st, Sia_st, sza_st, Ha_st) -> None:
+    """The backward MBF pass over all ``M`` steps (:func:`_smooth_steps`), in slices of steps so that an
+    interrupt is honoured between two; the adjoint variables live here between slices."""
+    N = P0.shape[0]
+    lam = np.zeros(N)
+    Lam = np.zeros((N, N))
+    _backward(M, lambda k0, k1: _smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm,
+                                              hist_x, hist_P, x0, Pc0, att_used, Ka_st, Sia_st, sza_st, Ha_st, lam,
+                                              Lam, k0, k1))
 
 
 @njit(cache=True)
-def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_st, sza_st, Ha_st):
-    """The adjoint recursion for the smoothed state at the start only (``x0 = P_0 lambda_0`` with
-    ``P_0 = I``): what the passes before the last need (the initial attitude)."""
+def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, sza_st, Ha_st, lam, k0, k1):
+    """Steps ``k1 - 1`` down to ``k0`` of the adjoint recursion for the smoothed state at the start only
+    (``x0 = P_0 lambda_0`` with ``P_0 = I``, written when ``k0 == 0``): what the passes before the last
+    need (the initial attitude).  ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``."""
     N = x0.shape[0]
-    lam = np.zeros(N)
     d = np.empty(3)
-    for k in range(M - 1, -1, -1):
+    for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
             for a in range(3):
                 s = sza_st[k, a]
@@ -519,7 +599,16 @@ def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_s
         ln = lam[:9].copy()
         lam[9:] = lam[9:] + phinp_st[k].T @ ln
         lam[:9] = phinn_st[k].T @ ln
-    x0[:] = lam
+    if k0 == 0:
+        x0[:] = lam
+
+
+def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_st, sza_st, Ha_st) -> None:
+    """The adjoint recursion for the smoothed initial state over all ``M`` steps (:func:`_smooth_vector_steps`),
+    in slices of steps."""
+    lam = np.zeros(x0.shape[0])
+    _backward(M, lambda k0, k1: _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, sza_st,
+                                                     Ha_st, lam, k0, k1))
 
 
 @dataclass
@@ -549,6 +638,33 @@ class PassOutput:
     r_factor: np.ndarray | None = None  # (M,) factor on R per step (bounded influence; 1 where the model fits)
     Uf: np.ndarray | None = None  # upper-triangular square root of Pf (Pf = Uf Uf^T; scaled)
 
+    def without_stores(self) -> PassOutput:
+        """A copy without the per-step stores of the smoother (its data, Phi, the encoder rows' H and R): a few
+        numbers per step and the history rows stay (:func:`pass_bytes` with ``stores=False``)."""
+        return replace(self, smoother=None, phinn=None, phinp=None, H_att=None, R_att=None)
+
+
+def history_rows(M: int, hist_every: int) -> int:
+    """The stored steps of a pass of ``M`` steps: every ``hist_every``-th and the last."""
+    return (M - 1) // hist_every + 1 + (1 if (M - 1) % hist_every else 0) if M > 0 else 0
+
+
+def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = True) -> float:
+    """Memory [bytes] one pass (:func:`run_pass`, then :func:`smooth_pass`) keeps over ``M`` filter steps
+    (``M`` may be a float: an estimate before the record is read).  Per step: the NIS, the innovation and
+    the factor on R (8 floats) and, for the smoother (``stores``; :meth:`PassOutput.without_stores` drops
+    them), the gains, ``S^-1``, ``S^-1 nu``, ``Phi_nn`` and ``Phi_np`` (15 N + 42 floats: 15 N + 50 in all,
+    6.5 kB with 51 states).  With gimbal states the encoder angles, rows' NIS and residual (6 floats and a
+    flag) and their gains, ``S^-1``, ``S^-1 nu``, H and R (``stores``: 6 N + 21 floats).  Per stored step
+    (every ``hist_every``-th and the last): the predicted and smoothed covariances, the filtered variances,
+    the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats)."""
+    N = states.n_states
+    per_step = 8.0 * (8 + (15 * N + 42 if stores else 0))
+    if states.gimbal:
+        per_step += 8.0 * (6 + (6 * N + 21 if stores else 0)) + 1.0
+    rows = float(M) / max(1, int(hist_every)) + 2.0
+    return per_step * float(M) + rows * 8.0 * (2 * N * N + 2 * N + REF_WIDTH)
+
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
              keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
@@ -563,7 +679,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     M = dth.shape[0] // n_per
     if M < 2:
         raise CalibrationError(f"record too short for the filter: {dth.shape[0] * dt:g} s at a {n_per * dt:g} s step")
-    nh = (M - 1) // hist_every + 1 + (1 if (M - 1) % hist_every else 0)
+    nh = history_rows(M, hist_every)
     p = params.copy()
     kinds, axes, js = states.columns()
     q = quat_from_dcm(C0)

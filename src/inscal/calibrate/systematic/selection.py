@@ -110,6 +110,29 @@ def _removed(imu: ImuErrors, terms) -> ImuErrors:
     return imu.replace(**kw)
 
 
+def _candidates(base_st: StateSet, add, drop) -> dict[str, tuple[str, bool]]:
+    """The candidates of the search from ``base_st``: terms it lacks (added in the full model) and groups it
+    has (droppable)."""
+    ext_only = ("lever9", "gsens_offdiag", "cross")
+    cands = {t: ADD[t] for t in add if getattr(base_st, ADD[t][0]) != ADD[t][1]
+             and (base_st.extended or ADD[t][0] not in ext_only)}
+    cands.update({t: DROP[t] for t in drop if getattr(base_st, DROP[t][0]) != DROP[t][1] and base_st.extended})
+    return cands
+
+
+def _full(base_st: StateSet, cands: dict[str, tuple[str, bool]]) -> StateSet:
+    return dataclasses.replace(base_st, **{f: v for t, (f, v) in cands.items() if t in ADD})
+
+
+def largest_states(base: str, spec: str | None) -> StateSet:
+    """The largest state set a fit of ``base`` (``"51"``, ``"30"``, ``"unified"``) with the options ``spec``
+    runs: the full model of the search (every candidate term added) when ``spec`` asks for ``auto``
+    (the default), else the set itself.  For a memory estimate before the record is read."""
+    extra, auto = with_auto("auto" if spec is None else spec, "")
+    st = StateSet.parse(base + ("," + extra if extra else ""))
+    return _full(st, _candidates(st, tuple(ADD), tuple(DROP))) if auto else st
+
+
 def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, add=tuple(ADD),
                   drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic,
                   **options) -> CalibrationResult:
@@ -126,12 +149,8 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
             raise CalibrationError(f"unknown candidate term {name!r}; candidates: {', '.join(ADD | DROP)}")
     options = dict(options)
     options.pop("initial", None)
-    ext_only = ("lever9", "gsens_offdiag", "cross")
-    # the candidates: terms the base lacks (added in the full model) and groups it has (droppable)
-    cands = {t: ADD[t] for t in add if getattr(base_st, ADD[t][0]) != ADD[t][1]
-             and (base_st.extended or ADD[t][0] not in ext_only)}
-    cands.update({t: DROP[t] for t in drop if getattr(base_st, DROP[t][0]) != DROP[t][1] and base_st.extended})
-    full_st = dataclasses.replace(base_st, **{f: v for t, (f, v) in cands.items() if t in ADD})
+    cands = _candidates(base_st, add, drop)
+    full_st = _full(base_st, cands)
     full = fit(record, full_st, **options)
     fits = 1
 
