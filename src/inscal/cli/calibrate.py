@@ -56,6 +56,35 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
+    # the size first, before the record is read: the record in memory, then the filter's per-step stores
+    from inscal import io
+    from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
+    from inscal.calibrate.systematic.selection import largest_states
+    from inscal.cli.common import short
+    from inscal.cli.limits import check_memory
+
+    try:
+        info = io.record_info(data)
+    except (io.DataFileError, OSError, KeyError, TypeError, ValueError):
+        info = None  # read_record names what is wrong with the file
+    if info is not None and math.isfinite(info.rate_hz) and info.rate_hz > 0:
+        n, rate = info.n_samples, info.rate_hz
+        what = f"{short(data, 60)} ({n} samples, {n / rate:.4g} s at {rate:g} Hz)"
+        # float64 time, increments and encoder angles, and at the peak a working copy's worth (measured: 104 B
+        # per sample in the encoder check, 80 B in the window means; the systematic driver's own below)
+        held = 8.0 * (7 + (2 if info.has_gimbal else 0)) * n
+        check_memory(held + 104.0 * n, f"reading {what}", "calibrate a shorter record")
+        try:
+            st = largest_states({"systematic30": "30", "unified": "unified"}.get(method, "51"), states) \
+                if systematic else None
+        except CalibrationError:
+            st = None  # calibrate() names the bad state set
+        if st is not None:
+            steps = n // samples_per_step(rate, filter_rate_hz)
+            check_memory(held + systematic_bytes(n, rate, st, filter_rate_hz),
+                         f"the {st.n_states}-state filter's {steps} steps at --filter-rate-hz {filter_rate_hz:g} over "
+                         f"{what}", "lower --filter-rate-hz (the default 1 Hz suits a turntable record) or calibrate a "
+                         "shorter record")
     try:
         rec = read_record(data)
     except OSError as exc:

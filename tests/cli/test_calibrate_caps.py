@@ -1,0 +1,135 @@
+"""``inscal calibrate`` neither eats the machine's memory nor ignores an interrupt.
+
+(a) Before the record is read, its size (:func:`inscal.io.record_info`) and the systematic filter's
+per-step stores (:func:`inscal.calibrate.systematic.driver.systematic_bytes`) are compared with the
+available memory: a record too big to read, or a filter rate that would fill the memory, is refused in
+one line (exit 2, nothing written, the child's peak RSS small).
+
+(b) The systematic filter and smoother run in slices of steps (:mod:`inscal.core.slices`), so SIGTERM
+inside a long pass (--filter-rate-hz 50 on the 1-h s16 record: ~7 s a pass, one numba call each before the
+slices, when such a signal waited up to that long) ends the run within 2 s: exit 143, one line
+``inscal: interrupted (SIGTERM)``, nothing written."""
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+from test_memory_caps import (
+    MAX_LATENCY_S,
+    MAX_REFUSE_S,
+    MAX_RSS,
+    cpu_seconds,
+    launch,
+    reap,
+    small_record,
+    snapshot,
+)
+
+from inscal.cli.calibrate import run_calibrate
+from inscal.cli.limits import available_memory
+
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals, os.wait4, /proc")
+
+#: the child's CPU time by which it is surely inside the first filter pass (start, imports, reading the record,
+#: the encoder check and the noise estimate take ~2.5 s of CPU; the pass ~7 s more)
+IN_FILTER_CPU_S = 5.0
+#: the filter rate of the interrupted calibration: 193,050 steps of 58 states (~1.4 GB of per-step stores)
+LONG_FILTER_HZ = 50
+
+
+def unwritten_record(path: Path, n: int, rate_hz: float) -> None:
+    """A valid record header whose datasets claim ``n`` samples at ``rate_hz``, never written (a few kB)."""
+    small_record(path)
+    with h5py.File(path, "a") as h:
+        h.attrs["rate_hz"] = rate_hz
+        for name, cols in (("time", None), ("dtheta", 3), ("dvel", 3), ("gimbal", 2)):
+            del h[name]
+            shape = (n,) if cols is None else (n, cols)
+            h.create_dataset(name, shape=shape, dtype="f8", chunks=(1 << 14,) + shape[1:],
+                             fillvalue=-1.0 if cols is None else 0.0)
+
+
+def refuse(folder: Path, logs: Path, args) -> dict:
+    before = snapshot(folder)
+    t0 = time.monotonic()
+    rc, rss, t1 = reap(launch(args, folder, logs), timeout=120)
+    err = (logs / "stderr").read_text()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2, (rc, err[-2000:])
+    assert "Traceback" not in err and len(lines) == 1 and lines[0].startswith("inscal: error: "), err[-2000:]
+    assert snapshot(folder) == before, "something was written, or an input changed"
+    assert rss < MAX_RSS, f"peak RSS {rss / 1e9:.2f} GB"
+    assert t1 - t0 < MAX_REFUSE_S, f"{t1 - t0:.1f} s to refuse"
+    return lines[0]
+
+
+@pytest.mark.parametrize("method", ["systematic51", "n25"])
+def test_a_record_too_big_to_read_is_refused_up_front(tmp_path, method):
+    folder = tmp_path / "run"
+    folder.mkdir()
+    unwritten_record(folder / "huge.h5", 10**11, 10.0)
+    line = refuse(folder, tmp_path / "logs", ["calibrate", "huge.h5", "--method", method, "--out", "p.toml"])
+    assert "reading huge.h5 (100000000000 samples, 1e+10 s at 10 Hz) needs about" in line, line
+    assert "TB of memory (this machine has" in line and "calibrate a shorter record" in line, line
+
+
+def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(tmp_path):
+    """A record that fits in memory (about 5 % of what is available) whose filter at the sample rate does not
+    (its per-step stores take ~40 times the record's bytes)."""
+    avail = available_memory()
+    if avail is None:
+        pytest.skip("the available memory is unknown here")
+    n = int(0.05 * avail / 176)
+    folder = tmp_path / "run"
+    folder.mkdir()
+    unwritten_record(folder / "long.h5", n, 100.0)
+    line = refuse(folder, tmp_path / "logs", ["calibrate", "long.h5", "--method", "systematic51", "--filter-rate-hz",
+                                              "100", "--out", "p.toml"])
+    assert f"the 58-state filter's {n} steps at --filter-rate-hz 100 over long.h5 ({n} samples" in line, line
+    assert "lower --filter-rate-hz" in line, line
+
+
+@pytest.fixture(scope="module")
+def s16(tmp_path_factory):
+    """The 1-h s16 record (``inscal simulate s16``), and the systematic kernels loaded (or compiled and cached)
+    here by one calibration, so that the child loads them from numba's cache: a compilation, unlike the
+    kernels, cannot be interrupted."""
+    folder = tmp_path_factory.mktemp("s16")
+    rc, _, _ = reap(launch(["simulate", "s16", "--out", "s16.h5"], folder, folder / "logs"), timeout=300)
+    assert rc == 0, (folder / "logs" / "stderr").read_text()[-2000:]
+    run_calibrate(folder / "s16.h5", "systematic51", folder / "warm.toml", states="51")
+    return folder / "s16.h5"
+
+
+def test_sigterm_inside_the_filter_ends_the_calibration_promptly(tmp_path, s16):
+    if (available_memory() or 0.0) < 4e9:
+        pytest.skip("less than 4 GB of memory available for the filter's stores")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "s16.h5").write_bytes(s16.read_bytes())
+    before = snapshot(folder)
+    proc = launch(["calibrate", "s16.h5", "--method", "systematic51", "--filter-rate-hz", str(LONG_FILTER_HZ), "--out",
+                   "p.toml"], folder, tmp_path / "logs")
+    try:
+        t_end = time.monotonic() + 120
+        while proc.poll() is None and cpu_seconds(proc.pid) < IN_FILTER_CPU_S and time.monotonic() < t_end:
+            time.sleep(0.02)
+        assert proc.poll() is None, (tmp_path / "logs" / "stderr").read_text()[-2000:]
+        t_sig = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        rc, _, t_exit = reap(proc, timeout=30)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            proc.wait()
+    err = (tmp_path / "logs" / "stderr").read_text()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 143, (rc, err[-2000:])
+    assert t_exit - t_sig < MAX_LATENCY_S, f"{t_exit - t_sig:.2f} s from SIGTERM to exit"
+    assert len(lines) == 1 and lines[0].startswith("inscal: interrupted (SIGTERM)") and "Traceback" not in err, err
+    assert snapshot(folder) == before, "something was written"
+    assert not os.path.exists(folder / "p.toml")
