@@ -6,20 +6,18 @@ before its signal left whole outputs."""
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
 
 import numpy as np
 import pytest
-from test_memory_caps import cpu_seconds
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 #: the most a command may take to exit after SIGTERM [s]
 LATENCY_S = 2.0
-#: CPU time after which a child has imported the command line and installed its signal handlers [s]
-STARTED_CPU_S = 0.5
 #: command -> (arguments, outputs when it finishes, signal delays [s] after the start)
 COMMANDS = {
     "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.1, 3.0)),
@@ -32,12 +30,27 @@ COMMANDS = {
 }
 
 
+def handles_sigterm(pid: int) -> bool:
+    """Whether process ``pid`` has installed a SIGTERM handler (bit 15 of SigCgt in /proc/PID/status): the
+    command line's handler is in place, so a signal now is the command's interrupt, not Python's default."""
+    with open(f"/proc/{pid}/status") as fh:
+        for line in fh:
+            if line.startswith("SigCgt:"):
+                return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    return False
+
+
 def started(proc, timeout: float = 60.0) -> None:
-    """Wait until ``proc`` has used :data:`STARTED_CPU_S` of CPU (on a loaded machine the wall time of its
+    """Wait until ``proc`` has installed its SIGTERM handler (on a loaded machine the wall time of its
     start-up says nothing) or has ended."""
     t_end = time.monotonic() + timeout
-    while proc.poll() is None and time.monotonic() < t_end and cpu_seconds(proc.pid) < STARTED_CPU_S:
-        time.sleep(0.02)
+    while proc.poll() is None and time.monotonic() < t_end:
+        try:
+            if handles_sigterm(proc.pid):
+                return
+        except OSError:  # ended between the poll and the read
+            return
+        time.sleep(0.01)
 
 
 def _launch(args, cwd):

@@ -120,7 +120,14 @@ def main() -> None:  # console-script entry point
 
     old = catch_interrupts()
     try:
-        app(prog_name="inscal")
+        try:
+            app(prog_name="inscal")
+        except SystemExit:
+            # the command is over (its outputs published or removed): a signal during the interpreter's
+            # teardown, whose finalisation restores the default handlers, would kill it with an exit
+            # status that says nothing of the work done
+            release_interrupts(old, ignore=True)
+            raise
     except (Interrupted, KeyboardInterrupt) as exc:
         signum = pending_signal() or getattr(exc, "signum", signal.SIGINT)
         while True:
