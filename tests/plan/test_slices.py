@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+from slicings import one_call, slicings
 
 from inscal.core.turntable import Move, RotationPath, s16_table1
 from inscal.plan import bound as C
@@ -18,27 +19,7 @@ from inscal.plan.rows import BiasNoise, BoundError
 DEG = math.pi / 180.0
 
 
-def one_call(total, kernel, **_):
-    """The unsliced computation: every step in one kernel call."""
-    kernel(0, total)
-    return 1
-
-
-def fixed(n):
-    def run(total, kernel, **_):
-        for k0 in range(0, total, n):
-            kernel(k0, min(total, k0 + n))
-        return -(-total // n)
-
-    return run
-
-
-def adaptive_tiny(total, kernel, **_):
-    """The real driver with a tiny target: slices of varying length (1, 4, 16 ... shrinking again)."""
-    return slices.run_in_slices(total, kernel, first=1, target_s=1e-4)
-
-
-SLICINGS = {"one step": fixed(1), "7 steps": fixed(7), "adaptive": adaptive_tiny, "default": slices.run_in_slices}
+SLICINGS = slicings(slices.run_in_slices)
 
 
 def mixed_path():
