@@ -11,7 +11,6 @@ slices, when such a signal waited up to that long) ends the run within 2 s: exit
 ``inscal: interrupted (SIGTERM)``, nothing written."""
 
 import os
-import signal
 import sys
 import time
 from pathlib import Path
@@ -19,12 +18,11 @@ from pathlib import Path
 import h5py
 import pytest
 from test_memory_caps import (
-    MAX_LATENCY_S,
     MAX_REFUSE_S,
     MAX_RSS,
-    cpu_seconds,
     launch,
     reap,
+    sigterm_when_busy,
     small_record,
     snapshot,
 )
@@ -112,24 +110,7 @@ def test_sigterm_inside_the_filter_ends_the_calibration_promptly(tmp_path, s16):
     folder.mkdir()
     (folder / "s16.h5").write_bytes(s16.read_bytes())
     before = snapshot(folder)
-    proc = launch(["calibrate", "s16.h5", "--method", "systematic51", "--filter-rate-hz", str(LONG_FILTER_HZ), "--out",
-                   "p.toml"], folder, tmp_path / "logs")
-    try:
-        t_end = time.monotonic() + 120
-        while proc.poll() is None and cpu_seconds(proc.pid) < IN_FILTER_CPU_S and time.monotonic() < t_end:
-            time.sleep(0.02)
-        assert proc.poll() is None, (tmp_path / "logs" / "stderr").read_text()[-2000:]
-        t_sig = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        rc, _, t_exit = reap(proc, timeout=30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            proc.wait()
-    err = (tmp_path / "logs" / "stderr").read_text()
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert rc == 143, (rc, err[-2000:])
-    assert t_exit - t_sig < MAX_LATENCY_S, f"{t_exit - t_sig:.2f} s from SIGTERM to exit"
-    assert len(lines) == 1 and lines[0].startswith("inscal: interrupted (SIGTERM)") and "Traceback" not in err, err
+    sigterm_when_busy(["calibrate", "s16.h5", "--method", "systematic51", "--filter-rate-hz", str(LONG_FILTER_HZ),
+                       "--out", "p.toml"], folder, tmp_path / "logs", IN_FILTER_CPU_S)
     assert snapshot(folder) == before, "something was written"
     assert not os.path.exists(folder / "p.toml")
