@@ -40,8 +40,10 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numba import njit
 
 from inscal.core.earth import Site
+from inscal.core.robust import median_inplace
 from inscal.core.units import ARCSEC, DEG
 
 
@@ -105,7 +107,7 @@ class WindowSet:
     def turn(self) -> list[Window]:
         return [w for w in self.windows if w.kind == "turn"]
 
-    def replace_means(self, gyro: np.ndarray, accel: np.ndarray) -> "WindowSet":
+    def replace_means(self, gyro: np.ndarray, accel: np.ndarray) -> WindowSet:
         """A copy with the window means replaced (rows in window order); used for error propagation."""
 
         ws = [replace(w, gyro=np.asarray(gyro[k], float), accel=np.asarray(accel[k], float)) for k, w in enumerate(self.windows)]
@@ -134,6 +136,71 @@ def _mad_sigma(x: np.ndarray, axis=0) -> np.ndarray:
     return 1.4826 * np.median(np.abs(x - med), axis=axis)
 
 
+@njit(cache=True)
+def _second_difference_mad(x, dt):
+    """Per column of ``x`` (n, k), n >= 3: the median absolute deviation of the second differences of
+    ``x / dt`` (times 1.4826), value for value what ``_mad_sigma(np.diff(x / dt, n=2, axis=0))`` gives (the
+    same divisions and differences; a median is one value of the data whatever finds it), without the four
+    temporaries and the strided, branch-bound partitions of NumPy's median per window."""
+    n, k = x.shape
+    m = n - 2
+    out = np.empty(k)
+    d = np.empty(m)
+    e = np.empty(m)
+    tmp = np.empty(m)
+    for j in range(k):
+        y0 = x[0, j] / dt
+        y1 = x[1, j] / dt
+        d1 = y1 - y0
+        for i in range(m):
+            y2 = x[i + 2, j] / dt
+            d2 = y2 - y1
+            d[i] = d2 - d1
+            y1 = y2
+            d1 = d2
+        e[:] = d
+        med = median_inplace(e, tmp)
+        for i in range(m):
+            e[i] = abs(d[i] - med)
+        out[j] = 1.4826 * median_inplace(e, tmp)
+    return out
+
+
+@njit(cache=True)
+def _largest_step(p):
+    """The largest ``|p[i + 1, j] - p[i, j]|`` of an (n, k) array; infinite if it holds a NaN."""
+    big = 0.0
+    for j in range(p.shape[1]):
+        for i in range(p.shape[0] - 1):
+            s = abs(p[i + 1, j] - p[i, j])
+            if not s <= big:
+                if s != s:
+                    return np.inf
+                big = s
+    return big
+
+
+def unwrap_angles(p: np.ndarray) -> np.ndarray:
+    """``np.unwrap(p, axis=0)`` value for value.  Angles recorded without wrap (every step below half a turn)
+    need no correction, and NumPy then returns ``p + 0.0``: that case is found in one compiled pass instead of
+    the five temporaries of the general one."""
+    p = np.ascontiguousarray(p, dtype=float)
+    if p.ndim != 2 or p.shape[0] < 2 or not _largest_step(p) < math.pi:
+        return np.unwrap(p, axis=0)
+    up = p.copy()
+    up[1:] += 0.0
+    return up
+
+
+def all_columns(m: np.ndarray) -> np.ndarray:
+    """``np.all(m, axis=1)`` for an (n, k) boolean array with few columns, as k column operations instead of a
+    reduction along the short axis (ten times slower for k = 2)."""
+    out = m[:, 0].copy()
+    for j in range(1, m.shape[1]):
+        out &= m[:, j]
+    return out
+
+
 def _get(rec, name, required=True):
     v = getattr(rec, name, None)
     if v is None and required:
@@ -151,7 +218,7 @@ def check_gimbal_jumps(theta: np.ndarray, dt: float, time: np.ndarray | None = N
     if theta.shape[0] < 3:
         return
     dd = np.diff(theta, n=2, axis=0)
-    sig = _mad_sigma(dd) / math.sqrt(6.0)
+    sig = _second_difference_mad(np.ascontiguousarray(theta, dtype=float), 1.0) / math.sqrt(6.0)
     for ax, name in enumerate(("outer (theta_x)", "inner (theta_z)")):
         tol = jump_tol if jump_tol is not None else max(60.0 * ARCSEC, 10.0 * math.sqrt(6.0) * sig[ax], 2.0 * max_accel * dt * dt)
         bad = np.flatnonzero(np.abs(dd[:, ax]) > tol)
@@ -193,25 +260,25 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
     info = {"source": "gimbal angles" if gim is not None else "increments"}
 
     if gim is not None:
-        theta = np.unwrap(np.asarray(gim, float), axis=0)
+        theta = unwrap_angles(np.asarray(gim, float))
         if theta.shape != (n, 2):
             raise CalibrationError(f"gimbal must be an ({n}, 2) array of (theta_x, theta_z), got {theta.shape}")
         check_gimbal_jumps(theta, dt, time, jump_tol=jump_tol)
         rate = _centred_rate(theta, h, dt)
-        ok = np.all(np.isfinite(rate), axis=1)
+        ok = all_columns(np.isfinite(rate))
         absr = np.abs(np.nan_to_num(rate, nan=np.inf))
-        static = ok & np.all(absr < static_tol, axis=1)
+        static = ok & all_columns(absr < static_tol)
         moving_axis = [ok & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
     else:
         path = getattr(record_like, "path", None)
         if path is None:
             raise CalibrationError("record has no gimbal angles and no rotation path: the attitude of each window is unknown")
         theta, _, _ = path.segments().angles(time)
-        theta = np.unwrap(theta, axis=0)
+        theta = unwrap_angles(theta)
         # windows from the increments: smoothed gyro rate
         cum = np.cumsum(dth, axis=0)
         wr = _centred_rate(cum, h, dt)
-        ok = np.all(np.isfinite(wr), axis=1)
+        ok = all_columns(np.isfinite(wr))
         wn = np.linalg.norm(np.nan_to_num(wr, nan=np.inf), axis=1)
         static = ok & (wn < increment_static_tol)
         rate = _centred_rate(theta, h, dt)  # axis/direction from the path
@@ -219,17 +286,17 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
         moving_axis = [ok & (wn > rate_min) & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
 
     # white-noise level per sample from second differences of the per-sample rates
-    def noise(x):
+    def noise(x):  # of the per-sample rates x / dt
         if x.shape[0] < 8:
             return np.zeros(3)
-        return _mad_sigma(np.diff(x, n=2, axis=0)) / math.sqrt(6.0)
+        return _second_difference_mad(np.ascontiguousarray(x), dt) / math.sqrt(6.0)
 
     def make(kind, a, b, axis="none", rate_val=0.0, th0=None, th1=None):
         T = (b - a) * dt
         g = dth[a:b].sum(axis=0) / T
         f = dv[a:b].sum(axis=0) / T
-        gs = noise(dth[a:b] / dt) / math.sqrt(b - a)
-        fs = noise(dv[a:b] / dt) / math.sqrt(b - a)
+        gs = noise(dth[a:b]) / math.sqrt(b - a)
+        fs = noise(dv[a:b]) / math.sqrt(b - a)
         if th0 is None:
             th0 = th1 = theta[a:b].mean(axis=0)
         return Window(kind, int(a), int(b), float(time[a] - dt), float(time[b - 1]), np.asarray(th0, float),
