@@ -1,0 +1,9 @@
+"""Part 1 of the README's command block runs as written and gives meaningful results (see readme_block)."""
+
+import pytest
+from readme_block import run_part
+
+
+@pytest.mark.slow
+def test_readme_block_part_1(tmp_path):
+    run_part(1, tmp_path)
