@@ -23,7 +23,9 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
                   filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
                   gravity: str | None = None, encoder_sigma: float | None = None, encoder_latency: float = 0.0,
-                  check_encoders: bool = True) -> dict:
+                  check_encoders: bool = True, db: str | None = None, serial: str | None = None,
+                  station: str | None = None, operator: str | None = None, date: str | None = None,
+                  temperature_c: float | None = None, supersedes: int | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -31,11 +33,13 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     noise of each encoder angle for the gimbal states (method ``unified``, or ``--states ...,gimbal``).
     A record with encoder angles has them compared with the gyros first (:mod:`inscal.io.encoders`): a
     unit, sign, column or time-offset error stops the calibration with one line unless
-    ``check_encoders`` is False; ``encoder_latency`` [s] shifts the angles before (encoders that lag: > 0)."""
-    from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
-    from inscal.calibrate.windows import CalibrationError
-    from inscal.core import units
-    from inscal.io.files import input_problem, output_unit
+    ``check_encoders`` is False; ``encoder_latency`` [s] shifts the angles before (encoders that lag: > 0).
+    ``serial``: record the result in the calibration database ``db`` (:mod:`inscal.lab`; None: ``INSCAL_DB``,
+    else calib.sqlite) as a calibration of that unit, with the session's ``station``, ``operator``,
+    ``date`` and ``temperature_c``, committed together with the parameter file (a failure of either
+    leaves neither); ``supersedes``: the id of an earlier result this one replaces."""
+    from inscal.calibrate import METHODS, RECORD_METHODS
+    from inscal.io.files import input_problem
 
     if method not in METHODS:
         raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
@@ -56,12 +60,81 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
-    # the size first, before the record is read: the record in memory, then the filter's per-step stores
+    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, method,
+                       {"states": states, "settle": settle, "min_static": min_static, "filter_rate_hz": filter_rate_hz,
+                        "arw": arw, "vrw": vrw, "gravity": gravity, "encoder_sigma": encoder_sigma,
+                        "encoder_latency": encoder_latency, "check_encoders": check_encoders})
+    try:
+        return _calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate_hz, arw, vrw,
+                          gravity, encoder_sigma, encoder_latency, check_encoders, systematic, lab_db)
+    finally:
+        if lab_db is not None:
+            lab_db["db"].close()
+
+
+def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path, method: str,
+              given: dict) -> dict | None:
+    """The calibration database and what ``--serial`` records in it, checked before the calibration
+    runs: the unit is registered, the record not yet calibrated with the same options (unless
+    ``--supersedes``); None without ``--serial``."""
+    if serial is None:
+        extra = [n for n, v in (("--db", db), ("--station", station), ("--operator", operator), ("--date", date),
+                                ("--temperature-c", temperature_c), ("--supersedes", supersedes)) if v is not None]
+        if extra:
+            raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
+        return None
+    import sqlalchemy
+
+    from inscal import lab
+    from inscal.io.files import file_hash
+    from inscal.io.paramfile import ParamFileError
+
+    if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
+        raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    try:
+        when = lab.parse_date(date) if date is not None else None
+        d = lab.open_database(db)
+    except (lab.DatabaseError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    try:
+        if lab.get_unit(d, serial) is None:
+            raise CliError(f"unknown unit {serial!r} in {d.where}: register it first with `inscal db add {serial} "
+                           "--model MODEL`")
+        if supersedes is not None:
+            old = lab.get_calibration(d, supersedes)
+            if old.serial != serial:
+                raise CliError(f"--supersedes {supersedes}: that result is a calibration of {old.serial}, not {serial}")
+        h = file_hash(data)
+        options = lab.calibration_options(method, **given)
+        done = lab.find_calibration(d, h, options, serial)
+        if done is not None and supersedes is None:
+            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}); "
+                           f"--supersedes {done} records the new calibration in its place")
+    except (lab.DatabaseError, ParamFileError, sqlalchemy.exc.SQLAlchemyError) as exc:
+        d.close()
+        raise CliError(str(getattr(exc, "orig", None) or exc).split("\n")[0]) from None
+    except BaseException:
+        d.close()
+        raise
+    return {"db": d, "serial": serial, "hash": h, "options": options, "date": when, "station": station,
+            "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
+
+
+def _calibrate(data: Path, method: str, out: Path, force: bool, settle: float, min_static: float, states, plots,
+               filter_rate_hz: float, arw, vrw, gravity, encoder_sigma, encoder_latency: float, check_encoders: bool,
+               systematic: bool, lab_db: dict | None) -> dict:
+    """The calibration of :func:`run_calibrate` once its options are checked."""
     from inscal import io
+    from inscal.calibrate import calibrate
     from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
     from inscal.calibrate.systematic.selection import largest_states
+    from inscal.calibrate.windows import CalibrationError
     from inscal.cli.common import short
     from inscal.cli.limits import check_memory
+    from inscal.core import units
+    from inscal.io.files import output_unit
+
+    # the size first, before the record is read: the record in memory, then the filter's per-step stores
 
     try:
         info = io.record_info(data)
@@ -137,22 +210,36 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                      "p_value": d["innovations"]["p_value"]})
     try:
         with output_unit():  # the parameter file and the plots: all published together, or none
-            report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic)
+            report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic, lab_db)
     except FileExistsError as exc:  # a file that appeared at an output while this ran is not replaced
+        rid = (lab_db or {}).get("result_id")
+        if rid is not None:  # the database had committed: its copy of the file is whole
+            raise CliError(f"{exc}; the result is recorded in {lab_db['db'].where} as result {rid} (inscal db export "
+                           f"{lab_db['serial']} --result {rid} --out FILE writes its parameter file)") from None
         raise CliError(str(exc)) from None
     return report
 
 
 def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,
-                   systematic: bool) -> dict:
-    """Write the parameter file and the plots of :func:`run_calibrate` (inside its output unit); returns the report."""
+                   systematic: bool, lab_db: dict | None = None) -> dict:
+    """Write the parameter file and the plots of :func:`run_calibrate` (inside its output unit), and record
+    the result in the calibration database when asked (committed last, just before the unit publishes
+    the files: a failure before leaves neither); returns the report."""
     from inscal import io
     from inscal.io.files import make_output_dir
     from inscal.io.paramfile import ParamFileError, save_params
 
     truth = rec.truth
     try:
-        save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
+        if lab_db is None:
+            save_params(out, res, data_file=data.name, data_hash=io.file_hash(data), overwrite=force, metadata=meta)
+        else:
+            from inscal.io.files import atomic_path
+            from inscal.lab import param_file_text
+
+            text = param_file_text(res, data.name, lab_db["hash"], meta)  # what save_params writes, byte for byte
+            with atomic_path(out, force) as tmp:
+                tmp.write_text(text, encoding="utf-8")
     except (ParamFileError, FileExistsError, FileNotFoundError, OSError) as exc:
         raise CliError(str(exc)) from None
     report = {"method": res.method, "gravity": {**rec.site.gravity_model.to_json(), "g_site_m_s2": rec.site.gravity},
@@ -179,7 +266,32 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
                 report["plots"] = [str(p) for p in convergence_plots(plots, res, truth, overwrite=force)]
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None
+    if lab_db is not None:
+        report["db"] = _record(lab_db, data, rec, res, text)
     return report
+
+
+def _record(lab_db: dict, data: Path, rec, res, text: str) -> dict:
+    """Record the calibration in the database (one transaction); the ``db`` entry of the report."""
+    import sqlalchemy
+
+    from inscal import lab
+    from inscal.io.paramfile import ParamFileError
+
+    d = lab_db["db"]
+    try:
+        session = lab.session_from_record(data, record_sha256=lab_db["hash"], date=lab_db["date"],
+                                          station=lab_db["station"], operator=lab_db["operator"],
+                                          temperature_c=lab_db["temperature_c"], site=rec.site)
+        rid = lab.record_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
+                                     covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"])
+        lab_db["result_id"] = rid
+        cal = lab.get_calibration(d, rid)
+    except (lab.DatabaseError, ParamFileError, ValueError, sqlalchemy.exc.SQLAlchemyError) as exc:
+        msg = str(getattr(exc, "orig", None) or exc).split("\n")[0]
+        raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") from None
+    return {"db": d.where, "serial": lab_db["serial"], "result_id": rid, "current": cal.current,
+            "date": cal.to_json(False)["date"]}
 
 
 def fit_lines(fit: dict) -> list[str]:
@@ -238,12 +350,25 @@ def register(app: typer.Typer) -> None:
                                               "seconds before calibrating (> 0: encoders that lag the IMU)"),
         skip_encoder_check: bool = typer.Option(False, "--skip-encoder-check", help="calibrate even when the encoder "
                                                 "angles do not follow the gyros"),
+        serial: str = typer.Option(None, "--serial", help="record the result in the calibration database as a "
+                                   "calibration of this unit (registered with inscal db add)"),
+        db: str = typer.Option(None, "--db", help="with --serial: the calibration database, a file (SQLite) or "
+                               "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
+        station: str = typer.Option(None, "--station", help="with --serial: the turntable / station of the run"),
+        operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
+        date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "
+                                 "time (UTC; default: the record's creation time)"),
+        temperature_c: float = typer.Option(None, "--temperature-c", help="with --serial: the IMU's temperature "
+                                            "during the run [deg C]"),
+        supersedes: int = typer.Option(None, "--supersedes", help="with --serial: id of an earlier result this one "
+                                       "replaces (e.g. the same record calibrated again)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
-                                gravity, encoder_sigma, encoder_latency, not skip_encoder_check)
+                                gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
+                                operator, date, temperature_c, supersedes)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -281,3 +406,7 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"  plot: {p}")
         for n in rep["notes"]:
             typer.echo(f"  note: {n}")
+        if "db" in rep:
+            r = rep["db"]
+            typer.echo(f"  recorded in {r['db']}: {r['serial']} result {r['result_id']}"
+                       + (", now the current calibration" if r["current"] else ""))

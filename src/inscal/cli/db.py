@@ -1,0 +1,400 @@
+"""``inscal db``: the calibration database (init, upgrade, add, list, show, export, history)."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import typer
+
+from inscal.cli.common import (
+    CliError,
+    check_not_input,
+    check_output,
+    fail,
+    print_json,
+    short,
+)
+
+db_app = typer.Typer(no_args_is_help=True, add_completion=False,
+                     help="The calibration database: units, sessions and results over time (SQLite file or "
+                          "PostgreSQL URL; --db, else $INSCAL_DB, else calib.sqlite here).")
+
+DB_HELP = "calibration database: a file (SQLite) or postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"
+PLOT_FORMATS = ("png", "pdf", "svg")
+
+
+@contextlib.contextmanager
+def db_errors():
+    """Every refusal of the database, a parameter file or an option as one ``inscal: error:`` line (exit 2)."""
+    import sqlalchemy
+
+    from inscal.io.paramfile import ParamFileError
+    from inscal.lab import DatabaseError
+
+    try:
+        yield
+    except (CliError, DatabaseError, ParamFileError, ValueError) as exc:
+        raise fail(str(exc)) from None
+    except FileExistsError as exc:  # an output that appeared while the command ran
+        raise fail(str(exc)) from None
+    except sqlalchemy.exc.SQLAlchemyError as exc:
+        orig = getattr(exc, "orig", None) or exc
+        raise fail(f"database: {' '.join(str(orig).split())[:400]}") from None
+
+
+def open_db(db: str | None, create: bool = False):
+    from inscal.lab import open_database
+
+    return open_database(db, create=create)
+
+
+def _fmt(v) -> str:
+    import numpy as np
+
+    a = np.ravel(np.asarray(v, dtype=float))
+    return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
+
+
+def _num(v, fmt: str = ".3g") -> str:
+    """``v`` in ``fmt``, or ``-`` (right-aligned in the format's width) when not a finite number."""
+    import math
+    import re
+
+    if v is None or not math.isfinite(v):
+        width = re.match(r"[+ -]?(\d*)", fmt).group(1)
+        return "-".rjust(int(width) if width else 1)
+    return format(v, fmt)
+
+
+def run_add(serial: str, params: Path | None, db: str | None, model: str | None, notes: str | None,
+            data: Path | None, station: str | None, operator: str | None, date: str | None,
+            temperature_c: float | None, supersedes: int | None) -> dict:
+    """``inscal db add``: register a unit, or record an existing parameter file as one of its calibrations."""
+    from inscal import lab
+    from inscal.io.files import file_hash, input_problem
+
+    if params is None:
+        if any(x is not None for x in (data, station, operator, date, temperature_c, supersedes)):
+            raise CliError("--data, --station, --operator, --date, --temperature-c and --supersedes describe a "
+                           "calibration: give its parameter file (inscal db add SERIAL PARAMS.toml ...)")
+        with open_db(db, create=True) as d:
+            unit, created = lab.add_unit(d, serial, model, notes)
+            return {"db": d.where, "unit": unit.to_json(), "created": created}
+    from inscal.cli.common import load_checked_params
+
+    if (msg := input_problem(params, "parameter file")) is not None:
+        raise CliError(msg)
+    _, _, meta = load_checked_params(params)
+    try:
+        text = params.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise CliError(f"{short(params)}: not UTF-8 text") from None
+    when = lab.parse_date(date) if date is not None else None
+    if temperature_c is not None and not -100.0 < temperature_c < 200.0:
+        raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    if data is not None:
+        if (msg := input_problem(data, "data file")) is not None:
+            raise CliError(msg)
+        h = file_hash(data)
+        if meta.get("data_hash") and meta["data_hash"] != h:
+            raise CliError(f"{short(params)} was calibrated from another record ({meta.get('data_file') or 'data'} "
+                           f"{str(meta['data_hash'])[:19]}...), not {short(data)} ({h[:19]}...)")
+        from inscal.io import DataFileError
+
+        try:
+            session = lab.session_from_record(data, record_sha256=h, date=when, station=station, operator=operator,
+                                              temperature_c=temperature_c)
+        except (DataFileError, OSError, KeyError) as exc:
+            raise CliError(f"{short(data)}: {exc}") from None
+    else:
+        if not meta.get("data_hash"):
+            raise CliError(f"{short(params)} does not say which record it comes from (no data_hash): give --data RECORD")
+        when = when or (lab.parse_date(meta["created"]) if meta.get("created") else None)
+        if when is None:
+            raise CliError(f"{short(params)} has no 'created' time: give --date")
+        session = lab.SessionInfo(record_sha256=str(meta["data_hash"]), date=when, record_path=meta.get("data_file"),
+                                  station=station, operator=operator, temperature_c=temperature_c,
+                                  path_name=(meta.get("metadata") or {}).get("scenario"))
+    pm = meta.get("metadata") or {}
+    options = {"method": meta["method"], "recorded_from": "parameter file",
+               **{k: pm[k] for k in ("states", "filter_rate_hz") if k in pm}}
+    with open_db(db) as d:
+        if lab.get_unit(d, serial) is None:
+            raise CliError(f"unknown unit {serial!r}: register it first with `inscal db add {serial} --model MODEL`")
+        dup = lab.find_param_file(d, serial, lab.text_hash(text))
+        if dup is not None:
+            raise CliError(f"{short(params)} is recorded already for {serial} as result {dup}")
+        rid = lab.record_calibration(d, serial, text, session, options=options, supersedes=supersedes)
+        cal = lab.get_calibration(d, rid)
+        return {"db": d.where, "serial": serial, "result_id": rid, "method": cal.method, "current": cal.current,
+                "date": cal.to_json(False)["date"]}
+
+
+def run_history(serial: str, db: str | None, method: str | None, k: float, plot: Path | None, force: bool):
+    """``inscal db history``: ``(JSON report, History)``; the plot written when asked."""
+    from inscal import lab
+
+    if plot is not None:
+        if plot.suffix.lower().lstrip(".") not in PLOT_FORMATS:
+            raise CliError(f"--plot {short(plot)}: use a .png, .pdf or .svg name")
+        check_output(plot, force)
+    with open_db(db) as d:
+        h = lab.unit_history(d, serial, method, k)
+    rep = h.to_json() | {"db": d.where, "plot": None}
+    if plot is not None:
+        from inscal.io.files import output_unit
+        from inscal.report.history import history_plot
+
+        with output_unit():
+            history_plot(plot, h, overwrite=force)
+        rep["plot"] = str(plot)
+    return rep, h
+
+
+def history_lines(rep: dict, h) -> list[str]:
+    if not h.ids:
+        return [f"{h.serial}: no {h.method} calibration"]
+    from inscal.lab.drift import months_between
+
+    span = months_between(h.dates[0], h.dates[-1])
+    out = [(f"{h.serial} ({h.method}): {len(h.ids)} calibrations, {h.dates[0]:%Y-%m-%d} .. {h.dates[-1]:%Y-%m-%d} "
+            f"({span:.3g} months); flags at k = {h.k:g}"),
+           (f"  {'component':28s} {'n':>2s} {'mean':>10s} {'+-':>8s} {'spread/sigma':>12s} {'rate/month':>11s} "
+            f"{'+-':>8s} {'z':>6s} {'step z':>7s}  flags")]
+    for c in h.components:
+        out.append(f"  {c.label:28s} {c.n:2d} {_num(c.mean, '10.4g')} {_num(c.mean_sigma, '8.2g')} "
+                   f"{_num(c.repeatability_ratio, '12.3g')} {_num(c.rate, '+11.3g')} {_num(c.rate_sigma, '8.2g')} "
+                   f"{_num(c.rate_z, '6.2f')} {_num(c.step_z, '7.2f')}  {','.join(c.flags) or '-'}  [{c.unit}]")
+    flagged = h.flagged
+    out.append(f"  {len(flagged)} flagged of {h.tests} tests ({h.expected_false_alarms:.2g} expected by chance at "
+               f"k = {h.k:g})" + (": " + ", ".join(f"{c.label} ({'+'.join(c.flags)})" for c in flagged) if flagged
+                                   else ""))
+    if rep["plot"]:
+        out.append(f"  plot -> {rep['plot']}")
+    return out
+
+
+def show_lines(cal, covariance: bool) -> list[str]:
+    s = cal.session
+    head = f"{cal.serial}" + (f" ({cal.unit_model})" if cal.unit_model else "")
+    state = " (current)" if cal.current else ""
+    if cal.superseded_by:
+        state += f" (superseded by {', '.join(map(str, cal.superseded_by))})"
+    out = [f"{head}: result {cal.id}, {cal.method}" + (f" [{cal.state_set}]" if cal.state_set else "")
+           + f", record of {cal.date:%Y-%m-%d %H:%M} UTC{state}"]
+    where = [f"{s.record_sha256[:19]}...", s.record_path or ""]
+    for label, v in (("station", s.station), ("operator", s.operator), ("path", s.path_name)):
+        if v:
+            where.append(f"{label} {v}")
+    if s.latitude_deg is not None:
+        where.append(f"site {s.latitude_deg:.6g} deg N {s.longitude_deg:.6g} deg E {s.height_m:.4g} m")
+    if s.g_site_m_s2 is not None:
+        where.append(f"g {s.g_site_m_s2:.7g} m/s^2")
+    if s.temperature_c is not None:
+        where.append(f"{s.temperature_c:g} degC")
+    out.append("  record: " + ", ".join(w for w in where if w))
+    out.append(f"  fit: chi2 {_num(cal.fit_chi2, '.4g')} on {_num(cal.fit_dof, '.4g')} dof, p = {_num(cal.fit_p)}")
+    out.append(f"  inscal {cal.inscal_version}; parameter file {cal.param_file_sha256[:19]}...; recorded "
+               f"{cal.recorded_at:%Y-%m-%d %H:%M} UTC" + (f"; supersedes {cal.supersedes}" if cal.supersedes else ""))
+    for name, p in cal.parameters.items():
+        line = f"  {name:24s} {_fmt(p.value)} +- {_fmt(p.sigma)} {p.unit}"
+        if p.sigma_formal is not None:
+            line += f" (formal +- {_fmt(p.sigma_formal)})"
+        out.append(line)
+    cov = cal.covariance or {}
+    if cov:
+        n = len(cov.get("labels", []))
+        kind = "full" if cov.get("correlations") else "diagonal only (the method reports no correlations)"
+        out.append(f"  covariance: {n}x{n} over the {cov.get('basis')} ({cov.get('units')} units), {kind}")
+        if covariance and cov.get("matrix") is not None:
+            for lab_, row in zip(cov["labels"], cov["matrix"]):
+                out.append(f"    {lab_:28s} " + " ".join("nan" if x is None else f"{x:.3g}" for x in row))
+    for note in cal.notes:
+        out.append(f"  note: {note}")
+    return out
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(db_app, name="db")
+
+
+@db_app.command("init")
+def init_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
+             json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """Create the calibration database (a new SQLite file, or the tables of an empty PostgreSQL database)."""
+    with db_errors():
+        from inscal import lab
+
+        d, created = lab.init_database(db)
+        with d:
+            rev = lab.revision_of(d)
+            rep = {"db": d.where, "created": created, "revision": rev, "schema": lab.revision_number(rev)}
+    if json_:
+        print_json(rep)
+        return
+    typer.echo(f"{rep['db']}: {'created' if created else 'exists already'}, schema v{rep['schema']} ({rev})")
+
+
+@db_app.command("upgrade")
+def upgrade_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
+                json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """Upgrade a database made by an older inscal to this inscal's schema (Alembic; every row kept)."""
+    with db_errors():
+        from inscal import lab
+
+        old, new = lab.upgrade_database(db)
+        with lab.open_database(db) as d:
+            rep = {"db": d.where, "from": old, "to": new, "schema_from": lab.revision_number(old),
+                   "schema_to": lab.revision_number(new), "rows": lab.table_counts(d)}
+    if json_:
+        print_json(rep)
+        return
+    if old == new:
+        typer.echo(f"{rep['db']}: already at schema v{rep['schema_to']} ({new})")
+    else:
+        typer.echo(f"{rep['db']}: upgraded from schema v{rep['schema_from']} ({old}) to v{rep['schema_to']} ({new}); "
+                   + ", ".join(f"{n} {t}" for t, n in rep["rows"].items()))
+
+
+@db_app.command("add")
+def add_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+            params: Path = typer.Argument(None, help="a parameter file (inscal calibrate --out) to record as a "
+                                                     "calibration of the unit; without it, register the unit"),
+            db: str = typer.Option(None, "--db", help=DB_HELP),
+            model: str = typer.Option(None, "--model", help="the unit's model (when registering it)"),
+            notes: str = typer.Option(None, "--notes", help="notes on the unit (when registering it)"),
+            data: Path = typer.Option(None, "--data", help="the record the parameter file was calibrated from "
+                                      "(its hash must match; gives the site and path)"),
+            station: str = typer.Option(None, "--station", help="the turntable / station of the run"),
+            operator: str = typer.Option(None, "--operator", help="who ran it"),
+            date: str = typer.Option(None, "--date", help="when the record was taken, YYYY-MM-DD or ISO time (UTC; "
+                                     "default: the record's creation time, without --data the parameter file's)"),
+            temperature_c: float = typer.Option(None, "--temperature-c", help="the IMU's temperature during the run [deg C]"),
+            supersedes: int = typer.Option(None, "--supersedes", help="id of an earlier result this one replaces"),
+            json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """Register a unit (SERIAL --model ...), or record a parameter file as one of its calibrations."""
+    with db_errors():
+        rep = run_add(serial, params, db, model, notes, data, station, operator, date, temperature_c, supersedes)
+    if json_:
+        print_json(rep)
+        return
+    if "unit" in rep:
+        u = rep["unit"]
+        typer.echo(f"unit {u['serial']} {'registered' if rep['created'] else 'is registered already'}"
+                   + (f" (model {u['model']})" if u["model"] else "") + f" in {rep['db']}")
+    else:
+        typer.echo(f"{rep['serial']}: {params} recorded as result {rep['result_id']} ({rep['method']}, {rep['date']})"
+                   + (", now the current calibration" if rep["current"] else ""))
+
+
+@db_app.command("list")
+def list_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
+             flagged: bool = typer.Option(False, "--flagged", help="only the units whose history raises a flag"),
+             k: float = typer.Option(3.0, "--k", "-k", help="flag a parameter that moved more than k sigma"),
+             json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """The units (the fleet view): results, current calibration and flags of each."""
+    with db_errors():
+        import math
+
+        from inscal import lab
+
+        if not (math.isfinite(k) and k > 0):
+            raise CliError(f"--k must be > 0, got {k}")
+        with open_db(db) as d:
+            entries = lab.fleet(d, k, flagged_only=flagged)
+            rep = {"db": d.where, "k": k, "units": [e.to_json() for e in entries]}
+    if json_:
+        print_json(rep)
+        return
+    if not entries:
+        typer.echo(f"{rep['db']}: " + ("no unit raises a flag" if flagged else "no units"))
+        return
+    typer.echo(f"{'serial':20s} {'model':16s} {'results':>7s}  {'current':32s} flags (k = {k:g})")
+    for e, j in zip(entries, rep["units"]):
+        cur = "-" if e.current is None else f"{e.current.id} {e.current.method} {e.current.date:%Y-%m-%d}"
+        fl = ", ".join(f"{f['label']} ({'+'.join(f['flags'])})" for f in j["flagged"]) or "none"
+        typer.echo(f"{e.unit.serial:20s} {(e.unit.model or '-'):16s} {e.results:7d}  {cur:32s} {fl} "
+                   f"[{j['tests']} tests, {j['expected_false_alarms']:.2g} expected by chance]")
+
+
+@db_app.command("show")
+def show_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+             db: str = typer.Option(None, "--db", help=DB_HELP),
+             result: int = typer.Option(None, "--result", help="this result id (default: the current calibration)"),
+             covariance: bool = typer.Option(False, "--covariance", help="print the covariance matrix too"),
+             json_: bool = typer.Option(False, "--json", help="print the calibration as JSON")):
+    """One calibration of a unit with every parameter, 1 sigma, fit, covariance and provenance."""
+    with db_errors():
+        from inscal import lab
+
+        with open_db(db) as d:
+            if lab.get_unit(d, serial) is None:
+                raise CliError(f"unknown unit {serial!r} in {d.where}")
+            cal = lab.get_calibration(d, result) if result is not None else lab.current_calibration(d, serial)
+            if cal is None:
+                raise CliError(f"unit {serial} has no calibration yet")
+            if cal.serial != serial:
+                raise CliError(f"result {result} is a calibration of {cal.serial}, not {serial}")
+    if json_:
+        print_json(cal.to_json() | {"db": d.where})
+        return
+    for line in show_lines(cal, covariance):
+        typer.echo(line)
+
+
+@db_app.command("export")
+def export_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+               out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
+               db: str = typer.Option(None, "--db", help=DB_HELP),
+               result: int = typer.Option(None, "--result", help="this result id (default: the current calibration)"),
+               force: bool = typer.Option(False, "--force", help="overwrite an existing file"),
+               json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """Write a unit's current parameter file (byte for byte the one its calibration wrote)."""
+    with db_errors():
+        from inscal import lab
+        from inscal.io.files import atomic_path, output_unit
+
+        check_output(out, force)
+        with open_db(db) as d:
+            if lab.get_unit(d, serial) is None:
+                raise CliError(f"unknown unit {serial!r} in {d.where}")
+            cal = lab.get_calibration(d, result) if result is not None else lab.current_calibration(d, serial)
+            if cal is None:
+                raise CliError(f"unit {serial} has no calibration yet")
+            if cal.serial != serial:
+                raise CliError(f"result {result} is a calibration of {cal.serial}, not {serial}")
+        if lab.text_hash(cal.param_text) != cal.param_file_sha256:
+            raise CliError(f"result {cal.id}: the stored parameter file does not match its sha256 (damaged database?)")
+        check_not_input(out, Path(d.url.database) if d.dialect == "sqlite" else None, role="database")
+        with output_unit(), atomic_path(out, force) as tmp:
+            tmp.write_text(cal.param_text, encoding="utf-8")
+    rep = {"db": d.where, "serial": serial, "result_id": cal.id, "method": cal.method,
+           "date": cal.to_json(False)["date"], "out": str(out), "param_file_sha256": cal.param_file_sha256}
+    if json_:
+        print_json(rep)
+        return
+    typer.echo(f"{serial}: result {cal.id} ({cal.method}, record of {cal.date:%Y-%m-%d}) -> {out}")
+
+
+@db_app.command("history")
+def history_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+                db: str = typer.Option(None, "--db", help=DB_HELP),
+                method: str = typer.Option(None, "--method", "-m", help="calibration method (default: the current "
+                                           "calibration's)"),
+                k: float = typer.Option(3.0, "--k", "-k", help="flag a parameter that moved more than k sigma"),
+                plot: Path = typer.Option(None, "--plot", help="figure of every parameter over time (.png, .pdf, .svg)"),
+                force: bool = typer.Option(False, "--force", help="overwrite an existing plot"),
+                json_: bool = typer.Option(False, "--json", help="print the history as JSON")):
+    """Every parameter of a unit over time: repeatability, drift rate per month +- 1 sigma, flags."""
+    with db_errors():
+        import math
+
+        if not (math.isfinite(k) and k > 0):
+            raise CliError(f"--k must be > 0, got {k}")
+        rep, h = run_history(serial, db, method, k, plot, force)
+    if json_:
+        print_json(rep)
+        return
+    for line in history_lines(rep, h):
+        typer.echo(line)

@@ -1,0 +1,226 @@
+"""History, repeatability and drift of a unit's calibrations, parameter component by component.
+
+For one component with calibrations i = 1..n at times t_i (months of 365.25/12 days since the
+first; the date of each calibration's record), values y_i and reported 1 sigma s_i (field units):
+
+- repeatability: the spread between calibrations against the within-calibration sigma, the Birge
+  ratio ``R = sqrt(chi2 / (n - 1))`` with ``chi2 = sum w_i (y_i - ybar_w)^2``, ``w_i = 1 / s_i^2``,
+  ``ybar_w`` the weighted mean (R ~ 1: the calibrations agree within their sigma; R >> 1: the unit
+  moves, or its sigma are too small), with the chi2 p-value; also the plain sample standard
+  deviation and the RMS of the s_i;
+- drift rate: the weighted least-squares line ``y = a + b (t - tbar_w)`` (Aitken's estimator),
+  ``b = sum w (t - tbar_w) y / S_tt``, ``sigma_b = 1 / sqrt(S_tt)``, ``S_tt = sum w (t - tbar_w)^2``,
+  in field units per month; ``sigma_b`` is from the reported sigma (the line's own Birge ratio is
+  reported beside it, not folded in);
+- flags at ``k`` (default 3), each a two-sided test of a Gaussian statistic under "the unit is
+  stable and its sigma are right":
+  ``drift``: n >= 3 and ``|b| > k sigma_b`` (the same as ``|b span| > k sigma_b span``: the change
+  over the history against its sigma);
+  ``step``: n >= 2 and the newest calibration differs from the one before by more than
+  ``k sqrt(s_n^2 + s_{n-1}^2)``.
+  Each test raises a false alarm with probability ``erfc(k / sqrt 2)`` (0.27 % at k = 3); a unit
+  with m tests expects ``m erfc(k / sqrt 2)`` of them by chance (:attr:`History.expected_false_alarms`).
+
+A calibration whose sigma is not a finite positive number (a component held fixed) is left out
+of that component's history.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from inscal.io.jsonfile import to_jsonable
+from inscal.lab.model import Calibration, iso
+
+#: the month of the drift rates [days]: a Julian year over 12
+MONTH_DAYS = 365.25 / 12
+DEFAULT_K = 3.0
+
+
+def tail(k: float) -> float:
+    """P(|z| > k) of a standard Gaussian: the false-alarm probability of one test."""
+    return math.erfc(k / math.sqrt(2.0))
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """P(chi2 > x) with integer ``dof``: the closed forms of the regularized upper incomplete gamma
+    function Q(dof/2, x/2) (Abramowitz & Stegun 26.4.4-26.4.5)."""
+    if x <= 0:
+        return 1.0
+    h = x / 2.0
+    if dof % 2 == 0:
+        term, total = 1.0, 1.0
+        for k in range(1, dof // 2):
+            term *= h / k
+            total += term
+        return min(1.0, math.exp(-h) * total)
+    total = math.erfc(math.sqrt(h))
+    term = math.sqrt(h) / math.gamma(1.5)
+    for k in range((dof - 1) // 2):
+        if k:
+            term *= h / (k + 0.5)
+        total += math.exp(-h) * term
+    return min(1.0, total)
+
+
+def months_between(t0: dt.datetime, t: dt.datetime) -> float:
+    return (t - t0).total_seconds() / 86400.0 / MONTH_DAYS
+
+
+@dataclass(frozen=True)
+class ComponentDrift:
+    """The history of one parameter component (field ``unit``; rates per month)."""
+
+    name: str
+    label: str
+    unit: str
+    ids: tuple[int, ...]
+    months: np.ndarray
+    values: np.ndarray
+    sigma: np.ndarray
+    n: int
+    span_months: float
+    mean: float
+    mean_sigma: float
+    spread: float
+    within_sigma: float
+    repeatability_ratio: float
+    repeatability_p: float
+    rate: float
+    rate_sigma: float
+    rate_z: float
+    line_ratio: float
+    step: float
+    step_sigma: float
+    step_z: float
+    flags: tuple[str, ...]
+    tests: int
+
+    @property
+    def change(self) -> float:
+        """The drift over the history, ``rate * span``."""
+        return self.rate * self.span_months
+
+    def to_json(self) -> dict:
+        return to_jsonable({
+            "label": self.label, "unit": self.unit, "n": self.n, "ids": list(self.ids),
+            "months": self.months, "values": self.values, "sigma": self.sigma, "span_months": self.span_months,
+            "mean": self.mean, "mean_sigma": self.mean_sigma,
+            "repeatability": {"spread": self.spread, "within_sigma": self.within_sigma,
+                              "ratio": self.repeatability_ratio, "p_value": self.repeatability_p},
+            "drift": {"rate_per_month": self.rate, "rate_sigma": self.rate_sigma, "z": self.rate_z,
+                      "change_over_span": self.change, "change_sigma": self.rate_sigma * self.span_months,
+                      "line_ratio": self.line_ratio},
+            "last_step": {"change": self.step, "sigma": self.step_sigma, "z": self.step_z},
+            "flags": list(self.flags), "tests": self.tests})
+
+
+def component_drift(name: str, label: str, unit: str, ids, months, values, sigma, k: float = DEFAULT_K) -> ComponentDrift:
+    """The repeatability, drift and flags (see the module) of one component's calibrations."""
+    months, values, sigma = (np.asarray(a, dtype=float) for a in (months, values, sigma))
+    ok = np.isfinite(months) & np.isfinite(values) & np.isfinite(sigma) & (sigma > 0)
+    ids = tuple(int(i) for i, good in zip(ids, ok) if good)
+    t, y, s = months[ok], values[ok], sigma[ok]
+    n = int(y.size)
+    nan = float("nan")
+    mean = mean_sigma = spread = within = ratio = rp = nan
+    rate = rate_sigma = rate_z = line_ratio = nan
+    step = step_sigma = step_z = nan
+    flags, tests = [], 0
+    if n >= 1:
+        w = 1.0 / s**2
+        mean = float(np.sum(w * y) / np.sum(w))
+        mean_sigma = float(1.0 / math.sqrt(np.sum(w)))
+        within = float(np.sqrt(np.mean(s**2)))
+    if n >= 2:
+        chi2 = float(np.sum(w * (y - mean) ** 2))
+        spread = float(np.std(y, ddof=1))
+        ratio = math.sqrt(chi2 / (n - 1))
+        rp = chi2_sf(chi2, n - 1)
+        step = float(y[-1] - y[-2])
+        step_sigma = float(math.hypot(s[-1], s[-2]))
+        step_z = step / step_sigma
+        tests += 1
+        if abs(step_z) > k:
+            flags.append("step")
+        tbar = float(np.sum(w * t) / np.sum(w))
+        stt = float(np.sum(w * (t - tbar) ** 2))
+        if stt > 0:
+            rate = float(np.sum(w * (t - tbar) * y) / stt)
+            rate_sigma = 1.0 / math.sqrt(stt)
+            rate_z = rate / rate_sigma
+            if n >= 3:
+                res = y - mean - rate * (t - tbar)
+                line_ratio = math.sqrt(float(np.sum(w * res**2)) / (n - 2))
+                tests += 1
+                if abs(rate_z) > k:
+                    flags.append("drift")
+    span = float(t[-1] - t[0]) if n else 0.0
+    return ComponentDrift(name, label, unit, ids, t, y, s, n, span, mean, mean_sigma, spread, within, ratio, rp, rate,
+                          rate_sigma, rate_z, line_ratio, step, step_sigma, step_z, tuple(flags), tests)
+
+
+@dataclass(frozen=True)
+class History:
+    """A unit's calibrations of one method over time, with every component's :class:`ComponentDrift`."""
+
+    serial: str
+    method: str
+    k: float
+    ids: tuple[int, ...]
+    dates: tuple[dt.datetime, ...]
+    components: tuple[ComponentDrift, ...]
+
+    @property
+    def flagged(self) -> list[ComponentDrift]:
+        return [c for c in self.components if c.flags]
+
+    @property
+    def tests(self) -> int:
+        return sum(c.tests for c in self.components)
+
+    @property
+    def expected_false_alarms(self) -> float:
+        """The number of flags a stable unit with right sigma raises by chance: ``tests * erfc(k / sqrt 2)``."""
+        return self.tests * tail(self.k)
+
+    def to_json(self) -> dict:
+        params: dict[str, dict] = {}
+        for c in self.components:
+            params.setdefault(c.name, {"unit": c.unit, "components": []})["components"].append(c.to_json())
+        return {"serial": self.serial, "method": self.method, "k": self.k, "month_days": MONTH_DAYS,
+                "calibrations": [{"id": i, "date": iso(d)} for i, d in zip(self.ids, self.dates)],
+                "flagged": [{"label": c.label, "flags": list(c.flags), "rate_z": to_jsonable(c.rate_z),
+                             "step_z": to_jsonable(c.step_z)} for c in self.flagged],
+                "tests": self.tests, "expected_false_alarms": self.expected_false_alarms, "parameters": params}
+
+
+def history(calibrations: list[Calibration], serial: str, method: str, k: float = DEFAULT_K) -> History:
+    """The :class:`History` of ``calibrations`` (one unit, one method, oldest first): one point per session,
+    its newest result."""
+    if not (math.isfinite(k) and k > 0):
+        raise ValueError(f"k must be > 0, got {k}")
+    by_session: dict[int, Calibration] = {}
+    for c in calibrations:
+        if c.method == method:
+            by_session[c.session.id] = c  # ordered by date then id: the newest of a session wins
+    cals = sorted(by_session.values(), key=lambda c: (c.date, c.id))
+    if not cals:
+        return History(serial, method, float(k), (), (), ())
+    t0 = cals[0].date
+    months = np.array([months_between(t0, c.date) for c in cals])
+    ids = [c.id for c in cals]
+    names = [n for c in cals for n in c.parameters]
+    comps = []
+    for name in dict.fromkeys(names):
+        have = [c.parameters.get(name) for c in cals]
+        first = next(p for p in have if p is not None)
+        for j, label in enumerate(first.labels):
+            vals = np.array([np.ravel(p.value)[j] if p is not None else np.nan for p in have])
+            sig = np.array([np.ravel(p.sigma)[j] if p is not None else np.nan for p in have])
+            comps.append(component_drift(name, label, first.unit, ids, months, vals, sig, k))
+    return History(serial, method, float(k), tuple(ids), tuple(c.date for c in cals), tuple(comps))

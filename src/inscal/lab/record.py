@@ -1,0 +1,226 @@
+"""What a caller hands the database for one calibration, built from what it has: the parameter
+file's text, the calibration options and their hash, the session of a record file, and the
+covariance of a :class:`~inscal.calibrate.CalibrationResult`.
+
+The parameter file's text is the one source of the stored parameters (values, 1 sigma, field
+units, fit): the database keeps it byte for byte, so ``inscal db export`` writes back exactly the
+file ``inscal calibrate`` wrote, and parses it into rows (:func:`parameter_rows`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+
+import numpy as np
+import tomli_w
+
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS, errors_from_field, parameter_components
+from inscal.io.files import file_hash
+from inscal.io.jsonfile import to_jsonable
+from inscal.io.paramfile import (
+    KIND,
+    PARAM_SCHEMA_VERSION,
+    ParamFileError,
+    params_document,
+)
+from inscal.io.records import record_attrs, record_info
+from inscal.lab.model import SessionInfo, parse_date
+
+
+def param_file_text(result, data_file: str | None = None, data_hash: str | None = None,
+                    metadata: dict | None = None, truth=None) -> str:
+    """The text of the parameter file of ``result``, exactly what :func:`inscal.io.paramfile.save_params`
+    writes for the same arguments (write it with :func:`inscal.io.files.atomic_path` and
+    ``Path.write_text(text, encoding="utf-8")``)."""
+    try:
+        return tomli_w.dumps(params_document(result, data_file, data_hash, metadata, truth))
+    except (TypeError, ValueError) as exc:
+        raise ParamFileError(f"cannot encode the parameters as TOML: {exc}") from None
+
+
+def text_hash(text: str) -> str:
+    """``sha256:<hex>`` of the UTF-8 bytes of ``text`` (what :func:`inscal.io.files.file_hash` gives
+    for the file holding it)."""
+    return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def calibration_options(method: str, *, states: str | None = None, settle: float = 1.0, min_static: float = 20.0,
+                        filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
+                        gravity: str | None = None, encoder_sigma: float | None = None,
+                        encoder_latency: float = 0.0, check_encoders: bool = True,
+                        systematic: bool | None = None) -> dict:
+    """The options of a calibration that decide its result, as ``inscal calibrate`` takes them (field
+    units: ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec, times in s), in the
+    canonical form whose :func:`options_hash` identifies "the same calibration of the same record".
+    Only the options that apply to the method are kept (``systematic``: the method reads the record
+    itself, as systematic51/30 and unified do; default from the method's name)."""
+    if systematic is None:
+        systematic = method in ("systematic51", "systematic30", "unified")
+    opts: dict = {"method": method}
+    if systematic:
+        opts.update(states="auto" if states is None else str(states), filter_rate_hz=float(filter_rate_hz),
+                    arw_deg_sqrt_h=arw, vrw_ug_sqrt_hz=vrw, encoder_sigma_arcsec=encoder_sigma)
+    else:
+        opts.update(settle_s=float(settle), min_static_s=float(min_static))
+    opts.update(gravity=gravity, encoder_latency_s=float(encoder_latency), check_encoders=bool(check_encoders))
+    return {k: v for k, v in opts.items() if v is not None}
+
+
+def options_hash(options: dict) -> str:
+    """``sha256:<hex>`` of the canonical JSON of ``options`` (sorted keys; floats by repr)."""
+    text = json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def session_from_record(path, *, record_sha256: str | None = None, date=None, station: str | None = None,
+                        operator: str | None = None, temperature_c: float | None = None, site=None) -> SessionInfo:
+    """The session of record file ``path``: its sha256 (computed unless given), site, gravity model and
+    path name from the file (``site``: the :class:`~inscal.core.earth.Site` the calibration used
+    instead, e.g. with another gravity model); ``date`` (a datetime or text,
+    :func:`~inscal.lab.model.parse_date`) defaults to the record's ``created`` attribute (when the
+    file was written)."""
+    info = record_info(path)
+    if date is None:
+        created = record_attrs(path, ("created",))["created"]
+        if created is None:
+            raise ValueError(f"{path} has no 'created' time: give the date of the run")
+        date = created
+    when = parse_date(date) if isinstance(date, str) else parse_date(date.isoformat())
+    site = info.site if site is None else site
+    gm = site.gravity_model.to_json()
+    return SessionInfo(record_sha256=record_sha256 or file_hash(path), date=when, record_path=str(path),
+                       station=station, operator=operator, latitude_deg=math.degrees(site.latitude),
+                       longitude_deg=math.degrees(site.longitude), height_m=float(site.height),
+                       gravity_model=json.dumps(gm, sort_keys=True), g_site_m_s2=float(site.gravity),
+                       temperature_c=temperature_c,
+                       path_name=(info.path.name if info.path is not None else None) or info.scenario or None)
+
+
+def covariance_of(result) -> dict | None:
+    """The covariance a :class:`~inscal.calibrate.CalibrationResult` reports, in the database's form
+    (see :class:`~inscal.lab.model.Calibration`): the systematic filter's full formal covariance of its
+    parameter states (``result.covariance``: labels and ``P``, SI); a full parameter covariance
+    ``diagnostics["covariance"]`` (labels of the parameter components, SI) converted to field units;
+    None when the method reports neither (the window-mean methods report 1 sigma only: the
+    database then keeps the diagonal, see :func:`parameter_covariance`)."""
+    cov = getattr(result, "covariance", None)
+    basis = "states"
+    if not (isinstance(cov, dict) and "P" in cov):
+        cov = (getattr(result, "diagnostics", None) or {}).get("covariance")
+        basis = "parameters"
+    if not (isinstance(cov, dict) and "P" in cov and "labels" in cov):
+        return None
+    P = np.asarray(cov["P"], dtype=float)
+    labels = [str(x) for x in cov["labels"]]
+    if P.shape != (len(labels), len(labels)):
+        return None
+    if basis == "states":
+        return {"basis": "states", "labels": labels, "units": "SI", "correlations": True,
+                "matrix": to_jsonable(P)}
+    scale = np.array([field_factor(lab) for lab in labels])
+    return {"basis": "parameters", "labels": labels, "units": "field", "correlations": True,
+            "matrix": to_jsonable(P * np.outer(scale, scale))}
+
+
+def field_factor(label: str) -> float:
+    """The factor from SI to the field unit of a parameter component ``name[component]``."""
+    name = label.split("[", 1)[0]
+    kind, unit = PARAMETERS[name][2], PARAMETERS[name][3]
+    return float(units.from_si(1.0, unit, kind))
+
+
+def parameter_covariance(rows: list[dict]) -> dict:
+    """The diagonal covariance (field units) of parameter rows whose estimator reported 1 sigma only."""
+    labels = [r["label"] for r in rows]
+    var = [None if r["sigma"] is None else r["sigma"] ** 2 for r in rows]
+    matrix = [[var[i] if i == j else 0.0 for j in range(len(rows))] for i in range(len(rows))]
+    return {"basis": "parameters", "labels": labels, "units": "field", "correlations": False, "matrix": matrix}
+
+
+def parse_param_text(text: str) -> dict:
+    """The TOML document of a parameter file's text, checked for what the database needs (kind,
+    schema version, method, known parameters of the right size).  Raises :class:`ParamFileError`."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParamFileError(f"not a valid TOML file ({exc})") from None
+    if doc.get("kind") != KIND:
+        raise ParamFileError(f"not an inscal parameter file (kind = {doc.get('kind')!r})")
+    ver = doc.get("schema_version")
+    if not isinstance(ver, int) or not 1 <= ver <= PARAM_SCHEMA_VERSION:
+        raise ParamFileError(f"parameter file schema_version {ver!r} is not one this inscal reads")
+    if not isinstance(doc.get("method"), str):
+        raise ParamFileError("the parameter file has no 'method'")
+    params = doc.get("parameters")
+    if not isinstance(params, dict) or not params:
+        raise ParamFileError("the parameter file has no [parameters] section")
+    for name, entry in params.items():
+        if name not in PARAMETERS:
+            raise ParamFileError(f"unknown parameter {name!r}")
+        if not isinstance(entry, dict) or "value" not in entry or "unit" not in entry:
+            raise ParamFileError(f"parameter {name} needs 'value' and 'unit'")
+    try:
+        errors_from_field({n: {"value": np.squeeze(np.asarray(e["value"], dtype=float)).tolist(), "unit": e["unit"]}
+                           for n, e in params.items()})
+    except (ValueError, TypeError, KeyError) as exc:
+        raise ParamFileError(str(exc)) from None
+    return doc
+
+
+def _flat(v, n: int) -> list[float | None]:
+    a = np.ravel(np.asarray(v if v is not None else [np.nan] * n, dtype=float))
+    if a.size == 1 and n > 1:
+        a = np.full(n, a[0])
+    if a.size != n:
+        raise ParamFileError(f"expected {n} numbers, got {a.size}")
+    return [float(x) if math.isfinite(x) else None for x in a]
+
+
+def parameter_rows(doc: dict) -> list[dict]:
+    """One row per parameter component (name, component, label, value, sigma, sigma_formal, unit) of a
+    parameter file's document, in the field units of :data:`~inscal.core.error_model.PARAMETERS` (a
+    file in other units is converted here, the one place the database converts units); None where
+    not a finite number."""
+    rows = []
+    for name, entry in doc["parameters"].items():
+        comps = parameter_components(name)
+        n = len(comps)
+        kind, unit = PARAMETERS[name][2], PARAMETERS[name][3]
+        given = str(entry["unit"])
+
+        def field(v, name=name, given=given, kind=kind, unit=unit):  # a file in other units (typed in by hand): converted
+            if v is None or given == unit:
+                return v
+            try:
+                return units.from_si(np.asarray(units.to_si(np.asarray(v, dtype=float), given, kind)), unit).tolist()
+            except (units.UnitError, ValueError, TypeError) as exc:
+                raise ParamFileError(f"parameter {name}: {exc}") from None
+
+        vals = _flat(field(entry["value"]), n)
+        sig = _flat(field(entry.get("sigma")), n)
+        formal = _flat(field(entry["sigma_formal"]), n) if "sigma_formal" in entry else [None] * n
+        for k, comp in enumerate(comps):
+            rows.append({"name": name, "component": k, "label": f"{name}[{comp}]" if comp else name,
+                         "value": vals[k], "sigma": sig[k], "sigma_formal": formal[k], "unit": unit})
+    return rows
+
+
+def fit_of(doc: dict) -> tuple[dict | None, float | None, float | None, float | None]:
+    """``(fit table, chi2, dof, p)`` of a parameter file: its ``[fit]`` (the window-mean methods), or the
+    innovation statistics of the systematic filter (``[metadata]`` chi2, dof, p_value, nis_mean)."""
+    fit = doc.get("fit")
+    if not isinstance(fit, dict):
+        meta = doc.get("metadata") or {}
+        fit = {k: meta[k] for k in ("chi2", "dof", "p_value", "nis_mean") if k in meta} or None
+    if fit is None:
+        return None, None, None, None
+
+    def num(key):
+        v = fit.get(key)
+        return float(v) if isinstance(v, (int, float)) and math.isfinite(float(v)) else None
+
+    return to_jsonable(fit), num("chi2"), num("dof"), num("p_value")

@@ -1,0 +1,102 @@
+"""The tables of the calibration database (SQLAlchemy Core), at the newest schema revision.
+
+Every table is append-only: rows are inserted, never updated nor deleted (database triggers refuse
+an ``UPDATE`` or ``DELETE``, see the first migration).  A result that replaces an earlier one
+names it in ``results.supersedes``; the unit's current calibration is the newest row of
+``current`` for the unit.
+
+Units: parameter values and 1 sigma are stored in the field units of
+:data:`inscal.core.error_model.PARAMETERS` (ppm, arcsec, deg/h, ug ...), the units of the parameter
+file, with the unit's name in ``parameters.unit``; a covariance over the parameter components is
+in the same field units, a covariance over an estimator's own states (the systematic filter's)
+in SI (``results.covariance["units"]`` says which).  Times are UTC, stored without a zone.
+
+The schema's history is in :mod:`inscal.lab.migrations` (Alembic): revision ``0001_initial``
+(v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
+added it.
+"""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+
+metadata = sa.MetaData()
+
+units = sa.Table(
+    "units", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("serial", sa.String(200), nullable=False, unique=True),
+    sa.Column("model", sa.String(200)),
+    sa.Column("notes", sa.Text),
+    sa.Column("created_at", sa.DateTime, nullable=False),
+)
+
+sessions = sa.Table(
+    "sessions", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
+    sa.Column("record_sha256", sa.String(80), nullable=False),  # io.file_hash: "sha256:<hex>"
+    sa.Column("record_path", sa.Text),
+    sa.Column("station", sa.String(200)),
+    sa.Column("operator", sa.String(200)),
+    sa.Column("date", sa.DateTime, nullable=False),  # when the record was taken (UTC)
+    sa.Column("latitude_deg", sa.Float),
+    sa.Column("longitude_deg", sa.Float),
+    sa.Column("height_m", sa.Float),
+    sa.Column("gravity_model", sa.Text),  # GravityModel.to_json(), as JSON text
+    sa.Column("g_site_m_s2", sa.Float),
+    sa.Column("path_name", sa.String(200)),
+    sa.Column("recorded_at", sa.DateTime, nullable=False),
+    sa.Column("temperature_c", sa.Float),  # v2
+    sa.UniqueConstraint("unit_id", "record_sha256", name="uq_sessions_unit_record"),
+)
+
+results = sa.Table(
+    "results", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
+    sa.Column("session_id", sa.Integer, sa.ForeignKey("sessions.id"), nullable=False),
+    sa.Column("method", sa.String(64), nullable=False),
+    sa.Column("state_set", sa.String(200)),
+    sa.Column("options", sa.JSON, nullable=False),
+    sa.Column("options_hash", sa.String(80), nullable=False),
+    sa.Column("fit_chi2", sa.Float),
+    sa.Column("fit_dof", sa.Float),
+    sa.Column("fit_p", sa.Float),
+    sa.Column("fit", sa.JSON),
+    sa.Column("notes", sa.JSON),
+    sa.Column("covariance", sa.JSON),
+    sa.Column("inscal_version", sa.String(64), nullable=False),
+    sa.Column("param_file", sa.Text, nullable=False),  # the parameter file as written, byte for byte (UTF-8)
+    sa.Column("param_file_sha256", sa.String(80), nullable=False),
+    sa.Column("supersedes", sa.Integer, sa.ForeignKey("results.id")),
+    sa.Column("recorded_at", sa.DateTime, nullable=False),
+    sa.Index("ix_results_options_hash", "options_hash"),
+    sa.Index("ix_results_unit", "unit_id"),
+)
+
+parameters = sa.Table(
+    "parameters", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), nullable=False),
+    sa.Column("name", sa.String(64), nullable=False),
+    sa.Column("component", sa.Integer, nullable=False),  # index in the flattened (row-major) parameter
+    sa.Column("label", sa.String(100), nullable=False),  # e.g. accel_scale_factor[x]
+    sa.Column("value", sa.Float),  # field unit; NULL: not a finite number
+    sa.Column("sigma", sa.Float),  # reported 1 sigma, field unit; NULL: held fixed (not estimated)
+    sa.Column("sigma_formal", sa.Float),  # formal 1 sigma where the reported one was scaled
+    sa.Column("unit", sa.String(32), nullable=False),
+    sa.UniqueConstraint("result_id", "name", "component", name="uq_parameters_result_component"),
+)
+
+current = sa.Table(
+    "current", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
+    sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), nullable=False),
+    sa.Column("set_at", sa.DateTime, nullable=False),
+    sa.Index("ix_current_unit", "unit_id"),
+)
+
+#: the tables, parents first (the order rows are copied or counted in)
+TABLES = (units, sessions, results, parameters, current)

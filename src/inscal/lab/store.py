@@ -1,0 +1,330 @@
+"""Writing and reading the calibration database: units, calibration results (each in one
+transaction), the "already recorded" query, one calibration with all it has, a unit's history
+and its current calibration.
+
+Write API (what ``inscal calibrate --db`` and a batch of calibrations use)::
+
+    db = open_database(url)                                   # inscal.lab.database
+    add_unit(db, "FOG-0042", model="FOG-IMU")                 # once per unit
+    if find_calibration(db, session.record_sha256, options, serial) is None:
+        rid = record_calibration(db, "FOG-0042", param_text, session, options=options,
+                                 covariance=covariance_of(result))
+    cal = get_calibration(db, rid)                            # parameters, sigma, covariance, fit, provenance
+
+A record (its sha256) is one session of a unit; a session may hold results of several methods
+or options.  A result that replaces an earlier one (the same record recalibrated) names it in
+``supersedes``: the earlier one then leaves the history.  Recording a result makes it the
+unit's current calibration unless ``make_current=False``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.dialects import postgresql as pg_dialect
+from sqlalchemy.dialects import sqlite as sqlite_dialect
+
+from inscal.core.error_model import PARAMETERS, parameter_components
+from inscal.lab import schema as t
+from inscal.lab.database import Database, DatabaseError, read, write
+from inscal.lab.model import (
+    Calibration,
+    Parameter,
+    Session,
+    SessionInfo,
+    Unit,
+    utc_naive,
+)
+from inscal.lab.record import (
+    covariance_of,
+    fit_of,
+    options_hash,
+    param_file_text,
+    parameter_covariance,
+    parameter_rows,
+    parse_param_text,
+    text_hash,
+)
+
+
+def now() -> dt.datetime:
+    return dt.datetime.now(dt.UTC).replace(tzinfo=None, microsecond=0)
+
+
+def _insert_ignore(db_or_conn, table: sa.Table, index: list[str]):
+    name = db_or_conn.dialect.name
+    ins = (pg_dialect.insert if name == "postgresql" else sqlite_dialect.insert)(table)
+    return ins.on_conflict_do_nothing(index_elements=index)
+
+
+def _unit(row) -> Unit:
+    return Unit(row.id, row.serial, row.model, row.notes, row.created_at)
+
+
+def get_unit(db: Database, serial: str) -> Unit | None:
+    with read(db) as conn:
+        row = conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).first()
+    return None if row is None else _unit(row)
+
+
+def add_unit(db: Database, serial: str, model: str | None = None, notes: str | None = None) -> tuple[Unit, bool]:
+    """Register unit ``serial``: ``(unit, created)``.  Units are append-only: a unit that exists with
+    the same model and notes (or without them given) is returned, one with others is refused."""
+    serial = check_serial(serial)
+
+    def run(conn):
+        new = conn.execute(_insert_ignore(conn, t.units, ["serial"]).values(
+            serial=serial, model=model, notes=notes, created_at=now()).returning(t.units.c.id)).first()
+        return conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).one(), new is not None
+
+    row, created = write(db, run)
+    unit = _unit(row)
+    for what, given, have in (("model", model, unit.model), ("notes", notes, unit.notes)):
+        if given is not None and given != have:
+            raise DatabaseError(f"unit {serial} is registered already with {what} {have!r} (units are append-only: "
+                                f"not changed to {given!r})")
+    return unit, created
+
+
+def check_serial(serial: str) -> str:
+    s = str(serial).strip()
+    if not s or len(s) > 200 or any(not c.isprintable() for c in s):
+        raise DatabaseError(f"serial {serial!r}: give 1 to 200 printable characters")
+    return s
+
+
+def _unit_id(conn, serial: str) -> int:
+    uid = conn.execute(sa.select(t.units.c.id).where(t.units.c.serial == serial)).scalar()
+    if uid is None:
+        raise DatabaseError(f"unknown unit {serial!r}: register it first with `inscal db add {serial} --model MODEL`")
+    return uid
+
+
+def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
+                       options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
+                       make_current: bool | None = None) -> int:
+    """Record one calibration of unit ``serial`` (registered with :func:`add_unit`) in one transaction
+    and return its id: ``param_text``, the parameter file exactly as written (parsed here for the
+    parameters, fit and version); ``session``, its record (:func:`~inscal.lab.record.session_from_record`;
+    one session per unit and record sha256: the first one recorded keeps its metadata); ``options``,
+    the calibration's options (:func:`~inscal.lab.record.calibration_options`; by default the method
+    alone); ``covariance`` (:func:`~inscal.lab.record.covariance_of`; None: the diagonal of the
+    reported 1 sigma); ``supersedes``, the id of a result of the same unit this one replaces;
+    ``make_current``: make it the unit's current calibration (None: if its record is not older than
+    the current calibration's, so that recording an old calibration afterwards changes nothing).
+    Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
+    nothing is recorded."""
+    doc = parse_param_text(param_text)
+    method = doc["method"]
+    options = dict(options) if options is not None else {"method": method}
+    if options.get("method", method) != method:
+        raise DatabaseError(f"options are of method {options.get('method')!r} but the parameter file's is {method!r}")
+    options.setdefault("method", method)
+    rows = parameter_rows(doc)
+    fit, chi2, dof, p = fit_of(doc)
+    cov = covariance if covariance is not None else parameter_covariance(rows)
+    state_set = (doc.get("metadata") or {}).get("states")
+    stamp = now()
+    sess = {k: getattr(session, k) for k in ("record_sha256", "record_path", "station", "operator", "latitude_deg",
+                                             "longitude_deg", "height_m", "gravity_model", "g_site_m_s2",
+                                             "temperature_c", "path_name")}
+    sess["date"] = utc_naive(session.date)
+
+    def run(conn):
+        uid = _unit_id(conn, serial)
+        conn.execute(_insert_ignore(conn, t.sessions, ["unit_id", "record_sha256"]).values(
+            unit_id=uid, recorded_at=stamp, **sess))
+        sid = conn.execute(sa.select(t.sessions.c.id).where(t.sessions.c.unit_id == uid,
+                                                            t.sessions.c.record_sha256 == sess["record_sha256"])).scalar_one()
+        if supersedes is not None:
+            owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == supersedes)).scalar()
+            if owner is None:
+                raise DatabaseError(f"--supersedes {supersedes}: no such result")
+            if owner != uid:
+                raise DatabaseError(f"--supersedes {supersedes}: that result is of another unit, not {serial}")
+        rid = conn.execute(sa.insert(t.results).values(
+            unit_id=uid, session_id=sid, method=method, state_set=None if state_set is None else str(state_set),
+            options=options, options_hash=options_hash(options), fit_chi2=chi2, fit_dof=dof, fit_p=p, fit=fit,
+            notes=_notes(doc), covariance=cov, inscal_version=str(doc.get("inscal_version") or "unknown"),
+            param_file=param_text, param_file_sha256=text_hash(param_text), supersedes=supersedes,
+            recorded_at=stamp).returning(t.results.c.id)).scalar_one()
+        write_parameters(conn, rid, rows)
+        current = make_current
+        if current is None:
+            cid = current_id(conn, uid)
+            cdate = None if cid is None else conn.execute(
+                sa.select(t.sessions.c.date).join(t.results, t.results.c.session_id == t.sessions.c.id)
+                .where(t.results.c.id == cid)).scalar()
+            current = cdate is None or sess["date"] >= cdate
+        if current:
+            conn.execute(sa.insert(t.current).values(unit_id=uid, result_id=rid, set_at=stamp))
+        return rid
+
+    return write(db, run)
+
+
+def record_result(db: Database, serial: str, result, session: SessionInfo, *, data_file: str | None = None,
+                  metadata: dict | None = None, options: dict | None = None, supersedes: int | None = None,
+                  make_current: bool | None = None) -> tuple[int, str]:
+    """Record a :class:`~inscal.calibrate.CalibrationResult` of unit ``serial``: its parameter file's text
+    (:func:`~inscal.lab.record.param_file_text` with ``data_file``, the session's record hash and
+    ``metadata``) and covariance (:func:`~inscal.lab.record.covariance_of`), as :func:`record_calibration`;
+    returns ``(result id, parameter file text)`` (write the text to publish the same file)."""
+    text = param_file_text(result, data_file, session.record_sha256, metadata)
+    rid = record_calibration(db, serial, text, session, options=options, covariance=covariance_of(result),
+                             supersedes=supersedes, make_current=make_current)
+    return rid, text
+
+
+def _notes(doc: dict) -> list[str]:
+    fit = doc.get("fit") or {}
+    return [str(fit["note"])] if isinstance(fit, dict) and fit.get("note") else []
+
+
+def write_parameters(conn, result_id: int, rows: list[dict]) -> None:
+    """Insert the parameter rows of result ``result_id`` (inside the caller's transaction)."""
+    conn.execute(sa.insert(t.parameters), [{"result_id": result_id, **r} for r in rows])
+
+
+def set_current(db: Database, serial: str, result_id: int) -> None:
+    """Make result ``result_id`` (of unit ``serial``) the unit's current calibration."""
+
+    def run(conn):
+        uid = _unit_id(conn, serial)
+        owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == result_id)).scalar()
+        if owner != uid:
+            raise DatabaseError(f"result {result_id} is not a calibration of {serial}")
+        conn.execute(sa.insert(t.current).values(unit_id=uid, result_id=result_id, set_at=now()))
+
+    write(db, run)
+
+
+def find_calibration(db: Database, record_sha256: str, options: dict, serial: str | None = None) -> int | None:
+    """The id of the newest result already recorded from the record with ``record_sha256`` with the
+    same ``options`` (:func:`~inscal.lab.record.options_hash`), of unit ``serial`` if given; None if none."""
+    q = (sa.select(t.results.c.id).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
+         .where(t.sessions.c.record_sha256 == record_sha256, t.results.c.options_hash == options_hash(options))
+         .order_by(t.results.c.id.desc()).limit(1))
+    if serial is not None:
+        q = q.join(t.units, t.units.c.id == t.results.c.unit_id).where(t.units.c.serial == serial)
+    with read(db) as conn:
+        return conn.execute(q).scalar()
+
+
+def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | None:
+    """The id of a result of unit ``serial`` recorded from the very same parameter file, None if none."""
+    with read(db) as conn:
+        return conn.execute(sa.select(t.results.c.id).join(t.units, t.units.c.id == t.results.c.unit_id).where(
+            t.units.c.serial == serial, t.results.c.param_file_sha256 == param_file_sha256)
+            .order_by(t.results.c.id).limit(1)).scalar()
+
+
+def current_id(conn, unit_id: int) -> int | None:
+    return conn.execute(sa.select(t.current.c.result_id).where(t.current.c.unit_id == unit_id)
+                        .order_by(t.current.c.id.desc()).limit(1)).scalar()
+
+
+def _arrays(name: str, rows: list) -> Parameter:
+    shape = PARAMETERS[name][4]
+    n = len(parameter_components(name))
+
+    def arr(key):
+        a = np.full(n, np.nan)
+        for r in rows:
+            v = getattr(r, key)
+            a[r.component] = np.nan if v is None else v
+        return a.reshape(shape) if shape else a.reshape(())
+
+    formal = arr("sigma_formal") if any(r.sigma_formal is not None for r in rows) else None
+    return Parameter(name, rows[0].unit, arr("value"), arr("sigma"), formal,
+                     tuple(r.label for r in sorted(rows, key=lambda r: r.component)))
+
+
+def _load(conn, result_rows: list) -> list[Calibration]:
+    """The calibrations of ``result_rows`` (a few queries for all of them)."""
+    if not result_rows:
+        return []
+    ids = [r.id for r in result_rows]
+    params: dict[int, dict[str, list]] = {i: {} for i in ids}
+    for p in conn.execute(sa.select(t.parameters).where(t.parameters.c.result_id.in_(ids))
+                          .order_by(t.parameters.c.id)):
+        params[p.result_id].setdefault(p.name, []).append(p)
+    sess = {s.id: s for s in conn.execute(sa.select(t.sessions).where(
+        t.sessions.c.id.in_({r.session_id for r in result_rows})))}
+    unit_rows = {u.id: u for u in conn.execute(sa.select(t.units).where(
+        t.units.c.id.in_({r.unit_id for r in result_rows})))}
+    later: dict[int, list[int]] = {i: [] for i in ids}
+    for r in conn.execute(sa.select(t.results.c.id, t.results.c.supersedes).where(t.results.c.supersedes.in_(ids))):
+        later[r.supersedes].append(r.id)
+    cur = {uid: current_id(conn, uid) for uid in unit_rows}
+    out = []
+    for r in result_rows:
+        s = sess[r.session_id]
+        session = Session(id=s.id, record_sha256=s.record_sha256, date=s.date, record_path=s.record_path,
+                          station=s.station, operator=s.operator, latitude_deg=s.latitude_deg,
+                          longitude_deg=s.longitude_deg, height_m=s.height_m, gravity_model=s.gravity_model,
+                          g_site_m_s2=s.g_site_m_s2, temperature_c=s.temperature_c, path_name=s.path_name,
+                          recorded_at=s.recorded_at)
+        u = unit_rows[r.unit_id]
+        out.append(Calibration(
+            id=r.id, serial=u.serial, method=r.method, state_set=r.state_set, options=r.options,
+            options_hash=r.options_hash, parameters={n: _arrays(n, rows) for n, rows in params[r.id].items()},
+            covariance=r.covariance, fit=r.fit, fit_chi2=r.fit_chi2, fit_dof=r.fit_dof, fit_p=r.fit_p,
+            notes=tuple(r.notes or ()), inscal_version=r.inscal_version, param_text=r.param_file,
+            param_file_sha256=r.param_file_sha256, supersedes=r.supersedes, superseded_by=tuple(sorted(later[r.id])),
+            current=cur[r.unit_id] == r.id, recorded_at=r.recorded_at, session=session, unit_model=u.model))
+    return out
+
+
+def get_calibration(db: Database, result_id: int) -> Calibration:
+    """Result ``result_id`` with all its parameters, sigma, covariance, fit and provenance."""
+    with read(db) as conn:
+        row = conn.execute(sa.select(t.results).where(t.results.c.id == int(result_id))).first()
+        if row is None:
+            raise DatabaseError(f"no calibration result {result_id} in {db.where}")
+        return _load(conn, [row])[0]
+
+
+def current_calibration(db: Database, serial: str) -> Calibration | None:
+    """The current calibration of unit ``serial`` (None if it has none); unknown unit: :class:`DatabaseError`."""
+    with read(db) as conn:
+        rid = current_id(conn, _unit_id(conn, serial))
+        if rid is None:
+            return None
+        return _load(conn, [conn.execute(sa.select(t.results).where(t.results.c.id == rid)).one()])[0]
+
+
+def calibrations(db: Database, serial: str, method: str | None = None, superseded: bool = False) -> list[Calibration]:
+    """The calibrations of unit ``serial`` in the order of their records' dates (then of recording), of
+    ``method`` if given; without ``superseded``, the results another one supersedes are left out."""
+    with read(db) as conn:
+        uid = _unit_id(conn, serial)
+        q = (sa.select(t.results).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
+             .where(t.results.c.unit_id == uid).order_by(t.sessions.c.date, t.results.c.id))
+        if method is not None:
+            q = q.where(t.results.c.method == method)
+        if not superseded:
+            later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
+            q = q.where(t.results.c.id.not_in(later))
+        return _load(conn, list(conn.execute(q)))
+
+
+def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
+    """Every unit with its number of (not superseded) results and its current result id, by serial."""
+    with read(db) as conn:
+        later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
+        counts = dict(conn.execute(sa.select(t.results.c.unit_id, sa.func.count()).where(
+            t.results.c.id.not_in(later)).group_by(t.results.c.unit_id)).all())
+        out = []
+        for row in conn.execute(sa.select(t.units).order_by(t.units.c.serial)):
+            out.append((_unit(row), int(counts.get(row.id, 0)), current_id(conn, row.id)))
+        return out
+
+
+def table_counts(db: Database) -> dict[str, int]:
+    """Rows per table."""
+    with read(db) as conn:
+        return {tab.name: int(conn.execute(sa.select(sa.func.count()).select_from(tab)).scalar_one())
+                for tab in t.TABLES}
