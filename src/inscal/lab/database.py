@@ -6,7 +6,8 @@ URL: ``sqlite:///PATH`` or ``postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME`` (a 
 database; the ``psycopg`` driver, ``pip install 'inscal[postgresql]'``).  Without either, the
 file ``calib.sqlite`` in the current folder.
 
-Schema revisions (Alembic, :mod:`inscal.lab.migrations`): :func:`init_database` creates the tables
+Schema revisions (Alembic scripts in ``inscal/lab/migrations/``: ``env.py`` and one file per revision in
+``versions/``, loaded by path, not as modules): :func:`init_database` creates the tables
 at the newest revision; :func:`open_database` refuses, in one line, a database whose revision
 is newer than this inscal knows (made by a newer inscal) and one at an older revision (run
 ``inscal db upgrade``, or ``upgrade=True``), so no version ever writes rows the other cannot read.

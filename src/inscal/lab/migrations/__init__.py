@@ -1,2 +1,0 @@
-"""The Alembic migrations of the calibration database (run by :mod:`inscal.lab.database`; no
-``alembic.ini`` needed): ``env.py`` and one module per revision in ``versions/``."""
