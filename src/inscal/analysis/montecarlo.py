@@ -64,9 +64,9 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
-from scipy.stats import chi2
 
 from inscal import __version__ as inscal_version
+from inscal.core.stats import chi2_ppf
 from inscal.io.jsonfile import to_jsonable
 
 SCHEMA_VERSION = 1
@@ -659,4 +659,4 @@ def std_ci(std: float, n: int, level: float = 0.95) -> tuple[float, float]:
     if n < 2 or not np.isfinite(std):
         return (math.nan, math.nan)
     a = (1 - level) / 2
-    return (std * math.sqrt((n - 1) / chi2.ppf(1 - a, n - 1)), std * math.sqrt((n - 1) / chi2.ppf(a, n - 1)))
+    return (std * math.sqrt((n - 1) / chi2_ppf(1 - a, n - 1)), std * math.sqrt((n - 1) / chi2_ppf(a, n - 1)))

@@ -7,7 +7,6 @@ import math
 from typing import Callable
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
 
 from inscal.calibrate.result import GIMBAL, IMU_LINEAR, flatten, nparams, unflatten
 from inscal.calibrate.window_model import (
@@ -20,6 +19,7 @@ from inscal.calibrate.window_model import (
 from inscal.calibrate.windows import WindowSet
 from inscal.core.attitude import rot_z
 from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.stats import chi2_sf
 from inscal.core.turntable import outer_axis
 
 
@@ -90,11 +90,6 @@ def normalised_residuals(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet) ->
     sg = np.maximum(np.array([w.gyro_sigma for w in ws.windows]), GYRO_FLOOR)
     sa = np.maximum(np.array([w.accel_sigma for w in ws.windows]), ACCEL_FLOOR)
     return (Ng - G) / sg, (Na - A) / sa
-
-
-def chi2_sf(chi2: float, dof: int) -> float:
-
-    return float(_chi2.sf(chi2, dof))
 
 
 def estimator_reference(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, S: np.ndarray, idx: np.ndarray,

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from inscal.core.stats import chi2_sf
 from inscal.io.jsonfile import to_jsonable
 from inscal.lab.model import Calibration, iso
 
@@ -44,27 +45,6 @@ DEFAULT_K = 3.0
 def tail(k: float) -> float:
     """P(|z| > k) of a standard Gaussian: the false-alarm probability of one test."""
     return math.erfc(k / math.sqrt(2.0))
-
-
-def chi2_sf(x: float, dof: int) -> float:
-    """P(chi2 > x) with integer ``dof``: the closed forms of the regularized upper incomplete gamma
-    function Q(dof/2, x/2) (Abramowitz & Stegun 26.4.4-26.4.5)."""
-    if x <= 0:
-        return 1.0
-    h = x / 2.0
-    if dof % 2 == 0:
-        term, total = 1.0, 1.0
-        for k in range(1, dof // 2):
-            term *= h / k
-            total += term
-        return min(1.0, math.exp(-h) * total)
-    total = math.erfc(math.sqrt(h))
-    term = math.sqrt(h) / math.gamma(1.5)
-    for k in range((dof - 1) // 2):
-        if k:
-            term *= h / (k + 0.5)
-        total += math.exp(-h) * term
-    return min(1.0, total)
 
 
 def months_between(t0: dt.datetime, t: dt.datetime) -> float:

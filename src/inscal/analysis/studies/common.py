@@ -10,12 +10,12 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
-from scipy.stats import chi2
 
 from inscal.analysis.montecarlo import Experiment, StudyError
 from inscal.calibrate import METHODS, calibrate
 from inscal.core import units
 from inscal.core.error_model import GimbalErrors
+from inscal.core.stats import chi2_ppf
 from inscal.core.turntable import Move, RotationPath, n25_twelve
 from inscal.io.records import Record, Truth
 from inscal.sim.scenarios import build
@@ -103,14 +103,14 @@ def rms_z_band(runs: int, level: float = 0.95) -> tuple[float, float]:
     """Sampling band of the RMS of ``runs`` independent standard normal draws."""
 
     a = (1 - level) / 2
-    return (math.sqrt(chi2.ppf(a, runs) / runs), math.sqrt(chi2.ppf(1 - a, runs) / runs))
+    return (math.sqrt(chi2_ppf(a, runs) / runs), math.sqrt(chi2_ppf(1 - a, runs) / runs))
 
 
 def nees_band(runs: int, dof: int, level: float = 0.95) -> tuple[float, float]:
     """Band of the mean of ``runs`` chi-square(``dof``) draws: ``chi2.ppf([a, 1-a], runs*dof) / runs``."""
 
     a = (1 - level) / 2
-    return (float(chi2.ppf(a, runs * dof) / runs), float(chi2.ppf(1 - a, runs * dof) / runs))
+    return (chi2_ppf(a, runs * dof) / runs, chi2_ppf(1 - a, runs * dof) / runs)
 
 
 
