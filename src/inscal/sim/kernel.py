@@ -417,3 +417,20 @@ def quantum_step(x, q, total, emitted, c):
     out = (cnt - emitted[c]) * q
     emitted[c] = cnt
     return out
+
+
+@njit(cache=True)
+def gauss_markov_filter(x, phi, z):
+    """The first-order Gauss-Markov recursion ``y_k = x_k + z``, ``z = phi y_k`` per column of x (n, k),
+    from the state ``z`` (k,), updated in place: ``scipy.signal.lfilter([1], [1, -phi], x, axis=0, zi=z)``
+    with the same bits (its direct form II transposed computes ``1 x_k + z`` and ``0 x_k - (-phi) y_k``),
+    as the compiled pass does it."""
+    n, k = x.shape
+    y = np.empty((n, k))
+    for i in range(n):
+        for j in range(k):
+            v = z[j] + x[i, j]
+            z[j] = v * phi
+            y[i, j] = v
+    return y
+

@@ -34,7 +34,6 @@ from typing import Callable, Iterator
 
 import numpy as np
 from numba import njit
-from scipy.signal import lfilter
 
 from inscal.core.attitude import dcm_from_euler
 from inscal.core.earth import Site
@@ -58,6 +57,7 @@ from inscal.sim.kernel import (
     O_RECORD,
     O_TRUTH,
     O_VRW,
+    gauss_markov_filter,
     simulate_pass,
 )
 
@@ -318,8 +318,9 @@ class NoiseState:
         if z is None:
             return 0.0
         phi, drive = self.gauss_markov(tau)
-        out, zf = lfilter([1.0], [1.0, -phi], z * sigma * drive, axis=0, zi=getattr(self, zi_name))
-        setattr(self, zi_name, zf)
+        zf = np.array(getattr(self, zi_name), dtype=float).reshape(-1)
+        out = gauss_markov_filter(np.ascontiguousarray(z * sigma * drive), phi, zf)
+        setattr(self, zi_name, zf[None, :])
         return out
 
     @staticmethod
