@@ -37,13 +37,13 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.systematic.driver import systematic
 from inscal.calibrate.systematic.states import StateSet, state_spec
 from inscal.calibrate.windows import CalibrationError
 from inscal.core.error_model import ImuErrors
+from inscal.core.stats import chi2_sf
 
 #: terms added when significant: option -> (StateSet field, value)
 ADD = {"async": ("asynchrony", True), "lever9": ("lever9", True)}
@@ -90,7 +90,7 @@ def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResu
     c_l, dof = _chi2(large)
     phi = max(1.0, c_l / max(dof - dk, 1))
     stat = max(0.0, (c_s - c_l) / phi)
-    p = float(chi2_dist.sf(stat, dk))
+    p = chi2_sf(stat, dk)
     return Decision(step, term, c_s, c_l, dk, phi, stat, p, p < alpha if step == "add" else p >= alpha)
 
 
