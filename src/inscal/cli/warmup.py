@@ -122,14 +122,17 @@ def _navigate(tmp: Path) -> None:
 
 def _library(tmp: Path) -> None:
     """What no command above reaches: the PSINS gravity formula (``--gravity psins``, a site table's
-    ``gravity = "psins"``) and the covariance-form Kalman steps (tests and benchmark), with the
-    argument types their callers use."""
+    ``gravity = "psins"``), the covariance-form Kalman steps (tests and benchmark) and the bias-instability
+    recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), with the argument types
+    their callers use."""
     import numpy as np
 
     from inscal.core import kalman
     from inscal.core.earth import parse_gravity
+    from inscal.sim.kernel import gauss_markov_filter
 
     parse_gravity("psins").g(0.5, 10.0)
+    gauss_markov_filter(np.zeros((2, 3)), 0.5, np.zeros(3))
     n, N = 9, 12
     P = np.eye(N)
     kalman.predict(P, n, np.eye(n), np.zeros((n, N - n)), np.eye(n) * 1e-6, np.zeros(N - n))
