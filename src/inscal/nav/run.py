@@ -191,10 +191,10 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
         height_ref = HeightReference(height_ref)
     if height_ref is not None and config.vertical == "free":
         raise ValueError("a height reference needs a damped (or held) vertical channel, not vertical 'free'")
-    profile = height_ref is not None and not height_ref.constant
-    if height_ref is not None and not profile:
+    if height_ref is not None and height_ref.constant:
         nav.st[S_HREF] = height_ref.height[0]
-    blk = max(1, int(round(HeightReference.UPDATE_S * rate_hz)))
+    elif height_ref is not None:  # the kernel reads the profile once per UPDATE_S, at the middle of each block
+        nav.set_height_reference(height_ref, max(1, round(HeightReference.UPDATE_S * rate_hz)))
     parts = []
     n_seen = k0
     for t, dth, dv, g in stream.chunks():
@@ -202,17 +202,10 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
         vr = None
         if vref is not None:
             vr = vref(t) if callable(vref) else vref
-        if profile:  # the reference once per UPDATE_S, at the middle of each block of samples
-            per = vr is not None and np.ndim(vr) == 2 and np.shape(vr)[0] == t.shape[0]
-            for a in range(0, t.shape[0], blk):
-                b = min(a + blk, t.shape[0])
-                nav.st[S_HREF] = height_ref(0.5 * (t[a] + t[b - 1]))
-                parts.append(nav.run(dth[a:b], dv[a:b], None if g is None else g[a:b], vr[a:b] if per else vr))
-        else:
-            parts.append(nav.run(dth, dv, g, vr))
+        parts.append(nav.run(dth, dv, g, vr))
         if progress is not None:
             progress(float(t[-1]))
-    out = NavOutput.concatenate(parts) if parts else None
+    out = NavOutput.concatenate(parts, release=True) if parts else None
     if out is None or out.time.size == 0:  # no output row: nothing to judge the navigation by
         raise ValueError(too_short(n_seen, rate_hz, *samples_needed(rate_hz, config, init, align_config)))
     # static base: position and velocity are known even without a simulation truth
