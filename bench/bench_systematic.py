@@ -4,7 +4,8 @@
 Times, in this process (best of ``--repeats``):
 
 (a) one full ``calibrate(rec, "systematic51")``: every pass (navigation, filter, smoother)
-    plus the driver's own work (noise estimate, coarse alignment, Jacobian, history);
+    plus the driver's own work (noise estimate, resolution, coarse alignment, Jacobian, history,
+    fit), each phase timed apart;
 (b) one single pass (``max_passes=1``), and inside it the pass kernel (compensation,
     navigation, Jacobian accumulation, discretisation, predict and update) and the smoother;
 (c) the same single-pass filter and smoother written densely with filterpy
@@ -22,7 +23,9 @@ It also checks that the dense filterpy filter gives our numbers: the filtered co
 diagonal and estimate after the last update, and the smoothed states and covariance
 diagonals at every stored step (scaled states), and prints where the time of (a) goes.
 
-Run: ``python bench/bench_systematic.py [--repeats N] [--no-memory] [--no-filterpy]``.
+Run: ``python bench/bench_systematic.py [--repeats N] [--no-memory] [--no-filterpy] [--e2e]`` (``--e2e``: (a) and
+(d) only).  Every time is printed as ``in X s``, the form ``bench/compare.py`` reads
+(``python bench/compare.py --base REV --same-script bench_systematic.py --args=--e2e``).
 Targets: (a) under 3 s on a 2-core machine, goal 1 s; (c) / filter+smoother >= 10x;
 peak memory under 500 MB.
 """
@@ -54,9 +57,19 @@ from inscal.calibrate.systematic.kernel import _pass_kernel, run_pass
 from inscal.calibrate.systematic.states import IDX_MEAS
 
 TARGET_S, GOAL_S, TARGET_RATIO, TARGET_MB = 3.0, 1.0, 10.0, 500.0
-#: the timed functions, each patched in the module that looks it up when it is called
-TIMED = ((DRIVER, "run_pass"), (KERNEL, "_pass_kernel"), (KERNEL, "_smooth_kernel"), (DRIVER, "pass_history"),
-         (DRIVER, "canonical_jacobian"), (DRIVER, "estimate_white_noise"))
+#: the timed functions, each patched in the module that looks it up when it is called (absent ones skipped)
+TIMED = ((DRIVER, "run_pass"), (KERNEL, "_pass_kernel"), (KERNEL, "_smooth_vector_kernel"), (KERNEL, "_smooth_kernel"),
+         (DRIVER, "smooth_pass"), (DRIVER, "pass_history"), (DRIVER, "canonical_jacobian"),
+         (DRIVER, "estimate_white_noise"), (DRIVER, "data_resolution"), (DRIVER, "float32_rounding"),
+         (DRIVER, "_first_motion"), (DRIVER, "coarse_align"), (DRIVER, "misfit_signature"))
+#: the driver's own phases of (a): (label, timed functions)
+PHASES = (("noise estimate (second differences)", ("estimate_white_noise",)),
+          ("quantum and float32 rounding of the record", ("data_resolution", "float32_rounding")),
+          ("first motion and coarse alignment", ("_first_motion", "coarse_align")),
+          ("smoother run by the driver (smooth_pass)", ("smooth_pass",)),
+          ("canonical Jacobian", ("canonical_jacobian",)),
+          ("history (pass_history)", ("pass_history",)),
+          ("misfit signature of the fit", ("misfit_signature",)))
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -325,12 +338,57 @@ def _verdict(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
 
+def _t(label: str, value: float, w: int, extra: str = "") -> str:
+    """A figure line: the label, then ``in X s`` (the form bench/compare.py reads)."""
+    return f"  {label:<{w}} in {value:>7.3f} s{extra}"
+
+
+def _report_full(A: dict, passes: int, repeats: int, w: int) -> None:
+    """(a): the total, the passes and where the time went."""
+    tot = A["total"]
+    print(_t(f"(a) full calibrate(rec, systematic51), best of {repeats}", tot, w,
+             f"   < {TARGET_S:g} s {_verdict(tot < TARGET_S)}, goal {GOAL_S:g} s {_verdict(tot < GOAL_S)}"))
+    print(f"  {'    passes':<{w}} {passes:>10d}")
+    npass = max(A.get("run_pass#", 1), 1)
+    print(_t("    per pass (run_pass: navigation, filter, smoothed states)", A.get("run_pass", math.nan) / npass, w))
+    print(_t("      pass kernel (comp., nav, Jacobian, predict, update)",
+             A.get("_pass_kernel", math.nan) / max(A.get("_pass_kernel#", 1), 1), w))
+    print(_t("      adjoint recursion (smoothed states)",
+             A.get("_smooth_vector_kernel", 0.0) / max(A.get("_smooth_vector_kernel#", 1), 1), w))
+    print(_t("    all passes (run_pass)", A.get("run_pass", math.nan), w))
+    known = A.get("run_pass", 0.0)
+    for label, names in PHASES:
+        v = sum(A.get(nm, 0.0) for nm in names)
+        known += v
+        print(_t(f"    driver: {label}", v, w))
+    print(_t("    driver: rest (prior change, result, fit)", tot - known, w))
+
+
+def _report_memory(mem: dict, w: int) -> None:
+    """(d): the peak memory of a fresh process."""
+    mb = max(mem["hwm_setup_kb"], mem["hwm_run_kb"]) / 1024
+    print(f"  {'(d) peak RSS of a fresh process running one full calibration':<{w}} {mb:>7.0f} MB   "
+          f"< {TARGET_MB:g} MB {_verdict(mb < TARGET_MB)}")
+    lab = "      before the run: imports, record, compiled code"
+    print(f"  {lab:<{w}} {mem['rss_before_kb'] / 1024:>7.0f} MB")
+    if mem["reset"]:
+        print(f"  {'      peak during the run (high-water mark reset before it)':<{w}} "
+              f"{mem['hwm_run_kb'] / 1024:>7.0f} MB   "
+              f"(+{(mem['hwm_run_kb'] - mem['rss_before_kb']) / 1024:.0f} MB)")
+    print(f"  {'      tracemalloc peak of one calibration (NumPy arrays)':<{w}} "
+          f"{mem['traced_peak_b'] / 2**20:>7.0f} MB")
+    print(f"  {'      peak before the run (incl. a 300 s warm-up calibration)':<{w}} "
+          f"{mem['hwm_setup_kb'] / 1024:>7.0f} MB   (warm-up {mem['warm_s']:.1f} s"
+          + (": numba compiled, the cache was stale)" if mem["warm_s"] > 5 else ": numba cache)"))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=2, help="timed runs of the full calibration (best); the "
                     "single-pass figures take max(3, repeats)")
     ap.add_argument("--no-memory", action="store_true", help="skip the peak-memory subprocess")
     ap.add_argument("--no-filterpy", action="store_true", help="skip the dense filterpy comparison")
+    ap.add_argument("--e2e", action="store_true", help="only the end-to-end calibration (a) and its peak memory (d)")
     a = ap.parse_args(argv)
     reps1 = max(3, a.repeats)
     load0 = os.getloadavg()
@@ -356,6 +414,19 @@ def main(argv=None) -> int:
     A = min(runs, key=lambda r: r["total"])
     passes = len(res.diagnostics["passes"])
     steps = int(res.diagnostics["steps"])
+    N = int(res.diagnostics["states"])
+    w = 62
+    print(f"bench_systematic: s16 record, {n} samples ({n / rec.rate_hz / 3600:.2f} h at {rec.rate_hz:g} Hz), "
+          f"{steps} filter steps, {N} states; simulate {t_sim:.2f} s, warm-up {t_warm:.1f} s (not timed)")
+    cores, load = os.cpu_count() or 1, load0
+    print(f"  {cores} cores, load average {load[0]:.1f} at the start, {os.getloadavg()[0]:.1f} now"
+          + ("  (busy machine: other processes share the cores, the times are inflated)" if load[0] > 0.75 * cores
+             else ""))
+    _report_full(A, passes, a.repeats, w)
+    if a.e2e:
+        if not a.no_memory:
+            _report_memory(_memory(rec), w)
+        return 0
 
     # (b) one pass; capture its arguments
     keep: dict = {}
@@ -366,6 +437,7 @@ def main(argv=None) -> int:
     ba.apply_defaults()
     pa = dict(ba.arguments)
     pa["keep_phi"] = True
+    pa["smooth"] = True  # the full smoother too: its covariances for (c)
     runs_b = []
     for _ in range(reps1):
         accb: dict = {}
@@ -481,53 +553,31 @@ def main(argv=None) -> int:
         mem = _memory(rec)
 
     # ------------------------------------------------------------------ report
-    tot = A["total"]
-    per_pass = A["run_pass"] / A["run_pass#"]
-    other = tot - A["run_pass"] - A.get("pass_history", 0) - A.get("canonical_jacobian", 0) - A.get("estimate_white_noise", 0)
-    print(f"bench_systematic: s16 record, {n} samples ({n / rec.rate_hz / 3600:.2f} h at {rec.rate_hz:g} Hz), "
-          f"{steps} filter steps, {N} states; simulate {t_sim:.2f} s, warm-up {t_warm:.1f} s (not timed)")
-    cores, load = os.cpu_count() or 1, load0
-    print(f"  {cores} cores, load average {load[0]:.1f} at the start, {os.getloadavg()[0]:.1f} now"
-          + ("  (busy machine: other processes share the cores, the times are inflated)" if load[0] > 0.75 * cores
-             else ""))
-    w = 62
-    print(f"  {'figure':<{w}} {'value':>10}   target")
-    print(f"  {'(a) full calibrate(rec, systematic51), best of ' + str(a.repeats):<{w}} {tot:>8.3f} s   "
-          f"< {TARGET_S:g} s {_verdict(tot < TARGET_S)}, goal {GOAL_S:g} s {_verdict(tot < GOAL_S)}")
-    print(f"  {f'    passes':<{w}} {passes:>10d}")
-    print(f"  {'    per pass (navigation + filter + smoother: run_pass)':<{w}} {per_pass:>8.3f} s")
-    print(f"  {'      pass kernel (comp., nav, Jacobian, predict, update)':<{w}} "
-          f"{A.get('_pass_kernel', math.nan) / A.get('_pass_kernel#', 1):>8.3f} s")
-    print(f"  {'      smoother kernel':<{w}} {A.get('_smooth_kernel', math.nan) / A.get('_smooth_kernel#', 1):>8.3f} s")
-    print(f"  {'    driver: pass_history (once)':<{w}} {A.get('pass_history', 0):>8.3f} s")
-    print(f"  {'    driver: estimate_white_noise (once)':<{w}} {A.get('estimate_white_noise', 0):>8.3f} s")
-    print(f"  {'    driver: canonical_jacobian (once)':<{w}} {A.get('canonical_jacobian', 0):>8.3f} s")
-    print(f"  {'    driver: rest (coarse alignment, corrections, result)':<{w}} {other:>8.3f} s")
-    print(f"  {'(b) single pass calibrate(..., max_passes=1), best of ' + str(reps1):<{w}} {t_b:>8.3f} s")
-    print(f"  {'    run_pass (navigation + filter + smoother)':<{w}} {t_pass:>8.3f} s")
-    print(f"  {'      pass kernel, 51 states':<{w}} {t_kern:>8.3f} s")
+    print(f"  {'(b) single pass calibrate(..., max_passes=1), best of ' + str(reps1):<{w}} in {t_b:>7.3f} s")
+    print(f"  {'    run_pass (navigation + filter + smoother)':<{w}} in {t_pass:>7.3f} s")
+    print(f"  {'      pass kernel, 51 states':<{w}} in {t_kern:>7.3f} s")
     if t_kern9 is not None:
-        print(f"  {'        same kernel, 9 states (compensation + navigation)':<{w}} {t_kern9:>8.3f} s")
+        print(f"  {'        same kernel, 9 states (compensation + navigation)':<{w}} in {t_kern9:>7.3f} s")
         print(f"  {'        => Jacobian accumulation + Phi_np (51 - 9 - engine fwd)':<{w}} "
-              f"{t_kern - t_kern9 - t_fwd:>8.3f} s")
-    print(f"  {'      smoother kernel':<{w}} {t_smooth:>8.3f} s")
+              f"in {t_kern - t_kern9 - t_fwd:>7.3f} s")
+    print(f"  {'      smoother kernel':<{w}} in {t_smooth:>7.3f} s")
     print(f"  {'    structured engine alone (inscal.core.kalman, replayed):':<{w}}")
-    print(f"  {'      predict':<{w}} {t_pred:>8.3f} s   ({t_pred / steps * 1e6:.1f} us/step)")
-    print(f"  {'      update (Joseph)':<{w}} {t_upd:>8.3f} s   ({t_upd / steps * 1e6:.1f} us/step)")
-    print(f"  {'      filter: predict + update (one loop)':<{w}} {t_fwd:>8.3f} s")
-    print(f"  {'      smoother: smoother_step':<{w}} {t_bwd1:>8.3f} s   ({t_bwd1 / steps * 1e6:.1f} us/step)")
-    print(f"  {'      smoother: adjoint_back':<{w}} {t_bwd2:>8.3f} s   ({t_bwd2 / steps * 1e6:.1f} us/step)")
-    print(f"  {f'      smoother: smoothed estimates ({nh} stored steps)':<{w}} {t_bwd3:>8.3f} s")
-    print(f"  {'      smoother: all (one loop)':<{w}} {t_bwd:>8.3f} s")
-    print(f"  {'      engine filter + smoother':<{w}} {t_engine:>8.3f} s   (replay == pass: max abs dev "
+    print(f"  {'      predict':<{w}} in {t_pred:>7.3f} s   ({t_pred / steps * 1e6:.1f} us/step)")
+    print(f"  {'      update (Joseph)':<{w}} in {t_upd:>7.3f} s   ({t_upd / steps * 1e6:.1f} us/step)")
+    print(f"  {'      filter: predict + update (one loop)':<{w}} in {t_fwd:>7.3f} s")
+    print(f"  {'      smoother: smoother_step':<{w}} in {t_bwd1:>7.3f} s   ({t_bwd1 / steps * 1e6:.1f} us/step)")
+    print(f"  {'      smoother: adjoint_back':<{w}} in {t_bwd2:>7.3f} s   ({t_bwd2 / steps * 1e6:.1f} us/step)")
+    print(f"  {f'      smoother: smoothed estimates ({nh} stored steps)':<{w}} in {t_bwd3:>7.3f} s")
+    print(f"  {'      smoother: all (one loop)':<{w}} in {t_bwd:>7.3f} s")
+    print(f"  {'      engine filter + smoother':<{w}} in {t_engine:>7.3f} s   (replay == pass: max abs dev "
           f"{replay_dev:.1e})")
     if dense is not None:
         td = dense["t_fwd"] + dense["t_smooth"]
         r_eng, r_pass = td / t_engine, td / t_pass
-        print(f"  {'(c) dense filterpy filter + rts_smoother (no navigation)':<{w}} {td:>8.3f} s")
-        print(f"  {'      predict + update (KalmanFilter, dim_x=51, dim_z=6)':<{w}} {dense['t_fwd']:>8.3f} s   "
+        print(f"  {'(c) dense filterpy filter + rts_smoother (no navigation)':<{w}} in {td:>7.3f} s")
+        print(f"  {'      predict + update (KalmanFilter, dim_x=51, dim_z=6)':<{w}} in {dense['t_fwd']:>7.3f} s   "
               f"({dense['t_fwd'] / steps * 1e6:.0f} us/step)")
-        print(f"  {'      rts_smoother':<{w}} {dense['t_smooth']:>8.3f} s   "
+        print(f"  {'      rts_smoother':<{w}} in {dense['t_smooth']:>7.3f} s   "
               f"({dense['t_smooth'] / steps * 1e6:.0f} us/step)")
         print(f"  {'    ratio (c) / engine filter + smoother':<{w}} {r_eng:>8.1f} x   >= {TARGET_RATIO:g} x "
               f"{_verdict(r_eng >= TARGET_RATIO)}")
@@ -550,20 +600,7 @@ def main(argv=None) -> int:
         print(f"  {'      stored steps with a smoothed variance <= 0':<{w}} "
               f"{dense['neg'][0]:>10d} | {dense['neg'][1]}")
     if mem is not None:
-        mb = max(mem["hwm_setup_kb"], mem["hwm_run_kb"]) / 1024
-        print(f"  {'(d) peak RSS of a fresh process running one full calibration':<{w}} {mb:>7.0f} MB   "
-              f"< {TARGET_MB:g} MB {_verdict(mb < TARGET_MB)}")
-        lab = "      before the run: imports, record, compiled code"
-        print(f"  {lab:<{w}} {mem['rss_before_kb'] / 1024:>7.0f} MB")
-        if mem["reset"]:
-            print(f"  {'      peak during the run (high-water mark reset before it)':<{w}} "
-                  f"{mem['hwm_run_kb'] / 1024:>7.0f} MB   "
-                  f"(+{(mem['hwm_run_kb'] - mem['rss_before_kb']) / 1024:.0f} MB)")
-        print(f"  {'      tracemalloc peak of one calibration (NumPy arrays)':<{w}} "
-              f"{mem['traced_peak_b'] / 2**20:>7.0f} MB")
-        print(f"  {'      peak before the run (incl. a 300 s warm-up calibration)':<{w}} "
-              f"{mem['hwm_setup_kb'] / 1024:>7.0f} MB   (warm-up {mem['warm_s']:.1f} s"
-              + (": numba compiled, the cache was stale)" if mem["warm_s"] > 5 else ": numba cache)"))
+        _report_memory(mem, w)
     return 0
 
 

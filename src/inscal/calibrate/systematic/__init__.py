@@ -47,7 +47,8 @@ sample by sample, so::
     Phi_nn = I + F T + F^2 T^2/2 + F^3 T^3/6
     Phi_np = sum_k e^{F (T - t_k)} F_np(t_k) dt = M0 + F M1 + F^2 M2,  M_i = sum_k (T - t_k)^i / i! F_np(t_k) dt
 
-(``M_i`` accumulated per sample), and ``Q_d = int_0^T Phi(s) Q_c Phi(s)^T ds`` of the white gyro
+(``M_i`` over the step's samples: :mod:`inscal.calibrate.systematic.jacobian`), and
+``Q_d = int_0^T Phi(s) Q_c Phi(s)^T ds`` of the white gyro
 and accelerometer noise by 3-point Gauss-Legendre quadrature (positive weights: PSD by
 construction, which the square-root prediction's Cholesky needs).  Measurements at each step: zero velocity and the
 known position (S16 eq. 25-26 plus the fixed-position observation).

@@ -14,8 +14,10 @@ from inscal.calibrate.systematic.params import (
     CompParams,
     canonical_flat,
     params_from_ref,
+    ref_error_states,
     truth_in_frame,
 )
+from inscal.calibrate.systematic.record_stats import step_rates
 from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
@@ -117,14 +119,9 @@ def misfit_signature(nis: np.ndarray, dtheta: np.ndarray, dt: float, n_per: int)
     A model that misses a term of the moves (asynchrony, a lever arm, a scheme difference) fits the
     dwells and misfits the turns; wrong noise misfits both alike."""
     M = nis.shape[0]
-    n = M * n_per
-    w = np.asarray(dtheta[:n], float).reshape(M, n_per, 3) / dt
-    rate = np.linalg.norm(w, axis=2)
-    mean_rate = rate.mean(axis=1)
-    dw = np.linalg.norm(np.diff(np.asarray(dtheta[:n + 1], float), axis=0), axis=1) / dt ** 2 if n > 1 else np.zeros(1)
-    dw = np.concatenate([dw, np.zeros(max(0, n - dw.shape[0]))])[:n].reshape(M, n_per)
-    feats = {"rate": mean_rate, "rate_squared": mean_rate ** 2, "angular_acceleration": dw.max(axis=1),
-             "angular_acceleration_at_step_end": dw[:, -1]}
+    mean_rate, dw_max, dw_end = step_rates(np.ascontiguousarray(dtheta, dtype=float), dt, dt ** 2, n_per, M)
+    feats = {"rate": mean_rate, "rate_squared": mean_rate ** 2, "angular_acceleration": dw_max,
+             "angular_acceleration_at_step_end": dw_end}
     turning = mean_rate > TURNING_RATE
     rank = np.argsort(np.argsort(nis))
     corr = {}
@@ -238,13 +235,14 @@ def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams
     # canonical values to first order about the final estimate: canon(ref) = canon(final) + J x_ref,
     # x_ref = the error state of each reference relative to the final (exact conversions at both ends)
     fin = canonical_flat(final, names)
-    refs = [params_from_ref(r) for r in out.hist_ref]
-    xr = np.array([r.error_state(st, final) for r in refs])
+    xr = ref_error_states(out.hist_ref, st, final)
     filt = fin + xr @ J.T
-    filt[0] = canonical_flat(refs[0], names)
+    filt[0] = canonical_flat(params_from_ref(out.hist_ref[0]), names)
     mbf = fin + (xr - out.hist_x[:, N_NAV:] * sig_par) @ J.T
+    # diag(J P J^T) of every row in one product: sum_jk P_jk J_ij J_ik = P (flattened) . (J_i outer J_i)
     Pm = out.hist_Pm[:, N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)
-    sf = np.sqrt(np.maximum(np.sum((J @ Pm) * J, axis=2), 0.0))
+    JJ = (J[:, :, None] * J[:, None, :]).reshape(J.shape[0], -1)
+    sf = np.sqrt(np.maximum(Pm.reshape(Pm.shape[0], -1) @ JJ.T, 0.0))
     sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P_post, J), 0.0))
     n = filt.shape[0]
     return {"step": out.hist_step, "names": names, "filtered": filt, "filtered_sigma": sf,

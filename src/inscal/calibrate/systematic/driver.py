@@ -25,6 +25,11 @@ from inscal.calibrate.systematic.diagnostics import (
 )
 from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
+from inscal.calibrate.systematic.record_stats import (
+    column_quantum,
+    first_turn,
+    second_difference_mad,
+)
 from inscal.calibrate.systematic.states import (
     ARW_FLOOR,
     DEFAULT_SIGMA0,
@@ -53,8 +58,9 @@ CHI2_6_MEDIAN = 5.348
 #: default interval between the stored history rows [s]
 HISTORY_S = 10.0
 #: peak memory of the driver's working copies of the increments, beyond the record itself [bytes per sample]:
-#: measured 143 B with 51 states (the second differences of the noise estimate, the cumulative sums of the
-#: first-motion search), 173 B with gimbal states (a copy of the encoder angles besides)
+#: an upper bound, measured 143 B with 51 states when the noise estimate and the first-motion search formed
+#: full-size NumPy temporaries, 173 B with gimbal states (a copy of the encoder angles besides); the compiled
+#: scans of record_stats need less (one second-difference column, 8 B; the radix keys of one channel, 16 B)
 WORK_BYTES_PER_SAMPLE = 176
 
 
@@ -86,13 +92,7 @@ def _first_motion(dth: np.ndarray, dt: float) -> int:
     """Samples before the first turn (0.5-s mean body rate above :data:`ALIGN_STATIC_RATE`;
     Earth rate is 0.004 deg/s); the whole record when it never turns."""
     h = max(1, int(round(0.5 / dt)))
-    n = dth.shape[0]
-    if n <= h:
-        return n
-    c = np.cumsum(dth, axis=0)
-    rate = np.linalg.norm(c[h:] - c[:-h], axis=1) / (h * dt)
-    idx = np.flatnonzero(rate > ALIGN_STATIC_RATE)
-    return int(idx[0]) if idx.size else n
+    return int(first_turn(np.ascontiguousarray(dth, dtype=float), h, dt, ALIGN_STATIC_RATE))
 
 
 def estimate_white_noise(dtheta, dvel, dt) -> tuple[np.ndarray, np.ndarray]:
@@ -102,8 +102,7 @@ def estimate_white_noise(dtheta, dvel, dt) -> tuple[np.ndarray, np.ndarray]:
     out = []
     step = max(1, x_len // 200_000) if (x_len := len(dtheta)) else 1  # a subsample is plenty for a spread
     for x in (dtheta, dvel):
-        d2 = (x[2:] - 2.0 * x[1:-1] + x[:-2])[::step]
-        mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+        mad = second_difference_mad(np.ascontiguousarray(x, dtype=float), step)
         out.append(1.4826 * mad / math.sqrt(6.0) / math.sqrt(dt))
     return out[0], out[1]
 
@@ -113,23 +112,12 @@ def data_resolution(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
     multiple of it (integer counts times a scale factor, as a quantized log holds), else 0.
     Rounding to ``q`` adds white noise of variance ``q^2 / 12`` to each increment, whatever the
     record's own noise: a filter tuned below it cannot fit the data (a noise-free record whose
-    second differences are mostly zero estimates a noise of exactly zero)."""
-    x = np.asarray(x, float)
+    second differences are mostly zero estimates a noise of exactly zero).  A handful of distinct values
+    (fewer than 16: the dwells of a noise-free record) shows no grid; a value off the grid of the smallest
+    step between distinct values by 1e-3 of it rules it out."""
+    x = np.ascontiguousarray(x, dtype=float)
     step = max(1, x.shape[0] // max_rows)
-    out = np.zeros(x.shape[1])
-    for c in range(x.shape[1]):
-        v = np.unique(x[::step, c])
-        if v.size < 16:  # a handful of distinct values (the dwells of a noise-free record) show no grid
-            continue
-        d = np.diff(v)
-        d = d[d > 0]
-        if d.size == 0:
-            continue
-        q = float(d.min())
-        k = v / q
-        if q > 0 and np.all(np.abs(k - np.round(k)) < 1e-3):
-            out[c] = q
-    return out
+    return np.array([column_quantum(x, c, step) for c in range(x.shape[1])])
 
 
 def float32_rounding(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
@@ -278,8 +266,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                           keep_phi=keep_passes, smooth=(max_passes == 1), enc=enc, enc_sigma=enc_sig,
-                           nis_cap=cap_pass)
+                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig, nis_cap=cap_pass)
         except np.linalg.LinAlgError:
             raise CalibrationError(
                 f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
@@ -311,11 +298,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         sig_post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
         phi0 = out.x0s[:3] * sig_pass[:3]
         C0 = dcm_from_rotvec(-phi0) @ C0
-        if first is None:
-            if max_passes > 1:  # its history needs only the smoothed rows: smoothed now, without the per-step stores
-                first = (smooth_pass(out).without_stores(), sig_pass.copy())
-            else:
-                first = (out, sig_pass.copy())
+        if first is None:  # its history needs only the smoothed states at the stored rows (run_pass has them)
+            first = (out.without_stores() if max_passes > 1 else out, sig_pass.copy())
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
                        "downweighted_steps": int(np.sum(out.r_factor > 1.0)), "nis_cap": cap_pass,
                        "prior_deflation": float(np.max(sig_par / sp)),
@@ -337,7 +321,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
         sig_pass = sig.copy()
         sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
-    last = out if max_passes == 1 else smooth_pass(out)
+    # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the caller
+    last = smooth_pass(out) if keep_passes else out
     names = estimated_names(st)
     J = canonical_jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
     Sig = J @ P_post @ J.T
@@ -400,8 +385,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if st.gimbal:
         gimbal_diagnostics(res, last, st, enc_sig, int(encoder_every))
     h_out, h_sig = first
-    if h_out.hist_x is None:
-        smooth_pass(h_out)
     res.history = pass_history(h_out, st, names, h_sig, J, est, P_post)
     res.history["time_s"] = res.history["t_steps"] * T
     res.states = st

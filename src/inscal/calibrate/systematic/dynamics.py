@@ -15,16 +15,17 @@ from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
 
 # ----------------------------------------------------------------------------- the kernel
 @njit(cache=True, inline="always")
-def affine(A, b, x, idt, out):
-    """``out = A x / dt - b`` (the linear part of the compensation, a rate)."""
+def linear(A, x, idt, out):
+    """``out = A x / dt`` (the matrix part of the compensation, a rate: ``u_g``, ``u_a`` of S16 eq. 3, 6)."""
     for i in range(3):
-        out[i] = (A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]) * idt - b[i]
+        out[i] = (A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]) * idt
 
 
-@njit(cache=True)
-def compensate_sample(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0m, f0p, wlm, wlp, ug, ua, w, f, fdot, wdot):
-    """S16 compensation of one sample (module docstring); fills ug, ua, w, f (rates), the
-    centred derivatives ``fdot`` (of the accelerometer output) and ``wdot``.
+@njit(cache=True, inline="always")
+def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wlm, wlp, w, f, fdot, wdot):
+    """S16 compensation of one sample (module docstring) from its matrix parts ``ug = A_g dtheta / dt``,
+    ``ua = A_a dv / dt`` (:func:`linear`); fills w, f (rates), the centred derivatives ``fdot`` (of the
+    accelerometer output) and ``wdot``; ``idt = 1 / dt``.
 
     ``f0m``/``f0p`` and ``wlm``/``wlp``: the linearly compensated specific force and rate of the
     previous and next samples (equal to this sample's at the ends of the record).  Time asynchrony:
@@ -32,10 +33,6 @@ def compensate_sample(dth, dv, dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, nl, f0m,
     interpolation of the integrated output, ``fb_k += tau (fb_k+1 - fb_k-1) / (2 dt)
     + tau^2 (fb_k+1 - 2 fb_k + fb_k-1) / (2 dt^2)`` (error of order tau dt^2 times the third
     derivative of f).  The size effect's w-dot is the centred difference ``(wb_k+1 - wb_k-1) / (2 dt)``."""
-    idt = 1.0 / dt
-    for i in range(3):
-        ug[i] = (Ag[i, 0] * dth[0] + Ag[i, 1] * dth[1] + Ag[i, 2] * dth[2]) * idt
-        ua[i] = (Aa[i, 0] * dv[0] + Aa[i, 1] * dv[1] + Aa[i, 2] * dv[2]) * idt
     f0x = ua[0] - ba[0]
     f0y = ua[1] - ba[1]
     f0z = ua[2] - ba[2]

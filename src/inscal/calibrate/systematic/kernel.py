@@ -16,11 +16,19 @@ import numpy as np
 from numba import njit
 
 from inscal.calibrate.systematic.dynamics import (
-    affine,
-    column_values,
     compensate_sample,
     gimbal_attitude,
+    linear,
     nav_F,
+)
+from inscal.calibrate.systematic.jacobian import (
+    N_BASIS,
+    basis_values,
+    column_layout,
+    discretise,
+    moment_weights,
+    parameter_columns,
+    step_moments,
 )
 from inscal.calibrate.systematic.params import REF_SLICES, REF_WIDTH, CompParams
 from inscal.calibrate.systematic.states import (
@@ -42,11 +50,6 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
 (_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
     (_TAU0, _), (_GIM0, _GIM1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim")]
-
-
-#: 3-point Gauss-Legendre nodes and weights on [0, 1]
-GL3_NODES = (0.5 - 0.5 * math.sqrt(0.6), 0.5, 0.5 + 0.5 * math.sqrt(0.6))
-GL3_WEIGHTS = (5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0)
 
 # what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
 # a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
@@ -183,6 +186,8 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     w = np.empty(3)
     f = np.empty(3)
     fdot = np.empty(3)
+    ugn = np.empty(3)  # the next sample's u_g, u_a (with this step's parameters)
+    uan = np.empty(3)
     f0m = np.empty(3)  # linear-compensated specific force / rate of the previous, this, next sample
     f0c = np.empty(3)
     f0n = np.empty(3)
@@ -195,8 +200,11 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         cr[:] = 0.0
         cr[_C_NAV:_C_NAV + 10] = nav0
         if M > 0:
-            affine(Aa, ba, dv[0], idt, f0c)
-            affine(Ag, bg, dth[0], idt, wlc)
+            linear(Aa, dv[0], idt, ua)
+            linear(Ag, dth[0], idt, ug)
+            for i in range(3):
+                f0c[i] = ua[i] - ba[i]
+                wlc[i] = ug[i] - bg[i]
             cr[_C_F0M:_C_F0M + 3] = f0c
             cr[_C_F0C:_C_F0C + 3] = f0c
             cr[_C_WLM:_C_WLM + 3] = wlc
@@ -211,11 +219,15 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     p0, p1, p2 = cr[_C_PA], cr[_C_PA + 1], cr[_C_PA + 2]
     u0, u1, u2 = cr[_C_PV], cr[_C_PV + 1], cr[_C_PV + 2]
     have_prev = cr[_C_HAVE] != 0.0
-    vals = np.empty(npar)
-    M0 = np.zeros((6, npar))
-    M1 = np.zeros((6, npar))
-    M2 = np.zeros((6, npar))
+    start, src, col_sum, col_row, tau_pairs, lev9 = column_layout(kinds, axes, js, est_tau)
+    Wm = moment_weights(n_per, dt)
+    Cb = np.empty((9, n_per))  # the step's C_m^n and column values by sample (jacobian module docstring)
+    Bb = np.empty((N_BASIS, n_per))
+    CW = np.empty((3, 9, n_per))
+    R = np.empty((src.shape[0], 3, 3))
     F = np.zeros((9, 9))
+    F2 = np.empty((9, 9))
+    Qd = np.empty((9, 9))
     fn = np.zeros(3)
     K = np.empty((N, 6))
     Si = np.empty((6, 6))
@@ -241,24 +253,23 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     qam = (qa[0] + qa[1] + qa[2]) / 3.0
     ih = _stored_before(k0, M, hist_every)
     for k in range(k0, k1):
-        for a in range(6):
-            for c in range(npar):
-                M0[a, c] = 0.0
-                M1[a, c] = 0.0
-                M2[a, c] = 0.0
         fn[0] = 0.0
         fn[1] = 0.0
         fn[2] = 0.0
+        linear(Ag, dth[k * n_per], idt, ug)  # the step's first sample, with the parameters after the feedback
+        linear(Aa, dv[k * n_per], idt, ua)
         for jj in range(n_per):
             s = k * n_per + jj
             if s + 1 < dth.shape[0]:
-                affine(Aa, ba, dv[s + 1], idt, f0n)
-                affine(Ag, bg, dth[s + 1], idt, wln)
+                linear(Aa, dv[s + 1], idt, uan)
+                linear(Ag, dth[s + 1], idt, ugn)
+                for i in range(3):
+                    f0n[i] = uan[i] - ba[i]
+                    wln[i] = ugn[i] - bg[i]
             else:
                 f0n[:] = f0c
                 wln[:] = wlc
-            compensate_sample(dth[s], dv[s], dt, Ag, bg, G, Aa, ba, K2, Kx, lev, tau[0], nl, f0m, f0n, wlm, wln,
-                        ug, ua, w, f, fdot, wd)
+            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd)
             f0m[:] = f0c
             f0c[:] = f0n
             wlm[:] = wlc
@@ -281,90 +292,40 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             p0, p1, p2 = a0, a1, a2
             u0, u1, u2 = b0, b1, b2
             have_prev = True
-            # ---- Jacobian accumulation with the mid-sample attitude
+            # ---- Jacobian accumulation with the mid-sample attitude (jacobian module docstring)
             m0, m1, m2, m3 = oq0 + q0, oq1 + q1, oq2 + q2, oq3 + q3
             mn = 1.0 / math.sqrt(m0 * m0 + m1 * m1 + m2 * m2 + m3 * m3)
             m0 *= mn
             m1 *= mn
             m2 *= mn
             m3 *= mn
-            column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals)
-            sw = (n_per - jj - 0.5) * dt
-            wt0 = dt
-            wt1 = sw * dt
-            wt2 = 0.5 * sw * sw * dt
-            fe, fnn_, fu = qrot(m0, m1, m2, m3, f[0], f[1], f[2])
-            fn[0] += fe * dt
-            fn[1] += fnn_ * dt
-            fn[2] += fu * dt
-            # columns of C_m^n: C e_i
-            cx0, cx1, cx2 = qrot(m0, m1, m2, m3, 1.0, 0.0, 0.0)
-            cy0, cy1, cy2 = qrot(m0, m1, m2, m3, 0.0, 1.0, 0.0)
-            cz0, cz1, cz2 = qrot(m0, m1, m2, m3, 0.0, 0.0, 1.0)
-            for c in range(npar):
-                kk = kinds[c]
-                if kk == K_GIM:  # gimbal states: constants outside the navigation error dynamics
-                    continue
-                rb = 0 if kk <= 2 else 3
-                if kk == 9:
-                    if not est_tau:
-                        continue
-                    v0 = cx0 * fdot[0] + cy0 * fdot[1] + cz0 * fdot[2]
-                    v1 = cx1 * fdot[0] + cy1 * fdot[1] + cz1 * fdot[2]
-                    v2 = cx2 * fdot[0] + cy2 * fdot[1] + cz2 * fdot[2]
-                else:
-                    i = axes[c]
-                    vv = vals[c]
-                    if i == 0:
-                        v0, v1, v2 = cx0 * vv, cx1 * vv, cx2 * vv
-                    elif i == 1:
-                        v0, v1, v2 = cy0 * vv, cy1 * vv, cy2 * vv
-                    else:
-                        v0, v1, v2 = cz0 * vv, cz1 * vv, cz2 * vv
-                M0[rb, c] += v0 * wt0
-                M0[rb + 1, c] += v1 * wt0
-                M0[rb + 2, c] += v2 * wt0
-                M1[rb, c] += v0 * wt1
-                M1[rb + 1, c] += v1 * wt1
-                M1[rb + 2, c] += v2 * wt1
-                M2[rb, c] += v0 * wt2
-                M2[rb + 1, c] += v1 * wt2
-                M2[rb + 2, c] += v2 * wt2
-        # ---- discretisation (module docstring)
+            # C_m^n of the unit quaternion (the columns qrot gives for e_x, e_y, e_z), by rows
+            Cb[0, jj] = 1.0 - 2.0 * (m2 * m2 + m3 * m3)
+            Cb[1, jj] = 2.0 * (m1 * m2 - m0 * m3)
+            Cb[2, jj] = 2.0 * (m1 * m3 + m0 * m2)
+            Cb[3, jj] = 2.0 * (m1 * m2 + m0 * m3)
+            Cb[4, jj] = 1.0 - 2.0 * (m1 * m1 + m3 * m3)
+            Cb[5, jj] = 2.0 * (m2 * m3 - m0 * m1)
+            Cb[6, jj] = 2.0 * (m1 * m3 - m0 * m2)
+            Cb[7, jj] = 2.0 * (m2 * m3 + m0 * m1)
+            Cb[8, jj] = 1.0 - 2.0 * (m1 * m1 + m2 * m2)
+            fn[0] += (Cb[0, jj] * f[0] + Cb[1, jj] * f[1] + Cb[2, jj] * f[2]) * dt
+            fn[1] += (Cb[3, jj] * f[0] + Cb[4, jj] * f[1] + Cb[5, jj] * f[2]) * dt
+            fn[2] += (Cb[6, jj] * f[0] + Cb[7, jj] * f[1] + Cb[8, jj] * f[2]) * dt
+            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9)
+            ug[:] = ugn
+            ua[:] = uan
+        # ---- discretisation (package docstring; jacobian module)
         fn[0] /= T
         fn[1] /= T
         fn[2] /= T
         nav_F(lat0, h0, fn, F, g_scale)
-        F2 = F @ F
-        F3 = F2 @ F
-        phinn = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
-        Fnp = np.zeros((9, npar))
-        Fnp[0:6, :] = M0
-        phinp = Fnp + np.ascontiguousarray(F[:, 0:6]) @ M1 + np.ascontiguousarray(F2[:, 0:6]) @ M2
-        Qc = np.zeros((9, 9))
-        for i in range(3):
-            Qc[i, i] = qgm
-            Qc[3 + i, 3 + i] = qam
-        # Q_d = int_0^T Phi(s) Qc Phi(s)^T ds by 3-point Gauss-Legendre, Phi(s) = I + F s + F^2 s^2/2 + F^3 s^3/6:
-        # a positive-weight sum of PSD terms, so Q_d is PSD by construction (the third-order series in T had
-        # position-attitude terms of order T^3 without the T^5 position variance that balances them: with a
-        # large gyro noise, e.g. --arw 1 deg/sqrt(h), it went indefinite and the Cholesky of the square-root
-        # prediction failed)
-        Qd = np.zeros((9, 9))
-        for gq in range(3):
-            sq = T * GL3_NODES[gq]
-            Ph = np.eye(9) + F * sq + F2 * (sq * sq / 2.0) + F3 * (sq * sq * sq / 6.0)
-            Qd += (T * GL3_WEIGHTS[gq]) * (Ph @ Qc @ Ph.T)
-        # scaling
-        for i in range(9):
-            for j in range(9):
-                phinn[i, j] *= sig[j] / sig[i]
-                Qd[i, j] /= sig[i] * sig[j]
-            for c in range(npar):
-                phinp[i, c] *= sig[9 + c] / sig[i]
+        phinn = phinn_st[k]
+        phinp = phinp_st[k]
+        discretise(F, T, qgm, qam, sig, F2, phinn, Qd)
+        step_moments(Cb, Bb, Wm, start, src, CW, R)
+        parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
         filters.sr_predict(U, 9, phinn, phinp, Qd)
-        phinn_st[k] = phinn
-        phinp_st[k] = phinp
         # ---- measurement: zero velocity, known position
         rm0, rn0 = earth.radii(lat0)
         z[0], z[1], z[2] = ve, vn, vu
@@ -392,7 +353,11 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         rw_st[k] = alpha
         K_st[k] = K
         Si_st[k] = Si
-        sz_st[k] = Si @ z
+        for a in range(6):
+            v = 0.0
+            for b in range(6):
+                v += Si[a, b] * z[b]
+            sz_st[k, a] = v
         if have_enc and enc[k, 0] == enc[k, 0] and enc[k, 1] == enc[k, 1]:
             # ---- encoder attitude rows (module docstring): z = vee(C_nav C_pred^T) ~ phi - psi
             gimbal_attitude(gim, enc[k, 0], enc[k, 1], Cp, ga, gc, Hg)
@@ -525,10 +490,17 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, g
             gim[j] -= v
         else:
             tau[0] -= v
-    nA = Ag - Dg @ Ag
-    Ag[:, :] = nA
-    nA = Aa - Da @ Aa
-    Aa[:, :] = nA
+    _left_correct(Dg, Ag)
+    _left_correct(Da, Aa)
+
+
+@njit(cache=True, inline="always")
+def _left_correct(D, A):
+    """``A <- (I - D) A`` in place (S16 eq. 27 for a compensation matrix)."""
+    for j in range(3):
+        a0, a1, a2 = A[0, j], A[1, j], A[2, j]
+        for i in range(3):
+            A[i, j] = A[i, j] - (D[i, 0] * a0 + D[i, 1] * a1 + D[i, 2] * a2)
 
 
 @njit(cache=True)
@@ -577,12 +549,16 @@ def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hi
 
 
 @njit(cache=True)
-def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, sza_st, Ha_st, lam, k0, k1):
-    """Steps ``k1 - 1`` down to ``k0`` of the adjoint recursion for the smoothed state at the start only
-    (``x0 = P_0 lambda_0`` with ``P_0 = I``, written when ``k0 == 0``): what the passes before the last
-    need (the initial attitude).  ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``."""
+def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st, sza_st,
+                         Ha_st, lam, k0, k1):
+    """Steps ``k1 - 1`` down to ``k0`` of the adjoint recursion for the smoothed states alone (the vector half of
+    :func:`_smooth_steps`, the same arithmetic): the smoothed errors at the stored steps (``hist_x``,
+    ``P_{k|k-1} lambda_k``) and, when ``k0 == 0``, at the start (``x0 = P_0 lambda_0`` with ``P_0 = I``): what the
+    passes need but the last (the initial attitude) and the history (the recursion's parameter values).
+    ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``."""
     N = x0.shape[0]
     d = np.empty(3)
+    ih = _stored_before(k1, M, hist_every) - 1
     for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
             for a in range(3):
@@ -596,6 +572,9 @@ def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, s
         ktl = K.T @ lam
         for a in range(IDX_MEAS.shape[0]):
             lam[IDX_MEAS[a]] += sz_st[k, a] - ktl[a]
+        if k % hist_every == 0 or k == M - 1:
+            hist_x[ih] = hist_Pm[ih] @ lam
+            ih -= 1
         ln = lam[:9].copy()
         lam[9:] = lam[9:] + phinp_st[k].T @ ln
         lam[:9] = phinn_st[k].T @ ln
@@ -603,12 +582,13 @@ def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, s
         x0[:] = lam
 
 
-def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, M, x0, att_used, Ka_st, sza_st, Ha_st) -> None:
-    """The adjoint recursion for the smoothed initial state over all ``M`` steps (:func:`_smooth_vector_steps`),
-    in slices of steps."""
+def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st, sza_st,
+                          Ha_st) -> None:
+    """The adjoint recursion for the smoothed states at the stored steps and the start over all ``M`` steps
+    (:func:`_smooth_vector_steps`), in slices of steps."""
     lam = np.zeros(x0.shape[0])
-    _backward(M, lambda k0, k1: _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, x0, att_used, Ka_st, sza_st,
-                                                     Ha_st, lam, k0, k1))
+    _backward(M, lambda k0, k1: _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x,
+                                                     x0, att_used, Ka_st, sza_st, Ha_st, lam, k0, k1))
 
 
 @dataclass
@@ -670,7 +650,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
              keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
              nis_cap: float = np.inf) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
-    the adjoint recursion for the smoothed initial state (:func:`smooth_pass` completes it).
+    the adjoint recursion for the smoothed states, at the start and the stored steps (:func:`smooth_pass` adds
+    their covariances).
     ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`; inf: plain updates).
     Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
     (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring)."""
@@ -718,9 +699,11 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
                      Ha_st, nisa_st, za_st, Ra_st)
     Mk = _pass_kernel(inp, par, U, st, er)
     x0 = np.empty(N)
-    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, Mk, x0, att_used, Ka_st, sza_st, Ha_st)
+    hist_x = np.empty((nh, N))
+    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, x0, att_used, Ka_st,
+                          sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
-    out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, None, None, hist_Pm, U @ U.T)
+    out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, hist_x, None, hist_Pm, U @ U.T)
     out.Uf = U
     out.r_factor = rw
     out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,

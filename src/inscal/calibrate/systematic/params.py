@@ -11,7 +11,12 @@ from scipy.linalg import rq
 
 from inscal.calibrate.result import flatten
 from inscal.calibrate.systematic.states import CROSS_PAIRS, StateSet
-from inscal.core.error_model import GimbalErrors, ImuErrors, split_scale_misalignment
+from inscal.core.error_model import (
+    PARAMETERS,
+    GimbalErrors,
+    ImuErrors,
+    split_scale_misalignment,
+)
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -63,6 +68,10 @@ class CompParams:
 
     def to_imu(self) -> ImuErrors:
         """Canonical measurement-form errors (``M = A^-1``, ``eps = M_g b_g``, ``nabla = M_a b_a``)."""
+        return ImuErrors(**self.imu_fields())
+
+    def imu_fields(self) -> dict:
+        """The fields of :meth:`to_imu` by name (what it validates and stores)."""
         Mg = np.linalg.inv(self.Ag)
         Ma = np.linalg.inv(self.Aa)
         kg, eg = split_scale_misalignment(Mg)
@@ -75,7 +84,7 @@ class CompParams:
                   accel_lever_arm=self.lever)
         if "time_asynchrony" in ImuErrors.__dataclass_fields__:
             kw["time_asynchrony"] = float(self.tau[0])
-        return ImuErrors(**kw)
+        return kw
 
     def corrected(self, states: StateSet, x: np.ndarray) -> "CompParams":
         """The parameters with the error estimate ``x`` (physical, parameter part) removed
@@ -197,9 +206,60 @@ def params_from_ref(row) -> CompParams:
     return CompParams(**{k: np.array(row[a:b]).reshape(s) for k, (a, b, s) in REF_SLICES.items()})
 
 
-def canonical_flat(p: CompParams, names) -> np.ndarray:
+def ref_error_states(rows: np.ndarray, states: StateSet, truth: CompParams) -> np.ndarray:
+    """``params_from_ref(row).error_state(states, truth)`` of every reference-history row (nh, REF_WIDTH) at
+    once (nh, n_params): the same expressions, on stacks of rows."""
+    rows = np.asarray(rows, float)
+    nh = rows.shape[0]
 
-    return flatten(p.to_imu(), p.to_gimbal(), names)
+    def field(name):
+        a, b, shape = REF_SLICES[name]
+        return rows[:, a:b].reshape((nh,) + shape)
+
+    out = []
+    for g in states.groups:
+        ax, js = list(g.axes), list(g.js)
+        if g.name in ("gyro_matrix", "accel_matrix"):
+            A, At = (field("Ag"), truth.Ag) if g.name == "gyro_matrix" else (field("Aa"), truth.Aa)
+            D = np.eye(3) - At @ np.linalg.inv(A)
+            out.append(D[:, ax, js])
+        elif g.name == "gyro_bias":
+            out.append(field("bg") - truth.bg)
+        elif g.name == "accel_bias":
+            out.append(field("ba") - truth.ba)
+        elif g.name == "gyro_g_sensitivity":
+            out.append(field("G")[:, ax, js] - truth.G[ax, js])
+        elif g.name == "accel_nonlinearity":
+            out.append(field("K2") - truth.K2)
+        elif g.name == "accel_cross_coupling":
+            r, c = [r for r, _, _ in CROSS_PAIRS], [_kx_col(a, b) for _, a, b in CROSS_PAIRS]
+            out.append(field("Kx")[:, r, c] - truth.Kx[r, c])
+        elif g.name == "accel_lever_arm":
+            d = field("lever") - truth.lever
+            out.append(d[:, [0, 1, 2], [0, 1, 2]] if g.size == 3 else d.reshape(nh, 9))
+        elif g.name == "time_asynchrony":
+            out.append(field("tau") - truth.tau)
+        elif g.name == "gimbal_nonorthogonality":
+            out.append(field("gim")[:, :1] - truth.gim[0])
+        elif g.name == "mount_attitude":
+            out.append(np.array([[math.remainder(a - b, 2 * math.pi) for a, b in zip(r, truth.gim[1:4])]
+                                 for r in field("gim")[:, 1:4]]).reshape(nh, 3))
+    return np.concatenate(out, axis=1) if out else np.zeros((nh, 0))
+
+
+def canonical_flat(p: CompParams, names) -> np.ndarray:
+    """``flatten(p.to_imu(), p.to_gimbal(), names)`` from the fields themselves (the same values, without
+    building and validating the error-model objects: the canonical Jacobian takes two per state)."""
+    kw = p.imu_fields()
+    gim = {"nonorthogonality": float(p.gim[0]), "mount_attitude": np.array(p.gim[1:4])}
+    out = []
+    for n in names:
+        obj, attr = PARAMETERS[n][:2]
+        src = kw if obj == "imu" else gim
+        if attr not in src:
+            return flatten(p.to_imu(), p.to_gimbal(), names)
+        out.append(np.atleast_1d(np.asarray(src[attr], dtype=float)).ravel())
+    return np.concatenate(out)
 
 
 def canonical_jacobian(p: CompParams, states: StateSet, names, sig_par) -> np.ndarray:
