@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-from scipy.stats import chi2 as _chi2
 
 from inscal.calibrate.systematic.kernel import PassOutput
 from inscal.calibrate.systematic.params import (
@@ -22,7 +21,13 @@ from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.attitude import euler_from_dcm
-from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors, parameter_components
+from inscal.core.error_model import (
+    PARAMETERS,
+    GimbalErrors,
+    ImuErrors,
+    parameter_components,
+)
+from inscal.core.stats import chi2_cdf, chi2_sf
 from inscal.core.turntable import C_s_b
 
 #: p-value below which the innovations are declared inconsistent with the noise model
@@ -60,8 +65,8 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
 
     e = float(dof) if expected is None else float(expected)  # the chi2's expectation (its dof, less the
     # part of S the data do not carry: see the driver); tested as chi2 with that many degrees of freedom
-    p = float(_chi2.sf(chisq, e)) if dof > 0 else float("nan")
-    p_low = float(_chi2.cdf(chisq, e)) if dof > 0 else float("nan")
+    p = chi2_sf(chisq, e) if dof > 0 else float("nan")
+    p_low = chi2_cdf(chisq, e) if dof > 0 else float("nan")
     too_high, too_low = p < P_INCONSISTENT, p_low < P_INCONSISTENT
     consistent = not (too_high or too_low)
     scale = math.sqrt(max(chisq / e, 1.0)) if too_high else 1.0

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from scipy.stats import chi2 as _chi2
 
 from inscal.calibrate.result import CalibrationResult, unflatten
 from inscal.calibrate.systematic.diagnostics import (
@@ -47,6 +46,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.stats import chi2_sf
 from inscal.nav.align import coarse_align
 
 #: body rate [rad/s] (0.5-s mean) above which a sample counts as turning, for the alignment window
@@ -366,7 +366,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                   "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
         "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": expected / max(len(nis), 1), "chi2": chisq,
                         "dof": dof, "expected_chi2": expected,
-                        "p_value": float(_chi2.sf(chisq, expected)) if dof > 0 else float("nan"),
+                        "p_value": chi2_sf(chisq, expected) if dof > 0 else float("nan"),
                         "velocity_rms_m_s": float(np.sqrt(np.mean(last.z[:, :3] ** 2))),
                         "position_rms_m": float(np.sqrt(np.mean(last.z[:, 3:] ** 2)))},
         "initial_attitude_deg": np.degrees(euler_of(C0)).tolist(),
