@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -38,42 +37,29 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     else calib.sqlite) as a calibration of that unit, with the session's ``station``, ``operator``,
     ``date`` and ``temperature_c``, committed together with the parameter file (a failure of either
     leaves neither); ``supersedes``: the id of an earlier result this one replaces."""
-    from inscal.calibrate import METHODS, RECORD_METHODS
     from inscal.io.files import input_problem
+    from inscal.lab.calibration import CalibrationSetup
 
-    if method not in METHODS:
-        raise CliError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
-    systematic = method in RECORD_METHODS
-    if not systematic and (states or plots or arw is not None or vrw is not None or encoder_sigma is not None):
-        raise CliError(f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {method}")
-    for name, v in (("--arw", arw), ("--vrw", vrw)):
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise CliError(f"{name} must be a white-noise level > 0 ({'deg/sqrt(h)' if name == '--arw' else 'ug/sqrt(Hz)'}), "
-                           f"got {v}")
-    if not (math.isfinite(filter_rate_hz) and filter_rate_hz > 0):
-        raise CliError(f"--filter-rate-hz must be > 0, got {filter_rate_hz}")
-    if encoder_sigma is not None and not (np.isfinite(encoder_sigma) and encoder_sigma > 0):
-        raise CliError(f"--encoder-sigma must be > 0 arcsec, got {encoder_sigma}")
+    setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
+                             encoder_latency, check_encoders)
+    if (msg := setup.problem(plots is not None)) is not None:
+        raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
     check_output(out, force)
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
-    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, method,
-                       {"states": states, "settle": settle, "min_static": min_static, "filter_rate_hz": filter_rate_hz,
-                        "arw": arw, "vrw": vrw, "gravity": gravity, "encoder_sigma": encoder_sigma,
-                        "encoder_latency": encoder_latency, "check_encoders": check_encoders})
+    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options())
     try:
-        return _calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate_hz, arw, vrw,
-                          gravity, encoder_sigma, encoder_latency, check_encoders, systematic, lab_db)
+        return _calibrate(data, setup, out, force, plots, lab_db)
     finally:
         if lab_db is not None:
             lab_db["db"].close()
 
 
-def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path, method: str,
-              given: dict) -> dict | None:
+def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
+              options: dict) -> dict | None:
     """The calibration database and what ``--serial`` records in it, checked before the calibration
     runs: the unit is registered, the record not yet calibrated with the same options (unless
     ``--supersedes``); None without ``--serial``."""
@@ -105,7 +91,6 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
             if old.serial != serial:
                 raise CliError(f"--supersedes {supersedes}: that result is a calibration of {old.serial}, not {serial}")
         h = file_hash(data)
-        options = lab.calibration_options(method, **given)
         done = lab.find_calibration(d, h, options, serial)
         if done is not None and supersedes is None:
             raise CliError(f"{data} is recorded already for {serial} with these options (result {done}); "
@@ -120,94 +105,32 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
             "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
 
 
-def _calibrate(data: Path, method: str, out: Path, force: bool, settle: float, min_static: float, states, plots,
-               filter_rate_hz: float, arw, vrw, gravity, encoder_sigma, encoder_latency: float, check_encoders: bool,
-               systematic: bool, lab_db: dict | None) -> dict:
-    """The calibration of :func:`run_calibrate` once its options are checked."""
+def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None) -> dict:
+    """The calibration of :func:`run_calibrate` once its options are checked (the record's own part:
+    :func:`inscal.lab.calibration.calibrate_record`, which a batch of calibrations runs too)."""
     from inscal import io
-    from inscal.calibrate import calibrate
-    from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
-    from inscal.calibrate.systematic.selection import largest_states
-    from inscal.calibrate.windows import CalibrationError
     from inscal.cli.common import short
     from inscal.cli.limits import check_memory
-    from inscal.core import units
     from inscal.io.files import output_unit
+    from inscal.lab.calibration import RecordError, calibrate_record
 
     # the size first, before the record is read: the record in memory, then the filter's per-step stores
-
     try:
         info = io.record_info(data)
     except (io.DataFileError, OSError, KeyError, TypeError, ValueError):
         info = None  # read_record names what is wrong with the file
-    if info is not None and math.isfinite(info.rate_hz) and info.rate_hz > 0:
-        n, rate = info.n_samples, info.rate_hz
-        what = f"{short(data, 60)} ({n} samples, {n / rate:.4g} s at {rate:g} Hz)"
-        # float64 time, increments and encoder angles, and at the peak a working copy's worth (measured: 104 B
-        # per sample in the encoder check, 80 B in the window means; the systematic driver's own below)
-        held = 8.0 * (7 + (2 if info.has_gimbal else 0)) * n
-        check_memory(held + 104.0 * n, f"reading {what}", "calibrate a shorter record")
-        try:
-            st = largest_states({"systematic30": "30", "unified": "unified"}.get(method, "51"), states) \
-                if systematic else None
-        except CalibrationError:
-            st = None  # calibrate() names the bad state set
-        if st is not None:
-            steps = n // samples_per_step(rate, filter_rate_hz)
-            check_memory(held + systematic_bytes(n, rate, st, filter_rate_hz),
-                         f"the {st.n_states}-state filter's {steps} steps at --filter-rate-hz {filter_rate_hz:g} over "
-                         f"{what}", "lower --filter-rate-hz (the default 1 Hz suits a turntable record) or calibrate a "
-                         "shorter record")
+    if info is not None:
+        for need, what, hint in setup.memory_needs(info, short(data, 60)):
+            check_memory(need, what, hint)
     try:
         rec = read_record(data)
     except OSError as exc:
         raise CliError(str(exc)) from None
-    if not math.isfinite(encoder_latency) or abs(encoder_latency) > 1.0:
-        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
-    enc_report = None
-    if rec.gimbal is not None:
-        from inscal.io.encoders import apply_latency, check_record_encoders
-
-        if encoder_latency:
-            rec = dataclasses.replace(rec, gimbal=apply_latency(np.asarray(rec.time), np.asarray(rec.gimbal),
-                                                                encoder_latency))
-        if check_encoders:
-            chk = check_record_encoders(rec)
-            if not chk.ok:
-                raise CliError(f"{data}: {chk.message} (--skip-encoder-check to calibrate anyway)")
-            enc_report = chk.summary() | {"latency_applied_s": encoder_latency}
-    elif encoder_latency:
-        raise CliError(f"--encoder-latency: {data} has no encoder angles")
-    if gravity is not None:
-
-        from inscal.cli.common import parse_gravity_option
-
-        rec = dataclasses.replace(rec, site=rec.site.with_gravity(parse_gravity_option(gravity)))
     try:
-        if systematic:
-            # the state set: chosen from the data unless given (inscal.calibrate.systematic.selection)
-            opts = {"states": "auto" if states is None else states, "filter_rate_hz": filter_rate_hz}
-            if arw is not None:
-                opts["arw"] = units.to_si(arw, "deg/sqrt(h)")
-            if vrw is not None:
-                opts["vrw"] = units.to_si(vrw, "ug/sqrt(Hz)")
-            if encoder_sigma is not None:
-                opts["encoder_sigma"] = units.to_si(encoder_sigma, "arcsec")
-            res = calibrate(rec, method, **opts)
-        else:
-            res = calibrate(rec, method, settle=settle, min_static=min_static)
-    except CalibrationError as exc:
-        raise CliError(f"{data}: {exc}") from None
-    from inscal.io.records import record_attrs
-
-    meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
-            "windows": len(res.windows.windows) if res.windows else None}
-    if systematic:
-        d = res.diagnostics
-        meta.update({"frame": d["frame"], "states": d["state_options"], "state_count": d["states"],
-                     "filter_rate_hz": d["filter_rate_hz"], "nis_mean": d["innovations"]["nis_mean"],
-                     "chi2": d["innovations"]["chi2"], "dof": d["innovations"]["dof"],
-                     "p_value": d["innovations"]["p_value"]})
+        cal = calibrate_record(rec, data, setup)
+    except RecordError as exc:
+        raise CliError(str(exc)) from None
+    res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
     try:
         with output_unit():  # the parameter file and the plots: all published together, or none
             report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic, lab_db)

@@ -21,6 +21,10 @@ Public API (what ``inscal db``, ``inscal calibrate --db`` and batch calibrations
 Values are stored in the field units of :data:`inscal.core.error_model.PARAMETERS` (those of the
 parameter file); see :mod:`inscal.lab.schema` for the tables, :mod:`inscal.lab.drift` for the
 statistics and :mod:`inscal.lab.database` for migrations and concurrent writers.
+
+Calibrating records into the database (these load the estimators, so they are imported on their own):
+:mod:`inscal.lab.calibration` (one record, as ``inscal calibrate`` does it) and :mod:`inscal.lab.batch`
+(many records on Dask, resumable: ``inscal batch``).
 """
 
 from inscal.lab.database import (

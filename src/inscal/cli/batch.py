@@ -1,0 +1,276 @@
+"""``inscal batch``: calibrate many records into the calibration database, on Dask (a LocalCluster by
+default, an existing cluster by address) or in this process; resumable, one line per failed record.
+
+Exit status: 0 every record calibrated or recorded already, 1 some record failed (one line each on
+stderr; the others are recorded), 2 a bad invocation (nothing calibrated), 130 / 143 interrupted
+(the results committed by then stay; run the same command again to finish)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import typer
+
+from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
+from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
+
+#: most records of one batch (10^6: months of calibrations at a few seconds each)
+MAX_RECORDS = 10**6
+DB_HELP = "calibration database: a file (SQLite) or postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"
+#: plain progress lines (not on a terminal): every this share of the records, and at least this often [s]
+PLAIN_STEP = 0.1
+PLAIN_EVERY_S = 30.0
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
+    s = round(max(0.0, seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+class BatchProgress:
+    """Progress on stderr: a Rich bar on a terminal; otherwise a plain line at every 10 % of the records
+    and at least every 30 s; nothing when disabled.  A failed record's line is printed in any case.
+
+    The time left is the mean worker time of a calibrated record so far x the records left / the
+    workers (set once the cluster is known): the start of the cluster and the records skipped as
+    recorded already do not distort it."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.done, self.skipped, self.failed, self.calibrated = total, 0, 0, 0, 0
+        self.work_s, self.workers = 0.0, 1
+        self.t0 = self.t_last = time.perf_counter()
+        self.next_share = PLAIN_STEP
+        self.bar = None
+        self.plain = False
+        if not enabled:
+            return
+        from rich.console import Console
+
+        con = Console(stderr=True)
+        if not con.is_terminal:
+            self.plain = True
+            return
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
+        self.bar = Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[counts]}"),
+                            TimeElapsedColumn(), TextColumn("{task.fields[eta]}"), console=con)
+        self.bar.start()
+        self.task = self.bar.add_task("batch", total=total, counts="", eta="")
+
+    def eta_s(self) -> float | None:
+        if self.calibrated == 0:
+            return None
+        return self.work_s / self.calibrated * (self.total - self.done) / max(1, self.workers)
+
+    def counts(self) -> str:
+        parts = [f"{self.skipped} skipped" if self.skipped else "", f"{self.failed} failed" if self.failed else ""]
+        return ", ".join(p for p in parts if p)
+
+    def line(self, text: str) -> None:
+        if self.bar is not None:
+            self.bar.console.print(text, markup=False, highlight=False, soft_wrap=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def advance(self, outcome) -> None:
+        self.done += 1
+        self.skipped += outcome.status == "skipped"
+        self.failed += outcome.status == "failed"
+        if outcome.elapsed_s > 0:  # calibrated (or failed) in a worker
+            self.calibrated += 1
+            self.work_s += outcome.elapsed_s
+        if outcome.status == "failed":
+            self.line(f"inscal: failed: {short(outcome.path)}: {outcome.error}")
+        eta = self.eta_s()
+        if self.bar is not None:
+            self.bar.update(self.task, advance=1, counts=self.counts(),
+                            eta="" if eta is None else f"~{duration(eta)} left")
+            return
+        if not self.plain:
+            return
+        now = time.perf_counter()
+        share = self.done / max(1, self.total)
+        if share >= self.next_share or now - self.t_last >= PLAIN_EVERY_S or self.done == self.total:
+            per = "" if eta is None else (f", about {duration(eta)} left ({self.work_s / self.calibrated:.3g} s per "
+                                          f"record, {self.workers} worker{'s' if self.workers != 1 else ''})")
+            counts = self.counts()
+            self.line(f"batch: {self.done}/{self.total} record{'s' if self.total != 1 else ''} ({100 * share:.0f} %){', ' + counts if counts else ''}; "
+                      f"{duration(now - self.t0)} elapsed{per}")
+            self.t_last = now
+            while self.next_share <= share:
+                self.next_share += PLAIN_STEP
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+
+def batch_items(records: list[str] | None, serial: str | None, names: str | None, manifest: Path | None,
+                station: str | None, operator: str | None):
+    """The records of the batch with their units (see :mod:`inscal.lab.batch`)."""
+    from inscal.lab import batch as lb
+
+    if manifest is not None:
+        if records:
+            raise CliError("give the records either as arguments or in --manifest, not both")
+        if serial is not None or names is not None:
+            raise CliError("--manifest gives each record's serial: --serial and --names do not apply")
+        return lb.read_manifest(manifest, station, operator)
+    if not records:
+        raise CliError("give the records (folders, files or glob patterns) or --manifest FILE.csv")
+    return lb.items_from_names(lb.find_records(records), names or lb.DEFAULT_NAMES, serial, station, operator)
+
+
+def check_batch_size(items, setup, scheduler: str, workers: int | None) -> None:
+    """Refuse up front (one line) a batch of more than :data:`MAX_RECORDS` records, a local cluster larger
+    than the memory, and a largest record that the workers calibrating it at once would not fit in."""
+    from inscal import io
+
+    check_count(len(items), MAX_RECORDS, f"{len(items)} records", "split the batch")
+    local = scheduler == "local"
+    procs = min(workers or os.cpu_count() or 1, len(items)) if local else (1 if scheduler == "none" else 0)
+    if local and procs > 1:
+        check_memory(procs * DASK_WORKER_BYTES, f"--workers {procs}{' (the default: one per core)' if workers is None else ''}"
+                     f" (a local Dask cluster of {procs} processes)", "lower --workers")
+    sizes = []
+    for it in items:
+        try:
+            sizes.append((it.path.stat().st_size, it))
+        except OSError:
+            continue
+    if not sizes or not procs:
+        return
+    big = max(sizes, key=lambda s: s[0])[1]
+    try:
+        info = io.record_info(big.path)
+    except (io.DataFileError, OSError, KeyError, TypeError, ValueError):
+        return  # the record fails with its reason
+    for need, what, hint in setup.memory_needs(info, f"the largest record, {short(big.label, 60)},"):
+        many = f" in each of {procs} workers at once" if procs > 1 else ""
+        check_memory(procs * need, what + many, hint + (" or lower --workers" if procs > 1 else ""))
+
+
+def run_batch(records: list[str] | None, method: str, db: str | None = None, scheduler: str | None = None,
+              workers: int | None = None, serial: str | None = None, names: str | None = None,
+              manifest: Path | None = None, register: bool = False, model: str | None = None,
+              station: str | None = None, operator: str | None = None, states: str | None = None,
+              settle: float = 1.0, min_static: float = 20.0, filter_rate_hz: float = 1.0, arw: float | None = None,
+              vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
+              encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True) -> dict:
+    """Calibrate the records with ``method`` into ``db`` and return the JSON report (counts, failures,
+    every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated."""
+    import sqlalchemy
+
+    from inscal.lab import DatabaseError
+    from inscal.lab import batch as lb
+    from inscal.lab.calibration import CalibrationSetup
+
+    setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
+                             encoder_latency, check_encoders)
+    if (msg := setup.problem()) is not None:
+        raise CliError(msg)
+    scheduler = check_scheduler(scheduler or "local", ("local", "none"))
+    if workers is not None and (workers < 1 or scheduler != "local"):
+        raise CliError(f"--workers {workers}: a number >= 1 of processes of the default local cluster"
+                       if workers < 1 else "--workers applies to the default local cluster only")
+    if model is not None and not register:
+        raise CliError("--model is the model of the units --register registers: give --register")
+    try:
+        items = batch_items(records, serial, names, manifest, station, operator)
+        check_batch_size(items, setup, scheduler, workers)
+        bar = BatchProgress(len(items), progress)
+
+        def workers_known(n: int) -> None:
+            bar.workers = n
+
+        try:
+            res = lb.run_batch(db, items, setup, scheduler=scheduler, workers=workers, register=register, model=model,
+                               on_outcome=bar.advance, on_workers=workers_known)
+        finally:
+            bar.close()
+    except (lb.BatchError, DatabaseError) as exc:
+        raise CliError(str(exc)) from None
+    except sqlalchemy.exc.SQLAlchemyError as exc:
+        raise CliError(f"database: {' '.join(str(getattr(exc, 'orig', None) or exc).split())[:400]}") from None
+    return {"method": method, "options": setup.options(), "scheduler": scheduler} | res.to_json()
+
+
+def summary_line(rep: dict) -> str:
+    per = "" if rep["seconds_per_record"] is None else f", {rep['seconds_per_record']:.3g} s per record"
+    reg = f"; registered {len(rep['registered'])} unit{'s' if len(rep['registered']) != 1 else ''}" if rep["registered"] \
+        else ""
+    on = f" on {rep['workers']} worker{'s' if rep['workers'] != 1 else ''}" if rep["workers"] else ""
+    return (f"batch of {rep['records']} record{'s' if rep['records'] != 1 else ''} into {rep['db']}: {rep['done']} calibrated, {rep['skipped']} skipped "
+            f"(recorded already), {rep['failed']} failed{reg}; {duration(rep['wall_s'])}{on}{per}")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def batch(
+        records: list[str] = typer.Argument(None, help="records: folders (their *.h5 and *.hdf5), files or glob "
+                                            "patterns (quoted: 'runs/FOG-*.h5'); or --manifest"),
+        method: str = typer.Option(..., "--method", "-m",
+                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
+                                        "unified"),
+        db: str = typer.Option(None, "--db", help=DB_HELP),
+        scheduler: str = typer.Option(None, "--scheduler", help="local (the default: a Dask LocalCluster), none (in "
+                                      "this process, one record after another) or a Dask scheduler's address "
+                                      "tcp://HOST:PORT (its workers must see the records and the database)"),
+        workers: int = typer.Option(None, "--workers", help="worker processes of the local cluster (default: CPU "
+                                    "cores)"),
+        serial: str = typer.Option(None, "--serial", help="every record is of this unit"),
+        names: str = typer.Option(None, "--names", help="file-name pattern giving each record's unit and date, with "
+                                  "{serial}, {date} (2025-01-15 or 20250115) and * (default: {serial}_{date}.h5; a name "
+                                  "that does not match: the record's imu_serial attribute and creation time)"),
+        manifest: Path = typer.Option(None, "--manifest", help="CSV with a header and columns path,serial and "
+                                      "optionally date,station,operator,temperature_c (paths relative to it)"),
+        register_units: bool = typer.Option(False, "--register", help="register the units not in the database yet "
+                                            "(else their records fail)"),
+        model: str = typer.Option(None, "--model", help="with --register: the model of the units registered"),
+        station: str = typer.Option(None, "--station", help="the turntable / station of the runs (a manifest's "
+                                    "column wins)"),
+        operator: str = typer.Option(None, "--operator", help="who ran them (a manifest's column wins)"),
+        settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
+        min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
+        states: str = typer.Option(None, "--states", help="systematic: the state set, as for inscal calibrate"),
+        filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
+        arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)]"),
+        vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)]"),
+        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+                                    "(default: each record's)"),
+        encoder_sigma: float = typer.Option(None, "--encoder-sigma", help="unified / gimbal states: encoder angle "
+                                            "noise [arcsec]"),
+        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="shift the encoder angles by this many "
+                                              "seconds before calibrating"),
+        skip_encoder_check: bool = typer.Option(False, "--skip-encoder-check", help="calibrate even when the encoder "
+                                                "angles do not follow the gyros"),
+        json_: bool = typer.Option(False, "--json", help="print the summary (counts, failures, every record) as JSON"),
+        no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar or lines"),
+    ):
+        """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
+        try:
+            rep = run_batch(records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
+                            station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
+                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_))
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(rep)
+        else:
+            typer.echo(summary_line(rep))
+        if rep["failed"]:
+            raise typer.Exit(1)
