@@ -1,4 +1,4 @@
-"""``inscal db``: the calibration database (init, upgrade, add, list, show, export, history)."""
+"""``inscal db``: the calibration database (init, upgrade, add, list, show, export, history, certificate)."""
 
 from __future__ import annotations
 
@@ -150,6 +150,102 @@ def run_history(serial: str, db: str | None, method: str | None, k: float, plot:
             history_plot(plot, h, overwrite=force)
         rep["plot"] = str(plot)
     return rep, h
+
+
+def pick_calibration(d, serial: str, result: int | None):
+    """Result ``result`` of unit ``serial`` (default: its current calibration); a :class:`CliError` when the unit
+    is unknown, has no calibration or the result is another unit's."""
+    from inscal import lab
+
+    if lab.get_unit(d, serial) is None:
+        raise CliError(f"unknown unit {serial!r} in {d.where}")
+    cal = lab.get_calibration(d, result) if result is not None else lab.current_calibration(d, serial)
+    if cal is None:
+        raise CliError(f"unit {serial} has no calibration yet")
+    if cal.serial != serial:
+        raise CliError(f"result {result} is a calibration of {cal.serial}, not {serial}")
+    return cal
+
+
+#: the files of a certificate (``--out NAME.html`` names them all)
+CERT_SUFFIXES = (".html", ".pdf", ".json")
+
+
+def certificate_paths(out: Path, stem: str, pdf: bool) -> tuple[Path, bool, dict[str, Path]]:
+    """``(folder, whether to make it, {suffix: path})`` of ``--out``: a ``.html``/``.pdf``/``.json`` name gives
+    the stem of the three files; anything else is a folder (made when missing) that gets ``STEM.*``."""
+    if out.suffix.lower() in CERT_SUFFIXES:  # its folder must exist, as for every output file
+        folder, base, make = out.parent, out.with_suffix(""), False
+    else:
+        if out.exists() and not out.is_dir():
+            raise CliError(f"--out {short(out)}: not a folder; give a folder or a .html, .pdf or .json name")
+        folder, base, make = out, out / stem, not out.exists()
+        if make and not folder.parent.is_dir():
+            raise CliError(f"folder {short(folder.parent)} does not exist")
+    paths = {sfx: base.with_name(base.name + sfx) for sfx in CERT_SUFFIXES if pdf or sfx != ".pdf"}
+    return folder, make, paths
+
+
+def run_certificate(serial: str, out: Path, db: str | None, result: int | None, pdf: bool, force: bool,
+                    issued: str | None, laboratory: str | None, authorized_by: str | None) -> dict:
+    """``inscal db certificate``: the HTML, PDF and JSON of a calibration's certificate, published together."""
+    import datetime as dt
+    import json
+
+    from inscal import lab
+    from inscal.io.files import atomic_path, make_output_dir, output_unit
+    from inscal.io.jsonfile import to_jsonable
+    from inscal.report.certificate import (
+        CHROMIUM_ENV,
+        CertificateError,
+        certificate_data,
+        certificate_html,
+        file_stem,
+        find_chromium,
+        pdf_pages,
+        print_pdf,
+    )
+
+    when = lab.parse_date(issued) if issued is not None else dt.datetime.now(dt.UTC)
+    chromium = find_chromium() if pdf else None
+    if pdf and chromium is None:
+        raise CliError("the PDF is printed by headless Chromium, which is not installed (apt-get install chromium, "
+                       f"or set {CHROMIUM_ENV} to its path); pass --no-pdf for the HTML and JSON only")
+    with open_db(db) as d:
+        cal = pick_calibration(d, serial, result)
+        unit = lab.get_unit(d, serial)
+    folder, make, paths = certificate_paths(out, file_stem(cal), pdf)
+    stale = None if pdf else certificate_paths(out, file_stem(cal), True)[2][".pdf"]
+    if stale is not None and stale.exists():  # it would sit beside the new HTML and JSON without matching them
+        raise CliError(f"{short(stale)} exists from an earlier certificate and --no-pdf would not replace it: remove "
+                       "it or choose another --out")
+    if not make:
+        for p in paths.values():
+            check_output(p, force)
+            check_not_input(p, Path(d.url.database) if d.dialect == "sqlite" else None, role="database")
+    doc = certificate_data(cal, unit, issued=when, laboratory=laboratory, authorized_by=authorized_by)
+    page = certificate_html(doc)
+    data = None
+    if pdf:
+        try:
+            data = print_pdf(page, chromium)
+        except CertificateError as exc:
+            raise CliError(str(exc)) from None
+    with output_unit():  # the three files: all published, or none
+        if make:
+            make_output_dir(folder)
+        with atomic_path(paths[".html"], force) as tmp:
+            tmp.write_text(page, encoding="utf-8")
+        if data is not None:
+            with atomic_path(paths[".pdf"], force) as tmp:
+                tmp.write_bytes(data)
+        with atomic_path(paths[".json"], force) as tmp:
+            tmp.write_text(json.dumps(to_jsonable(doc), indent=2, ensure_ascii=False, allow_nan=False) + "\n",
+                           encoding="utf-8")
+    return {"db": d.where, "serial": serial, "result_id": cal.id, "certificate": doc["id"], "method": cal.method,
+            "date": doc["calibration"]["date"], "issued": doc["issued"], "html": str(paths[".html"]),
+            "pdf": str(paths[".pdf"]) if pdf else None, "pages": pdf_pages(data) if data is not None else None,
+            "json": str(paths[".json"]), "fit_consistent": doc["fit"]["consistent"]}
 
 
 def history_lines(rep: dict, h) -> list[str]:
@@ -326,16 +422,8 @@ def show_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
              json_: bool = typer.Option(False, "--json", help="print the calibration as JSON")):
     """One calibration of a unit with every parameter, 1 sigma, fit, covariance and provenance."""
     with db_errors():
-        from inscal import lab
-
         with open_db(db) as d:
-            if lab.get_unit(d, serial) is None:
-                raise CliError(f"unknown unit {serial!r} in {d.where}")
-            cal = lab.get_calibration(d, result) if result is not None else lab.current_calibration(d, serial)
-            if cal is None:
-                raise CliError(f"unit {serial} has no calibration yet")
-            if cal.serial != serial:
-                raise CliError(f"result {result} is a calibration of {cal.serial}, not {serial}")
+            cal = pick_calibration(d, serial, result)
     if json_:
         print_json(cal.to_json() | {"db": d.where})
         return
@@ -357,13 +445,7 @@ def export_cmd(serial: str = typer.Argument(..., help="the unit's serial number"
 
         check_output(out, force)
         with open_db(db) as d:
-            if lab.get_unit(d, serial) is None:
-                raise CliError(f"unknown unit {serial!r} in {d.where}")
-            cal = lab.get_calibration(d, result) if result is not None else lab.current_calibration(d, serial)
-            if cal is None:
-                raise CliError(f"unit {serial} has no calibration yet")
-            if cal.serial != serial:
-                raise CliError(f"result {result} is a calibration of {cal.serial}, not {serial}")
+            cal = pick_calibration(d, serial, result)
         if lab.text_hash(cal.param_text) != cal.param_file_sha256:
             raise CliError(f"result {cal.id}: the stored parameter file does not match its sha256 (damaged database?)")
         check_not_input(out, Path(d.url.database) if d.dialect == "sqlite" else None, role="database")
@@ -398,3 +480,30 @@ def history_cmd(serial: str = typer.Argument(..., help="the unit's serial number
         return
     for line in history_lines(rep, h):
         typer.echo(line)
+
+
+@db_app.command("certificate")
+def certificate_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+                    out: Path = typer.Option(..., "--out", "-o", help="a folder (made when missing) for "
+                                             "INSCAL-SERIAL-ID.html/.pdf/.json, or NAME.html (also NAME.pdf, "
+                                             "NAME.json)"),
+                    db: str = typer.Option(None, "--db", help=DB_HELP),
+                    result: int = typer.Option(None, "--result", help="this result id (default: the current "
+                                               "calibration)"),
+                    pdf: bool = typer.Option(True, "--pdf/--no-pdf", help="also print the PDF with headless Chromium "
+                                             "(chromium on PATH or $INSCAL_CHROMIUM; without it --pdf is refused)"),
+                    issued: str = typer.Option(None, "--issued", help="date of issue, YYYY-MM-DD or ISO time (UTC; "
+                                               "default: now)"),
+                    laboratory: str = typer.Option(None, "--lab", help="the laboratory's name and address"),
+                    authorized_by: str = typer.Option(None, "--authorized-by", help="who authorizes the certificate"),
+                    force: bool = typer.Option(False, "--force", help="overwrite existing certificate files"),
+                    json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """A calibration certificate (ISO/IEC 17025 §7.8): HTML, PDF and the same content as JSON, written together."""
+    with db_errors():
+        rep = run_certificate(serial, out, db, result, pdf, force, issued, laboratory, authorized_by)
+    if json_:
+        print_json(rep)
+        return
+    files = ", ".join(f for f in (rep["html"], rep["pdf"] and f"{rep['pdf']} ({rep['pages']} pages)", rep["json"]) if f)
+    typer.echo(f"{serial}: certificate {rep['certificate']} (result {rep['result_id']}, {rep['method']}, record of "
+               f"{rep['date'][:10]}) -> {files}")
