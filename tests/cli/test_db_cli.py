@@ -21,6 +21,7 @@ from inscal.calibrate.result import CalibrationResult
 from inscal.cli.app import app
 from inscal.core.error_model import GimbalErrors, ImuErrors
 from inscal.io.files import file_hash
+from inscal.report.certificate import find_chromium
 
 ROOT = Path(__file__).resolve().parents[2]
 runner = CliRunner()
@@ -54,7 +55,10 @@ def test_the_readme_lab_workflow_runs_as_written(tmp_path):
     bindir = Path(sys.executable).parent
     env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}", "COLUMNS": "120"}
     env.pop("INSCAL_DB", None)
-    script = "set -euo pipefail\n" + lab_block()
+    block = lab_block()
+    if find_chromium() is None:  # the certificate's PDF needs Chromium: its HTML and JSON are made without it
+        block = block.replace("inscal db certificate ", "inscal db certificate --no-pdf ")
+    script = "set -euo pipefail\n" + block
     r = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
                        check=False)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -74,6 +78,16 @@ def test_the_readme_lab_workflow_runs_as_written(tmp_path):
         assert jan.options == lab.calibration_options("n25")
         assert set(jan.parameters) >= {"gyro_scale_factor", "accel_bias", "gimbal_nonorthogonality", "mount_attitude"}
         assert jan.parameters["gimbal_nonorthogonality"].value == pytest.approx(20.0, abs=2.0)
+    # the certificate of the current calibration: the database's numbers, the PDF where Chromium is installed
+    name = f"INSCAL-FOG-0042-{feb.id}"
+    cert = json.loads((tmp_path / "certs" / f"{name}.json").read_text(encoding="utf-8"))
+    assert cert["id"] == name and cert["laboratory"]["name"] == "North lab, 1 Example Road"
+    gn = feb.parameters["gimbal_nonorthogonality"]
+    (row,) = [r for r in cert["results"]["rows"] if r["label"] == "gimbal_nonorthogonality"]
+    assert row["value"] == float(gn.value) and row["expanded_uncertainty"] == 2 * float(gn.sigma)
+    assert (tmp_path / "certs" / f"{name}.html").is_file()
+    pdf = tmp_path / "certs" / f"{name}.pdf"
+    assert (pdf.is_file() and pdf.read_bytes().startswith(b"%PDF")) == (find_chromium() is not None)
     # the history of the two: every component has its step test; no drift test with two calibrations
     r = run("db", "history", "FOG-0042", "--db", db, "--json")
     assert r.exit_code == 0, r.stderr
@@ -93,8 +107,17 @@ def test_the_readme_lab_workflow_runs_as_written(tmp_path):
     assert show["covariance"]["basis"] == "parameters" and len(show["covariance"]["labels"]) == 28
     r = run("db", "list", "--db", db, "--json")
     units = json.loads(r.stdout)["units"]
-    assert [(u["serial"], u["model"], u["results"], u["current"]["id"]) for u in units] == [
-        ("FOG-0042", "FOG-IMU", 2, feb.id)]
+    assert [(u["serial"], u["model"], u["results"]) for u in units] == [
+        ("FOG-0042", "FOG-IMU", 2), ("FOG-0043", "FOG-IMU", 1), ("FOG-0044", "FOG-IMU", 1)]
+    assert units[0]["current"]["id"] == feb.id
+    # the batch lines: each archive record once (the second batch skipped both), unit and date from its name
+    with lab.open_database(db) as d:
+        for serial in ("FOG-0043", "FOG-0044"):
+            (c,) = lab.calibrations(d, serial, superseded=True)
+            rec = tmp_path / f"{serial}_2025-03-01.h5"
+            assert (c.session.record_sha256, c.session.station, c.session.date) == (
+                file_hash(rec), "T2", lab.parse_date("2025-03-01"))
+            assert c.options == jan.options and c.current
 
 
 def synthetic_params(path: Path, record: Path, value: float) -> None:
