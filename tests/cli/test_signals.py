@@ -13,10 +13,16 @@ import pytest
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 
+def _sigint_as_in_a_terminal():
+    """Ctrl-C's default in the child, whatever started the tests: a background job of a shell runs with
+    SIGINT ignored, its children inherit that, and inscal rightly leaves an ignored signal ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _launch(args, cwd):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     code = "import sys; from inscal.cli import main; sys.argv = ['inscal'] + sys.argv[1:]; main()"
-    return subprocess.Popen([sys.executable, "-c", code, *args], cwd=cwd, env=env,
+    return subprocess.Popen([sys.executable, "-c", code, *args], cwd=cwd, env=env, preexec_fn=_sigint_as_in_a_terminal,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -75,3 +81,27 @@ def test_sigterm_during_compensate_removes_part(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("inscal: interrupted (SIGTERM)"), err
     assert sorted(x.name for x in tmp_path.iterdir()) == before
     assert rec.exists()
+
+
+def test_an_interrupt_wrapped_by_an_import_still_exits_143(tmp_path):
+    """A signal whose exception is raised in a class body while a module is imported (matplotlib's, in a
+    plotting command) reaches the command line as a RuntimeError of __set_name__: it is still the interrupt,
+    one line and 143, not a traceback and a death by the re-arm timer's SIGALRM."""
+    code = (
+        "import os, signal, sys\n"
+        "import inscal.cli.app\n"
+        "A = sys.modules['inscal.cli.app']  # the package's face re-exports the Typer object as app\n"
+        "class Arm:\n"
+        "    def __set_name__(self, owner, name):\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        for _ in range(1000): pass\n"
+        "def command(prog_name):\n"
+        "    class Axes:\n"
+        "        set_xscale = Arm()\n"
+        "A.app = command\n"
+        "A.main()\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                       check=False)
+    assert r.returncode == 143, (r.returncode, r.stderr)
+    assert r.stderr.strip() == "inscal: interrupted (SIGTERM)", r.stderr

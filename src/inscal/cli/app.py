@@ -128,8 +128,16 @@ def main() -> None:  # console-script entry point
             # status that says nothing of the work done
             release_interrupts(old, ignore=True)
             raise
-    except (Interrupted, KeyboardInterrupt) as exc:
-        signum = pending_signal() or getattr(exc, "signum", signal.SIGINT)
+    except SystemExit:
+        raise
+    except BaseException as exc:
+        # the interrupt itself, or an error it caused: raised in a class body while a module is imported,
+        # Python reports it as a RuntimeError of __set_name__; an import may wrap it likewise
+        signum = pending_signal() or getattr(exc, "signum", None)
+        if signum is None and isinstance(exc, KeyboardInterrupt):
+            signum = signal.SIGINT
+        if signum is None:
+            raise
         while True:
             try:
                 code = _interrupted(signum, old)
