@@ -23,12 +23,12 @@ LATENCY_S = 2.0
 PROGRESS = re.compile(r": \d+/\d+ \w+")
 #: command -> (arguments, outputs when it finishes, signal delays [s] after the start)
 COMMANDS = {
-    "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.1, 3.0)),
+    "simulate": (["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5"], ["x.h5"], (0.1, 2.0)),
     "calibrate": (["calibrate", "{p19}", "--method", "systematic51", "--out", "p.toml", "--plots", "plots"],
                   ["p.toml", "plots"], (0.1, 5.0)),
     "design": (["design", "--minutes", "60", "--candidates", "8", "--population", "4", "--scheduler", "none",
                 "--out", "d.toml"], ["d.toml"], (0.1, 4.0)),
-    "observability": (["observability", "s16", "--crlb"], [], (0.1, 2.0)),
+    "observability": (["observability", "s16", "--crlb"], [], (0.1, 1.0)),
     "navigate": (["navigate", "{s4}", "--init", "truth", "--out", "n.h5"], ["n.h5"], (0.1, 2.5)),
 }
 
