@@ -43,7 +43,7 @@ import numpy as np
 from numba import njit
 
 from inscal.core.earth import Site
-from inscal.core.robust import median_inplace
+from inscal.core.robust import exact_median
 from inscal.core.units import ARCSEC, DEG
 
 
@@ -129,25 +129,18 @@ def _centred_rate(x: np.ndarray, h: int, dt: float) -> np.ndarray:
     return r
 
 
-def _mad_sigma(x: np.ndarray, axis=0) -> np.ndarray:
-    if x.shape[0] == 0:
-        return np.zeros(x.shape[1:])
-    med = np.median(x, axis=axis)
-    return 1.4826 * np.median(np.abs(x - med), axis=axis)
-
-
 @njit(cache=True)
 def _second_difference_mad(x, dt):
     """Per column of ``x`` (n, k), n >= 3: the median absolute deviation of the second differences of
-    ``x / dt`` (times 1.4826), value for value what ``_mad_sigma(np.diff(x / dt, n=2, axis=0))`` gives (the
+    ``x / dt`` (times 1.4826), value for value what ``1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)``
+    gives for ``d = np.diff(x / dt, n=2, axis=0)`` (the
     same divisions and differences; a median is one value of the data whatever finds it), without the four
     temporaries and the strided, branch-bound partitions of NumPy's median per window."""
     n, k = x.shape
     m = n - 2
     out = np.empty(k)
     d = np.empty(m)
-    e = np.empty(m)
-    tmp = np.empty(m)
+    pair = np.empty(2)
     for j in range(k):
         y0 = x[0, j] / dt
         y1 = x[1, j] / dt
@@ -158,11 +151,10 @@ def _second_difference_mad(x, dt):
             d[i] = d2 - d1
             y1 = y2
             d1 = d2
-        e[:] = d
-        med = median_inplace(e, tmp)
+        med = exact_median(d, pair)
         for i in range(m):
-            e[i] = abs(d[i] - med)
-        out[j] = 1.4826 * median_inplace(e, tmp)
+            d[i] = abs(d[i] - med)
+        out[j] = 1.4826 * exact_median(d, pair)
     return out
 
 
