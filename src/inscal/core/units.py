@@ -67,6 +67,11 @@ FACTOR: dict[str, float] = {
     "m/s": 1.0,
     "mm/s": 1e-3,
     "ug*s": 1e-6 * G0,  # a velocity increment of 1 ug over 1 s (PSINS's accelerometer quantum unit)
+    # gyro bias per rate of change of temperature ((rad/s) per (K/s) = rad/K): the thermal-gradient
+    # (Shupe) bias of a fibre-optic gyro
+    "rad/degC": 1.0,
+    "deg/h/(degC/min)": DEG / HOUR * 60.0,
+    "deg/h/(degC/s)": DEG / HOUR,
 }
 
 ALIASES: dict[str, str] = {
@@ -94,6 +99,10 @@ ALIASES: dict[str, str] = {
     "ug.s": "ug*s",
     "ug·s": "ug*s",
     "µg·s": "ug*s",
+    "°/h/(°C/min)": "deg/h/(degC/min)",
+    "deg/h/(K/min)": "deg/h/(degC/min)",
+    "°/h/(°C/s)": "deg/h/(degC/s)",
+    "rad/K": "rad/degC",
 }
 
 
@@ -114,6 +123,8 @@ KIND: dict[str, str] = {
     "m": "length", "cm": "length", "mm": "length", "nmi": "length",
     "s": "time", "ms": "time", "h": "time", "min": "time",
     "m/s": "velocity", "mm/s": "velocity", "ug*s": "velocity",
+    "rad/degC": "rate-per-temperature-rate", "deg/h/(degC/min)": "rate-per-temperature-rate",
+    "deg/h/(degC/s)": "rate-per-temperature-rate",
 }
 
 
@@ -148,3 +159,66 @@ def from_si(value, unit: str, kind: str | None = None):
     if isinstance(value, (int, float)):
         return value / f
     return np.asarray(value, dtype=float) / f
+
+
+# ----------------------------------------------------------------------------- temperature
+#: Temperatures are kept in degrees Celsius inside inscal as well: only differences ``T - T_ref``
+#: enter the models, and a kelvin and a degree Celsius are the same step.  ``(scale, offset)`` with
+#: ``celsius = value * scale + offset`` for each temperature unit accepted at the edges.
+TEMPERATURE_UNITS: dict[str, tuple[float, float]] = {
+    "degC": (1.0, 0.0),
+    "K": (1.0, -273.15),
+    "degF": (5.0 / 9.0, -32.0 * 5.0 / 9.0),
+}
+TEMPERATURE_ALIASES = {"°C": "degC", "C": "degC", "celsius": "degC", "kelvin": "K", "°F": "degF", "F": "degF"}
+#: the spellings of "per degree" accepted after a coefficient's unit (``ppm/degC^2``)
+_PER_DEGREE = ("degC", "°C", "K")
+
+
+def temperature_unit(unit: str) -> str:
+    """Canonical spelling of a temperature unit (degC, K, degF); UnitError otherwise."""
+    u = TEMPERATURE_ALIASES.get(unit.strip(), unit.strip())
+    if u not in TEMPERATURE_UNITS:
+        raise UnitError(f"unknown temperature unit {unit!r}; known: {', '.join(TEMPERATURE_UNITS)}")
+    return u
+
+
+def to_celsius(value, unit: str):
+    """A temperature in ``unit`` (degC, K, degF) in degrees Celsius."""
+    scale, offset = TEMPERATURE_UNITS[temperature_unit(unit)]
+    if isinstance(value, (int, float)):
+        return value * scale + offset
+    return np.asarray(value, dtype=float) * scale + offset
+
+
+def per_degree_unit(unit: str, order: int) -> str:
+    """The field unit of a thermal coefficient of ``order`` (``ppm`` -> ``ppm/degC``, ``ppm/degC^2``)."""
+    return f"{unit}/degC" if order == 1 else f"{unit}/degC^{order}"
+
+
+def split_per_degree(unit: str) -> tuple[str, int]:
+    """``(base unit, order)`` of a coefficient unit written ``<unit>/degC^k`` (also ``/°C``, ``/K``;
+    ``k`` = 1 when no exponent is given).  UnitError when the unit has no such suffix."""
+    u = unit.strip()
+    for deg in _PER_DEGREE:
+        for form in ("/" + deg + "^", "/" + deg):
+            i = u.rfind(form)
+            if i <= 0:
+                continue
+            tail = u[i + len(form):]
+            if form.endswith("^"):
+                if not tail.isdigit():
+                    continue
+                return u[:i], int(tail)
+            if tail == "":
+                return u[:i], 1
+    raise UnitError(f"unit {unit!r} is not a per-degree unit (expected '<unit>/degC' or '<unit>/degC^k')")
+
+
+def thermal_to_si(value, unit: str, kind: str, order: int):
+    """A thermal coefficient of ``order`` given in ``<unit>/degC^order`` in SI per degree^order (a degree
+    Celsius is a kelvin, so only the base unit is converted); the order written must match."""
+    base, k = split_per_degree(unit)
+    if k != order:
+        raise UnitError(f"unit {unit!r} is per degree^{k}, expected per degree^{order}")
+    return to_si(value, base, kind)

@@ -20,6 +20,7 @@ from inscal.io.records import (
     LazyArray,
     Record,
     RecordInfo,
+    Temperature,
     Truth,
     Window,
     check_datasets,
@@ -28,13 +29,15 @@ from inscal.io.records import (
     iter_window,
     open_record,
     read_record,
+    read_temperature,
     record_attrs,
     record_info,
     record_window,
     truth_groups,
     validate_arrays,
+    validate_temperature,
     write_record,
     write_stream,
 )
 
-__all__ = ['REMOVED_PARTS', 'cancel', 'check_cancel', 'atomic_path', 'remove_part', 'remove_live_parts', 'file_hash', 'KIND', 'UNITS', 'DataFileError', 'Truth', 'Record', 'write_stream', 'write_record', 'validate_arrays', 'truth_groups', 'read_record', 'RecordInfo', 'record_info', 'iter_chunks', 'check_datasets', 'Window', 'record_window', 'iter_window', 'LazyArray', 'open_record', 'record_attrs', 'compensated_with']
+__all__ = ['REMOVED_PARTS', 'cancel', 'check_cancel', 'atomic_path', 'remove_part', 'remove_live_parts', 'file_hash', 'KIND', 'UNITS', 'DataFileError', 'Truth', 'Temperature', 'validate_temperature', 'read_temperature', 'Record', 'write_stream', 'write_record', 'validate_arrays', 'truth_groups', 'read_record', 'RecordInfo', 'record_info', 'iter_chunks', 'check_datasets', 'Window', 'record_window', 'iter_window', 'LazyArray', 'open_record', 'record_attrs', 'compensated_with']

@@ -11,7 +11,11 @@ Layout (schema version :data:`inscal.SCHEMA_VERSION`)::
     /site            attrs: latitude_rad, longitude_rad, height_m, gravity_model (JSON
                             {"kind": "wgs84"|"psins"|"measured", "value": m/s^2 or null};
                             absent: wgs84)
-    /truth           (simulated data only) groups imu/, gimbal/, noise/ with SI datasets
+    /truth           (simulated data only) groups imu/, gimbal/, noise/ with SI datasets, and
+                     thermal/ (optional: the thermal model, :mod:`inscal.core.thermal`; attrs t_ref,
+                     t_min, t_max; one (order, size) dataset per term, SI per degC^k)
+    /temperature     (M, S) degC  optional: S temperature sensors; attrs sensors (JSON list of names)
+    /temperature_time (M,)  s     the sensors' own times (absent: /time, then M = N)
 
 Files are written to a temporary name in the same folder and renamed when complete,
 so a crash never leaves a half-written file under the requested name, and an existing
@@ -37,6 +41,7 @@ from inscal import SCHEMA_VERSION, __version__
 if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
     from inscal.core.earth import Site
     from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+    from inscal.core.thermal import ThermalModel
     from inscal.core.turntable import RotationPath
 
 
@@ -46,7 +51,9 @@ from inscal.io.files import atomic_path, check_cancel, check_input
 
 #: names this module re-exports from the domain modules, imported on first use (PEP 562)
 KIND = "inscal-record"
-UNITS = {"time": "s", "dtheta": "rad", "dvel": "m/s", "gimbal": "rad"}
+UNITS = {"time": "s", "dtheta": "rad", "dvel": "m/s", "gimbal": "rad", "temperature": "degC", "temperature_time": "s"}
+#: temperatures (degC) outside this span are refused as implausible (kelvin or a raw sensor count?)
+TEMPERATURE_SPAN = (-100.0, 200.0)
 
 
 class DataFileError(ValueError):
@@ -58,6 +65,63 @@ class Truth:
     imu: ImuErrors
     gimbal: GimbalErrors
     noise: ImuNoise
+    thermal: ThermalModel | None = None  # the IMU errors follow the temperature (``imu`` = at T_ref)
+
+
+@dataclass(frozen=True)
+class Temperature:
+    """Temperature sensor readings of a record: ``values`` (M, S) degC at ``time`` (M,) s (the record's
+    clock), one column per sensor named in ``sensors``."""
+
+    time: np.ndarray
+    values: np.ndarray
+    sensors: tuple[str, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "sensors", tuple(str(x) for x in self.sensors))
+        v = np.asarray(self.values, dtype=float)
+        object.__setattr__(self, "values", v[:, None] if v.ndim == 1 else v)
+        object.__setattr__(self, "time", np.asarray(self.time, dtype=float))
+        validate_temperature(self.time, self.values, self.sensors)
+
+    def series(self, sensor: str = "") -> np.ndarray:
+        """The readings of ``sensor`` (M,), or the mean of the sensors when ``sensor`` is empty."""
+        if sensor:
+            if sensor not in self.sensors:
+                raise DataFileError(f"no temperature sensor {sensor!r} in the record (it has {', '.join(self.sensors)})")
+            return self.values[:, self.sensors.index(sensor)]
+        return self.values.mean(axis=1)
+
+
+def validate_temperature(time, values, sensors, where: str = "temperature") -> None:
+    """Shapes, finiteness, increasing time and a plausible Celsius range (one-line DataFileError)."""
+    t = np.asarray(time)
+    v = np.asarray(values)
+    if t.ndim != 1 or t.shape[0] < 1:
+        raise DataFileError(f"{where}: time must be a non-empty 1-D array, got shape {t.shape}")
+    if v.ndim != 2 or v.shape[0] != t.shape[0] or v.shape[1] < 1:
+        raise DataFileError(f"{where}: values have shape {v.shape}, expected ({t.shape[0]}, sensors) to match its time")
+    if len(sensors) != v.shape[1]:
+        raise DataFileError(f"{where}: {v.shape[1]} column(s) but {len(sensors)} sensor name(s)")
+    if len(set(sensors)) != len(sensors):
+        raise DataFileError(f"{where}: sensor names repeat ({', '.join(sensors)})")
+    for name, a in (("time", t), ("values", v)):
+        if not np.issubdtype(a.dtype, np.number):
+            raise DataFileError(f"{where}: {name} is not numeric ({a.dtype})")
+        bad = ~np.isfinite(a.astype(float))
+        if bad.any():
+            idx = int(np.argmax(bad.reshape(t.shape[0], -1).any(axis=1)))
+            raise DataFileError(f"{where}: {int(bad.sum())} NaN/inf {name}, first at reading {idx}")
+    if t.shape[0] > 1:
+        d = np.diff(t.astype(float))
+        if np.any(d <= 0):
+            k = int(np.argmax(d <= 0))
+            raise DataFileError(f"{where}: time does not increase at reading {k + 1} (t = {t[k + 1]} s after {t[k]} s)")
+    lo, hi = float(np.min(v)), float(np.max(v))
+    if lo < TEMPERATURE_SPAN[0] or hi > TEMPERATURE_SPAN[1]:
+        hint = " (kelvin? give the column's unit as K)" if hi > 200.0 and lo > 150.0 else ""
+        raise DataFileError(f"{where}: readings {lo:g} .. {hi:g} degC lie outside the plausible "
+                            f"{TEMPERATURE_SPAN[0]:g} .. {TEMPERATURE_SPAN[1]:g} degC{hint}")
 
 
 @dataclass
@@ -74,6 +138,7 @@ class Record:
     truth: Truth | None = None
     scenario: str = ""
     source: str = ""
+    temperature: Temperature | None = None
 
     @property
     def n_samples(self) -> int:
@@ -112,10 +177,12 @@ def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
         h5.create_dataset("gimbal", shape=(n, 2), dtype="f8", chunks=(ch, 2))
 
 
-def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None) -> int:
+def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None,
+                 temperature: Temperature | None = None) -> int:
     """Write a record chunk by chunk from an iterator of ``(time, dtheta, dvel, gimbal)``
     (atomic; only one chunk in memory).  ``info`` gives the metadata; its truth, if any, is
-    written under /truth."""
+    written under /truth; ``temperature`` (or ``info.temperature``) under /temperature."""
+    temperature = temperature if temperature is not None else info.temperature
     k = 0
     with atomic_path(path, overwrite) as tmp:
         with h5py.File(tmp, "w") as h5:
@@ -138,13 +205,39 @@ def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extr
                 _write_dataclass(t.create_group("imu"), info.truth.imu)
                 _write_dataclass(t.create_group("gimbal"), info.truth.gimbal)
                 _write_dataclass(t.create_group("noise"), info.truth.noise)
+                if info.truth.thermal is not None:
+                    _write_thermal(t.create_group("thermal"), info.truth.thermal)
+            if temperature is not None:
+                _write_temperature(h5, temperature, h5["time"] if info.n_samples else None)
     return k
+
+
+def _write_thermal(group, model) -> None:
+    from inscal.core.thermal import THERMAL_TERMS
+
+    for key in ("t_ref", "t_min", "t_max"):
+        group.attrs[key] = float(getattr(model, key))
+    group.attrs["out_of_range"] = model.out_of_range
+    group.attrs["sensor"] = model.sensor
+    for name in (*THERMAL_TERMS, "gyro_bias_rate"):
+        group.create_dataset(name, data=np.asarray(getattr(model, name), dtype=float))
+
+
+def _write_temperature(h5, temp: Temperature, time_ds) -> None:
+    """/temperature, and /temperature_time unless the readings are on the record's own time grid."""
+    h5.create_dataset("temperature", data=np.asarray(temp.values, dtype=float))
+    h5["temperature"].attrs["sensors"] = json.dumps(list(temp.sensors))
+    n = temp.time.shape[0]
+    same = time_ds is not None and time_ds.shape[0] == n and np.array_equal(time_ds[()], temp.time)
+    if not same:
+        h5.create_dataset("temperature_time", data=np.asarray(temp.time, dtype=float))
 
 
 def write_record(path, rec: Record, overwrite: bool = False) -> None:
     """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
     validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
-    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, rec.truth, rec.scenario, rec.gimbal is not None)
+    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, rec.truth, rec.scenario, rec.gimbal is not None,
+                      rec.temperature)
     write_stream(path, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite)
 
 
@@ -294,7 +387,54 @@ def _read_truth(h5, p) -> "Truth | None":
         raise DataFileError(f"{p}: partial truth: /truth lacks {', '.join(missing)} (a record's truth is complete "
                             "or absent; delete /truth to use it as a measured record)")
     parts = {g: _read_dataclass(t[g], cls, where=f"{p}: ") for g, cls in truth_groups().items()}
-    return Truth(parts["imu"], parts["gimbal"], parts["noise"])
+    thermal = _read_thermal(t["thermal"], p) if "thermal" in t else None
+    return Truth(parts["imu"], parts["gimbal"], parts["noise"], thermal)
+
+
+def _read_thermal(group, p) -> "ThermalModel":
+    from inscal.core.thermal import THERMAL_TERMS, ThermalModel
+
+    if not isinstance(group, h5py.Group):
+        raise DataFileError(f"{p}: /truth/thermal is not a group")
+    names = (*THERMAL_TERMS, "gyro_bias_rate")
+    unknown = set(group.keys()) - set(names)
+    if unknown:
+        raise DataFileError(f"{p}: truth/thermal: unknown terms {sorted(unknown)} (file from another version?)")
+    kw = {k: np.asarray(group[k][()], dtype=float) for k in names if k in group}
+    try:
+        return ThermalModel(t_ref=float(group.attrs["t_ref"]), t_min=float(group.attrs.get("t_min", -math.inf)),
+                            t_max=float(group.attrs.get("t_max", math.inf)),
+                            out_of_range=str(group.attrs.get("out_of_range", "warn")),
+                            sensor=str(group.attrs.get("sensor", "")), **kw)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{p}: truth/thermal: {exc}") from None
+
+
+def read_temperature(h5, p) -> Temperature | None:
+    """The /temperature readings of an open record (None when it has none), validated."""
+    if "temperature" not in h5:
+        return None
+    ds = h5["temperature"]
+    if not isinstance(ds, h5py.Dataset) or not np.issubdtype(ds.dtype, np.number):
+        raise DataFileError(f"{p}: /temperature is not a numeric dataset (degC)")
+    v = np.asarray(ds[()], dtype=float)
+    v = v[:, None] if v.ndim == 1 else v
+    try:
+        raw = ds.attrs.get("sensors")
+        sensors = json.loads(raw) if raw else [f"T{i}" for i in range(v.shape[1] if v.ndim == 2 else 1)]
+    except (TypeError, ValueError):
+        raise DataFileError(f"{p}: /temperature attribute sensors is not a JSON list of names") from None
+    if not isinstance(sensors, list):
+        raise DataFileError(f"{p}: /temperature attribute sensors is not a JSON list of names")
+    if "temperature_time" in h5:
+        t = np.asarray(h5["temperature_time"][()], dtype=float)
+    else:
+        t = np.asarray(h5["time"][()], dtype=float)
+        if v.shape[0] != t.shape[0]:
+            raise DataFileError(f"{p}: /temperature has {v.shape[0]} readings and no /temperature_time, but the record "
+                                f"has {t.shape[0]} samples")
+    validate_temperature(t, v, sensors, where=f"{p}: temperature")
+    return Temperature(t, v, tuple(sensors))
 
 
 def _meta(h5, p):
@@ -329,8 +469,9 @@ def read_record(path) -> Record:
         rate = _rate(h5, path)
         site, p, truth = _meta(h5, path)
         scen = str(h5.attrs.get("scenario", ""))
+        temp = read_temperature(h5, path)
     validate_arrays(time, dth, dv, gim, rate, where=str(path))
-    return Record(time, dth, dv, gim, rate, site, p, truth, scen, str(path))
+    return Record(time, dth, dv, gim, rate, site, p, truth, scen, str(path), temp)
 
 
 @dataclass
@@ -342,6 +483,7 @@ class RecordInfo:
     truth: Truth | None
     scenario: str
     has_gimbal: bool
+    temperature: Temperature | None = None
 
 
 def record_info(path) -> RecordInfo:
@@ -350,7 +492,7 @@ def record_info(path) -> RecordInfo:
         check_datasets(h5, path)
         site, p, truth = _meta(h5, path)
         return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
-                          str(h5.attrs.get("scenario", "")), "gimbal" in h5)
+                          str(h5.attrs.get("scenario", "")), "gimbal" in h5, read_temperature(h5, path))
 
 
 def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
@@ -522,11 +664,13 @@ def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
                 raise DataFileError(f"{path}: fewer than 2 samples")
             site, p, truth = _meta(h5, path)
             scen = str(h5.attrs.get("scenario", ""))
+            temp = read_temperature(h5, path)
             if validate:
                 for _ in iter_chunks(path, chunk_size):
                     pass
             lazy = {k: LazyArray(h5[k], where=path) for k in ("time", "dtheta", "dvel", "gimbal") if k in h5}
-        yield Record(lazy["time"], lazy["dtheta"], lazy["dvel"], lazy.get("gimbal"), rate, site, p, truth, scen, str(path))
+        yield Record(lazy["time"], lazy["dtheta"], lazy["dvel"], lazy.get("gimbal"), rate, site, p, truth, scen, str(path),
+                     temp)
 
 
 def record_attrs(path: RotationPath, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:

@@ -39,8 +39,9 @@ from inscal.core.attitude import dcm_from_euler
 from inscal.core.earth import Site
 from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 from inscal.core.kinematics import rates_at, segment_at
+from inscal.core.thermal import ThermalModel
 from inscal.core.turntable import RotationPath, Segments, outer_axis
-from inscal.io.records import DataFileError, Record, RecordInfo, Truth, write_stream
+from inscal.io.records import DataFileError, Record, RecordInfo, Temperature, Truth, record_attrs, write_stream
 from inscal.sim.kernel import (
     O_ARW,
     O_ASYNC,
@@ -60,6 +61,7 @@ from inscal.sim.kernel import (
     gauss_markov_filter,
     simulate_pass,
 )
+from inscal.sim.thermal import TemperatureProfile, TemperatureSensor
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
 #: samples per compiled pass (a chunk is done in passes of this many; the numbers do not depend on it)
@@ -77,10 +79,30 @@ class Scenario:
     gimbal: GimbalErrors = field(default_factory=GimbalErrors)
     noise: ImuNoise = field(default_factory=ImuNoise)
     rate_hz: float = 100.0
+    #: the IMU errors follow the temperature (``imu``: the errors at ``thermal.t_ref``)
+    thermal: ThermalModel | None = None
+    #: the temperature of the IMU over time (None: no temperature, the IMU stays at its reference)
+    temperature: TemperatureProfile | None = None
+    #: how the record's /temperature readings are taken from ``temperature``
+    temperature_sensor: TemperatureSensor = field(default_factory=TemperatureSensor)
 
     def __post_init__(self):
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ValueError(f"rate must be a positive number of Hz, got {self.rate_hz}")
+        if self.thermal is not None and not self.thermal.is_zero and self.temperature is None:
+            raise ValueError("a scenario with a thermal model needs a temperature profile")
+
+    @property
+    def has_thermal(self) -> bool:
+        """True when the IMU errors change with the temperature in this scenario."""
+        return self.thermal is not None and not self.thermal.is_zero and self.temperature is not None
+
+    def temperature_readings(self, rng: np.random.Generator | None) -> Temperature | None:
+        """The record's /temperature (None without a profile); the sensor's noise draws come from
+        ``rng`` (a child of the simulation's generator)."""
+        if self.temperature is None:
+            return None
+        return self.temperature_sensor.read(self.temperature, self.path.duration, rng)
 
     @property
     def n_samples(self) -> int:
@@ -420,6 +442,9 @@ def _chunks(scenario, rng, chunk_size, keep_truth, progress, seg, whole) -> Iter
     model = ModelArrays.of(imu)
     want_nl = bool(model.opts & (O_QUAD | O_LEVER))
     noise = None if scenario.noise.is_zero else NoiseState(scenario.noise, rng, dt)
+    # thermal errors: the pass measures at T_ref, the thermal model moves each sample to its temperature, then
+    # the noise is added in NumPy from the same draws (NoiseState.apply)
+    thermal = scenario.thermal if scenario.has_thermal else None
     # the arrays of what a run does not use (never written: their option bits are off)
     unused3 = _rows(1, 3)
     unused_boundary = (unused3, unused3, unused3, _rows(1, 6), unused3)
@@ -448,13 +473,19 @@ def _chunks(scenario, rng, chunk_size, keep_truth, progress, seg, whole) -> Iter
                                    wie_n, g, _GL_X, _GL_W, want_nl, *boundary)
                 opts |= O_ASYNC
             noise_args = unused_noise
-            if noise is not None:
+            if noise is not None and thermal is None:
                 noise_opts, noise_args = noise.pass_arguments(m)
                 opts |= noise_opts
             simulate_pass(k, m, dt, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie_n, g, _GL_X, _GL_W, opts,
                           model.mg, model.bg, model.gs, model.ma, model.ba, model.k2, model.kc, model.p,
                           *boundary, *noise_args, carry, t[j0:j1], mdth[j0:j1], mdv[j0:j1], gimbal[j0:j1],
                           unused3 if dth is None else dth[j0:j1], unused3 if dv is None else dv[j0:j1], *unused_raw)
+            if thermal is not None:
+                T, rate = scenario.temperature.at(t[j0:j1] - 0.5 * dt)  # the middle of each sample interval
+                a, b = thermal.to_temperature(imu, dt, mdth[j0:j1], mdv[j0:j1], T, rate)
+                if noise is not None:
+                    a, b, gimbal[j0:j1] = noise.apply(a, b, gimbal[j0:j1])
+                mdth[j0:j1], mdv[j0:j1] = a, b
         yield Chunk(k0, t, mdth, mdv, gimbal, dth, dv)
         if progress is not None:
             progress(k0 + n, N)
@@ -471,6 +502,24 @@ class SimData:
     gimbal: np.ndarray
     true_dtheta: np.ndarray | None = None
     true_dvel: np.ndarray | None = None
+    temperature: Temperature | None = None
+
+    def to_record(self) -> Record:
+        """The simulation as an in-memory :class:`~inscal.io.records.Record` with its truth."""
+        sc = self.scenario
+        return Record(self.time, self.dtheta, self.dvel, self.gimbal, sc.rate_hz, sc.site, path=sc.path,
+                      truth=Truth(sc.imu, sc.gimbal, sc.noise, sc.thermal), scenario=sc.name,
+                      temperature=self.temperature)
+
+
+def _temperature_rng(scenario: Scenario, rng: np.random.Generator | None) -> np.random.Generator | None:
+    """The generator of the temperature sensor's noise: a child spawned from ``rng`` only when that noise is
+    on (so the IMU noise draws of every other scenario are unchanged)."""
+    if scenario.temperature is None or scenario.temperature_sensor.noise_c <= 0:
+        return None
+    if rng is None:
+        raise ValueError("a seeded numpy Generator is required for temperature sensor noise")
+    return rng.spawn(1)[0]
 
 
 def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_truth: bool = False,
@@ -479,6 +528,7 @@ def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_tr
     written into the arrays of the result: no copy, no more memory than the result."""
     seg = scenario.path.segments()
     n = _n_samples(scenario, seg)
+    temp_rng = _temperature_rng(scenario, rng)
     if n < 1:
         for _ in _chunks(scenario, rng, chunk_size, keep_truth, None, seg, None):
             pass
@@ -487,7 +537,7 @@ def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_tr
              np.empty((n, 3)) if keep_truth else None, np.empty((n, 3)) if keep_truth else None)
     for _ in _chunks(scenario, rng, chunk_size, keep_truth, None, seg, whole):
         pass
-    return SimData(scenario, *whole)
+    return SimData(scenario, *whole, temperature=scenario.temperature_readings(temp_rng))
 
 
 def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, overwrite: bool = False,
@@ -497,11 +547,14 @@ def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, 
     n = scenario.n_samples
     if n < 1:
         raise ValueError("scenario is shorter than one sample")
+    temp_rng = _temperature_rng(scenario, rng)
     info = RecordInfo(n, scenario.rate_hz, scenario.site, scenario.path,
-                      Truth(scenario.imu, scenario.gimbal, scenario.noise), scenario.name, True)
+                      Truth(scenario.imu, scenario.gimbal, scenario.noise, scenario.thermal), scenario.name, True,
+                      scenario.temperature_readings(temp_rng))
     chunks = ((c.time, c.dtheta, c.dvel, c.gimbal)
               for c in simulate_chunks(scenario, rng, chunk_size=chunk_size, progress=progress))
-    return write_stream(path, info, chunks, overwrite)
+    extra = {"temperature_profile": scenario.temperature.to_json()} if scenario.temperature is not None else None
+    return write_stream(path, info, chunks, overwrite, extra_attrs=extra)
 
 
 def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
@@ -509,4 +562,14 @@ def scenario_from_record(rec: Record | RecordInfo) -> Scenario:
 
     if rec.truth is None or rec.path is None:
         raise DataFileError("record has no truth/path: it is not a simulated record")
-    return Scenario(rec.scenario or "record", rec.path, rec.site, rec.truth.imu, rec.truth.gimbal, rec.truth.noise, rec.rate_hz)
+    return Scenario(rec.scenario or "record", rec.path, rec.site, rec.truth.imu, rec.truth.gimbal, rec.truth.noise, rec.rate_hz,
+                    rec.truth.thermal, _profile_of(rec))
+
+
+def _profile_of(rec: Record | RecordInfo) -> TemperatureProfile | None:
+    """The temperature profile of a simulated record (its ``temperature_profile`` attribute), if any."""
+    src = getattr(rec, "source", "")
+    if rec.truth is None or rec.truth.thermal is None or not src:
+        return None
+    text = record_attrs(src, ("temperature_profile",)).get("temperature_profile")
+    return TemperatureProfile.from_json(text) if text else None
