@@ -64,6 +64,24 @@ Built-in (``inscal simulate NAME``):
     calibration leaves decides the error.
     Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
     S16 Table 1 path, 100 Hz.
+``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-warmup``
+    Temperature (beyond both papers).  The IMU errors follow the temperature with the thermal
+    model :data:`THERMAL_ERRORS` (T_ref 20 degC, valid -40 .. +60 degC).  **Its magnitudes are
+    illustrative** (those of a navigation-grade FOG IMU in an order of magnitude: gyro bias
+    0.002 deg/h/degC, scale factors 0.5-2 ppm/degC, accelerometer bias 5 ug/degC, a gyro bias of
+    0.02 deg/h per degC/min of temperature change); a real unit's must come from its own calibration.
+    The temperature is recorded by one sensor at 1 Hz (/temperature).
+
+    * ``thermal-plateaus``: the ``n25`` IMU, gimbal and noise; a thermal chamber at five plateaus
+      (-40, -15, 10, 35, 60 degC), starting soaked at -40 degC, ramping 1 degC/min between them and
+      soaking 30 min on each (the turntable resting at position 1), then the N25 twelve-position path
+      with rate tests at each plateau.
+    * ``thermal-plateaus-s16``: the same chamber cycle with the ``s16`` IMU, noise and S16 Table 1
+      path at each plateau (the systematic filter per plateau).
+    * ``thermal-ramp``: the ``s16`` IMU and noise; the S16 Table 1 path twice, without a stop, while
+      the chamber holds -40 degC for 10 min, ramps to +60 degC at 1 degC/min and holds.
+    * ``thermal-warmup``: the ``n25`` IMU and noise on a static base for 2 h (``--duration``) while
+      the IMU warms up from 20 to 45 degC after turn-on (time constant 20 min).
 ``s16-gimbal``
     The ``s16`` scenario (S16 section 4.1 IMU errors and noise, S16 Table 1 path, 100 Hz, 30 N)
     on a gimbal with N25's geometry: non-orthogonality 20" and mount (carrier) attitude
@@ -123,9 +141,12 @@ from inscal.core.turntable import (
     s16_table1,
     static,
 )
+from inscal.core.thermal import ThermalModel, thermal_from_field
+from inscal.core.turntable import Move
 from inscal.core.units import DEG
 from inscal.io.tomlfile import read_toml
 from inscal.sim.simulate import Scenario
+from inscal.sim.thermal import Piece, TemperatureProfile, plateaus
 
 N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
 S16_SITE = Site(latitude=30.0 * DEG, longitude=114.0 * DEG, height=0.0)
@@ -288,6 +309,83 @@ def _n25_rotmod(duration_s: float = 6 * 3600.0) -> Scenario:
     return replace(base, name="n25-rotmod", path=rotmod16(duration_s))
 
 
+# ---------------------------------------------------------------------------- temperature
+#: The thermal model of the built-in thermal scenarios (field units; illustrative magnitudes, see the
+#: module docstring): coefficient rows of order 1, 2, 3 per term, T_ref 20 degC, valid -40 .. +60 degC.
+THERMAL_ERRORS = {
+    "t_ref": 20.0, "t_min": -40.0, "t_max": 60.0,
+    "terms": {
+        "gyro_bias": [{"order": 1, "value": [0.002, -0.0015, 0.0025], "unit": "deg/h/degC"},
+                      {"order": 2, "value": [2e-5, -1e-5, 1.5e-5], "unit": "deg/h/degC^2"}],
+        "gyro_scale_factor": [{"order": 1, "value": [0.5, -0.3, 0.4], "unit": "ppm/degC"},
+                              {"order": 2, "value": [0.005, 0.004, -0.003], "unit": "ppm/degC^2"}],
+        "accel_bias": [{"order": 1, "value": [5.0, -4.0, 6.0], "unit": "ug/degC"},
+                       {"order": 2, "value": [0.05, 0.03, -0.04], "unit": "ug/degC^2"},
+                       {"order": 3, "value": [5e-4, -3e-4, 4e-4], "unit": "ug/degC^3"}],
+        "accel_scale_factor": [{"order": 1, "value": [2.0, -1.5, 1.0], "unit": "ppm/degC"},
+                               {"order": 2, "value": [0.02, -0.01, 0.015], "unit": "ppm/degC^2"}],
+        "gyro_bias_rate": [{"order": 1, "value": [0.02, -0.015, 0.025], "unit": "deg/h/(degC/min)"}],
+    },
+}
+#: the chamber cycle of the plateau scenarios
+THERMAL_PLATEAUS_C = (-40.0, -15.0, 10.0, 35.0, 60.0)
+THERMAL_RAMP_C_PER_MIN = 1.0
+THERMAL_SOAK_S = 1800.0
+#: label of the chamber's transition moves (the turntable resting while the chamber ramps and soaks)
+CHAMBER_LABEL = "chamber"
+
+
+def thermal_model() -> ThermalModel:
+    """:data:`THERMAL_ERRORS` in SI."""
+    return thermal_from_field(THERMAL_ERRORS)[0]
+
+
+def thermal_plateau_path(base: RotationPath, levels_c=THERMAL_PLATEAUS_C, rate_c_per_min: float = THERMAL_RAMP_C_PER_MIN,
+                         soak_s: float = THERMAL_SOAK_S) -> tuple[RotationPath, TemperatureProfile]:
+    """``base`` run once at each plateau of a chamber cycle that starts soaked at ``levels_c[0]``: between
+    plateaus the turntable rests (a ``"none"`` move labelled :data:`CHAMBER_LABEL`) for the ramp and the
+    soak.  ``base`` must be closed (each copy starts where the last ended); its initial dwell is kept."""
+    if not base.closed:
+        raise ScenarioError(f"path {base.name!r} is not closed: it cannot be repeated at each plateau")
+    d = base.duration
+    profile, _ = plateaus(levels_c, soak_s, rate_c_per_min, start_c=levels_c[0], dwell_s=d)
+    # the first plateau starts soaked: drop its soak from the profile (the record starts on the plateau)
+    pieces = list(profile.pieces)
+    if soak_s > 0:
+        pieces.pop(0)
+    profile = TemperatureProfile(levels_c[0], tuple(pieces))
+    moves: list[Move] = []
+    for k, lev in enumerate(levels_c):
+        if k:
+            wait = abs(lev - levels_c[k - 1]) / (rate_c_per_min / 60.0) + soak_s + base.initial_dwell
+            moves.append(Move("none", dwell=wait, label=f"{CHAMBER_LABEL}: to {lev:g} degC"))
+        moves += list(base.moves)
+    path = RotationPath(f"{base.name}-plateaus", tuple(moves), accel=base.accel, initial=base.initial,
+                        initial_dwell=base.initial_dwell, closed=base.closed)
+    return path, profile
+
+
+def _thermal_plateaus(base: Scenario, name: str) -> Scenario:
+    path, profile = thermal_plateau_path(base.path)
+    return replace(base, name=name, path=path, thermal=thermal_model(), temperature=profile)
+
+
+def _thermal_ramp() -> Scenario:
+    base = _s16()
+    one = s16_table1()
+    path = RotationPath("s16-table1-x2", one.moves * 2, accel=one.accel, initial=one.initial,
+                        initial_dwell=one.initial_dwell, closed=one.closed)
+    lo, hi = THERMAL_PLATEAUS_C[0], THERMAL_PLATEAUS_C[-1]
+    profile = TemperatureProfile(lo, (Piece("hold", duration_s=600.0),
+                                      Piece("ramp", target_c=hi, rate_c_per_min=THERMAL_RAMP_C_PER_MIN)))
+    return replace(base, name="thermal-ramp", path=path, thermal=thermal_model(), temperature=profile)
+
+
+def _thermal_warmup(duration_s: float = 7200.0) -> Scenario:
+    profile = TemperatureProfile(20.0, (Piece("approach", target_c=45.0, tau_s=1200.0, duration_s=duration_s),))
+    return replace(_n25(), name="thermal-warmup", path=static(duration_s), thermal=thermal_model(), temperature=profile)
+
+
 BUILTIN = {
     "s16": lambda d: _s16(),
     "n25": lambda d: _n25(),
@@ -300,8 +398,12 @@ BUILTIN = {
     "psins19": lambda d: _psins19(),
     "s16-table3": lambda d: _s16_table3(),
     "s16-gimbal": lambda d: _s16_gimbal(),
+    "thermal-plateaus": lambda d: _thermal_plateaus(_n25(), "thermal-plateaus"),
+    "thermal-plateaus-s16": lambda d: _thermal_plateaus(_s16(), "thermal-plateaus-s16"),
+    "thermal-ramp": lambda d: _thermal_ramp(),
+    "thermal-warmup": lambda d: _thermal_warmup(d or 7200.0),
 }
-DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static"}
+DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static", "thermal-warmup"}
 
 
 class ScenarioError(ValueError):
