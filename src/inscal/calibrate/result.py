@@ -12,6 +12,7 @@ import numpy as np
 from inscal.calibrate.windows import CalibrationError, WindowSet  # noqa: F401  (CalibrationError: re-exported)
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors
+from inscal.core.thermal import ThermalModel
 
 #: Parameters of the linear N25 model the calibration methods work with.
 IMU_LINEAR = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias",
@@ -66,6 +67,12 @@ class CalibrationResult:
     #: methods that define their own IMU frame (the systematic filter); None = identity
     truth_transform: Callable | None = None
     history: dict | None = None
+    #: the thermal model estimated with the errors (``imu`` = the errors at ``thermal.t_ref``), or None
+    thermal: ThermalModel | None = None
+    #: 1 sigma of the thermal coefficients (SI, the shapes of the model's arrays; NaN: held fixed)
+    thermal_sigma: dict[str, np.ndarray] = field(default_factory=dict)
+    #: the fit of the thermal model (per term chi^2, dof, p-value ...), written to ``[thermal.fit]``
+    thermal_fit: dict | None = None
 
     @property
     def fit(self) -> dict | None:

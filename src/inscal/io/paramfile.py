@@ -21,6 +21,19 @@ Layout (``schema_version`` :data:`PARAM_SCHEMA_VERSION`)::
     sigma_formal = [0.02, 0.02, 0.02]       # optional: the formal 1 sigma, present when the
     unit = "ug"                             # reported one was scaled (inconsistent fit)
 
+    [thermal]                               # optional: the thermal model (inscal.core.thermal)
+    t_ref = 20.0                            # degC; the [parameters] are the errors at t_ref
+    t_min = -40.0                           # the range the model was calibrated over (degC)
+    t_max = 60.0
+    out_of_range = "warn"                   # or "clamp", "error": compensation outside the range
+    sensor = ""                             # the temperature sensor ("": mean of the record's)
+    [[thermal.terms.gyro_bias]]             # one table per order, unit <unit>/degC^order
+    order = 1
+    value = [0.002, -0.0015, 0.0025]
+    sigma = [1e-4, 1e-4, 1e-4]
+    unit = "deg/h/degC"
+    [thermal.fit]                           # optional: the fit of the thermal polynomials
+
     [fit]                                   # optional (window-mean methods): the fit of the model
     chi2 = 1.9e8                            # to the window means (calibrate.result.fit_statistics)
     dof = 86
@@ -63,6 +76,7 @@ from inscal.core.error_model import (
     ImuErrors,
     errors_from_field,
 )
+from inscal.core.thermal import thermal_from_field, thermal_to_field
 from inscal.io.files import atomic_path, check_input, file_hash
 from inscal.io.jsonfile import to_jsonable
 from inscal.io.records import record_attrs
@@ -150,7 +164,26 @@ def params_document(result, data_file: str | None = None, data_hash: str | None 
     fit = getattr(result, "fit", None)
     if fit:
         doc["fit"] = fit_table(fit)
+    thermal = getattr(result, "thermal", None)
+    if thermal is not None:
+        doc["thermal"] = thermal_to_field(thermal, getattr(result, "thermal_sigma", None) or None)
+        tfit = getattr(result, "thermal_fit", None)
+        if tfit:
+            doc["thermal"]["fit"] = fit_table_any(tfit)
     return doc
+
+
+def fit_table_any(fit: dict) -> dict:
+    """A fit dict as plain TOML types (None and non-finite entries dropped), whatever its keys."""
+
+    def clean(v):
+        if isinstance(v, dict):
+            return {str(k): clean(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v if x is not None]
+        return v
+
+    return clean(to_jsonable(fit))
 
 
 #: keys of a fit dict written to the ``[fit]`` table (large or derived entries are left out)
@@ -240,8 +273,20 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
     fit = doc.get("fit")
     if fit is not None and not isinstance(fit, dict):
         raise ParamFileError(f"{p}: [fit] must be a table")
+    thermal, thermal_sigma, thermal_fit = None, {}, None
+    if "thermal" in doc:
+        tdoc = doc["thermal"]
+        if not isinstance(tdoc, dict):
+            raise ParamFileError(f"{p}: [thermal] must be a table")
+        tdoc = dict(tdoc)
+        thermal_fit = tdoc.pop("fit", None)
+        try:
+            thermal, thermal_sigma = thermal_from_field(tdoc)
+        except ValueError as exc:
+            raise ParamFileError(f"{p}: {exc}") from None
     meta.update(schema_version=ver, estimated=tuple(params), sigma=sigma, sigma_formal=sigma_formal,
-                metadata=doc.get("metadata", {}), fit=fit)
+                metadata=doc.get("metadata", {}), fit=fit, thermal=thermal, thermal_sigma=thermal_sigma,
+                thermal_fit=thermal_fit)
     if not isinstance(meta["method"], str):
         raise ParamFileError(f"{p}: missing 'method'")
     # only files written by inscal (they carry inscal_version) are held to their method's tables;
