@@ -122,7 +122,7 @@ class ThermalModel:
         d.setflags(write=False)
         object.__setattr__(self, "gyro_bias_rate", d)
 
-    def replace(self, **kw) -> "ThermalModel":
+    def replace(self, **kw) -> ThermalModel:
         return dataclasses.replace(self, **kw)
 
     # -- structure
@@ -267,6 +267,13 @@ def thermal_to_field(model: ThermalModel, sigma: dict | None = None) -> dict:
             "sensor": model.sensor, "terms": terms}
 
 
+def _coefficient_si(name: str, value, row: dict, unit: str, kind: str, order: int):
+    """A coefficient (or its sigma) of ``row`` in SI: the dT/dt term in its own unit, the others per degree^order."""
+    if name == RATE_TERM[0]:
+        return units.to_si(value, row.get("unit", unit), kind)
+    return units.thermal_to_si(value, row.get("unit", units.per_degree_unit(unit, order)), kind, order)
+
+
 def thermal_from_field(d: dict) -> tuple[ThermalModel, dict]:
     """Inverse of :func:`thermal_to_field`: the model and the 1-sigma arrays it carries (SI)."""
     if not isinstance(d, dict):
@@ -300,13 +307,9 @@ def thermal_from_field(d: dict) -> tuple[ThermalModel, dict]:
                 raise ValueError(f"thermal.terms.{name}: unknown keys {sorted(extra)}")
             k = int(r["order"])
             try:
-                if name == RATE_TERM[0]:
-                    conv = lambda v: units.to_si(v, r.get("unit", unit), kind)  # noqa: E731
-                else:
-                    conv = lambda v: units.thermal_to_si(v, r.get("unit", units.per_degree_unit(unit, k)), kind, k)  # noqa: E731
-                vals[k - 1] = np.broadcast_to(conv(r["value"]), (size,))
+                vals[k - 1] = np.broadcast_to(_coefficient_si(name, r["value"], r, unit, kind, k), (size,))
                 if "sigma" in r:
-                    sigs[k - 1] = np.broadcast_to(conv(r["sigma"]), (size,))
+                    sigs[k - 1] = np.broadcast_to(_coefficient_si(name, r["sigma"], r, unit, kind, k), (size,))
             except units.UnitError as exc:
                 raise ValueError(f"thermal.terms.{name} order {k}: {exc}") from None
             except (KeyError, TypeError, ValueError) as exc:
