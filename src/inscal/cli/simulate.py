@@ -35,7 +35,17 @@ def summary(sc, out: Path, seed: int | None, n: int) -> dict:
                  "height_m": sc.site.height},
         "gravity": {**sc.site.gravity_model.to_json(), "g_site_m_s2": sc.site.gravity},
         "noise": not sc.noise.is_zero,
+        **({"temperature": _temperature_summary(sc)} if sc.temperature is not None else {}),
     }
+
+
+def _temperature_summary(sc) -> dict:
+    """The scenario's temperature profile and sensor, and whether the IMU errors follow it."""
+    t = np.linspace(0.0, float(sc.path.duration), 2001)
+    T, rate = sc.temperature.at(t)
+    s = sc.temperature_sensor
+    return {"min_c": float(T.min()), "max_c": float(T.max()), "max_rate_c_per_min": float(np.max(np.abs(rate)) * 60.0),
+            "sensors": list(s.names), "sensor_rate_hz": s.rate_hz, "thermal_model": sc.has_thermal}
 
 
 def _with_gravity(sc, text: str):
@@ -127,10 +137,11 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def simulate(
         scenario: str = typer.Argument(..., help="built-in scenario (s16, s16-table3, s16-gimbal, psins19, n25, n25-rotmod, "
-                                       "n25-static, static, static-24h, rotmod16, rotmod16-6h) or a .toml file"),
+                                       "n25-static, static, static-24h, rotmod16, rotmod16-6h, thermal-plateaus, "
+                                       "thermal-plateaus-s16, thermal-ramp, thermal-warmup) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
         seed: int = typer.Option(0, help="seed of the noise generator"),
-        duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static and rotation-modulation scenarios)"),
+        duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
@@ -151,3 +162,8 @@ def register(app: typer.Typer) -> None:
                        f"path {res['path']} ({res['moves']} moves) -> {res['out']}")
             if "duration_note" in res:
                 typer.echo(f"  note: {res['duration_note']}")
+            if "temperature" in res:
+                t = res["temperature"]
+                typer.echo(f"  temperature {t['min_c']:.1f} .. {t['max_c']:.1f} degC (at most {t['max_rate_c_per_min']:.2f} "
+                           f"degC/min), {len(t['sensors'])} sensor(s) at {t['sensor_rate_hz']:g} Hz in /temperature"
+                           + ("; the IMU errors follow it (thermal model in /truth/thermal)" if t["thermal_model"] else ""))
