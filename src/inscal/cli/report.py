@@ -1,4 +1,5 @@
-"""``inscal report``: an HTML report of a record, with parameter files compared."""
+"""``inscal report``: an HTML report of a record, with parameter files compared (and, for a record with
+/temperature or a parameter file with a thermal model, the temperature and the thermal curves)."""
 
 from __future__ import annotations
 
@@ -28,12 +29,18 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
     from inscal.io.files import input_problem
     from inscal.io.paramfile import provenance_mismatch
     from inscal.report.record import record_report
+    from inscal.report.thermal import PlateauError, params_plateaus
 
     check_output(out, force)
     check_not_input(out, data, *params)
     from inscal import io
 
     sets = [(str(p), *load_checked_params(p)) for p in params]
+    for p, _, _, meta in sets:
+        try:
+            params_plateaus(meta)
+        except PlateauError as exc:
+            raise CliError(f"{p}: thermal per-plateau points: {exc}") from None
     if (msg := input_problem(data, "file")) is not None:
         raise CliError(msg)
     warnings = [w for p, _, _, meta in sets if (w := provenance_mismatch(data, Path(p), meta)) is not None]
@@ -68,12 +75,16 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def report(
         data: Path = typer.Argument(..., help="HDF5 record"),
-        params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable)"),
+        params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable); "
+                                          "a file with a thermal model also gets each thermal parameter's curve "
+                                          "over its calibrated range with its 1-sigma band"),
         out: Path = typer.Option(..., "--out", "-o", help="HTML report to write"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing report"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        json_: bool = typer.Option(False, "--json", help="print a JSON summary, with the numbers behind the "
+                                   "temperature and thermal plots (field units)"),
     ):
-        """Write an HTML report: gimbal motion, sensor outputs, Allan deviation, parameters vs truth."""
+        """Write an HTML report: gimbal motion, sensor outputs, temperature and dT/dt, Allan deviation,
+        parameters vs truth, thermal parameters over temperature with their 1-sigma bands."""
         try:
             res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
         except CliError as exc:

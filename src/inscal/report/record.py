@@ -1,5 +1,6 @@
-"""The report of one record: what it holds, its Allan deviation, the parameter sets given, and the
-path section (gimbal angles and the Cramer-Rao bound) when it has a path."""
+"""The report of one record: what it holds, its temperature (when it has one), its Allan deviation,
+the parameter sets given (each thermal model with its curves), and the path section (gimbal angles
+and the Cramer-Rao bound) when it has a path."""
 
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ from inscal.plan.rows import BoundError
 from inscal.report.figures import new_figure, png_base64
 from inscal.report.html import fmt_value
 from inscal.report.path import html_fragment, path_figure
+from inscal.report.thermal import STYLE as THERMAL_STYLE
+from inscal.report.thermal import params_thermal, temperature_section, thermal_section
 
 
 def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] | None = None,
@@ -23,9 +26,11 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     """Write a self-contained HTML report of a record (plots embedded) and return its summary.
 
     ``param_sets``: ``[(label, ImuErrors, GimbalErrors, metadata)]`` from parameter files; each
-    is tabulated in field units with its 1 sigma and, for simulated records, its error.
+    is tabulated in field units with its 1 sigma and, for simulated records, its error.  A record with
+    /temperature gets its temperature and dT/dt (``summary["temperature"]``); a parameter set with a
+    thermal model (``metadata["thermal"]``) gets each thermal parameter's curve over its calibrated
+    range with its 1-sigma band (:mod:`inscal.report.thermal`; ``summary["thermal"][label]``).
     """
-
 
     plt = new_figure()
     figs = []
@@ -71,8 +76,16 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
         plt.close(fig)
         summary["arw_deg_rth"] = units.from_si(g.white, "deg/sqrt(h)").tolist()
         summary["vrw_ug_rthz"] = units.from_si(a.white, "ug/sqrt(Hz)").tolist()
+    temp_section, span = None, None
+    if getattr(rec, "temperature", None) is not None:
+        temp_section, temp_data = temperature_section(rec.temperature)
+        summary["temperature"] = temp_data
+        span = temp_data["range_c"]
     path_section = _path_section(rec, summary)
     tables = []
+    truth_thermal = None
+    if rec.truth is not None and getattr(rec.truth, "thermal", None) is not None:
+        truth_thermal = (rec.truth.imu, rec.truth.thermal)
     truth = errors_to_field(rec.truth.imu, rec.truth.gimbal) if rec.truth is not None else None
     for label, imu, gim, meta in param_sets or []:
         est = errors_to_field(imu, gim)
@@ -87,25 +100,34 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
             if truth is not None:
                 row.append(fmt_value(np.asarray(est[name]["value"]) - np.asarray(truth[name]["value"])))
             rows.append(row)
-        tables.append((label, meta.get("method", ""), rows))
+        tdata = params_thermal(meta, imu, truth_thermal, span)
+        if tdata is not None:
+            summary.setdefault("thermal", {})[label] = tdata
+        tables.append((label, meta.get("method", ""), rows, tdata))
     head = ["parameter", "unit", "value", "1σ"] + (["error (estimate − truth)"] if truth is not None else [])
     parts = [f"<h1>inscal report: {html.escape(rec.source or rec.scenario)}</h1>",
-             "<p>" + ", ".join(f"{k}: {html.escape(str(v))}" for k, v in summary.items() if not isinstance(v, list)) + "</p>"]
+             "<p>" + ", ".join(f"{k}: {html.escape(str(v))}" for k, v in summary.items()
+                               if not isinstance(v, (list, dict))) + "</p>"]
     for title, b64 in figs:
         parts.append(f"<h2>{title}</h2><img src='data:image/png;base64,{b64}'/>")
+    if temp_section:
+        parts.append(temp_section)
     if path_section:
         parts.append(path_section)
-    for label, method, rows in tables:
+    for label, method, rows, tdata in tables:
         parts.append(f"<h2>Parameters: {html.escape(label)} ({html.escape(method)})</h2><table><tr>"
                      + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
                      + "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows) + "</table>")
+        if tdata is not None:
+            parts.append(thermal_section(label, tdata))
     doc = ("<!doctype html><html><head><meta charset='utf-8'><title>inscal report</title><style>"
            "body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
-           "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}section.path-report{overflow-x:auto}</style></head><body>"
+           "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}section.path-report{overflow-x:auto}"
+           + THERMAL_STYLE + "</style></head><body>"
            + "".join(parts) + "</body></html>")
     with atomic_path(path, overwrite) as tmp:
         tmp.write_text(doc, encoding="utf-8")
-    summary["figures"] = [f[0] for f in figs]
+    summary["figures"] = [f[0] for f in figs] + (["Temperature"] if temp_section else [])
     summary["parameter_tables"] = [t[0] for t in tables]
     return summary
 
