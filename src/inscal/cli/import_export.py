@@ -3,7 +3,8 @@
 ``import`` converts once (PSINS ``.bin``/``.mat``, csv or whitespace text through a mapping
 TOML), with the checks of :mod:`inscal.io.importers`; every other command reads the record.
 ``export`` writes a record as csv (17 significant digits), PSINS ``.bin`` (float64) or
-``.mat``, so that export -> import gives back the same doubles.
+``.mat``, so that export -> import gives back the same doubles; a record's temperature goes into
+the csv's columns, and with ``--temperature-out`` to a file that ``import --temperature`` reads.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None, encoder_latency: float = 0.0) -> dict:
+               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None) -> dict:
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
@@ -68,7 +69,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(msg)
     check_output(out, force)
     check_not_input(out, src, role="source file")
-    check_not_input(out, mapping, path, gimbal)
+    check_not_input(out, mapping, path, gimbal, temperature)
     try:
         site = _site(lat, lon, height, mapping, fmt)
         gmodel = None
@@ -78,7 +79,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
             gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
-                           gravity=gmodel)
+                           gravity=gmodel, temperature_file=temperature)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -86,7 +87,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
 
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
-               force: bool = False) -> dict:
+               force: bool = False, temperature_out: Path | None = None) -> dict:
     from inscal.io.files import input_problem
     from inscal.io.importers import export_record
     from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
@@ -96,17 +97,18 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
         raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
-    outs = [p for p in (out, gimbal_out, path_out) if p is not None]
-    for p in outs:
+    named = {"the outputs": out, "--gimbal-out": gimbal_out, "--path-out": path_out, "--temperature-out": temperature_out}
+    outs = [(what, p) for what, p in named.items() if p is not None]
+    for _, p in outs:
         check_output(p, force)
-    resolved = [p.resolve() for p in outs]
+    resolved = [p.resolve() for _, p in outs]
     if len(set(resolved)) != len(resolved):
-        raise CliError("--out, --gimbal-out and --path-out must be different files")
-    for p in outs:
-        check_not_input(p, data, what="the outputs" if p == out else ("--gimbal-out" if p == gimbal_out else "--path-out"),
-                        role="input record")
+        raise CliError("--out, --gimbal-out, --path-out and --temperature-out must be different files")
+    for what, p in outs:
+        check_not_input(p, data, what=what, role="input record")
     try:
-        return export_record(data, out, fmt, overwrite=force, gimbal_out=gimbal_out, path_out=path_out)
+        return export_record(data, out, fmt, overwrite=force, gimbal_out=gimbal_out, path_out=path_out,
+                             temperature_out=temperature_out)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError, OSError) as exc:
         raise CliError(str(exc)) from None
 
@@ -139,13 +141,16 @@ def register(app: typer.Typer) -> None:
                                               "is over a sample)", metavar="SECONDS"),
         gravity: str = typer.Option(None, "--gravity", help="site gravity model stored in the record: wgs84 (default) | "
                                     "psins | a measured value in m/s^2 at the site height"),
+        temperature: Path = typer.Option(None, "--temperature", help="temperature readings at their own times: a header "
+                                         "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
+                                         "then rows on the source's clock"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency)
+                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -166,6 +171,9 @@ def register(app: typer.Typer) -> None:
             extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
         if res["time_regridded"]:
             extra.append("time regridded")
+        if (temp := res["temperature"]) is not None:
+            on = "on the sample times" if temp["grid"] == "record" else "at their own times"
+            extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
         typer.echo(f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "
                    f"from {res['source']} -> {res['out']}" + (f" ({'; '.join(extra)})" if extra else ""))
 
@@ -178,12 +186,15 @@ def register(app: typer.Typer) -> None:
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
         path_out: Path = typer.Option(None, "--path-out", help="also write the record's rotation path (TOML) for "
                                       "import --path"),
+        temperature_out: Path = typer.Option(None, "--temperature-out", help="also write the record's temperature "
+                                             "readings at their own times (csv: time [s], one degC column per sensor) "
+                                             "for import --temperature"),
         force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Export a record as csv (17 digits), PSINS .bin (float64 rows dθ, dv, t) or .mat."""
+        """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t) or .mat."""
         try:
-            res = run_export(data, fmt, out, gimbal_out, path_out, force)
+            res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -191,4 +202,9 @@ def register(app: typer.Typer) -> None:
         else:
             typer.echo(f"exported {res['samples']} samples ({res['format']}) -> {res['out']}"
                        + (f"; gimbal angles -> {gimbal_out}" if gimbal_out else "")
-                       + (f"; path -> {path_out}" if path_out else ""))
+                       + (f"; path -> {path_out}" if path_out else "")
+                       + (f"; temperature -> {temperature_out}" if temperature_out else "")
+                       + ("; temperature interpolated onto the sample times" if res["temperature"] == "interpolated"
+                          else "")
+                       + ("; temperature not exported (--temperature-out writes it)"
+                          if res["temperature"] == "not exported" and not temperature_out else ""))

@@ -17,6 +17,11 @@ brings inside, is a time column in milliseconds, microseconds or nanoseconds rea
 seconds declared as milliseconds), and so is an accelerometer magnitude of 1e-3 (1e-6) times
 gravity from increments over a time column: the increments are divided by an interval 1e3 (1e6)
 times too long.  The message names the unit and how to set it (:attr:`Raw.time_fix`).
+
+Temperature readings (:func:`check_temperature`): every sensor has at least one reading, every reading
+lies in the plausible span :data:`~inscal.io.records.TEMPERATURE_SPAN` once converted from its
+declared unit (kelvin declared as degC reads 293 degC: the message names the unit that would make the
+column plausible, K, degC or degF, and how to declare it).
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from inscal.core import earth, units
 from inscal.core.earth import Site
 from inscal.core.units import DEG
 from inscal.io.encoders import EncoderCheck, compare_encoders
-from inscal.io.formats import Raw, check_angles
+from inscal.io.formats import Raw, RawTemperature, check_angles
 from inscal.io.mapping import (
     CHECKS,
     JITTER_TOL,
@@ -42,6 +47,7 @@ from inscal.io.mapping import (
     TIME_FACTORS,
     ImportFileError,
 )
+from inscal.io.records import TEMPERATURE_SPAN, DataFileError, Temperature
 
 #: the checks ``skip`` may name: the mapping's, and ``encoders`` (:func:`check_encoders`)
 SKIPPABLE = CHECKS + ("encoders",)
@@ -422,3 +428,60 @@ def check_encoders(dtheta: np.ndarray, gimbal: np.ndarray, rate_hz: float, time:
     if not res.ok:
         raise ImportFileError(f"{res.message} (--skip-check encoders to import anyway)")
     return res
+
+
+#: temperatures [degC] a hint may suppose: a lab, a thermal chamber or a vehicle (a unit that puts a
+#: column here is named as the likely one)
+_HINT_SPAN = (-60.0, 130.0)
+
+
+def _unit_hint(read: np.ndarray, declared: str, fix: str, name: str) -> str:
+    """Which other temperature unit makes readings ``read`` (as written in the file) plausible, and how to say so."""
+    for u in ("K", "degC", "degF"):
+        if u == declared:
+            continue
+        c = units.to_celsius(read, u)
+        if _HINT_SPAN[0] <= float(np.min(c)) and float(np.max(c)) <= _HINT_SPAN[1]:
+            how = f": {fix.format(unit=u, name=name)}" if fix else ""
+            return f"; as {u} they would read {float(np.min(c)):.6g} .. {float(np.max(c)):.6g} degC{how}"
+    return ""
+
+
+def check_temperature(src: RawTemperature, time: np.ndarray | None = None) -> Temperature:
+    """Checked temperature readings as a :class:`~inscal.io.records.Temperature`: at ``src.time``, or at
+    ``time`` (the record's sample times, one per row of ``src``).  Every sensor needs a reading and
+    plausible values (module docstring).  Rows where no sensor has a reading are dropped; where some
+    sensors have a reading and others not, the others are interpolated linearly between their own
+    readings (held beyond the first and the last): the readings keep their own times, common to the
+    sensors.  One :class:`ImportFileError` line on a problem."""
+    where = src.where
+    t = np.asarray(src.time if src.time is not None else time, dtype=float)
+    v = np.asarray(src.values, dtype=float)
+    has = np.isfinite(v)
+    lo, hi = TEMPERATURE_SPAN
+    for s, label in enumerate(src.labels):
+        rows = np.flatnonzero(has[:, s])
+        if not rows.size:
+            raise ImportFileError(f"{where}: {label} has no reading: all its {v.shape[0]} cells are empty")
+        x = v[rows, s]
+        bad = (x < lo) | (x > hi)
+        if bad.any():
+            i = int(rows[int(np.argmax(bad))])
+            unit = src.units[s]
+            sc, off = units.TEMPERATURE_UNITS[unit]
+            read = (x - off) / sc
+            as_read = f"{float(read[int(np.argmax(bad))]):.6g} {unit}"
+            raise ImportFileError(
+                f"{where}: {label} reads {as_read}{'' if unit == 'degC' else f' = {v[i, s]:.6g} degC'} at "
+                f"{src.at(i)} (its readings {float(x.min()):.6g} .. {float(x.max()):.6g} degC), outside the plausible "
+                f"{lo:g} .. {hi:g} degC{_unit_hint(read, unit, src.fix, src.names[s])}")
+    keep = has.any(axis=1)
+    tt, vals = t[keep], v[keep].copy()
+    for s in range(v.shape[1]):
+        miss = ~has[keep, s]
+        if miss.any():
+            vals[miss, s] = np.interp(tt[miss], t[has[:, s]], v[has[:, s], s])
+    try:
+        return Temperature(tt, vals, src.names)
+    except DataFileError as exc:
+        raise ImportFileError(f"{where}: {exc}") from None

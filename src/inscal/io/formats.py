@@ -19,7 +19,6 @@ from inscal.io.files import check_input
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
-    EXPORT_HEADER_GIMBAL,
     MAX_ANGLE,
     MAX_RATE,
     MAX_RATE_HZ,
@@ -27,10 +26,30 @@ from inscal.io.mapping import (
     ImportFileError,
     Mapping,
     default_mapping,
+    export_layout,
 )
 
 
 # ----------------------------------------------------------------------------- raw sources
+@dataclass
+class RawTemperature:
+    """Temperature readings as read, in degC, not yet checked: ``values`` (M, S) with NaN where a cell is
+    empty (that sensor has no reading there), at ``time`` (M,) s, or at the rows of the IMU samples
+    they came with (``time`` None)."""
+
+    time: np.ndarray | None
+    values: np.ndarray
+    names: tuple  # sensor names
+    labels: tuple  # each sensor's column, for messages
+    lines: np.ndarray | None = None  # file line of each row
+    units: tuple = ()  # the unit each sensor's values were declared in (degC, K, degF)
+    fix: str = ""  # how to declare a sensor's unit ("{unit}": the unit, "{name}": the sensor)
+    where: str = ""  # the file
+
+    def at(self, i: int) -> str:
+        return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
+
+
 @dataclass
 class Raw:
     """Columns read from a source, converted to SI but not yet checked."""
@@ -50,6 +69,7 @@ class Raw:
     axes: tuple = (0, 1, 2)  # IMU axis of each file channel (1st, 2nd, 3rd of the gyros and of the accelerometers)
     time_unit: str = "s"  # the unit the time column was read in
     time_fix: str = ""  # how to declare the time column's unit here ("{unit}": the unit, "{factor}": the factor)
+    temperature: RawTemperature | None = None  # temperature columns of the same file
 
     def at(self, i: int) -> str:
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
@@ -267,8 +287,34 @@ def _split(line: str, delim: str | None) -> list[str]:
     return line.split() if delim is None else [f.strip() for f in line.split(delim)]
 
 
-def _parse_table(p: FsPath, m: Mapping) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
-    """Data rows as floats, the file line of each row, and the header names (last header row)."""
+def _column(p, names: list[str] | None, col, key: str) -> int:
+    """The index of a column given by index or by header name (exact, else the one case-insensitive match)."""
+    if not isinstance(col, str):
+        return int(col)
+    if names is None:
+        raise ImportFileError(f"{p}: column {col!r} (for {key}) is named, but the file is read without a header row")
+    hits = [k for k, n in enumerate(names) if n == col] or [k for k, n in enumerate(names) if n.lower() == col.lower()]
+    if len(hits) != 1:
+        what = "no column" if not hits else f"{len(hits)} columns"
+        raise ImportFileError(f"{p}: {what} named {col!r} (for {key}); header: {names}")
+    return hits[0]
+
+
+def _reading(tok: str) -> float:
+    """A temperature cell: a finite number, or empty (no reading: NaN)."""
+    if not tok.strip():
+        return math.nan
+    v = float(tok)
+    if not math.isfinite(v):
+        raise ValueError(f"{tok!r} is not finite")
+    return v
+
+
+def _parse_table(p: FsPath, m: Mapping, blank: dict | None = None,
+                 names: list[str] | None = None) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
+    """Data rows as floats, the file line of each row, and the header names (last header row, unless
+    ``names`` gives them).  ``blank``: ``{column (index or header name): what it is for}`` of temperature
+    columns, whose cells may be empty (NaN: no reading) and must otherwise be finite."""
     b = _file_bytes(p)
     if b"\x00" in b[:4096]:
         raise ImportFileError(f"{p}: not a text file (binary data)")
@@ -279,37 +325,58 @@ def _parse_table(p: FsPath, m: Mapping) -> tuple[np.ndarray, np.ndarray, list[st
     lines = text.splitlines()
     if len(lines) < m.header_rows:
         raise ImportFileError(f"{p}: {len(lines)} line(s), fewer than header_rows = {m.header_rows}")
-    names = _split(lines[m.header_rows - 1], m.delimiter) if m.header_rows else None
-    if names is not None:
-        names = [n.strip().strip('"').strip("'").strip() for n in names]
+    if names is None:
+        names = _split(lines[m.header_rows - 1], m.delimiter) if m.header_rows else None
+        if names is not None:
+            names = [n.strip().strip('"').strip("'").strip() for n in names]
     body = [(k + 1, ln) for k, ln in enumerate(lines[m.header_rows:], start=m.header_rows)
             if ln.strip() and not ln.lstrip().startswith(m.comment)]
     if not body:
         raise ImportFileError(f"{p}: no data rows after the {m.header_rows} header row(s)")
+    opt = {_column(p, names, c, key) for c, key in (blank or {}).items()}
     line_no = np.fromiter((k for k, _ in body), dtype=np.int64, count=len(body))
-    try:
-        data = np.loadtxt(StringIO("\n".join(ln for _, ln in body)), delimiter=m.delimiter, comments=None,
-                          dtype=float, ndmin=2)
-        if data.shape[0] == len(body):
-            return data, line_no, names
-    except ValueError:
-        pass
-    # slow path: find the first bad row and say what is wrong with it
     first = _split(body[0][1], m.delimiter)
     ncol = len(first)
+
+    def col_name(c: int) -> str:
+        return f"column {c}" + (f" ({names[c]!r})" if names and c < len(names) else "")
+
+    def load(converters):
+        try:
+            data = np.loadtxt(StringIO("\n".join(ln for _, ln in body)), delimiter=m.delimiter, comments=None,
+                              dtype=float, ndmin=2, converters=converters)
+        except ValueError:
+            return None
+        return data if data.shape[0] == len(body) else None
+
+    data = load(None)
+    if data is not None:
+        for c in opt:
+            bad = ~np.isfinite(data[:, c]) if c < data.shape[1] else np.zeros(0, bool)
+            if bad.any():  # no cell was empty (the fast parse took them all): a NaN / Inf written in the file
+                k = int(np.argmax(bad))
+                tok = _split(body[k][1], m.delimiter)[c]
+                raise ImportFileError(f"{p}: line {line_no[k]}, {col_name(c)}: {tok!r} is not a temperature "
+                                      "reading (leave the cell empty where there is no reading)")
+        return data, line_no, names
+    if opt and (data := load({c: _reading for c in opt if c < ncol})) is not None:
+        return data, line_no, names
+    # slow path: find the first bad row and say what is wrong with it
     for k, ln in body:
         fields = _split(ln, m.delimiter)
         if len(fields) != ncol:
             raise ImportFileError(f"{p}: line {k} has {len(fields)} field(s), expected {ncol} (as on line {body[0][0]})")
         for c, tok in enumerate(fields):
             try:
-                float(tok)
+                v = float(tok) if tok or c not in opt else 0.0
             except ValueError:
                 what = f"{tok!r} is not a number" if tok else "empty field"
-                col = f"column {c}" + (f" ({names[c]!r})" if names and c < len(names) else "")
                 hint = ("; a header line? set header_rows" if m.columns and k == body[0][0] and m.header_rows == 0
                         else "")
-                raise ImportFileError(f"{p}: line {k}, {col}: {what}{hint}") from None
+                raise ImportFileError(f"{p}: line {k}, {col_name(c)}: {what}{hint}") from None
+            if c in opt and not math.isfinite(v):
+                raise ImportFileError(f"{p}: line {k}, {col_name(c)}: {tok!r} is not a temperature reading (leave the "
+                                      "cell empty where there is no reading)")
     raise ImportFileError(f"{p}: cannot parse the data rows")  # pragma: no cover - loadtxt and the scan disagree
 
 
@@ -325,25 +392,18 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
             head = b.decode("utf-8-sig").splitlines()[0] if b else ""
         except UnicodeDecodeError:
             raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
-        names = [n.strip() for n in head.split(",")]
-        if names == EXPORT_HEADER:
-            mapping = default_mapping(False)
-        elif names == EXPORT_HEADER + EXPORT_HEADER_GIMBAL:
-            mapping = default_mapping(True)
-        else:
+        layout = export_layout([n.strip() for n in head.split(",")])
+        if layout is None:
             raise ImportFileError(f"{p}: the first line is not the inscal export header ({','.join(EXPORT_HEADER)}); "
                                   "give --mapping M.toml")
+        mapping = default_mapping(*layout)
     m = mapping
-    data, line_no, names = _parse_table(p, m)
+    data, line_no, names = _parse_table(p, m, {c: f"temperature sensor {n!r}" for n, c in m.temperature})
     ncol = data.shape[1]
     idx = {}
-    for key, col in m.columns.items():
-        if isinstance(col, str):
-            hits = [k for k, n in enumerate(names) if n == col] or [k for k, n in enumerate(names) if n.lower() == col.lower()]
-            if len(hits) != 1:
-                what = "no column" if not hits else f"{len(hits)} columns"
-                raise ImportFileError(f"{p}: {what} named {col!r} (for {key}); header: {names}")
-            col = hits[0]
+    keyed = [*m.columns.items(), *((f"temperature sensor {n!r}", c) for n, c in m.temperature)]
+    for key, col in keyed:
+        col = _column(p, names, col, key)
         if col >= ncol:
             raise ImportFileError(f"{p}: column index {col} (for {key}) is out of range: rows have {ncol} columns "
                                   f"(indexes 0-{ncol - 1})")
@@ -365,15 +425,108 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
         accel[:, m.axes[i]] = m.signs[i] * a[:, i]
     t = units.to_si(data[:, idx["time"]], m.time_unit, "time") if "time" in idx else None
     gim = units.to_si(data[:, [idx["outer"], idx["inner"]]], m.gimbal_unit, "angle") if "outer" in idx else None
-    labels = tuple(f"{c} (column {idx[c]}" + (f" {names[idx[c]]!r})" if names and idx[c] < len(names) else ")")
-                   for c in CHANNELS)
+
+    def label(key: str, c: int) -> str:
+        return f"{key} (column {c}" + (f" {names[c]!r})" if names and c < len(names) else ")")
+
+    labels = tuple(label(c, idx[c]) for c in CHANNELS)
     counts = (m.gyro_unit == "counts", m.accel_unit == "counts")
     tl = f"time (column {idx['time']})" if "time" in idx else "time"
     fix = ("set [units] time = \"{unit}\" in the mapping" if given else
            "import it with --mapping M.toml that sets [units] time = \"{unit}\" (without a mapping a csv is read as "
            "inscal's export, in seconds)")
+    temp = None
+    if m.temperature:
+        cols = [idx[f"temperature sensor {n!r}"] for n, _ in m.temperature]
+        temp = RawTemperature(None, units.to_celsius(data[:, cols], m.temperature_unit),
+                              tuple(n for n, _ in m.temperature),
+                              tuple(label(f"temperature {n!r}", c) for (n, _), c in zip(m.temperature, cols)),
+                              line_no, (m.temperature_unit,) * len(cols),
+                              "set [units] temperature = \"{unit}\" in the mapping" if given else "", str(p))
     return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl, axes=m.axes, time_unit=m.time_unit,
-               time_fix=fix)
+               time_fix=fix, temperature=temp)
+
+
+def _header_cell(p, cell: str, what: str) -> tuple[str, str | None]:
+    """``NAME [unit]`` -> ``(NAME, unit or None)``."""
+    found = re.fullmatch(r"\s*(.*?)\s*\[\s*([^\]]+?)\s*\]\s*", cell)
+    if found is None:
+        if "[" in cell or "]" in cell:
+            raise ImportFileError(f"{p}: header cell {cell!r} ({what}): expected 'NAME [unit]' or 'NAME'")
+        return cell.strip(), None
+    return found.group(1), found.group(2)
+
+
+def read_temperature_file(path) -> RawTemperature:
+    """Temperature readings at their own times: a header row ``time [s],NAME [degC],...`` (one column per
+    sensor, named by its header cell; the units in brackets: time s | ms | min | h, default s;
+    temperature degC | K | degF, default degC), then rows; comma or whitespace separated, ``#`` comment
+    lines.  A comma-separated row may leave a sensor's cell empty (no reading of that sensor then).
+    Times must increase; values are returned in degC."""
+    p = FsPath(path)
+    b = _file_bytes(p)
+    try:
+        text = b.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
+    lines = text.splitlines()
+    k_head = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if k_head is None:
+        raise ImportFileError(f"{p}: no temperature rows")
+    head = lines[k_head]
+    delim = "," if "," in head else None
+    cells = []
+    for tok in _split(head, delim):  # whitespace separated: "imu [degC]" is one cell
+        if delim is None and tok.startswith("[") and cells:
+            cells[-1] += " " + tok
+        else:
+            cells.append(tok)
+    try:
+        float(cells[0])
+        numeric = True
+    except ValueError:
+        numeric = False
+    if numeric:
+        raise ImportFileError(f"{p}: line {k_head + 1}: a temperature file starts with a header row naming its "
+                              "columns, as 'time [s],imu [degC]' (a sensor per column after the time)")
+    if len(cells) < 2:
+        raise ImportFileError(f"{p}: the header {head.strip()!r} names no temperature column after the time")
+    tname, t_unit = _header_cell(p, cells[0], "time")
+    try:
+        t_unit = units.check_kind(t_unit or "s", "time")
+    except units.UnitError as exc:
+        raise ImportFileError(f"{p}: header unit of the time column: {exc}") from None
+    names, tunits = [], []
+    for c in cells[1:]:
+        name, unit = _header_cell(p, c, "a temperature column")
+        if not name:
+            raise ImportFileError(f"{p}: a temperature column has no name in the header ({head.strip()!r})")
+        try:
+            tunits.append(units.temperature_unit(unit or "degC"))
+        except units.UnitError as exc:
+            raise ImportFileError(f"{p}: header cell {c.strip()!r}: {exc}") from None
+        names.append(name)
+    if len(set(names)) != len(names):
+        raise ImportFileError(f"{p}: temperature sensor names repeat in the header ({', '.join(names)})")
+    m = Mapping({}, delimiter=delim, header_rows=k_head + 1)
+    data, line_no, _ = _parse_table(p, m, {c: f"temperature sensor {names[c - 1]!r}" for c in range(1, len(cells))},
+                                    [c.strip() for c in cells])
+    if data.shape[1] != len(cells):
+        raise ImportFileError(f"{p}: rows have {data.shape[1]} columns, the header names {len(cells)}")
+    t = data[:, 0]
+    bad = ~np.isfinite(t)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ImportFileError(f"{p}: line {line_no[k]}: the time is {t[k]!r}")
+    t = units.to_si(t, t_unit, "time")
+    st = np.diff(t)
+    if np.any(st <= 0):
+        k = int(np.argmax(st <= 0))
+        raise ImportFileError(f"{p}: the time does not increase at line {line_no[k + 1]} "
+                              f"(t = {t[k + 1]:.9g} s after {t[k]:.9g} s)")
+    vals = np.column_stack([units.to_celsius(data[:, k + 1], u) for k, u in enumerate(tunits)])
+    return RawTemperature(t, vals, tuple(names), tuple(f"temperature {n!r} (column {k + 1})" for k, n in enumerate(names)),
+                          line_no, tuple(tunits), "give the column's unit in the header, as '{name} [{unit}]'", str(p))
 
 
 def header_angle_unit(p, header: str) -> str | None:
@@ -463,5 +616,11 @@ def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndar
 
 
 # ----------------------------------------------------------------------------- export
-def write_rows(fh, a: np.ndarray) -> None:
-    np.savetxt(fh, a, fmt="%.17g", delimiter=",")
+def write_rows(fh, a: np.ndarray, blanks: bool = False) -> None:
+    """Rows of 17 significant digits; ``blanks``: NaN cells (no temperature reading) are left empty."""
+    if not blanks:
+        np.savetxt(fh, a, fmt="%.17g", delimiter=",")
+        return
+    buf = StringIO()
+    np.savetxt(buf, a, fmt="%.17g", delimiter=",")
+    fh.write(buf.getvalue().replace("nan", ""))  # "%.17g" writes no other "nan" than NaN's

@@ -37,6 +37,9 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
     az = 6
     outer = 7                      # optional gimbal angle columns (both or neither)
     inner = 8
+    temperature = "T_imu"          # optional temperature sensor(s): a column (by header name: the sensor's
+                                   #   name; by index k: sensor "T0"), a list ["T_gyro", "T_acc"] (index k of
+                                   #   the list: "T<k>"), or a table {gyro = 9, accel = "T_acc"} naming them
     [units]
     time = "s"                     # default; s | ms | min | h (a column in another unit is named)
     gyro = "deg"                   # required; increments: rad | deg | arcsec | urad; rates: rad/s | deg/s | deg/h
@@ -46,12 +49,28 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
     # accel = "counts"             #   likewise for the accelerometers (m/s or m/s^2 per count)
     # accel_scale = 1e-6
     gimbal = "deg"                 # deg | rad; required with the outer/inner columns
+    temperature = "degC"           # degC (default) | K | degF, converted to degC
     [site]                         # optional; --lat/--lon/--height override it
     latitude_deg = 34.2
     longitude_deg = 108.9
     height_m = 400.0
 
 For ``psins``/``mat`` a mapping may only hold ``[site]``.
+
+Temperature (the record's ``/temperature``, degC).  A temperature column of a delimited file (csv) may
+leave a cell empty where that sensor has no reading (a sensor slower than the IMU): the readings then
+keep their own times, those of their rows, and the record stores them with ``/temperature_time``;
+a column with a reading on every row is on the record's time grid.  Several sensors with readings on
+different rows share the rows where any has one: each is interpolated linearly between its own
+readings on the others' rows (held before its first and after its last).  A NaN / Inf written in a
+temperature cell, text, a column with no reading at all, readings outside -100 .. 200 degC once
+converted (kelvin declared as degC: the message names the unit that fits) and an unknown unit are
+refused with one line.  Whitespace text has no empty cells: every row needs its readings.
+Readings at their own times may also come from a separate file (``temperature_file``, ``inscal
+import --temperature``): a header row ``time [s],NAME [degC],...`` naming each sensor's column with its
+unit (time s | ms | min | h; degC | K | degF), then increasing times, comma or whitespace separated
+(:func:`~inscal.io.formats.read_temperature_file`); they are shifted with the samples to the path
+start and must overlap the record.
 
 Gimbal angles from encoders at another rate (``gimbal_file``: columns time, outer, inner;
 an optional header line, which may give the units as ``time [ms],outer [deg],inner [deg]``;
@@ -75,16 +94,19 @@ gyros' rotation through every move, and no latency over a sample:
 :mod:`inscal.io.encoders`, which names a unit mix-up, a flipped sign, swapped columns or the
 latency to give as ``encoder_latency``, the shift applied to the angles before the checks).
 
-Exports (:func:`export_record`): ``csv`` (one header line with units; time, dtheta, dvel and
-the gimbal angles if recorded, ``%.17g`` so that importing gives back the same doubles),
+Exports (:func:`export_record`): ``csv`` (one header line with units; time, dtheta, dvel, the
+gimbal angles if recorded and the temperature sensors if any, ``%.17g`` so that importing gives back
+the same doubles; the temperature on the rows of its readings, or interpolated onto the sample times
+when the readings are not at sample times, said on a comment line under the header),
 ``psins`` (float64 ``.bin`` rows ``[dθ dv t]``) and ``mat`` (variable ``imu``, N x 7); the
 gimbal angles of a psins/mat export can go to a separate CSV that ``gimbal_file`` reads, and
-the rotation path to a TOML that ``path_file`` reads.  The site is not exported: give it again
+the rotation path to a TOML that ``path_file`` reads, and the temperature readings at their own
+times to a CSV that ``temperature_file`` reads (any format).  The site is not exported: give it again
 on import.
 
 An imported record has no ``/truth``; its root attribute ``source`` (JSON) names the file, its
-SHA-256, the format, the mapping / gimbal / path files, the checks skipped, whether the time
-was regridded and the time offset subtracted (the path start).
+SHA-256, the format, the mapping / gimbal / path / temperature files, the checks skipped, whether the
+time was regridded and the time offset subtracted (the path start).
 """
 
 from __future__ import annotations
@@ -104,6 +126,7 @@ from inscal.core.units import DEG
 from inscal.io.checks import (
     SKIPPABLE,
     check_constant,
+    check_temperature,
     check_encoders,
     check_finite,
     check_integers,
@@ -117,10 +140,12 @@ from inscal.io.encoders import apply_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats import (
     Raw,
+    RawTemperature,
     read_gimbal_file,
     read_mat,
     read_psins_bin,
     read_psins_imu,
+    read_temperature_file,
     read_text,
     write_rows,
 )
@@ -128,8 +153,10 @@ from inscal.io.mapping import (
     EXPORT_FORMATS,
     EXPORT_HEADER,
     EXPORT_HEADER_GIMBAL,
+    EXPORT_TEMPERATURE,
     FORMATS,
     GIMBAL_HEADER,
+    TEMPERATURE_TIME_HEADER,
     ImportFileError,
     Mapping,
     load_mapping,
@@ -139,7 +166,9 @@ from inscal.io.records import (
     DataFileError,
     Record,
     RecordInfo,
+    Temperature,
     iter_chunks,
+    iter_window,
     record_info,
     validate_arrays,
     write_stream,
@@ -165,11 +194,15 @@ def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "flo
 def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,
                  path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
                  skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
-                 gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0) -> tuple[Record, dict]:
+                 gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0,
+                 temperature: RawTemperature | None = None) -> tuple[Record, dict]:
     """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
     ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
     ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
-    (:func:`~inscal.io.encoders.apply_latency`) before the checks."""
+    (:func:`~inscal.io.encoders.apply_latency`) before the checks.  ``temperature``: readings at their
+    own times from a separate file (:func:`~inscal.io.formats.read_temperature_file`), on the source's
+    clock as the samples' (shifted with them to the path start); temperature columns of the source
+    itself come with ``raw``."""
     unknown = set(skip) - set(SKIPPABLE)
     if unknown:
         raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(SKIPPABLE)}")
@@ -236,13 +269,43 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         if gim is None and "motion" not in skip:
             theta, _, _ = path.segments().angles(time)
             check_motion(dth, theta, dt, f"path {path.name!r}", time)
+    temp = _temperature(raw, temperature, time, dt, info.get("path_start_s", 0.0), where)
+    info["temperature"] = None if temp is None else {
+        "sensors": list(temp.sensors), "readings": int(temp.time.shape[0]),
+        "grid": "record" if np.array_equal(temp.time, time) else "own",
+        "source": "columns" if raw.temperature is not None else "file",
+        "span_s": [float(temp.time[0]), float(temp.time[-1])]}
     rec = Record(np.ascontiguousarray(time, float), np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float),
-                 None if gim is None else np.ascontiguousarray(gim, float), rate, site, path, None, "", where)
+                 None if gim is None else np.ascontiguousarray(gim, float), rate, site, path, None, "", where,
+                 temp)
     try:
         validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz, where=where)
     except DataFileError as exc:
         raise ImportFileError(str(exc)) from None
     return rec, info
+
+
+def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: float, offset: float,
+                 where: str) -> Temperature | None:
+    """The record's temperature from the source's columns (at the rows' sample times) or from a file of
+    readings at their own times (shifted by ``offset``, the path start), checked
+    (:func:`~inscal.io.checks.check_temperature`); a file must overlap the record."""
+    if raw.temperature is not None and file is not None:
+        raise ImportFileError(f"{where} has temperature columns; --temperature would give the temperature twice")
+    if raw.temperature is not None:
+        return check_temperature(raw.temperature, time)
+    if file is None:
+        return None
+    if offset != 0.0:
+        file = replace(file, time=file.time - offset)
+    temp = check_temperature(file)
+    a, b = float(temp.time[0]), float(temp.time[-1])
+    if b < time[0] - dt or a > time[-1]:
+        shift = f" (after the shift of {offset:.9g} s to the path start)" if offset else ""
+        raise ImportFileError(f"{file.where}: the temperature readings cover t = {a:.9g} .. {b:.9g} s{shift}; the record "
+                              f"runs t = {time[0] - dt:.9g} .. {time[-1]:.9g} s: no overlap (another clock, or a time "
+                              "unit: give it in the header, as 'time [ms]')")
+    return temp
 
 
 def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool = False) -> str:
@@ -267,7 +330,8 @@ def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool =
 
 def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False) -> int:
     """Write an imported record atomically (the source is kept as a JSON attribute ``source``)."""
-    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None)
+    info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None,
+                      rec.temperature)
     return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite,
                         extra_attrs={"source": json.dumps(source_attrs)})
 
@@ -276,12 +340,14 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
-                gravity=None) -> dict:
+                gravity=None, temperature_file=None) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
     ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
     wherever the site comes from (the options, the mapping's ``[site]`` or a PSINS ``.imu`` header)
     (``encoders``: the encoder check's summary, its ``latency_s`` what remains after the applied
-    ``encoder_latency_s``)."""
+    ``encoder_latency_s``).  ``temperature_file``: temperature readings at their own times
+    (:func:`~inscal.io.formats.read_temperature_file`); ``temperature`` in the summary: the sensors, the
+    number of readings, whether they are on the record's grid, their source and time span."""
     src = Path(src)
     if fmt not in FORMATS:
         raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
@@ -299,10 +365,14 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         raise ImportFileError("no site: give --lat, --lon and --height (or a [site] table in the mapping)")
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
+    tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
     raw = read_source(src, fmt, mapping, dtype, variable, rates)
     if mapping_file is not None and fmt in ("csv", "txt"):
         safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
         raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
+        if raw.temperature is not None:
+            raw = replace(raw, temperature=replace(raw.temperature,
+                                                   fix=f"set [units] temperature = \"{{unit}}\" in {safe}"))
     if site is None:  # a PSINS .imu log names its site in its header
         lat, lon, h = raw.header_site
         site = Site(lat * DEG, lon * DEG, h)
@@ -313,13 +383,14 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
-                             encoder_latency)
+                             encoder_latency, tfile)
     attrs = {"file": src.name, "hash": file_hash(src), "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
-             "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"]}
+             "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"],
+             "temperature_file": None if temperature_file is None else str(temperature_file)}
     n = write_imported(out, rec, attrs, overwrite)
     return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
             "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
@@ -327,16 +398,24 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
-            "encoders": info["encoders"]}
+            "encoders": info["encoders"], "temperature": info["temperature"]}
 
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,
-                  chunk_size: int = 1 << 18) -> dict:
+                  chunk_size: int = 1 << 18, temperature_out=None) -> dict:
     """Export the record ``data`` as ``csv``, ``psins`` (.bin float64) or ``mat`` (atomic writes).
 
     ``gimbal_out``: a CSV of ``time, outer, inner`` [s, rad, rad] (psins / mat only; the csv
     export carries the angles in its own columns).  ``path_out``: the record's rotation path
-    as a TOML ``[path]`` table (what ``--path`` reads).  All outputs are written, or none."""
+    as a TOML ``[path]`` table (what ``--path`` reads).  ``temperature_out``: the record's
+    temperature readings at their own times, ``time [s],NAME [degC],...`` (what ``--temperature``
+    reads; any format).  All outputs are written, or none.
+
+    A csv export carries the temperature too, one column per sensor (``temperature NAME [degC]``):
+    when every reading falls on a sample time (to 1e-6 of the interval) each goes on its sample's row
+    and the other rows leave the cell empty (imported back, the readings and their times are the
+    same); otherwise the readings are interpolated linearly onto every sample time (held before the
+    first and after the last), and a comment line under the header says so."""
 
     if fmt not in EXPORT_FORMATS:
         raise ImportFileError(f"unknown export format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
@@ -348,6 +427,17 @@ def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None,
             raise ImportFileError(f"{data}: the record has no gimbal angles for --gimbal-out")
     if path_out is not None and info.path is None:
         raise ImportFileError(f"{data}: the record has no rotation path for --path-out")
+    temp = info.temperature
+    if temperature_out is not None and temp is None:
+        raise ImportFileError(f"{data}: the record has no temperature for --temperature-out")
+    if temp is not None and (fmt == "csv" or temperature_out is not None):
+        bad = [n for n in temp.sensors if not n or n != n.strip() or any(c in n for c in ',[]"#')]
+        if bad:
+            raise ImportFileError(f"{data}: temperature sensor {bad[0]!r} cannot name a column of a csv "
+                                  "(a comma, bracket, quote or '#' in it, or spaces around it)")
+    rows = None
+    if temp is not None and fmt == "csv":
+        rows = _reading_rows(data, temp, info.rate_hz, info.n_samples, chunk_size)
     out = Path(out)
     with ExitStack() as stack:
         tmp = stack.enter_context(atomic_path(out, overwrite))
@@ -355,17 +445,58 @@ def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None,
         if path_out is not None:
             ptmp = stack.enter_context(atomic_path(path_out, overwrite))
             ptmp.write_text(tomli_w.dumps({"path": info.path.to_dict()}))
-        _export_main(data, tmp, fmt, info, chunk_size, gtmp)
+        if temperature_out is not None:
+            ttmp = stack.enter_context(atomic_path(temperature_out, overwrite))
+            with open(ttmp, "w") as fh:
+                fh.write(",".join([TEMPERATURE_TIME_HEADER] + [f"{n} [degC]" for n in temp.sensors]) + "\n")
+                write_rows(fh, np.column_stack([temp.time, temp.values]))
+        _export_main(data, tmp, fmt, info, chunk_size, gtmp, rows)
     res = {"data": str(data), "format": fmt, "out": str(out), "samples": info.n_samples, "rate_hz": info.rate_hz,
            "gimbal": "columns" if fmt == "csv" and info.has_gimbal else (str(gimbal_out) if gimbal_out else None),
            "site": {"latitude_deg": info.site.latitude / DEG, "longitude_deg": info.site.longitude / DEG,
                     "height_m": info.site.height},
            "path": None if info.path is None else info.path.name,
-           "path_out": None if path_out is None else str(path_out)}
+           "path_out": None if path_out is None else str(path_out),
+           "temperature": None if temp is None else ("not exported" if fmt != "csv" else
+                                                     "interpolated" if rows is None else "columns"),
+           "temperature_out": None if temperature_out is None else str(temperature_out)}
     return res
 
 
-def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, gtmp: Path | None) -> None:
+def _reading_rows(data, temp: Temperature, rate_hz: float, n: int, chunk_size: int) -> np.ndarray | None:
+    """The sample index of each temperature reading when every reading lies on a sample time (to 1e-6 of
+    the interval), else None; the record's time is read chunk by chunk."""
+    tol = 1e-6 / rate_hz
+    tr = temp.time
+    rows = np.full(tr.shape[0], -1, dtype=np.int64)
+    k0 = 0
+    for (t,) in iter_window(data, ("time",), 0, n, chunk_size):
+        a = int(np.searchsorted(tr, t[0] - tol))
+        b = int(np.searchsorted(tr, t[-1] + tol, side="right"))
+        if b > a:
+            x = tr[a:b]
+            j = np.searchsorted(t, x)
+            lo, hi = np.clip(j - 1, 0, t.shape[0] - 1), np.clip(j, 0, t.shape[0] - 1)
+            near = np.where(np.abs(t[lo] - x) <= np.abs(t[hi] - x), lo, hi)
+            ok = np.abs(t[near] - x) <= tol
+            rows[a:b] = np.where(ok, k0 + near, rows[a:b])
+        k0 += t.shape[0]
+    return rows if np.all(rows >= 0) else None
+
+
+def _temperature_block(temp: Temperature, rows: np.ndarray | None, k0: int, t: np.ndarray) -> np.ndarray:
+    """The csv temperature cells of the samples ``k0 ..`` at times ``t``: the readings on their rows (NaN:
+    an empty cell), or interpolated (``rows`` None)."""
+    if rows is None:
+        return np.column_stack([np.interp(t, temp.time, temp.values[:, s]) for s in range(temp.values.shape[1])])
+    block = np.full((t.shape[0], temp.values.shape[1]), np.nan)
+    a, b = np.searchsorted(rows, [k0, k0 + t.shape[0]])
+    block[rows[a:b] - k0] = temp.values[a:b]
+    return block
+
+
+def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, gtmp: Path | None,
+                 rows: np.ndarray | None = None) -> None:
     gfh = open(gtmp, "w") if gtmp is not None else None
     try:
         if gfh is not None:
@@ -381,16 +512,32 @@ def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, g
             with open(tmp, "wb") as fh:
                 scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
             return
+        temp = info.temperature if fmt == "csv" else None
         with open(tmp, "w" if fmt == "csv" else "wb") as fh:
             if fmt == "csv":
-                fh.write(",".join(EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])) + "\n")
+                head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
+                head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
+                fh.write(",".join(head) + "\n")
+                if temp is not None and rows is None:
+                    fh.write(f"# temperature: interpolated linearly onto the sample times from the {temp.time.shape[0]} "
+                             f"readings at their own times (t = {temp.time[0]:.9g} .. {temp.time[-1]:.9g} s; held "
+                             "before the first and after the last)\n")
+                elif temp is not None and temp.time.shape[0] < info.n_samples:
+                    fh.write(f"# temperature: the {temp.time.shape[0]} readings on the rows of their sample times; "
+                             "an empty cell: no reading at that sample\n")
+            blanks = temp is not None and rows is not None and temp.time.shape[0] < info.n_samples
+            k0 = 0
             for t, dth, dv, g in iter_chunks(data, chunk_size):
                 if fmt == "csv":
-                    write_rows(fh, np.column_stack([t, dth, dv] + ([g] if g is not None else [])))
+                    cols = [t, dth, dv] + ([g] if g is not None else [])
+                    if temp is not None:
+                        cols.append(_temperature_block(temp, rows, k0, t))
+                    write_rows(fh, np.column_stack(cols), blanks=blanks)
                 else:
                     np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
                 if gfh is not None:
                     write_rows(gfh, np.column_stack([t, g]))
+                k0 += t.shape[0]
     finally:
         if gfh is not None:
             gfh.close()

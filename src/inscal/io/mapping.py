@@ -24,6 +24,10 @@ EXPORT_HEADER = ["time [s]", "dtheta_x [rad]", "dtheta_y [rad]", "dtheta_z [rad]
                  "dvel_x [m/s]", "dvel_y [m/s]", "dvel_z [m/s]"]
 EXPORT_HEADER_GIMBAL = ["outer [rad]", "inner [rad]"]
 GIMBAL_HEADER = ["time [s]", "outer [rad]", "inner [rad]"]
+#: the header cell of a temperature sensor's column in a csv export (``temperature imu [degC]``)
+EXPORT_TEMPERATURE = "temperature {} [degC]"
+#: the header cell of a temperature file's time column (``inscal export --temperature-out``)
+TEMPERATURE_TIME_HEADER = "time [s]"
 
 #: timestamps must be uniform to this fraction of the step unless a rate is given
 JITTER_TOL = 1e-6
@@ -66,11 +70,14 @@ class Mapping:
     delimiter: str | None = ","
     header_rows: int = 0
     comment: str = "#"
+    #: temperature sensors: ``((name, column), ...)``, a column being a 0-based index or a header name
+    temperature: tuple = ()
+    temperature_unit: str = "degC"
 
 
 _TOP = {"kind", "delimiter", "header_rows", "comment", "axes", "signs", "columns", "units", "site"}
-_COLS = {"time", "gx", "gy", "gz", "ax", "ay", "az", "outer", "inner"}
-_UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal"}
+_COLS = {"time", "gx", "gy", "gz", "ax", "ay", "az", "outer", "inner", "temperature"}
+_UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal", "temperature"}
 _SITE = {"latitude_deg", "longitude_deg", "height_m"}
 
 
@@ -101,6 +108,34 @@ def _scale(value, unit_kind: str, name: str) -> float:
     return s
 
 
+def _column_ok(v) -> bool:
+    return not isinstance(v, bool) and (isinstance(v, str) or (isinstance(v, int) and v >= 0))
+
+
+def temperature_columns(spec) -> tuple[tuple[str, int | str], ...]:
+    """``[columns] temperature``: one column, a list of columns or a table ``{sensor = column, ...}``
+    -> ``((sensor, column), ...)``.  A column given by header name names its sensor; one given by
+    index is sensor ``T<k>`` (``k``: its place in the list, from 0), as a record's unnamed sensors."""
+    if isinstance(spec, dict):
+        pairs = [(str(k), v) for k, v in spec.items()]
+    elif isinstance(spec, list):
+        pairs = [(v if isinstance(v, str) else f"T{k}", v) for k, v in enumerate(spec)]
+    else:
+        pairs = [(spec if isinstance(spec, str) else "T0", spec)]
+    if not pairs:
+        raise ImportFileError("[columns] temperature names no column")
+    for name, v in pairs:
+        if not _column_ok(v):
+            raise ImportFileError(f"[columns] temperature: the column of sensor {name!r} must be a 0-based index or a "
+                                  f"header name, got {v!r}")
+        if not name.strip():
+            raise ImportFileError("[columns] temperature: a sensor name is empty")
+    names = [n for n, _ in pairs]
+    if len(set(names)) != len(names):
+        raise ImportFileError(f"[columns] temperature: sensor names repeat ({', '.join(names)})")
+    return tuple(pairs)
+
+
 def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
     """Check a mapping document; returns ``(mapping or None, site or None)``."""
     _keys("mapping", d, _TOP)
@@ -127,16 +162,18 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"kind must be \"increments\" or \"rates\", got {kind!r}")
     cols = d["columns"]
     _keys("[columns]", cols, _COLS)
+    cols = dict(cols)
+    temps = temperature_columns(cols.pop("temperature")) if "temperature" in cols else ()
     missing = [c for c in CHANNELS if c not in cols]
     if missing:
         raise ImportFileError(f"[columns] needs {list(CHANNELS)}; missing {missing}")
     if ("outer" in cols) != ("inner" in cols):
         raise ImportFileError("[columns] outer and inner go together (both or neither)")
     for k, v in cols.items():
-        if isinstance(v, bool) or not isinstance(v, (int, str)) or (isinstance(v, int) and v < 0):
+        if not _column_ok(v):
             raise ImportFileError(f"[columns] {k} must be a 0-based column index or a header name, got {v!r}")
     seen = {}
-    for k, v in cols.items():
+    for k, v in [*cols.items(), *((f"temperature sensor {n!r}", v) for n, v in temps)]:
         if v in seen:
             raise ImportFileError(f"[columns] {seen[v]} and {k} both read column {v!r}")
         seen[v] = k
@@ -170,6 +207,14 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"[units]: {exc}") from None
     if "outer" in cols and "gimbal" not in u:
         raise ImportFileError("[units] needs gimbal = \"deg\" or \"rad\" with the outer/inner columns")
+    tu_c = "degC"
+    if "temperature" in u:
+        if not temps:
+            raise ImportFileError("[units] temperature applies with a [columns] temperature")
+        try:
+            tu_c = units.temperature_unit(str(u["temperature"]))
+        except units.UnitError as exc:
+            raise ImportFileError(f"[units] temperature: {exc}") from None
     axes = d.get("axes", ["x", "y", "z"])
     if not (isinstance(axes, list) and sorted(map(str, axes)) == ["x", "y", "z"]):
         raise ImportFileError(f"axes must be a permutation of [\"x\", \"y\", \"z\"], got {axes!r}")
@@ -182,14 +227,14 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
     hr = d.get("header_rows", 0)
     if isinstance(hr, bool) or not isinstance(hr, int) or hr < 0:
         raise ImportFileError(f"header_rows must be an integer >= 0, got {hr!r}")
-    if hr == 0 and any(isinstance(v, str) for v in cols.values()):
+    if hr == 0 and any(isinstance(v, str) for v in [*cols.values(), *(v for _, v in temps)]):
         raise ImportFileError("columns given by name need header_rows >= 1")
     comment = d.get("comment", "#")
     if not isinstance(comment, str) or len(comment) != 1:
         raise ImportFileError(f"comment must be one character, got {comment!r}")
     m = Mapping(dict(cols), kind, tu, conv["gyro"][0], conv["accel"][0], conv["gyro"][1], conv["accel"][1], gu,
                 tuple("xyz".index(a) for a in axes), tuple(float(s) for s in signs),
-                None if delim == "whitespace" else delim, hr, comment)
+                None if delim == "whitespace" else delim, hr, comment, temps, tu_c)
     return m, site
 
 
@@ -202,12 +247,31 @@ def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"{p}: {exc}") from None
 
 
-def default_mapping(gimbal: bool) -> Mapping:
-    """The mapping of a csv written by :func:`export_record`."""
+def default_mapping(gimbal: bool, sensors: tuple[str, ...] = ()) -> Mapping:
+    """The mapping of a csv written by :func:`export_record` (``sensors``: its temperature columns)."""
     cols = {"time": 0, "gx": 1, "gy": 2, "gz": 3, "ax": 4, "ay": 5, "az": 6}
     if gimbal:
         cols.update(outer=7, inner=8)
-    return Mapping(cols, "increments", "s", "rad", "m/s", None, None, "rad", (0, 1, 2), (1.0, 1.0, 1.0), ",", 1, "#")
+    temps = tuple((name, len(cols) + k) for k, name in enumerate(sensors))
+    return Mapping(cols, "increments", "s", "rad", "m/s", None, None, "rad", (0, 1, 2), (1.0, 1.0, 1.0), ",", 1, "#",
+                   temps, "degC")
+
+
+def export_layout(names: list[str]) -> tuple[bool, tuple[str, ...]] | None:
+    """``(gimbal columns, temperature sensors)`` of a csv header written by :func:`export_record`, or
+    None when ``names`` is not such a header."""
+    if names[:len(EXPORT_HEADER)] != EXPORT_HEADER:
+        return None
+    rest = names[len(EXPORT_HEADER):]
+    gimbal = rest[:2] == EXPORT_HEADER_GIMBAL
+    rest = rest[2:] if gimbal else rest
+    head, tail = EXPORT_TEMPERATURE.split("{}")
+    sensors = []
+    for cell in rest:
+        if not (cell.startswith(head) and cell.endswith(tail) and len(cell) > len(head) + len(tail)):
+            return None
+        sensors.append(cell[len(head):-len(tail)])
+    return gimbal, tuple(sensors)
 
 
 def load_path(path) -> RotationPath:

@@ -108,6 +108,33 @@ Custom scenario files (TOML; values in field units, see ``errors.PARAMETERS``)::
     vrw = 20
     [path]
     builtin = "n25-twelve"          # or: name, accel_dps2, closed, moves = [{axis, angle_deg, rate_dps, dwell_s}, ...]
+    [thermal]                       # the IMU errors follow the temperature (inscal.core.thermal); the layout of
+    t_ref = 20.0                    #   a parameter file's [thermal] (its sigma and [thermal.fit] are ignored)
+    t_min = -40.0                   # validity range, degC
+    t_max = 60.0
+    [[thermal.terms.gyro_bias]]     # one table per order (1 .. 3), unit <unit>/degC^order
+    order = 1
+    value = [0.002, -0.0015, 0.0025]
+    unit = "deg/h/degC"
+    [[thermal.terms.gyro_bias_rate]]  # the gyro bias per dT/dt (order 1 only)
+    order = 1
+    value = [0.02, -0.015, 0.025]
+    unit = "deg/h/(degC/min)"
+    [temperature]                   # the IMU temperature over time (needed with [thermal]); degC
+    start_c = -40.0
+    pieces = [{kind = "hold", duration_s = 600},                    # hold: duration_s
+              {kind = "ramp", target_c = 60, rate_c_per_min = 1},   # ramp: target_c at rate_c_per_min
+              {kind = "approach", target_c = 45, tau_s = 1200, duration_s = 3600}]  # exponential approach
+    [temperature.sensor]            # how /temperature is recorded (default: one sensor "imu", 1 Hz, exact)
+    names = ["imu", "case"]
+    rate_hz = 1.0
+    offsets_c = [0.0, -1.5]         # one per name (default 0)
+    noise_c = 0.01                  # white noise, degC (drawn from the simulation's generator)
+    quantum_c = 0.0625              # quantization, degC
+
+A base scenario's thermal model, temperature profile and sensor carry over unless the file gives
+them: ``[thermal]`` replaces the model as a whole, ``start_c`` (with ``pieces``) the profile, and the
+keys of ``[temperature.sensor]`` those of the sensor (new ``names`` without ``offsets_c``: zero offsets).
 """
 
 from __future__ import annotations
@@ -146,7 +173,7 @@ from inscal.core.turntable import Move
 from inscal.core.units import DEG
 from inscal.io.tomlfile import read_toml
 from inscal.sim.simulate import Scenario
-from inscal.sim.thermal import Piece, TemperatureProfile, plateaus
+from inscal.sim.thermal import PIECE_KINDS, Piece, TemperatureProfile, TemperatureSensor, plateaus
 
 N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
 S16_SITE = Site(latitude=30.0 * DEG, longitude=114.0 * DEG, height=0.0)
@@ -430,7 +457,10 @@ def build(name: str, duration_s: float | None = None, rate_hz: float | None = No
     return sc
 
 
-_TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "path"}
+_TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "path", "thermal", "temperature"}
+_TEMPERATURE_KEYS = {"start_c", "pieces", "sensor"}
+_PIECE_KEYS = {"kind", "duration_s", "target_c", "rate_c_per_min", "tau_s"}
+_SENSOR_KEYS = {"names", "rate_hz", "offsets_c", "noise_c", "quantum_c"}
 
 
 def load_toml(file, duration_s: float | None = None) -> Scenario:
@@ -521,7 +551,64 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
         # static record is not what anyone asked for (checked after every table, so their errors come first)
         raise ScenarioError("the scenario names no motion: give a [path] table, base = NAME (a built-in "
                             "scenario), or a duration for a static record ([scenario] duration_h / duration_s)")
-    return Scenario(name, path, site, imu, gim, noise, rate)
+    thermal, profile, sensor = _thermal_tables(d, base)
+    return Scenario(name, path, site, imu, gim, noise, rate, thermal, profile, sensor)
+
+
+def _thermal_tables(d: dict, base: Scenario) -> tuple[ThermalModel | None, TemperatureProfile | None, TemperatureSensor]:
+    """``[thermal]`` and ``[temperature]`` of a scenario file over the base scenario's (module docstring)."""
+    thermal, profile, sensor = base.thermal, base.temperature, base.temperature_sensor
+    if "thermal" in d:
+        td = d["thermal"]
+        _check_keys("thermal", td, {"t_ref", "t_min", "t_max", "out_of_range", "sensor", "terms", "fit"})
+        # a parameter file's [thermal] pastes as it is: its 1-sigma and [thermal.fit] describe a calibration
+        thermal = thermal_from_field({k: v for k, v in td.items() if k != "fit"})[0]
+    if "temperature" in d:
+        td = d["temperature"]
+        _check_keys("temperature", td, _TEMPERATURE_KEYS)
+        if "pieces" in td and "start_c" not in td:
+            raise ScenarioError("[temperature] pieces need start_c (the temperature at t = 0, degC)")
+        if "start_c" in td:
+            pieces = td.get("pieces", [])
+            if not isinstance(pieces, list):
+                raise ScenarioError("[temperature] pieces must be a list of {kind = ..., ...} tables")
+            for k, pc in enumerate(pieces):
+                _check_keys(f"temperature.pieces[{k}]", pc, _PIECE_KEYS)
+                if "kind" not in pc:
+                    raise ScenarioError(f"[temperature] pieces[{k}] needs kind (one of {', '.join(PIECE_KINDS)})")
+            start = td["start_c"]
+            if isinstance(start, bool) or not isinstance(start, (int, float)):
+                raise ScenarioError(f"[temperature] start_c must be a number of degC, got {start!r}")
+            try:
+                profile = TemperatureProfile(float(start), tuple(Piece(**pc) for pc in pieces))
+            except ValueError as exc:
+                raise ScenarioError(f"[temperature] {exc}") from None
+        if "sensor" in td:
+            sd = td["sensor"]
+            _check_keys("temperature.sensor", sd, _SENSOR_KEYS)
+            kw = {k: sd[k] for k in _SENSOR_KEYS if k in sd}
+            if "names" in kw:
+                if not (isinstance(kw["names"], list) and kw["names"] and all(isinstance(x, str) for x in kw["names"])):
+                    raise ScenarioError(f"[temperature.sensor] names must be a list of names, got {kw['names']!r}")
+                kw.setdefault("offsets_c", [])  # new names: offsets zero unless given
+            for key in ("rate_hz", "noise_c", "quantum_c"):
+                v = kw.get(key, 0.0)
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ScenarioError(f"[temperature.sensor] {key} must be a number, got {v!r}")
+            offs = kw.get("offsets_c", [])
+            if not (isinstance(offs, list) and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in offs)):
+                raise ScenarioError(f"[temperature.sensor] offsets_c must be a list of degC, got {offs!r}")
+            try:
+                sensor = replace(sensor, **{k: (tuple(v) if isinstance(v, list) else float(v)) for k, v in kw.items()})
+            except ValueError as exc:
+                raise ScenarioError(f"[temperature.sensor] {exc}") from None
+    if thermal is not None and not thermal.is_zero and profile is None:
+        raise ScenarioError("[thermal] needs a temperature profile: a [temperature] table with start_c and pieces "
+                            "(or a base scenario that has one)")
+    if thermal is not None and thermal.sensor and thermal.sensor not in sensor.names:
+        raise ScenarioError(f"[thermal] sensor {thermal.sensor!r} is not one of the recorded temperature sensors "
+                            f"({', '.join(sensor.names)}; [temperature.sensor] names)")
+    return thermal, profile, sensor
 
 
 # ---------------------------------------------------------------------------- s16-table2
