@@ -182,3 +182,55 @@ def parse_gravity_option(text: str):
         return parse_gravity(text)
     except ValueError as exc:
         raise CliError(f"--gravity: {exc}") from None
+
+
+def first_time(data: Path) -> float:
+    """The time of a record's first sample (one sample read)."""
+    import contextlib
+
+    from inscal import io
+
+    with contextlib.closing(io.iter_chunks(data, chunk_size=1)) as it:
+        return float(next(it)[0][0])
+
+
+def thermal_compensation(data: Path, params: Path, meta: dict, info, imu, temperature: float | None = None):
+    """``(ThermalCompensation or None, its survey, warning lines)`` for compensating ``data`` (its ``info``) with the
+    parameter file ``params`` (``meta`` from :func:`load_checked_params`, base errors ``imu``): None when
+    the file has no thermal model.  The record's temperature is surveyed before any work: a record
+    without /temperature (and no ``temperature`` constant [degC]), readings that do not cover the
+    samples, and an ``out_of_range = "error"`` model that the temperature leaves are one-line refusals."""
+    from inscal.core.thermal import ThermalError
+    from inscal.nav.stream import ThermalCompensation
+
+    model = meta.get("thermal")
+    if model is None:
+        if temperature is not None:
+            raise CliError(f"--temperature is the temperature of a thermal model, and {short(params)} has none "
+                           "(no [thermal] table)")
+        return None, None, []
+    warnings = []
+    if temperature is not None:
+        from inscal.io.records import TEMPERATURE_SPAN
+
+        lo, hi = TEMPERATURE_SPAN
+        if not lo <= temperature <= hi:  # NaN too
+            raise CliError(f"--temperature {temperature:g} degC: outside the plausible {lo:g} .. {hi:g} degC")
+        source = temperature
+        if info.temperature is not None:
+            warnings.append(f"--temperature {temperature:g} degC is used in place of the /temperature readings of "
+                            f"{short(data)}")
+    elif info.temperature is None:
+        raise CliError(f"{short(data)} has no /temperature readings, and {short(params)} has a thermal model "
+                       f"([thermal], T_ref {model.t_ref:g} degC) that needs them: give a constant temperature with "
+                       "--temperature DEGC, or use a parameter file without [thermal]")
+    else:
+        source = info.temperature
+    try:
+        comp = ThermalCompensation(model, imu, source, info.rate_hz, where=short(data))
+        survey = comp.survey(first_time(data), info.n_samples)
+    except ThermalError as exc:
+        raise CliError(str(exc)) from None
+    if survey["message"] is not None:
+        warnings.append(survey["message"])
+    return comp, survey, warnings

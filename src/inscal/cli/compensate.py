@@ -6,6 +6,14 @@ terms) chunk by chunk, so multi-day records are never held in memory twice.  The
 output is a record of the same layout without truth; the parameter file's hash and
 method are kept in its ``compensated_with`` attribute.
 
+Thermal model: when the parameter file has a ``[thermal]`` table, each sample is first mapped to the
+model's reference temperature at the record's /temperature (the model's sensor, interpolated to the
+middle of each sample interval; :class:`inscal.nav.stream.ThermalCompensation`), then compensated as
+above.  A record without /temperature is refused unless ``--temperature DEGC`` gives a constant one;
+samples outside the calibrated range follow the model's ``out_of_range`` (warn: one warning line;
+clamp: the model evaluated at the range ends, one warning line; error: refused).  The compensated
+record keeps the /temperature readings, and ``compensated_with`` says which thermal model was applied.
+
 Provenance: one warning line (stderr) when the parameter file's ``data_hash``,
 ``metadata.scenario`` or ``metadata.imu_serial`` differ from the record's (each compared
 only when both sides have it); a record that was already compensated (its
@@ -28,14 +36,18 @@ from inscal.cli.common import (
     load_checked_params,
     print_json,
     short,
+    thermal_compensation,
 )
 
 
-def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None) -> dict:
+def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None,
+                   temperature: float | None = None) -> dict:
     """Compensate ``data`` with ``params`` into ``out``.  Refuses an already compensated
-    record unless ``force``; ``warn(line)`` is called at once for each provenance warning
-    (they are also in the result's ``warnings``)."""
+    record unless ``force``; ``warn(line)`` is called at once for each provenance (and thermal
+    range) warning (they are also in the result's ``warnings``).  ``temperature``: a constant
+    temperature [degC] for the parameter file's thermal model (see :func:`inscal.cli.common.thermal_compensation`)."""
     from inscal import io
+    from inscal.core.thermal import ThermalError
     from inscal.io.paramfile import ParamFileError
 
     check_output(out, force)
@@ -63,27 +75,41 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     mismatch = provenance_mismatch(data, params, meta, attrs)
     if mismatch:
         warnings.append(mismatch)
+    try:
+        comp, survey, twarn = thermal_compensation(data, params, meta, info, imu, temperature)
+    except (io.DataFileError, OSError) as exc:
+        raise CliError(str(exc)) from None
+    warnings += twarn
     for w in warnings:
         if warn is not None:
             warn(w)
     dt = 1.0 / info.rate_hz
 
     def chunks():
-        from inscal.nav.stream import compensated_chunks
+        from inscal.nav.stream import compensated_chunks, thermal_chunks
 
-        yield from compensated_chunks(io.iter_chunks(data), imu, dt)
+        src = io.iter_chunks(data)
+        if comp is not None:  # to the thermal model's T_ref first, then the base errors
+            src = thermal_chunks(src, comp)
+        yield from compensated_chunks(src, imu, dt)
 
-    attrs = {"compensated_with": json.dumps({"file": str(params), "hash": io.file_hash(params),
-                                             "method": meta.get("method", ""), "source": str(data)})}
+    used = {"file": str(params), "hash": io.file_hash(params), "method": meta.get("method", ""), "source": str(data)}
+    thermal = None
+    if comp is not None:
+        thermal = {**comp.summary(), **{k: survey[k] for k in ("samples", "samples_outside", "seen_c")}}
+        used["thermal"] = thermal
+    attrs = {"compensated_with": json.dumps(used)}
     try:
         # the compensated record has no truth: its residual errors are not the simulated ones
         n = io.write_stream(out, replace(info, truth=None), chunks(), overwrite=force, extra_attrs=attrs)
     except (io.DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
+    except ThermalError as exc:  # a thermal refusal met while streaming: nothing was written
+        raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
     return {"data": str(data), "params": str(params), "method": meta.get("method", ""), "out": str(out), "samples": n,
-            "warnings": warnings}
+            "thermal": thermal, "warnings": warnings}
 
 
 def register(app: typer.Typer) -> None:
@@ -94,14 +120,21 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(..., "--out", "-o", help="compensated HDF5 record"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output; compensate an already "
                                    "compensated record anyway"),
+        temperature: float = typer.Option(None, "--temperature", help="constant temperature in degC for the parameter "
+                                          "file's thermal model (a record without /temperature; in place of the "
+                                          "record's readings otherwise)"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Compensate a record's increments with a calibration parameter file."""
+        """Compensate a record's increments with a calibration parameter file (and its thermal model, at the
+        record's temperature)."""
         try:
-            res = run_compensate(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
+            res = run_compensate(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
+                                 temperature=temperature)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             print_json(res)
         else:
-            typer.echo(f"compensated {res['samples']} samples with {res['params']} ({res['method']}) -> {res['out']}")
+            th = res["thermal"]
+            extra = f", thermal model at {th['temperature']}" if th is not None else ""
+            typer.echo(f"compensated {res['samples']} samples with {res['params']} ({res['method']}{extra}) -> {res['out']}")

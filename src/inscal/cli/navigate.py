@@ -16,6 +16,7 @@ from inscal.cli.common import (
     np,
     print_json,
     short,
+    thermal_compensation,
 )
 
 units = LazyModule("inscal.core.units")  # np, units: imported on first use (fast start of the command line)
@@ -110,19 +111,24 @@ def parse_height_ref(value: str | None):
 def run_navigate(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
                  init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
                  output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                 gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None) -> dict:
+                 gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
+                 temperature: float | None = None) -> dict:
     """Navigate ``data`` (see the command); ``warn(line)`` is called at once for each
-    provenance warning (they are also in the result's ``warnings``).  ``gravity`` (wgs84 | psins |
-    m/s^2) overrides the record's gravity model."""
+    provenance (and thermal range) warning (they are also in the result's ``warnings``).  ``gravity``
+    (wgs84 | psins | m/s^2) overrides the record's gravity model; ``temperature`` [degC]: a constant
+    temperature for the parameter file's thermal model (:func:`inscal.cli.common.thermal_compensation`)."""
     return navigate_file(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out, force,
-                         warn, gravity, height_ref, plot)[0]
+                         warn, gravity, height_ref, plot, temperature)[0]
 
 
 def navigate_file(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
                   init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
                   output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                  gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None):
+                  gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
+                  temperature: float | None = None):
     """:func:`run_navigate` returning ``(report, NavResult, gimbal model)`` (the demo draws the run)."""
+    import warnings as pywarnings
+
     from inscal import io
     from inscal import nav as nv
     from inscal.nav.strapdown import NavConfig
@@ -153,8 +159,10 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         from inscal.cli.common import parse_gravity_option
 
         info = dataclasses.replace(info, site=info.site.with_gravity(parse_gravity_option(gravity)))
-    imu = gim = None
+    imu = gim = comp = None
     warnings = []
+    if params is None and temperature is not None:
+        raise CliError("--temperature is the temperature of a parameter file's thermal model: give --params")
     if params is not None:
         imu, gim, pmeta = load_checked_params(params)
         from inscal.io.paramfile import provenance_mismatch
@@ -167,6 +175,11 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         done = compensated_with(attrs)
         if done is not None:
             warnings.append(f"{data} is already compensated (with {done}): --params applies a correction again")
+        try:
+            comp, _, twarn = thermal_compensation(data, params, pmeta, info, imu, temperature)
+        except (io.DataFileError, OSError) as exc:
+            raise CliError(str(exc)) from None
+        warnings += twarn
         for w in warnings:
             if warn is not None:
                 warn(w)
@@ -175,7 +188,12 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         align_cfg = nv.AlignConfig(coarse_time=align_coarse_s, fine_time=align_fine_s)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    scenario = sim.scenario_from_record(info) if (info.truth is not None and info.path is not None) else None
+    scenario = None
+    if info.truth is not None and info.path is not None:
+        try:
+            scenario = sim.scenario_from_record(info)
+        except ValueError as exc:
+            raise CliError(f"{short(data)}: its truth does not make a scenario ({exc})") from None
     if init == "auto":
         init = "truth" if scenario is not None else "align"
     if init not in ("truth", "align"):
@@ -186,8 +204,11 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
     if info.n_samples < needed:
         raise CliError(f"{data}: {nv.too_short(info.n_samples, info.rate_hz, needed, what)}")
     try:
-        res = nv.navigate(io.iter_chunks(data), info.rate_hz, info.site, init=init, scenario=scenario,
-                          params=imu, gimbal_model=gim, config=config, align_config=align_cfg, height_ref=href)
+        with pywarnings.catch_warnings():  # the thermal range was surveyed (and warned about) above
+            pywarnings.simplefilter("ignore", RuntimeWarning)
+            res = nv.navigate(io.iter_chunks(data), info.rate_hz, info.site, init=init, scenario=scenario,
+                              params=imu, gimbal_model=gim, config=config, align_config=align_cfg, height_ref=href,
+                              thermal=comp)
     except ValueError as exc:
         raise CliError(f"{data}: {exc}") from None
     if out is not None:
@@ -221,6 +242,7 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
                                    {"file": str(height_ref), "span_s": list(href.span()), "points": int(href.time.size)})
     rep["plot"] = None if plot is None else str(plot)
     rep["gravity"] = {**info.site.gravity_model.to_json(), "g_site_m_s2": info.site.gravity}
+    rep["thermal"] = res.thermal
     rep["warnings"] = warnings
     return rep, res, gim
 
@@ -245,20 +267,26 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
         gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
                                     "(default: the record's)"),
+        temperature: float = typer.Option(None, "--temperature", help="constant temperature in degC for the thermal "
+                                          "model of --params (a record without /temperature; in place of the "
+                                          "record's readings otherwise)"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
-        """Navigate (strapdown, pure inertial or damped) and report the errors on a static base."""
+        """Navigate (strapdown, pure inertial or damped) and report the errors on a static base.  A parameter
+        file with a thermal model is applied at the record's temperature."""
         try:
             rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
                                force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), gravity=gravity,
-                               height_ref=height_ref, plot=plot)
+                               height_ref=height_ref, plot=plot, temperature=temperature)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             print_json(rep)
             return
+        th = rep["thermal"]
         typer.echo(f"{rep['data']}: {rep['duration_h']:.2f} h navigated ({rep['mode']}, vertical {rep['vertical_channel']}, "
-                   f"init {rep['init']}{', params ' + rep['params'] if rep['params'] else ''})")
+                   f"init {rep['init']}{', params ' + rep['params'] if rep['params'] else ''}"
+                   f"{', thermal model at ' + th['temperature'] if th else ''})")
         typer.echo(f"  position error: max {rep['max_position_error_m']:.3f} m ({rep['max_position_error_nmi']:.4f} nmi), "
                    f"final {rep['final_position_error_m']:.3f} m ({rep['final_position_error_nmi']:.4f} nmi)")
         typer.echo(f"  velocity error: max {rep['max_velocity_error_mps']:.4f} m/s (horizontal)")

@@ -484,6 +484,8 @@ class RecordInfo:
     scenario: str
     has_gimbal: bool
     temperature: Temperature | None = None
+    #: the file the metadata was read from ("" when built in memory)
+    source: str = ""
 
 
 def record_info(path) -> RecordInfo:
@@ -492,7 +494,7 @@ def record_info(path) -> RecordInfo:
         check_datasets(h5, path)
         site, p, truth = _meta(h5, path)
         return RecordInfo(int(h5["time"].shape[0]), _rate(h5, path), site, p, truth,
-                          str(h5.attrs.get("scenario", "")), "gimbal" in h5, read_temperature(h5, path))
+                          str(h5.attrs.get("scenario", "")), "gimbal" in h5, read_temperature(h5, path), str(path))
 
 
 def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:

@@ -22,6 +22,12 @@ from inscal.nav.linear_model import (
     linear_error_model,
 )
 from inscal.nav.run import HeightReference, NavResult, navigate, samples_needed, too_short, write_nav
-from inscal.nav.stream import SampleStream, chunks_of, compensated_chunks
+from inscal.nav.stream import (
+    SampleStream,
+    ThermalCompensation,
+    chunks_of,
+    compensated_chunks,
+    thermal_chunks,
+)
 
-__all__ = ['SampleStream', 'chunks_of', 'compensated_chunks', 'AlignConfig', 'AlignResult', 'coarse_align', 'align', 'DAY', 'NavErrors', 'navigation_errors', 'schuler_frequency', 'foucault_frequency', 'fit_oscillation', 'oscillation_components', 'summarize', 'HeightReference', 'NavResult', 'navigate', 'samples_needed', 'too_short', 'write_nav', 'linear_error_model', 'gyro_bias_closed_form', 'accel_bias_closed_form']
+__all__ = ['SampleStream', 'ThermalCompensation', 'chunks_of', 'compensated_chunks', 'thermal_chunks', 'AlignConfig', 'AlignResult', 'coarse_align', 'align', 'DAY', 'NavErrors', 'navigation_errors', 'schuler_frequency', 'foucault_frequency', 'fit_oscillation', 'oscillation_components', 'summarize', 'HeightReference', 'NavResult', 'navigate', 'samples_needed', 'too_short', 'write_nav', 'linear_error_model', 'gyro_bias_closed_form', 'accel_bias_closed_form']

@@ -24,6 +24,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Iterable
 
@@ -32,11 +33,17 @@ import numpy as np
 
 from inscal import SCHEMA_VERSION, __version__
 from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.thermal import ThermalModel
 from inscal.io.files import atomic_path
 from inscal.nav.accuracy import NavErrors, navigation_errors, summarize
 from inscal.nav.align import AlignConfig, AlignResult, align
 from inscal.nav.strapdown import S_HREF, NavConfig, NavOutput, NavState, Strapdown
-from inscal.nav.stream import SampleStream, compensated_chunks
+from inscal.nav.stream import (
+    SampleStream,
+    ThermalCompensation,
+    compensated_chunks,
+    thermal_chunks,
+)
 
 
 # ============================================================================ height reference
@@ -117,6 +124,8 @@ class NavResult:
     alignment: AlignResult | None
     config: NavConfig
     init: str
+    #: the thermal compensation applied (:meth:`ThermalCompensation.summary`), None without a thermal model
+    thermal: dict | None = None
 
 
 def samples_needed(rate_hz: float, config: NavConfig | None = None, init="truth",
@@ -144,7 +153,8 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
              params: ImuErrors | None = None, gimbal_model: GimbalErrors | None = None,
              config: NavConfig | None = None, align_config: AlignConfig | None = None,
              vref=None, progress: Callable[[float], None] | None = None,
-             height_ref: "HeightReference | float | None" = None) -> NavResult:
+             height_ref: "HeightReference | float | None" = None,
+             thermal: "ThermalModel | ThermalCompensation | None" = None, temperature=None) -> NavResult:
     """Navigate a chunked record.
 
     ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
@@ -157,11 +167,27 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     errors against its truth and a summary are computed.  ``height_ref``: an external height
     (:class:`HeightReference`, or a constant in metres) for the vertical channel's reference in
     place of the initial height ("damped" tracks it, "hold" follows it; "free" refuses it).
+    ``thermal``: the thermal model that goes with ``params`` (``params`` = the errors at its ``t_ref``):
+    each sample is first mapped to ``t_ref`` at its ``temperature`` (the record's
+    :class:`~inscal.io.records.Temperature`, a constant in degC, or a function ``t -> (T, dT/dt)``; see
+    :class:`~inscal.nav.stream.ThermalCompensation`, which may also be given as ``thermal``).  Samples
+    outside the model's range follow its policy (``warn``, ``clamp``: a RuntimeWarning says how many;
+    ``error``: ThermalError); ``NavResult.thermal`` tells what was applied.
     """
     config = config or NavConfig()
     dt = 1.0 / rate_hz
     gravity = getattr(site, "gravity_model", None)
     stream = SampleStream(chunks)
+    comp = None
+    if isinstance(thermal, ThermalCompensation):
+        comp = thermal
+    elif thermal is not None:
+        comp = ThermalCompensation(thermal, params, temperature, rate_hz)
+    elif temperature is not None:
+        raise ValueError("a temperature was given without a thermal model to apply it with")
+    if comp is not None:
+        # thermal model first (to t_ref), then the base errors, exactly as the calibration modelled them
+        stream = SampleStream(thermal_chunks(stream.chunks(), comp))
     if params is not None and (params.has_asynchrony or np.any(params.accel_lever_arm - np.diag(np.diag(params.accel_lever_arm)))):
         # sample-to-sample terms (time asynchrony, tangential size effect) need the next sample:
         # compensate ahead of the kernel exactly as the systematic calibration does
@@ -211,7 +237,13 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
     # static base: position and velocity are known even without a simulation truth
     errors = navigation_errors(out, scenario, gimbal_model, site=site)
     summary = summarize(errors, site.latitude)
-    return NavResult(out, errors, summary, alignment, config, label)
+    tsum = None
+    if comp is not None:
+        tsum = comp.summary()
+        msg = comp.message()
+        if msg is not None:
+            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+    return NavResult(out, errors, summary, alignment, config, label, tsum)
 
 
 def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = False) -> None:

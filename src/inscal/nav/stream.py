@@ -1,13 +1,29 @@
-"""Streams of IMU increments for the navigator: records in chunks, and their compensation by a
-parameter set on the fly."""
+"""Streams of IMU increments for the navigator: records in chunks, their compensation by a
+parameter set on the fly, and the thermal model's inverse applied from the record's temperature.
+
+Thermal compensation (:class:`ThermalCompensation`): when a parameter set comes with a thermal model
+(:mod:`inscal.core.thermal`), each sample's increments are first mapped to the reference temperature
+with :meth:`~inscal.core.thermal.ThermalModel.to_reference`, at the temperature and dT/dt of the
+middle of the sample interval (:func:`~inscal.core.thermal.sample_temperature`: the readings of the
+model's sensor interpolated, dT/dt their least-squares slope over a window computed once on the whole
+series), and then compensated with the base errors as before.  Every sample is mapped on its own, so
+any chunking of the record gives the same numbers.
+"""
 
 from __future__ import annotations
 
+import math
 from typing import Iterable, Iterator
 
 import numpy as np
 
 from inscal.core.error_model import ImuErrors
+from inscal.core.thermal import (
+    ThermalError,
+    ThermalModel,
+    sample_temperature,
+    temperature_rate,
+)
 
 
 # =============================================================================== streams
@@ -86,3 +102,140 @@ def compensated_chunks(chunks, params: ImuErrors, dt: float):
             prev = (dth[-1], dv[-1])
         yield t, cdth, cdv, g
         cur = nxt
+
+
+# =============================================================================== thermal
+#: samples a survey of the temperature evaluates at once (bounded memory on multi-day records)
+SURVEY_BLOCK = 1 << 20
+
+
+def out_of_range_message(model: ThermalModel, n_outside: int, n_samples: int, lo: float, hi: float,
+                         where: str = "record") -> str | None:
+    """The one line for ``n_outside`` of ``n_samples`` samples outside the model's calibrated range (the
+    record spanning ``lo .. hi`` degC), worded for the model's policy; None when none is outside."""
+    if n_outside == 0:
+        return None
+    head = (f"{where}: {n_outside} of {n_samples} samples lie outside the thermal model's calibrated range "
+            f"{model.t_min:g} .. {model.t_max:g} degC (the temperature spans {lo:.2f} .. {hi:.2f} degC)")
+    if model.out_of_range == "error":
+        return f"{head}; not compensated (out_of_range = \"error\")"
+    if model.out_of_range == "clamp":
+        return f"{head}: the model is evaluated at the range ends there (out_of_range = \"clamp\")"
+    return f"{head}: the model is extrapolated there (out_of_range = \"warn\")"
+
+
+class ThermalCompensation:
+    """The inverse thermal model applied sample by sample: increments measured at the record's
+    temperature -> those ``base`` measures at ``model.t_ref`` (compensate them with ``base`` afterwards).
+
+    ``temperature``: the record's readings (:class:`~inscal.io.records.Temperature`, or anything with its
+    ``time``, ``sensors`` and ``series(sensor)``: the series of ``model.sensor``, the mean of the sensors
+    when it names none), a constant in degC (dT/dt = 0), or a function ``t -> (T, dT/dt)`` [s -> degC,
+    degC/s] evaluated at the middle of each sample interval (an ideal sensor, e.g.
+    :meth:`inscal.sim.thermal.TemperatureProfile.at`).  Outside the calibrated range
+    the model's policy applies: ``warn`` extrapolates (counted, see :meth:`message`), ``clamp`` evaluates
+    at the range ends, ``error`` raises :class:`~inscal.core.thermal.ThermalError`.  ``where`` names the
+    record in messages."""
+
+    def __init__(self, model: ThermalModel, base: ImuErrors | None, temperature, rate_hz: float,
+                 where: str = "record"):
+        if not isinstance(model, ThermalModel):
+            raise TypeError(f"thermal model expected, got {type(model).__name__}")
+        self.model = model
+        self.base = base if base is not None else ImuErrors()
+        self.rate_hz = float(rate_hz)
+        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
+            raise ValueError(f"rate_hz must be positive, got {rate_hz}")
+        self.dt = 1.0 / self.rate_hz
+        self.where = where
+        self._readings = self._fn = self._const = None
+        if temperature is None:
+            raise ThermalError(f"{where}: the thermal model needs the temperature of the samples, and none was given "
+                               "(the record has no /temperature readings)")
+        if hasattr(temperature, "series"):  # io.records.Temperature (the estimators' layer reads no file module)
+            try:
+                T = temperature.series(model.sensor)
+            except ValueError as exc:
+                raise ThermalError(f"{where}: {exc}") from None
+            self._readings = (temperature.time, T, temperature_rate(temperature.time, T))
+            self.source = (f"/temperature sensor {model.sensor}" if model.sensor else
+                           "/temperature" + (f" (mean of {len(temperature.sensors)} sensors)"
+                                             if len(temperature.sensors) > 1 else f" sensor {temperature.sensors[0]}"))
+        elif callable(temperature):
+            self._fn = temperature
+            self.source = "a temperature function"
+        else:
+            try:
+                c = float(temperature)
+            except (TypeError, ValueError):
+                raise ThermalError(f"temperature: a number of degC expected, got {temperature!r}") from None
+            if not math.isfinite(c):
+                raise ThermalError(f"temperature: a finite number of degC expected, got {temperature!r}")
+            self._const = c
+            self.source = f"constant {c:g} degC"
+        self.n_samples = 0
+        self.n_outside = 0
+        self.lo, self.hi = math.inf, -math.inf
+
+    def at(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Temperature [degC] and dT/dt [degC/s] of the samples that end at times ``t`` (the middle of
+        each sample interval); a record whose readings do not cover the samples is a ThermalError."""
+        t = np.asarray(t, dtype=float)
+        if self._readings is not None:
+            tt, T, rate = self._readings
+            return sample_temperature(t, self.rate_hz, tt, T, rate, where=self.where)
+        if self._fn is not None:
+            T, rate = self._fn(t - 0.5 * self.dt)
+            return (np.broadcast_to(np.asarray(T, dtype=float), t.shape),
+                    np.broadcast_to(np.asarray(rate, dtype=float), t.shape))
+        return np.full(t.shape, self._const), np.zeros(t.shape)
+
+    def apply(self, t, dth, dv) -> tuple[np.ndarray, np.ndarray]:
+        """The increments of the samples ending at ``t`` mapped to ``t_ref`` (counted for :meth:`summary`)."""
+        T, rate = self.at(t)
+        if T.size:
+            n_out = self.model.outside(T)
+            self.n_samples += int(T.size)
+            self.n_outside += n_out
+            self.lo, self.hi = min(self.lo, float(np.min(T))), max(self.hi, float(np.max(T)))
+            if n_out and self.model.out_of_range == "error":
+                raise ThermalError(out_of_range_message(self.model, n_out, int(T.size), float(np.min(T)),
+                                                        float(np.max(T)), self.where))
+        return self.model.to_reference(self.base, self.dt, dth, dv, self.model.effective(T), rate)
+
+    def survey(self, t_first: float, n: int) -> dict:
+        """The temperature of ``n`` samples from ``t_first`` on the record's nominal grid, checked before
+        any work: coverage by the readings and, with ``out_of_range = "error"``, the calibrated range
+        (ThermalError with the one line).  Returns ``{"samples", "samples_outside", "seen_c", "message"}``."""
+        n_out, lo, hi = 0, math.inf, -math.inf
+        for k0 in range(0, int(n), SURVEY_BLOCK):
+            T, _ = self.at(float(t_first) + np.arange(k0, min(int(n), k0 + SURVEY_BLOCK)) * self.dt)
+            n_out += self.model.outside(T)
+            lo, hi = min(lo, float(np.min(T))), max(hi, float(np.max(T)))
+        msg = out_of_range_message(self.model, n_out, int(n), lo, hi, self.where)
+        if msg is not None and self.model.out_of_range == "error":
+            raise ThermalError(msg)
+        return {"samples": int(n), "samples_outside": n_out, "seen_c": [lo, hi], "message": msg}
+
+    def message(self) -> str | None:
+        """The out-of-range line of the samples mapped so far (None when all were in range)."""
+        return out_of_range_message(self.model, self.n_outside, self.n_samples, self.lo, self.hi, self.where)
+
+    def summary(self) -> dict:
+        """What was applied, for reports and a compensated record's ``compensated_with`` (JSON-ready)."""
+        m = self.model
+        rng = [v if math.isfinite(v) else None for v in (m.t_min, m.t_max)]  # None: unbounded
+        return {"t_ref_c": m.t_ref, "range_c": rng, "out_of_range": m.out_of_range,
+                "sensor": m.sensor, "temperature": self.source, "samples": self.n_samples,
+                "samples_outside": self.n_outside,
+                "seen_c": [self.lo, self.hi] if self.n_samples else None}
+
+
+def thermal_chunks(chunks, comp: ThermalCompensation) -> Iterator:
+    """``(t, dtheta, dvel, gimbal)`` chunks mapped to the thermal model's reference temperature."""
+    for c in chunks:
+        if hasattr(c, "dtheta"):  # simulate.Chunk
+            c = (c.time, c.dtheta, c.dvel, c.gimbal)
+        t, dth, dv, g = c
+        a, b = comp.apply(t, dth, dv)
+        yield t, a, b, g
