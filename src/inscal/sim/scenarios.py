@@ -80,8 +80,10 @@ Built-in (``inscal simulate NAME``):
       path at each plateau (the systematic filter per plateau).
     * ``thermal-ramp``: the ``s16`` IMU and noise; the S16 Table 1 path twice, without a stop, while
       the chamber holds -40 degC for 10 min, ramps to +60 degC at 1 degC/min and holds.
-    * ``thermal-warmup``: the ``n25`` IMU and noise on a static base for 2 h (``--duration``) while
-      the IMU warms up from 20 to 45 degC after turn-on (time constant 20 min).
+    * ``thermal-warmup``: the ``s16`` IMU and noise (a quiet navigation-grade unit: the ``n25`` noise
+      alone would put a 2-h navigation kilometres off and hide the thermal errors) on a static base at
+      the S16 site for 2 h (``--duration-h``) while the IMU warms up from 20 to 45 degC after turn-on
+      (time constant 20 min).
 ``s16-gimbal``
     The ``s16`` scenario (S16 section 4.1 IMU errors and noise, S16 Table 1 path, 100 Hz, 30 N)
     on a gimbal with N25's geometry: non-orthogonality 20" and mount (carrier) attitude
@@ -410,7 +412,7 @@ def _thermal_ramp() -> Scenario:
 
 def _thermal_warmup(duration_s: float = 7200.0) -> Scenario:
     profile = TemperatureProfile(20.0, (Piece("approach", target_c=45.0, tau_s=1200.0, duration_s=duration_s),))
-    return replace(_n25(), name="thermal-warmup", path=static(duration_s), thermal=thermal_model(), temperature=profile)
+    return replace(_s16(), name="thermal-warmup", path=static(duration_s), thermal=thermal_model(), temperature=profile)
 
 
 BUILTIN = {
