@@ -25,6 +25,9 @@ Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
 ``unified``          the systematic filter (S16, 51 states) with the gimbal non-orthogonality
                      and mount attitude estimated from the encoder angles (58 states;
                      :mod:`.unified`); reads the record like the systematic methods.
+``thermal-plateaus`` a thermal-chamber calibration: another method (``per_plateau``, default
+                     ``n25``) on each temperature plateau of the record, then a weighted polynomial
+                     fit of every thermal term over the plateaus (:mod:`.thermal`; ``result.thermal``).
 ``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
                      attitude to every window, 1 sigma from the Jacobian and the measured
                      window noise; unobservable directions are reported and held fixed.
@@ -44,6 +47,7 @@ from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.six_position import six_position
 from inscal.calibrate.systematic.driver import systematic
 from inscal.calibrate.systematic.methods import systematic30, systematic51
+from inscal.calibrate.thermal import thermal_plateaus
 from inscal.calibrate.twelve_position import twelve_position
 from inscal.calibrate.unified import unified
 from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means
@@ -56,12 +60,15 @@ METHODS = {
     "systematic51": systematic51,
     "systematic30": systematic30,
     "unified": unified,
+    "thermal-plateaus": thermal_plateaus,
 }
 #: methods that read the increments directly (no window segmentation)
 RECORD_METHODS = {"systematic51", "systematic30", "unified"}
+#: methods that run another method (``per_plateau``) on parts of the record and combine the results
+PLATEAU_METHODS = {"thermal-plateaus"}
 
 __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
-           "six_position", "twelve_position", "n25", "joint", "unified"]
+           "RECORD_METHODS", "PLATEAU_METHODS", "six_position", "twelve_position", "n25", "joint", "unified"]
 
 
 def calibrate(record_like, method: str, **options) -> CalibrationResult:
@@ -69,6 +76,10 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     fn = METHODS[method]
+    if method in PLATEAU_METHODS:  # it checks its own options and hands the rest to the per-plateau method
+        if isinstance(record_like, WindowSet):
+            raise CalibrationError(f"{method} needs the record (increments and temperature), not window means")
+        return fn(record_like, run=calibrate, **options)
     if method in RECORD_METHODS:
 
         meth_keys = set(inspect.signature(systematic).parameters) - {"ws_or_record", "method_name"}

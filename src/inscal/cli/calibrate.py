@@ -24,7 +24,9 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   gravity: str | None = None, encoder_sigma: float | None = None, encoder_latency: float = 0.0,
                   check_encoders: bool = True, db: str | None = None, serial: str | None = None,
                   station: str | None = None, operator: str | None = None, date: str | None = None,
-                  temperature_c: float | None = None, supersedes: int | None = None) -> dict:
+                  temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
+                  thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
+                  temperature_sensor: str = "", chamber_label: str = "chamber") -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -36,12 +38,16 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``serial``: record the result in the calibration database ``db`` (:mod:`inscal.lab`; None: ``INSCAL_DB``,
     else calib.sqlite) as a calibration of that unit, with the session's ``station``, ``operator``,
     ``date`` and ``temperature_c``, committed together with the parameter file (a failure of either
-    leaves neither); ``supersedes``: the id of an earlier result this one replaces."""
+    leaves neither); ``supersedes``: the id of an earlier result this one replaces.
+    Method ``thermal-plateaus``: ``per_plateau`` (default n25) runs on each temperature plateau, then the
+    thermal model is fitted with ``thermal_order`` (``["gyro_bias=2", ...]``), ``t_ref`` [degC] (default 20),
+    ``plateau_tol`` [degC], ``temperature_sensor`` and ``chamber_label`` (:mod:`inscal.calibrate.thermal`)."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
-                             encoder_latency, check_encoders)
+                             encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
+                             plateau_tol, temperature_sensor, chamber_label)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -56,6 +62,22 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     finally:
         if lab_db is not None:
             lab_db["db"].close()
+
+
+def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
+    """``--thermal-order NAME=K`` (repeatable; NAME a thermal term, K its polynomial order) as pairs."""
+    out = []
+    for item in items or []:
+        name, sep, k = str(item).partition("=")
+        try:
+            order = int(k)
+        except ValueError:
+            order = None
+        if not sep or not name.strip() or order is None:
+            raise CliError(f"--thermal-order {item!r}: expected NAME=ORDER, e.g. gyro_bias=2 (NAME a thermal term, "
+                           "ORDER 0 .. 3; 0: constant)")
+        out.append((name.strip(), order))
+    return tuple(out)
 
 
 def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
@@ -169,6 +191,10 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
               "parameters": res.to_field(truth), "out": str(out), "notes": res.notes}
     if enc_report is not None:
         report["encoders"] = enc_report  # the encoders against the gyros: moves, residual, latency
+    if res.thermal is not None:  # the thermal model in field units, its fit and the plateaus
+        from inscal.core.thermal import thermal_to_field
+
+        report["thermal"] = thermal_to_field(res.thermal, res.thermal_sigma) | {"fit": res.thermal_fit}
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
     if systematic:
@@ -241,6 +267,29 @@ def fit_lines(fit: dict) -> list[str]:
     return out
 
 
+def thermal_lines(th: dict) -> list[str]:
+    """The printed thermal model: the plateaus, then per term and order the coefficients +- 1 sigma (field
+    units) and the fit of the term over the plateaus."""
+    fit = th.get("fit") or {}
+    plats = fit.get("plateaus", [])
+    out = [f"  thermal model: T_ref {th['t_ref']:g} degC, range {th['t_min']:.4g} .. {th['t_max']:.4g} degC"
+           + (f", {len(plats)} plateaus at " + ", ".join(f"{p['temperature_c']:.4g}" for p in plats) + " degC"
+              if plats else "")
+           + (f" ({fit['per_plateau']} on each)" if "per_plateau" in fit else "")]
+    terms = fit.get("terms", {})
+    for name, rows in th["terms"].items():
+        for r in rows:
+            sig = f" +- {_fmt(r['sigma'])}" if "sigma" in r else ""
+            out.append(f"    {name:20s} order {r['order']} {_fmt(r['value'])}{sig} {r['unit']}")
+        f = terms.get(name)
+        if f is not None:
+            verdict = "consistent" if f["consistent"] else "INCONSISTENT, sigma scaled: see the note"
+            p = f.get("p_value")
+            ptxt = "no dof" if not f["dof"] else f"p = {p:.3g}"
+            out.append(f"      fit: chi2 {f['chi2']:.4g} on {f['dof']} dof, {ptxt}: {verdict}")
+    return out
+
+
 def _fmt(v) -> str:
     a = np.ravel(np.asarray(v, dtype=float))
     return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
@@ -252,7 +301,7 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="HDF5 record (inscal simulate, or a recorded run)"),
         method: str = typer.Option(..., "--method", "-m",
                                    help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
-                                        "unified"),
+                                        "unified | thermal-plateaus"),
         out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
         settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
@@ -285,13 +334,29 @@ def register(app: typer.Typer) -> None:
                                             "during the run [deg C]"),
         supersedes: int = typer.Option(None, "--supersedes", help="with --serial: id of an earlier result this one "
                                        "replaces (e.g. the same record calibrated again)"),
+        per_plateau: str = typer.Option(None, "--per-plateau", help="thermal-plateaus: the method run on each "
+                                        "temperature plateau (default n25; any other method)"),
+        thermal_order: list[str] = typer.Option(None, "--thermal-order", help="thermal-plateaus: NAME=ORDER, the "
+                                                "polynomial order of a thermal term in T - T_ref (repeatable; default "
+                                                "gyro_bias, gyro_scale_factor, accel_bias, accel_scale_factor = 2, "
+                                                "misalignments 0 = constant, at most 1)"),
+        t_ref: float = typer.Option(None, "--t-ref", help="thermal-plateaus: reference temperature of the model "
+                                    "[deg C] (default 20; inside the plateaus' range)"),
+        plateau_tol: float = typer.Option(0.5, "--plateau-tol", help="thermal-plateaus: a plateau's readings stay "
+                                          "within this of their mean [deg C]"),
+        temperature_sensor: str = typer.Option("", "--temperature-sensor", help="thermal-plateaus: the temperature "
+                                               "sensor (default: the mean of the record's sensors)"),
+        chamber_label: str = typer.Option("chamber", "--chamber-label", help="thermal-plateaus: label prefix of the "
+                                          "path's chamber transitions (the plateaus are cut there; without them they "
+                                          "are found in the temperature)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
         try:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
-                                operator, date, temperature_c, supersedes)
+                                operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
+                                plateau_tol, temperature_sensor, chamber_label)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -305,6 +370,9 @@ def register(app: typer.Typer) -> None:
             if "error" in e:
                 line += f"   (error {_fmt(e['error'])})"
             typer.echo(line)
+        if "thermal" in rep:
+            for line in thermal_lines(rep["thermal"]):
+                typer.echo(line)
         if "encoders" in rep:
             e = rep["encoders"]
             lat = "" if e["latency_s"] is None else f", latency {e['latency_s'] * 1e3:.3g} ms"

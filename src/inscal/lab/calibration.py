@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from inscal.calibrate import METHODS, RECORD_METHODS, calibrate
+from inscal.calibrate import METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.selection import largest_states
+from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
@@ -45,7 +46,11 @@ class CalibrationSetup:
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
     ``min_static`` to the window-mean ones; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
-    compares them with the gyros before calibrating."""
+    compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
+    ``per_plateau`` (default n25) on each temperature plateau with the options above that apply to it, then
+    fits the thermal model: ``thermal_orders`` ((term, order) pairs over
+    :data:`inscal.calibrate.thermal.DEFAULT_ORDERS`), ``t_ref`` [degC], ``plateau_tol`` [degC],
+    ``temperature_sensor`` ("" = the mean of the record's sensors) and ``chamber_label``."""
 
     method: str
     states: str | None = None
@@ -58,20 +63,45 @@ class CalibrationSetup:
     encoder_sigma: float | None = None
     encoder_latency: float = 0.0
     check_encoders: bool = True
+    per_plateau: str | None = None
+    thermal_orders: tuple[tuple[str, int], ...] = ()
+    t_ref: float | None = None
+    plateau_tol: float = PLATEAU_TOL_C
+    temperature_sensor: str = ""
+    chamber_label: str = CHAMBER_LABEL
 
     @property
     def systematic(self) -> bool:
         """Whether the method reads the record itself (the systematic filter and ``unified``)."""
         return self.method in RECORD_METHODS
 
+    @property
+    def plateaus(self) -> bool:
+        """Whether the method runs another one per temperature plateau (``thermal-plateaus``)."""
+        return self.method in PLATEAU_METHODS
+
+    @property
+    def inner(self) -> str:
+        """The method that reads the increments: ``per_plateau`` (default n25) for a plateau method."""
+        return (self.per_plateau or "n25") if self.plateaus else self.method
+
+    @property
+    def inner_systematic(self) -> bool:
+        """Whether the method that reads the increments is a systematic one (its options apply)."""
+        return self.inner in RECORD_METHODS
+
     def problem(self, plots: bool = False) -> str | None:
         """The one-line refusal of a bad option (``plots``: convergence plots are asked for), None if
         the options are usable; checked before any record is read."""
         if self.method not in METHODS:
             return f"unknown method {self.method!r}; choose one of: {', '.join(METHODS)}"
-        if not self.systematic and (self.states or plots or self.arw is not None or self.vrw is not None
-                                    or self.encoder_sigma is not None):
-            return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.method}"
+        if (msg := self.thermal_problem()) is not None:
+            return msg
+        if plots and not self.systematic:
+            return f"--plots applies to the systematic methods, not {self.method}"
+        if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
+                                          or self.encoder_sigma is not None):
+            return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.inner}"
         for name, v in (("--arw", self.arw), ("--vrw", self.vrw)):
             if v is not None and not (math.isfinite(v) and v > 0):
                 return (f"{name} must be a white-noise level > 0 ({'deg/sqrt(h)' if name == '--arw' else 'ug/sqrt(Hz)'}), "
@@ -89,13 +119,50 @@ class CalibrationSetup:
                 return f"--gravity: {exc}"
         return None
 
+    def thermal_problem(self) -> str | None:
+        """The one-line refusal of a bad plateau option (or of one given to another method), else None."""
+        given = [n for n, v in (("--per-plateau", self.per_plateau), ("--thermal-order", self.thermal_orders or None),
+                                ("--t-ref", self.t_ref), ("--plateau-tol", None if self.plateau_tol == PLATEAU_TOL_C
+                                                          else self.plateau_tol),
+                                ("--temperature-sensor", self.temperature_sensor or None),
+                                ("--chamber-label", None if self.chamber_label == CHAMBER_LABEL else self.chamber_label))
+                 if v is not None]
+        if not self.plateaus:
+            return f"{', '.join(given)}: for --method thermal-plateaus, not {self.method}" if given else None
+        if self.inner not in METHODS or self.inner in PLATEAU_METHODS:
+            return (f"--per-plateau {self.inner!r}: not a method to run on each plateau; choose one of: "
+                    f"{', '.join(m for m in METHODS if m not in PLATEAU_METHODS)}")
+        try:
+            check_orders(dict(self.thermal_orders))
+        except CalibrationError as exc:
+            return f"--thermal-order: {exc}"
+        if self.t_ref is not None and not (math.isfinite(self.t_ref) and -100.0 < self.t_ref < 200.0):
+            return f"--t-ref {self.t_ref}: not a temperature in degC"
+        if not (math.isfinite(self.plateau_tol) and self.plateau_tol > 0):
+            return f"--plateau-tol must be > 0 degC, got {self.plateau_tol}"
+        return None
+
+    def thermal_options(self) -> dict:
+        """The options of :func:`inscal.calibrate.thermal.thermal_plateaus` (empty for other methods)."""
+        if not self.plateaus:
+            return {}
+        return {"per_plateau": self.inner, "orders": dict(self.thermal_orders),
+                "t_ref": 20.0 if self.t_ref is None else float(self.t_ref), "plateau_tol": float(self.plateau_tol),
+                "sensor": self.temperature_sensor, "chamber_label": self.chamber_label}
+
     def options(self) -> dict:
         """The canonical options (:func:`inscal.lab.record.calibration_options`): what identifies "the
         same calibration of the same record" in the database."""
-        return calibration_options(self.method, states=self.states, settle=self.settle, min_static=self.min_static,
+        opts = calibration_options(self.method, states=self.states, settle=self.settle, min_static=self.min_static,
                                    filter_rate_hz=self.filter_rate_hz, arw=self.arw, vrw=self.vrw, gravity=self.gravity,
                                    encoder_sigma=self.encoder_sigma, encoder_latency=self.encoder_latency,
-                                   check_encoders=self.check_encoders)
+                                   check_encoders=self.check_encoders, systematic=self.inner_systematic)
+        th = self.thermal_options()
+        if th:
+            opts.update(per_plateau=th["per_plateau"], thermal_orders=check_orders(th["orders"]), t_ref_c=th["t_ref"],
+                        plateau_tol_c=th["plateau_tol"], temperature_sensor=th["sensor"],
+                        chamber_label=th["chamber_label"])
+        return opts
 
     def memory_needs(self, info: RecordInfo, name: str) -> list[tuple[float, str, str]]:
         """What calibrating the record of ``info`` (called ``name`` in the messages) holds in memory at
@@ -109,8 +176,8 @@ class CalibrationSetup:
         held = 8.0 * (7 + (2 if info.has_gimbal else 0)) * n
         out = [(held + 104.0 * n, f"reading {what}", "calibrate a shorter record")]
         try:
-            st = largest_states({"systematic30": "30", "unified": "unified"}.get(self.method, "51"), self.states) \
-                if self.systematic else None
+            st = largest_states({"systematic30": "30", "unified": "unified"}.get(self.inner, "51"), self.states) \
+                if self.inner_systematic else None
         except CalibrationError:
             st = None  # the calibration names the bad state set
         if st is not None:
@@ -173,22 +240,27 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
         except ValueError as exc:
             raise RecordError(f"--gravity: {exc}") from None
     try:
-        if setup.systematic:
-            # the state set: chosen from the data unless given (inscal.calibrate.systematic.selection)
-            opts = {"states": "auto" if setup.states is None else setup.states, "filter_rate_hz": setup.filter_rate_hz}
+        if setup.inner_systematic:
+            # the state set: chosen from the data unless given (inscal.calibrate.systematic.selection); per
+            # plateau the method's own set, so that every plateau estimates the same parameters
+            opts = {"filter_rate_hz": setup.filter_rate_hz}
+            if setup.states is not None or not setup.plateaus:
+                opts["states"] = "auto" if setup.states is None else setup.states
             if setup.arw is not None:
                 opts["arw"] = units.to_si(setup.arw, "deg/sqrt(h)")
             if setup.vrw is not None:
                 opts["vrw"] = units.to_si(setup.vrw, "ug/sqrt(Hz)")
             if setup.encoder_sigma is not None:
                 opts["encoder_sigma"] = units.to_si(setup.encoder_sigma, "arcsec")
-            res = calibrate(rec, setup.method, **opts)
         else:
-            res = calibrate(rec, setup.method, settle=setup.settle, min_static=setup.min_static)
+            opts = {"settle": setup.settle, "min_static": setup.min_static}
+        res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
             "windows": len(res.windows.windows) if res.windows else None}
+    if setup.plateaus:
+        meta.update({"per_plateau": setup.inner, "plateaus": len(res.diagnostics["plateaus"])})
     if setup.systematic:
         d = res.diagnostics
         meta.update({"frame": d["frame"], "states": d["state_options"], "state_count": d["states"],
