@@ -3,6 +3,7 @@ iterated filter/smoother passes with prior deflation, and the result with its fi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -40,13 +41,17 @@ from inscal.calibrate.systematic.states import (
     StateSet,
     estimated_names,
     fixed_mask,
+    prior_sigma,
     state_spec,
+    thermal_orders_from,
 )
+from inscal.calibrate.systematic.thermal_states import T_REF_C, sample_inputs, thermal_offset, thermal_result
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors
 from inscal.core.stats import chi2_sf
+from inscal.core.thermal import RATE_WINDOW_S
 from inscal.nav.align import coarse_align
 
 #: body rate [rad/s] (0.5-s mean) above which a sample counts as turning, for the alignment window
@@ -62,6 +67,8 @@ HISTORY_S = 10.0
 #: full-size NumPy temporaries, 173 B with gimbal states (a copy of the encoder angles besides); the compiled
 #: scans of record_stats need less (one second-difference column, 8 B; the radix keys of one channel, 16 B)
 WORK_BYTES_PER_SAMPLE = 176
+#: with thermal states: each sample's temperature difference and rate, and the temporaries that interpolate them
+THERMAL_BYTES_PER_SAMPLE = 64
 
 
 def samples_per_step(rate_hz: float, filter_rate_hz: float) -> int:
@@ -84,7 +91,8 @@ def systematic_bytes(n_samples: float, rate_hz: float, states: StateSet, filter_
     n_per = samples_per_step(rate_hz, filter_rate_hz)
     M = math.floor(float(n_samples) / n_per)
     every = history_every(n_per / rate_hz, history_s)
-    return (WORK_BYTES_PER_SAMPLE * float(n_samples) + pass_bytes(M, states, every)
+    work = WORK_BYTES_PER_SAMPLE + (THERMAL_BYTES_PER_SAMPLE if states.thermal else 0)
+    return (work * float(n_samples) + pass_bytes(M, states, every)
             + pass_bytes(M, states, every, stores=False))
 
 
@@ -142,7 +150,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = HISTORY_S,
                align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
                keep_passes: bool = False, encoder_sigma: float | None = None,
-               encoder_every: int = 1, nis_cap: float | None = NIS_CAP) -> CalibrationResult:
+               encoder_every: int = 1, nis_cap: float | None = NIS_CAP, thermal_orders: dict | None = None,
+               t_ref: float = T_REF_C, temperature_sensor: str = "",
+               temperature_rate_window_s: float = RATE_WINDOW_S) -> CalibrationResult:
     """Systematic calibration of a static-site rotation record (S16 section 3).
 
     ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
@@ -155,9 +165,18 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`): a step whose NIS exceeds
     it has its R inflated until its NIS equals the cap (default :data:`NIS_CAP`, a 1e-6 tail of chi2(6): on
     data the model fits, no step reaches it); None: plain Kalman updates.
+    Thermal states (``thermal``; :mod:`inscal.calibrate.systematic.thermal_states`): the record's
+    ``temperature`` readings (sensor ``temperature_sensor``, default the mean of the sensors; dT/dt their
+    least-squares slope over ``temperature_rate_window_s``) drive the model about ``t_ref`` [degC];
+    ``thermal_orders`` (term -> order, :data:`~inscal.calibrate.systematic.states.THERMAL_TERM_NAMES`) turns
+    them on with those orders.  The result's ``thermal`` is the canonical model with ``thermal_sigma``; the
+    prior of each coefficient is ``THERMAL_SIGMA0`` spread over the record's span (``prior`` may name a
+    coefficient group, e.g. ``gyro_bias_dT2``, in SI per degC^k).
     """
     rec = ws_or_record
     st = states if isinstance(states, StateSet) else StateSet.parse(states)
+    if thermal_orders is not None:
+        st = dataclasses.replace(st, thermal=thermal_orders_from(thermal_orders))
     for attr in ("dtheta", "dvel", "rate_hz", "site"):
         if not hasattr(rec, attr):
             raise CalibrationError(f"systematic calibration needs a record with increments, rate and site (no {attr!r})")
@@ -169,6 +188,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         raise CalibrationError("increments contain NaN or infinite values")
     rate = float(rec.rate_hz)
     dt = 1.0 / rate
+    tin = None
+    if st.thermal:
+        tin = sample_inputs(rec, dth.shape[0], rate, t_ref, temperature_sensor, temperature_rate_window_s)
     if not (filter_rate_hz > 0 and math.isfinite(filter_rate_hz)):
         raise CalibrationError(f"filter rate must be > 0 Hz, got {filter_rate_hz}")
     n_per = samples_per_step(rate, filter_rate_hz)
@@ -200,9 +222,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     r = np.array([vsig**2] * 3 + [psig**2] * 3)
     # state scaling = prior sigma
     sig0 = dict(DEFAULT_SIGMA0)
+    known = list(sig0) + [g.name for g in st.groups if g.name not in sig0]
     for k, v in (prior or {}).items():
-        if k not in sig0:
-            raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(sig0)}")
+        if k not in known:
+            raise CalibrationError(f"prior: unknown group {k!r}; groups: {', '.join(known)}")
         sig0[k] = float(v)
     hist_every = history_every(T, history_s)
     # coarse alignment (inertial-frame Wahba; valid while turning)
@@ -224,7 +247,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     nav_sig0[2] = max(nav_sig0[2], 2.0 * sigma_psi)
     if "mount_attitude" not in (prior or {}):
         sig0["mount_attitude"] = max(sig0["mount_attitude"], 2.0 * sigma_psi)
-    sig = np.array(nav_sig0 + [sig0[gr.name] for gr in st.groups for _ in gr.labels])
+    sig = np.concatenate([nav_sig0, prior_sigma(st, sig0, tin["span"] if tin else 1.0)])
     sig_par = sig[N_NAV:]
     start = CompParams() if initial is None else CompParams.from_imu(initial)
     nominal = CompParams()
@@ -266,7 +289,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig, nis_cap=cap_pass)
+                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig, nis_cap=cap_pass,
+                           temperature=None if tin is None else (tin["dT"], tin["rate"]))
         except np.linalg.LinAlgError:
             raise CalibrationError(
                 f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
@@ -384,6 +408,20 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
     if st.gimbal:
         gimbal_diagnostics(res, last, st, enc_sig, int(encoder_every))
+    if tin is not None:
+        o = thermal_offset(st)
+        res.thermal, res.thermal_sigma, table, th_notes = thermal_result(est, st, P_post[o:, o:], sig_par[o:],
+                                                                         fit["scale"], imu, tin)
+        res.thermal_fit = {"method": "thermal states of the systematic filter (one run)", "chi2": chisq, "dof": dof,
+                           "expected_chi2": expected, "p_value": diag["innovations"]["p_value"],
+                           "consistent": fit["consistent"], "scale": fit["scale"]}
+        diag["thermal"] = {"t_ref": tin["t_ref"], "t_min": tin["t_min"], "t_max": tin["t_max"], "span": tin["span"],
+                           "rate_max_c_per_min": 60.0 * tin["rate_max"], "sensor": tin["sensor"],
+                           "rate_window_s": tin["rate_window_s"],
+                           "orders": dict(zip(("gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor",
+                                               "gyro_bias_rate"), st.thermal)),
+                           "coefficients": table}
+        res.notes += th_notes
     h_out, h_sig = first
     res.history = pass_history(h_out, st, names, h_sig, J, est, P_post)
     res.history["time_s"] = res.history["t_steps"] * T

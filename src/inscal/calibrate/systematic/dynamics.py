@@ -22,6 +22,76 @@ def linear(A, x, idt, out):
 
 
 @njit(cache=True, inline="always")
+def thermal_linear(A, x, idt, eps, th, r0, dT, rate, out):
+    """``out = A y`` with the thermal states applied to the raw output ``x`` (one sample's increments) before the
+    compensation matrix (states module docstring): ``y_i = (x_i / dt - eps_i - beta_i) / (1 + s_i) + eps_i``,
+    ``beta_i = sum_k th[r0 + k - 1, i] dT^k`` (+ ``th[12, i] dT/dt`` for the gyros, ``r0 == 0``), ``s_i = sum_k
+    th[r0 + 2 + k, i] dT^k``; ``eps = A^-1 b`` the base bias of the sensor axes.  The exact inverse of the
+    canonical model (:meth:`inscal.core.thermal.ThermalModel.to_reference`)."""
+    d2 = dT * dT
+    d3 = d2 * dT
+    y0 = 0.0
+    y1 = 0.0
+    y2 = 0.0
+    for i in range(3):
+        b = th[r0, i] * dT + th[r0 + 1, i] * d2 + th[r0 + 2, i] * d3
+        if r0 == 0:
+            b += th[12, i] * rate
+        sc = 1.0 + th[r0 + 3, i] * dT + th[r0 + 4, i] * d2 + th[r0 + 5, i] * d3
+        y = (x[i] * idt - eps[i] - b) / sc + eps[i]
+        if i == 0:
+            y0 = y
+        elif i == 1:
+            y1 = y
+        else:
+            y2 = y
+    for i in range(3):
+        out[i] = A[i, 0] * y0 + A[i, 1] * y1 + A[i, 2] * y2
+
+
+@njit(cache=True)
+def base_bias(A, b, eps):
+    """``eps = A^-1 b``: the base bias of the sensor axes (rate or specific force) of a compensation matrix and
+    bias (Cramer's rule)."""
+    c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+    c10 = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
+    c11 = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
+    c12 = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
+    c20 = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
+    c21 = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
+    c22 = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    eps[0] = (c00 * b[0] + c10 * b[1] + c20 * b[2]) / det
+    eps[1] = (c01 * b[0] + c11 * b[1] + c21 * b[2]) / det
+    eps[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
+
+
+@njit(cache=True)
+def thermal_values(kinds, axes, js, wl, fl, dT, rate, vals):
+    """Per-sample value of each thermal column (kind ``K_TH``; the others are left as they are): ``-dT^k`` for a
+    bias coefficient, ``-(u - b)_i dT^k`` for a scale-factor coefficient (``wl`` = ``u_g - b_g``, ``fl`` =
+    ``u_a - b_a``, the linearly compensated rate and specific force), ``-dT/dt`` for the dT/dt term; the column
+    is ``C[:, axes[c]] * vals[c]`` in the rows of the state's triad (states module docstring)."""
+    for c in range(kinds.shape[0]):
+        if kinds[c] != 11:
+            continue
+        j = js[c]
+        if j == 12:
+            vals[c] = -rate
+            continue
+        p = dT ** (j % 3 + 1)
+        t = j // 3
+        if t == 0 or t == 2:
+            vals[c] = -p
+        elif t == 1:
+            vals[c] = -wl[axes[c]] * p
+        else:
+            vals[c] = -fl[axes[c]] * p
+
+
+@njit(cache=True, inline="always")
 def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wlm, wlp, w, f, fdot, wdot):
     """S16 compensation of one sample (module docstring) from its matrix parts ``ug = A_g dtheta / dt``,
     ``ua = A_a dv / dt`` (:func:`linear`); fills w, f (rates), the centred derivatives ``fdot`` (of the

@@ -6,7 +6,8 @@ Columns.  Every parameter column of ``F_np`` at a sample is ``C_m^n e_i v`` (row
 kinds, of ``dv`` for the accelerometer kinds): the column ``i`` of the mid-sample attitude times one value
 ``v`` of the sample's compensated output (S16 eq. 18-19), or ``C_m^n f-dot = sum_i C_m^n e_i f-dot_i`` for the
 time asynchrony.  The kernel keeps each sample's ``C_m^n`` and a short basis of its values (:data:`N_BASIS`:
-``u_g``, ``-1``, ``-f``, ``u_a``, the quadratic and cross products, the size-effect terms, ``f-dot``) in
+``u_g``, ``-1``, ``-f``, ``u_a``, the quadratic and cross products, the size-effect terms, ``f-dot``; with
+thermal states ``-dT^k``, ``-dT/dt`` and ``-(u - b)_i dT^k`` of both triads) in
 per-step buffers, one row per entry; a column is a pair (axis ``i``, basis entry), and the columns that share
 a pair (the gyro and accelerometer biases, both ``-C e_i``) share its sums.
 
@@ -33,13 +34,17 @@ from inscal.calibrate.systematic.states import (
     K_M1G,
     K_MF,
     K_TAU,
+    K_TH,
     K_UA,
     K_UG,
+    TH_RATE_ROW,
 )
 
 # the basis of one sample's column values: u_g (3), -1, -f (3), u_a (3), -f_i^2 (3), -f_x f_y, -f_x f_z, -f_y f_z,
-# |w|^2 - w_i^2 (3), the full lever arm's -(w_i w_j - delta_ij |w|^2 + (w-dot x e_j)_i) (9, at 3 i + j), f-dot (3)
-B_UG, B_ONE, B_MF, B_UA, B_F2, B_FX, B_LEVD, B_LEVF, B_FDOT, N_BASIS = 0, 3, 4, 7, 10, 13, 16, 19, 28, 31
+# |w|^2 - w_i^2 (3), the full lever arm's -(w_i w_j - delta_ij |w|^2 + (w-dot x e_j)_i) (9, at 3 i + j), f-dot (3);
+# thermal states: -dT^k (3, k = 1 .. 3), -dT/dt, -(u_g - b_g)_i dT^k (9, at 3 (k - 1) + i), -(u_a - b_a)_i dT^k (9)
+B_UG, B_ONE, B_MF, B_UA, B_F2, B_FX, B_LEVD, B_LEVF, B_FDOT = 0, 3, 4, 7, 10, 13, 16, 19, 28
+B_TDT, B_TRATE, B_TSG, B_TSA, N_BASIS = 31, 34, 35, 44, 53
 #: a column without a pair (a gimbal state: no column in Phi_np), the asynchrony (the sum of three pairs, C f-dot)
 NO_SUMS, TAU_SUMS = -1, -2
 #: 3-point Gauss-Legendre nodes and weights on [0, 1]
@@ -66,7 +71,23 @@ def _basis_index(k, i, j):
         return B_LEVD + i
     if k == K_LEVF:
         return B_LEVF + 3 * i + j
+    if k == K_TH:  # j: the row of the thermal array (states.THERMAL_ROWS)
+        if j == TH_RATE_ROW:
+            return B_TRATE
+        t = j // 3
+        if t == 0 or t == 2:
+            return B_TDT + j % 3
+        return (B_TSG if t == 1 else B_TSA) + 3 * (j % 3) + i
     return -1
+
+
+@njit(cache=True, inline="always")
+def is_gyro_column(k, j):
+    """Whether a column of kind ``k`` (second index ``j``) feeds the attitude rows (gyro kinds) rather than the
+    velocity rows."""
+    if k == K_TH:
+        return j < 6 or j == TH_RATE_ROW
+    return k <= K_MF
 
 
 @njit(cache=True)
@@ -85,7 +106,7 @@ def column_layout(kinds, axes, js, est_tau):
     lev9 = False
     n = 0
     for c in range(npar):
-        col_row[c] = 0 if kinds[c] <= K_MF else 3
+        col_row[c] = 0 if is_gyro_column(kinds[c], js[c]) else 3
         if kinds[c] == K_TAU and est_tau:
             col_sum[c] = TAU_SUMS
     for g in range(3):
@@ -145,6 +166,20 @@ def basis_values(ug, ua, w, f, wd, fdot, B, j, lev9):
                 else:
                     cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
                 B[B_LEVF + 3 * i + k, j] = -(w[i] * w[k] - (ww if i == k else 0.0) + cr)
+
+
+@njit(cache=True, inline="always")
+def thermal_basis(ug, ua, bg, ba, dT, rate, B, j):
+    """One sample's thermal column values (temperature difference ``dT`` from T_ref, rate ``rate``) into column
+    ``j`` of the basis buffer ``B``; the expressions of dynamics.thermal_values."""
+    p = -dT
+    for k in range(3):
+        B[B_TDT + k, j] = p
+        for i in range(3):
+            B[B_TSG + 3 * k + i, j] = (ug[i] - bg[i]) * p
+            B[B_TSA + 3 * k + i, j] = (ua[i] - ba[i]) * p
+        p *= dT
+    B[B_TRATE, j] = -rate
 
 
 @njit(cache=True)

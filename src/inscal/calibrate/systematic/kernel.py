@@ -1,5 +1,6 @@
 """The compiled forward pass of the systematic filter (strapdown navigation, compensation, Phi and the
-velocity/position and encoder updates) and its modified Bryson-Frazier smoother, with their drivers.
+velocity/position and encoder updates) with its driver; its modified Bryson-Frazier smoother is in
+:mod:`inscal.calibrate.systematic.smoother`.
 
 Each compiled kernel processes a range of filter steps and keeps what one step hands the next in arrays its
 Python driver owns, which calls it in slices of about 50 ms (:func:`inscal.core.slices.run_in_slices`): a
@@ -16,10 +17,12 @@ import numpy as np
 from numba import njit
 
 from inscal.calibrate.systematic.dynamics import (
+    base_bias,
     compensate_sample,
     gimbal_attitude,
     linear,
     nav_F,
+    thermal_linear,
 )
 from inscal.calibrate.systematic.jacobian import (
     N_BASIS,
@@ -29,12 +32,15 @@ from inscal.calibrate.systematic.jacobian import (
     moment_weights,
     parameter_columns,
     step_moments,
+    thermal_basis,
 )
 from inscal.calibrate.systematic.params import REF_SLICES, REF_WIDTH, CompParams
+from inscal.calibrate.systematic.smoother import SmootherData, smooth_kernel, smooth_vector_kernel, stored_before
 from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
     K_GIM,
+    K_TH,
     N_NAV,
     StateSet,
 )
@@ -42,14 +48,14 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core import earth
 from inscal.core import kalman as filters
 from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz
-from inscal.core.kalman import smoother_step_dense
 from inscal.core.slices import run_in_slices
 from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
 
 
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
 (_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
-    (_TAU0, _), (_GIM0, _GIM1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim")]
+    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever",
+                                                                          "tau", "gim", "th")]
 
 # what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
 # a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
@@ -78,6 +84,8 @@ class PassInputs(NamedTuple):
     r: np.ndarray  # (6,) velocity/position measurement variances
     hist_every: int  # steps between stored history rows
     nis_cap: float  # bounded influence: R inflated where a step's NIS exceeds it (inf: plain updates)
+    tdT: np.ndarray  # (n,) thermal states: T - T_ref of each sample [degC] (empty without them)
+    trate: np.ndarray  # (n,) ... and dT/dt [degC/s]
 
 
 class PassParams(NamedTuple):
@@ -94,6 +102,7 @@ class PassParams(NamedTuple):
     lev: np.ndarray
     tau: np.ndarray
     gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
+    th: np.ndarray  # (13, 3) thermal coefficients (params.CompParams.th)
 
 
 class PassStore(NamedTuple):
@@ -129,24 +138,6 @@ class EncoderRows(NamedTuple):
     Ra_st: np.ndarray  # (M, 3, 3) R
 
 
-class SmootherData(NamedTuple):
-    """What the smoother needs of a pass (the forward pass's :class:`PassStore` and
-    :class:`EncoderRows` less what only the filter uses)."""
-
-    K_st: np.ndarray
-    Si_st: np.ndarray
-    sz_st: np.ndarray
-    phinn_st: np.ndarray
-    phinp_st: np.ndarray
-    hist_every: int
-    att_used: np.ndarray
-    Ka_st: np.ndarray
-    Sia_st: np.ndarray
-    sza_st: np.ndarray
-    Ha_st: np.ndarray
-    enc_floor: float
-
-
 @njit(cache=True)
 def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     """Filter steps ``k0 .. k1 - 1`` of one closed-loop pass over the record (see the package docstring;
@@ -171,8 +162,9 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
-    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap = inp
-    Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim = par
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, tdT, trate = inp
+    Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th = par
+    thermal = tdT.shape[0] > 0
     K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st = st
     enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
@@ -196,12 +188,21 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     wln = np.empty(3)
     wd = np.zeros(3)
     idt = 1.0 / dt
+    eg = np.zeros(3)  # thermal states: the base biases of the sensor axes, A^-1 b (after each feedback)
+    ea = np.zeros(3)
+    if thermal:
+        base_bias(Ag, bg, eg)
+        base_bias(Aa, ba, ea)
     if k0 == 0:  # the start of the pass
         cr[:] = 0.0
         cr[_C_NAV:_C_NAV + 10] = nav0
         if M > 0:
-            linear(Aa, dv[0], idt, ua)
-            linear(Ag, dth[0], idt, ug)
+            if thermal:
+                thermal_linear(Aa, dv[0], idt, ea, th, 6, tdT[0], trate[0], ua)
+                thermal_linear(Ag, dth[0], idt, eg, th, 0, tdT[0], trate[0], ug)
+            else:
+                linear(Aa, dv[0], idt, ua)
+                linear(Ag, dth[0], idt, ug)
             for i in range(3):
                 f0c[i] = ua[i] - ba[i]
                 wlc[i] = ug[i] - bg[i]
@@ -251,18 +252,27 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     xa = np.empty(N)
     qgm = (qg[0] + qg[1] + qg[2]) / 3.0
     qam = (qa[0] + qa[1] + qa[2]) / 3.0
-    ih = _stored_before(k0, M, hist_every)
+    ih = stored_before(k0, M, hist_every)
     for k in range(k0, k1):
         fn[0] = 0.0
         fn[1] = 0.0
         fn[2] = 0.0
-        linear(Ag, dth[k * n_per], idt, ug)  # the step's first sample, with the parameters after the feedback
-        linear(Aa, dv[k * n_per], idt, ua)
+        s0 = k * n_per
+        if thermal:
+            thermal_linear(Ag, dth[s0], idt, eg, th, 0, tdT[s0], trate[s0], ug)
+            thermal_linear(Aa, dv[s0], idt, ea, th, 6, tdT[s0], trate[s0], ua)
+        else:
+            linear(Ag, dth[s0], idt, ug)  # the step's first sample, with the parameters after the feedback
+            linear(Aa, dv[s0], idt, ua)
         for jj in range(n_per):
             s = k * n_per + jj
             if s + 1 < dth.shape[0]:
-                linear(Aa, dv[s + 1], idt, uan)
-                linear(Ag, dth[s + 1], idt, ugn)
+                if thermal:
+                    thermal_linear(Aa, dv[s + 1], idt, ea, th, 6, tdT[s + 1], trate[s + 1], uan)
+                    thermal_linear(Ag, dth[s + 1], idt, eg, th, 0, tdT[s + 1], trate[s + 1], ugn)
+                else:
+                    linear(Aa, dv[s + 1], idt, uan)
+                    linear(Ag, dth[s + 1], idt, ugn)
                 for i in range(3):
                     f0n[i] = uan[i] - ba[i]
                     wln[i] = ugn[i] - bg[i]
@@ -313,6 +323,8 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             fn[1] += (Cb[3, jj] * f[0] + Cb[4, jj] * f[1] + Cb[5, jj] * f[2]) * dt
             fn[2] += (Cb[6, jj] * f[0] + Cb[7, jj] * f[1] + Cb[8, jj] * f[2]) * dt
             basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9)
+            if thermal:
+                thermal_basis(ug, ua, bg, ba, tdT[s], trate[s], Bb, jj)
             ug[:] = ugn
             ua[:] = uan
         # ---- discretisation (package docstring; jacobian module)
@@ -336,7 +348,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             z_st[k, a] = z[a]
             z[a] /= sig[3 + a]
         if k % hist_every == 0 or k == M - 1:
-            hist_Pm[ih] = U @ U.T
+            if thermal:  # a compiled loop: BLAS would thread this N^3 product from N = 65 (idle threads spin)
+                _upper_outer(U, hist_Pm[ih])
+            else:
+                hist_Pm[ih] = U @ U.T
             hist_ref[ih, _AG0:_AG1] = Ag.ravel()
             hist_ref[ih, _BG0:_BG1] = bg
             hist_ref[ih, _G0:_G1] = G.ravel()
@@ -347,6 +362,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _LV0:_LV1] = lev.ravel()
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
+            hist_ref[ih, _TH0:_TH1] = th.ravel()
         # bounded influence: a step the model cannot fit (a misfit during moves, an outlier) is
         # down-weighted to NIS = nis_cap instead of dragging the constants with a tiny R
         nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rs, z, K, Si, xs, nis_cap)
@@ -414,7 +430,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim)
+        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th)
+        if thermal:
+            base_bias(Ag, bg, eg)
+            base_bias(Aa, ba, ea)
     nav_out[0], nav_out[1], nav_out[2], nav_out[3] = q0, q1, q2, q3
     nav_out[4], nav_out[5], nav_out[6] = ve, vn, vu
     nav_out[7], nav_out[8], nav_out[9] = lat, lon, h
@@ -429,13 +448,16 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
 
 
 @njit(cache=True)
-def _stored_before(k, M, hist_every):
-    """How many of the steps ``0 .. k - 1`` store a history row (every ``hist_every``-th step and the
-    last, ``M - 1``): the row index of the next stored step."""
-    n = (k + hist_every - 1) // hist_every
-    if k == M and (M - 1) % hist_every != 0:
-        n += 1
-    return n
+def _upper_outer(U, P):
+    """``P = U U^T`` of an upper-triangular ``U`` (``P_ij = sum_{k >= max(i, j)} U_ik U_jk``)."""
+    N = U.shape[0]
+    for i in range(N):
+        for j in range(i, N):
+            s = 0.0
+            for k in range(j, N):
+                s += U[i, k] * U[j, k]
+            P[i, j] = s
+            P[j, i] = s
 
 
 def _first_slice(n_per: int) -> int:
@@ -457,7 +479,7 @@ def _pass_kernel(inp: PassInputs, par: PassParams, U: np.ndarray, st: PassStore,
 
 
 @njit(cache=True)
-def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim):
+def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th):
     """Remove the parameter estimates (physical, ``xs[9:]``) from the compensation (in place)."""
     npar = kinds.shape[0]
     Dg = np.zeros((3, 3))
@@ -488,6 +510,8 @@ def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, g
             lev[i, j] -= v
         elif k == K_GIM:
             gim[j] -= v
+        elif k == K_TH:
+            th[j, i] -= v
         else:
             tau[0] -= v
     _left_correct(Dg, Ag)
@@ -501,94 +525,6 @@ def _left_correct(D, A):
         a0, a1, a2 = A[0, j], A[1, j], A[2, j]
         for i in range(3):
             A[i, j] = A[i, j] - (D[i, 0] * a0 + D[i, 1] * a1 + D[i, 2] * a2)
-
-
-@njit(cache=True)
-def _smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
-                  att_used, Ka_st, Sia_st, sza_st, Ha_st, lam, Lam, k0, k1):
-    """Steps ``k1 - 1`` down to ``k0`` of the backward MBF pass (inscal.core.kalman; :func:`_smooth_kernel`
-    runs them all in slices): smoothed errors and covariances at the stored steps and, with ``k0 == 0``,
-    at the start (``x0``, ``Pc0``).  ``lam``/``Lam``: the adjoint variables handed from step ``k1`` (zero
-    for ``k1 == M``) to step ``k0 - 1``, in place.  Steps with encoder attitude rows (``att_used``) undo
-    that second, later update first."""
-    ih = _stored_before(k1, M, hist_every) - 1
-    for k in range(k1 - 1, k0 - 1, -1):
-        if att_used.shape[0] > 0 and att_used[k]:
-            smoother_step_dense(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
-        filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
-        if k % hist_every == 0 or k == M - 1:
-            x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
-            hist_x[ih] = x
-            hist_P[ih] = Ps
-            ih -= 1
-        filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
-    if k0 == 0:
-        x, Ps = filters.smoothed(P0, lam, Lam)
-        x0[:] = x
-        Pc0[:, :] = Ps
-
-
-def _backward(M: int, steps) -> None:
-    """Run ``steps(k0, k1)`` over ``M - 1 .. 0`` backwards in slices (the last call has ``k0 == 0``; one
-    call ``(0, 0)`` when ``M == 0``)."""
-    if M == 0:
-        steps(0, 0)
-    run_in_slices(M, lambda j0, j1: steps(M - j1, M - j0), first=2048)
-
-
-def _smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
-                   att_used, Ka_st, Sia_st, sza_st, Ha_st) -> None:
-    """The backward MBF pass over all ``M`` steps (:func:`_smooth_steps`), in slices of steps so that an
-    interrupt is honoured between two; the adjoint variables live here between slices."""
-    N = P0.shape[0]
-    lam = np.zeros(N)
-    Lam = np.zeros((N, N))
-    _backward(M, lambda k0, k1: _smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm,
-                                              hist_x, hist_P, x0, Pc0, att_used, Ka_st, Sia_st, sza_st, Ha_st, lam,
-                                              Lam, k0, k1))
-
-
-@njit(cache=True)
-def _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st, sza_st,
-                         Ha_st, lam, k0, k1):
-    """Steps ``k1 - 1`` down to ``k0`` of the adjoint recursion for the smoothed states alone (the vector half of
-    :func:`_smooth_steps`, the same arithmetic): the smoothed errors at the stored steps (``hist_x``,
-    ``P_{k|k-1} lambda_k``) and, when ``k0 == 0``, at the start (``x0 = P_0 lambda_0`` with ``P_0 = I``): what the
-    passes need but the last (the initial attitude) and the history (the recursion's parameter values).
-    ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``."""
-    N = x0.shape[0]
-    d = np.empty(3)
-    ih = _stored_before(k1, M, hist_every) - 1
-    for k in range(k1 - 1, k0 - 1, -1):
-        if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
-            for a in range(3):
-                s = sza_st[k, a]
-                for i in range(N):
-                    s -= Ka_st[k, i, a] * lam[i]
-                d[a] = s
-            for i in range(N):
-                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
-        K = K_st[k]
-        ktl = K.T @ lam
-        for a in range(IDX_MEAS.shape[0]):
-            lam[IDX_MEAS[a]] += sz_st[k, a] - ktl[a]
-        if k % hist_every == 0 or k == M - 1:
-            hist_x[ih] = hist_Pm[ih] @ lam
-            ih -= 1
-        ln = lam[:9].copy()
-        lam[9:] = lam[9:] + phinp_st[k].T @ ln
-        lam[:9] = phinn_st[k].T @ ln
-    if k0 == 0:
-        x0[:] = lam
-
-
-def _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st, sza_st,
-                          Ha_st) -> None:
-    """The adjoint recursion for the smoothed states at the stored steps and the start over all ``M`` steps
-    (:func:`_smooth_vector_steps`), in slices of steps."""
-    lam = np.zeros(x0.shape[0])
-    _backward(M, lambda k0, k1: _smooth_vector_steps(K_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x,
-                                                     x0, att_used, Ka_st, sza_st, Ha_st, lam, k0, k1))
 
 
 @dataclass
@@ -648,13 +584,14 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
              keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
-             nis_cap: float = np.inf) -> PassOutput:
+             nis_cap: float = np.inf, temperature=None) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
     the adjoint recursion for the smoothed states, at the start and the stored steps (:func:`smooth_pass` adds
     their covariances).
     ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`; inf: plain updates).
     Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
-    (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring)."""
+    (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring).  Thermal states:
+    ``temperature = (dT, rate)``, ``T - T_ref`` [degC] and dT/dt [degC/s] of every sample."""
     N = states.n_states
     npar = N - N_NAV
     M = dth.shape[0] // n_per
@@ -689,10 +626,11 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     Ha_st, nisa_st, za_st = np.zeros((Ma, 3, N)), np.full(Ma, np.nan), np.full((Ma, 3), np.nan)
     Ra_st = np.zeros((Ma, 3, 3))
     nl = bool(states.extended or np.any(p.K2) or np.any(p.Kx) or np.any(p.lever) or np.any(p.G))
+    tdT, trate = _temperature_inputs(states, temperature, dth.shape[0])
     inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
-                     qa, r, int(hist_every), float(nis_cap))
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
+                     qa, r, int(hist_every), float(nis_cap), tdT, trate)
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     rw = np.ones(M)
     st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw)
     er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
@@ -700,7 +638,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     Mk = _pass_kernel(inp, par, U, st, er)
     x0 = np.empty(N)
     hist_x = np.empty((nh, N))
-    _smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, x0, att_used, Ka_st,
+    smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, x0, att_used, Ka_st,
                           sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, hist_x, None, hist_Pm, U @ U.T)
@@ -718,6 +656,19 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     return out
 
 
+def _temperature_inputs(states: StateSet, temperature, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The per-sample ``(dT, rate)`` arrays of a pass (empty without thermal states; any temperature is then
+    ignored, so a pass without them is the same arithmetic as before thermal states existed)."""
+    if not states.thermal:
+        return np.empty(0), np.empty(0)
+    if temperature is None:
+        raise CalibrationError("the thermal states need the temperature of every sample")
+    dT, rate = (np.ascontiguousarray(a, dtype=float) for a in temperature)
+    if dT.shape != (n,) or rate.shape != (n,):
+        raise CalibrationError(f"thermal states: temperature arrays of shape {dT.shape} and {rate.shape}, expected ({n},)")
+    return dT, rate
+
+
 def smooth_pass(out: PassOutput) -> PassOutput:
     """Run the full smoother (states and covariances at the stored steps and at the start) on a
     pass's stored data, in place."""
@@ -728,18 +679,18 @@ def smooth_pass(out: PassOutput) -> PassOutput:
     out.hist_P = np.empty((nh, N, N))
     x0 = np.empty(N)
     out.P0s = np.empty((N, N))
-    _smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
+    smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
                    out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st)
     out.x0s = x0
     return out
 
 
 # ----------------------------------------------------------------------------- for tests
-def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
+def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temperature=None):
     """Propagate the navigation over the samples given (one filter step, no update) from the
     navigation state ``nav0 = [q(4), v(3), lat, lon, h]``; returns the final state (10) and the
     step's physical ``(Phi_nn, Phi_np)``.  For tests of the F blocks against finite differences
-    of this same nonlinear propagation."""
+    of this same nonlinear propagation.  ``temperature``: ``(dT, rate)`` per sample (thermal states)."""
     N = states.n_states
     n = dth.shape[0]
     p = params.copy()
@@ -747,10 +698,11 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet):
     P = np.eye(N)
     one = lambda *shape: np.empty((1,) + shape)  # noqa: E731  (storage for the one step)
     out = np.empty(10)
+    tdT, trate = _temperature_inputs(states, temperature, n)
     inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                      np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
-                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf)
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim)
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, tdT, trate)
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
                    one(REF_WIDTH), one(N), out, np.ones(1))
     er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),

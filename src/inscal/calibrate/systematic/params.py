@@ -10,13 +10,22 @@ import numpy as np
 from scipy.linalg import rq
 
 from inscal.calibrate.result import flatten
-from inscal.calibrate.systematic.states import CROSS_PAIRS, StateSet
+from inscal.calibrate.systematic.states import (
+    CROSS_PAIRS,
+    K_TH,
+    N_TH_ROWS,
+    TH_RATE_ROW,
+    THERMAL_ROWS,
+    THERMAL_TERM_NAMES,
+    StateSet,
+)
 from inscal.core.error_model import (
     PARAMETERS,
     GimbalErrors,
     ImuErrors,
     split_scale_misalignment,
 )
+from inscal.core.thermal import ThermalModel
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -34,6 +43,9 @@ class CompParams:
     lever: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # rows p_i
     tau: np.ndarray = field(default_factory=lambda: np.zeros(1))
     gim: np.ndarray = field(default_factory=lambda: np.zeros(4))  # [dth, alpha0, beta0, gamma0] (gimbal states)
+    #: thermal coefficients by sensor axis (states module docstring): rows 3 t + k - 1 = order k of term t
+    #: (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor), row 12 the dT/dt term
+    th: np.ndarray = field(default_factory=lambda: np.zeros((N_TH_ROWS, 3)))
 
     def copy(self) -> "CompParams":
         return CompParams(*(np.array(getattr(self, f), dtype=float) for f in self.__dataclass_fields__))
@@ -44,7 +56,7 @@ class CompParams:
     @classmethod
     def from_flat(cls, v) -> "CompParams":
         v = np.asarray(v, float)
-        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,)]
+        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,), (N_TH_ROWS, 3)]
         out, k = [], 0
         for s in shapes:
             n = int(np.prod(s))
@@ -94,7 +106,9 @@ class CompParams:
         for g in states.groups:
             v = x[k:k + g.size]
             k += g.size
-            if g.name in ("gyro_matrix", "accel_matrix"):
+            if g.kinds[0] == K_TH:
+                p.th[list(g.js), list(g.axes)] -= v
+            elif g.name in ("gyro_matrix", "accel_matrix"):
                 D = np.zeros((3, 3))
                 for e, (i, j) in enumerate(zip(g.axes, g.js)):
                     D[i, j] = v[e]
@@ -131,7 +145,9 @@ class CompParams:
         """The error state ``x`` (estimate - truth, first order) of these parameters."""
         out = []
         for g in states.groups:
-            if g.name in ("gyro_matrix", "accel_matrix"):
+            if g.kinds[0] == K_TH:
+                out += list(self.th[list(g.js), list(g.axes)] - truth.th[list(g.js), list(g.axes)])
+            elif g.name in ("gyro_matrix", "accel_matrix"):
                 A, At = (self.Ag, truth.Ag) if g.name == "gyro_matrix" else (self.Aa, truth.Aa)
                 D = np.eye(3) - At @ np.linalg.inv(A)
                 out += [D[i, j] for i, j in zip(g.axes, g.js)]
@@ -175,13 +191,47 @@ def frame_rotation(imu: ImuErrors, frame: str = "gyro") -> np.ndarray:
     return C_m_s.T
 
 
-def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None) -> CompParams:
+def thermal_rows(model: ThermalModel | None, imu: ImuErrors) -> np.ndarray:
+    """The filter's thermal array (:attr:`CompParams.th`) of a canonical thermal model that goes with the errors
+    ``imu`` at its ``t_ref``: the bias coefficients and the dT/dt term as they are, the scale-factor coefficients
+    divided by ``1 + K_0`` (states module docstring).  Misalignment terms have no rows (not states)."""
+    th = np.zeros((N_TH_ROWS, 3))
+    if model is None:
+        return th
+    for term in THERMAL_TERM_NAMES[:4]:
+        row = THERMAL_ROWS[term][0]
+        c = np.asarray(getattr(model, term), float)
+        if term.endswith("scale_factor"):
+            c = c / (1.0 + np.asarray(getattr(imu, term), float))[None, :]
+        th[row:row + c.shape[0]] = c
+    th[TH_RATE_ROW] = model.gyro_bias_rate
+    return th
+
+
+def thermal_from_rows(th: np.ndarray, orders, imu: ImuErrors, t_ref: float, t_min: float, t_max: float,
+                      sensor: str = "") -> ThermalModel:
+    """The canonical thermal model of a thermal array (the inverse of :func:`thermal_rows` for the ``orders`` of
+    :data:`~inscal.calibrate.systematic.states.THERMAL_TERM_NAMES`), with the errors ``imu`` at ``t_ref``."""
+    kw = {}
+    for term, o in zip(THERMAL_TERM_NAMES[:4], orders):
+        row = THERMAL_ROWS[term][0]
+        c = np.array(th[row:row + o], float)
+        if term.endswith("scale_factor"):
+            c = c * (1.0 + np.asarray(getattr(imu, term), float))[None, :]
+        kw[term] = c
+    rate = np.array(th[TH_RATE_ROW], float) if orders[4] else np.zeros(3)
+    return ThermalModel(t_ref=float(t_ref), t_min=float(t_min), t_max=float(t_max), gyro_bias_rate=rate,
+                        sensor=sensor, **kw)
+
+
+def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None, thermal: ThermalModel | None = None) -> CompParams:
     """The true compensation parameters expressed in the filter's frame (the quadratic terms
     and lever arms are carried unchanged: exact when the frames coincide, as in the s16 and
     psins19 scenarios; otherwise to first order in the rotation: the quadratic terms
     and lever arms of a rotated frame mix their axes, a second-order change for rotations of arcseconds).  With the
     gimbal states the frame is the canonical s-frame (no rotation) and ``gimbal`` (GimbalErrors)
-    supplies the true gimbal parameters."""
+    supplies the true gimbal parameters; ``thermal`` the true thermal model (:func:`thermal_rows`: sensor axes,
+    the same in every frame)."""
     R = np.eye(3) if states.gimbal else frame_rotation(imu, states.frame)
     p = CompParams.from_imu(imu)
     p.Ag = R @ p.Ag
@@ -191,13 +241,14 @@ def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None) -> CompParams:
     p.ba = R @ p.ba
     if gimbal is not None:
         p.gim = np.concatenate([[gimbal.nonorthogonality], gimbal.mount_attitude])
+    p.th = thermal_rows(thermal, imu)
     return p
 
 
 # ----------------------------------------------------------------------------- driver
 REF_SLICES = {"Ag": (0, 9, (3, 3)), "bg": (9, 12, (3,)), "G": (12, 21, (3, 3)), "Aa": (21, 30, (3, 3)),
               "ba": (30, 33, (3,)), "K2": (33, 36, (3,)), "Kx": (36, 45, (3, 3)), "lever": (45, 54, (3, 3)),
-              "tau": (54, 55, (1,)), "gim": (55, 59, (4,))}
+              "tau": (54, 55, (1,)), "gim": (55, 59, (4,)), "th": (59, 59 + 3 * N_TH_ROWS, (N_TH_ROWS, 3))}
 #: width of a reference-history row (the end of the last slice)
 REF_WIDTH = max(b for _, b, _ in REF_SLICES.values())
 
@@ -219,7 +270,9 @@ def ref_error_states(rows: np.ndarray, states: StateSet, truth: CompParams) -> n
     out = []
     for g in states.groups:
         ax, js = list(g.axes), list(g.js)
-        if g.name in ("gyro_matrix", "accel_matrix"):
+        if g.kinds[0] == K_TH:
+            out.append(field("th")[:, js, ax] - truth.th[js, ax])
+        elif g.name in ("gyro_matrix", "accel_matrix"):
             A, At = (field("Ag"), truth.Ag) if g.name == "gyro_matrix" else (field("Aa"), truth.Aa)
             D = np.eye(3) - At @ np.linalg.inv(A)
             out.append(D[:, ax, js])

@@ -1,6 +1,25 @@
 """State sets of the systematic filter as data (S16 eq. 17-27): the navigation states, the parameter
 groups with their names, sizes, units, initial sigma and the kind of Jacobian column that feeds them,
-and the options (``51``, ``30``, ``lever9``, ``async``, ``psins``, ``gimbal``)."""
+and the options (``51``, ``30``, ``lever9``, ``async``, ``psins``, ``gimbal``, ``thermal``).
+
+Thermal states (option ``thermal``; the model of :mod:`inscal.core.thermal`).  The coefficients of the
+bias and scale-factor polynomials in ``dT = T - T_ref`` and the gyro bias per ``dT/dt`` are states of
+their own, one group per term and order (``gyro_bias_dT1``, ``gyro_bias_dT2``, ...,
+``accel_scale_factor_dT2``, ``gyro_bias_rate``), with the measured temperature a known input of every
+sample.  They act on each sensor's raw output, before the compensation matrix (the canonical
+measurement model ``N = (I + K(T))(I + E) u + b(T)``, inverted exactly as
+:meth:`inscal.core.thermal.ThermalModel.to_reference` does)::
+
+    y_i = (N_i / dt - eps_i - beta_i(T)) / (1 + s_i(T)) + eps_i       eps = A^-1 b, the base bias (sensor axes)
+    beta_i = sum_k c_b,ik dT^k (+ D_i dT/dt for the gyros),   s_i = sum_k c_s,ik dT^k
+
+and ``A y`` replaces ``A N / dt`` (``u_g``, ``u_a`` of S16 eq. 3, 6).  The bias coefficients are those of
+the canonical model; the scale-factor ones are ``c_K,k / (1 + K_0,i)`` (the canonical ``K(T) = K_0 + sum_k
+c_K,k dT^k``), so the family holds the model exactly.  Being sensor-axis quantities they need no frame
+rotation.  Their Jacobian columns are the base columns times a known scalar of the sample (``C_m^n e_i``
+times ``-dT^k``, ``-(u - b)_i dT^k`` or ``-dT/dt``; the factors ``A e_i`` and ``1 / (1 + s_i)`` of the exact
+derivative differ from ``e_i`` and 1 by parts in 1e4: a Jacobian approximation that the iterated passes
+do not see in their fixed point).  Thermal misalignment terms are not states."""
 
 from __future__ import annotations
 
@@ -20,6 +39,8 @@ IDX_MEAS = np.array([3, 4, 5, 6, 7, 8], dtype=np.int64)
 K_UG, K_M1G, K_MF, K_UA, K_M1A, K_F2, K_FX, K_LEVD, K_LEVF, K_TAU = range(10)
 # gimbal states (dth, alpha0, beta0, gamma0; js = index into the gimbal array): no column in Phi_np
 K_GIM = 10
+# thermal coefficient states (js = the row of the thermal array, THERMAL_ROWS; axes = the sensor axis)
+K_TH = 11
 
 DIAG = ((0, 0), (1, 1), (2, 2))
 OFFD = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))  # = errors.MISALIGN_INDEX order
@@ -70,6 +91,22 @@ DEFAULT_SIGMA0 = {
     "accel_cross_coupling": units.to_si(1000.0, "ug/g^2"), "accel_lever_arm": 0.05, "time_asynchrony": 5e-3,
     "gimbal_nonorthogonality": units.to_si(60.0, "arcsec"), "mount_attitude": units.to_si(1.0, "deg"),
 }
+#: prior 1 sigma of each thermal term's change over the record's temperature span (SI of the base quantity): the
+#: coefficient of order k gets ``sigma / span^k`` (span = the largest |T - T_ref| of the record, at least
+#: 1 degC); the dT/dt term its own sigma [rad/degC]
+THERMAL_SIGMA0 = {"gyro_bias": units.to_si(1.0, "deg/h"), "gyro_scale_factor": 1e-3, "accel_bias": 3000 * UG,
+                  "accel_scale_factor": 1e-3, "gyro_bias_rate": units.to_si(1.0, "deg/h/(degC/min)")}
+#: the thermal terms the filter estimates: name -> (first row of the thermal array, base unit, gyro triad)
+THERMAL_ROWS = {"gyro_bias": (0, "deg/h", True), "gyro_scale_factor": (3, "ppm", True),
+                "accel_bias": (6, "ug", False), "accel_scale_factor": (9, "ppm", False),
+                "gyro_bias_rate": (12, "deg/h/(degC/min)", True)}
+#: rows of the thermal array: three orders of each polynomial term, then the dT/dt term
+N_TH_ROWS = 13
+TH_RATE_ROW = 12
+#: default orders (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor, dT/dt term 0/1):
+#: those of the built-in thermal scenarios' model (``inscal.sim.scenarios.THERMAL_ERRORS``)
+THERMAL_ORDERS = (2, 2, 3, 2, 1)
+THERMAL_TERM_NAMES = tuple(THERMAL_ROWS)
 #: default white noise of each encoder angle (gimbal states)
 ENCODER_SIGMA = units.to_si(1.0, "arcsec")
 FRAME_GIMBAL = "gimbal-defined (N25 s-frame)"
@@ -88,6 +125,10 @@ STATE_OPTIONS = {
               "the IMU frame is then defined by the accelerometers",
     "gdiag": "g-sensitivity diagonal only (3 states instead of 9): the off-diagonal terms fixed at zero",
     "nocross": "no accelerometer cross-coupling states (6 fewer): fixed at zero",
+    "thermal": "thermal coefficients as states, the record's temperature a known input: bias and scale-factor "
+               "polynomials in T - T_ref of both triads (orders 2, 2, 3, 2) and the gyro bias per dT/dt (3): 30 states; "
+               "thermal=GSABR picks the orders (gyro bias, gyro scale factor, accel bias, accel scale factor 0-3, "
+               "dT/dt term 0-1), e.g. thermal=11110",
     "auto": "chosen from the record: start from 51 and add or drop async, lever9, gdiag and nocross by an F-test "
             "on the innovations (see inscal.calibrate.systematic.selection)",
 }
@@ -109,6 +150,8 @@ class StateSet:
     gimbal: bool = False  # dth + mount attitude, encoder attitude rows; frame = the gimbal's s-frame
     gsens_offdiag: bool = True  # the six off-diagonal g-sensitivity terms (extended model)
     cross: bool = True  # the six cross-coupling terms (extended model)
+    #: orders of the thermal terms (THERMAL_TERM_NAMES; empty: no thermal states)
+    thermal: tuple[int, ...] = ()
 
     @classmethod
     def parse(cls, spec: str | None) -> "StateSet":
@@ -119,6 +162,12 @@ class StateSet:
         toks = [t.strip() for t in str(spec).replace("+", ",").split(",") if t.strip()]
         kw = {"extended": True}
         for t in toks:
+            if t.startswith("thermal="):
+                kw["thermal"] = parse_thermal_orders(t[len("thermal="):])
+                continue
+            if t == "thermal":
+                kw["thermal"] = THERMAL_ORDERS
+                continue
             if t not in _OPTION_FLAGS:
                 raise CalibrationError(f"unknown state option {t!r}; options: {', '.join(STATE_OPTIONS)}")
             kw.update(_OPTION_FLAGS[t])
@@ -166,6 +215,7 @@ class StateSet:
                              "arcsec"))
             out.append(Group("mount_attitude", ("alpha0", "beta0", "gamma0"), (K_GIM,) * 3, (0, 0, 0), (1, 2, 3),
                              s["mount_attitude"], "arcsec"))
+        out += thermal_groups(self.thermal)  # last: the thermal block of the covariance is its lower-right corner
         return tuple(out)
 
     @property
@@ -194,6 +244,86 @@ class StateSet:
             axes += g.axes
             js += g.js
         return np.array(kinds, np.int64), np.array(axes, np.int64), np.array(js, np.int64)
+
+
+def parse_thermal_orders(text: str) -> tuple[int, ...]:
+    """The orders of ``thermal=GSABR`` (five digits: gyro bias, gyro scale factor, accelerometer bias and scale
+    factor 0-3, the dT/dt term 0-1)."""
+    if len(text) != len(THERMAL_TERM_NAMES) or not text.isdigit():
+        raise CalibrationError(f"thermal={text}: expected five digits (orders of gyro bias, gyro scale factor, accel bias, "
+                               "accel scale factor 0-3 and the dT/dt term 0-1), e.g. thermal=22321")
+    orders = tuple(int(c) for c in text)
+    if max(orders[:4]) > 3 or orders[4] > 1:
+        raise CalibrationError(f"thermal={text}: the polynomial orders go up to 3 and the dT/dt term is 0 or 1")
+    return orders if any(orders) else ()
+
+
+def thermal_orders_from(orders: dict) -> tuple[int, ...]:
+    """The orders tuple of a dict ``term -> order`` (missing terms: the defaults :data:`THERMAL_ORDERS`)."""
+    unknown = set(orders) - set(THERMAL_TERM_NAMES)
+    if unknown:
+        raise CalibrationError(f"thermal orders: unknown term(s) {sorted(unknown)}; the filter estimates "
+                               f"{', '.join(THERMAL_TERM_NAMES)} (misalignments do not follow the temperature here)")
+    out = []
+    for name, default in zip(THERMAL_TERM_NAMES, THERMAL_ORDERS):
+        k = orders.get(name, default)
+        top = 1 if name == "gyro_bias_rate" else 3
+        if isinstance(k, bool) or int(k) != k or not 0 <= int(k) <= top:
+            raise CalibrationError(f"thermal order of {name}: {k!r}, expected a whole number 0 .. {top}")
+        out.append(int(k))
+    return tuple(out) if any(out) else ()
+
+
+def thermal_group_name(term: str, order: int) -> str:
+    """``gyro_bias_dT2`` (the coefficient of dT^2), ``gyro_bias_rate`` (the dT/dt term)."""
+    return term if term == "gyro_bias_rate" else f"{term}_dT{order}"
+
+
+def thermal_groups(orders: tuple[int, ...]) -> list[Group]:
+    """The thermal state groups (module docstring), one per term and order; ``sigma0`` is the span-level prior
+    (:data:`THERMAL_SIGMA0`; :func:`prior_sigma` scales it per order)."""
+    out = []
+    for term, o in zip(THERMAL_TERM_NAMES, orders or ()):
+        row, unit, _ = THERMAL_ROWS[term]
+        for k in range(1, o + 1):
+            u = unit if term == "gyro_bias_rate" else units.per_degree_unit(unit, k)
+            out.append(Group(thermal_group_name(term, k), tuple(AX), (K_TH,) * 3, (0, 1, 2), (row + k - 1,) * 3,
+                             THERMAL_SIGMA0[term], u))
+    return out
+
+
+def thermal_group_term(g: Group) -> str:
+    """The thermal term (:data:`THERMAL_TERM_NAMES`) of a thermal group."""
+    j = g.js[0]
+    return "gyro_bias_rate" if j == TH_RATE_ROW else THERMAL_TERM_NAMES[j // 3]
+
+
+def thermal_group_order(g: Group) -> int:
+    """The order k of a thermal group's coefficient (0: the dT/dt term)."""
+    return 0 if g.js[0] == TH_RATE_ROW else g.js[0] % 3 + 1
+
+
+def prior_sigma(states: StateSet, sig0: dict, span_c: float = 1.0) -> np.ndarray:
+    """Prior 1 sigma of every parameter state (SI): ``sig0[group]`` (default :data:`DEFAULT_SIGMA0`); a thermal
+    coefficient of order k ``THERMAL_SIGMA0[term] / span_c^k`` unless ``sig0`` names its group."""
+    span = max(float(span_c), 1.0)
+    out = []
+    for g in states.groups:
+        if g.kinds[0] == K_TH and g.name not in sig0:
+            v = THERMAL_SIGMA0[thermal_group_term(g)] / span ** thermal_group_order(g)
+        else:
+            v = sig0.get(g.name, DEFAULT_SIGMA0.get(g.name, g.sigma0))
+        out += [float(v)] * g.size
+    return np.array(out)
+
+
+def field_value(x, unit: str):
+    """SI ``x`` in a state group's field ``unit`` (a per-degree unit ``<unit>/degC^k``: SI per degC^k)."""
+    try:
+        base, _ = units.split_per_degree(unit)
+    except units.UnitError:
+        return units.from_si(x, unit)
+    return units.from_si(x, base)
 
 
 def estimated_names(states: StateSet) -> tuple[str, ...]:
@@ -235,4 +365,6 @@ def state_spec(st: StateSet) -> str:
     parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins),
                              ("gimbal", st.gimbal), ("gdiag", st.extended and not st.gsens_offdiag),
                              ("nocross", st.extended and not st.cross)) if f]
+    if st.thermal:
+        parts.append("thermal" if tuple(st.thermal) == THERMAL_ORDERS else "thermal=" + "".join(map(str, st.thermal)))
     return ",".join(parts)
