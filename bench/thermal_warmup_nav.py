@@ -1,4 +1,4 @@
-"""The 2-h warm-up navigation (``thermal-warmup``: n25 IMU on a static base, 20 -> 45 degC, tau 20 min):
+"""The 2-h warm-up navigation (``thermal-warmup``: the s16 IMU on a static base, 20 -> 45 degC, tau 20 min):
 the maximum horizontal position error compensated (a) with the errors at 20 degC only (a calibration at
 one temperature) and (b) with them and the thermal model at the record's temperature readings.
 
@@ -7,11 +7,12 @@ Four tables:
 1. true parameters, noise-free navigation record (the model itself), init truth and init align, and (b)
    without the dT/dt term (what a model calibrated on plateaus alone, where dT/dt = 0, misses);
 2. true parameters, navigation record with the scenario's noise (x ``--nav-noise-scales``) over seeds;
-3. calibrated parameters (the honest version): ``calibrate(record, "thermal-plateaus", per_plateau="n25")`` on
-   a ``thermal-plateaus`` record per seed (its noise x ``--cal-noise-scale``), navigation record
-   noise-free, init align; also (a') an ``n25`` calibration at 20 degC (the ``n25`` scenario, no thermal
-   errors) and (b') the calibrated model with the true dT/dt term added (separates the missing term from
-   the calibration noise);
+3. calibrated parameters (the honest version), per seed: (a) ``systematic51`` on an ``s16`` record (the
+   same IMU at 20 degC: a single-temperature calibration), (b) ``systematic51 --states 51,thermal`` on a
+   ``thermal-cycle`` record (one run, the whole thermal model with its dT/dt term) and (c)
+   ``thermal-plateaus --per-plateau systematic51`` on ``thermal-plateaus-s16`` (no dT/dt term), each
+   calibration record with its noise x ``--cal-noise-scale``; navigation of a ``thermal-warmup`` record
+   with the scenario's noise and of the noise-free one, init align;
 4. the speed of the thermal compensation.
 
     .venv/bin/python bench/thermal_warmup_nav.py [--seeds 5] [--nav-noise-scales 1,0.1,0.03]
@@ -72,8 +73,7 @@ def main(argv=None) -> int:
         out["true_noise_free"][init] = {"a": ea, "b": eb, "b_without_rate_term": ec}
         print(f"{init:6s} {ea:17.1f} {eb:14.3f} {ea / eb:10.0f} {ec:18.1f}")
 
-    print("\n2. true parameters, record with the n25 noise (ARW 0.02 deg/sqrt(h), VRW 20 ug/sqrt(Hz)) x scale, "
-          "init align")
+    print("\n2. true parameters, record with the scenario's noise (the s16 IMU's) x scale, init align")
     print(f"{'scale':>6s} {'seed':>4s} {'(a)':>9s} {'(b)':>9s} {'ratio':>6s}")
     out["true_noisy"] = []
     for k in (float(x) for x in a.nav_noise_scales.split(",")):
@@ -88,25 +88,38 @@ def main(argv=None) -> int:
         print(f"{k:6g}  min ratio {min(ratios):.2f}, median {float(np.median(ratios)):.2f}")
 
     if not a.skip_calibrated:
-        print(f"\n3. calibrated parameters (thermal-plateaus, per plateau n25; calibration noise x {a.cal_noise_scale:g}), "
-              "noise-free navigation record, init align")
-        print(f"{'seed':>4s} {'(a) base':>9s} {'(a) n25@20':>10s} {'(b)':>9s} {'(b)+true D':>10s} {'ratio a/b':>9s} "
-              f"{'a(n25)/b':>8s} {'a/(b+D)':>8s}")
-        plate, n25 = scenarios.build("thermal-plateaus"), scenarios.build("n25")
-        plate = replace(plate, noise=scaled(plate.noise, a.cal_noise_scale))
-        n25 = replace(n25, noise=scaled(n25.noise, a.cal_noise_scale))
+        print(f"\n3. calibrated parameters (calibration noise x {a.cal_noise_scale:g}), navigation record with the "
+              "scenario's noise (seed 2000 + s) and noise-free, init align")
+        print("   (a) single temperature: systematic51 on an s16 record (20 degC throughout)")
+        print("   (b) one run: systematic51 --states 51,thermal on a thermal-cycle record (-40 -> 60 -> -40 degC)")
+        print("   (c) plateaus: thermal-plateaus --per-plateau systematic51 on thermal-plateaus-s16 (no dT/dt term)")
+        print(f"{'seed':>4s} {'(a) noisy':>10s} {'(b) noisy':>10s} {'a/b':>6s} {'(c) noisy':>10s}   "
+              f"{'(a) quiet':>10s} {'(b) quiet':>10s} {'a/b':>6s} {'(c) quiet':>10s}")
+        single, cycle = scenarios.build("s16"), scenarios.build("thermal-cycle")
+        plate = scenarios.build("thermal-plateaus-s16")
+        single, cycle, plate = (replace(x, noise=scaled(x.noise, a.cal_noise_scale)) for x in (single, cycle, plate))
         out["calibrated"] = []
+        ratios = []
         for seed in range(1, a.seeds + 1):
             t0 = time.perf_counter()
-            res = calibrate(simulate(plate, np.random.default_rng(seed)).to_record(), "thermal-plateaus",
-                            per_plateau="n25")
-            one = calibrate(simulate(n25, np.random.default_rng(1000 + seed)).to_record(), "n25")
-            ea, e20 = max_error(d0, quiet, res.imu), max_error(d0, quiet, one.imu)
-            eb = max_error(d0, quiet, res.imu, res.thermal)
-            ed = max_error(d0, quiet, res.imu, res.thermal.replace(gyro_bias_rate=model.gyro_bias_rate))
-            out["calibrated"].append({"seed": seed, "a": ea, "a_n25_at_20": e20, "b": eb, "b_true_rate_term": ed,
-                                      "seconds": time.perf_counter() - t0})
-            print(f"{seed:4d} {ea:9.1f} {e20:10.1f} {eb:9.1f} {ed:10.1f} {ea / eb:9.2f} {e20 / eb:8.2f} {ea / ed:8.2f}")
+            one = calibrate(simulate(single, np.random.default_rng(1000 + seed)).to_record(), "systematic51")
+            res = calibrate(simulate(cycle, np.random.default_rng(seed)).to_record(), "systematic51",
+                            states="51,thermal")
+            pl = calibrate(simulate(plate, np.random.default_rng(3000 + seed)).to_record(), "thermal-plateaus",
+                           per_plateau="systematic51", orders={"accel_bias": 3})
+            dn = simulate(warm, np.random.default_rng(2000 + seed))
+            row = {"seed": seed}
+            for tag, d, sc in (("noisy", dn, warm), ("quiet", d0, quiet)):
+                row[f"a_{tag}"] = max_error(d, sc, one.imu)
+                row[f"b_{tag}"] = max_error(d, sc, res.imu, res.thermal)
+                row[f"c_{tag}"] = max_error(d, sc, pl.imu, pl.thermal)
+            row["seconds"] = time.perf_counter() - t0
+            out["calibrated"].append(row)
+            ratios.append(row["a_noisy"] / row["b_noisy"])
+            print(f"{seed:4d} {row['a_noisy']:10.1f} {row['b_noisy']:10.1f} {row['a_noisy'] / row['b_noisy']:6.1f} "
+                  f"{row['c_noisy']:10.1f}   {row['a_quiet']:10.1f} {row['b_quiet']:10.1f} "
+                  f"{row['a_quiet'] / row['b_quiet']:6.1f} {row['c_quiet']:10.1f}", flush=True)
+        print(f"noisy navigation: ratio (a)/(b) min {min(ratios):.1f}, median {float(np.median(ratios)):.1f}")
 
     print("\n4. speed")
     comp = nv.ThermalCompensation(model, warm.imu, d0.temperature, warm.rate_hz)

@@ -138,7 +138,7 @@ def register(app: typer.Typer) -> None:
     def simulate(
         scenario: str = typer.Argument(..., help="built-in scenario (s16, s16-table3, s16-gimbal, psins19, n25, n25-rotmod, "
                                        "n25-static, static, static-24h, rotmod16, rotmod16-6h, thermal-plateaus, "
-                                       "thermal-plateaus-s16, thermal-ramp, thermal-warmup) or a .toml file"),
+                                       "thermal-plateaus-s16, thermal-ramp, thermal-cycle, thermal-warmup) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
         seed: int = typer.Option(0, help="seed of the noise generator"),
         duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),

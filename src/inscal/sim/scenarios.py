@@ -64,7 +64,7 @@ Built-in (``inscal simulate NAME``):
     calibration leaves decides the error.
     Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
     S16 Table 1 path, 100 Hz.
-``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-warmup``
+``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-cycle``, ``thermal-warmup``
     Temperature (beyond both papers).  The IMU errors follow the temperature with the thermal
     model :data:`THERMAL_ERRORS` (T_ref 20 degC, valid -40 .. +60 degC).  **Its magnitudes are
     illustrative** (those of a navigation-grade FOG IMU in an order of magnitude: gyro bias
@@ -80,6 +80,10 @@ Built-in (``inscal simulate NAME``):
       path at each plateau (the systematic filter per plateau).
     * ``thermal-ramp``: the ``s16`` IMU and noise; the S16 Table 1 path twice, without a stop, while
       the chamber holds -40 degC for 10 min, ramps to +60 degC at 1 degC/min and holds.
+    * ``thermal-cycle``: the ``s16`` IMU and noise; the S16 Table 1 path four times, without a stop, while
+      the chamber holds -40 degC for 10 min, ramps to +60 degC at 1 degC/min, holds 10 min and ramps back
+      (the rest at -40 degC): each temperature is crossed at +1 and -1 degC/min, which separates the
+      gyro bias's dT/dt term from its polynomial in T.
     * ``thermal-warmup``: the ``s16`` IMU and noise (a quiet navigation-grade unit: the ``n25`` noise
       alone would put a 2-h navigation kilometres off and hide the thermal errors) on a static base at
       the S16 site for 2 h (``--duration-h``) while the IMU warms up from 20 to 45 degC after turn-on
@@ -410,6 +414,18 @@ def _thermal_ramp() -> Scenario:
     return replace(base, name="thermal-ramp", path=path, thermal=thermal_model(), temperature=profile)
 
 
+def _thermal_cycle() -> Scenario:
+    base = _s16()
+    one = s16_table1()
+    path = RotationPath("s16-table1-x4", one.moves * 4, accel=one.accel, initial=one.initial,
+                        initial_dwell=one.initial_dwell, closed=one.closed)
+    lo, hi = THERMAL_PLATEAUS_C[0], THERMAL_PLATEAUS_C[-1]
+    r = THERMAL_RAMP_C_PER_MIN
+    profile = TemperatureProfile(lo, (Piece("hold", duration_s=600.0), Piece("ramp", target_c=hi, rate_c_per_min=r),
+                                      Piece("hold", duration_s=600.0), Piece("ramp", target_c=lo, rate_c_per_min=r)))
+    return replace(base, name="thermal-cycle", path=path, thermal=thermal_model(), temperature=profile)
+
+
 def _thermal_warmup(duration_s: float = 7200.0) -> Scenario:
     profile = TemperatureProfile(20.0, (Piece("approach", target_c=45.0, tau_s=1200.0, duration_s=duration_s),))
     return replace(_s16(), name="thermal-warmup", path=static(duration_s), thermal=thermal_model(), temperature=profile)
@@ -430,6 +446,7 @@ BUILTIN = {
     "thermal-plateaus": lambda d: _thermal_plateaus(_n25(), "thermal-plateaus"),
     "thermal-plateaus-s16": lambda d: _thermal_plateaus(_s16(), "thermal-plateaus-s16"),
     "thermal-ramp": lambda d: _thermal_ramp(),
+    "thermal-cycle": lambda d: _thermal_cycle(),
     "thermal-warmup": lambda d: _thermal_warmup(d or 7200.0),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static", "thermal-warmup"}

@@ -71,6 +71,15 @@ WORK_BYTES_PER_SAMPLE = 176
 THERMAL_BYTES_PER_SAMPLE = 64
 
 
+#: a temperature rate of note [degC/s] (0.1 degC/min): a profile reverses when its rate passes it both ways
+RATE_OF_NOTE = 0.1 / 60.0
+
+
+def reverses(rate: np.ndarray) -> bool:
+    """Whether a temperature history both rises and falls at a rate of note (:data:`RATE_OF_NOTE`)."""
+    return bool(np.any(rate > RATE_OF_NOTE) and np.any(rate < -RATE_OF_NOTE))
+
+
 def samples_per_step(rate_hz: float, filter_rate_hz: float) -> int:
     """Samples per filter step at ``filter_rate_hz`` on a record at ``rate_hz``."""
     return max(1, int(round(rate_hz / filter_rate_hz)))
@@ -422,6 +431,12 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                                                "gyro_bias_rate"), st.thermal)),
                            "coefficients": table}
         res.notes += th_notes
+        if st.thermal[-1] and not reverses(tin["rate"]):
+            res.notes.append(
+                "the temperature never falls (or never rises) at a rate of note: the gyro bias's dT/dt term is told from "
+                "its polynomial in T only where the rate changes (the ends of a ramp), and over seeds of thermal-ramp "
+                "their sigma undercover (RMS error/sigma 1.2-1.4; bench/thermal_ramp.py); a profile that crosses each "
+                "temperature both ways (thermal-cycle: in band) separates them")
     h_out, h_sig = first
     res.history = pass_history(h_out, st, names, h_sig, J, est, P_post)
     res.history["time_s"] = res.history["t_steps"] * T
