@@ -195,6 +195,8 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
         from inscal.core.thermal import thermal_to_field
 
         report["thermal"] = thermal_to_field(res.thermal, res.thermal_sigma) | {"fit": res.thermal_fit}
+        if "thermal" in res.diagnostics:  # thermal states: the temperature history and the coefficient table
+            report["thermal_states"] = res.diagnostics["thermal"]
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
     if systematic:
@@ -309,7 +311,10 @@ def register(app: typer.Typer) -> None:
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
-                                   "auto,psins); unified: extra options (e.g. lever9, auto)"),
+                                   "auto,psins), and thermal: the thermal coefficients as states, the record's /temperature a known "
+                                   "input, T_ref 20 degC (thermal: orders 2,2,3,2 and the dT/dt term; thermal=GSABR: orders "
+                                   "of gyro bias, gyro scale factor, accel bias, accel scale factor 0-3 and the dT/dt term "
+                                   "0-1, e.g. 51,thermal=11110); unified: extra options (e.g. lever9, auto)"),
         plots: Path = typer.Option(None, "--plots", help="systematic: folder for the convergence plots (PNG)"),
         filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
         arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)] (default: from the data)"),

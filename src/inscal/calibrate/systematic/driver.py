@@ -420,7 +420,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if tin is not None:
         o = thermal_offset(st)
         res.thermal, res.thermal_sigma, table, th_notes = thermal_result(est, st, P_post[o:, o:], sig_par[o:],
-                                                                         fit["scale"], imu, tin)
+                                                                         fit["scale"], imu, tin, P_all=P_post,
+                                                                         prior_all=sig_par)
         res.thermal_fit = {"method": "thermal states of the systematic filter (one run)", "chi2": chisq, "dof": dof,
                            "expected_chi2": expected, "p_value": diag["innovations"]["p_value"],
                            "consistent": fit["consistent"], "scale": fit["scale"]}

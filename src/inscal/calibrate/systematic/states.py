@@ -18,8 +18,10 @@ the canonical model; the scale-factor ones are ``c_K,k / (1 + K_0,i)`` (the cano
 c_K,k dT^k``), so the family holds the model exactly.  Being sensor-axis quantities they need no frame
 rotation.  Their Jacobian columns are the base columns times a known scalar of the sample (``C_m^n e_i``
 times ``-dT^k``, ``-(u - b)_i dT^k`` or ``-dT/dt``; the factors ``A e_i`` and ``1 / (1 + s_i)`` of the exact
-derivative differ from ``e_i`` and 1 by parts in 1e4: a Jacobian approximation that the iterated passes
-do not see in their fixed point).  Thermal misalignment terms are not states."""
+derivative differ from ``e_i`` and 1 by parts in 1e4, and a scale-factor column takes ``(u - b)_i`` of the
+compensated frame for the sensor axis's ``y_i - eps_i``, off by ``|A - I| |u|``: parts in 1e4 of the group's
+largest column, though a nearly level axis's own column may be off by its whole size: a Jacobian approximation
+that the iterated passes do not see in their fixed point).  Thermal misalignment terms are not states."""
 
 from __future__ import annotations
 

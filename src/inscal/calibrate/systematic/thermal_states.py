@@ -79,17 +79,25 @@ def sample_inputs(rec, n: int, rate_hz: float, t_ref: float, sensor: str = "",
 
 
 def thermal_result(est: CompParams, st: StateSet, P_post: np.ndarray, prior: np.ndarray, scale: float,
-                   imu: ImuErrors, info: dict) -> tuple[ThermalModel, dict, dict, list[str]]:
+                   imu: ImuErrors, info: dict, P_all: np.ndarray | None = None,
+                   prior_all: np.ndarray | None = None) -> tuple[ThermalModel, dict, dict, list[str]]:
     """The canonical thermal model of the estimate ``est`` (with the base errors ``imu`` at ``t_ref``), the 1 sigma
     of every coefficient (``P_post`` the parameter covariance of the states, SI; times the innovation fit's
     ``scale``, as the base parameters' sigma), a table per coefficient group (value, sigma, prior, ratio in field
-    units) and the notes: coefficients the record leaves at their prior (posterior >= 0.5 prior sigma).
-    ``P_post`` and ``prior`` hold the thermal states alone (the last groups of ``st``)."""
+    units: the canonical coefficients, those of the model) and the notes: coefficients the record leaves at their
+    prior (posterior >= 0.5 prior sigma).  ``P_post`` and ``prior`` hold the thermal states alone (the last groups
+    of ``st``).  With ``P_all`` and ``prior_all`` (every parameter state) the table also gives each coefficient's
+    ``data_sigma_ratio`` (:func:`data_information`) and the notes name the coefficients the data alone do not
+    separate from the other parameters (``data_sigma_ratio`` above 0.5): a ramp at one rate leaves the dT/dt term
+    in one combination with the base gyro bias, whose prior then decides both."""
     orders = st.thermal
     model = thermal_from_rows(est.th, orders, imu, info["t_ref"], info["t_min"], info["t_max"], info["sensor"])
     post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
     sig_rows = np.full(est.th.shape, np.nan)
-    prior_rows = np.full(est.th.shape, np.nan)
+    dinfo = None
+    if P_all is not None and prior_all is not None:
+        first = np.asarray(prior_all).shape[0] - np.asarray(prior).shape[0]
+        dinfo = data_information(P_all, prior_all, first)
     k = 0
     table, weak = {}, []
     for g in st.groups:
@@ -97,14 +105,21 @@ def thermal_result(est: CompParams, st: StateSet, P_post: np.ndarray, prior: np.
             continue
         rows, axes = list(g.js), list(g.axes)
         sig_rows[rows, axes] = post[k:k + g.size]
-        prior_rows[rows, axes] = prior[k:k + g.size]
         ratio = post[k:k + g.size] / prior[k:k + g.size]
-        table[g.name] = {"unit": g.unit, "value": field_value(est.th[rows, axes], g.unit).tolist(),
-                         "sigma": field_value(scale * post[k:k + g.size], g.unit).tolist(),
-                         "prior_sigma": field_value(prior[k:k + g.size], g.unit).tolist(),
+        # the canonical coefficient: a scale-factor state is c_K / (1 + K_0) (states module docstring)
+        term = thermal_group_term(g)
+        canon = 1.0 + np.asarray(getattr(imu, term), float)[axes] if term.endswith("scale_factor") else 1.0
+        table[g.name] = {"unit": g.unit, "value": field_value(est.th[rows, axes] * canon, g.unit).tolist(),
+                         "sigma": field_value(scale * post[k:k + g.size] * canon, g.unit).tolist(),
+                         "prior_sigma": field_value(prior[k:k + g.size] * canon, g.unit).tolist(),
                          "ratio": ratio.tolist()}
-        if np.any(ratio >= 0.5):
-            weak.append(f"{g.name} {''.join(a for a, r in zip('xyz', ratio) if r >= 0.5)}")
+        bad = ratio >= 0.5
+        if dinfo is not None:
+            dratio = 1.0 / np.sqrt(np.maximum(dinfo[k:k + g.size], 1e-300))
+            table[g.name]["data_sigma_ratio"] = np.minimum(dratio, 1e300).tolist()
+            bad = bad | (dratio > 0.5)
+        if np.any(bad):
+            weak.append(f"{g.name} {''.join(a for a, b in zip('xyz', bad) if b)}")
         k += g.size
     sigma = {}
     for term, o in zip(THERMAL_TERM_NAMES, orders):
@@ -119,10 +134,41 @@ def thermal_result(est: CompParams, st: StateSet, P_post: np.ndarray, prior: np.
         sigma[term] = s
     notes = []
     if weak:
-        notes.append("thermal coefficients not observed by this temperature history (posterior sigma >= 0.5 x prior): "
+        what = ("posterior sigma >= 0.5 x prior, or the data alone, every other parameter free, leave more than 0.5 x "
+                "prior" if dinfo is not None else "posterior sigma >= 0.5 x prior")
+        notes.append(f"thermal coefficients not observed by this temperature history ({what}): "
                      + "; ".join(weak) + " (a constant temperature leaves every coefficient in one combination with "
                      "the base term; a ramp without holds leaves the dT/dt term with the gyro bias: inscal observability)")
     return model, sigma, table, notes
+
+
+#: a direction of the other parameters with less information from the data than this (in units of its prior's)
+#: counts as free in :func:`data_information` (a noise-free record's covariance spans ~1e12 of it: its
+#: round-off there is ~1e-4)
+FREE_INFO = 1e-3
+
+
+def data_information(P_post: np.ndarray, prior: np.ndarray, first: int) -> np.ndarray:
+    """The information of the data alone about each parameter state from index ``first`` on (the thermal ones), in
+    units of its prior's (1 / (data-only sigma / prior sigma)^2), with every other parameter free: ``P_post`` the
+    posterior covariance of all parameter states and ``prior`` their prior 1 sigma (SI).  The data's information
+    ``L = P_post^-1 - diag(prior^-2)`` (scaled by the prior), then for each state its Schur complement against all
+    the others (directions of the others with less than :data:`FREE_INFO` left free).  Zero when the data see
+    the coefficient only in one combination with other parameters (a base term, another order)."""
+    s = np.asarray(prior, float)
+    Ps = np.asarray(P_post, float) / np.outer(s, s)
+    w, V = np.linalg.eigh(0.5 * (Ps + Ps.T))
+    L = (V / np.maximum(w, 1e-300)) @ V.T - np.eye(s.shape[0])
+    L = 0.5 * (L + L.T)
+    n = s.shape[0]
+    out = np.empty(n - first)
+    for i in range(first, n):
+        rest = np.r_[0:i, i + 1:n]
+        wr, Vr = np.linalg.eigh(L[np.ix_(rest, rest)])
+        keep = wr > FREE_INFO
+        a = Vr[:, keep].T @ L[rest, i]
+        out[i - first] = max(float(L[i, i] - np.sum(a * a / wr[keep])), 0.0)
+    return out
 
 
 def thermal_labels(st: StateSet) -> list[tuple[str, str, int]]:
