@@ -4,17 +4,22 @@ from the path alone (no data).  See :mod:`inscal.plan.observability`."""
 from __future__ import annotations
 
 import math
+import os
 
 import typer
 
 from inscal.cli.common import CliError, fail, print_json, short
 from inscal.cli.limits import check_count, check_memory, human_seconds
 
+#: width of the observability table when the output is no terminal (thermal group names and units are long)
+WIDE = 120
+
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
-                      vrw: float | None = None):
+                      vrw: float | None = None, t_ref: float | None = None):
     """The :class:`~inscal.plan.observability.ObservabilityReport` of ``source``; ``arw`` in
-    deg/sqrt(h), ``vrw`` in ug/sqrt(Hz) (field units, converted here)."""
+    deg/sqrt(h), ``vrw`` in ug/sqrt(Hz) (field units, converted here); ``t_ref`` [degC] the reference
+    temperature of thermal states."""
     from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
@@ -36,6 +41,7 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
         raise CliError(str(exc)) from None
     except CalibrationError:
         st = None  # observability() names the bad state set
+    _check_t_ref(t_ref, st)
     if st is not None:
         dur = sc.path.duration
         what = f"--rate-hz {rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} ({dur * rate_hz:.3g} samples)"
@@ -45,18 +51,21 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
     try:
         return observability(source, states, rate_hz=rate_hz,
                              arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
-                             vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"))
+                             vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"), t_ref=t_ref)
     except ObservabilityError as exc:
         raise CliError(str(exc)) from None
 
 
 def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
              filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
-             bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None):
+             bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None,
+             t_ref: float | None = None):
     """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``source``.  Field units:
     ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
-    ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s)."""
+    ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states)."""
+    from inscal.calibrate.systematic.states import StateSet
+    from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
     from inscal.plan.bound import MAX_STEPS, STEP_SECONDS, bound_steps, crlb
     from inscal.plan.observability import ObservabilityError, load_source
@@ -73,6 +82,11 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
         sc, _, label = load_source(source)
     except ObservabilityError as exc:
         raise CliError(str(exc)) from None
+    try:
+        st = StateSet.parse(states)
+    except CalibrationError:
+        st = None  # crlb() names the bad state set
+    _check_t_ref(t_ref, st)
     dur = sc.path.duration
     steps = bound_steps(dur, filter_rate_hz)
     check_count(steps, MAX_STEPS, f"--filter-rate-hz {filter_rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} "
@@ -88,9 +102,24 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     try:
         return crlb(source, states, arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
                     vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"), bias_noise=bias,
-                    filter_rate_hz=filter_rate_hz, keep_history=False)
+                    filter_rate_hz=filter_rate_hz, keep_history=False, t_ref=t_ref)
     except BoundError as exc:
         raise CliError(str(exc)) from None
+
+
+def _check_t_ref(t_ref: float | None, st) -> None:
+    if t_ref is None:
+        return
+    if not math.isfinite(t_ref):
+        raise CliError(f"--t-ref must be a temperature in degC, got {t_ref:g}")
+    if st is not None and not st.thermal:
+        raise CliError("--t-ref is the reference temperature of the thermal states: add them (--states 51,thermal)")
+
+
+def _temperature_line(t: dict) -> str:
+    return (f"temperature: {t['t_min']:.4g} .. {t['t_max']:.4g} degC, up to {t['rate_max_c_per_min']:.3g} degC/min "
+            f"({t['input']}); thermal coefficients about T_ref {t['t_ref']:g} degC, each prior spread over the span "
+            f"{t['span']:.4g} degC")
 
 
 def _print_crlb(source: str, b) -> None:
@@ -101,8 +130,8 @@ def _print_crlb(source: str, b) -> None:
     con = Console()
     d = b.to_dict()
     tab = Table(title=f"Cramér-Rao bound of {source} (path {b.path_name!r}, {b.duration_s:.0f} s), "
-                      f"{b.setup.states.n_states}-state model ({d['states']})", box=box.SIMPLE_HEAD)
-    for col in ("parameter", "unit", "prior 1σ", "bound 1σ", "bound / prior"):
+                      f"{b.setup.states.n_states}-state model ({d['states']})", box=box.SIMPLE_HEAD, pad_edge=False)
+    for col in ("parameter", "unit", "prior 1σ", "bound 1σ", "ratio"):
         tab.add_column(col, justify="left" if col in ("parameter", "unit") else "right", no_wrap=True)
     rms = b.group_rms()
     current = None
@@ -111,9 +140,10 @@ def _print_crlb(source: str, b) -> None:
             current = r["group"]
             tab.add_row(f"[bold]{current}[/bold]", r["unit"], f"{r['prior']:.4g}", f"RMS {rms[current]:.3g}", "")
         tab.add_row(f"  {r['label'][len(current):].strip('[]') or current}", "", "", f"{r['bound']:.3g}",
-                    f"{r['ratio']:.3g}")
+                    f"{r['ratio']:.2g}")
     con.print(tab)
     n = d["noise"]
+    con.print("ratio = bound / prior 1σ")
     arw = ", ".join(f"{x:.3g}" for x in sorted(set(n["arw_deg_sqrt_h"])))
     vrw = ", ".join(f"{x:.3g}" for x in sorted(set(n["vrw_ug_sqrt_hz"])))
     site = d["site"]
@@ -122,6 +152,8 @@ def _print_crlb(source: str, b) -> None:
               f"{site['height_m']:.4g} m; ARW {arw} deg/√h, VRW {vrw} µg/√Hz"
               + ("; bias instability as process noise" if n["bias"] else "")
               + f"; {b.steps} steps at {d['filter_rate_hz']:g} Hz ({b.seconds:.3f} s)")
+    if "temperature" in d:
+        con.print(_temperature_line(d["temperature"]))
 
 
 def _print_report(rep) -> None:
@@ -133,6 +165,8 @@ def _print_report(rep) -> None:
     from inscal.plan.observability import RANK_TOL, THRESHOLDS
 
     con = Console()
+    if not con.is_terminal and "COLUMNS" not in os.environ:  # a file or a pipe: the whole table, not 80 columns of it
+        con = Console(width=WIDE)
     noise = rep.noise
     arw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["arw_deg_sqrt_h"])))
     vrw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["vrw_ug_sqrt_hz"])))
@@ -164,6 +198,8 @@ def _print_report(rep) -> None:
               f"projecting out the initial navigation state): rank {rep.rank} of {rep.n_params} at tolerance "
               f"{RANK_TOL:g} x largest (full state: {rep.full_rank} of {rep.n_states}); singular values / largest, "
               f"smallest 10: " + " ".join(f"{x:.1e}" for x in sv[-10:]))
+    if rep.thermal:
+        _print_partners(con, rep)
     wt = Table(title="weakest directions (right singular vectors, scaled parameters)")
     wt.add_column("σ / σmax", justify="right")
     wt.add_column("dominant combination")
@@ -175,13 +211,28 @@ def _print_report(rep) -> None:
     con.print(f"({rep.timing_s['total']:.2f} s)")
 
 
+def _print_partners(con, rep) -> None:
+    """Per thermal coefficient: the state it is most correlated with a posteriori."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    con.print(_temperature_line(rep.thermal))
+    tab = Table(title="thermal coefficients: the state each is most correlated with (posterior)")
+    for col in ("coefficient", "most correlated with", "correlation"):
+        tab.add_column(col, justify="right" if col == "correlation" else "left", no_wrap=True)
+    for lab, p in rep.thermal["partners"].items():
+        tab.add_row(escape(lab), escape(p["with"]), f"{p['correlation']:+.3f}")
+    con.print(tab)
+
+
 def register(app: typer.Typer) -> None:
     @app.command("observability")
     def observability_cmd(
         source: str = typer.Argument(..., metavar="PATH_OR_SCENARIO",
                                      help="built-in scenario (s16, psins19, n25, ...) or path (s16-table1, "
                                           "n25-twelve, ...), a scenario TOML, or a path TOML (a [path] table)"),
-        states: str = typer.Option("51", "--states", help="state set: 51 | 30, options ,lever9 ,async ,psins"),
+        states: str = typer.Option("51", "--states", help="state set: 51 | 30, options ,lever9 ,async ,psins, "
+                                                          ",thermal (or ,thermal=GSABR: needs a temperature profile)"),
         rate_hz: float = typer.Option(20.0, "--rate-hz", help="rate of the noise-free simulation [Hz]"),
         arw: float = typer.Option(None, "--arw", help="gyro angle random walk [deg/sqrt(h)] (default: the "
                                                       "scenario's, else S16's 5e-5)"),
@@ -199,13 +250,16 @@ def register(app: typer.Typer) -> None:
         gyro_rrw: float = typer.Option(None, "--gyro-rrw", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
         accel_rrw: float = typer.Option(None, "--accel-rrw", help="with --crlb: accelerometer bias random walk "
                                                                   "[ug/sqrt(s)]"),
+        t_ref: float = typer.Option(None, "--t-ref", help="reference temperature of the thermal states [degC] "
+                                                          "(default: the scenario's thermal model's, else 20)"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
         if crlb:
             try:
-                b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw)
+                b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
+                             t_ref)
             except CliError as exc:
                 raise fail(str(exc)) from None
             if json_:
@@ -220,7 +274,7 @@ def register(app: typer.Typer) -> None:
             raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
                        "--rate-hz")
         try:
-            rep = run_observability(source, states, rate_hz, arw, vrw)
+            rep = run_observability(source, states, rate_hz, arw, vrw, t_ref)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -18,7 +18,7 @@ How it is computed (no sensor simulation, no navigation).  Per filter step ``k``
   (:func:`kinematics`, the formulas of ``inscal.core.kinematics.rates_at`` plus the attitude).  The
   IMU is ideal: the nominal parameters are the filter's linearisation point in its first pass.
 * ``Phi_np = M0 + F M1 + F^2 M2``, ``M_i = sum_j (T - t_j)^i / i! F_np(t_j) h`` with the
-  parameter columns of :func:`inscal.calibrate.systematic._column_values` (the same column
+  parameter columns of :func:`inscal.calibrate.systematic.dynamics.column_values` (the same column
   kinds, so every state set of :class:`~inscal.calibrate.systematic.StateSet` is supported),
   exactly as the systematic kernel accumulates them per sample.  A step inside a dwell takes
   one evaluation with the exact moments ``T, T^2/2, T^3/6``; a step with motion takes
@@ -39,6 +39,17 @@ draws it (:class:`inscal.core.error_model.ImuNoise`): three extra states per tri
 columns of ``Phi_np``, ``phi = exp(-T / tau)`` and ``q = sigma^2 (1 - phi^2)``, stationary
 prior ``sigma``.  The reported bound of a bias is then that of its constant part (the GM
 states are marginalised); with a random walk it is the bias at the end of the record.
+
+Thermal states (``51,thermal``; :mod:`inscal.plan.thermal`).  The scenario's temperature profile, as a record
+of it carries it and the filter reads it (:class:`~inscal.plan.thermal.KnownTemperature`), is the known input:
+its ``T - t_ref`` and ``dT/dt`` at every sub-sample give the thermal columns (the base columns times ``-dT^k``,
+``-w_i dT^k``, ``-f_i dT^k`` or ``-dT/dt``, :mod:`inscal.plan.bound_kernel`); with them every step takes the
+sub-sample moments (the columns move along a dwell while the temperature does).  The prior of each coefficient
+is the filter's, spread over the path's temperature span.  The bound equals the filter's posterior per state
+within 4e-5 on ``thermal-ramp`` (72 parameters, 2.1 h) and 4.6e-5 on the 9-h ``thermal-plateaus-s16``; on the
+17-min PSINS path with a 4 degC/min ramp within 1.2e-4 on the thermal states, 2.7e-4 on the others (1.3e-4
+there without thermal states: the filter's 20-Hz discretisation of that path's turns;
+``tests/plan/test_observability_thermal.py``).  Speed: 0.35 s for ``thermal-ramp`` (7,542 steps, 81 states).
 
 Extra measurement rows.  A state set whose error model has other observations (e.g. encoder
 attitude rows of a unified gimbal model) plugs them in through :func:`register_rows`: a builder
@@ -71,9 +82,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from inscal.calibrate.systematic.dynamics import column_values, nav_F
+from inscal.calibrate.systematic.dynamics import nav_F
 from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 from inscal.calibrate.systematic.states import (
     ARW_FLOOR,
@@ -84,17 +94,18 @@ from inscal.calibrate.systematic.states import (
     NAV_SIGMA0,
     VRW_FLOOR,
     StateSet,
+    field_value,
+    prior_sigma,
     state_spec,
 )
+from inscal.calibrate.systematic.thermal_states import T_REF_C
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import earth, units
 from inscal.core.attitude import dcm_from_euler
 from inscal.core.error_model import GimbalErrors
-from inscal.core.kinematics import kinematics
-from inscal.core.kinematics import (
-    segment_at as _segment_at,  # _segment_at: smallest s with seg_t1[s] > t
-)
+from inscal.core.thermal import RATE_WINDOW_S
 from inscal.core.turntable import RotationPath, outer_axis
+from inscal.plan.bound_kernel import bound_kernel
 from inscal.plan.observability import (
     DEFAULT_ARW,
     DEFAULT_VRW,
@@ -104,6 +115,7 @@ from inscal.plan.observability import (
 )
 from inscal.plan.rows import BiasNoise, BoundError, extra_rows
 from inscal.plan.slices import run_in_slices
+from inscal.plan.thermal import KnownTemperature, default_t_ref, known_temperature
 from inscal.sim.scenarios import S16_SITE
 from inscal.sim.simulate import Scenario
 
@@ -116,282 +128,6 @@ SUB_RATE_HZ = 20.0
 MAX_STEPS = 10**7
 #: CPU time of one filter step with 51 states [s] (measured on one core: 1.5e-5 on the S16 path, 2e-5 on N25's)
 STEP_SECONDS = 2.5e-5
-
-
-@njit(cache=True)
-def _is_static(s, seg_w0, seg_acc):
-    return seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
-
-
-@njit(cache=True)
-def _values(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes, js, C, w, f,
-            wd, fd, vals, V):
-    """The parameter columns of ``[dphi'; dv']`` at ``t``: ``V`` (6, p) = ``C[:, axis] * value``
-    (rows 0-2 gyro kinds, 3-5 accelerometer kinds; the asynchrony column is ``C fdot``)."""
-    s = _segment_at(t, seg_t1)
-    kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f)
-    if need_rates:  # centred differences (the filter's own w-dot and f-dot are centred differences too)
-        h = 1e-3
-        Ct = np.empty((3, 3))
-        wp = np.empty(3)
-        fp = np.empty(3)
-        wm = np.empty(3)
-        fm = np.empty(3)
-        sp = _segment_at(t + h, seg_t1)
-        kinematics(t + h, sp, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, Ct, wp, fp)
-        sm = _segment_at(t - h, seg_t1)
-        kinematics(t - h, sm, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, Ct, wm, fm)
-        for i in range(3):
-            wd[i] = (wp[i] - wm[i]) / (2 * h)
-            fd[i] = (fp[i] - fm[i]) / (2 * h)
-    else:
-        for i in range(3):
-            wd[i] = 0.0
-            fd[i] = 0.0
-    column_values(kinds, axes, js, w, f, w, f, wd, fd, vals)
-    p = kinds.shape[0]
-    for c in range(p):
-        k = kinds[c]
-        rb = 0 if k <= 2 else 3
-        for a in range(6):
-            V[a, c] = 0.0
-        if k == 9:
-            for r in range(3):
-                V[rb + r, c] = C[r, 0] * fd[0] + C[r, 1] * fd[1] + C[r, 2] * fd[2]
-        elif k < 9:
-            i = axes[c]
-            for r in range(3):
-                V[rb + r, c] = C[r, i] * vals[c]
-        # kinds >= 10: states outside the navigation dynamics (e.g. gimbal geometry): zero columns
-
-
-# ----------------------------------------------------------------------------- the kernel
-@njit(cache=True, fastmath=True)
-def _bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
-                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist, last, phinp, Vs):
-    """Covariance-only pass (module docstring) in the scaled state over the filter steps ``k0 .. k1 - 1``
-    (:mod:`inscal.plan.slices`); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
-    update (``(0, N)``: not kept).  ``phinn``, ``F``, ``F2``, ``qd``: physical; ``phi_p``/``q_p``: scaled
-    parameter transition (diagonal) and process noise; ``xH`` (k1 - k0, m, N) scaled extra rows, ``xr``
-    (k1 - k0, m) their scaled variances.  Carried from one call to the next: ``last`` (1,) the dwell
-    whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p)."""
-    N = P.shape[0]
-    p = N - 9
-    C = np.empty((3, 3))
-    w = np.empty(3)
-    f = np.empty(3)
-    wd = np.empty(3)
-    fd = np.empty(3)
-    vals = np.empty(p)
-    V = np.empty((6, p))
-    M0 = np.empty((6, p))
-    M1 = np.empty((6, p))
-    M2 = np.empty((6, p))
-    # scaled Phi_nn, Q_d, and G6 = T [I6; 0] + T^2/2 F[:, :6] + T^3/6 F^2[:, :6] (row-scaled): on a dwell
-    # Phi_np = G6 V with V constant over the step
-    Pn = np.empty((9, 9))
-    Qs = np.empty((9, 9))
-    G6 = np.empty((9, 6))
-    for i in range(9):
-        for j in range(9):
-            Pn[i, j] = phinn[i, j] * sig[j] / sig[i]
-            Qs[i, j] = qd[i, j] / (sig[i] * sig[j])
-        for r in range(6):
-            G6[i, r] = (F[i, r] * (T * T / 2.0) + F2[i, r] * (T * T * T / 6.0) + (T if i == r else 0.0)) / sig[i]
-    rbase = np.empty(p, np.int64)  # first row of each column's non-zero block in V (0: gyro, 3: accelerometer)
-    for c in range(p):
-        rbase[c] = 0 if kinds[c] <= 2 else 3
-    W = np.empty((6, p))  # Vs P_pp
-    new_np = np.empty((9, p))
-    t1 = np.empty((9, 9))
-    new_nn = np.empty((9, 9))
-    PHt = np.empty((6, N))
-    S = np.empty((6, 6))
-    K = np.empty((6, N))
-    dyn_p = False
-    for c in range(p):
-        if phi_p[c] != 1.0 or q_p[c] != 0.0:
-            dyn_p = True
-    mx = xH.shape[1]
-    ph = np.empty(N)
-    kg = np.empty(N)
-    h = T / n_sub
-    last_seg = last[0]
-    keep = hist.shape[0] > 0
-    for k in range(k0, k1):
-        a = k * T
-        b = a + T
-        # ---- is the whole step on a dwell?
-        s = _segment_at(a + 1e-9 * T, seg_t1)
-        s_first = s
-        static = True
-        while True:
-            if not _is_static(s, seg_w0, seg_acc):
-                static = False
-                break
-            if seg_t1[s] >= b or s == seg_t1.shape[0] - 1:
-                break
-            s += 1
-        if static:
-            if s_first != last_seg:  # a new dwell: new V (the same on every step of a dwell)
-                _values(a + 0.5 * T, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, False, kinds, axes,
-                        js, C, w, f, wd, fd, vals, V)
-                for r in range(6):
-                    for c in range(p):
-                        Vs[r, c] = V[r, c] * sig[9 + c]
-                for i in range(9):
-                    for c in range(p):
-                        phinp[i, c] = 0.0
-                    for r in range(6):
-                        gi = G6[i, r]
-                        if gi != 0.0:
-                            for c in range(p):
-                                phinp[i, c] += gi * Vs[r, c]
-                last_seg = s_first
-            # W = Vs P_pp (three non-zero rows per column of Vs)
-            for r in range(6):
-                for c in range(p):
-                    W[r, c] = 0.0
-            for l in range(p):
-                r0 = rbase[l]
-                for r in range(r0, r0 + 3):
-                    v = Vs[r, l]
-                    if v != 0.0:
-                        for c in range(p):
-                            W[r, c] += v * P[9 + l, 9 + c]
-            for i in range(9):
-                for c in range(p):
-                    new_np[i, c] = 0.0
-                for r in range(6):
-                    gi = G6[i, r]
-                    if gi != 0.0:
-                        for c in range(p):
-                            new_np[i, c] += gi * W[r, c]
-        else:
-            last_seg = -1
-            for r in range(6):
-                for c in range(p):
-                    M0[r, c] = 0.0
-                    M1[r, c] = 0.0
-                    M2[r, c] = 0.0
-            for jj in range(n_sub):
-                tj = a + (jj + 0.5) * h
-                _values(tj, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes,
-                        js, C, w, f, wd, fd, vals, V)
-                sw = b - tj
-                w1 = sw * h
-                w2 = 0.5 * sw * sw * h
-                for r in range(6):
-                    for c in range(p):
-                        v = V[r, c]
-                        M0[r, c] += v * h
-                        M1[r, c] += v * w1
-                        M2[r, c] += v * w2
-            # Phi_np = [M0; 0] + F[:, :6] M1 + F^2[:, :6] M2, scaled
-            for i in range(9):
-                for c in range(p):
-                    phinp[i, c] = M0[i, c] if i < 6 else 0.0
-                for r in range(6):
-                    f1 = F[i, r]
-                    f2 = F2[i, r]
-                    for c in range(p):
-                        phinp[i, c] += f1 * M1[r, c] + f2 * M2[r, c]
-                si = sig[i]
-                for c in range(p):
-                    phinp[i, c] *= sig[9 + c] / si
-            for i in range(9):
-                for c in range(p):
-                    new_np[i, c] = 0.0
-                for l in range(p):
-                    al = phinp[i, l]
-                    if al != 0.0:
-                        for c in range(p):
-                            new_np[i, c] += al * P[9 + l, 9 + c]
-        # ---- predict: P_np' = Pn P_np + Phi_np P_pp;  P_nn' = (Pn P_nn + Phi_np P_pn) Pn^T + P_np' Phi_np^T + Q
-        for i in range(9):
-            for l in range(9):
-                al = Pn[i, l]
-                if al != 0.0:
-                    for c in range(p):
-                        new_np[i, c] += al * P[l, 9 + c]
-        for i in range(9):
-            for j in range(9):
-                acc = 0.0
-                for l in range(9):
-                    acc += Pn[i, l] * P[l, j]
-                for l in range(p):
-                    acc += phinp[i, l] * P[j, 9 + l]
-                t1[i, j] = acc
-        for i in range(9):
-            for j in range(9):
-                acc = Qs[i, j]
-                for l in range(9):
-                    acc += t1[i, l] * Pn[j, l]
-                for l in range(p):
-                    acc += new_np[i, l] * phinp[j, l]
-                new_nn[i, j] = acc
-        for i in range(9):
-            for j in range(i, 9):
-                v = 0.5 * (new_nn[i, j] + new_nn[j, i])
-                P[i, j] = v
-                P[j, i] = v
-            for c in range(p):
-                P[i, 9 + c] = new_np[i, c]
-                P[9 + c, i] = new_np[i, c]
-        if dyn_p:
-            for c in range(p):
-                for i in range(9):
-                    P[i, 9 + c] *= phi_p[c]
-                    P[9 + c, i] = P[i, 9 + c]
-                for d in range(p):
-                    P[9 + c, 9 + d] *= phi_p[c] * phi_p[d]
-                P[9 + c, 9 + c] += q_p[c]
-        # ---- update: zero velocity, known position (states 3..8); P <- P - K^T PHt (row layout)
-        for a_ in range(6):
-            for i in range(N):
-                PHt[a_, i] = P[3 + a_, i]
-        for a_ in range(6):
-            for b_ in range(6):
-                S[a_, b_] = 0.5 * (PHt[a_, 3 + b_] + PHt[b_, 3 + a_])
-            S[a_, a_] += rs[a_]
-        Si = np.linalg.inv(S)
-        for a_ in range(6):
-            for i in range(N):
-                K[a_, i] = 0.0
-            for b_ in range(6):
-                sab = Si[a_, b_]
-                for i in range(N):
-                    K[a_, i] += sab * PHt[b_, i]
-        for i in range(N):
-            for a_ in range(6):
-                ki = K[a_, i]
-                for j in range(i, N):
-                    P[i, j] -= ki * PHt[a_, j]
-        for i in range(N):
-            for j in range(i + 1, N):
-                P[j, i] = P[i, j]
-        # ---- extra rows (scalar sequential updates)
-        for m in range(mx):
-            hr = xH[k - k0, m]
-            for i in range(N):
-                acc = 0.0
-                for j in range(N):
-                    acc += P[i, j] * hr[j]
-                ph[i] = acc
-            sv = xr[k - k0, m]
-            for i in range(N):
-                sv += hr[i] * ph[i]
-            for i in range(N):
-                kg[i] = ph[i] / sv
-            for i in range(N):
-                for j in range(i, N):
-                    v = P[i, j] - kg[i] * ph[j]
-                    P[i, j] = v
-                    P[j, i] = v
-        if keep:
-            for i in range(N):
-                hist[k - k0, i] = P[i, i]
-    last[0] = last_seg
 
 
 # ----------------------------------------------------------------------------- setup and result
@@ -429,6 +165,8 @@ class Setup:
     labels: tuple[str, ...]  # parameter labels (without GM states)
     groups: tuple[str, ...]  # group of each parameter
     units_: tuple[str, ...]  # field unit of each parameter
+    temperature: KnownTemperature | None = None  # thermal states: the filter's known temperature
+    thermal: dict | None = None  # thermal states: t_ref, t_min, t_max, span, ... (KnownTemperature.info)
 
     @property
     def n_params(self) -> int:
@@ -447,13 +185,16 @@ class Setup:
 def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, vrw=None,
                bias_noise: BiasNoise | None = None, filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ,
                prior: dict | None = None, velocity_sigma: float | None = None,
-               position_sigma: float | None = None, encoder_sigma: float | None = None) -> Setup:
+               position_sigma: float | None = None, encoder_sigma: float | None = None,
+               temperature: KnownTemperature | None = None, t_ref: float | None = None) -> Setup:
     """The path-independent part of a bound (:class:`Setup`).  ``site``: a
     :class:`~inscal.core.earth.Site` (default S16's, 30 N 114 E); ``gimbal``: a
     :class:`~inscal.core.error_model.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
     [m/s/sqrt(s)], scalar or per axis (default S16's 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz));
     ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
-    encoder noise of the gimbal states' attitude rows (default the filter's)."""
+    encoder noise of the gimbal states' attitude rows (default the filter's).  Thermal states: ``temperature``
+    the filter's known temperature over the experiment (:class:`~inscal.plan.thermal.KnownTemperature`; its
+    span spreads the coefficients' prior), ``t_ref`` [degC] (default 20)."""
 
     try:
         st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -485,13 +226,22 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
         if not (math.isfinite(float(v)) and float(v) > 0):
             raise BoundError(f"prior {k} must be > 0, got {v}")
         pri[k] = float(v)
-    labels, groups, unit_l, sig_p = [], [], [], []
+    thermal = None
+    if st.thermal:
+        if temperature is None:
+            raise BoundError("the thermal states need a temperature profile (a constant temperature leaves every "
+                             "coefficient in one combination with its base term)")
+        n_grid = max(1, int(bound_steps(temperature.duration_s, 1.0 / T))) * n_sub  # the kernel's sub-samples
+        thermal = temperature.info(T_REF_C if t_ref is None else t_ref, n_grid, T / n_sub, "the temperature profile",
+                                   BoundError)
+    labels, groups, unit_l = [], [], []
     for gr in st.groups:
         for lab in gr.labels:
             labels.append(f"{gr.name}[{lab}]" if lab else gr.name)
             groups.append(gr.name)
             unit_l.append(gr.unit)
-            sig_p.append(pri.get(gr.name, gr.sigma0))
+    # the filter's prior (a thermal coefficient's spread over the span of the temperature)
+    sig_p = prior_sigma(st, pri, thermal["span"] if thermal else 1.0).tolist()
     kinds, axes, js = st.columns()
     p = len(labels)
     phi_p = np.ones(p)
@@ -543,7 +293,7 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     rs = r / sig[3:9] ** 2
     return Setup(st, site, gimbal, arw_v, vrw_v, bias, T, n_sub, sig, n_gm, kinds, axes, js, phinn, F, F2, qd, rs,
                  phi_p, q_p, vsig, psig, floored, need_rates, {"encoder_sigma": encoder_sigma}, tuple(labels),
-                 tuple(groups), tuple(unit_l))
+                 tuple(groups), tuple(unit_l), temperature if thermal else None, thermal)
 
 
 @dataclass(frozen=True)
@@ -592,7 +342,7 @@ class Bound:
         for k, lab in enumerate(self.labels):
             u = self.setup.units_[k]
             out.append({"label": lab, "group": self.setup.groups[k], "unit": u,
-                        "prior": float(units.from_si(p0[k], u)), "bound": float(units.from_si(s[k], u)),
+                        "prior": float(field_value(p0[k], u)), "bound": float(field_value(s[k], u)),
                         "ratio": float(s[k] / p0[k])})
         return out
 
@@ -601,7 +351,7 @@ class Bound:
         s = self.sigma if sigma is None else sigma
         out: dict[str, list] = {}
         for k, g in enumerate(self.setup.groups):
-            out.setdefault(g, []).append(float(units.from_si(s[k], self.setup.units_[k])))
+            out.setdefault(g, []).append(float(field_value(s[k], self.setup.units_[k])))
         return {g: float(np.sqrt(np.mean(np.square(v)))) for g, v in out.items()}
 
     def to_dict(self) -> dict:
@@ -615,7 +365,8 @@ class Bound:
                           "vrw_ug_sqrt_hz": units.from_si(su.vrw, "ug/sqrt(Hz)").tolist(), "floored": su.floored,
                           "velocity_sigma_m_s": su.velocity_sigma, "position_sigma_m": su.position_sigma,
                           "bias": su.bias.to_dict() if su.bias.active else None},
-                "parameters": self.table(), "group_rms": self.group_rms(), "seconds": self.seconds}
+                "parameters": self.table(), "group_rms": self.group_rms(), "seconds": self.seconds,
+                **({"temperature": su.thermal} if su.thermal else {})}
 
 
 def _spec(st: StateSet) -> str:
@@ -653,6 +404,9 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
         raise BoundError(f"path {path.name!r} ({seg.t1[-1]:.4g} s) at a {T:g} s filter step is {M:.3g} steps, more "
                          f"than the {MAX_STEPS:.0e} of a sensible bound")
     M = int(M)
+    if setup.thermal and abs(setup.temperature.duration_s - seg.t1[-1]) > 1e-6 * max(1.0, seg.t1[-1]):
+        raise BoundError(f"path {path.name!r} lasts {seg.t1[-1]:.6g} s, its known temperature "
+                         f"{setup.temperature.duration_s:.6g} s (make_setup with the path's KnownTemperature)")
     N = setup.sig.size
     ns = setup.states.n_states
     u = outer_axis(setup.gimbal.nonorthogonality)
@@ -666,16 +420,20 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
     phinp = np.empty((9, N - N_NAV))
     Vs = np.zeros((6, N - N_NAV))
 
+    no_temp = np.empty((0, setup.n_sub))
+
     def kernel(k0: int, k1: int) -> None:
         xH, xr = extra_rows(setup.states, sc, (np.arange(k0, k1) + 1.0) * T, setup.sig[:ns], setup.row_options)
         if xH.shape[1]:
             if N > ns:
                 xH = np.concatenate([xH, np.zeros(xH.shape[:2] + (N - ns,))], axis=2)
             xH = xH * setup.sig[None, None, :]
-        _bound_kernel(k0, k1, T, setup.n_sub, *segs, u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
-                      setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
-                      setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
-                      np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs)
+        th = (setup.temperature.steps(setup.thermal["t_ref"], k0, k1, T, setup.n_sub) if setup.thermal
+              else (no_temp, no_temp))
+        bound_kernel(k0, k1, T, setup.n_sub, *segs, u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
+                     setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
+                     setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
+                     np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs, *th)
 
     run_in_slices(M, kernel, first=max(1, 4096 // setup.n_sub))
     p = setup.n_params
@@ -687,20 +445,28 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
 
 def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_noise: BiasNoise | None = None,
          filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ, prior: dict | None = None,
-         keep_history: bool = True) -> Bound:
+         keep_history: bool = True, t_ref: float | None = None, rate_window_s: float | None = RATE_WINDOW_S) -> Bound:
     """The bound of an experiment from a Scenario, RotationPath, built-in name or TOML file (as
     :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry
     and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
-    bare path at the S16 site with the S16 noise."""
+    bare path at the S16 site with the S16 noise.  Thermal states (``51,thermal``, ``thermal=GSABR``): the
+    scenario's temperature profile read as a record carries it is the known temperature of every sub-sample,
+    ``dT/dt`` its slope over ``rate_window_s`` (None: the profile's exact rate), about ``t_ref`` [degC] (default
+    the scenario's thermal model's, else 20; :mod:`inscal.plan.thermal`)."""
 
     try:
-        sc, kind, _ = load_source(source)
+        sc, kind, label = load_source(source)
         arw_v, vrw_v, _ = resolve_noise(sc, kind, arw, vrw)
+        st = states if isinstance(states, StateSet) else StateSet.parse(states)
     except ObservabilityError as exc:
+        raise BoundError(str(exc)) from None
+    except CalibrationError as exc:
         raise BoundError(str(exc)) from None
     if bias_noise is None and kind == "scenario":
         bias_noise = BiasNoise.from_imu_noise(sc.noise)
-    setup = make_setup(states, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior)
+    temp = known_temperature(sc, label, rate_window_s=rate_window_s, error=BoundError) if st.thermal else None
+    setup = make_setup(st, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior,
+                       temperature=temp, t_ref=default_t_ref(sc) if t_ref is None else t_ref)
     return evaluate(setup, sc.path, keep_history)
 
 

@@ -60,6 +60,14 @@ singular values are then dominated by the vertical channel (small ones understat
 horizontal information; the full-state rank collapses first).  The covariance view is
 unaffected (the measurement every step holds the vertical channel).
 
+Thermal states (``51,thermal``, ``thermal=GSABR``; :mod:`inscal.plan.thermal`).  The scenario's temperature
+profile is the filter's known input: the noise-free record carries it as a record of the scenario does (read
+at its sensor's rate, exactly; the filter takes dT/dt as its 60-s slope), about the scenario's ``t_ref``, and the
+IMU has no thermal errors (the covariance does not depend on them).  What separates a coefficient from its base term and
+from the other orders is the temperature history alone; the report adds, per coefficient, the state it is most
+correlated with a posteriori (``thermal.partners``) and the weakest directions name the combinations.  A
+scenario without a profile is refused (a constant temperature is no information on any coefficient).
+
 Simulation: the path at ``rate_hz`` (20 Hz by default; enough for the filter's per-sample
 Jacobians at turntable rates, and the covariance does not depend on the data noise), an
 ideal IMU, no noise; a scenario keeps its site and its gimbal geometry (mount attitude,
@@ -79,12 +87,15 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit
 
-from inscal.calibrate.systematic.driver import systematic
+from inscal.calibrate.systematic.driver import THERMAL_BYTES_PER_SAMPLE, systematic
 from inscal.calibrate.systematic.states import (
     DEFAULT_SIGMA0,
+    K_TH,
     N_NAV,
     NAV_SIGMA0,
     StateSet,
+    field_value,
+    prior_sigma,
 )
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
@@ -92,6 +103,7 @@ from inscal.core.error_model import ImuErrors, ImuNoise
 from inscal.core.turntable import BUILTIN_PATHS, RotationPath
 from inscal.io.tomlfile import read_toml
 from inscal.plan.slices import run_in_slices
+from inscal.plan.thermal import default_t_ref, known_temperature
 from inscal.sim import scenarios
 from inscal.sim.scenarios import S16_SITE
 from inscal.sim.simulate import Scenario, simulate
@@ -105,6 +117,8 @@ RANK_TOL = 1e-9
 GROWTH_NOTE = 1e4
 #: relative difference of the two passes' posterior sigmas above which a note is added
 MISMATCH_NOTE = 0.01
+#: a Householder column below this (scaled, whitened units) is round-off: dropped (:func:`_factor_kernel`)
+HOUSEHOLDER_TINY = 1e-150
 #: weakest directions reported, and components listed per direction
 N_WEAKEST = 5
 N_COMPONENTS = 4
@@ -119,6 +133,8 @@ MAX_SAMPLES = 10**9
 #: memory per sample of the in-memory simulation and the filter pass over it (measured 174 B with 51 states,
 #: 190 B with the unified model, n25 at 200-800 Hz; the simulation's chunks are joined into one record)
 BYTES_PER_SAMPLE = 256
+#: with thermal states, per sample: the readings of the profile (time, value) and what the driver keeps
+THERMAL_SAMPLE_BYTES = 16 + THERMAL_BYTES_PER_SAMPLE
 
 
 class ObservabilityError(ValueError):
@@ -196,6 +212,9 @@ class ObservabilityReport:
     covariance: np.ndarray | None = None  # posterior covariance of the parameter states (SI), not in to_dict
     factor: np.ndarray | None = None  # R_pp: triangular factor of the parameter block (scaled), not in to_dict
     notes: tuple[str, ...] = field(default_factory=tuple)
+    #: thermal states: the temperature (t_ref, t_min, t_max, span, rate, profile) and, per thermal state, the
+    #: state it is most correlated with a posteriori (:func:`thermal_partners`)
+    thermal: dict | None = None
 
     @property
     def n_params(self) -> int:
@@ -259,6 +278,7 @@ class ObservabilityReport:
             "consistency": self.consistency,
             "notes": list(self.notes),
             "timing_s": self.timing_s,
+            **({"temperature": self.thermal} if self.thermal else {}),
         }
 
 
@@ -330,16 +350,19 @@ def observability_bytes(n_samples: float, steps: float, states: StateSet) -> flo
     their whitened copies here, 6 N + 9)."""
     N = states.n_states
     per_step = 6 * N + 131 + 9 * (N - N_NAV) + (12 * N + 34 if states.gimbal else 0)
-    return BYTES_PER_SAMPLE * float(n_samples) + 8.0 * per_step * float(steps)
+    per_sample = BYTES_PER_SAMPLE + (THERMAL_SAMPLE_BYTES if states.thermal else 0)
+    return per_sample * float(n_samples) + 8.0 * per_step * float(steps)
 
 
 # ----------------------------------------------------------------------------- analysis
 def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: float = 20.0, arw=None, vrw=None,
-                  filter_rate_hz: float = 1.0) -> ObservabilityReport:
+                  filter_rate_hz: float = 1.0, t_ref: float | None = None) -> ObservabilityReport:
     """Observability of the systematic filter's parameter states on a rotation path (module
     docstring).  ``scenario_or_path``: a Scenario, a RotationPath, a built-in scenario/path name or a
     TOML file.  ``arw`` [rad/sqrt(s)], ``vrw`` [m/s/sqrt(s)]: scalar or per axis; default
-    the scenario's, else S16's.  ``rate_hz``: simulation rate of the noise-free record."""
+    the scenario's, else S16's.  ``rate_hz``: simulation rate of the noise-free record.  Thermal states
+    (``51,thermal``, ``thermal=GSABR``): the scenario's temperature profile is the filter's known input, about
+    ``t_ref`` [degC] (default the scenario's thermal model's, else 20; :mod:`inscal.plan.thermal`)."""
 
     t_start = time.perf_counter()
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
@@ -355,23 +378,30 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
         raise ObservabilityError(f"{label}: {sc.path.duration * rate_hz:.3g} samples ({sc.path.duration:.4g} s at "
                                  f"{rate_hz:g} Hz) is more than the {MAX_SAMPLES:.0e} of a sensible simulation")
     arw_v, vrw_v, noise_src = resolve_noise(sc, kind, arw, vrw)
-    # ideal IMU, no noise; keep the site and the gimbal geometry
-    sc0 = replace(sc, imu=ImuErrors(), noise=ImuNoise(), rate_hz=float(rate_hz))
+    # ideal IMU, no noise, no thermal errors; keep the site, the gimbal geometry and the temperature profile
+    sc0 = replace(sc, imu=ImuErrors(), noise=ImuNoise(), rate_hz=float(rate_hz), thermal=None)
     if sc0.n_samples * filter_rate_hz / rate_hz < 10:
         raise ObservabilityError(f"path {sc.path.name!r} is too short ({sc.path.duration:g} s) for the filter")
+    tinfo, known = None, None
+    if st.thermal:  # the temperature a record of the scenario carries (inscal.plan.thermal)
+        known = known_temperature(sc, label, error=ObservabilityError)
+        tinfo = known.info(default_t_ref(sc) if t_ref is None else t_ref, sc0.n_samples, 1.0 / rate_hz, label,
+                           ObservabilityError)
     data = simulate(sc0)
     t_sim = time.perf_counter()
     rec = SimpleNamespace(time=data.time, dtheta=data.dtheta, dvel=data.dvel, gimbal=None, rate_hz=float(rate_hz),
-                          site=sc.site, path=sc.path)
+                          site=sc.site, path=sc.path, temperature=known.readings() if known else None)
+    opts = {"t_ref": tinfo["t_ref"], "temperature_rate_window_s": known.rate_window_s} if tinfo else {}
     try:
         res = systematic(rec, st, filter_rate_hz=filter_rate_hz, max_passes=1, arw=arw_v, vrw=vrw_v,
-                         history_s=1e12, keep_passes=True)
+                         history_s=1e12, keep_passes=True, **opts)
     except CalibrationError as exc:
         raise ObservabilityError(f"{label}: {exc}") from None
     t_filt = time.perf_counter()
     # ---- covariance view
     groups = st.groups
-    prior = np.array([DEFAULT_SIGMA0[g.name] for g in groups for _ in g.labels])
+    # the filter's prior (a thermal coefficient's spread over the record's temperature span)
+    prior = prior_sigma(st, DEFAULT_SIGMA0, res.diagnostics["thermal"]["span"] if tinfo else 1.0)
     post = np.sqrt(np.maximum(np.diag(res.covariance["P"]), 0.0))
     ratio = post / prior
     rows = []
@@ -379,8 +409,8 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     for g in groups:
         for lab in g.labels:
             full = f"{g.name}[{lab}]" if lab else g.name
-            rows.append(StateResult(full, g.name, lab, g.unit, float(units.from_si(prior[k], g.unit)),
-                                    float(units.from_si(post[k], g.unit)), float(ratio[k]), verdict(ratio[k])))
+            rows.append(StateResult(full, g.name, lab, g.unit, float(field_value(prior[k], g.unit)),
+                                    float(field_value(post[k], g.unit)), float(ratio[k]), verdict(ratio[k])))
             k += 1
     # ---- observability matrix
     noise = res.diagnostics["noise"]
@@ -411,6 +441,12 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
                      "(NAV_SIGMA out of step with systematic?)")
     if kind == "path":
         notes.append("bare path: S16 site (30 N, 114 E, 0 m)")
+    if tinfo:
+        tinfo = dict(tinfo, partners=thermal_partners(st, res.covariance["P"], labels))
+        notes.append(f"thermal states: the temperature profile ({tinfo['t_min']:.4g} .. {tinfo['t_max']:.4g} degC, "
+                     f"up to {tinfo['rate_max_c_per_min']:.3g} degC/min) is the filter's known input about T_ref "
+                     f"{tinfo['t_ref']:g} degC; each coefficient's prior spreads its term's over the span "
+                     f"{tinfo['span']:.4g} degC")
     lat, lon, h = sc.site.latitude, sc.site.longitude, sc.site.height
     return ObservabilityReport(
         source=label, kind=kind, path_name=sc.path.name, duration_s=float(sc.path.duration),
@@ -425,7 +461,25 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
         vertical_growth=float(growth), consistency=mismatch, covariance=res.covariance["P"], factor=Rf[N_NAV:, N_NAV:],
         timing_s={"simulate": t_sim - t_start, "filter": t_filt - t_sim, "observability_matrix": t_obs - t_filt,
                   "total": t_obs - t_start},
-        notes=tuple(notes))
+        notes=tuple(notes), thermal=tinfo)
+
+
+def thermal_partners(st: StateSet, P: np.ndarray, labels: list[str]) -> dict[str, dict]:
+    """Per thermal coefficient state: the other parameter state it is most correlated with in the posterior
+    ``P`` (its base term when the temperature history cannot tell them apart, e.g. ``gyro_bias_dT1[x]`` with
+    ``gyro_bias[x]`` at a constant temperature, or ``gyro_bias_rate[x]`` with ``gyro_bias[x]`` on a ramp at one
+    rate) and that correlation coefficient."""
+    d = np.sqrt(np.maximum(np.diag(P), 1e-300))
+    Rc = P / np.outer(d, d)
+    np.fill_diagonal(Rc, 0.0)
+    out, k = {}, 0
+    for g in st.groups:
+        for _ in g.labels:
+            if g.kinds[0] == K_TH:
+                j = int(np.argmax(np.abs(Rc[k])))
+                out[labels[k]] = {"with": labels[j], "correlation": float(Rc[k, j])}
+            k += 1
+    return out
 
 
 def _encoder_rows(out) -> tuple:
@@ -531,7 +585,12 @@ def _factor_kernel(k0, k1, phinn, phinp, w, w_att, att_used, R, A, B, growth):
             for a in range(nr):
                 if abs(X[a, j]) > scale:
                     scale = abs(X[a, j])
-            if scale == 0.0:
+            if scale < HOUSEHOLDER_TINY:
+                # nothing left to annihilate (exactly dependent columns, e.g. thermal columns that are multiples
+                # of their base term's while the temperature holds, leave round-off that would underflow
+                # 1 / (alpha v0)): dropping it changes O^T O by less than this squared
+                for a in range(nr):
+                    X[a, j] = 0.0
                 continue
             rj = R[j, j] / scale
             nx = 0.0
