@@ -13,6 +13,7 @@ from slicings import one_call, slicings
 
 from inscal.calibrate.systematic import driver
 from inscal.calibrate.systematic import kernel as K
+from inscal.calibrate.systematic import smoother as SM
 from inscal.calibrate.systematic.params import CompParams
 from inscal.calibrate.systematic.states import StateSet
 from inscal.core import slices
@@ -80,7 +81,8 @@ CASES = {"51": "51", "unified (encoder rows)": "unified"}
 @pytest.mark.parametrize("case", CASES)
 def test_pass_and_smoother_do_not_depend_on_the_slicing(record, case, monkeypatch):
     args = pass_arguments(record, CASES[case])
-    monkeypatch.setattr(K, "run_in_slices", one_call)
+    for mod in (K, SM):  # the forward pass and the smoother each slice their own loop
+        monkeypatch.setattr(mod, "run_in_slices", one_call)
     ref = outputs(args)
     assert int(ref["steps"]) == int(SECONDS * FILTER_HZ)
     assert ref["hist_step"].shape[0] > 10 and (int(ref["steps"]) - 1) % 20 != 0
@@ -94,7 +96,8 @@ def test_pass_and_smoother_do_not_depend_on_the_slicing(record, case, monkeypatc
             _calls.append(_run(total, kernel, **kw))
             return _calls[-1]
 
-        monkeypatch.setattr(K, "run_in_slices", counted)
+        for mod in (K, SM):
+            monkeypatch.setattr(mod, "run_in_slices", counted)
         got = outputs(args)
         assert got.keys() == ref.keys(), name
         for key in ref:
