@@ -5,6 +5,8 @@ BIN      = $(VENV)/bin
 STAMP    = $(VENV)/.installed-stamp
 BSTAMP   = $(VENV)/.bench-stamp
 WSTAMP   = $(VENV)/.warmup-stamp
+# the warm-up's JSON report (tests/cli/test_warmup.py reads it: every kernel compiled in the emptied cache)
+WREPORT  = $(VENV)/warmup-report.json
 SOURCES := $(shell find src -name '*.py')
 
 .PHONY: demo test bench bench-compare venv clean
@@ -26,7 +28,8 @@ $(BSTAMP): $(STAMP)
 # other files: a change clears every entry before the warm-up.
 $(WSTAMP): $(STAMP) $(SOURCES)
 	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
-	$(BIN)/python -m inscal.cli.warmup
+	rm -f $(WREPORT)
+	$(BIN)/python -m inscal.cli.warmup --report $(WREPORT)
 	touch $(WSTAMP)
 
 venv: $(WSTAMP)
@@ -34,9 +37,13 @@ venv: $(WSTAMP)
 demo: $(WSTAMP)
 	$(BIN)/inscal demo --out demo-output --force
 
+# one BLAS thread per test process: the two workers already fill the two cores, and OpenBLAS threads
+# spin while they wait (the suite took 20 % longer with them); the longest test files start first
+# (tests/conftest.py), so the scopes keep their order instead of xdist's order by number of tests
 test: $(WSTAMP)
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+		$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
 
 bench: $(BSTAMP) $(WSTAMP)
 	$(BIN)/python bench/run.py

@@ -13,7 +13,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+from pathlib import Path
 from types import SimpleNamespace
+
+# one BLAS thread per test process (``make test`` sets it too, before anything imports NumPy): the xdist
+# workers already fill the cores, and idle OpenBLAS threads spin; the commands the tests start inherit it
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import numpy as np
 import pytest
@@ -25,6 +32,43 @@ from inscal.core.error_model import ImuNoise
 from inscal.core.kinematics import true_attitude
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
+
+
+#: the test files that take longest (seconds of one worker, ``--durations=0`` of the whole suite on 2 cores,
+#: OpenBLAS on one thread), longest first: they start first, so that the workers of ``make test``
+#: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them
+LONGEST = (
+    "cli/test_readme_block_2.py",  # 52 s
+    "cli/test_signals_under_load.py",  # 49 s
+    "cli/test_db_cli.py",  # 33 s
+    "paper/test_systematic_stats.py",  # 26 s
+    "cli/test_memory_caps.py",  # 25 s
+    "analysis/test_montecarlo.py",  # 24 s
+    "cli/test_concurrent_writers.py",  # 24 s
+    "cli/test_readme_block_0.py",  # 23 s
+    "io/test_encoders.py",  # 19 s
+    "calibrate/test_noise_matrix.py",  # 17 s
+    "lab/test_batch.py",  # 16 s
+    "calibrate/test_selection.py",  # 14 s
+    "cli/test_calibrate_caps.py",  # 13 s
+    "oracles/test_oracle_calibration.py",  # 12 s
+)
+TESTS = Path(__file__).resolve().parent
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of :data:`LONGEST` first, in its order (a stable sort: the tests of a file and the other
+    files keep their order)."""
+    rank = {name: i for i, name in enumerate(LONGEST)}
+
+    def key(item):
+        try:
+            rel = Path(item.fspath).resolve().relative_to(TESTS).as_posix()
+        except ValueError:
+            return len(rank)
+        return rank.get(rel, len(rank))
+
+    items.sort(key=key)
 
 
 def _noise_free(name: str, **kw):
