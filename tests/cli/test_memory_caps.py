@@ -3,7 +3,8 @@
 (a) Every size option is estimated before anything grows with it, and an absurd value is refused in
 one line: exit 2, exactly one stderr line ``inscal: error: ...`` (no traceback), nothing written, the
 inputs unchanged, quickly, and the child's peak RSS (``os.wait4``) stays small.  The commands run in
-child processes (``inscal.cli.main``: the real signal handlers), several at a time.
+child processes (``inscal.cli.main``: the real signal handlers and exit), forked from one that imported the
+package once (:mod:`forkserver`).
 
 (b) The long compiled loops (the bound's covariance pass, which ``design`` runs per candidate and
 ``observability --crlb`` once) return to Python every few tens of milliseconds, so SIGTERM ~1 s into a
@@ -16,13 +17,13 @@ import signal
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 import tomli_w
+from forkserver import ForkServer
 
 from inscal import io
 from inscal.core.earth import Site
@@ -33,9 +34,9 @@ pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals, 
 CODE = "import sys; from inscal.cli import main; sys.argv = ['inscal'] + sys.argv[1:]; main()"
 #: the child's peak resident memory must stay below this (a refusal: ~240 MB, the interpreter and imports)
 MAX_RSS = 2 << 30
-#: a refusal's whole run, interpreter start and imports included (~2 s on an idle 2-core machine; the cases
-#: run three at a time)
-MAX_REFUSE_S = 20.0
+#: a refusal's run from the fork to the exit (well under 1 s on an idle 2-core machine; the interpreter's
+#: start and the imports are the fork server's)
+MAX_REFUSE_S = 5.0
 #: the child's CPU time at which the long runs are surely inside the kernel loop (start, imports and
 #: setup take ~2.5 s of CPU), so that the signal comes ~1 s into the computation
 IN_KERNEL_CPU_S = 3.5
@@ -146,29 +147,26 @@ CASES = {
 
 @pytest.fixture(scope="module")
 def refused(tmp_path_factory):
-    """Every case in its own folder holding every input, three children at a time."""
+    """Every case in its own folder holding every input, one after the other, each forked from a process
+    that has imported the command line once (:mod:`forkserver`): a refusal is the command's own work."""
     root = tmp_path_factory.mktemp("caps")
     proto = root / "inputs"
     proto.mkdir()
     for name, make in INPUTS.items():
         make(proto / name)
-
-    def run(i_name):
-        i, name = i_name
-        folder = root / f"case{i}"
-        folder.mkdir()
-        for f in proto.iterdir():
-            (folder / f.name).write_bytes(f.read_bytes())
-        before = snapshot(folder)
-        t0 = time.monotonic()
-        proc = launch(CASES[name][0], folder, root / f"logs{i}")
-        rc, rss, t1 = reap(proc, timeout=120)
-        logs = root / f"logs{i}"
-        return {"rc": rc, "rss": rss, "seconds": t1 - t0, "stderr": (logs / "stderr").read_text(),
-                "stdout": (logs / "stdout").read_text(), "before": before, "after": snapshot(folder)}
-
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        return dict(zip(CASES, pool.map(run, enumerate(CASES))))
+    out = {}
+    with ForkServer(dict(os.environ, COLUMNS="200")) as server:
+        for i, name in enumerate(CASES):
+            folder = root / f"case{i}"
+            folder.mkdir()
+            for f in proto.iterdir():
+                (folder / f.name).write_bytes(f.read_bytes())
+            before = snapshot(folder)
+            logs = root / f"logs{i}"
+            r = server.run(CASES[name][0], folder, logs, timeout=120)
+            out[name] = {**r, "stderr": (logs / "stderr").read_text(), "stdout": (logs / "stdout").read_text(),
+                         "before": before, "after": snapshot(folder)}
+    return out
 
 
 @pytest.mark.parametrize("name", CASES)
