@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 SERVER = r"""
 import importlib, json, os, pkgutil, sys, time
@@ -31,6 +34,7 @@ for line in sys.stdin:
         code = 1
         try:
             os.chdir(req["cwd"])
+            os.environ.update(req["env"])
             fds = [os.open(os.devnull, os.O_RDONLY)] + [os.open(req[k], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
                                                         for k in ("stdout", "stderr")]
             for target, fd in enumerate(fds):
@@ -82,10 +86,11 @@ class ForkServer:
             self.close()
             raise RuntimeError(f"the fork server did not start: {ready!r}")
 
-    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0) -> dict:
+    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> dict:
+        """``inscal ARGS`` in ``cwd`` (``env``: variables set for this command only)."""
         logs.mkdir(parents=True, exist_ok=True)
         req = {"args": [str(a) for a in args], "cwd": str(cwd), "stdout": str(logs / "stdout"),
-               "stderr": str(logs / "stderr"), "timeout": timeout}
+               "stderr": str(logs / "stderr"), "timeout": timeout, "env": dict(env or {})}
         self.proc.stdin.write(json.dumps(req) + "\n")
         self.proc.stdin.flush()
         return json.loads(self.proc.stdout.readline())
@@ -104,3 +109,59 @@ class ForkServer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+#: what bash would read as more than plain words outside quotes: expansions, globs, redirections, lists
+SHELL_SPECIAL = re.compile(r"[$`|;&<>(){}\[\]*?~\\]")
+
+
+def plain_words(line: str) -> list[str] | None:
+    """The words of a command line exactly as bash splits them, when it is plain words, quoted strings and a
+    trailing ``# comment`` (nothing bash would expand, redirect or run in a list); else None."""
+    rest, i, outside = line, 0, []
+    while i < len(rest):
+        c = rest[i]
+        if c in "'\"":
+            j = rest.find(c, i + 1)
+            if j < 0 or (c == '"' and re.search(r"[$`\\]", rest[i + 1:j])):
+                return None
+            outside.append(" ")
+            i = j + 1
+            continue
+        if c == "#" and (i == 0 or rest[i - 1].isspace()):
+            break
+        outside.append(c)
+        i += 1
+    if SHELL_SPECIAL.search("".join(outside)) or "#" in "".join(outside):
+        return None
+    return shlex.split(line, comments=True)
+
+
+class Shell:
+    """Lines of a README block, run in ``folder`` as bash runs them one after another: ``export NAME=VALUE``
+    sets a variable for the lines after it, a plain ``inscal ...`` line runs in a fork of ``server`` (the
+    first such line through the installed ``inscal`` script, so that the entry point is run too), any other
+    line in bash.  ``run(line)`` returns ``(returncode, stdout, stderr)`` as a namespace."""
+
+    def __init__(self, server: ForkServer, folder: Path, env: dict, logs: Path):
+        self.server, self.folder, self.env, self.logs = server, folder, dict(env), logs
+        self.extra: dict = {}
+        self.count = 0
+        self.script_ran = False
+
+    def run(self, line: str, timeout: float = 600.0) -> SimpleNamespace:
+        words = plain_words(line)
+        if words is not None and len(words) == 2 and words[0] == "export" and "=" in words[1]:
+            name, value = words[1].split("=", 1)
+            self.extra[name] = value
+            return SimpleNamespace(returncode=0, stdout="", stderr="")
+        if words and words[0] == "inscal" and self.script_ran:
+            self.count += 1
+            logs = self.logs / f"{self.count:03d}"
+            r = self.server.run(words[1:], self.folder, logs, timeout=timeout, env=self.extra)
+            return SimpleNamespace(returncode=r["rc"], stdout=(logs / "stdout").read_text(),
+                                   stderr=(logs / "stderr").read_text())
+        self.script_ran = self.script_ran or bool(words and words[0] == "inscal")
+        r = subprocess.run(["bash", "-c", line], cwd=self.folder, env={**self.env, **self.extra}, capture_output=True,
+                           text=True, timeout=timeout, check=False)
+        return SimpleNamespace(returncode=r.returncode, stdout=r.stdout, stderr=r.stderr)

@@ -13,9 +13,10 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
 import sys
 from pathlib import Path
+
+from forkserver import ForkServer, Shell
 
 ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text()
@@ -128,18 +129,21 @@ FILES = ("s16-51.toml", "n25.html", "n25-comp.h5", "n25-imported.h5", "path20.to
 
 
 def run_part(k: int, folder: Path) -> None:
-    """Run part ``k`` of the block in ``folder`` with the installed ``inscal``, then its checks."""
+    """Run part ``k`` of the block in ``folder`` (its first command line through the installed ``inscal``
+    script in bash, the others as bash would split them, in forks of one process that imported the package:
+    :class:`forkserver.Shell`), then its checks."""
     lines = command_block()
     mine = [lines[i] for i in parts(lines)[k]]
     bindir = Path(sys.executable).parent
     env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}", "COLUMNS": "100"}
     outputs = {}
-    for line in mine:
-        r = subprocess.run(["bash", "-c", line], cwd=folder, env=env, capture_output=True, text=True, timeout=600,
-                           check=False)
-        assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
-        assert "Traceback" not in r.stderr, line
-        outputs[line] = r
+    with ForkServer(env) as server:
+        shell = Shell(server, folder, env, folder.parent / f"{folder.name}-logs")
+        for line in mine:
+            r = shell.run(line)
+            assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
+            assert "Traceback" not in r.stderr, line
+            outputs[line] = r
     for needs, check in CHECKS:
         if any(needs(ln) for ln in mine):
             check(outputs, folder)

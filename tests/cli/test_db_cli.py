@@ -8,12 +8,12 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from forkserver import ForkServer, Shell
 from typer.testing import CliRunner
 
 from inscal import lab
@@ -50,7 +50,7 @@ def one_line(r, *phrases):
 
 @pytest.mark.slow
 def test_the_readme_lab_workflow_runs_as_written(tmp_path):
-    """The block in one shell (it exports INSCAL_DB), then what it left: two results with their sessions, the
+    """The block as one shell runs it (it exports INSCAL_DB), then what it left: two results with their sessions, the
     exports identical to calibrate's files, the history of two calibrations."""
     bindir = Path(sys.executable).parent
     env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}", "COLUMNS": "120"}
@@ -58,11 +58,15 @@ def test_the_readme_lab_workflow_runs_as_written(tmp_path):
     block = lab_block()
     if find_chromium() is None:  # the certificate's PDF needs Chromium: its HTML and JSON are made without it
         block = block.replace("inscal db certificate ", "inscal db certificate --no-pdf ")
-    script = "set -euo pipefail\n" + block
-    r = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
-                       check=False)
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert "Traceback" not in r.stderr
+    # line by line as ``set -e`` runs it: the first failure ends the block (forkserver.Shell: the first
+    # inscal line through the installed script, the others as bash would split them, in forks of one process)
+    with ForkServer(env) as server:
+        shell = Shell(server, tmp_path, env, tmp_path.parent / f"{tmp_path.name}-logs")
+        for line in block.splitlines():
+            if line.strip():
+                r = shell.run(line)
+                assert r.returncode == 0, f"{line}\n{r.stderr[-3000:]}"
+                assert "Traceback" not in r.stderr, line
     assert (tmp_path / "current.toml").read_bytes() == (tmp_path / "feb.toml").read_bytes()
     assert (tmp_path / "history.png").stat().st_size > 10_000
     db = tmp_path / "lab.sqlite"
