@@ -11,16 +11,17 @@ holds the slow reproductions of the papers' figures):
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
-from pathlib import Path
-from types import SimpleNamespace
 
-# one BLAS thread per test process (``make test`` sets it too, before anything imports NumPy): the xdist
-# workers already fill the cores, and idle OpenBLAS threads spin; the commands the tests start inherit it
+# one BLAS thread per test process (``make test`` sets it too): the xdist workers already fill the cores, and
+# idle OpenBLAS threads spin; set before anything imports NumPy, and inherited by the commands the tests start
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+import dataclasses
+import math
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -32,7 +33,6 @@ from inscal.core.error_model import ImuNoise
 from inscal.core.kinematics import true_attitude
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
-
 
 #: the test files that take longest (seconds of one worker, ``--durations=0`` of the whole suite on 2 cores,
 #: OpenBLAS on one thread), longest first: they start first, so that the workers of ``make test``

@@ -86,14 +86,60 @@ EXPORTS = {
     "set_current": "inscal.lab.store",
     "table_counts": "inscal.lab.store",
 }
-__all__ = sorted(EXPORTS)
+__all__ = [
+    "DEFAULT_FILE",
+    "DEFAULT_K",
+    "ENV_VAR",
+    "MONTH_DAYS",
+    "Calibration",
+    "ComponentDrift",
+    "Database",
+    "DatabaseError",
+    "FleetEntry",
+    "History",
+    "Parameter",
+    "Session",
+    "SessionInfo",
+    "Unit",
+    "add_unit",
+    "calibration_options",
+    "calibrations",
+    "component_drift",
+    "covariance_of",
+    "current_calibration",
+    "database_url",
+    "find_calibration",
+    "find_param_file",
+    "fleet",
+    "get_calibration",
+    "get_unit",
+    "head_revision",
+    "history",
+    "init_database",
+    "list_units",
+    "open_database",
+    "options_hash",
+    "param_file_text",
+    "parse_date",
+    "record_calibration",
+    "record_result",
+    "revision_number",
+    "revision_of",
+    "session_from_record",
+    "set_current",
+    "table_counts",
+    "tail",
+    "text_hash",
+    "unit_history",
+    "upgrade_database",
+]
 
 if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load on first use
-    from inscal.lab.database import (  # noqa: F401
+    from inscal.lab.database import (
         DEFAULT_FILE,
+        ENV_VAR,
         Database,
         DatabaseError,
-        ENV_VAR,
         database_url,
         head_revision,
         init_database,
@@ -102,21 +148,21 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         revision_of,
         upgrade_database,
     )
-    from inscal.lab.drift import (  # noqa: F401
-        ComponentDrift,
+    from inscal.lab.drift import (
         DEFAULT_K,
-        History,
         MONTH_DAYS,
+        ComponentDrift,
+        History,
         component_drift,
         history,
         tail,
     )
-    from inscal.lab.fleet import (  # noqa: F401
+    from inscal.lab.fleet import (
         FleetEntry,
         fleet,
         unit_history,
     )
-    from inscal.lab.model import (  # noqa: F401
+    from inscal.lab.model import (
         Calibration,
         Parameter,
         Session,
@@ -124,7 +170,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         Unit,
         parse_date,
     )
-    from inscal.lab.record import (  # noqa: F401
+    from inscal.lab.record import (
         calibration_options,
         covariance_of,
         options_hash,
@@ -132,7 +178,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         session_from_record,
         text_hash,
     )
-    from inscal.lab.store import (  # noqa: F401
+    from inscal.lab.store import (
         add_unit,
         calibrations,
         current_calibration,
