@@ -3,7 +3,8 @@
 (a) Before the record is read, its size (:func:`inscal.io.record_info`) and the systematic filter's
 per-step stores (:func:`inscal.calibrate.systematic.driver.systematic_bytes`) are compared with the
 available memory: a record too big to read, or a filter rate that would fill the memory, is refused in
-one line (exit 2, nothing written, the child's peak RSS small).
+one line (exit 2, nothing written, the child's peak RSS small; the child forked from a process that imported
+the package once, :mod:`forkserver`).
 
 (b) The systematic filter and smoother run in slices of steps (:mod:`inscal.core.slices`), so SIGTERM
 inside a long pass (--filter-rate-hz 50 on the 1-h s16 record: ~7 s a pass, one numba call each before the
@@ -12,11 +13,11 @@ slices, when such a signal waited up to that long) ends the run within 2 s: exit
 
 import os
 import sys
-import time
 from pathlib import Path
 
 import h5py
 import pytest
+from forkserver import ForkServer
 from test_memory_caps import (
     MAX_REFUSE_S,
     MAX_RSS,
@@ -51,31 +52,38 @@ def unwritten_record(path: Path, n: int, rate_hz: float) -> None:
                              fillvalue=-1.0 if cols is None else 0.0)
 
 
-def refuse(folder: Path, logs: Path, args) -> dict:
+@pytest.fixture(scope="module")
+def server():
+    """The refusals fork from one process that imported the package (:mod:`forkserver`), as in
+    ``test_memory_caps``: each is the command's own run, so it is held to the same :data:`MAX_REFUSE_S`."""
+    with ForkServer(dict(os.environ, COLUMNS="200")) as fs:
+        yield fs
+
+
+def refuse(server, folder: Path, logs: Path, args) -> str:
     before = snapshot(folder)
-    t0 = time.monotonic()
-    rc, rss, t1 = reap(launch(args, folder, logs), timeout=120)
+    r = server.run(args, folder, logs, timeout=120)
     err = (logs / "stderr").read_text()
     lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert rc == 2, (rc, err[-2000:])
+    assert r["rc"] == 2, (r["rc"], err[-2000:])
     assert "Traceback" not in err and len(lines) == 1 and lines[0].startswith("inscal: error: "), err[-2000:]
     assert snapshot(folder) == before, "something was written, or an input changed"
-    assert rss < MAX_RSS, f"peak RSS {rss / 1e9:.2f} GB"
-    assert t1 - t0 < MAX_REFUSE_S, f"{t1 - t0:.1f} s to refuse"
+    assert r["rss"] < MAX_RSS, f"peak RSS {r['rss'] / 1e9:.2f} GB"
+    assert r["seconds"] < MAX_REFUSE_S, f"{r['seconds']:.1f} s to refuse"
     return lines[0]
 
 
 @pytest.mark.parametrize("method", ["systematic51", "n25"])
-def test_a_record_too_big_to_read_is_refused_up_front(tmp_path, method):
+def test_a_record_too_big_to_read_is_refused_up_front(server, tmp_path, method):
     folder = tmp_path / "run"
     folder.mkdir()
     unwritten_record(folder / "huge.h5", 10**11, 10.0)
-    line = refuse(folder, tmp_path / "logs", ["calibrate", "huge.h5", "--method", method, "--out", "p.toml"])
+    line = refuse(server, folder, tmp_path / "logs", ["calibrate", "huge.h5", "--method", method, "--out", "p.toml"])
     assert "reading huge.h5 (100000000000 samples, 1e+10 s at 10 Hz) needs about" in line, line
     assert "TB of memory (this machine has" in line and "calibrate a shorter record" in line, line
 
 
-def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(tmp_path):
+def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(server, tmp_path):
     """A record that fits in memory (about 5 % of what is available) whose filter at the sample rate does not
     (its per-step stores take ~40 times the record's bytes)."""
     avail = available_memory()
@@ -85,8 +93,8 @@ def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(tmp_path):
     folder = tmp_path / "run"
     folder.mkdir()
     unwritten_record(folder / "long.h5", n, 100.0)
-    line = refuse(folder, tmp_path / "logs", ["calibrate", "long.h5", "--method", "systematic51", "--filter-rate-hz",
-                                              "100", "--out", "p.toml"])
+    line = refuse(server, folder, tmp_path / "logs", ["calibrate", "long.h5", "--method", "systematic51",
+                                                      "--filter-rate-hz", "100", "--out", "p.toml"])
     assert f"the 58-state filter's {n} steps at --filter-rate-hz 100 over long.h5 ({n} samples" in line, line
     assert "lower --filter-rate-hz" in line, line
 
