@@ -139,3 +139,12 @@ def test_no_issue_numbers_in_the_library():
     hits = [f"{rel(p)}:{i + 1}" for p in modules() for i, line in enumerate(p.read_text().splitlines())
             if re.search(r"\bissue\s*\d|\(issue\b", line, re.I)]
     assert not hits, hits
+
+
+def test_the_longest_test_files_named_for_the_scheduler_exist():
+    """``tests/conftest.py`` starts these files first (``make test``): a name left behind by a rename would
+    silently drop out of the ordering."""
+    from conftest import LONGEST, TESTS
+
+    missing = [name for name in LONGEST if not (TESTS / name).is_file()]
+    assert not missing, missing
