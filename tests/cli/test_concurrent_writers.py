@@ -228,3 +228,17 @@ def test_sigterm_during_calibrate_with_plots_leaves_all_or_nothing(tmp_path):
             assert names == ["p19.h5"], (names, err)
             outcomes.append("none")
     assert "none" in outcomes
+
+
+def test_a_failed_unit_removes_its_folder_even_with_a_write_still_open(tmp_path):
+    """An interrupt Python swallows inside a plot's write (in a callback) leaves that write's temporary open;
+    when the interrupt comes again and the unit fails, the folder it made goes, with the temporary."""
+    from inscal.io.files import make_output_dir
+
+    with pytest.raises(RuntimeError), output_unit():
+        plots = make_output_dir(tmp_path / "plots")
+        write = atomic_path(plots / "a.png")
+        tmp = write.__enter__()  # its exit never runs
+        tmp.write_bytes(b"half a png")
+        raise RuntimeError("interrupted again")
+    assert list(tmp_path.iterdir()) == []

@@ -169,6 +169,8 @@ def output_unit():
             remove_part(tmp)
         for path in unit.claimed:  # their lock files first: a folder made for the unit is empty then
             release_output(path)
+        for tmp in [t for t in _LIVE_PARTS if FsPath(t).parent in unit.made_dirs]:
+            remove_part(tmp)  # a write whose own cleanup never ran (an interrupt Python swallowed inside it)
         for d in reversed(unit.made_dirs):
             with contextlib.suppress(OSError):
                 d.rmdir()  # only if empty: nothing of the user's is removed
