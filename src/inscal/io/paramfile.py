@@ -193,15 +193,7 @@ FIT_KEYS = ("chi2", "dof", "expected_chi2", "dof_effective", "p_value", "consist
 
 def fit_table(fit: dict) -> dict:
     """The ``[fit]`` table of a fit dict (plain TOML types; None and non-finite entries dropped)."""
-
-    def clean(v):
-        if isinstance(v, dict):
-            return {str(k): clean(x) for k, x in v.items() if x is not None}
-        if isinstance(v, (list, tuple)):
-            return [clean(x) for x in v if x is not None]
-        return v
-
-    return clean(to_jsonable({k: fit[k] for k in FIT_KEYS if k in fit}))
+    return fit_table_any({k: fit[k] for k in FIT_KEYS if k in fit})
 
 
 def save_params(path, result, data_file: str | None = None, data_hash: str | None = None,
