@@ -12,7 +12,9 @@ from __future__ import annotations
 import json
 import os
 import re
+import select
 import shlex
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -55,6 +57,8 @@ for line in sys.stdin:
                 except Exception:
                     pass
             os._exit(code)
+    if req.get("announce"):
+        print(json.dumps({"pid": pid}), flush=True)
     deadline = t0 + req["timeout"]
     while True:
         done, status, ru = os.wait4(pid, os.WNOHANG)
@@ -73,27 +77,45 @@ for line in sys.stdin:
 
 class ForkServer:
     """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds"}``; the command's
-    stdout and stderr are in ``logs/stdout`` and ``logs/stderr``."""
+    stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
+    command (:class:`Forked`: its pid, to signal it) instead; one command at a time per server."""
 
     def __init__(self, env: dict | None = None):
         env = dict(os.environ if env is None else env)
         for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             env[var] = "1"
+        # unbuffered bytes: a reply is read a byte at a time, never ahead, so select() on the pipe says
+        # whether the running command's reply is there
         self.proc = subprocess.Popen([sys.executable, "-c", SERVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     text=True, env=env)
+                                     bufsize=0, env=env)
         ready = self.proc.stdout.readline()
-        if ready.strip() != "ready":
+        if ready.strip() != b"ready":
             self.close()
             raise RuntimeError(f"the fork server did not start: {ready!r}")
 
-    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> dict:
-        """``inscal ARGS`` in ``cwd`` (``env``: variables set for this command only)."""
+    def _send(self, args, cwd: Path, logs: Path, timeout: float, env: dict | None, announce: bool) -> None:
         logs.mkdir(parents=True, exist_ok=True)
         req = {"args": [str(a) for a in args], "cwd": str(cwd), "stdout": str(logs / "stdout"),
-               "stderr": str(logs / "stderr"), "timeout": timeout, "env": dict(env or {})}
-        self.proc.stdin.write(json.dumps(req) + "\n")
-        self.proc.stdin.flush()
-        return json.loads(self.proc.stdout.readline())
+               "stderr": str(logs / "stderr"), "timeout": timeout, "env": dict(env or {}), "announce": announce}
+        data = memoryview((json.dumps(req) + "\n").encode())
+        while data:
+            data = data[self.proc.stdin.write(data):]
+
+    def reply(self) -> dict:
+        line = self.proc.stdout.readline()
+        if not line:
+            raise RuntimeError("the fork server ended")
+        return json.loads(line)
+
+    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> dict:
+        """``inscal ARGS`` in ``cwd`` (``env``: variables set for this command only)."""
+        self._send(args, cwd, logs, timeout, env, announce=False)
+        return self.reply()
+
+    def start(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> Forked:
+        """``inscal ARGS`` in ``cwd``, running: ``poll()``, ``send_signal()``, ``wait()`` as for a Popen."""
+        self._send(args, cwd, logs, timeout, env, announce=True)
+        return Forked(self, self.reply()["pid"], logs)
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -109,6 +131,47 @@ class ForkServer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class Forked:
+    """A command running in a fork of a :class:`ForkServer` (a grandchild of the test: the server reaps it and
+    replies with its exit code when it ends)."""
+
+    def __init__(self, server: ForkServer, pid: int, logs: Path):
+        self.server, self.pid, self.logs = server, pid, logs
+        self.result: dict | None = None
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.result is None else self.result["rc"]
+
+    def poll(self) -> int | None:
+        if self.result is None and select.select([self.server.proc.stdout], [], [], 0)[0]:
+            self.result = self.server.reply()
+        return self.returncode
+
+    def send_signal(self, sig: int) -> None:
+        if self.poll() is None:
+            os.kill(self.pid, sig)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def wait(self, timeout: float | None = None) -> int:
+        """The exit code (None: the server killed it at its own time limit); ``timeout``: as for a Popen."""
+        if self.result is None:
+            if timeout is not None and not select.select([self.server.proc.stdout], [], [], timeout)[0]:
+                raise subprocess.TimeoutExpired(str(self.pid), timeout)
+            self.result = self.server.reply()
+        return self.returncode
+
+    def communicate(self, timeout: float | None = None) -> tuple[str, str]:
+        """``(stdout, stderr)`` once it has ended."""
+        self.wait(timeout)
+        return (self.logs / "stdout").read_text(), (self.logs / "stderr").read_text()
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
 
 
 #: what bash would read as more than plain words outside quotes: expansions, globs, redirections, lists
