@@ -15,6 +15,7 @@ from contextlib import contextmanager
 import h5py
 import numpy as np
 import pytest
+from forkserver import ForkServer
 from test_cli_guards import make_record, one_line_error, params_file, run
 from test_signals_under_load import started
 
@@ -102,15 +103,30 @@ def _launch(args, cwd):
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
 
 
+@pytest.fixture(scope="module")
+def servers():
+    """Two fork servers: the two racing commands are forks of two processes that imported the package, so
+    they start within milliseconds of each other."""
+    made = []
+    try:
+        for _ in range(2):
+            made.append(ForkServer(dict(os.environ, PYTHONUNBUFFERED="1")))
+        yield made
+    finally:
+        for server in made:
+            server.close()
+
+
 @pytest.mark.parametrize("name", ["simulate", "compensate", "export"])
-def test_two_processes_racing_for_one_output_leave_one_whole_output(inputs, tmp_path, name):
+def test_two_processes_racing_for_one_output_leave_one_whole_output(inputs, servers, tmp_path, name):
     """Started together, with and without --force: one wins (exit 0), the other says why in one line
     (exit 2: the output is being written, or it exists) and does not replace it."""
     argv = [a.format(out=tmp_path / "x", **inputs) for a in WRITERS[name]]
     out = tmp_path / next(a for a in argv if a.startswith(str(tmp_path / "x"))).rsplit("/", 1)[1]
-    for extra in ([], ["--force"]):
+    for k, extra in enumerate(([], ["--force"])):
         out.unlink(missing_ok=True)
-        procs = [_launch(argv + extra, tmp_path) for _ in range(2)]
+        procs = [server.start(argv + extra, tmp_path, tmp_path.parent / f"{tmp_path.name}-logs-{k}{i}")
+                 for i, server in enumerate(servers)]
         res = [(p.wait(120), *p.communicate()) for p in procs]
         codes = sorted(r[0] for r in res)
         if extra and codes == [0, 0]:  # --force: the second began after the first had finished
@@ -123,19 +139,21 @@ def test_two_processes_racing_for_one_output_leave_one_whole_output(inputs, tmp_
             io.read_record(out) if name != "compensate" else h5py.File(out, "r").close()
 
 
-def test_a_file_that_appears_while_a_command_runs_is_not_replaced(tmp_path):
+def test_a_file_that_appears_while_a_command_runs_is_not_replaced(servers, tmp_path):
     """Without --force, an output created by someone else after the command checked it survives."""
-    proc = _launch(["simulate", "static-24h", "--duration-h", "6", "--out", "x.h5"], tmp_path)
+    proc = servers[0].start(["simulate", "static-24h", "--duration-h", "6", "--out", "x.h5"], tmp_path,
+                            tmp_path.parent / f"{tmp_path.name}-logs")
     try:
         t0 = time.monotonic()
         while not any(p.name.endswith(".part") for p in tmp_path.iterdir()) and time.monotonic() - t0 < 60:
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.02)
         (tmp_path / "x.h5").write_text("the user's own file")
-        out, err = proc.communicate(timeout=120)
+        _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.wait()
     assert proc.returncode == 2, err
     assert err.count("\n") == 1 and "x.h5 appeared while this command ran; not replaced" in err, err
     assert (tmp_path / "x.h5").read_text() == "the user's own file"
