@@ -38,20 +38,21 @@ from inscal.sim.simulate import simulate
 #: OpenBLAS on one thread), longest first: they start first, so that the workers of ``make test``
 #: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them
 LONGEST = (
-    "cli/test_readme_block_2.py",  # 33 s
-    "paper/test_systematic_stats.py",  # 29 s
-    "cli/test_signals_under_load.py",  # 28 s
-    "cli/test_concurrent_writers.py",  # 25 s
-    "cli/test_db_cli.py",  # 20 s
-    "io/test_encoders.py",  # 19 s
-    "lab/test_batch.py",  # 19 s
-    "cli/test_readme_block_0.py",  # 18 s
+    "paper/test_systematic_stats.py",  # 39 s
+    "cli/test_signals_under_load.py",  # 23 s
+    "cli/test_concurrent_writers.py",  # 20 s
+    "io/test_encoders.py",  # 20 s
+    "cli/test_db_cli.py",  # 19 s
     "analysis/test_montecarlo.py",  # 18 s
-    "calibrate/test_noise_matrix.py",  # 17 s
+    "cli/test_readme_block_0.py",  # 18 s
+    "calibrate/test_noise_matrix.py",  # 18 s
+    "lab/test_batch.py",  # 17 s
     "calibrate/test_selection.py",  # 16 s
-    "cli/test_memory_caps.py",  # 14 s
-    "oracles/test_oracle_calibration.py",  # 13 s
-    "calibrate/test_unified.py",  # 13 s
+    "cli/test_readme_block_2.py",  # 16 s
+    "cli/test_memory_caps.py",  # 13 s
+    "oracles/test_oracle_calibration.py",  # 12 s
+    "cli/test_calibrate_caps.py",  # 10 s
+    "cli/test_demo_html.py",  # 9 s
 )
 TESTS = Path(__file__).resolve().parent
 
