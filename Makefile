@@ -43,11 +43,15 @@ demo: $(WSTAMP)
 
 # one BLAS thread per test process: the two workers already fill the two cores, and OpenBLAS threads
 # spin while they wait (the suite took 20 % longer with them); the longest test files start first
-# (tests/conftest.py), so the scopes keep their order instead of xdist's order by number of tests
+# (tests/conftest.py), so the scopes keep their order instead of xdist's order by number of tests.
+# The plugins are named, not found through their packages' entry points: pytest rewrites the asserts of
+# every module of a package it found a plugin in (all of hypothesis: 0.6 s per worker), and of the named
+# plugin module only.
+PLUGINS = -p xdist -p xdist.looponfail -p pytest_postgresql -p hypothesispytest
 test: $(WSTAMP)
 	$(BIN)/lint-imports
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 \
-		$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTEST_DISABLE_PLUGIN_AUTOLOAD=1 \
+		$(BIN)/python -m pytest -q $(PLUGINS) -n 2 --dist loadfile --no-loadscope-reorder
 
 bench: $(BSTAMP) $(WSTAMP)
 	$(BIN)/python bench/run.py

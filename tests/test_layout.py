@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import ast
+import importlib.metadata
 import re
 from pathlib import Path
 
@@ -150,3 +151,15 @@ def test_the_longest_test_files_named_for_the_scheduler_exist():
     longest = ast.literal_eval(node.value)
     missing = [name for name in longest if not (tests / name).is_file()]
     assert longest and not missing, missing
+
+
+def test_make_test_names_every_installed_pytest_plugin():
+    """``make test`` turns the plugins' automatic loading off and names them (``PLUGINS`` in the Makefile): a
+    plugin installed later and not named there would silently not load."""
+    make = (Path(__file__).resolve().parents[1] / "Makefile").read_text()
+    (line,) = [ln for ln in make.splitlines() if ln.startswith("PLUGINS")]
+    named = set(re.findall(r"-p\s+(\S+)", line))
+    installed = {ep.name for dist in importlib.metadata.distributions() for ep in dist.entry_points
+                 if ep.group == "pytest11"}
+    assert installed and installed <= named, sorted(installed - named)
+    assert "PYTEST_DISABLE_PLUGIN_AUTOLOAD=1" in make and "$(PLUGINS)" in make
