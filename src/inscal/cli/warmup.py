@@ -13,7 +13,9 @@ A kernel declared ``inline="always"`` is compiled into its callers, never on its
 The records are the built-in scenarios on shortened paths (the S16 Table 1 sequence with 10 s dwells, the N25
 twelve positions with short dwells, one cycle of the rotation modulation, a static base) plus a custom scenario
 with gyro-accelerometer asynchrony (its kernel runs only for such an IMU).  The Kalman building blocks that no
-command calls (``predict``, ``update``, ``update_dense``: the tests and the benchmark use them) run directly.
+command calls (``predict``, ``update``, ``update_dense``: the tests and the benchmark use them) run directly, and
+so do the square-root and smoother steps, whose entries for a call from Python are not the ones the compiled
+filter passes leave.
 
 With four or more CPUs the systematic filter (the longest compilation by far) compiles in a second process
 beside the rest.  Ctrl-C (or SIGTERM) stops it within a second or so, removing its temporary folder; what
@@ -122,16 +124,19 @@ def _navigate(tmp: Path) -> None:
 
 def _library(tmp: Path) -> None:
     """What no command above reaches: the PSINS gravity formula (``--gravity psins``, a site table's
-    ``gravity = "psins"``), the covariance-form Kalman steps (tests and benchmark) and the bias-instability
+    ``gravity = "psins"``) and the normal gravity called from Python at a latitude alone, the
+    covariance-form Kalman steps (tests and benchmark), the square-root and smoother steps called from Python
+    (the filters call them from their compiled passes, which caches other entries) and the bias-instability
     recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), with the argument types
     their callers use."""
     import numpy as np
 
     from inscal.core import kalman
-    from inscal.core.earth import parse_gravity
+    from inscal.core.earth import normal_gravity, parse_gravity
     from inscal.sim.kernel import gauss_markov_filter
 
     parse_gravity("psins").g(0.5, 10.0)
+    normal_gravity(0.5)
     gauss_markov_filter(np.zeros((2, 3)), 0.5, np.zeros(3))
     n, N = 9, 12
     P = np.eye(N)
@@ -140,6 +145,12 @@ def _library(tmp: Path) -> None:
     K, Sinv, x = np.empty((N, 3)), np.empty((3, 3)), np.empty(N)
     kalman.update(P, idx, np.ones(3), np.zeros(3), K, Sinv, x)
     kalman.update_dense(P, np.eye(N)[:3].copy(), np.eye(3), np.zeros(3), K, Sinv, x)
+    U = np.eye(N)
+    kalman.sr_predict(U, n, np.eye(n), np.zeros((n, N - n)), np.eye(n) * 1e-6)
+    kalman.sr_update(U, idx, np.ones(3), np.zeros(3), K, Sinv, x)
+    lam, Lam = np.zeros(N), np.zeros((N, N))
+    kalman.smoother_step(lam, Lam, idx, K, Sinv, np.zeros(3))
+    kalman.adjoint_back(lam, Lam, n, np.eye(n), np.zeros((n, N - n)))
 
 
 STEP_FUNCTIONS = {"records": _records, "systematic": _systematic, "observability": _observability,
