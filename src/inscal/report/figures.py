@@ -24,11 +24,13 @@ def new_figure():
     return plt
 
 
-def save_figure(fig, path, overwrite: bool = False) -> None:
-
+def save_figure(fig, path, overwrite: bool = False, laid_out: bool = False) -> None:
+    """Write ``fig`` to ``path`` (the format by its suffix; atomic), cropped to what it draws, unless it is
+    ``laid_out`` already (``tight_layout`` or fixed margins): the crop is a second full drawing."""
     path = Path(path)
     with atomic_path(path, overwrite) as tmp:
-        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", dpi=120, bbox_inches="tight")
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", dpi=120,
+                    bbox_inches=None if laid_out else "tight")
 
 
 def allan_plot(path, taus, gyro_adev_deg_h, accel_adev_ug, overwrite: bool = False) -> None:
@@ -180,6 +182,6 @@ def navigation_plot(path, res, title: str = "", gimbal_model=None, overwrite: bo
     plt = new_figure()
     fig = navigation_figure(res, title, gimbal_model)
     try:
-        save_figure(fig, path, overwrite)
+        save_figure(fig, path, overwrite, laid_out=True)
     finally:
         plt.close(fig)

@@ -55,6 +55,6 @@ def history_plot(path, h: History, overwrite: bool = False) -> None:
     plt = new_figure()
     fig = history_figure(h)
     try:
-        save_figure(fig, path, overwrite)
+        save_figure(fig, path, overwrite, laid_out=True)
     finally:
         plt.close(fig)
