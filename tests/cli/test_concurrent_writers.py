@@ -260,3 +260,29 @@ def test_a_failed_unit_removes_its_folder_even_with_a_write_still_open(tmp_path)
         tmp.write_bytes(b"half a png")
         raise RuntimeError("interrupted again")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupt_as_the_temporary_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """A SIGTERM that arrives as ``mkstemp`` returns, its file made but not yet known to any cleanup (a
+    navigate run under load left its ``.part`` so): the temporary and the lock go with the interrupt."""
+    class Hit(Exception):
+        pass
+
+    def handler(signum, frame):
+        raise Hit
+
+    real = io.files.tempfile.mkstemp
+
+    def mkstemp(*args, **kwargs):
+        made = real(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)  # the handler runs at the next bytecode, if the signal is not held
+        return made
+
+    monkeypatch.setattr(io.files.tempfile, "mkstemp", mkstemp)
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        with pytest.raises(Hit), atomic_path(tmp_path / "x.h5") as tmp:
+            tmp.write_text("never")
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert list(tmp_path.iterdir()) == []

@@ -249,10 +249,14 @@ def atomic_path(path, overwrite: bool = False):
     try:
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        tmp = None
         try:
-            _LIVE_PARTS[tmp] = path
-            os.close(fd)
+            # the file and its registration at once: an interrupt between the two (mkstemp returns through
+            # several bytecodes) left a temporary that neither this cleanup nor remove_live_parts knew of
+            with _signals_held():
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+                _LIVE_PARTS[tmp] = path
+                os.close(fd)
             yield FsPath(tmp)
             check_cancel()
             if unit is not None:
@@ -260,7 +264,8 @@ def atomic_path(path, overwrite: bool = False):
             else:
                 _publish(tmp, path, overwrite)
         except BaseException:
-            remove_part(tmp)
+            if tmp is not None:
+                remove_part(tmp)
             raise
     finally:
         if taken and unit is None:
