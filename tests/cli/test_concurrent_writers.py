@@ -20,6 +20,7 @@ from test_cli_guards import make_record, one_line_error, params_file, run
 from test_signals_under_load import started
 
 from inscal import io
+from inscal.cli.interrupts import Interrupted, catch_interrupts, release_interrupts
 from inscal.io.files import OutputBusyError, atomic_path, claim_output, lock_path, output_unit, release_output
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX locks and signals")
@@ -262,27 +263,39 @@ def test_a_failed_unit_removes_its_folder_even_with_a_write_still_open(tmp_path)
     assert list(tmp_path.iterdir()) == []
 
 
-def test_an_interrupt_as_the_temporary_is_made_leaves_nothing(tmp_path, monkeypatch):
-    """A SIGTERM that arrives as ``mkstemp`` returns, its file made but not yet known to any cleanup (a
-    navigate run under load left its ``.part`` so): the temporary and the lock go with the interrupt."""
-    class Hit(Exception):
-        pass
+def _signalling(real, when=lambda *args: True):
+    """``real`` followed by a SIGTERM to this process when ``when(*args)``: the handler runs at the next
+    bytecode unless the step holds the signal."""
 
-    def handler(signum, frame):
-        raise Hit
+    def call(*args, **kwargs):
+        out = real(*args, **kwargs)
+        if when(*args):
+            os.kill(os.getpid(), signal.SIGTERM)
+        return out
 
-    real = io.files.tempfile.mkstemp
+    return call
 
-    def mkstemp(*args, **kwargs):
-        made = real(*args, **kwargs)
-        os.kill(os.getpid(), signal.SIGTERM)  # the handler runs at the next bytecode, if the signal is not held
-        return made
 
-    monkeypatch.setattr(io.files.tempfile, "mkstemp", mkstemp)
-    old = signal.signal(signal.SIGTERM, handler)
+@pytest.mark.parametrize("where", ["temporary", "lock", "folder"])
+def test_an_interrupt_as_a_file_or_folder_is_made_leaves_nothing(tmp_path, monkeypatch, where):
+    """A SIGTERM that arrives as the temporary (``mkstemp``), the lock file (``os.open``) or an output folder
+    (``mkdir``) is made, before the cleanup knows of it (a navigate run under load left its ``.part`` so):
+    with the command line's handler, what was made goes with the interrupt, also where another thread of
+    the process received the signal (as in an xdist worker)."""
+    if where == "temporary":
+        monkeypatch.setattr(io.files.tempfile, "mkstemp", _signalling(io.files.tempfile.mkstemp))
+    elif where == "lock":
+        monkeypatch.setattr(io.files.os, "open", _signalling(os.open, lambda p, *a: str(p).endswith(".lock")))
+    else:
+        monkeypatch.setattr(io.files.FsPath, "mkdir", _signalling(io.files.FsPath.mkdir))
+    monkeypatch.setattr(io.files, "_CANCEL", [])  # the handler's cancellation, for this test only
+    old = catch_interrupts()
     try:
-        with pytest.raises(Hit), atomic_path(tmp_path / "x.h5") as tmp:
-            tmp.write_text("never")
+        with pytest.raises(Interrupted), output_unit():
+            folder = io.files.make_output_dir(tmp_path / "plots")
+            with atomic_path(folder / "x.h5") as tmp:
+                tmp.write_text("never")
     finally:
-        signal.signal(signal.SIGTERM, old)
+        release_interrupts(old)
+        monkeypatch.undo()
     assert list(tmp_path.iterdir()) == []

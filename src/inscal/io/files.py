@@ -26,6 +26,8 @@ _LIVE_PARTS: dict[str, FsPath] = {}
 REMOVED_PARTS: list[tuple[str, FsPath]] = []
 #: a pending cancellation (the exception to raise), set by :func:`cancel`
 _CANCEL: list[BaseException] = []
+#: one entry per :func:`_signals_held` block running
+_HOLDS: list[bool] = []
 
 
 def cancel(exc: BaseException) -> None:
@@ -74,25 +76,26 @@ def claim_output(path) -> bool:
     if key in _CLAIMS or fcntl is None:
         return False
     lock = lock_path(path)
-    while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+    with _signals_held():  # the lock file and its registration at once (an interrupt between them left the file)
+        while True:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+                os.close(fd)
+                raise OutputBusyError(f"{path} is being written by another process (pid {holder}, lock "
+                                      f"{lock.name}); wait for it to finish or choose another output") from None
+            try:  # its releasing holder may have removed the file between our open and flock: retry on the new one
+                same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
             os.close(fd)
-            raise OutputBusyError(f"{path} is being written by another process (pid {holder}, lock {lock.name}); "
-                                  "wait for it to finish or choose another output") from None
-        try:  # its releasing holder may have removed the file between our open and flock: retry on the new one
-            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
-    _CLAIMS[key] = (str(lock), fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        _CLAIMS[key] = (str(lock), fd)
     return True
 
 
@@ -185,24 +188,38 @@ def make_output_dir(path) -> FsPath:
     (when empty) if the unit fails."""
     path = FsPath(path)
     if not path.is_dir():
-        path.mkdir()
-        if _UNITS:
-            _UNITS[-1].made_dirs.append(path)
+        with _signals_held():  # the folder and its registration at once
+            path.mkdir()
+            if _UNITS:
+                _UNITS[-1].made_dirs.append(path)
     return path
+
+
+def holding() -> bool:
+    """Whether a step that an interrupt must not cut is running (a file made and registered, outputs
+    renamed into place): the command line's SIGINT/SIGTERM handler then records the interrupt
+    (:func:`cancel`) instead of raising it, and the step raises it when it ends."""
+    return bool(_HOLDS)
 
 
 @contextmanager
 def _signals_held():
-    """SIGINT/SIGTERM held off (delivered when the block ends) in the main thread."""
+    """SIGINT/SIGTERM held off until the block ends: blocked in the main thread, and, for a signal another
+    thread of the process received (Python runs the handler in the main thread all the same), deferred by
+    the handler (:func:`holding`); an interrupt recorded meanwhile is raised when the outermost block ends
+    (:func:`check_cancel`)."""
     sigs = {signal.SIGINT, signal.SIGTERM}
-    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    main = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs) if main else None
+    _HOLDS.append(True)
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        _HOLDS.pop()
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    if not _HOLDS:  # the outermost block: an inner one ends inside a step still running
+        check_cancel()
 
 
 def _publish(tmp: str, path: FsPath, overwrite: bool) -> None:
@@ -243,9 +260,10 @@ def atomic_path(path, overwrite: bool = False):
     if not path.parent.exists():
         raise FileNotFoundError(f"folder {path.parent} does not exist")
     unit = _UNITS[-1] if _UNITS else None
-    taken = claim_output(path)
-    if taken and unit is not None:
-        unit.claimed.append(path)
+    with _signals_held():  # the unit knows of the lock before an interrupt can end it (it releases the lock)
+        taken = claim_output(path)
+        if taken and unit is not None:
+            unit.claimed.append(path)
     try:
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
