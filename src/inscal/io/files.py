@@ -26,7 +26,7 @@ _LIVE_PARTS: dict[str, FsPath] = {}
 REMOVED_PARTS: list[tuple[str, FsPath]] = []
 #: a pending cancellation (the exception to raise), set by :func:`cancel`
 _CANCEL: list[BaseException] = []
-#: one entry per :func:`_signals_held` block running
+#: one entry per :func:`_signals_held` block running in the main thread
 _HOLDS: list[bool] = []
 
 
@@ -204,13 +204,15 @@ def holding() -> bool:
 
 @contextmanager
 def _signals_held():
-    """SIGINT/SIGTERM held off until the block ends: blocked in the main thread, and, for a signal another
-    thread of the process received (Python runs the handler in the main thread all the same), deferred by
-    the handler (:func:`holding`); an interrupt recorded meanwhile is raised when the outermost block ends
-    (:func:`check_cancel`)."""
+    """SIGINT/SIGTERM held off in the main thread until the block ends (Python runs signal handlers there
+    only; another thread's block holds nothing): blocked, and, for a signal another thread of the process
+    received, deferred by the handler (:func:`holding`); an interrupt recorded meanwhile is raised when the
+    outermost block ends (:func:`check_cancel`)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     sigs = {signal.SIGINT, signal.SIGTERM}
-    main = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs) if main else None
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs) if hasattr(signal, "pthread_sigmask") else None
     _HOLDS.append(True)
     try:
         yield
