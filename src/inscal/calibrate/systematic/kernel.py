@@ -84,6 +84,8 @@ class PassInputs(NamedTuple):
     r: np.ndarray  # (6,) velocity/position measurement variances
     hist_every: int  # steps between stored history rows
     nis_cap: float  # bounded influence: R inflated where a step's NIS exceeds it (inf: plain updates)
+    q_factor: np.ndarray  # (M,) factor on the accelerometer white-noise PSD of each step (model-error term; 1: none)
+    r_factor: np.ndarray  # (M,) factor on R of each step (a frozen outlier weight; 1: none)
     tdT: np.ndarray  # (n,) thermal states: T - T_ref of each sample [degC] (empty without them)
     trate: np.ndarray  # (n,) ... and dT/dt [degC/s]
 
@@ -162,7 +164,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
-    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, tdT, trate = inp
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate = inp
     Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th = par
     thermal = tdT.shape[0] > 0
     K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st = st
@@ -235,6 +237,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     xs = np.empty(N)
     z = np.empty(6)
     rs = np.empty(6)
+    rsk = np.empty(6)
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
     have_enc = enc.shape[0] > 0
@@ -334,7 +337,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         nav_F(lat0, h0, fn, F, g_scale)
         phinn = phinn_st[k]
         phinp = phinp_st[k]
-        discretise(F, T, qgm, qam, sig, F2, phinn, Qd)
+        discretise(F, T, qgm, qam * qf[k], sig, F2, phinn, Qd)  # qf: the velocity model-error term (driver)
         step_moments(Cb, Bb, Wm, start, src, CW, R)
         parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
         filters.sr_predict(U, 9, phinn, phinp, Qd)
@@ -365,8 +368,13 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _TH0:_TH1] = th.ravel()
         # bounded influence: a step the model cannot fit (a misfit during moves, an outlier) is
         # down-weighted to NIS = nis_cap instead of dragging the constants with a tiny R
-        nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rs, z, K, Si, xs, nis_cap)
-        rw_st[k] = alpha
+        if rf[k] != 1.0:  # a frozen outlier weight (the driver's robust scheme)
+            for a in range(6):
+                rsk[a] = rs[a] * rf[k]
+            nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rsk, z, K, Si, xs, nis_cap)
+        else:
+            nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rs, z, K, Si, xs, nis_cap)
+        rw_st[k] = alpha * rf[k]
         K_st[k] = K
         Si_st[k] = Si
         for a in range(6):
@@ -584,11 +592,15 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
              keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
-             nis_cap: float = np.inf, temperature=None) -> PassOutput:
+             nis_cap: float = np.inf, temperature=None, q_factor=None, r_factor=None) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
     the adjoint recursion for the smoothed states, at the start and the stored steps (:func:`smooth_pass` adds
     their covariances).
     ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`; inf: plain updates).
+    ``q_factor`` (M,): a factor >= 1 on the accelerometer white-noise PSD of each step (the velocity model-error
+    term of the driver's robust scheme; None: 1 everywhere, the plain noise model); ``r_factor`` (M,): a factor
+    >= 1 on R of each step (frozen outlier weights; None: 1).  The stored NIS and ``S^-1`` are those of the
+    weighted update; ``r_factor`` of the output is the factor each step's R had (``nis_cap`` included).
     Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
     (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring).  Thermal states:
     ``temperature = (dT, rate)``, ``T - T_ref`` [degC] and dT/dt [degC/s] of every sample."""
@@ -629,7 +641,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     tdT, trate = _temperature_inputs(states, temperature, dth.shape[0])
     inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
-                     qa, r, int(hist_every), float(nis_cap), tdT, trate)
+                     qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate)
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     rw = np.ones(M)
     st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw)
@@ -654,6 +666,16 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     if smooth:
         smooth_pass(out)
     return out
+
+
+def _step_factors(q_factor, M: int) -> np.ndarray:
+    """The per-step factors on the accelerometer noise of a pass of ``M`` steps (ones when None)."""
+    if q_factor is None:
+        return np.ones(M)
+    qf = np.ascontiguousarray(q_factor, dtype=float)
+    if qf.shape[0] < M or not np.all(qf[:M] >= 1.0):
+        raise CalibrationError(f"model-error factors: {M} factors >= 1 needed, got shape {qf.shape}")
+    return qf[:M].copy()
 
 
 def _temperature_inputs(states: StateSet, temperature, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -701,7 +723,7 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
     tdT, trate = _temperature_inputs(states, temperature, n)
     inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                      np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
-                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, tdT, trate)
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate)
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
                    one(REF_WIDTH), one(N), out, np.ones(1))
