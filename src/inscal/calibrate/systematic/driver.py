@@ -28,6 +28,7 @@ from inscal.calibrate.systematic.model_error import initial as no_model_error
 from inscal.calibrate.systematic.model_error import note as model_error_note
 from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
+from inscal.calibrate.systematic.sensitivity import forcings, parameter_shift, tolerances
 from inscal.calibrate.systematic.record_stats import (
     column_quantum,
     first_turn,
@@ -52,7 +53,7 @@ from inscal.calibrate.systematic.thermal_states import T_REF_C, sample_inputs, t
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
-from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.error_model import GimbalErrors, ImuErrors, parameter_components
 from inscal.core.stats import chi2_sf
 from inscal.core.thermal import RATE_WINDOW_S
 from inscal.nav.align import coarse_align
@@ -72,6 +73,8 @@ LAST_BOUNDED_PASS = 4
 FACTOR_CHANGE = 100.0
 #: an estimate further than this many prior sigma from its nominal ends the run (convergence_verdict)
 PRIOR_EXCESS = 5.0
+#: runs asked for fewer passes than this are deliberate first iterates: only a diverged navigation ends them
+MIN_VERDICT_PASSES = 4
 #: a position innovation beyond this [m] on a static site ends the run (the navigation diverged)
 STATIC_POSITION_LIMIT = 10.0
 #: default interval between the stored history rows [s]
@@ -168,20 +171,51 @@ def float32_rounding(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
     return out
 
 
+def inputs_assumed(out, site, sig, gain: np.ndarray, J: np.ndarray, sigma: np.ndarray, names, T: float) -> dict:
+    """The site latitude and the time-scale accuracy the reported sigma assume
+    (:mod:`inscal.calibrate.systematic.sensitivity`): how far each may be off before the largest shift of a
+    parameter reaches its sigma, from the last pass's gains.  ``gain``: the driver's change of prior (``P_post
+    Pf^-1``), ``J`` the canonical Jacobian, ``sigma`` the reported canonical sigma."""
+    lat = site.latitude
+    h = 1e-4
+    dg = (site.gravity_model.g(lat + h, site.height) - site.gravity_model.g(lat - h, site.height)) / (2 * h)
+    sm = out.smoother
+    shift = parameter_shift(sm.K_st, sm.phinn_st, sm.phinp_st, out.steps, np.asarray(sig, float),
+                            forcings(lat, site.gravity, dg), T)
+    can = J @ (gain @ shift)
+    tol_lat, tol_time, i_lat, i_time = tolerances(can, sigma)
+    labels = [f"{n}[{c}]" if c else n for n in names for c in parameter_components(n)]
+    lat_deg = math.degrees(tol_lat)
+    r_earth = 6.371e6
+    note = (f"inputs the fit cannot check: the sigma assume the site latitude right to {lat_deg:.2g} deg "
+            f"({tol_lat * r_earth:.3g} m; {labels[i_lat]} moves by its sigma beyond that) and the sample rate right to "
+            f"{tol_time * 1e6:.3g} ppm ({labels[i_time]})")
+    return {"latitude_deg": lat_deg, "latitude_m": tol_lat * r_earth, "latitude_parameter": labels[i_lat],
+            "time_scale_ppm": tol_time * 1e6, "time_scale_parameter": labels[i_time],
+            "shift_per_deg_latitude": dict(zip(labels, (can[:, 0] * math.pi / 180.0).tolist())),
+            "shift_per_ppm_time_scale": dict(zip(labels, (can[:, 1] * 1e-6).tolist())),
+            "rule": "the largest |shift| / sigma of a canonical parameter reaches 1 (linear, from the last pass's "
+                    "gains: inscal.calibrate.systematic.sensitivity)", "note": note}
+
+
 class NotConverged(CalibrationError):
     """The passes did not settle, an estimate left its prior far behind, or the navigation wandered off the static
     site: the last iterate is no calibration (``accept_unconverged`` keeps it, with a note)."""
 
 
 def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.ndarray, labels: list,
-                        position_max: float) -> str:
+                        position_max: float, truncated: bool = False) -> str:
     """Why a run's last iterate is not a calibration, in one clause ("" when it is): passes that did not
     settle (oscillating or drifting, with the last changes in sigma), an estimate beyond
     :data:`PRIOR_EXCESS` prior sigma of its nominal, or a position innovation beyond
-    :data:`STATIC_POSITION_LIMIT` on a static site."""
+    :data:`STATIC_POSITION_LIMIT` on a static site.  A ``truncated`` run (fewer than :data:`MIN_VERDICT_PASSES`
+    passes asked for: a deliberate first iterate, as the observability report and the demo run) is judged on
+    its position innovations only."""
     if position_max > STATIC_POSITION_LIMIT:
         return (f"position innovations reach {position_max:.3g} m on a static site (limit {STATIC_POSITION_LIMIT:g} m): "
                 "the navigation diverged (a wrong path, rate or site, or an error far beyond the model)")
+    if truncated:
+        return ""
     worst = int(np.argmax(np.abs(prior_z))) if prior_z.size else 0
     if prior_z.size and abs(prior_z[worst]) > PRIOR_EXCESS:
         return (f"the estimate of {labels[worst]} lies {abs(prior_z[worst]):.3g} prior sigma from its nominal (limit "
@@ -348,7 +382,6 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     passes = []
     p_start = start
     prev = None
-    prev_factors = None
     converged = False
     inv_prior = 1.0 / sig_par**2
     sig_pass = sig.copy()
@@ -357,6 +390,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     qam = float(np.mean(qa))
     for ip in range(max_passes):
         out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
+        sig_used = sig_pass
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
                            keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig,
@@ -396,23 +430,18 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         C0 = dcm_from_rotvec(-phi0) @ C0
         if first is None:  # its history needs only the smoothed states at the stored rows (run_pass has them)
             first = (out.without_stores() if max_passes > 1 else out, sig_pass.copy())
-        same = prev_factors is not None and np.array_equal(prev_factors, np.concatenate([me.q_factor, me.r_factor]))
         change = None if prev is None else float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)), "change_max_sigma": change,
-                       "downweighted_steps": int(np.sum(out.r_factor[:out.steps] > 1.0)),
+                       "downweighted_steps": int(np.sum(out.r_factor[:out.steps] > me.r_factor[:out.steps])),
                        "model_error": me.as_dict() | {"frozen": bool(frozen)},
                        "prior_deflation": float(np.max(sig_par / sp)),
                        "prior_excess_sigma": float(np.max(np.abs(est.error_state(st, nominal)) / sig_par))})
-        if change is not None and same and change < tol:
-            converged = True
-            p_start = est
-            break
-        # the passes before the model-error term exists run with bounded influence (R inflated where a step's NIS
-        # passes the cap): a safety net against a numerical failure; a pass it capped compares with none.  The
-        # first pass linearises about the nominal parameters, and its innovations show that start, not the record:
-        # the factors come from the second pass on
+        # The passes before the model-error term exists run with bounded influence (R inflated where a step's NIS
+        # passes the cap): a safety net against a numerical failure.  The first pass linearises about the nominal
+        # parameters, and its innovations show that start, not the record: the factors come from the second pass
+        # on, once a pass changed the estimate by less than FACTOR_CHANGE sigma.
         capped = bool(np.any(out.r_factor[:out.steps] > me.r_factor[:out.steps]))
-        prev_factors = None if capped else np.concatenate([me.q_factor, me.r_factor])
+        kept = True  # this pass's factors stay for the next one
         near = change is not None and change < FACTOR_CHANGE  # this pass linearised near its end point
         if not frozen and ip + 1 >= FIRST_FACTOR_PASS and (near or ip + 1 >= LAST_BOUNDED_PASS):
             updates += 1  # the model-error factors of the next pass, from this pass's innovations (model_error)
@@ -422,10 +451,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
             new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor, cap)
             if new.settled:
-                frozen = True  # the factors this pass ran with stand: the next pass can be compared with this one
+                frozen = True  # the factors this pass ran with stand
             else:
-                me = new
+                me, kept = new, False
                 frozen = updates >= WEIGHT_PASSES
+        # converged: this pass ran with the weights that stay (no step capped, factors kept) and moved the estimate
+        # by less than tol sigma from its start, the previous pass's estimate: it is the fixed point of one weighted
+        # least-squares problem to the tolerance (the previous pass's weights do not enter)
+        if change is not None and change < tol and kept and not capped:
+            converged = True
+            p_start = est
+            break
         prev = est
         p_start = est
         # next pass: prior widths of at most DEFLATE posterior sigmas about the new start (its
@@ -433,7 +469,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         sig_pass = sig.copy()
         sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
     verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[N_NAV:],
-                                  float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0)
+                                  float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
+                                  truncated=max_passes < MIN_VERDICT_PASSES)
     if verdict and not accept_unconverged:
         raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
                            "or --accept-unconverged to keep the last iterate")
@@ -464,8 +501,18 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     per_step[last.r_factor[:last.steps] > 1.0] = 6.0
     expected = float(np.sum(per_step))
     fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
+    if any(f > 1.0 for f in me.group_factor.values()):
+        # the chi2 is of the model with its velocity model-error term, estimated to fit: the model as given
+        # misfits the record beyond its noise (model_error), which the fit says; the sigma of the weighted
+        # filter carry the misfit already (not scaled again unless the chi2 itself rejects)
+        fit["consistent"] = False
+        fit["cause"] = fit["cause"] or "model error: the record misfits the model beyond its noise"
+        fit["model_error"] = me.as_dict()
+        fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(moving)))
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
+    assumed = None if st.gimbal else inputs_assumed(last, site, sig_used, P_post @ Pf_inv, J, sflat * fit["scale"],
+                                                    names, T)
     diag = {
         "states": st.n_states, "state_options": state_spec(st), "frame": "accelerometer-defined (PSINS triangular)"
         if st.psins else "gyro-defined (S16 m-frame)",
@@ -488,6 +535,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         "initial_attitude_deg": np.degrees(euler_of(C0)).tolist(),
     }
     diag["fit"] = fit
+    diag["inputs_assumed"] = assumed
     diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
                                           "outlier_cap": None if not math.isfinite(cap) else cap,
                                           "shared": weights is not None}
@@ -501,8 +549,10 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                      "(--accept-unconverged)")
     if fit["note"]:
         notes.append(fit["note"])
+    if assumed is not None:
+        notes.append(assumed["note"])
     me_note = model_error_note(me, int(np.sum(moving)))
-    if me_note:
+    if me_note and me_note not in (fit["note"] or ""):
         notes.append(me_note)
     if unobs_note:
         notes.append(unobs_note)

@@ -90,15 +90,15 @@ def _chi2(res: CalibrationResult) -> tuple[float, int]:
     return float(inn["chi2"]), int(inn["dof"])
 
 
-#: relative chi2 drop below zero that still counts as equal fits (the smaller model's fit ends where the larger
-#: one's would with its extra terms at zero, to the passes' tolerance)
-NESTING_TOL = 1e-6
+#: a chi2 of the smaller model below the larger one's by more than this (in units of the test statistic, after the
+#: dispersion) is a violated nesting; less is the round-off of two equal fits (the term adds nothing: statistic 0)
+NESTING_TOL = 1.0
 
 
 def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResult, dk: int,
           alpha: float) -> Decision:
     """The nested test of ``small`` against ``large`` (module docstring).  A smaller fit that did not converge
-    is not compared, nor one whose chi2 is below the larger model's beyond :data:`NESTING_TOL` (a violated
+    is not compared, nor one whose chi2 is below the larger model's by more than :data:`NESTING_TOL` (a violated
     nesting is no evidence for dropping anything): the term stays in both cases."""
     c_s, _ = _chi2(small)
     c_l, dof = _chi2(large)
@@ -106,7 +106,7 @@ def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResu
     keep = step == "add"  # a term that stays: accepted when it is an added one, not accepted (kept) when droppable
     if not small.diagnostics.get("convergence", {}).get("converged", True):
         return Decision(step, term, c_s, c_l, dk, phi, float("nan"), float("nan"), keep, "not converged")
-    if c_s < c_l * (1.0 - NESTING_TOL):
+    if (c_l - c_s) / phi > NESTING_TOL:
         return Decision(step, term, c_s, c_l, dk, phi, (c_s - c_l) / phi, float("nan"), keep, "nesting violated")
     stat = max(0.0, (c_s - c_l) / phi)
     p = chi2_sf(stat, dk)
