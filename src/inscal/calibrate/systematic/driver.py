@@ -432,7 +432,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             first = (out.without_stores() if max_passes > 1 else out, sig_pass.copy())
         change = None if prev is None else float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))
         passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)), "change_max_sigma": change,
-                       "downweighted_steps": int(np.sum(out.r_factor[:out.steps] > me.r_factor[:out.steps])),
+                       "downweighted_steps": int(np.sum(out.q_used[:out.steps] > me.q_factor[:out.steps])),
+                       "position_innovation_max_m": float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
                        "model_error": me.as_dict() | {"frozen": bool(frozen)},
                        "prior_deflation": float(np.max(sig_par / sp)),
                        "prior_excess_sigma": float(np.max(np.abs(est.error_state(st, nominal)) / sig_par))})
@@ -440,7 +441,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         # passes the cap): a safety net against a numerical failure.  The first pass linearises about the nominal
         # parameters, and its innovations show that start, not the record: the factors come from the second pass
         # on, once a pass changed the estimate by less than FACTOR_CHANGE sigma.
-        capped = bool(np.any(out.r_factor[:out.steps] > me.r_factor[:out.steps]))
+        capped = bool(np.any(out.q_used[:out.steps] > me.q_factor[:out.steps]))
         kept = True  # this pass's factors stay for the next one
         near = change is not None and change < FACTOR_CHANGE  # this pass linearised near its end point
         if not frozen and ip + 1 >= FIRST_FACTOR_PASS and (near or ip + 1 >= LAST_BOUNDED_PASS):
@@ -449,7 +450,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             D = sig_pass[3:N_NAV]
             S_raw = np.linalg.inv(Si) * np.outer(D, D)[None]
             expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
-            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor, cap)
+            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor,
+                                 out.q_used, cap)
             if new.settled:
                 frozen = True  # the factors this pass ran with stand
             else:
@@ -498,7 +500,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     rs_scaled = r / sig[3:N_NAV] ** 2
     Si_diag = np.diagonal(last.smoother.Si_st[:last.steps], axis1=1, axis2=2)
     per_step = 6.0 - Si_diag @ rs_scaled
-    per_step[last.r_factor[:last.steps] > 1.0] = 6.0
+    per_step[last.q_used[:last.steps] > me.q_factor[:last.steps]] = 6.0  # bounded steps (a jump): their own
+    # NIS is that of the nominal model
     expected = float(np.sum(per_step))
     fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
     if any(f > 1.0 for f in me.group_factor.values()):

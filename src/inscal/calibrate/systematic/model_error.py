@@ -123,17 +123,18 @@ def _solve_log(fun, target: float, lo: float = 0.0, hi: float = math.log(MAX_FAC
 
 
 def update_factors(prev: ModelError, S: np.ndarray, z: np.ndarray, expected: np.ndarray, moving: np.ndarray,
-                   qam: float, T: float, r: np.ndarray, r_used: np.ndarray, cap: float) -> ModelError:
+                   qam: float, T: float, r: np.ndarray, r_used: np.ndarray, q_used: np.ndarray,
+                   cap: float) -> ModelError:
     """The factors after a pass: its per-step innovation covariances ``S`` (M, 6, 6) and innovations ``z`` (M, 6)
     (raw units), the NIS expectations (``6 - tr(S^-1 R)``), the moving-step mask, the mean accelerometer PSD
-    ``qam``, the step ``T`` [s], the measurement variances ``r`` (6,), the factor on R each step ran with
-    (``r_used``) and the outlier cap (module docstring).  The unit-factor covariance of each step is its ``S``
+    ``qam``, the step ``T`` [s], the measurement variances ``r`` (6,), the factors on R and on the accelerometer
+    noise each step ran with (``r_used``, ``q_used``: the bounded passes' jumps included) and the outlier cap (module docstring).  The unit-factor covariance of each step is its ``S``
     less its model-error and outlier parts; the group factor solves ``median(NIS / expected) = median(chi2_6) / 6``
     over the group, an outlier's factor on R brings its NIS to ``cap`` times the group's level."""
     M = z.shape[0]
     Qv = step_noise(qam, T)
     Rm = np.diag(np.asarray(r, float))
-    S1 = S - (prev.q_factor[:M] - 1.0)[:, None, None] * Qv[None] - (r_used[:M] - 1.0)[:, None, None] * Rm[None]
+    S1 = S - (q_used[:M] - 1.0)[:, None, None] * Qv[None] - (r_used[:M] - 1.0)[:, None, None] * Rm[None]
     gf = {}
     q = np.ones(M)
     level = np.ones(M)  # each step's group scale at its new factor, at most 1: the outliers' NIS is relative to it
