@@ -49,7 +49,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None) -> dict:
+               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None,
+               topic: str | None = None, stamps: str = "header", config: Path | None = None) -> dict:
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
@@ -65,11 +66,14 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"--encoder-latency must be finite, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if (msg := input_problem(src, "file")) is not None:
+    if fmt == "rosbag" and src.is_dir():  # a ROS 2 bag is a folder
+        if not (src / "metadata.yaml").is_file():
+            raise CliError(f"{src}: a ROS 2 bag folder holds metadata.yaml, and this one has none")
+    elif (msg := input_problem(src, "file")) is not None:
         raise CliError(msg)
     check_output(out, force)
     check_not_input(out, src, role="source file")
-    check_not_input(out, mapping, path, gimbal, temperature)
+    check_not_input(out, mapping, path, gimbal, temperature, config)
     try:
         site = _site(lat, lon, height, mapping, fmt)
         gmodel = None
@@ -79,7 +83,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
             gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
-                           gravity=gmodel, temperature_file=temperature)
+                           gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
+                           config_file=config)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -116,8 +121,9 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
 def register(app: typer.Typer) -> None:
     @app.command("import")
     def import_(
-        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text)"),
-        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt"),
+        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text, KF-GINS text, "
+                                   "ROS 1 .bag, ROS 2 bag folder)"),
+        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt | rosbag | kf-gins"),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
         mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
         path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
@@ -144,13 +150,20 @@ def register(app: typer.Typer) -> None:
         temperature: Path = typer.Option(None, "--temperature", help="temperature readings at their own times: a header "
                                          "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
                                          "then rows on the source's clock"),
+        topic: str = typer.Option(None, "--topic", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
+                                  "one; the topics are listed otherwise)"),
+        stamps: str = typer.Option("header", "--stamps", help="rosbag: the samples' time: header (the messages' "
+                                   "header.stamp) | receive (when the bag recorded them)"),
+        config: Path = typer.Option(None, "--config", help="kf-gins: its YAML configuration (imunoise block and "
+                                    "imudatarate, kept with the record)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
+        """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature)
+                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
+                             topic, stamps, config)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -171,6 +184,12 @@ def register(app: typer.Typer) -> None:
             extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
         if res["time_regridded"]:
             extra.append("time regridded")
+        if (bag := res.get("bag")) is not None:
+            extra.append(f"topic {bag['topic']} ({bag['storage']}, {bag['stamps']} stamps, {bag['messages']} messages)")
+        if (ig := res.get("integration")) is not None:
+            b = ig["error_bound"]
+            extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
+                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s")
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
