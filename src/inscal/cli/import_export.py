@@ -91,17 +91,57 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
 
 
+def _is_record(p: Path) -> bool:
+    """True for an HDF5 file (a record), False for anything else (a parameter file)."""
+    try:
+        with open(p, "rb") as fh:
+            return fh.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return True
+
+
+def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = False) -> dict:
+    from inscal.io.exports.calibration import export_calibration
+    from inscal.io.paramfile import ParamFileError
+
+    check_output(out, force)
+    check_not_input(out, params, role="parameter file")
+    if fmt == "c":
+        if out.suffix != ".c":
+            raise CliError(f"{out}: --format c writes NAME.c and NAME.h: give --out NAME.c")
+        check_output(out.with_suffix(".h"), force)
+        check_not_input(out.with_suffix(".h"), params, role="parameter file")
+    try:
+        return export_calibration(params, out, fmt, overwrite=force)
+    except (ParamFileError, FileExistsError, FileNotFoundError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
+
+
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
                force: bool = False, temperature_out: Path | None = None) -> dict:
+    from inscal.io.exports.calibration import CALIBRATION_FORMATS
     from inscal.io.files import input_problem
     from inscal.io.importers import export_record
     from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
-    if fmt not in EXPORT_FORMATS:
-        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+    known = list(EXPORT_FORMATS) + [f for f in CALIBRATION_FORMATS if f not in EXPORT_FORMATS]
+    if fmt not in known:
+        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(known)}")
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
+    if not _is_record(data):  # a parameter file
+        if fmt not in CALIBRATION_FORMATS:
+            raise CliError(f"{data} is not a record (HDF5); a parameter file exports as "
+                           f"{' | '.join(CALIBRATION_FORMATS)}")
+        if gimbal_out or path_out or temperature_out:
+            raise CliError("--gimbal-out, --path-out and --temperature-out apply to a record")
+        return run_export_calibration(data, fmt, out, force)
+    if fmt not in EXPORT_FORMATS:
+        raise CliError(f"{data} is a record; --format {fmt} exports a parameter file (a record exports as "
+                       f"{' | '.join(EXPORT_FORMATS)})")
     named = {"the outputs": out, "--gimbal-out": gimbal_out, "--path-out": path_out, "--temperature-out": temperature_out}
     outs = [(what, p) for what, p in named.items() if p is not None]
     for _, p in outs:
@@ -198,8 +238,9 @@ def register(app: typer.Typer) -> None:
 
     @app.command("export")
     def export(
-        data: Path = typer.Argument(..., help="HDF5 record"),
-        fmt: str = typer.Option(..., "--format", "-f", help="csv | psins | mat"),
+        data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
+        fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
+                                "file: kalibr | imucal | kf-gins | c"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
@@ -211,13 +252,19 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t) or .mat."""
+        """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
+        KF-GINS text; or a calibration in Kalibr's, imucal's or KF-GINS's convention, or as C99 source."""
         try:
             res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             print_json(res)
+        elif "params" in res:
+            typer.echo(f"exported {res['params']} ({res['format']}) -> {', '.join(res['files'])}")
+            if res["dropped"]:
+                typer.echo(f"inscal: warning: {res['format']} cannot hold {', '.join(res['dropped'])} (non-zero in "
+                           f"{res['params']}): compensating with the export differs from inscal compensate", err=True)
         else:
             typer.echo(f"exported {res['samples']} samples ({res['format']}) -> {res['out']}"
                        + (f"; gimbal angles -> {gimbal_out}" if gimbal_out else "")

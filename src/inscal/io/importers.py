@@ -447,7 +447,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,
                   chunk_size: int = 1 << 18, temperature_out=None) -> dict:
-    """Export the record ``data`` as ``csv``, ``psins`` (.bin float64) or ``mat`` (atomic writes).
+    """Export the record ``data`` as ``csv``, ``psins`` (.bin float64), ``mat`` or ``kf-gins`` (KF-GINS IMU text:
+    rows ``t dtheta dvel`` [s, rad, m/s], 17 digits) (atomic writes).
 
     ``gimbal_out``: a CSV of ``time, outer, inner`` [s, rad, rad] (psins / mat only; the csv
     export carries the angles in its own columns).  ``path_out``: the record's rotation path
@@ -557,7 +558,7 @@ def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, g
                 scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
             return
         temp = info.temperature if fmt == "csv" else None
-        with open(tmp, "w" if fmt == "csv" else "wb") as fh:
+        with open(tmp, "w" if fmt in ("csv", "kf-gins") else "wb") as fh:
             if fmt == "csv":
                 head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
                 head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
@@ -577,6 +578,8 @@ def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, g
                     if temp is not None:
                         cols.append(_temperature_block(temp, rows, k0, t))
                     write_rows(fh, np.column_stack(cols), blanks=blanks)
+                elif fmt == "kf-gins":  # KF-GINS IMU text: t, dtheta, dvel (s, rad, m/s)
+                    np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")
                 else:
                     np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
                 if gfh is not None:

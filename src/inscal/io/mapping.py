@@ -19,7 +19,7 @@ from inscal.io.tomlfile import read_toml
 FORMATS = ("psins", "psins-imu", "csv", "txt", "mat", "rosbag", "kf-gins")
 #: formats whose mapping may only hold a [site] table
 SITE_ONLY = ("psins", "mat", "rosbag", "kf-gins")
-EXPORT_FORMATS = ("csv", "psins", "mat")
+EXPORT_FORMATS = ("csv", "psins", "mat", "kf-gins")
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 
