@@ -195,7 +195,7 @@ def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "flo
         return read_mat(p, variable, rates)
     if fmt == "psins-imu":
         return read_psins_imu(p)
-    return read_text(p, mapping, fmt)
+    return read_text(p, mapping, fmt, rate_hz)
 
 
 def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,

@@ -384,8 +384,9 @@ def _parse_table(p: FsPath, m: Mapping, blank: dict | None = None,
     raise ImportFileError(f"{p}: cannot parse the data rows")  # pragma: no cover - loadtxt and the scan disagree
 
 
-def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
-    """A delimited text file read through ``mapping`` (None: the inscal export layout)."""
+def read_text(path, mapping: Mapping | None, fmt: str = "csv", rate_hz: float | None = None) -> Raw:
+    """A delimited text file read through ``mapping`` (None: the inscal export layout); ``rate_hz``: the
+    grid of ``kind = "sampled-rates"`` (default their mean rate)."""
     p = FsPath(path)
     given = mapping is not None
     if mapping is None:
@@ -454,19 +455,19 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
                               line_no, (m.temperature_unit,) * len(cols),
                               "set [units] temperature = \"{unit}\" in the mapping" if given else "", str(p))
     if m.kind == "sampled-rates":
-        return _sampled_rates(p, t, gyro, accel, gim, temp, labels, at)
+        return _sampled_rates(p, t, gyro, accel, gim, temp, labels, at, rate_hz)
     return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl, axes=m.axes, time_unit=m.time_unit,
                time_fix=fix, temperature=temp)
 
 
-def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at) -> Raw:
+def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at, rate_hz: float | None) -> Raw:
     """Rates sampled at their own stamps (``kind = "sampled-rates"``) -> increments on a uniform grid
     (:mod:`inscal.io.formats.rates`; the stamps checked first)."""
     if gim is not None or temp is not None:
         raise ImportFileError(f"{p}: kind = \"sampled-rates\" takes no gimbal or temperature columns (import them "
                               "with --gimbal / --temperature at their own times)")
     check_stamps(t, str(p), "sample", at)
-    integ = integrate_rates(t, gyro, accel)
+    integ = integrate_rates(t, gyro, accel, rate_hz)
     inc_labels = tuple(lab.replace("gx", "dthx").replace("gy", "dthy").replace("gz", "dthz") for lab in labels)
     return Raw(integ.time, integ.gyro, integ.accel, "increments", None, inc_labels, None, "",
                np.column_stack([integ.gyro, integ.accel]), integration=integ)
