@@ -18,10 +18,19 @@ Sources
 ``csv``    delimited text described by a mapping TOML (below); without a mapping, the file
 ``txt``    must start with the header line that :func:`export_record` writes.  ``txt``
            defaults to whitespace-separated columns.
+``rosbag`` a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
+           messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
+           rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
+           error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+``kf-gins`` KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
+           block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
 
 Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 
-    kind = "increments"            # default; or "rates" (then multiplied by the sample interval)
+    kind = "increments"            # default; or "rates" (then multiplied by the sample interval), or
+                                   #   "sampled-rates": rates at their own (jittered) time stamps, integrated
+                                   #   onto a uniform grid (--rate-hz; default their mean rate) by the rule
+                                   #   of inscal.io.formats.rates
     delimiter = ","                # one character, or "whitespace"; default "," (csv), whitespace (txt)
     header_rows = 1                # default 0; lines before the data (names are read from the last one)
     comment = "#"                  # default; lines starting with it (and blank lines) are skipped
@@ -48,6 +57,9 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
     # gyro_scale = "0.1 arcsec"    #   a rate unit for rates) or a number in SI (rad, rad/s per count)
     # accel = "counts"             #   likewise for the accelerometers (m/s or m/s^2 per count)
     # accel_scale = 1e-6
+    # gyro_bits = 24               # raw words: their width (a count beyond it is refused), read as
+    # gyro_twos_complement = true  #   unsigned 0 .. 2^bits - 1 two's complement words when true;
+    # gyro_offset = 0              #   value = scale * (count - offset) (likewise accel_*)
     gimbal = "deg"                 # deg | rad; required with the outer/inner columns
     temperature = "degC"           # degC (default) | K | degF, converted to degC
     [site]                         # optional; --lat/--lon/--height override it
