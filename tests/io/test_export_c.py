@@ -137,3 +137,32 @@ def test_generated_c_equals_inscal_compensate(case):
     # and the compensation did something at every term's size: far from the raw increments
     assert np.abs(ref.dvel - rec.dvel).max() > 1e3 * 1e-12 * np.abs(rec.dvel).max()
     assert math.isfinite(float(got.sum()))
+
+
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc, gcc or clang) on PATH")
+def test_generated_c_without_thermal_or_neighbours(tmp_path):
+    """A linear calibration (no thermal model, no lever arm, no asynchrony): the other branches of the
+    template, compiled as strictly, equal ``ImuErrors.compensate_increments`` on random samples."""
+    imu = IMU.replace(accel_lever_arm=np.zeros((3, 3)), time_asynchrony=0.0)
+    params = tmp_path / "lin.toml"
+    params.write_text(tomli_w.dumps({"kind": "inscal-parameters", "schema_version": 1, "method": "manual",
+                                     "parameters": errors_to_field(imu)}))
+    code, _, err = invoke("export", params, "--format", "c", "--out", tmp_path / "comp.c")
+    assert code == 0, err
+    assert "#define INSCAL_HAS_THERMAL 0" in (tmp_path / "comp.h").read_text()
+    assert "#define INSCAL_NEEDS_NEIGHBOURS 0" in (tmp_path / "comp.h").read_text()
+    (tmp_path / "main.c").write_text(DRIVER)
+    exe = tmp_path / "run"
+    r = subprocess.run([CC, "-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-o", str(exe),
+                        str(tmp_path / "comp.c"), str(tmp_path / "main.c"), "-lm"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    rng = np.random.default_rng(4)
+    n, dt = 300, 0.01
+    dth, dv = rng.uniform(-0.03, 0.03, (n, 3)), rng.normal(0, 0.2, (n, 3)) + [0, 0, 0.098]
+    rows = np.column_stack([dth, dv, np.full(n, 99.0), np.zeros(n)])  # a temperature the C ignores
+    np.concatenate([[n, dt], rows.ravel()]).astype("<f8").tofile(tmp_path / "in.bin")
+    r = subprocess.run([str(exe), str(tmp_path / "in.bin"), str(tmp_path / "out.bin")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    got = np.fromfile(tmp_path / "out.bin", dtype="<f8").reshape(n, 6)
+    want = np.column_stack(imu.compensate_increments(dt, dth, dv))
+    assert np.abs(got - want).max(axis=0).max() <= 1e-12 * np.abs(want).max()
