@@ -424,7 +424,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     if raw.integration is not None:
         ri = raw.integration
         integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
-                 "samples": int(ri.time.shape[0]) + 1 if ri.on_grid else None, "grid_rate_hz": ri.rate_hz,
+                 "grid_rate_hz": ri.rate_hz,
                  "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max,
                  "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
     attrs = {"file": src.name, "hash": bag_hash(src) if fmt == "rosbag" else file_hash(src), "format": fmt,
