@@ -66,17 +66,19 @@ def test_kalibr_round_trip(tmp_path):
     assert json.loads(out)["dropped"] == []
     doc = YAML(typ="safe", pure=True).load((tmp_path / "imu.yaml").read_text())["imu0"]
     assert doc["model"] == "scale-misalignment"
-    Ma, Mg, A, Cgi, Cis = (np.array(doc[k]) for k in ("M_accel", "M_gyro", "A", "C_gyro_i", "inscal_C_i_s"))
-    ba, bg = np.array(doc["inscal_b_accel"]), np.array(doc["inscal_b_gyro"])
+    acc, gyr, ins = doc["accelerometers"], doc["gyroscopes"], doc["inscal"]
+    Ma, Mg, A, Cgi, Cis = (np.array(x) for x in (acc["M"], gyr["M"], gyr["A"], gyr["C_gyro_i"], ins["C_i_s"]))
+    ba, bg = np.array(ins["b_accel"]), np.array(ins["b_gyro"])
     # Kalibr's structure: lower-triangular scale-misalignment matrices, rotations
     assert np.all(np.triu(Ma, 1) == 0) and np.all(np.triu(Mg, 1) == 0)
     for C in (Cgi, Cis):
         assert np.allclose(C @ C.T, np.eye(3), atol=1e-15) and np.linalg.det(C) > 0
     dth, dv = raw_samples()
     am, wm = dv / DT, dth / DT
-    # Kalibr (Rehder et al. 2016): a_i = M_accel^-1 (a_m - b_a); w_i = C_gyro_i^T M_gyro^-1 (w_m - b_g - A a_i)
+    # Kalibr (Rehder et al. 2016; kalibr's ScaledMisalignedImu: w = M C_gyro_i w_i + Ma C_gyro_i a_i + b):
+    # a_i = M_accel^-1 (a_m - b_a); w_i = C_gyro_i^T M_gyro^-1 (w_m - b_g - A C_gyro_i a_i)
     a_i = np.linalg.solve(Ma, (am - ba).T).T
-    w_i = (Cgi.T @ np.linalg.solve(Mg, (wm - bg - a_i @ A.T).T)).T
+    w_i = (Cgi.T @ np.linalg.solve(Mg, (wm - bg - a_i @ Cgi.T @ A.T).T)).T
     # back to inscal's s-frame
     f_s, w_s = a_i @ Cis, w_i @ Cis
     cdth, cdv = inscal_compensated(LINEAR, dth, dv)
@@ -93,8 +95,8 @@ def test_kalibr_size_effect_within_the_stated_frame_error(tmp_path):
     res = json.loads(out)
     doc = YAML(typ="safe", pure=True).load((tmp_path / "imu.yaml").read_text())["imu0"]
     assert doc["model"] == "scale-misalignment-size-effect"
-    Cis = np.array(doc["inscal_C_i_s"])
-    r = np.array([doc["rx_i"], doc["ry_i"], doc["rz_i"]])
+    Cis = np.array(doc["inscal"]["C_i_s"])
+    r = np.array([doc["accelerometers"][k] for k in ("rx_i", "ry_i", "rz_i")])
     # positions are the lever arms in Kalibr's frame: r_k = C_i_s p_k
     np.testing.assert_allclose(r @ Cis, lever, rtol=0, atol=1e-16)
     # static size effect (w-dot = 0): Kalibr's e_k^i . (w x (w x r_k)) vs inscal's e_k^s . (w x (w x p_k))

@@ -76,18 +76,6 @@ def _damaged(p: Path, exc: Exception) -> ImportFileError:
     return ImportFileError(f"{p}: a damaged or truncated bag ({msg.splitlines()[0] if msg else type(exc).__name__})")
 
 
-def bag_topics(path) -> dict[str, tuple[str, int]]:
-    """``{topic: (message type, message count)}`` of a bag."""
-    p = Path(path)
-    try:
-        with _reader(p) as r:
-            return {name: (info.msgtype or "?", int(info.msgcount)) for name, info in r.topics.items()}
-    except ImportFileError:
-        raise
-    except Exception as exc:  # the library's ReaderError, struct / sqlite / yaml errors of a damaged file
-        raise _damaged(p, exc) from None
-
-
 def _describe(topics: dict) -> str:
     return ", ".join(f"{t} ({typ}, {n} messages)" for t, (typ, n) in sorted(topics.items())) or "none"
 
