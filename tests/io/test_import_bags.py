@@ -132,11 +132,12 @@ def test_bag_increments_equal_the_records_within_the_rules_bound(smooth, kind):
     rec = io.read_record(out)
     assert rec.n_samples == ref.n_samples and rec.rate_hz == RATE
     np.testing.assert_allclose(rec.time, ref.time, rtol=0, atol=1e-12)
-    # trapezoid rule: |error| <= h^3 / 12 max|x''| per channel, and the reported bound is that one
+    # trapezoid rule: |error| <= h^3 / 12 max|x''| per channel; the reported bound (max|x''| estimated
+    # from the samples) covers that one and is not loose
     h = 1.0 / RATE
     bound = h ** 3 / 12 * max_second_derivative()
     reported = np.array(ig["error_bound"]["dtheta_rad"] + ig["error_bound"]["dvel_m_s"])
-    np.testing.assert_allclose(reported, bound, rtol=0.01)
+    assert np.all(reported >= bound) and np.all(reported <= 1.5 * bound), reported / bound
     err = np.abs(np.column_stack([rec.dtheta - ref.dtheta, rec.dvel - ref.dvel])).max(axis=0)
     assert np.all(err <= bound * (1 + 1e-9)), (err, bound)
     assert np.all(err >= 0.5 * bound)  # and the bound is tight: the rule is second order, not better
@@ -167,6 +168,8 @@ def test_jittered_stamps_and_receive_times(smooth, tmp_path):
     err = np.abs(np.column_stack([rec.dtheta - dth, rec.dvel - dv])).max(axis=0)
     assert np.all(err <= bound), (err, bound)
     assert np.all(err > 0.01 * bound)
+    reported = np.array(ig["error_bound"]["dtheta_rad"] + ig["error_bound"]["dvel_m_s"])
+    assert np.all(reported >= bound) and np.all(reported <= 1.5 * bound), reported / bound
     # receive times: another time base (shifted by the latency, jittered by it)
     code, so, se = invoke("import", bag, "--format", "rosbag", "--out", tmp_path / "r.h5", *SITE, "--rate-hz", RATE,
                           "--stamps", "receive", "--json")

@@ -19,8 +19,12 @@ the trapezoid rule's ``h^3/12 max|x''|``)::
     |dX_j - integral of x over [T_(j-1), T_j]|  <=  D h_max^2 / 8 * max|x''|      (D = 1/rate)
                                                  <=  D^3 / 12 * max|x''|           stamps on the grid
 
-``max|x''|`` is estimated from the samples' second divided differences; :class:`RateIntegration`
-reports the resulting bound per channel, in the increments' units.  The rule needs no stamp on the
+``max|x''|`` is estimated from the samples: the largest second divided difference (each is ``x''`` at
+some point of its three samples' span), widened by twice the largest change between neighbouring
+ones (``x''`` between the points it was sampled at, to first order); :class:`RateIntegration` reports
+the resulting bound per channel, in the increments' units.  On noisy data the divided differences
+measure the noise (``~ sigma / h^2``), and the bound says the rule's error is below the noise's share
+of an increment.  The rule needs no stamp on the
 grid and so absorbs a jittered rate; a duplicated stamp, a stamp going backwards and a gap of more
 than :data:`GAP_FACTOR` median steps (dropped messages) are refused by :func:`check_stamps`, each named
 with the message and its time.
@@ -117,6 +121,8 @@ def integrate_rates(t, gyro, accel, rate_hz: float | None = None) -> RateIntegra
     # max |x''| from the second divided differences
     dd = np.diff(np.diff(x, axis=0) / h[:, None], axis=0) / (0.5 * (h[:-1] + h[1:]))[:, None]
     curv = np.max(np.abs(dd), axis=0) if dd.shape[0] else np.zeros(6)
+    if dd.shape[0] > 1:
+        curv = curv + 2.0 * np.max(np.abs(np.diff(dd, axis=0)), axis=0)
     on_grid = bool(np.allclose(t[1:m + 1] - t[0], np.arange(1, m + 1) / rate, rtol=0, atol=1e-9 / rate))
     dgrid = 1.0 / rate
     bound = (dgrid ** 3 / 12.0 if on_grid else dgrid * h_max ** 2 / 8.0) * curv
