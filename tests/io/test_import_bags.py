@@ -39,7 +39,7 @@ def invoke(*args):
     return r.exit_code, r.stdout, r.stderr
 
 
-def imu_msg(ts, ns: int, w, f, seq: int = 0):
+def imu_msg(ts, ns: int, w, f, seq: int = 0, no_gyro: bool = False):
     T = ts.types
     stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
     H = T["std_msgs/msg/Header"]
@@ -48,11 +48,12 @@ def imu_msg(ts, ns: int, w, f, seq: int = 0):
     z = np.zeros(9)
     return T["sensor_msgs/msg/Imu"](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
                                     orientation_covariance=z, angular_velocity=V(x=w[0], y=w[1], z=w[2]),
-                                    angular_velocity_covariance=z, linear_acceleration=V(x=f[0], y=f[1], z=f[2]),
+                                    angular_velocity_covariance=np.r_[-1.0, np.zeros(8)] if no_gyro else z,
+                                    linear_acceleration=V(x=f[0], y=f[1], z=f[2]),
                                     linear_acceleration_covariance=z)
 
 
-def write_bag(path: Path, kind: str, stamps_ns, w, f, receive_ns=None, topic="/imu/data", extra=()):
+def write_bag(path: Path, kind: str, stamps_ns, w, f, receive_ns=None, topic="/imu/data", extra=(), no_gyro=False):
     """A bag of ``sensor_msgs/Imu`` messages (header stamps ``stamps_ns``, received at ``receive_ns``)
     written with the library's writer for ``kind``; ``extra``: (topic, msgtype, [messages]) more."""
     receive_ns = stamps_ns if receive_ns is None else receive_ns
@@ -66,7 +67,7 @@ def write_bag(path: Path, kind: str, stamps_ns, w, f, receive_ns=None, topic="/i
         if topic is not None:
             c = wr.add_connection(topic, "sensor_msgs/msg/Imu", typestore=ts)
             for k, (ns, rns) in enumerate(zip(stamps_ns, receive_ns)):
-                wr.write(c, int(rns), ser(imu_msg(ts, int(ns), w[k], f[k], k), "sensor_msgs/msg/Imu"))
+                wr.write(c, int(rns), ser(imu_msg(ts, int(ns), w[k], f[k], k, no_gyro), "sensor_msgs/msg/Imu"))
         for t, typ, msgs in extra:
             conns.append(wr.add_connection(t, typ, typestore=ts))
             for k, m in enumerate(msgs):
@@ -331,6 +332,10 @@ def _truncated(kind):
     return make
 
 
+def _no_gyro_bag(path):
+    return write_bag(path, "sqlite3", EPOCH + np.arange(40) * H_NS, *rates(np.arange(40) / RATE), no_gyro=True)
+
+
 @pytest.mark.parametrize("make, name, needle", [
     (_string_bag, "s.bag", "no sensor_msgs/Imu topic; its topics: /chatter (std_msgs/msg/String, 2 messages)"),
     (_truncated("ros1"), "t.bag", "a damaged or truncated bag"),
@@ -338,6 +343,7 @@ def _truncated(kind):
     (_backwards_bag, "b.bag", "stamps go backwards at message 12"),
     (_duplicate_bag, "dup", "duplicated stamp at message 16"),
     (_gap_bag, "gap", "3 message(s) dropped before message 21"),
+    (_no_gyro_bag, "nog", "40 of 40 messages say they carry no angular_velocity"),
 ])
 def test_damaged_bags_are_one_line_exit_2_nothing_written(tmp_path, make, name, needle):
     bag = make(tmp_path / name)

@@ -4,7 +4,8 @@ library (no ROS installation).
 
 A ``sensor_msgs/Imu`` message (REP 145) gives ``angular_velocity`` [rad/s] and
 ``linear_acceleration`` [m/s^2, the specific force: +g up at rest] in the frame ``header.frame_id``
-at the instant ``header.stamp``; the covariances and the orientation are not read.  The channels
+at the instant ``header.stamp``; the orientation is not read, and a message whose covariance says a
+field is absent (its first element -1) is refused rather than read as zeros.  The channels
 are taken axis for axis as the IMU's axes (ROS's body convention is x forward, y left, z up, REP 103).
 The time of each sample is its header stamp, or with ``stamps="receive"`` the time the bag recorded
 it (the receive time, which carries the transport's latency and jitter).  Stamps are read as
@@ -100,19 +101,26 @@ def read_bag_samples(path, topic: str | None = None, stamps: str = "header") -> 
                 raise ImportFileError(f"{p}: topic {topic!r} holds {topics[topic][0]}, not {IMU_TYPE}; its topics: "
                                       f"{_describe(topics)}")
             conns = [c for c in r.connections if c.topic == topic]
-            ns, g, a = [], [], []
+            ns, g, a, absent = [], [], [], [0, 0]
             for conn, recv, raw in r.messages(connections=conns):
                 msg = r.deserialize(raw, conn.msgtype)
                 ns.append(recv if stamps == "receive" else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
                 w, f = msg.angular_velocity, msg.linear_acceleration
                 g.append((w.x, w.y, w.z))
                 a.append((f.x, f.y, f.z))
+                # REP 145: a covariance whose first element is -1 says the field is not provided
+                absent[0] += msg.angular_velocity_covariance[0] == -1
+                absent[1] += msg.linear_acceleration_covariance[0] == -1
     except ImportFileError:
         raise
     except Exception as exc:  # the library's ReaderError, struct / sqlite / yaml errors of a damaged file
         raise _damaged(p, exc) from None
     if len(ns) < 3:
         raise ImportFileError(f"{p}: topic {topic} has {len(ns)} message(s); at least 3 are needed")
+    for k, name in enumerate(("angular_velocity", "linear_acceleration")):
+        if absent[k]:
+            raise ImportFileError(f"{p}: topic {topic}: {absent[k]} of {len(ns)} messages say they carry no {name} "
+                                  f"({name}_covariance[0] = -1, REP 145)")
     ns = np.asarray(ns, dtype=np.int64)
     epoch = int(ns[0])
     t = (ns - epoch).astype(float) * 1e-9
