@@ -366,6 +366,32 @@ def test_counts_beyond_their_bit_width_are_refused(tmp_path):
     assert set(tmp_path.iterdir()) == before
 
 
+def test_temperature_topic(tmp_path):
+    """A sensor_msgs/Temperature topic at 2 Hz beside the IMU's: the record's temperature, its readings at
+    their stamps on the IMU's clock; a topic of another type is refused with the topics listed."""
+    k = np.arange(N + 1)
+    Temp, H, Time = (TS2.types[n] for n in ("sensor_msgs/msg/Temperature", "std_msgs/msg/Header",
+                                            "builtin_interfaces/msg/Time"))
+    tk = EPOCH + 3_000_000 + np.arange(12) * 500_000_000  # 2 Hz, 3 ms after the first IMU stamp
+    readings = 20.0 + 0.25 * np.arange(12)
+    msgs = [Temp(header=H(stamp=Time(sec=int(ns // 10**9), nanosec=int(ns % 10**9)), frame_id="imu"),
+                 temperature=float(v), variance=0.0) for ns, v in zip(tk, readings)]
+    bag = write_bag(tmp_path / "tb", "sqlite3", EPOCH + k * H_NS, *rates(k / RATE),
+                    extra=[("/imu/temperature", "sensor_msgs/msg/Temperature", msgs)])
+    code, so, se = invoke("import", bag, "--format", "rosbag", "--out", tmp_path / "t.h5", *SITE,
+                          "--temperature-topic", "/imu/temperature", "--json")
+    assert code == 0, se
+    rec = io.read_record(tmp_path / "t.h5")
+    assert rec.temperature.sensors == ("imu/temperature",)
+    np.testing.assert_allclose(rec.temperature.time, (tk - EPOCH) * 1e-9, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rec.temperature.values[:, 0], readings)
+    assert json.loads(so)["bag"]["temperature_topic"] == "/imu/temperature"
+    code, _, se = invoke("import", bag, "--format", "rosbag", "--out", tmp_path / "u.h5", *SITE,
+                         "--temperature-topic", "/imu/data")
+    assert code == 2 and "temperature topic '/imu/data' holds sensor_msgs/msg/Imu, not sensor_msgs/msg/Temperature" in se
+    assert not (tmp_path / "u.h5").exists()
+
+
 def test_topic_choice(smooth, tmp_path):
     d, _, bags = smooth
     code, _, se = invoke("import", bags["ros1"], "--format", "rosbag", "--topic", "/nope", "--out", tmp_path / "o.h5",
@@ -373,4 +399,4 @@ def test_topic_choice(smooth, tmp_path):
     assert code == 2 and "no topic '/nope'; its topics: /imu/data (sensor_msgs/msg/Imu, 601 messages)" in se
     code, _, se = invoke("import", bags["ros1"], "--format", "csv", "--topic", "/imu/data", "--out", tmp_path / "o.h5",
                          *SITE)
-    assert code == 2 and "--topic and --stamps apply to --format rosbag" in se
+    assert code == 2 and "--topic, --stamps and --temperature-topic apply to --format rosbag" in se

@@ -50,7 +50,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
                gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None,
-               topic: str | None = None, stamps: str = "header", config: Path | None = None) -> dict:
+               topic: str | None = None, stamps: str = "header", config: Path | None = None,
+               temperature_topic: str | None = None) -> dict:
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
@@ -84,7 +85,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
                            gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
-                           config_file=config)
+                           config_file=config, temperature_topic=temperature_topic)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -194,6 +195,8 @@ def register(app: typer.Typer) -> None:
                                   "one; the topics are listed otherwise)"),
         stamps: str = typer.Option("header", "--stamps", help="rosbag: the samples' time: header (the messages' "
                                    "header.stamp) | receive (when the bag recorded them)"),
+        temperature_topic: str = typer.Option(None, "--temperature-topic", help="rosbag: a sensor_msgs/Temperature "
+                                              "topic (degC) for the record's temperature"),
         config: Path = typer.Option(None, "--config", help="kf-gins: its YAML configuration (imunoise block and "
                                     "imudatarate, kept with the record)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
@@ -203,7 +206,7 @@ def register(app: typer.Typer) -> None:
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
                              rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
-                             topic, stamps, config)
+                             topic, stamps, config, temperature_topic)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -151,7 +151,7 @@ from inscal.io.checks import (
 from inscal.io.encoders import apply_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
-from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag
+from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
 from inscal.io.formats import (
     Raw,
     RawTemperature,
@@ -360,7 +360,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
                 gravity=None, temperature_file=None, topic: str | None = None, stamps: str = "header",
-                config_file=None) -> dict:
+                config_file=None, temperature_topic: str | None = None) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
     ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
     wherever the site comes from (the options, the mapping's ``[site]`` or a PSINS ``.imu`` header)
@@ -369,6 +369,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     (:func:`~inscal.io.formats.read_temperature_file`); ``temperature`` in the summary: the sensors, the
     number of readings, whether they are on the record's grid, their source and time span.
     ``topic``, ``stamps``: a ROS bag's IMU topic and its time (``header`` stamps or ``receive`` times);
+    ``temperature_topic``: its ``sensor_msgs/Temperature`` topic, the record's temperature;
     ``config_file``: a KF-GINS configuration whose ``imunoise`` block (and ``imudatarate``) come with a
     ``kf-gins`` import (kept in the record's ``source`` attribute, SI).  ``integration`` in the summary:
     for rates sampled at their stamps (a bag, ``kind = "sampled-rates"``), the grid and the rule's
@@ -376,8 +377,10 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     src = Path(src)
     if fmt not in FORMATS:
         raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
-    if fmt != "rosbag" and (topic is not None or stamps != "header"):
-        raise ImportFileError("--topic and --stamps apply to --format rosbag")
+    if fmt != "rosbag" and (topic is not None or stamps != "header" or temperature_topic is not None):
+        raise ImportFileError("--topic, --stamps and --temperature-topic apply to --format rosbag")
+    if temperature_topic is not None and temperature_file is not None:
+        raise ImportFileError("--temperature-topic and --temperature would give the temperature twice")
     if stamps not in STAMPS:
         raise ImportFileError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
     if config_file is not None and fmt != "kf-gins":
@@ -401,6 +404,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
     raw = read_source(src, fmt, mapping, dtype, variable, rates, topic, stamps, rate_hz)
+    if temperature_topic is not None:
+        tfile = read_bag_temperature(src, temperature_topic, raw.source_info["bag"]["epoch_ns"], stamps)
     if mapping_file is not None and fmt in ("csv", "txt"):
         safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
         raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
@@ -436,6 +441,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
              "temperature_file": None if temperature_file is None else str(temperature_file)}
     if raw.source_info is not None:
         attrs.update(raw.source_info)
+    if temperature_topic is not None:
+        attrs["bag"] = {**attrs["bag"], "temperature_topic": temperature_topic}
     if integ is not None:
         attrs["integration"] = integ
     if noise is not None:

@@ -17,7 +17,9 @@ The rates are integrated onto a uniform grid by the second-order rule of
 duplicated stamp, a stamp going backwards and dropped messages.
 
 The topic: the one ``sensor_msgs/Imu`` topic of the bag, or the one named; a bag without one, or
-with several and none named, is refused with the list of its topics and their types.
+with several and none named, is refused with the list of its topics and their types.  A
+``sensor_msgs/Temperature`` topic (``temperature`` [degC]) can give the record's temperature, its
+readings at their own stamps on the IMU samples' clock (:func:`read_bag_temperature`).
 """
 
 from __future__ import annotations
@@ -29,11 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from inscal.io.files import file_hash
-from inscal.io.formats import Raw
+from inscal.io.formats import Raw, RawTemperature
 from inscal.io.formats.rates import check_stamps, integrate_rates
 from inscal.io.mapping import ImportFileError
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
+TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
 STAMPS = ("header", "receive")
 
 
@@ -159,3 +162,34 @@ def bag_hash(path) -> str:
     for f in sorted(x for x in p.iterdir() if x.is_file()):
         h.update(f.name.encode() + b"\0" + file_hash(f).encode() + b"\0")
     return "sha256:" + h.hexdigest()
+
+
+def read_bag_temperature(path, topic: str, epoch_ns: int, stamps: str = "header") -> RawTemperature:
+    """The ``sensor_msgs/Temperature`` readings [degC] of ``topic`` at their stamps (``stamps`` as for the
+    IMU), in seconds from ``epoch_ns`` (the IMU's first stamp), as readings at their own times; a
+    stamp that does not increase is refused."""
+    p = Path(path)
+    try:
+        with _reader(p) as r:
+            topics = {name: (info.msgtype or "?", int(info.msgcount)) for name, info in r.topics.items()}
+            if topics.get(topic, ("",))[0] != TEMPERATURE_TYPE:
+                what = f"holds {topics[topic][0]}, not {TEMPERATURE_TYPE}" if topic in topics else "is not in the bag"
+                raise ImportFileError(f"{p}: temperature topic {topic!r} {what}; its topics: {_describe(topics)}")
+            ns, val = [], []
+            for conn, recv, raw in r.messages(connections=[c for c in r.connections if c.topic == topic]):
+                msg = r.deserialize(raw, conn.msgtype)
+                ns.append(recv if stamps == "receive" else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+                val.append(msg.temperature)
+    except ImportFileError:
+        raise
+    except Exception as exc:  # the library's ReaderError, struct / sqlite / yaml errors of a damaged file
+        raise _damaged(p, exc) from None
+    t = (np.asarray(ns, dtype=np.int64) - int(epoch_ns)).astype(float) * 1e-9
+    where = f"{p} topic {topic}"
+    if t.shape[0] and np.any(np.diff(t) <= 0):
+        k = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise ImportFileError(f"{where}: the stamp of message {k + 1} (t = {t[k]:.9f} s) does not follow "
+                              f"{t[k - 1]:.9f} s")
+    name = topic.strip("/") or topic
+    return RawTemperature(t, np.asarray(val, dtype=float)[:, None], (name,), (f"temperature {name!r}",),
+                          None, ("degC",), "", where)
