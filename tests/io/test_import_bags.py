@@ -23,6 +23,7 @@ from inscal.calibrate.result import param_value
 from inscal.cli.app import app
 from inscal.core.earth import Site
 from inscal.core.error_model import ImuNoise
+from inscal.io.formats.rosbag import decode_imu
 from inscal.core.units import DEG, HOUR
 from inscal.sim import scenarios
 from inscal.sim.simulate import write_simulation
@@ -45,12 +46,11 @@ def imu_msg(ts, ns: int, w, f, seq: int = 0, no_gyro: bool = False):
     H = T["std_msgs/msg/Header"]
     header = H(seq=seq, stamp=stamp, frame_id="imu") if "seq" in H.__dataclass_fields__ else H(stamp=stamp, frame_id="imu")
     V = T["geometry_msgs/msg/Vector3"]
-    z = np.zeros(9)
     return T["sensor_msgs/msg/Imu"](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-                                    orientation_covariance=z, angular_velocity=V(x=w[0], y=w[1], z=w[2]),
-                                    angular_velocity_covariance=np.r_[-1.0, np.zeros(8)] if no_gyro else z,
+                                    orientation_covariance=np.zeros(9), angular_velocity=V(x=w[0], y=w[1], z=w[2]),
+                                    angular_velocity_covariance=np.r_[-1.0, np.zeros(8)] if no_gyro else np.zeros(9),
                                     linear_acceleration=V(x=f[0], y=f[1], z=f[2]),
-                                    linear_acceleration_covariance=z)
+                                    linear_acceleration_covariance=np.zeros(9))
 
 
 def write_bag(path: Path, kind: str, stamps_ns, w, f, receive_ns=None, topic="/imu/data", extra=(), no_gyro=False):
@@ -117,6 +117,39 @@ def smooth(tmp_path_factory):
     bags = {kind: write_bag(d / ("a.bag" if kind == "ros1" else f"b_{kind}"), kind, EPOCH + k * H_NS, w, f)
             for kind in KINDS}
     return d, io.read_record(d / "ref.h5"), bags
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_fixed_offset_decoder_equals_the_librarys(smooth, tmp_path, kind):
+    """The reader's fixed-offset decoding of sensor_msgs/Imu equals rosbags' deserializer, message for
+    message (frame ids of several lengths: the CDR padding), and declines other layouts."""
+    from rosbags.highlevel import AnyReader
+
+    k = np.arange(12)
+    bag = tmp_path / ("f.bag" if kind == "ros1" else "f")
+    w, f = rates(k / RATE)
+    ts = TS1 if kind == "ros1" else TS2
+    ser = ts.serialize_ros1 if kind == "ros1" else ts.serialize_cdr
+    seen = 0
+    for frame in ("", "i", "imu", "imu_link", "base_imu_link_0"):
+        m = imu_msg(ts, EPOCH + 123, w[1], f[1], 7)
+        m.header.frame_id = frame
+        m.angular_velocity_covariance[0] = -1.0
+        raw = bytes(ser(m, "sensor_msgs/msg/Imu"))
+        got = decode_imu(raw, kind == "ros1")
+        assert got == ((EPOCH + 123) // 10**9, (EPOCH + 123) % 10**9, tuple(w[1]), -1.0, tuple(f[1]), 0.0)
+        seen += 1
+    assert decode_imu(raw[:-8], kind == "ros1") is None and decode_imu(raw + b"\0" * 8, kind == "ros1") is None
+    with AnyReader([smooth[2][kind]]) as r:
+        for conn, _, raw in r.messages():
+            msg = r.deserialize(raw, conn.msgtype)
+            v = decode_imu(raw, kind == "ros1")
+            assert v == (msg.header.stamp.sec, msg.header.stamp.nanosec, (msg.angular_velocity.x,
+                         msg.angular_velocity.y, msg.angular_velocity.z), msg.angular_velocity_covariance[0],
+                         (msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
+                         msg.linear_acceleration_covariance[0])
+            seen += 1
+    assert seen == 5 + N + 1
 
 
 @pytest.mark.parametrize("kind", KINDS)
