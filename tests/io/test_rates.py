@@ -70,3 +70,11 @@ def test_stamp_checks_name_the_message(t, needle):
     with pytest.raises(ImportFileError, match=None) as exc:
         check_stamps(np.array(t), "bag", "message")
     assert needle in str(exc.value)
+
+
+def test_a_grid_rate_far_from_the_stamps_is_refused():
+    t = np.arange(101) * 0.01
+    w, f = signal(t)
+    assert integrate_rates(t, w, f, 100.05).rate_hz == 100.05  # a clock 500 ppm off: accepted
+    with pytest.raises(ImportFileError, match="--rate-hz 200 is inconsistent with the stamps: 100 Hz on average"):
+        integrate_rates(t, w, f, 200.0)

@@ -40,6 +40,8 @@ from inscal.io.mapping import ImportFileError
 
 #: a step longer than this many median steps is a gap: messages were dropped
 GAP_FACTOR = 1.5
+#: a given grid rate may differ from the stamps' mean rate by this fraction (a clock's drift)
+RATE_TOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -103,6 +105,10 @@ def integrate_rates(t, gyro, accel, rate_hz: float | None = None) -> RateIntegra
     n = t.shape[0]
     rate = grid_rate(t) if rate_hz is None else float(rate_hz)
     span = t[-1] - t[0]
+    mean = (n - 1) / span
+    if not (np.isfinite(rate) and abs(rate / mean - 1.0) <= RATE_TOL):
+        raise ImportFileError(f"--rate-hz {rate:g} is inconsistent with the stamps: {mean:.9g} Hz on average "
+                              f"(limit {RATE_TOL:g} relative; the grid would resample the rates)")
     m = int(np.floor(span * rate * (1.0 + 1e-12)))
     if m < 2:
         raise ImportFileError(f"the stamps span {span:.6g} s: fewer than 2 intervals at {rate:g} Hz")
