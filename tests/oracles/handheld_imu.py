@@ -76,11 +76,13 @@ def random_poses(rng, n):
 
 def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0, n_poses=12, still_s=4.0,
              move_s=3.0, tremor_deg=0.0, tremor_hz=8.0, arw=0.0, vrw=0.0, jitter=0.0, noise_rng=None, poses=None):
-    """A log: still, move, still, ... (poses: C_b^n list, default :func:`random_poses`)."""
+    """A log: still, move, still, ... (poses: C_b^n list, default :func:`random_poses`; ``still_s``: one
+    duration or one per pose)."""
     poses = random_poses(rng, n_poses) if poses is None else poses
+    still = np.broadcast_to(np.asarray(still_s, float), (len(poses),))
     wie = EARTH_RATE * np.array([0.0, math.cos(lat), math.sin(lat)])
     moves = []  # (t_m, T, C_j, e, Theta, e2)
-    t = still_s
+    t = still[0]
     for j in range(len(poses) - 1):
         R = poses[j].T @ poses[j + 1]  # Rot(e, Theta) = C_j^T C_{j+1}
         ang = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
@@ -89,7 +91,7 @@ def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0
         e2 = rng.normal(size=3)
         e2 /= np.linalg.norm(e2)
         moves.append((t, move_s, poses[j], e, ang, e2))
-        t += move_s + still_s
+        t += move_s + still[j + 1]
     t_end = t
     n = int(round(t_end * rate_hz))
     edges = np.arange(n + 1) / rate_hz
@@ -143,8 +145,8 @@ def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0
         nr = noise_rng if noise_rng is not None else rng
         dth += arw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
         dv += vrw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
-    still = [(0.0, still_s)] + [(m[0] + m[1], m[0] + m[1] + still_s) for m in moves]
-    return HandheldLog(edges[1:], dth, dv, poses, still, {"Mg": Mg, "bg": bg, "Ma": Ma, "ba": ba, "k2": k2,
+    spans = [(0.0, still[0])] + [(m[0] + m[1], m[0] + m[1] + still[j + 1]) for j, m in enumerate(moves)]
+    return HandheldLog(edges[1:], dth, dv, poses, spans, {"Mg": Mg, "bg": bg, "Ma": Ma, "ba": ba, "k2": k2,
                                                           "lat": lat, "g": g})
 
 

@@ -23,7 +23,8 @@ Detection, every threshold a quantile at the false-alarm probability ``alpha``:
    force over the window, a chi-square test on 3 dof, reported as a tilt rate), it turns (its mean
    gyro rate differs from the median of the candidates by more than the chi-square bound of its own
    noise plus the scatter between poses, which holds the Earth rate and g-sensitivity), or it is
-   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given).
+   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given, or an accelerometer
+   that reads one value to round-off while the record's noise says it should scatter).
 
 :meth:`StillIntervals.require` raises one line naming the first rejection when fewer poses than a
 model needs remain (e.g. ``found 7 still poses, the model needs 9: pose 3 turned, gyro 0.8 deg/s
@@ -244,6 +245,12 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
             reason = f"accelerometer saturated ({int(clip_a[i0:i1].sum())} samples at the {accel_range:.4g} m/s^2 clip level)"
         elif clip_g[i0:i1].any():
             reason = f"gyro saturated ({int(clip_g[i0:i1].sum())} samples at the clip level)"
+        else:  # a clipped sensor reads one value while its noise says it should scatter
+            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na > 1e3 * floor_a)
+            if flat.any():
+                ax = int(np.argmax(flat))
+                reason = (f"accelerometer {'xyz'[ax]} saturated (flat at {fmean[ax]:.5g} m/s^2 while its noise is "
+                          f"{na[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
         if reason is None:  # tilt: slope of the specific force, weighted least squares per axis
             tc = (time[i0:i1] - 0.5 * d) - float((time[i0:i1] - 0.5 * d) @ d / T)
             sxx = float(np.sum(d * tc * tc))
