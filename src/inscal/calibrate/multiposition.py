@@ -220,7 +220,7 @@ def _weak(J: np.ndarray, typical: np.ndarray, labels: list[str], sv_tol: float) 
     if not bad.any():
         return []
     v = np.abs(Vt[bad]).max(axis=0)
-    return [lab for lab, c in zip(labels, v) if c > 0.1]
+    return [labels[i] for i in np.argsort(-v) if v[i] > 0.1]
 
 
 CUBE = [np.array(v, float) / np.linalg.norm(v) for v in
@@ -365,8 +365,12 @@ def _undetermined(weak, a, acc, x0, sv_tol) -> str:
     """One line: the poses leave ``weak`` undetermined; the cube pose that helps most."""
     best = _best_extra_pose(a, acc, x0)
     n = a / np.linalg.norm(a, axis=1)[:, None]
-    _, s, Vt = np.linalg.svd(n - n.mean(axis=0) if len(n) > 2 else n)
-    spread = "all poses turn about one axis" if s[1] < 0.05 * s[0] else "the poses do not span the sphere"
+    _, s, Vt = np.linalg.svd(n - n.mean(axis=0))
+    if s[2] < 0.05 * s[0]:  # the gravity directions on one circle: one axis of rotation
+        ax = Vt[2] * np.sign(Vt[2][np.argmax(np.abs(Vt[2]))])
+        spread = f"all poses turn about one axis, [{ax[0]:.2f}, {ax[1]:.2f}, {ax[2]:.2f}] in the sensor frame"
+    else:
+        spread = "the poses do not span the directions of gravity"
     return (f"the {len(a)} still poses leave {', '.join(weak[:6])} undetermined ({spread}); "
             f"a pose with {best} would help most")
 
