@@ -75,9 +75,11 @@ def random_poses(rng, n):
 
 
 def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0, n_poses=12, still_s=4.0,
-             move_s=3.0, tremor_deg=0.0, tremor_hz=8.0, arw=0.0, vrw=0.0, jitter=0.0, noise_rng=None, poses=None):
+             move_s=3.0, tremor_deg=0.0, tremor_hz=8.0, arw=0.0, vrw=0.0, jitter=0.0, noise_rng=None, poses=None,
+             turns=None):
     """A log: still, move, still, ... (poses: C_b^n list, default :func:`random_poses`; ``still_s``: one
-    duration or one per pose)."""
+    duration or one per pose; ``turns``: {move index: (body axis, angle)} for moves that are not the
+    shortest rotation between their poses, e.g. a whole turn, 2 pi, between two equal poses)."""
     poses = random_poses(rng, n_poses) if poses is None else poses
     still = np.broadcast_to(np.asarray(still_s, float), (len(poses),))
     wie = EARTH_RATE * np.array([0.0, math.cos(lat), math.sin(lat)])
@@ -87,7 +89,10 @@ def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0
         R = poses[j].T @ poses[j + 1]  # Rot(e, Theta) = C_j^T C_{j+1}
         ang = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
         e = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-        e = e / np.linalg.norm(e)
+        e = e / np.linalg.norm(e) if ang > 0 else np.array([0.0, 0.0, 1.0])
+        if turns and j in turns:
+            e, ang = np.asarray(turns[j][0], float), float(turns[j][1])
+            assert np.allclose(rot(e, ang), R, atol=1e-9), "a turn must take pose j to pose j+1"
         e2 = rng.normal(size=3)
         e2 /= np.linalg.norm(e2)
         moves.append((t, move_s, poses[j], e, ang, e2))

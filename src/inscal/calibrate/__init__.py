@@ -32,6 +32,7 @@ Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
                      :mod:`.static_detect`, the accelerometer model from the gravity magnitude and
                      the gyro model from the rotations between poses (:mod:`.multiposition`,
                      Tedaldi 2014); options ``min_static``, ``settle``, ``quadratic``, ...
+``ferraris``         no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995).
 ``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
                      attitude to every window, 1 sigma from the Jacobian and the measured
                      window noise; unobservable directions are reported and held fixed.
@@ -45,6 +46,7 @@ from __future__ import annotations
 
 import inspect
 
+from inscal.calibrate.ferraris import ferraris
 from inscal.calibrate.joint import joint
 from inscal.calibrate.multiposition import multi_position
 from inscal.calibrate.n25 import n25
@@ -67,17 +69,18 @@ METHODS = {
     "unified": unified,
     "thermal-plateaus": thermal_plateaus,
     "multi-position": multi_position,
+    "ferraris": ferraris,
 }
 #: methods that read the increments directly (no window segmentation)
 RECORD_METHODS = {"systematic51", "systematic30", "unified"}
 #: methods for records without a turntable: they find their own still poses in the increments
-NO_TABLE_METHODS = {"multi-position"}
+NO_TABLE_METHODS = {"multi-position", "ferraris"}
 #: methods that run another method (``per_plateau``) on parts of the record and combine the results
 PLATEAU_METHODS = {"thermal-plateaus"}
 
 __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
            "RECORD_METHODS", "PLATEAU_METHODS", "NO_TABLE_METHODS", "six_position", "twelve_position", "n25", "joint",
-           "unified", "multi_position"]
+           "unified", "multi_position", "ferraris"]
 
 
 def calibrate(record_like, method: str, **options) -> CalibrationResult:

@@ -104,7 +104,7 @@ class StillIntervals:
         if not self.candidates:
             why = "no quiet interval in the record (it moves throughout)"
         elif not why:
-            why = "every still interval was used"
+            why = f"the record holds only {len(kept)} still intervals, all usable: record more poses"
         return _raise(f"found {len(kept)} still poses, {what} needs {needed}: {why}")
 
 
