@@ -34,8 +34,8 @@ horizontal part ``(p, q)`` is below a third of ``W cos L``: then the bias is sep
 
 Uncertainty: the covariance of each fit from its Jacobian (central differences) and the noise of the
 window means (:mod:`.static_detect`), scaled by chi^2/dof when the fit rejects the model (p < 0.001);
-the gyro fit takes the accelerometer model as known (its uncertainty moves the gravity directions of
-all poses together, a common rotation that the gyro misalignment absorbs only at second order).
+the accelerometer model's covariance is propagated into the gyro parameters through the gravity
+directions it gives the poses (``dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr_g/dxa``).
 Observability: the singular values of the normalised Jacobian; a direction below ``sv_tol`` makes
 the named parameters undetermined (an error, not a small sigma) and names the extra pose that helps
 most among the 26 faces, edges and corners of a cube.
@@ -307,6 +307,14 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     # ---------------------------------------------------------------------- gyros
     gyr = _gyro_problem(time, dth, si, poses, u, site, notes)
     xg, covg, covg_formal, Jg, fitg = gyr.solve()
+    # the accelerometer model's uncertainty moves the measured gravity directions: propagated into the gyro
+    # parameters through the gyro fit, dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr/dxa (central differences in xa)
+    steps = 1e-7 * acc.typical
+    dr = np.column_stack([(gyr.residuals(xg, _unit(acc, xa, j, h)) - gyr.residuals(xg, _unit(acc, xa, j, -h))) / (2 * h)
+                          for j, h in enumerate(steps)])
+    G = -np.linalg.lstsq(Jg, dr, rcond=None)[0]
+    covg = covg + G @ cova @ G.T
+    covg_formal = covg_formal + G @ cova_formal @ G.T
     # ---------------------------------------------------------------------- result
     Mav, ba, k2, Ea = acc.unpack(xa)
     values = {"accel_scale_factor": xa[:3], "accel_misalignment": Ea, "accel_bias": ba,
@@ -359,6 +367,14 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     imu = ImuErrors(**{k: v for k, v in values.items()})
     return CalibrationResult("multi-position", imu, GimbalErrors(), sigma, tuple(estimated), None, diagnostics, notes,
                              truth_transform=frame_of)
+
+
+def _unit(acc, xa, j, h):
+    """The gravity directions of the poses with accelerometer parameter j moved by h."""
+    x = xa.copy()
+    x[j] += h
+    f, _ = acc.forces(x)
+    return f / np.linalg.norm(f, axis=1)[:, None]
 
 
 def _undetermined(weak, a, acc, x0, sv_tol) -> str:
@@ -419,18 +435,20 @@ class _Gyro:
         M = (np.eye(3) + np.diag(x[:3])) @ (np.eye(3) + off_diagonal(x[3:9]))
         return M, x[9:12], x[12], x[13]
 
-    def residuals(self, x):
+    def residuals(self, x, u=None):
+        """The normalised residuals (still means, then moves); ``u``: other gravity directions of the poses."""
+        uu = self.u if u is None else u
         M, b, p, q = self.unpack(x)
         Mi = np.linalg.inv(M)
         coef = (self.coef_raw - self.coef_h[:, :, None] * b[None, None, :]) @ Mi.T  # compensated, linear
         R = rotations(coef, self.seg, self.nseg)
-        w = self.wv * self.u[0] + p * self.h1 + q * self.h2  # w_ie in body at pose 0
+        w = self.wv * uu[0] + p * self.h1 + q * self.h2  # w_ie in body at pose 0
         out_still, out_turn = [], []
         ws = [w]
         for k, (i, j) in enumerate(self.pairs):  # every move turns the Earth rate seen in the body
             if self.used[k]:
-                upred = R[k].T @ (_rot(ws[i] * self.span[k]) @ self.u[i])
-                n = self.u[j]
+                upred = R[k].T @ (_rot(ws[i] * self.span[k]) @ uu[i])
+                n = uu[j]
                 e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
                 e1 /= np.linalg.norm(e1)
                 e2 = np.cross(n, e1)
