@@ -11,6 +11,8 @@ from handheld_imu import generate, grade, rot
 from typer.testing import CliRunner
 
 from inscal import io
+from inscal.calibrate import calibrate
+from inscal.core import units
 from inscal.cli.app import app
 from inscal.core.earth import Site
 
@@ -53,6 +55,15 @@ def test_a_hand_held_record_calibrates_into_a_parameter_file(tmp_path):
     assert rep["method"] == "multi-position" and out.exists()
     assert set(rep["parameters"]) >= {"gyro_scale_factor", "gyro_misalignment", "accel_bias"}
     assert rep["fit"]["consistent"]
+    # the parameter file compensates the record (inscal compensate): calibrated again, it holds nothing more
+    comp = tmp_path / "c.h5"
+    r = runner.invoke(app, ["compensate", str(rec), "--params", str(out), "--out", str(comp)])
+    assert r.exit_code == 0, r.stderr
+    again = calibrate(io.read_record(comp), "multi-position", min_static=2.0, settle=0.25)
+    for name, e in rep["parameters"].items():
+        v, s = again.value(name), np.array([np.nan if x is None else x for x in e["sigma"]], float)
+        ok = np.isfinite(s)
+        assert np.all(np.abs(v[ok]) < 0.02 * units.to_si(s[ok], e["unit"])), (name, v)
 
 
 @pytest.mark.parametrize("case", ["few", "one-axis", "moving", "gravity", "saturated"])
