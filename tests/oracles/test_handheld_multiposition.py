@@ -86,3 +86,27 @@ def test_poses_about_one_axis_are_refused_naming_the_parameters_and_a_pose():
     msg = str(exc.value)
     assert "leave accel_scale_factor.x undetermined" in msg and "one axis, [1.00, " in msg, msg  # f_x = 0: b_x stays
     assert "+x" in msg or "-x" in msg, msg  # the pose that helps has x along gravity
+
+
+def test_a_gyro_saturating_in_a_fast_turn_costs_that_rotation_only():
+    rng = np.random.default_rng(8)
+    Mg, bg, Ma, ba, arw, vrw = grade("tactical", rng)
+    lg = generate(rng, Mg, bg, Ma, ba, n_poses=12, rate_hz=50.0, lat=LAT, g=G, arw=arw, vrw=vrw)
+    dt = np.diff(np.concatenate([[0.0], lg.time]))
+    rate = lg.dtheta / dt[:, None]
+    moves = [(lg.time > a[1]) & (lg.time <= b[0]) for a, b in zip(lg.still[:-1], lg.still[1:])]
+    peaks = np.array([np.abs(rate[m]).max(axis=0) for m in moves])  # (move, axis)
+    ax = int(np.argmax(np.sort(peaks, axis=0)[-1] / np.sort(peaks, axis=0)[-2]))
+    k = int(np.argmax(peaks[:, ax]))  # the fastest turn about that axis saturates it, no other one does
+    clip = 0.5 * (np.sort(peaks[:, ax])[-1] + np.sort(peaks[:, ax])[-2])
+    rate[:, ax] = np.clip(rate[:, ax], -clip, clip)
+    lg.dtheta = rate * dt[:, None]
+    res = calibrate(record(lg), "multi-position", min_static=2.0, settle=0.25)
+    assert [n for n in res.notes if "saturates a gyro" in n] == [n for n in res.notes if f"move from pose {k + 1} to "
+                                                                 f"{k + 2} " in n], res.notes
+    assert any("saturates a gyro" in n for n in res.notes), res.notes
+    truth = canonical_truth(Mg, bg, Ma, ba)
+    for name in NAMES:
+        s = res.sigma[name]
+        free = np.isfinite(s)
+        assert np.all(np.abs(res.value(name) - truth[name])[free] < 3.5 * s[free]), name

@@ -307,6 +307,10 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     # ---------------------------------------------------------------------- gyros
     gyr = _gyro_problem(time, dth, si, poses, u, site, notes)
     xg, covg, covg_formal, Jg, fitg = gyr.solve()
+    weak_g = [lab for lab in _weak(Jg, gyr.typical, gyr.labels, sv_tol) if not lab.startswith("earth_rate")]
+    if weak_g:
+        raise CalibrationError(f"the {sum(gyr.used)} moves between the poses leave {', '.join(weak_g[:6])} undetermined "
+                               "(the rotations do not turn about all three axes): move about the axes named too")
     # the accelerometer model's uncertainty moves the measured gravity directions: propagated into the gyro
     # parameters through the gyro fit, dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr/dxa (central differences in xa)
     steps = 1e-7 * acc.typical

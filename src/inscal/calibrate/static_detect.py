@@ -23,7 +23,8 @@ Detection, every threshold a quantile at the false-alarm probability ``alpha``:
    force over the window, a chi-square test on 3 dof, reported as a tilt rate), it turns (its mean
    gyro rate differs from the median of the candidates by more than the chi-square bound of its own
    noise plus the scatter between poses, which holds the Earth rate and g-sensitivity), or it is
-   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given, or an accelerometer
+   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given, a gyro that holds
+   its record-wide extreme for 3 samples or more (a clipped output), or an accelerometer
    that reads one value to round-off while the record's noise says it should scatter).
 
 :meth:`StillIntervals.require` raises one line naming the first rejection when fewer poses than a
@@ -130,6 +131,23 @@ def _density(x: np.ndarray, dt: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return np.maximum(n, floor)
 
 
+def _flat_tops(x: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Samples where a sensor sits at its record-wide extreme for at least 3 samples in a row (a clipped
+    output reads one value; a real signal does not repeat its extreme to round-off)."""
+    out = np.zeros(x.shape[0], bool)
+    for ax in range(x.shape[1]):
+        a = np.abs(x[:, ax])
+        top = a.max()
+        if top == 0.0:
+            continue
+        at = a >= top * (1.0 - 1e-12)
+        edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
+        for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+            if i1 - i0 >= 3:
+                out[i0:i1] = True
+    return out
+
+
 def _block_scatter(x, dt, starts):
     """Per block and axis: the weighted scatter ``sum_k dt_k (x_k - xbar)^2`` about the weighted mean."""
     w = np.add.reduceat(dt, starts)
@@ -182,7 +200,7 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         k = np.flatnonzero(gap)
         notes.append(f"{k.size} time gap(s) over {gap_tol * 1e3:.3g} ms (longest {dt[k].max() * 1e3:.4g} ms at "
                      f"t = {time[k[np.argmax(dt[k])]]:.3f} s): the samples after them are not used in still poses")
-    clip_g = np.zeros(n, bool) if gyro_range is None else np.any(np.abs(w) >= gyro_range, axis=1)
+    clip_g = _flat_tops(w, dt) if gyro_range is None else np.any(np.abs(w) >= gyro_range, axis=1)
     clip_a = np.zeros(n, bool) if accel_range is None else np.any(np.abs(f) >= accel_range, axis=1)
     # 1. quiet blocks
     bs = block_s if block_s is not None else min_still / 4.0
