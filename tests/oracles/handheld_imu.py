@@ -23,6 +23,9 @@ Sensors::
     gyro:   w_meas = Mg w_ib^b + bg                 Mg full 3x3 (scale factors, misalignment)
     accel:  f_meas = Ma (f + k2 * f**2) + ba        Ma lower triangular, k2 elementwise
 
+With ``samples``, the log holds instead the instantaneous readings at the edges (a logger's rates and
+specific forces at its own timestamps; white noise of density ``arw/vrw`` over the median step).
+
 Increments over ``[t_{k-1}, t_k]`` (any time base): Gauss-Legendre (8 points) on every piece between
 the motion's breakpoints, so the quadrature is exact to round-off for the dwell and very accurate on
 the smooth moves; white noise of density ``arw`` / ``vrw`` added as ``N sqrt(dt_k)`` per increment.
@@ -76,7 +79,7 @@ def random_poses(rng, n):
 
 def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0, n_poses=12, still_s=4.0,
              move_s=3.0, tremor_deg=0.0, tremor_hz=8.0, arw=0.0, vrw=0.0, jitter=0.0, noise_rng=None, poses=None,
-             turns=None):
+             turns=None, samples=False):
     """A log: still, move, still, ... (poses: C_b^n list, default :func:`random_poses`; ``still_s``: one
     duration or one per pose; ``turns``: {move index: (body axis, angle)} for moves that are not the
     shortest rotation between their poses, e.g. a whole turn, 2 pi, between two equal poses)."""
@@ -109,36 +112,40 @@ def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0
     a, b = allp[:-1], allp[1:]
     tn = (0.5 * (a + b))[:, None] + 0.5 * (b - a)[:, None] * xg[None]  # (pieces, 8)
     wq = 0.5 * (b - a)[:, None] * wg[None]
-    tt = tn.ravel()
-    Cbn = np.repeat(poses[-1][None], tt.size, axis=0)
-    wnb = np.zeros((tt.size, 3))
-    mstart = np.array([m[0] for m in moves])
-    idx = np.searchsorted(mstart, tt, side="right") - 1
-    for j, (tm, T, Cj, e, Th, e2) in enumerate(moves):
-        before = idx == j
-        s = np.clip((tt[before] - tm) / T, 0.0, 1.0)
-        th = Th * (s - np.sin(2 * np.pi * s) / (2 * np.pi))
-        thd = Th / T * (1.0 - np.cos(2 * np.pi * s))
-        A = math.radians(tremor_deg)
-        tau = A * np.sin(np.pi * s) ** 2 * np.sin(2 * np.pi * tremor_hz * tt[before])
-        taud = A * (np.pi / T * np.sin(2 * np.pi * s) * np.sin(2 * np.pi * tremor_hz * tt[before])
-                    + np.sin(np.pi * s) ** 2 * 2 * np.pi * tremor_hz * np.cos(2 * np.pi * tremor_hz * tt[before]))
-        inmove = s < 1.0
-        R1, R2 = _rot_many(e, th), _rot_many(e2, tau)
-        C = np.einsum("ij,njk,nkl->nil", Cj, R1, R2)
-        C[~inmove] = Cj @ rot(e, Th)
-        Cbn[before] = C
-        w = np.einsum("nji,j->ni", R2, e) * thd[:, None] + e2[None] * taud[:, None]
-        w[~inmove] = 0.0
-        wnb[before] = w
-    first = idx < 0
-    Cbn[first] = poses[0]
-    wnb[first] = 0.0
-    Cnb = np.transpose(Cbn, (0, 2, 1))
-    wib = wnb + Cnb @ wie
-    f = Cnb @ np.array([0.0, 0.0, g])
-    gm = wib @ Mg.T + bg
-    am = (f + k2 * f * f) @ Ma.T + ba
+    def signals(tt):
+        """The measured rate and specific force (noise-free) at times tt."""
+        Cbn = np.repeat(poses[-1][None], tt.size, axis=0)
+        wnb = np.zeros((tt.size, 3))
+        mstart = np.array([m[0] for m in moves])
+        idx = np.searchsorted(mstart, tt, side="right") - 1
+        for j, (tm, T, Cj, e, Th, e2) in enumerate(moves):
+            before = idx == j
+            s = np.clip((tt[before] - tm) / T, 0.0, 1.0)
+            th = Th * (s - np.sin(2 * np.pi * s) / (2 * np.pi))
+            thd = Th / T * (1.0 - np.cos(2 * np.pi * s))
+            A = math.radians(tremor_deg)
+            tau = A * np.sin(np.pi * s) ** 2 * np.sin(2 * np.pi * tremor_hz * tt[before])
+            taud = A * (np.pi / T * np.sin(2 * np.pi * s) * np.sin(2 * np.pi * tremor_hz * tt[before])
+                        + np.sin(np.pi * s) ** 2 * 2 * np.pi * tremor_hz * np.cos(2 * np.pi * tremor_hz * tt[before]))
+            inmove = s < 1.0
+            R1, R2 = _rot_many(e, th), _rot_many(e2, tau)
+            C = np.einsum("ij,njk,nkl->nil", Cj, R1, R2)
+            C[~inmove] = Cj @ rot(e, Th)
+            Cbn[before] = C
+            w = np.einsum("nji,j->ni", R2, e) * thd[:, None] + e2[None] * taud[:, None]
+            w[~inmove] = 0.0
+            wnb[before] = w
+        first = idx < 0
+        Cbn[first] = poses[0]
+        wnb[first] = 0.0
+        Cnb = np.transpose(Cbn, (0, 2, 1))
+        wib = wnb + Cnb @ wie
+        f = Cnb @ np.array([0.0, 0.0, g])
+        gm = wib @ Mg.T + bg
+        am = (f + k2 * f * f) @ Ma.T + ba
+        return gm, am
+
+    gm, am = signals(tn.ravel())
     ig = np.einsum("pq,pqi->pi", wq, gm.reshape(-1, 8, 3))
     ia = np.einsum("pq,pqi->pi", wq, am.reshape(-1, 8, 3))
     dth = np.zeros((n, 3))
@@ -151,6 +158,15 @@ def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0
         dth += arw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
         dv += vrw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
     spans = [(0.0, still[0])] + [(m[0] + m[1], m[0] + m[1] + still[j + 1]) for j, m in enumerate(moves)]
+    if samples:  # a logger's instantaneous readings at the (jittered) edges; white noise of the same density
+        gs, as_ = signals(edges)
+        if arw or vrw:
+            nr = noise_rng if noise_rng is not None else rng
+            h = np.median(np.diff(edges))
+            gs = gs + arw / np.sqrt(h) * nr.normal(size=gs.shape)
+            as_ = as_ + vrw / np.sqrt(h) * nr.normal(size=as_.shape)
+        dth, dv = gs, as_
+        edges = np.concatenate([[edges[0] - 1.0], edges])  # time = the edges themselves
     return HandheldLog(edges[1:], dth, dv, poses, spans, {"Mg": Mg, "bg": bg, "Ma": Ma, "ba": ba, "k2": k2,
                                                           "lat": lat, "g": g})
 

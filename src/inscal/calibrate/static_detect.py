@@ -9,7 +9,10 @@ Noise (from the record itself).  For white noise of density ``N`` the rate ``x_k
 ``N^2 / dt_k``, so on any still stretch ``(x_k - x_{k-1}) / sqrt(1/dt_k + 1/dt_{k-1})`` has the
 standard deviation ``N``, whatever the jitter; ``N`` per axis is the robust (MAD) scale of that
 quantity over the record (moves are a minority of the samples and smooth at the sample rate, so the
-median ignores them).  A noise-free record gets the round-off floor ``1e-12`` of the signal.
+median ignores them), then pooled over the quiet blocks.  The sigma of a window mean uses the density
+of batch means of 8 samples over the quiet blocks (the same for white noise; right also for increments
+that a trapezoidal rule made from samples, whose neighbours correlate).  A noise-free record gets the
+round-off floor ``1e-12`` of the signal.
 
 Detection, every threshold a quantile at the false-alarm probability ``alpha``:
 
@@ -45,6 +48,8 @@ from inscal.core import units
 
 #: the round-off floor of the noise density of a noise-free record, relative to the signal
 NOISE_FLOOR = 1e-12
+#: samples per batch of the batch-means density (longer than any correlation a conversion leaves)
+BATCH = 8
 
 
 @dataclass(frozen=True)
@@ -157,6 +162,21 @@ def _block_scatter(x, dt, starts):
     return np.add.reduceat(dt[:, None] * dev * dev, starts, axis=0)
 
 
+def _batch_density(x, dt, starts, m, sel, length: int = BATCH):
+    """Noise density per axis from the scatter of batch means (``length`` samples) about their block's mean,
+    pooled over the blocks ``sel`` (batch means, Law & Carson 1979); None without two batches anywhere."""
+    num, dof = np.zeros(x.shape[1]), 0
+    for b in np.flatnonzero(sel & (m >= 2 * length)):
+        i0, nb = starts[b], m[b] // length
+        xs, ds = x[i0:i0 + nb * length].reshape(nb, length, -1), dt[i0:i0 + nb * length].reshape(nb, length)
+        T = ds.sum(axis=1)
+        means = np.einsum("bk,bki->bi", ds, xs) / T[:, None]
+        mean = (T @ means) / T.sum()
+        num += T @ ((means - mean) ** 2)
+        dof += nb - 1
+    return None if dof < 5 else np.sqrt(num / dof)
+
+
 def _pooled(scatter, m, sel, floor):
     """The noise density per axis pooled over the blocks ``sel`` (scatter / dof); ``floor`` below."""
     dof = np.maximum(m[sel] - 1, 0).sum()
@@ -227,6 +247,11 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         ng, na = new_g, new_a
     quiet_blk = (np.sum(scat_g / ng**2, axis=1) <= crit) & (np.sum(scat_a / na**2, axis=1) <= crit) & usable
     quiet = np.repeat(quiet_blk, m)
+    # the density that sets the sigma of a window mean: from batch means (immune to the short correlation
+    # of increments made from samples by a trapezoidal rule); the sample-level ng, na judge the blocks
+    mg_, ma_ = _batch_density(w, dt, starts, m, quiet_blk), _batch_density(f, dt, starts, m, quiet_blk)
+    mg_ = ng if mg_ is None else np.maximum(mg_, floor_g)
+    ma_ = na if ma_ is None else np.maximum(ma_, floor_a)
     # 2. candidates: runs of quiet blocks, settled
     edges = np.diff(np.concatenate([[0], quiet.astype(np.int8), [0]]))
     runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
@@ -289,5 +314,5 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         if kept:
             reason = f"still for {T:.3g} s"
         cands.append(Candidate(num, i0, i1, float(t_start[i0]), float(time[i1 - 1]), kept, reason, gmean, fmean,
-                               ng / math.sqrt(T), na / math.sqrt(T)))
-    return StillIntervals(tuple(cands), ng, na, dt, gap, clip_g, tuple(notes))
+                               mg_ / math.sqrt(T), ma_ / math.sqrt(T)))
+    return StillIntervals(tuple(cands), mg_, ma_, dt, gap, clip_g, tuple(notes))
