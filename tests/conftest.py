@@ -53,6 +53,7 @@ LONGEST = (
     "oracles/test_oracle_calibration.py",  # 12 s
     "cli/test_calibrate_caps.py",  # 10 s
     "cli/test_demo_html.py",  # 9 s
+    "oracles/test_handheld_multiposition.py",  # 8 s
 )
 TESTS = Path(__file__).resolve().parent
 
