@@ -49,16 +49,16 @@ def test_noise_free_logs_give_back_every_parameter(kind):
 
 def test_noisy_hand_held_logs_within_3_sigma_and_error_over_sigma_near_one():
     z = []
-    for seed, kind in ((1, "mems"), (2, "tactical"), (3, "mems"), (4, "tactical")):
+    for seed, kind in ((1, "mems"), (2, "tactical"), (3, "mems")):
         res, truth = fit(kind, seed, 1.0, n_poses=12, tremor_deg=0.5, tremor_hz=8.0, jitter=0.2)
         assert res.fit["consistent"], res.notes
         for name in NAMES:
             s = res.sigma[name]
             free = np.isfinite(s)
             r = (res.value(name) - truth[name])[free] / s[free]
-            assert np.all(np.abs(r) < 3.5), (kind, seed, name, r)  # 3 sigma, and a little for 84 components
+            assert np.all(np.abs(r) < 3.5), (kind, seed, name, r)  # 3 sigma, and a little for 63 components
             z.extend(r)
-    assert 0.6 < np.std(z) < 1.4, np.std(z)  # 84 draws; the 50-seed study is in bench/
+    assert 0.6 < np.std(z) < 1.4, np.std(z)  # 63 draws; the 50-seed study is in bench/
 
 
 def test_truth_transform_maps_any_frame_into_the_accelerometer_frame():
@@ -110,3 +110,19 @@ def test_a_gyro_saturating_in_a_fast_turn_costs_that_rotation_only():
         s = res.sigma[name]
         free = np.isfinite(s)
         assert np.all(np.abs(res.value(name) - truth[name])[free] < 3.5 * s[free]), name
+
+
+def test_the_quadratic_accelerometer_terms_with_enough_poses():
+    rng = np.random.default_rng(4)
+    Mg, bg, Ma, ba, _, _ = grade("tactical", rng)
+    k2 = np.array([2e-5, -3e-5, 1.5e-5])  # 1/(m/s^2): 200-300 ug/g^2
+    lg = generate(rng, Mg, bg, Ma, ba, k2=k2, n_poses=14, rate_hz=50.0, lat=LAT, g=G)
+    res = calibrate(record(lg), "multi-position", quadratic=True, min_static=2.0, settle=0.25)
+    truth = canonical_truth(Mg, bg, Ma, ba) | {"accel_nonlinearity": k2}
+    assert "accel_nonlinearity" in res.estimated
+    for name, v in truth.items():
+        free = np.isfinite(res.sigma[name])
+        assert np.all(np.abs(res.value(name) - v)[free] <= 1e-9 * np.max(np.abs(v))), name
+    with pytest.raises(CalibrationError, match="the quadratic accelerometer model needs 12"):
+        calibrate(record(generate(rng, Mg, bg, Ma, ba, n_poses=10, rate_hz=50.0)), "multi-position", quadratic=True,
+                  min_static=2.0, settle=0.25)

@@ -345,7 +345,11 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
         if not fit["consistent"]:
             notes.append(f"the {name} fit rejects its model (chi2 {fit['chi2']:.4g} on {fit['dof']} dof, p = "
                          f"{fit['p_value']:.2g}): its sigma are scaled by {fit['scale']:.3g}")
+    earth = gyr.earth_report(xg, covg)  # adds its note when the horizontal Earth rate is not resolved
     notes += gyr.notes
+    obs = _observability(Ja, acc, a, xa, sv_tol)
+    notes.append(f"pose set: accelerometer fit condition {obs['condition']:.3g}, weakest {', '.join(obs['weakest'])}; "
+                 f"the extra pose that would help most: {obs['extra_pose']}")
     ra = acc.residuals(xa)
     rg_still, rg_turn = gyr.split(gyr.residuals(xg))
     rows = [{"window": c.number, "label": f"pose {c.number} ({c.t0:.1f}-{c.t1:.1f} s)",
@@ -366,8 +370,8 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     diagnostics = {"fit": fit, "formal_sigma": formal, "still": si.report(),
                    "covariance": {"labels": [labels[i] for i in keep], "P": P[np.ix_(keep, keep)]},
                    "frame": "accelerometer frame (x: accel x, y in the accel xy plane; Tedaldi 2014)",
-                   "earth_rate": gyr.earth_report(xg, covg),
-                   "observability": _observability(Ja, acc, a, xa, sv_tol)}
+                   "earth_rate": earth,
+                   "observability": obs}
     imu = ImuErrors(**{k: v for k, v in values.items()})
     return CalibrationResult("multi-position", imu, GimbalErrors(), sigma, tuple(estimated), None, diagnostics, notes,
                              truth_transform=frame_of)
