@@ -54,6 +54,7 @@ LONGEST = (
     "oracles/test_oracle_calibration.py",  # 12 s
     "cli/test_calibrate_caps.py",  # 10 s
     "cli/test_demo_html.py",  # 9 s
+    "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)
 )
 TESTS = Path(__file__).resolve().parent

@@ -28,6 +28,11 @@ Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
 ``thermal-plateaus`` a thermal-chamber calibration: another method (``per_plateau``, default
                      ``n25``) on each temperature plateau of the record, then a weighted polynomial
                      fit of every thermal term over the plateaus (:mod:`.thermal`; ``result.thermal``).
+``multi-position``   no turntable: still poses at unknown orientations found by
+                     :mod:`.static_detect`, the accelerometer model from the gravity magnitude and
+                     the gyro model from the rotations between poses (:mod:`.multiposition`,
+                     Tedaldi 2014); options ``min_static``, ``settle``, ``quadratic``, ...
+``ferraris``         no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995).
 ``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
                      attitude to every window, 1 sigma from the Jacobian and the measured
                      window noise; unobservable directions are reported and held fixed.
@@ -41,7 +46,9 @@ from __future__ import annotations
 
 import inspect
 
+from inscal.calibrate.ferraris import ferraris
 from inscal.calibrate.joint import joint
+from inscal.calibrate.multiposition import multi_position
 from inscal.calibrate.n25 import n25
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.six_position import six_position
@@ -61,14 +68,19 @@ METHODS = {
     "systematic30": systematic30,
     "unified": unified,
     "thermal-plateaus": thermal_plateaus,
+    "multi-position": multi_position,
+    "ferraris": ferraris,
 }
 #: methods that read the increments directly (no window segmentation)
 RECORD_METHODS = {"systematic51", "systematic30", "unified"}
+#: methods for records without a turntable: they find their own still poses in the increments
+NO_TABLE_METHODS = {"multi-position", "ferraris"}
 #: methods that run another method (``per_plateau``) on parts of the record and combine the results
 PLATEAU_METHODS = {"thermal-plateaus"}
 
 __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError", "Window", "WindowSet", "METHODS",
-           "RECORD_METHODS", "PLATEAU_METHODS", "six_position", "twelve_position", "n25", "joint", "unified"]
+           "RECORD_METHODS", "PLATEAU_METHODS", "NO_TABLE_METHODS", "six_position", "twelve_position", "n25", "joint",
+           "unified", "multi_position", "ferraris"]
 
 
 def calibrate(record_like, method: str, **options) -> CalibrationResult:
@@ -80,6 +92,13 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
         if isinstance(record_like, WindowSet):
             raise CalibrationError(f"{method} needs the record (increments and temperature), not window means")
         return fn(record_like, run=calibrate, **options)
+    if method in NO_TABLE_METHODS:
+        unknown = set(options) - (set(inspect.signature(fn).parameters) - {"record_like"})
+        if unknown:
+            raise CalibrationError(f"unknown option(s) for {method}: {sorted(unknown)}")
+        if isinstance(record_like, WindowSet):
+            raise CalibrationError(f"{method} needs the record (increments), not window means")
+        return fn(record_like, **options)
     if method in RECORD_METHODS:
 
         meth_keys = set(inspect.signature(systematic).parameters) - {"ws_or_record", "method_name"}

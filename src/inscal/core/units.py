@@ -61,6 +61,7 @@ FACTOR: dict[str, float] = {
     # time
     "s": 1.0,
     "ms": 1e-3,
+    "us": 1e-6,
     "h": HOUR,
     "min": 60.0,
     # angle quantisation
@@ -105,6 +106,8 @@ ALIASES: dict[str, str] = {
     "deg/h/(K/min)": "deg/h/(degC/min)",
     "°/h/(°C/s)": "deg/h/(degC/s)",
     "rad/K": "rad/degC",
+    "µs": "us",
+    "μs": "us",
 }
 
 
@@ -123,7 +126,7 @@ KIND: dict[str, str] = {
     "1/(m/s^2)": "nonlinearity", "ug/g^2": "nonlinearity",
     "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
     "m": "length", "cm": "length", "mm": "length", "nmi": "length",
-    "s": "time", "ms": "time", "h": "time", "min": "time",
+    "s": "time", "ms": "time", "us": "time", "h": "time", "min": "time",
     "m/s": "velocity", "mm/s": "velocity", "ug*s": "velocity",
     "rad/degC": "rate-per-temperature-rate", "deg/h/(degC/min)": "rate-per-temperature-rate",
     "deg/h/(degC/s)": "rate-per-temperature-rate",

@@ -64,6 +64,13 @@ Built-in (``inscal simulate NAME``):
     calibration leaves decides the error.
     Turntable (mount) attitude error 1" on each axis and site 30 N, 114 E as ``s16``;
     S16 Table 1 path, 100 Hz.
+``handheld-mems``, ``handheld-tactical``, ``handheld-navigation``
+    A hand-held session without a turntable (:mod:`inscal.sim.handheld`): 12 random still poses of
+    4 s joined by 3-s minimum-jerk rotations with a 0.3 deg, 8 Hz tremor, 100 Hz, N25 site; no gimbal
+    angles in the record (for ``calibrate --method multi-position``).  The IMU errors and noise of
+    :data:`HANDHELD_GRADES` (illustrative magnitudes of each grade): scale factors 3000 / 300 / 50 ppm,
+    misalignments 400 / 60 / 10 arcsec, gyro bias 1000 / 5 / 0.01 deg/h, accelerometer bias
+    5000 / 500 / 50 ug, ARW 0.3 / 0.1 / 0.002 deg/sqrt(h), VRW 100 / 20 / 2 ug/sqrt(Hz).
 ``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-cycle``, ``thermal-warmup``
     Temperature (beyond both papers).  The IMU errors follow the temperature with the thermal
     model :data:`THERMAL_ERRORS` (T_ref 20 degC, valid -40 .. +60 degC).  **Its magnitudes are
@@ -178,6 +185,7 @@ from inscal.core.thermal import ThermalModel, thermal_from_field
 from inscal.core.turntable import Move
 from inscal.core.units import DEG
 from inscal.io.tomlfile import read_toml
+from inscal.sim.handheld import HandheldMotion
 from inscal.sim.simulate import Scenario
 from inscal.sim.thermal import PIECE_KINDS, Piece, TemperatureProfile, TemperatureSensor, plateaus
 
@@ -322,6 +330,29 @@ def _n25() -> Scenario:
     return Scenario("n25", n25_twelve(), N25_SITE, imu=imu, gimbal=gim, noise=noise_from_field(N25_NOISE), rate_hz=100.0)
 
 
+#: per grade: scale factor, misalignment [arcsec], gyro bias [deg/h], accel bias [ug], ARW [deg/sqrt(h)], VRW
+#: [ug/sqrt(Hz)] (illustrative magnitudes; the signs and the spread over the axes are fixed patterns)
+HANDHELD_GRADES = {"mems": (3000.0, 400.0, 1000.0, 5000.0, 0.3, 100.0),
+                   "tactical": (300.0, 60.0, 5.0, 500.0, 0.1, 20.0),
+                   "navigation": (50.0, 10.0, 0.01, 50.0, 0.002, 2.0)}
+
+
+def _handheld(grade: str) -> Scenario:
+    sf, mis, gb, ab, arw, vrw = HANDHELD_GRADES[grade]
+    pat3, pat6 = [1.0, -0.7, 0.4], [1.0, -0.8, 0.6, -0.5, 0.3, -0.9]
+    imu, gim = errors_from_field({
+        "gyro_scale_factor": {"value": [sf * c for c in pat3], "unit": "ppm"},
+        "gyro_misalignment": {"value": [mis * c for c in pat6], "unit": "arcsec"},
+        "gyro_bias": {"value": [gb * c for c in pat3[::-1]], "unit": "deg/h"},
+        "accel_scale_factor": {"value": [-sf * c for c in pat3], "unit": "ppm"},
+        "accel_misalignment": {"value": [mis * c for c in pat6[::-1]], "unit": "arcsec"},
+        "accel_bias": {"value": [ab * c for c in pat3], "unit": "ug"}})
+    noise = noise_from_field({"arw": {"value": arw, "unit": "deg/sqrt(h)"}, "vrw": {"value": vrw, "unit": "ug/sqrt(Hz)"}})
+    motion = HandheldMotion()
+    return Scenario(f"handheld-{grade}", static(motion.duration), N25_SITE, imu=imu, gimbal=gim, noise=noise,
+                    rate_hz=100.0, motion=motion)
+
+
 def _static(duration_s: float = 3600.0) -> Scenario:
     return Scenario("static", static(duration_s), N25_SITE, rate_hz=100.0)
 
@@ -448,6 +479,9 @@ BUILTIN = {
     "thermal-ramp": lambda d: _thermal_ramp(),
     "thermal-cycle": lambda d: _thermal_cycle(),
     "thermal-warmup": lambda d: _thermal_warmup(d or 7200.0),
+    "handheld-mems": lambda d: _handheld("mems"),
+    "handheld-tactical": lambda d: _handheld("tactical"),
+    "handheld-navigation": lambda d: _handheld("navigation"),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static", "thermal-warmup"}
 
@@ -571,7 +605,9 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
         raise ScenarioError("the scenario names no motion: give a [path] table, base = NAME (a built-in "
                             "scenario), or a duration for a static record ([scenario] duration_h / duration_s)")
     thermal, profile, sensor = _thermal_tables(d, base)
-    return Scenario(name, path, site, imu, gim, noise, rate, thermal, profile, sensor)
+    if base.motion is not None and "path" in d:
+        raise ScenarioError("a hand-held base scenario takes no [path] table (its motion is the hand-held session)")
+    return Scenario(name, path, site, imu, gim, noise, rate, thermal, profile, sensor, base.motion)
 
 
 def _thermal_tables(d: dict, base: Scenario) -> tuple[ThermalModel | None, TemperatureProfile | None, TemperatureSensor]:

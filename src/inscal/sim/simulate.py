@@ -61,6 +61,7 @@ from inscal.sim.kernel import (
     gauss_markov_filter,
     simulate_pass,
 )
+from inscal.sim.handheld import HandheldMotion, true_increments
 from inscal.sim.thermal import TemperatureProfile, TemperatureSensor
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
@@ -85,12 +86,19 @@ class Scenario:
     temperature: TemperatureProfile | None = None
     #: how the record's /temperature readings are taken from ``temperature``
     temperature_sensor: TemperatureSensor = field(default_factory=TemperatureSensor)
+    #: a hand-held session without a turntable (:mod:`inscal.sim.handheld`; ``path`` is then a static path
+    #: of its duration, and the record has no gimbal angles nor path)
+    motion: HandheldMotion | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ValueError(f"rate must be a positive number of Hz, got {self.rate_hz}")
         if self.thermal is not None and not self.thermal.is_zero and self.temperature is None:
             raise ValueError("a scenario with a thermal model needs a temperature profile")
+        if self.motion is not None and (self.has_thermal or self.imu.has_asynchrony or np.any(self.imu.accel_lever_arm)
+                                        or np.any(self.imu.gyro_g_sensitivity)):
+            raise ValueError("a hand-held scenario takes no thermal model, time asynchrony, size effect nor "
+                             "g-sensitivity")
 
     @property
     def has_thermal(self) -> bool:
@@ -507,7 +515,8 @@ class SimData:
     def to_record(self) -> Record:
         """The simulation as an in-memory :class:`~inscal.io.records.Record` with its truth."""
         sc = self.scenario
-        return Record(self.time, self.dtheta, self.dvel, self.gimbal, sc.rate_hz, sc.site, path=sc.path,
+        return Record(self.time, self.dtheta, self.dvel, self.gimbal, sc.rate_hz, sc.site,
+                      path=sc.path if sc.motion is None else None,
                       truth=Truth(sc.imu, sc.gimbal, sc.noise, sc.thermal), scenario=sc.name,
                       temperature=self.temperature)
 
@@ -522,10 +531,25 @@ def _temperature_rng(scenario: Scenario, rng: np.random.Generator | None) -> np.
     return rng.spawn(1)[0]
 
 
+def _handheld(scenario: Scenario, rng: np.random.Generator | None, keep_truth: bool) -> SimData:
+    """A hand-held session (:mod:`inscal.sim.handheld`): exact increments, the error model, the noise."""
+    if rng is None and not scenario.noise.is_zero:
+        raise ValueError("a seeded numpy Generator is required when the scenario has noise")
+    imu = scenario.imu
+    quad = bool(np.any(imu.accel_nonlinearity) or np.any(imu.accel_cross_coupling))
+    t, dth, dv, f2, fx = true_increments(scenario.motion, scenario.site, scenario.rate_hz, quad)
+    mdth, mdv = imu.measure_increments(1.0 / scenario.rate_hz, dth, dv, f2, fx)
+    if not scenario.noise.is_zero:
+        mdth, mdv, _ = NoiseState(scenario.noise, rng, 1.0 / scenario.rate_hz).apply(mdth, mdv, np.zeros((t.size, 2)))
+    return SimData(scenario, t, mdth, mdv, None, dth if keep_truth else None, dv if keep_truth else None)
+
+
 def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_truth: bool = False,
              chunk_size: int = 1 << 19) -> SimData:
     """Simulate the whole scenario in memory (see :func:`simulate_chunks` for long runs).  The chunks are
     written into the arrays of the result: no copy, no more memory than the result."""
+    if scenario.motion is not None:
+        return _handheld(scenario, rng, keep_truth)
     seg = scenario.path.segments()
     n = _n_samples(scenario, seg)
     temp_rng = _temperature_rng(scenario, rng)
@@ -547,6 +571,11 @@ def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, 
     n = scenario.n_samples
     if n < 1:
         raise ValueError("scenario is shorter than one sample")
+    if scenario.motion is not None:  # a hand-held session: in memory (minutes of data), no gimbal, no path
+        d = _handheld(scenario, rng, False)
+        info = RecordInfo(n, scenario.rate_hz, scenario.site, None, Truth(scenario.imu, scenario.gimbal, scenario.noise,
+                                                                          None), scenario.name, False, None)
+        return write_stream(path, info, [(d.time, d.dtheta, d.dvel, None)], overwrite)
     temp_rng = _temperature_rng(scenario, rng)
     info = RecordInfo(n, scenario.rate_hz, scenario.site, scenario.path,
                       Truth(scenario.imu, scenario.gimbal, scenario.noise, scenario.thermal), scenario.name, True,

@@ -1,0 +1,196 @@
+"""An independent generator of hand-held (table-free) multi-position IMU logs, written from the
+equations.  NumPy only: it shares no code with inscal (a test oracle).
+
+Frames: navigation n = East-North-Up at latitude L, fixed to the Earth; body b = the frame in which
+the accelerometer matrix is lower triangular (x along the accelerometer x axis, y in the plane of
+accelerometers x and y), the convention of Tedaldi et al. (ICRA 2014) for a frame the poses define.
+
+Motion (closed form).  The IMU rests in pose j (attitude ``C_b^n = C_j``) and moves to pose j+1 by a
+rotation through ``Theta_j`` about a body axis ``e_j`` with the profile
+``theta(s) = Theta (s - sin(2 pi s) / (2 pi))``, ``s = (t - t_m) / T`` (rate ``Theta/T (1 - cos 2 pi s)``,
+zero rate and acceleration at both ends), and a hand tremor
+``tau(s) = A sin^2(pi s) sin(2 pi f_tr t)`` about a second body axis ``e2_j``::
+
+    C_b^n(t) = C_j Rot(e_j, theta) Rot(e2_j, tau),     Rot(e, a) = I + sin a [e]x + (1 - cos a) [e]x^2
+    w_nb^b   = Rot(e2, tau)^T e theta_dot + e2 tau_dot
+    w_ib^b   = w_nb^b + C_n^b w_ie^n,   w_ie^n = W [0, cos L, sin L]
+    f^b      = C_n^b [0, 0, g]
+
+(the tremor returns to zero at the end of the move, so ``C_{j+1} = C_j Rot(e_j, Theta_j)``).
+
+Sensors::
+
+    gyro:   w_meas = Mg w_ib^b + bg                 Mg full 3x3 (scale factors, misalignment)
+    accel:  f_meas = Ma (f + k2 * f**2) + ba        Ma lower triangular, k2 elementwise
+
+With ``samples``, the log holds instead the instantaneous readings at the edges (a logger's rates and
+specific forces at its own timestamps; white noise of density ``arw/vrw`` over the median step).
+
+Increments over ``[t_{k-1}, t_k]`` (any time base): Gauss-Legendre (8 points) on every piece between
+the motion's breakpoints, so the quadrature is exact to round-off for the dwell and very accurate on
+the smooth moves; white noise of density ``arw`` / ``vrw`` added as ``N sqrt(dt_k)`` per increment.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+EARTH_RATE = 7.292115e-5
+
+
+def rot(e, a):
+    e = np.asarray(e, float)
+    k = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+    return np.eye(3) + math.sin(a) * k + (1.0 - math.cos(a)) * (k @ k)
+
+
+def _rot_many(e, a):
+    """Rot(e, a) for a scalar axis e and an array of angles a -> (n, 3, 3)."""
+    k = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+    s, c = np.sin(a)[:, None, None], (1.0 - np.cos(a))[:, None, None]
+    return np.eye(3)[None] + s * k[None] + c * (k @ k)[None]
+
+
+@dataclass
+class HandheldLog:
+    time: np.ndarray
+    dtheta: np.ndarray
+    dvel: np.ndarray
+    poses: list  # C_b^n of every pose
+    still: list  # (t0, t1) of every still pose
+    truth: dict = field(default_factory=dict)
+
+
+def random_poses(rng, n):
+    """n attitudes spread over the sphere (the gravity directions of a Fibonacci lattice, random heading)."""
+    out = []
+    for i in range(n):
+        z = 1.0 - 2.0 * (i + 0.5) / n
+        phi = math.pi * (3.0 - math.sqrt(5.0)) * i
+        up = np.array([math.sqrt(1 - z * z) * math.cos(phi), math.sqrt(1 - z * z) * math.sin(phi), z])  # n-up in b
+        a = rng.normal(size=3)
+        x = a - up * (a @ up)
+        x /= np.linalg.norm(x)
+        y = np.cross(up, x)
+        out.append(np.array([x, y, up]))  # rows: the E, N, U axes in body components: C_b^n
+    return out
+
+
+def generate(rng, Mg, bg, Ma, ba, k2=np.zeros(3), lat=0.8, g=9.80, rate_hz=100.0, n_poses=12, still_s=4.0,
+             move_s=3.0, tremor_deg=0.0, tremor_hz=8.0, arw=0.0, vrw=0.0, jitter=0.0, noise_rng=None, poses=None,
+             turns=None, samples=False):
+    """A log: still, move, still, ... (poses: C_b^n list, default :func:`random_poses`; ``still_s``: one
+    duration or one per pose; ``turns``: {move index: (body axis, angle)} for moves that are not the
+    shortest rotation between their poses, e.g. a whole turn, 2 pi, between two equal poses)."""
+    poses = random_poses(rng, n_poses) if poses is None else poses
+    still = np.broadcast_to(np.asarray(still_s, float), (len(poses),))
+    wie = EARTH_RATE * np.array([0.0, math.cos(lat), math.sin(lat)])
+    moves = []  # (t_m, T, C_j, e, Theta, e2)
+    t = still[0]
+    for j in range(len(poses) - 1):
+        R = poses[j].T @ poses[j + 1]  # Rot(e, Theta) = C_j^T C_{j+1}
+        ang = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
+        e = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+        e = e / np.linalg.norm(e) if ang > 0 else np.array([0.0, 0.0, 1.0])
+        if turns and j in turns:
+            e, ang = np.asarray(turns[j][0], float), float(turns[j][1])
+            assert np.allclose(rot(e, ang), R, atol=1e-9), "a turn must take pose j to pose j+1"
+        e2 = rng.normal(size=3)
+        e2 /= np.linalg.norm(e2)
+        moves.append((t, move_s, poses[j], e, ang, e2))
+        t += move_s + still[j + 1]
+    t_end = t
+    n = int(round(t_end * rate_hz))
+    edges = np.arange(n + 1) / rate_hz
+    if jitter:
+        edges[1:-1] += rng.uniform(-jitter, jitter, n - 1) / rate_hz
+    bps = sorted({m[0] for m in moves} | {m[0] + m[1] for m in moves})
+    allp = np.union1d(edges, [b for b in bps if 0 < b < t_end])
+    owner = np.searchsorted(edges, allp[:-1], side="right") - 1
+    xg, wg = np.polynomial.legendre.leggauss(8)
+    a, b = allp[:-1], allp[1:]
+    tn = (0.5 * (a + b))[:, None] + 0.5 * (b - a)[:, None] * xg[None]  # (pieces, 8)
+    wq = 0.5 * (b - a)[:, None] * wg[None]
+    def signals(tt):
+        """The measured rate and specific force (noise-free) at times tt."""
+        Cbn = np.repeat(poses[-1][None], tt.size, axis=0)
+        wnb = np.zeros((tt.size, 3))
+        mstart = np.array([m[0] for m in moves])
+        idx = np.searchsorted(mstart, tt, side="right") - 1
+        for j, (tm, T, Cj, e, Th, e2) in enumerate(moves):
+            before = idx == j
+            s = np.clip((tt[before] - tm) / T, 0.0, 1.0)
+            th = Th * (s - np.sin(2 * np.pi * s) / (2 * np.pi))
+            thd = Th / T * (1.0 - np.cos(2 * np.pi * s))
+            A = math.radians(tremor_deg)
+            tau = A * np.sin(np.pi * s) ** 2 * np.sin(2 * np.pi * tremor_hz * tt[before])
+            taud = A * (np.pi / T * np.sin(2 * np.pi * s) * np.sin(2 * np.pi * tremor_hz * tt[before])
+                        + np.sin(np.pi * s) ** 2 * 2 * np.pi * tremor_hz * np.cos(2 * np.pi * tremor_hz * tt[before]))
+            inmove = s < 1.0
+            R1, R2 = _rot_many(e, th), _rot_many(e2, tau)
+            C = np.einsum("ij,njk,nkl->nil", Cj, R1, R2)
+            C[~inmove] = Cj @ rot(e, Th)
+            Cbn[before] = C
+            w = np.einsum("nji,j->ni", R2, e) * thd[:, None] + e2[None] * taud[:, None]
+            w[~inmove] = 0.0
+            wnb[before] = w
+        first = idx < 0
+        Cbn[first] = poses[0]
+        wnb[first] = 0.0
+        Cnb = np.transpose(Cbn, (0, 2, 1))
+        wib = wnb + Cnb @ wie
+        f = Cnb @ np.array([0.0, 0.0, g])
+        gm = wib @ Mg.T + bg
+        am = (f + k2 * f * f) @ Ma.T + ba
+        return gm, am
+
+    gm, am = signals(tn.ravel())
+    ig = np.einsum("pq,pqi->pi", wq, gm.reshape(-1, 8, 3))
+    ia = np.einsum("pq,pqi->pi", wq, am.reshape(-1, 8, 3))
+    dth = np.zeros((n, 3))
+    dv = np.zeros((n, 3))
+    np.add.at(dth, owner, ig)
+    np.add.at(dv, owner, ia)
+    dt = np.diff(edges)
+    if arw or vrw:
+        nr = noise_rng if noise_rng is not None else rng
+        dth += arw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
+        dv += vrw * np.sqrt(dt)[:, None] * nr.normal(size=(n, 3))
+    spans = [(0.0, still[0])] + [(m[0] + m[1], m[0] + m[1] + still[j + 1]) for j, m in enumerate(moves)]
+    if samples:  # a logger's instantaneous readings at the (jittered) edges; white noise of the same density
+        gs, as_ = signals(edges)
+        if arw or vrw:
+            nr = noise_rng if noise_rng is not None else rng
+            h = np.median(np.diff(edges))
+            gs = gs + arw / np.sqrt(h) * nr.normal(size=gs.shape)
+            as_ = as_ + vrw / np.sqrt(h) * nr.normal(size=as_.shape)
+        dth, dv = gs, as_
+        edges = np.concatenate([[edges[0] - 1.0], edges])  # time = the edges themselves
+    return HandheldLog(edges[1:], dth, dv, poses, spans, {"Mg": Mg, "bg": bg, "Ma": Ma, "ba": ba, "k2": k2,
+                                                          "lat": lat, "g": g})
+
+
+def canonical_truth(Mg, bg, Ma, ba):
+    """The truth in inscal's parametrisation M = (I + K)(I + E): K = diag(M) - 1, E_ij = M_ij / M_ii."""
+    def split(M):
+        d = np.diag(M)
+        E = M / d[:, None]
+        return d - 1.0, np.array([E[0, 1], E[0, 2], E[1, 0], E[1, 2], E[2, 0], E[2, 1]])
+    kg, eg = split(Mg)
+    ka, ea = split(Ma)
+    return {"gyro_scale_factor": kg, "gyro_misalignment": eg, "gyro_bias": np.asarray(bg, float),
+            "accel_scale_factor": ka, "accel_misalignment": ea, "accel_bias": np.asarray(ba, float)}
+
+
+def grade(name, rng):
+    """Random true errors of a MEMS, tactical or navigation-grade IMU: (Mg, bg, Ma, ba, arw, vrw) SI."""
+    deg, hour = math.pi / 180.0, 3600.0
+    sf, mis, gb, ab, arw, vrw = {
+        "mems": (3e-3, 2e-3, 0.3 * deg, 0.05, 0.3 * deg / 60, 1e-3),
+        "tactical": (3e-4, 3e-4, 5 * deg / hour, 5e-3, 0.1 * deg / 60, 2e-4),
+        "navigation": (5e-5, 5e-5, 0.01 * deg / hour, 5e-4, 0.002 * deg / 60, 2e-5),
+    }[name]
+    Mg = np.eye(3) + np.diag(rng.normal(0, sf, 3)) + (np.ones((3, 3)) - np.eye(3)) * rng.normal(0, mis, (3, 3))
+    Ma = np.eye(3) + np.diag(rng.normal(0, sf, 3)) + np.tril(rng.normal(0, mis, (3, 3)), -1)
+    return Mg, rng.normal(0, gb, 3), Ma, rng.normal(0, ab, 3), arw, vrw
