@@ -35,6 +35,7 @@ composite stochastic processes", JASA 108 (2013) 1021-1030; D. B. Percival, A. T
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -44,6 +45,9 @@ from scipy import integrate, signal
 
 #: the bias-instability plateau factor: AVAR -> (2 ln 2 / pi) B^2  (IEEE 952 eq. C.17)
 BI_PLATEAU = 2.0 * math.log(2.0) / math.pi
+#: orders and factorials of the series of the Gauss-Markov Allan variance (GaussMarkov.avar)
+_SERIES_N = np.arange(3, 26)
+_SERIES_FACT = np.array([math.factorial(int(k)) for k in _SERIES_N], dtype=float)
 #: Gauss-Legendre nodes per half-period of the flicker integrand
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
 
@@ -144,6 +148,7 @@ class BiasInstability:
         return y[:n]
 
 
+@functools.lru_cache(maxsize=4096)  # a pure function of two floats: the fits evaluate it at the same scales
 def _flicker_integral(m: float, nu0: float) -> float:
     """int_0^nu0 sin^4(pi nu m) / (nu m^2 sin^2(pi nu)) dnu: Gauss-Legendre over half-periods up to
     ``min(nu0, 32 / m)``, then sin^4 x = 3/8 - cos(2x)/2 + cos(4x)/8 with QAWO for the oscillating
@@ -222,15 +227,19 @@ class GaussMarkov:
         c_n = 4 (m+1)^n - (2m+1)^n - m 2^n - 3 (the series where m b is small: F's terms cancel)."""
         m = _m(m)
         b = dt / self.tc
-        direct = m * -np.expm1(-2 * b) - 3 * np.exp(-b) + 4 * np.exp(-(m + 1) * b) - np.exp(-(2 * m + 1) * b)
-        series = np.zeros_like(m)
-        fact = 1.0
-        for n in range(3, 40):
-            fact *= n if n > 3 else 6.0
-            # c_n b^n written with the products m b (no overflow for large m)
-            cbn = 4 * ((m + 1) * b) ** n - ((2 * m + 1) * b) ** n - m * (2 * b) ** n - 3 * b**n
-            series += (-1) ** n * cbn / fact
-        f = np.where(2 * m * b < 0.5, series, direct)
+        f = m * -np.expm1(-2 * b) - 3 * np.exp(-b) + 4 * np.exp(-(m + 1) * b) - np.exp(-(2 * m + 1) * b)
+        small = 2 * m * b < 0.5
+        if np.any(small):
+            ms = m[small][:, None] if np.ndim(m) else np.atleast_1d(m)[:, None]
+            n = _SERIES_N[None, :]
+            # c_n b^n written with the products m b (no overflow for large m); terms < 0.5^n / n!
+            cbn = 4 * ((ms + 1) * b) ** n - ((2 * ms + 1) * b) ** n - ms * (2 * b) ** n - 3 * b**n
+            ser = np.sum(np.where(n % 2 == 1, -cbn, cbn) / _SERIES_FACT[None, :], axis=1)
+            if np.ndim(m):
+                f = np.array(f, copy=True)
+                f[small] = ser
+            else:
+                f = ser[0]
         return self.sigma**2 * f / (m**2 * np.expm1(-b) ** 2)
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
