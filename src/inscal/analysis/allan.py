@@ -167,14 +167,28 @@ class MotionStats:
             self.gmin = lo if self.gmin is None else np.minimum(self.gmin, lo)
             self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
 
-    def warning(self) -> str | None:
+    def _moving(self):
+        """(per-block moving mask, threshold [rad/s])."""
         k, m = self.k, self.m
         rates = self.sums[: self.nb] * self.rate_hz / m
         dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
         d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
         sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
         thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
-        frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
+        return np.linalg.norm(dev, axis=1) > thr, thr
+
+    def moving_span(self) -> tuple[float, float] | None:
+        """Seconds from the window's start of the first and the end of the last block that moves
+        (None when no block does)."""
+        mask, _ = self._moving()
+        if not mask.any():
+            return None
+        idx = np.flatnonzero(mask)
+        return float(idx[0] * self.m / self.rate_hz), float((idx[-1] + 1) * self.m / self.rate_hz)
+
+    def warning(self) -> str | None:
+        mask, thr = self._moving()
+        frac = float(np.mean(mask)) if self.k else 0.0
         moving = frac > 0.01
         why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
         if not moving and self.gmin is not None:

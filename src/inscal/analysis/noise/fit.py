@@ -179,7 +179,7 @@ def _canonical(codes, theta) -> np.ndarray:
     return out
 
 
-def solve(curve: Curve, codes, weights=None, n_starts: int = 12, rng: np.random.Generator | None = None,
+def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
           theta0=None):
     """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``."""
     rng = np.random.default_rng(0) if rng is None else rng
@@ -198,8 +198,8 @@ def solve(curve: Curve, codes, weights=None, n_starts: int = 12, rng: np.random.
     starts = [th0] + [np.clip(th0 + rng.normal(0, 2.0, th0.size), lo + 1e-9, hi - 1e-9) for _ in range(n_starts)]
     best, fbest, hits = None, np.inf, 0
     for s in starts:
-        r = least_squares(resid, s, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-12,
-                          gtol=1e-12, max_nfev=200)
+        r = least_squares(resid, s, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-8, ftol=1e-10,
+                          gtol=1e-10, max_nfev=100)
         f = float(np.sum(r.fun**2))
         if f < fbest * (1 - 1e-6):
             best, fbest, hits = r.x, f, 1
@@ -261,7 +261,7 @@ class NoiseFit:
         return self.objective + self.penalty
 
 
-def fit_curve(curve: Curve, model, weights=None, n_starts: int = 12, rng: np.random.Generator | None = None,
+def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
               v_terms=None, theta0=None) -> NoiseFit:
     """Fit ``model`` (a string like "WN+RW+2GM" or parsed codes) to ``curve``.  ``v_terms``: the
     processes whose spectrum gives V (default: the fitted ones; model selection passes the largest

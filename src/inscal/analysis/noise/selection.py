@@ -74,7 +74,7 @@ class Selection:
 
 
 def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | None = None,
-           n_starts: int = 4) -> Selection:
+           n_starts: int = 2) -> Selection:
     """Fit every sub-sum of ``largest`` and choose by WVIC (module docstring)."""
     rng = np.random.default_rng(0) if rng is None else rng
     codes = nm.parse_model(largest)
@@ -108,10 +108,15 @@ READOFFS = (("QN", -1.0, math.sqrt(3.0)), ("WN", -0.5, 1.0), ("BI", 0.0, math.na
             ("DR", 1.0, math.sqrt(2.0)))
 
 
-def readoffs(taus, adev) -> dict:
+def readoffs(taus, adev, edf=None, min_edf: float = 30.0) -> dict:
     """The IEEE read-offs of one Allan deviation curve (SI): each term's tangent of its slope from
-    below, read at its tau (module docstring); B = sigma_min / 0.664 with the tau of the minimum."""
+    below, read at its tau (module docstring); B = sigma_min / 0.664 with the tau of the minimum.
+    With ``edf``, only the points of at least ``min_edf`` degrees of freedom are used (a tangent
+    from below otherwise catches the scatter of the longest taus)."""
     taus, adev = np.asarray(taus, float), np.asarray(adev, float)
+    if edf is not None and np.sum(np.asarray(edf) >= min_edf) >= 3:
+        keep = np.asarray(edf) >= min_edf
+        taus, adev = taus[keep], adev[keep]
     out = {}
     for code, slope, at in READOFFS:
         if code == "BI":
