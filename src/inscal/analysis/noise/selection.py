@@ -74,12 +74,13 @@ class Selection:
 
 
 def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | None = None,
-           n_starts: int = 2) -> Selection:
-    """Fit every sub-sum of ``largest`` and choose by WVIC (module docstring)."""
+           n_starts: int = 2, rule: str = "wvic") -> Selection:
+    """Fit every sub-sum of ``largest`` and choose by WVIC (module docstring).  ``rule="parsimony"``:
+    the fewest parameters among the candidates the J test does not reject at 5 %, then the lowest WVIC."""
     rng = np.random.default_rng(0) if rng is None else rng
     codes = nm.parse_model(largest)
     full = fit_curve(curve, codes, rng=rng)
-    table, fits = [], {}
+    table, fits, sizes = [], {}, {}
     for cand in sub_models(codes):
         if sum(n_params(c) for c in cand) > curve.m.size:
             continue
@@ -88,9 +89,15 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
         if cand == codes:  # judged with the same V as the others
             f = fit_curve(curve, cand, n_starts=0, rng=rng, v_terms=full.terms, theta0=full.theta)
         fits[f.model] = f
+        sizes[f.model] = sum(n_params(c) for c in cand)
         table.append((f.model, f.wvic, f.objective, f.gof_p, any(f.negligible)))
     table.sort(key=lambda r: r[1])
     ok = [r for r in table if not r[4]] or table
+    if rule == "parsimony":
+        passing = [r for r in ok if r[3] >= 0.05]
+        if passing:
+            fewest = min(sizes[r[0]] for r in passing)
+            ok = [r for r in passing if sizes[r[0]] == fewest] + [r for r in ok if r not in passing or sizes[r[0]] != fewest]
     best = ok[0]
     nxt = [r for r in ok[1:3]]
     why = (f"{best[0]}: lowest WVIC {best[1]:.4g} among {len(table)} sub-sums of {nm.model_string(codes)}"
