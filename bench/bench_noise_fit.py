@@ -31,11 +31,11 @@ def si(v, key):
 
 SCENARIOS = {
     "FOG": (0.1, nm.ChannelNoise("g", "gyro", (
-        nm.Quantization(si(0.03, "q")), nm.WhiteNoise(si(0.002, "n")), nm.RandomWalk(si(0.01, "k")),
+        nm.Quantization(si(0.03, "q")), nm.WhiteNoise(si(0.002, "n")), nm.RandomWalk(si(0.02, "k")),
         nm.GaussMarkov(si(0.015, "sigma"), 300.0)))),
     "MEMS": (0.01, nm.ChannelNoise("g", "gyro", (
-        nm.Quantization(si(2.0, "q")), nm.WhiteNoise(si(0.2, "n")), nm.RandomWalk(si(30.0, "k")),
-        nm.RateRamp(si(100.0, "r")), nm.GaussMarkov(si(20.0, "sigma"), 1.0), nm.GaussMarkov(si(5.0, "sigma"), 30.0)))),
+        nm.Quantization(si(2.0, "q")), nm.WhiteNoise(si(0.2, "n")), nm.RandomWalk(si(50.0, "k")),
+        nm.RateRamp(si(200.0, "r")), nm.GaussMarkov(si(20.0, "sigma"), 1.0), nm.GaussMarkov(si(8.0, "sigma"), 30.0)))),
 }
 N = 1 << 18
 

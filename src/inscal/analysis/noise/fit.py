@@ -160,7 +160,7 @@ def _bounds(codes, curve: Curve, th0):
         lo.append(th0[i] - 25)
         hi.append(th0[i] + 25)
         if c == "GM":
-            lo.append(math.log(curve.dt / 4))
+            lo.append(math.log(2 * curve.dt))  # shorter, a GM is white noise at every scale: not identifiable
             hi.append(math.log(100 * T))
     return np.array(lo), np.array(hi)
 
