@@ -75,18 +75,15 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
             quantity, curve = idf.parse_curve_csv(from_curve.read_text(encoding="utf-8"), short(from_curve))
         except (idf.NoiseInputError, UnicodeDecodeError) as exc:
             raise CliError(str(exc) if isinstance(exc, idf.NoiseInputError) else f"{short(from_curve)}: not a text file") from None
-        p_need = need.bit_length() - 4  # the octave scales the model needs (required_samples: 10 * 2^(J - 1))
-        if curve.m.size < p_need:
-            raise CliError(f"{short(from_curve)}: {curve.m.size} points; model {model} needs at least {p_need} scales")
+        j_need = idf.required_scales(model)
+        if curve.m.size < j_need:
+            raise CliError(f"{short(from_curve)}: {curve.m.size} octave points; model {model} needs at least {j_need}")
         name = names[0] if channels is not None else ("gx" if kind == "gyro" else "ax")
         sel = idf.identify_curve(curve, model, rng)
         sv = idf.ScaleVariance(curve.m, curve.dt, int(curve.n_terms[0] + 2 * curve.m[0] - 1), curve.wv[:, None],
                                curve.n_terms)
-        summaries = [dict(idf.channel_summary(name, sel, sv, 0), kind=kind)]
-        sels, chan_names, rate_hz, window = [sel], [name], 1.0 / curve.dt, None
-        if kind == "accel":
-            summaries = [idf.channel_summary("ax" if name[0] == "g" else name, sel, sv, 0)]
-            chan_names = [summaries[0]["channel"]]
+        summaries = [idf.channel_summary(name, sel, sv, 0, kind)]
+        sels, chan_names, kinds, rate_hz = [sel], [name], [kind], 1.0 / curve.dt
         res = {"curve_file": str(from_curve), "quantity": quantity}
     else:
         try:
@@ -115,7 +112,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
             raise CliError(f"{short(data)}: {probs[0]}")
         sels = [idf.identify_curve(idf.octave_curve(scan.sv, c), model, rng) for c in idx]
         summaries = [idf.channel_summary(nm_, s, scan.sv, c) for nm_, s, c in zip(names, sels, idx)]
-        chan_names, rate_hz = names, win.rate_hz
+        chan_names, kinds, rate_hz = names, [idf.KINDS[c] for c in names], win.rate_hz
         res = {"data": str(data), "window_s": [scan.t_first - 1 / win.rate_hz, scan.t_last]}
     res.update({"model_asked": model, "seed": seed, "channels": summaries,
                 "conventions": "SI inside; values in IEEE Std 952-2020 (gyro) / 1293-2018 (accelerometer) units; "
@@ -124,7 +121,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
     if out is not None:
         from inscal.io.noisefile import write_noise
 
-        nmodel = idf.noise_model(chan_names, sels, rate_hz)
+        nmodel = idf.noise_model(chan_names, kinds, sels, rate_hz)
         intervals = {}
         for nme, s in zip(chan_names, sels):
             f, i, per = s.chosen, 0, {}

@@ -35,12 +35,16 @@ class NoiseInputError(ValueError):
     """A record or curve that cannot be identified (one line: what and where)."""
 
 
-def required_samples(model: str) -> int:
-    """Samples a record needs for ``model`` (``auto``: the largest model): J = p + 2 octave scales up
-    to a tenth of the record, i.e. n >= 10 * 2^(p + 1)."""
+def required_scales(model: str) -> int:
+    """Octave scales a fit of ``model`` (``auto``: the largest model) needs: its p parameters + 2."""
     codes = nm.parse_model(AUTO_MODEL if model == "auto" else model)
-    p = sum(n_params(c) for c in codes)
-    return int(10 * 2 ** (p + EXTRA_SCALES - 1))
+    return sum(n_params(c) for c in codes) + EXTRA_SCALES
+
+
+def required_samples(model: str) -> int:
+    """Samples a record needs for ``model``: J octave scales up to a tenth of the record,
+    i.e. n >= 10 * 2^(J - 1) (:func:`inscal.analysis.noise.estimators.octave_scales`)."""
+    return int(10 * 2 ** (required_scales(model) - 1))
 
 
 class ChannelChecks:
@@ -136,10 +140,10 @@ def param_key(name: str) -> str:
     return name.split(".")[1]
 
 
-def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int) -> dict:
+def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: str | None = None) -> dict:
     """One channel's result in field units (JSON-ready): the model, why, every parameter with its
     95 % interval, the discrete forms, the fit's statistics, the IEEE read-offs, and the curves."""
-    kind = KINDS.get(name, "gyro")
+    kind = kind or KINDS.get(name, "gyro")
     fu = nm.FIELD_UNITS[kind]
     f = sel.chosen
     params = {}
@@ -183,8 +187,8 @@ def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int) -> dic
     }
 
 
-def noise_model(names, selections, rate_hz: float) -> nm.NoiseModel:
-    return nm.NoiseModel(tuple(nm.ChannelNoise(n, KINDS.get(n, "gyro"), s.chosen.terms) for n, s in zip(names, selections)),
+def noise_model(names, kinds, selections, rate_hz: float) -> nm.NoiseModel:
+    return nm.NoiseModel(tuple(nm.ChannelNoise(n, k, s.chosen.terms) for n, k, s in zip(names, kinds, selections)),
                          rate_hz)
 
 

@@ -49,8 +49,8 @@ def sub_models(codes) -> list[tuple]:
 
 
 def _warm(full: NoiseFit, codes) -> np.ndarray:
-    """The largest fit's log-parameters of the terms of ``codes`` (GMs: the longest correlation times
-    first dropped... kept in order)."""
+    """The largest fit's log-parameters of the terms of ``codes`` (a sub-sum with fewer GMs keeps the
+    largest fit's first ones, in increasing correlation time)."""
     blocks: dict[str, list] = {}
     i = 0
     for c in full.codes:
