@@ -17,7 +17,7 @@ from multiprocessing import Pool
 import numpy as np
 
 from inscal.analysis.noise.estimators import octave_scales, scale_variance
-from inscal.analysis.noise.fit import Curve, fit_curve
+from inscal.analysis.noise.fit import Curve, fit_curve, n_params
 from inscal.analysis.noise.selection import readoffs, select
 from inscal.core import noise_models as nm
 from inscal.core import units
@@ -44,6 +44,18 @@ def truth_vector(ch):
     return np.array([abs(getattr(t, p)) for t in ch.terms for p in t.params])
 
 
+def parsimony(table):
+    """The fewest parameters among the candidates the J test keeps (p >= 0.05), then the lowest WVIC
+    (select(..., rule="parsimony") on the same table)."""
+    ok = [r for r in table if not r[4]] or list(table)
+    keep = [r for r in ok if r[3] >= 0.05]
+    if not keep:
+        return ok[0][0]
+    size = {r[0]: sum(n_params(c) for c in nm.parse_model(r[0])) for r in keep}
+    fewest = min(size.values())
+    return min((r for r in keep if size[r[0]] == fewest), key=lambda r: r[1])[0]
+
+
 def one(args):
     name, seed, do_select = args
     dt, ch = SCENARIOS[name]
@@ -57,8 +69,9 @@ def one(args):
     chosen, t_sel = None, 0.0
     if do_select:
         t0 = time.perf_counter()
-        chosen = select(curve, rng=np.random.default_rng(seed + 2)).chosen.model
+        s = select(curve, rng=np.random.default_rng(seed + 2))
         t_sel = time.perf_counter() - t0
+        chosen = (s.chosen.model, parsimony(s.candidates))
     ro = readoffs(sv.taus, sv.adev[:, 0], sv.edf)
     return f.values, f.lower, f.upper, chosen, {k: v["value"] for k, v in ro.items()}, t_fit, t_sel, f.hits
 
@@ -90,14 +103,15 @@ def main():
             bias_sd = (e.mean() - truth[i]) / e.std(ddof=1)
             cov = np.mean((lo[:, i] <= truth[i]) & (truth[i] <= hi[:, i]))
             print(f"{pn:<12}{truth[i]:>12.4g}{e.mean():>12.4g}{bias_sd:>10.3f}{np.median(e) / truth[i]:>14.3f}{cov:>12.3f}")
-        sel = [o[3] for o in out if o[3] is not None]
-        if sel:
-            right = np.mean([s == ch.model for s in sel])
-            counts = {}
-            for s in sel:
-                counts[s] = counts.get(s, 0) + 1
-            top = sorted(counts.items(), key=lambda kv: -kv[1])[:5]
-            print(f"automatic choice right in {100 * right:.1f} % of {len(sel)} runs; most chosen: {top}")
+        for k, rule in enumerate(("WVIC", "parsimony (fewest parameters the J test keeps)")):
+            sel = [o[3][k] for o in out if o[3] is not None]
+            if sel:
+                right = np.mean([s == ch.model for s in sel])
+                counts = {}
+                for s in sel:
+                    counts[s] = counts.get(s, 0) + 1
+                top = sorted(counts.items(), key=lambda kv: -kv[1])[:4]
+                print(f"choice by {rule}: right in {100 * right:.1f} % of {len(sel)} runs; most chosen: {top}")
         code_key = {"QN": "q", "WN": "n", "RW": "k", "DR": "r"}
         print("IEEE read-offs (tangent lines) vs truth:")
         for t in ch.terms:

@@ -127,3 +127,30 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path, static, edit, args, w
     assert r.exit_code == 2, r.stdout
     assert words in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert not out.exists() and not png.exists()
+
+
+def test_identify_simulate_identify(tmp_path):
+    """A noise.toml as a scenario's [noise]: the simulator reproduces the unit, and identifying its
+    record gives the model back within the intervals."""
+    from inscal.io.noisefile import write_noise
+
+    ax = nm.ChannelNoise("ax", "accel", (nm.WhiteNoise(units.to_si(50.0, "ug/sqrt(Hz)")),
+                                         nm.GaussMarkov(units.to_si(40.0, "ug"), 2.0)))
+    chans = [nm.ChannelNoise(n, c.kind, c.terms) for c in (GX, ax) for n in ((c.name[0] + a) for a in "xyz")]
+    write_noise(tmp_path / "unit.toml", nm.NoiseModel(tuple(chans), RATE))
+    (tmp_path / "scen.toml").write_text('base = "static"\n[scenario]\nduration_h = 0.1\n[noise]\nfile = "unit.toml"\n')
+    rec = tmp_path / "r.h5"
+    r = CliRunner().invoke(app, ["simulate", str(tmp_path / "scen.toml"), "--out", str(rec), "--seed", "4"])
+    assert r.exit_code == 0, r.stderr
+    r = CliRunner().invoke(app, ["noise", str(rec), "--channels", "gy,az", "--model", "WN+GM", "--json"])
+    assert r.exit_code == 0, r.stderr
+    gy, az = (c["parameters"] for c in json.loads(r.stdout)["channels"])
+    for p, key, truth in ((gy, "WN.n", 0.05), (gy, "GM1.sigma", 5.0), (gy, "GM1.tc", 2.0),
+                          (az, "WN.n", 50.0), (az, "GM1.sigma", 40.0), (az, "GM1.tc", 2.0)):
+        se = math.log(p[key]["upper_95"] / p[key]["lower_95"]) / (2 * 1.96)  # the intervals are log-symmetric
+        assert abs(math.log(p[key]["value"] / truth)) < 3.5 * se, (key, p[key])  # six checks: 3.5 sigma each
+    # a term the simulator does not draw is refused in one line
+    write_noise(tmp_path / "rw.toml", nm.NoiseModel(tuple(chans[:5]) + (nm.ChannelNoise("az", "accel", (nm.RandomWalk(1e-6),)),), RATE))
+    (tmp_path / "scen2.toml").write_text('base = "static"\n[noise]\nfile = "rw.toml"\n')
+    r = CliRunner().invoke(app, ["simulate", str(tmp_path / "scen2.toml"), "--out", str(tmp_path / "r2.h5")])
+    assert r.exit_code == 2 and "az has RW" in r.stderr and not (tmp_path / "r2.h5").exists()
