@@ -38,6 +38,8 @@ SCENARIOS = {
         nm.RateRamp(si(200.0, "r")), nm.GaussMarkov(si(20.0, "sigma"), 1.0), nm.GaussMarkov(si(8.0, "sigma"), 30.0)))),
 }
 N = 1 << 18
+#: random starts of each fit besides the read-off one (the library default is 8; fewer here for time)
+N_STARTS = 4
 
 
 def truth_vector(ch):
@@ -64,7 +66,7 @@ def one(args):
     sv = scale_variance(y, 1 / dt, octave_scales(N))
     curve = Curve.from_scale_variance(sv)
     t0 = time.perf_counter()
-    f = fit_curve(curve, ch.model, rng=np.random.default_rng(seed + 1))
+    f = fit_curve(curve, ch.model, n_starts=N_STARTS, rng=np.random.default_rng(seed + 1))
     t_fit = time.perf_counter() - t0
     chosen, t_sel = None, 0.0
     if do_select:
@@ -123,7 +125,7 @@ def main():
         if gm:
             b = np.array([o[4]["BI"] for o in out])
             print(f"  B read-off sigma_min/0.664: mean {b.mean():.4g} rad/s (GM sigmas {[round(g.sigma, 12) for g in gm]})")
-        print(f"  starts reaching the best objective: median {np.median([o[7] for o in out]):.0f} of 9")
+        print(f"  starts reaching the best objective: median {np.median([o[7] for o in out]):.0f} of {N_STARTS + 1}")
 
 
 if __name__ == "__main__":

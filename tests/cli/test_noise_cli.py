@@ -138,7 +138,7 @@ def test_identify_simulate_identify(tmp_path):
                                          nm.GaussMarkov(units.to_si(40.0, "ug"), 2.0)))
     chans = [nm.ChannelNoise(n, c.kind, c.terms) for c in (GX, ax) for n in ((c.name[0] + a) for a in "xyz")]
     write_noise(tmp_path / "unit.toml", nm.NoiseModel(tuple(chans), RATE))
-    (tmp_path / "scen.toml").write_text('base = "static"\n[scenario]\nduration_h = 0.1\n[noise]\nfile = "unit.toml"\n')
+    (tmp_path / "scen.toml").write_text('base = "static"\n[scenario]\nduration_h = 0.06\n[noise]\nfile = "unit.toml"\n')
     rec = tmp_path / "r.h5"
     r = CliRunner().invoke(app, ["simulate", str(tmp_path / "scen.toml"), "--out", str(rec), "--seed", "4"])
     assert r.exit_code == 0, r.stderr
