@@ -29,26 +29,16 @@ def chunks(n, seed, chunk=1 << 18):
         yield rng.normal(0, 1e-4, (k, CH)) + steps
 
 
-def _engine(n, rate, q, label, kernel):
+def run_engine(n, rate, q):
     from inscal.analysis.noise.estimators import StreamingScaleVariance, octave_scales
 
     t0, c0 = time.perf_counter(), time.process_time()
-    acc = StreamingScaleVariance(n, rate, CH, octave_scales(n), increments=False, kernel=kernel)
+    acc = StreamingScaleVariance(n, rate, CH, octave_scales(n), increments=False)
     for x in chunks(n, 1):
         acc.update(x)
     sv = acc.result()
-    q.put((label, time.perf_counter() - t0, time.process_time() - c0,
+    q.put(("engine", time.perf_counter() - t0, time.process_time() - c0,
            resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, sv.adev))
-
-
-def run_engine(n, rate, q):
-    from inscal.analysis.noise.kernel import sum_squared_terms
-
-    _engine(n, rate, q, "engine", sum_squared_terms)
-
-
-def run_engine_numpy(n, rate, q):
-    _engine(n, rate, q, "engine-numpy", None)
 
 
 def run_generator(n, rate, q):
@@ -97,7 +87,7 @@ def main():
     n = int(a.hours * 3600 * a.rate)
     ctx = get_context("spawn")
     res = {}
-    for fn in (run_generator, run_engine, run_engine_numpy, run_allantools, run_identify):
+    for fn in (run_generator, run_engine, run_allantools, run_identify):
         q = ctx.Queue()
         p = ctx.Process(target=fn, args=(n, a.rate, q))
         p.start()
@@ -109,7 +99,7 @@ def main():
     print(f"{n} samples x {CH} channels ({a.hours:g} h at {a.rate:g} Hz): engine vs allantools.oadev "
           f"max relative difference {np.max(np.abs(e[4] / t[4] - 1)):.2e}; cpu speed-up {t[2] / e[2]:.1f}x "
           f"(engine's time includes generating the record, {g[2]:.1f} s cpu: {t[2] / max(e[2] - g[2], 1e-9):.1f}x "
-          f"without it), numpy path {t[2] / res['engine-numpy'][2]:.1f}x; models chosen: {res['identify'][4]}")
+          f"without it); models chosen: {res['identify'][4]}")
 
 
 if __name__ == "__main__":

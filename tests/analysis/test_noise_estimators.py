@@ -53,16 +53,6 @@ def test_any_chunking_gives_the_same_sums(chunk, piece):
     assert np.array_equal(r.n_terms, ref.n_terms)
 
 
-def test_compiled_kernel_gives_the_same_sums():
-    from inscal.analysis.noise.kernel import sum_squared_terms
-
-    y = _rates(20_011, k=6, seed=3)
-    a = scale_variance(y, RATE, log_scales(20_011), chunk=3001)
-    b = scale_variance(y, RATE, log_scales(20_011), chunk=3001, kernel=sum_squared_terms)
-    np.testing.assert_allclose(b.wv, a.wv, rtol=1e-12)
-    assert np.array_equal(a.n_terms, b.n_terms)
-
-
 def test_intervals_cover_and_weights():
     lo, hi = chi2_bounds([1.0, 10.0, 1e4])
     assert np.all(lo < 1) and np.all(hi > 1) and hi[0] > 100 and hi[2] - lo[2] < 0.06

@@ -120,9 +120,6 @@ def _navigate(tmp: Path) -> None:
     params = tmp / "params-n25.toml"
     run_navigate(rm, params=params if params.is_file() else None, vertical="damped", height_ref="0")
     run_navigate(tmp / "n25-static.h5", init="align", align_coarse_s=60.0, align_fine_s=60.0)
-    from inscal.cli.noise import run_noise  # the compiled sums of the Allan / wavelet variance
-
-    run_noise(tmp / "n25-static.h5", model="WN", channels="gx")
 
 
 def _library(tmp: Path) -> None:

@@ -90,7 +90,7 @@ class StreamingScaleVariance:
     Memory: about ``2 m_max + piece`` rows of ``k`` floats."""
 
     def __init__(self, n: int, rate_hz: float, k: int = 3, m=None, piece: int = 1 << 18,
-                 increments: bool = True, kernel=None):
+                 increments: bool = True):
         if n < 16:
             raise ValueError(f"need at least 16 samples, got {n}")
         self.n, self.rate_hz, self.k = int(n), float(rate_hz), int(k)
@@ -111,8 +111,7 @@ class StreamingScaleVariance:
         self.sums = np.zeros((self.m.size, self.k))
         self.fed = 0
         self.c = None
-        self.kernel = kernel  # kernel(buf, l0s, cnts, ms, sums): the compiled loop (analysis.noise.kernel)
-        self._tmp = np.empty((0 if kernel else self.piece + m_max, self.k))  # scratch of the NumPy path
+        self._tmp = np.empty((self.piece + m_max, self.k))  # scratch for the terms (no allocation per m)
 
     def update(self, x) -> None:
         x = np.asarray(x, dtype=float)
@@ -153,12 +152,6 @@ class StreamingScaleVariance:
         self.fed += L
         J = self.b0 + self.fill - 1  # the last phase index known
         b = self.buf
-        if self.kernel is not None:
-            i1 = np.maximum(J - 2 * self.m, self.next_i - 1)  # terms next_i .. i1 of each m
-            cnts = i1 - self.next_i + 1
-            self.kernel(b, self.next_i - self.b0, cnts, self.m, self.sums)
-            self.next_i = i1 + 1
-            return
         for j, m in enumerate(self.m):
             i0, i1 = int(self.next_i[j]), J - 2 * int(m)  # terms i0 .. i1
             if i1 < i0:
@@ -183,12 +176,11 @@ class StreamingScaleVariance:
         return ScaleVariance(self.m[ok].astype(float), 1.0 / self.rate_hz, self.n, wv[ok], nterm[ok].astype(float))
 
 
-def scale_variance(x, rate_hz: float, m=None, increments: bool = False, chunk: int = 1 << 18,
-                   kernel=None) -> ScaleVariance:
+def scale_variance(x, rate_hz: float, m=None, increments: bool = False, chunk: int = 1 << 18) -> ScaleVariance:
     """:class:`ScaleVariance` of the rows of ``x`` (an array or an HDF5 dataset, (N, k) or (N,)), streamed."""
     n = int(np.shape(x)[0])
     k = int(np.shape(x)[1]) if len(np.shape(x)) > 1 else 1
-    acc = StreamingScaleVariance(n, rate_hz, k, m, increments=increments, kernel=kernel)
+    acc = StreamingScaleVariance(n, rate_hz, k, m, increments=increments)
     for a in range(0, n, chunk):
         acc.update(np.asarray(x[a:min(n, a + chunk)], dtype=float))
     return acc.result()

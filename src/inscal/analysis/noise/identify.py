@@ -20,7 +20,6 @@ from inscal.analysis.allan import MotionStats
 from inscal.analysis.noise.estimators import ScaleVariance, StreamingScaleVariance, log_scales, octave_scales
 from inscal.analysis.noise.fit import Curve, fit_curve, n_params
 from inscal.analysis.noise.intervals import chi2_bounds, wv_interval
-from inscal.analysis.noise.kernel import sum_squared_terms
 from inscal.analysis.noise.selection import AUTO_MODEL, Selection, readoffs, select
 from inscal.core import noise_models as nm
 from inscal.core import units
@@ -108,8 +107,7 @@ class Scan:
 def scan_window(path, win, chunk_size: int = 1 << 18, per_octave: int = 4) -> Scan:
     """One streamed pass over the window ``win`` of the record at ``path`` (bounded memory)."""
     n = win.n
-    acc = StreamingScaleVariance(n, win.rate_hz, 6, log_scales(n, per_octave), increments=True,
-                                 kernel=sum_squared_terms)
+    acc = StreamingScaleVariance(n, win.rate_hz, 6, log_scales(n, per_octave), increments=True)
     mot, chk = MotionStats(n, win.rate_hz), ChannelChecks(6)
     t_first = t_last = None
     for t, dth, dv, g in iter_window(path, ("time", "dtheta", "dvel", "gimbal"), win.i0, win.i1, chunk_size):
