@@ -83,11 +83,12 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--hours", type=float, default=24.0)
     ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--only", choices=("identify",), help="run only the identification")
     a = ap.parse_args()
     n = int(a.hours * 3600 * a.rate)
     ctx = get_context("spawn")
     res = {}
-    for fn in (run_generator, run_engine, run_allantools, run_identify):
+    for fn in ((run_identify,) if a.only else (run_generator, run_engine, run_allantools, run_identify)):
         q = ctx.Queue()
         p = ctx.Process(target=fn, args=(n, a.rate, q))
         p.start()
@@ -95,6 +96,9 @@ def main():
         p.join()
         res[r[0]] = r
         print(f"{r[0]:<11} wall {r[1]:8.1f} s  cpu {r[2]:8.1f} s  peak RSS {r[3]:8.0f} MiB")
+    if a.only:
+        print(f"models chosen: {res['identify'][4]}")
+        return
     e, t, g = res["engine"], res["allantools"], res["generator"]
     print(f"{n} samples x {CH} channels ({a.hours:g} h at {a.rate:g} Hz): engine vs allantools.oadev "
           f"max relative difference {np.max(np.abs(e[4] / t[4] - 1)):.2e}; cpu speed-up {t[2] / e[2]:.1f}x "

@@ -243,8 +243,10 @@ class GaussMarkov:
         return self.sigma**2 * f / (m**2 * np.expm1(-b) ** 2)
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
-        p = self.phi(dt)
-        return self.sigma**2 * (1 - p**2) / (1 - 2 * p * np.cos(2 * np.pi * np.asarray(nu, dtype=float)) + p**2)
+        # sigma^2 (1 - phi^2) / |1 - phi e^{-i 2 pi nu}|^2, written with expm1 so that phi -> 1 (tc >> dt) stays finite
+        b = dt / self.tc
+        den = np.expm1(-b) ** 2 + 4 * math.exp(-b) * np.sin(np.pi * np.asarray(nu, dtype=float)) ** 2
+        return self.sigma**2 * -np.expm1(-2 * b) / den
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
         p = self.phi(dt)

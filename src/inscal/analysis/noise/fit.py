@@ -283,7 +283,10 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
     cov = Ai @ (WD.T @ V @ WD) @ Ai
     nu = model_wv(codes, theta, curve.m, curve.dt)
     r = curve.wv - nu
-    gof = float(r @ np.linalg.lstsq(V, r, rcond=None)[0])
+    try:
+        gof = float(r @ np.linalg.lstsq(V, r, rcond=None)[0]) if np.all(np.isfinite(V)) else math.nan
+    except np.linalg.LinAlgError:
+        gof = math.nan
     dof = max(curve.m.size - p, 0)
     penalty = 2.0 * float(np.trace(WD @ Ai @ WD.T @ V))
     se = np.sqrt(np.maximum(np.diag(cov), 0))
