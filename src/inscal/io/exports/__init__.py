@@ -1,1 +1,2 @@
-"""Exports of inscal results into other tools' conventions (one module per kind of result)."""
+"""Exports of a calibration into other tools' conventions, one module each (Kalibr, imucal, KF-GINS, C),
+each with the convention written out in its docstring."""
