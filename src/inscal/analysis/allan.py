@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inscal.analysis.noise.estimators import StreamingScaleVariance
 from inscal.io.records import iter_window
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
@@ -75,13 +76,9 @@ def _result(t_out, adev, err, white_tau_max) -> AllanResult:
 
 class StreamingAllan:
     """The overlapping Allan deviation of :func:`allan` (octave taus, same estimator as
-    ``allantools.oadev``) from increments fed chunk by chunk, in bounded memory.
-
-    The phase ``x_j = sum_{i<j} (inc_i - c)`` (rad or m/s; ``c`` is the mean increment of the first
-    chunk, which only helps rounding) is kept for the last ``2 m_max`` samples (``m_max <= n / 10``),
-    and the squared second differences ``(x_{i+2m} - 2 x_{i+m} + x_i)^2`` of every octave ``m`` are
-    summed as soon as their three phases are known: the exact sums, not an approximation.
-    Memory: about ``2.5 m_max`` rows of ``k`` floats (0.25 n), instead of the whole record.
+    ``allantools.oadev``) from increments fed chunk by chunk, in bounded memory: a face over the one
+    engine, :class:`inscal.analysis.noise.estimators.StreamingScaleVariance` (the Allan variance is
+    twice the Haar wavelet variance it sums).
 
     ``n`` is the number of increments that will be fed (it fixes the tau grid, as in :func:`allan`).
     """
@@ -89,78 +86,19 @@ class StreamingAllan:
     def __init__(self, n: int, rate_hz: float, k: int = 3, piece: int = 1 << 18):
         if n < 16:
             raise ValueError(f"need at least 16 samples, got {n}")
-        self.n, self.rate_hz, self.k = int(n), float(rate_hz), int(k)
-        taus = octave_taus(self.n, self.rate_hz)
-        m = np.unique(np.round(taus * self.rate_hz))
-        m = m[(m > 0) & (m < self.n + 1)].astype(np.int64)  # allantools: m < len(phase)
-        self.m = m
-        self.taus = m / self.rate_hz
-        m_max = int(m.max())
-        self.piece = int(max(1024, min(piece, self.n)))
-        self.slack = max(self.piece, m_max // 2)  # rows appended between two shifts of the history
-        self.cap = 2 * m_max + 1 + self.slack
-        self.buf = np.empty((min(self.cap, self.n + 1), self.k))
-        self.buf[0] = 0.0
-        self.b0 = 0  # global phase index of buf[0]
-        self.fill = 1  # rows of buf in use: phases b0 .. b0 + fill - 1
-        self.next_i = np.zeros(m.size, dtype=np.int64)  # next term index of each m
-        self.sums = np.zeros((m.size, self.k))
-        self.fed = 0
-        self.c = None
+        m = np.unique(np.round(octave_taus(int(n), float(rate_hz)) * rate_hz))
+        self.engine = StreamingScaleVariance(n, rate_hz, k, m, piece=piece, increments=True)
+        self.n, self.rate_hz, self.k = self.engine.n, self.engine.rate_hz, self.engine.k
 
     def update(self, increments) -> None:
-        x = np.asarray(increments, dtype=float)
-        if x.ndim == 1:
-            x = x[:, None]
-        if x.ndim != 2 or x.shape[1] != self.k:
-            raise ValueError(f"increments of shape (N, {self.k}) expected, got {x.shape}")
-        if self.fed + x.shape[0] > self.n:
-            raise ValueError(f"more than the announced {self.n} increments")
-        if not np.all(np.isfinite(x)):
-            raise ValueError("increments contain NaN or inf")
-        if self.c is None and x.shape[0]:
-            self.c = x.mean(axis=0)
-        for a in range(0, x.shape[0], self.piece):
-            self._feed(x[a:a + self.piece])
-
-    def _feed(self, x) -> None:
-        L = x.shape[0]
-        if self.fill + L > self.buf.shape[0]:  # drop the phases no term needs any more
-            keep0 = int(min(self.next_i.min(), self.b0 + self.fill - 1)) - self.b0
-            rows = self.fill - keep0
-            if keep0 > 0:
-                step = min(keep0, 1 << 16)  # blocks that do not overlap: no temporary copy of the history
-                for a in range(0, rows, step):
-                    self.buf[a: min(rows, a + step)] = self.buf[keep0 + a: keep0 + min(rows, a + step)]
-            self.b0 += keep0
-            self.fill -= keep0
-            if self.fill + L > self.buf.shape[0]:  # first shift of a buffer sized for a short record
-                self.buf = np.concatenate([self.buf[: self.fill], np.empty((L, self.k))])
-        ph = self.buf[self.fill - 1: self.fill + L]
-        ph[1:] = x - self.c
-        np.cumsum(ph, axis=0, out=ph)  # the running phase, carried from the last row
-        self.fill += L
-        self.fed += L
-        J = self.b0 + self.fill - 1  # the last phase index known
-        for j, m in enumerate(self.m):
-            i0, i1 = int(self.next_i[j]), J - 2 * int(m)  # terms i0 .. i1
-            if i1 < i0:
-                continue
-            l0, cnt = i0 - self.b0, i1 - i0 + 1
-            b = self.buf
-            d = b[l0 + 2 * m: l0 + 2 * m + cnt] - 2.0 * b[l0 + m: l0 + m + cnt] + b[l0: l0 + cnt]
-            self.sums[j] += np.einsum("ij,ij->j", d, d)
-            self.next_i[j] = i1 + 1
+        self.engine.update(increments)
 
     def result(self, white_tau_max: float = 1.0) -> AllanResult:
-        if self.fed != self.n:
-            raise ValueError(f"fed {self.fed} of the announced {self.n} increments")
-        nterm = (self.n + 1 - 2 * self.m).astype(float)
-        ok = nterm > 1  # allantools drops the taus with a single term
-        nterm = np.maximum(nterm, 1.0)
-        adev = np.sqrt(self.sums / (2.0 * nterm[:, None])) / (self.m[:, None] / self.rate_hz)
-        err = adev / np.sqrt(nterm)[:, None]
-        return _result(self.taus[ok], adev[ok], err[ok], white_tau_max)
+        sv = self.engine.result()
+        ok = sv.n_terms > 1  # allantools drops the taus with a single term
+        adev = sv.adev[ok]
+        err = adev / np.sqrt(sv.n_terms[ok])[:, None]
+        return _result(sv.taus[ok], adev, err, white_tau_max)
 
 
 def first_dwell(gimbal, n: int, chunk: int = 1 << 18, tol: float = 1e-9) -> int:
@@ -229,14 +167,28 @@ class MotionStats:
             self.gmin = lo if self.gmin is None else np.minimum(self.gmin, lo)
             self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
 
-    def warning(self) -> str | None:
+    def _moving(self):
+        """(per-block moving mask, threshold [rad/s])."""
         k, m = self.k, self.m
         rates = self.sums[: self.nb] * self.rate_hz / m
         dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
         d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
         sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
         thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
-        frac = float(np.mean(np.linalg.norm(dev, axis=1) > thr)) if k else 0.0
+        return np.linalg.norm(dev, axis=1) > thr, thr
+
+    def moving_span(self) -> tuple[float, float] | None:
+        """Seconds from the window's start of the first and the end of the last block that moves
+        (None when no block does)."""
+        mask, _ = self._moving()
+        if not mask.any():
+            return None
+        idx = np.flatnonzero(mask)
+        return float(idx[0] * self.m / self.rate_hz), float((idx[-1] + 1) * self.m / self.rate_hz)
+
+    def warning(self) -> str | None:
+        mask, thr = self._moving()
+        frac = float(np.mean(mask)) if self.k else 0.0
         moving = frac > 0.01
         why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
         if not moving and self.gmin is not None:

@@ -49,7 +49,7 @@ def _root(
 
 #: modules contributing subcommands (each has ``register(app)``)
 _SUBCOMMAND_MODULES = ["simulate", "calibrate", "compensate", "navigate", "montecarlo", "allan", "demo", "report",
-                       "observability", "import_export", "design", "db", "batch"]
+                       "observability", "import_export", "design", "db", "batch", "noise"]
 
 
 #: commands whose outputs are not one unit: the demo is a pipeline whose later steps read the

@@ -75,6 +75,16 @@ FACTOR: dict[str, float] = {
     "rad/degC": 1.0,
     "deg/h/(degC/min)": DEG / HOUR * 60.0,
     "deg/h/(degC/s)": DEG / HOUR,
+    # stochastic-process coefficients (IEEE Std 952-2020 and 1293-2018 units)
+    "rad/s/sqrt(s)": 1.0,  # rate random walk
+    "deg/h/sqrt(h)": DEG / HOUR / math.sqrt(HOUR),
+    "m/s^2/sqrt(s)": 1.0,  # acceleration random walk
+    "ug*sqrt(Hz)": 1e-6 * G0,  # (m/s^2)*sqrt(Hz) == m/s^2/sqrt(s)
+    "m/s/h/sqrt(h)": 1.0 / HOUR**1.5,
+    "rad/s^2": 1.0,  # rate ramp
+    "deg/h^2": DEG / HOUR**2,
+    "m/s^3": 1.0,  # acceleration ramp
+    "ug/h": 1e-6 * G0 / HOUR,
 }
 
 ALIASES: dict[str, str] = {
@@ -108,6 +118,15 @@ ALIASES: dict[str, str] = {
     "rad/K": "rad/degC",
     "µs": "us",
     "μs": "us",
+    "°/h/√h": "deg/h/sqrt(h)",
+    "deg/h/rt(h)": "deg/h/sqrt(h)",
+    "µg*√Hz": "ug*sqrt(Hz)",
+    "ug*√Hz": "ug*sqrt(Hz)",
+    "µg·√Hz": "ug*sqrt(Hz)",
+    "°/h²": "deg/h^2",
+    "deg/h2": "deg/h^2",
+    "µg/h": "ug/h",
+    "m/s/√h": "m/s/sqrt(h)",
 }
 
 
@@ -130,6 +149,10 @@ KIND: dict[str, str] = {
     "m/s": "velocity", "mm/s": "velocity", "ug*s": "velocity",
     "rad/degC": "rate-per-temperature-rate", "deg/h/(degC/min)": "rate-per-temperature-rate",
     "deg/h/(degC/s)": "rate-per-temperature-rate",
+    "rad/s/sqrt(s)": "rrw", "deg/h/sqrt(h)": "rrw",
+    "m/s^2/sqrt(s)": "arrw", "ug*sqrt(Hz)": "arrw", "m/s/h/sqrt(h)": "arrw",
+    "rad/s^2": "rate-ramp", "deg/h^2": "rate-ramp",
+    "m/s^3": "accel-ramp", "ug/h": "accel-ramp",
 }
 
 

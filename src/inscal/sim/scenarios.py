@@ -184,6 +184,8 @@ from inscal.core.turntable import (
 from inscal.core.thermal import ThermalModel, thermal_from_field
 from inscal.core.turntable import Move
 from inscal.core.units import DEG
+from inscal.core.noise_models import NoiseModel
+from inscal.io.noisefile import NoiseFileError, read_noise
 from inscal.io.tomlfile import read_toml
 from inscal.sim.handheld import HandheldMotion
 from inscal.sim.simulate import Scenario
@@ -519,6 +521,9 @@ _SENSOR_KEYS = {"names", "rate_hz", "offsets_c", "noise_c", "quantum_c"}
 def load_toml(file, duration_s: float | None = None) -> Scenario:
     p = Path(file)
     d = read_toml(p, ScenarioError, "scenario file")
+    nz = d.get("noise")
+    if isinstance(nz, dict) and isinstance(nz.get("file"), str) and not Path(nz["file"]).is_absolute():
+        nz["file"] = str(p.parent / nz["file"])  # a noise.toml beside the scenario
     try:
         return scenario_from_dict(d, duration_s, default_name=p.stem)
     except (ValueError, PathError, TypeError) as exc:
@@ -539,6 +544,46 @@ def gravity_from_field(g) -> GravityModel:
         v = units.to_si(float(g["value"]), str(g["unit"]), "accel")
         return GravityModel("measured", float(v), None if "height_m" not in g else float(g["height_m"]))
     raise ScenarioError(f"[site] gravity must be \"wgs84\", \"psins\" or {{value = ..., unit = ...}}, got {g!r}")
+
+
+def read_noise_file(path) -> NoiseModel:
+    try:
+        return read_noise(path)[0]
+    except NoiseFileError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def noise_from_model(model: NoiseModel) -> ImuNoise:
+    """The simulator's noise of an identified model (``[noise] file = "noise.toml"``): per axis white
+    noise (N), one Gauss-Markov bias (sigma; one correlation time per sensor) and quantization (the
+    quantum S = Q sqrt(12) of IEEE 952's Q, one per sensor).  A term the simulator does not draw
+    (RW, DR, BI, a second GM) or axes with different correlation times or quanta are refused."""
+    kw: dict = {}
+    for sensor, names, n_key in (("gyro", ("gx", "gy", "gz"), "arw"), ("accel", ("ax", "ay", "az"), "vrw")):
+        try:
+            chans = [model.channel(n) for n in names]
+        except KeyError as exc:
+            raise ScenarioError(f"[noise] file: {exc.args[0]}; the simulator needs {', '.join(names)}") from None
+        n, sig, taus, quanta = [], [], set(), set()
+        for c in chans:
+            codes = [t.code for t in c.terms]
+            extra = [k for k in codes if k not in ("QN", "WN", "GM")] + (["second GM"] if codes.count("GM") > 1 else [])
+            if extra:
+                raise ScenarioError(f"[noise] file: channel {c.name} has {', '.join(extra)}, which the simulator "
+                                    "does not draw (it draws QN, WN and one GM per channel)")
+            n.append(sum(t.n for t in c.terms if t.code == "WN"))
+            sig.append(sum(t.sigma for t in c.terms if t.code == "GM"))
+            taus |= {round(t.tc, 9) for t in c.terms if t.code == "GM"}
+            quanta.add(round(sum(t.q for t in c.terms if t.code == "QN") * math.sqrt(12.0), 15))
+        if len(taus) > 1 or len(quanta) > 1:
+            raise ScenarioError(f"[noise] file: the {sensor} axes have different Gauss-Markov correlation times or "
+                                "quanta; the simulator takes one per sensor")
+        kw[n_key] = np.array(n)
+        kw[f"{sensor}_bias_instability"] = np.array(sig)
+        if taus:
+            kw[f"{sensor}_bias_tau"] = float(taus.pop())
+        kw[f"{sensor}_quantization"] = float(quanta.pop())
+    return ImuNoise(**kw)
 
 
 def _check_keys(section: str, d: dict, allowed: set) -> None:
@@ -582,7 +627,12 @@ def scenario_from_dict(d: dict, duration_s: float | None = None, default_name: s
         merged.update(d["errors"])
         imu, gim = errors_from_field(merged)
     noise = base.noise
-    if "noise" in d:
+    if "noise" in d and isinstance(d["noise"], dict) and "file" in d["noise"]:
+        _check_keys("noise", d["noise"], {"file", "encoder_noise"})
+        noise = noise_from_model(read_noise_file(d["noise"]["file"]))
+        if "encoder_noise" in d["noise"]:
+            noise = replace(noise, encoder_noise=noise_from_field({"encoder_noise": d["noise"]["encoder_noise"]}).encoder_noise)
+    elif "noise" in d:
         noise = noise_from_field(d["noise"])
     path = base.path
     if "path" in d:

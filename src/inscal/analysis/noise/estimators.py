@@ -1,0 +1,186 @@
+"""The maximal-overlap Allan variance and Haar (MODWT) wavelet variance of every channel of a record,
+streamed in one pass of chunks (bounded memory): one engine for both.
+
+With the phase ``x_i = sum_{l<i} y_l`` (``x_0 = 0``; ``y`` the rate samples, or the increments
+divided by ``dt``) and an averaging factor ``m`` (``tau = m dt``), each term
+
+    D_i(m) = x_{i+2m} - 2 x_{i+m} + x_i,   i = 0 .. n - 2m   (M = n - 2m + 1 terms)
+
+is ``m`` times the difference of two adjacent m-sample means, so
+
+    AVAR(m) = sum D^2 / (2 m^2 M)   (the overlapping estimator of IEEE 952 eq. C.8 and allantools.oadev)
+    WV(m)   = sum D^2 / (4 m^2 M)   (the MODWT Haar wavelet variance at width L = 2m, scale index
+                                    j = log2(2m) for octave m: Percival & Walden 2000 eq. 306b, the
+                                    boundary coefficients left out)
+
+i.e. AVAR(m) = 2 WV(2m-wide).  The phase is kept for the last ``2 m_max + chunk`` samples only, and
+the squared terms of every ``m`` are summed as soon as their three phases are known: the exact
+sums, not an approximation.  The rounding of the phase is kept small by removing the first chunk's
+mean before summing (a constant rate does not change any D).
+
+Intervals (:mod:`inscal.analysis.noise.intervals`) use the equivalent degrees of freedom
+``eta3 = max(M / L, 1)`` (Percival & Walden 2000 eq. 314c), as GMWM's ``wvar`` does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def octave_scales(n: int, max_fraction: float = 0.1) -> np.ndarray:
+    """Averaging factors 1, 2, 4, ... up to ``max(2, n max_fraction)`` (scale index j = log2(2m))."""
+    return 2 ** np.arange(0, int(math.log2(max(2, n * max_fraction))) + 1)
+
+
+def log_scales(n: int, per_octave: int = 8, max_fraction: float = 0.1) -> np.ndarray:
+    """A denser grid for plots: ``per_octave`` factors per octave (rounded, unique), the octaves included."""
+    top = math.log2(max(2, n * max_fraction))
+    dense = np.unique(np.round(2 ** np.arange(0, top + 1e-9, 1.0 / per_octave)).astype(np.int64))
+    return np.unique(np.concatenate([dense, octave_scales(n, max_fraction)]))
+
+
+@dataclass(frozen=True)
+class ScaleVariance:
+    """The Allan and Haar wavelet variances of ``k`` channels at averaging factors ``m``.
+
+    ``wv[j, c]`` is channel c's Haar wavelet variance at width ``2 m[j]`` and ``avar = 2 wv`` its Allan
+    variance at ``tau = m dt``, in the squared rate unit of the input; ``n_terms`` the number M of
+    terms (MODWT coefficients) behind each value."""
+
+    m: np.ndarray  # (J,) averaging factors
+    dt: float  # [s]
+    n: int  # samples
+    wv: np.ndarray  # (J, k)
+    n_terms: np.ndarray  # (J,)
+
+    @property
+    def taus(self) -> np.ndarray:
+        return self.m * self.dt
+
+    @property
+    def avar(self) -> np.ndarray:
+        return 2.0 * self.wv
+
+    @property
+    def adev(self) -> np.ndarray:
+        return np.sqrt(self.avar)
+
+    @property
+    def scale_index(self) -> np.ndarray:
+        """log2 of the Haar width 2m: the wavelet scale index j for the octave factors (fractional otherwise)."""
+        return np.log2(2.0 * self.m)
+
+    @property
+    def edf(self) -> np.ndarray:
+        """eta3 = max(M / L, 1), L = 2m the Haar width (Percival & Walden 2000 eq. 314c)."""
+        return np.maximum(self.n_terms / (2.0 * self.m), 1.0)
+
+    def channel(self, c: int) -> "ScaleVariance":
+        return ScaleVariance(self.m, self.dt, self.n, self.wv[:, c:c + 1], self.n_terms)
+
+
+class StreamingScaleVariance:
+    """:class:`ScaleVariance` of ``n`` samples of ``k`` channels fed chunk by chunk.
+
+    ``update(x)`` takes rates (``increments=False``) or increments (``increments=True``: they are the
+    rates times ``dt``, and the phase is their running sum; the result is then in rate units).
+    Memory: about ``2 m_max + piece`` rows of ``k`` floats."""
+
+    def __init__(self, n: int, rate_hz: float, k: int = 3, m=None, piece: int = 1 << 18,
+                 increments: bool = True):
+        if n < 16:
+            raise ValueError(f"need at least 16 samples, got {n}")
+        self.n, self.rate_hz, self.k = int(n), float(rate_hz), int(k)
+        m = octave_scales(self.n) if m is None else np.asarray(m)
+        m = np.unique(np.asarray(m, dtype=np.int64))
+        self.m = m[(m > 0) & (m < self.n + 1)]  # at least one term (allantools: m < len(phase))
+        if self.m.size == 0:
+            raise ValueError(f"no averaging factor fits {n} samples")
+        self.scale = 1.0 / self.rate_hz if increments else 1.0  # D / (m scale): a difference of rate means
+        m_max = int(self.m.max())
+        self.piece = int(max(1024, min(piece, self.n)))
+        self.slack = max(self.piece, m_max // 2)  # rows appended between two shifts of the history
+        self.buf = np.empty((min(2 * m_max + 1 + self.slack, self.n + 1), self.k))
+        self.buf[0] = 0.0
+        self.b0 = 0  # global phase index of buf[0]
+        self.fill = 1  # rows of buf in use: phases b0 .. b0 + fill - 1
+        self.next_i = np.zeros(self.m.size, dtype=np.int64)  # next term index of each m
+        self.sums = np.zeros((self.m.size, self.k))
+        self.fed = 0
+        self.c = None
+        self._tmp = np.empty((self.piece + m_max, self.k))  # scratch for the terms (no allocation per m)
+
+    def update(self, x) -> None:
+        x = np.asarray(x, dtype=float)
+        if x.ndim == 1:
+            x = x[:, None]
+        if x.ndim != 2 or x.shape[1] != self.k:
+            raise ValueError(f"samples of shape (N, {self.k}) expected, got {x.shape}")
+        if self.fed + x.shape[0] > self.n:
+            raise ValueError(f"more than the announced {self.n} increments")
+        if not np.all(np.isfinite(x)):
+            raise ValueError("increments contain NaN or inf")
+        if self.c is None and x.shape[0]:
+            self.c = x.mean(axis=0)
+        for a in range(0, x.shape[0], self.piece):
+            self._feed(x[a:a + self.piece])
+
+    def _shift(self, L: int) -> None:
+        """Drop the phases no term needs any more, so that ``L`` more rows fit."""
+        keep0 = int(min(self.next_i.min(), self.b0 + self.fill - 1)) - self.b0
+        rows = self.fill - keep0
+        if keep0 > 0:
+            step = min(keep0, 1 << 16)  # blocks that do not overlap: no temporary copy of the history
+            for a in range(0, rows, step):
+                self.buf[a: min(rows, a + step)] = self.buf[keep0 + a: keep0 + min(rows, a + step)]
+        self.b0 += keep0
+        self.fill -= keep0
+        if self.fill + L > self.buf.shape[0]:  # first shift of a buffer sized for a short record
+            self.buf = np.concatenate([self.buf[: self.fill], np.empty((L, self.k))])
+
+    def _feed(self, x) -> None:
+        L = x.shape[0]
+        if self.fill + L > self.buf.shape[0]:
+            self._shift(L)
+        ph = self.buf[self.fill - 1: self.fill + L]
+        ph[1:] = x - self.c
+        np.cumsum(ph, axis=0, out=ph)  # the running phase, carried from the last row
+        self.fill += L
+        self.fed += L
+        J = self.b0 + self.fill - 1  # the last phase index known
+        b = self.buf
+        for j, m in enumerate(self.m):
+            i0, i1 = int(self.next_i[j]), J - 2 * int(m)  # terms i0 .. i1
+            if i1 < i0:
+                continue
+            l0, cnt = i0 - self.b0, i1 - i0 + 1
+            for a in range(0, cnt, self._tmp.shape[0]):  # D = x_{i+2m} - 2 x_{i+m} + x_i, in place
+                c = min(cnt - a, self._tmp.shape[0])
+                d = self._tmp[:c]
+                s = l0 + a
+                np.multiply(b[s + m: s + m + c], -2.0, out=d)
+                d += b[s + 2 * m: s + 2 * m + c]
+                d += b[s: s + c]
+                self.sums[j] += np.einsum("ij,ij->j", d, d)
+            self.next_i[j] = i1 + 1
+
+    def result(self) -> ScaleVariance:
+        if self.fed != self.n:
+            raise ValueError(f"fed {self.fed} of the announced {self.n} increments")
+        nterm = self.n + 1 - 2 * self.m
+        wv = self.sums / (4.0 * np.maximum(nterm, 1)[:, None] * (self.m[:, None] * self.scale) ** 2)
+        ok = nterm >= 1
+        return ScaleVariance(self.m[ok].astype(float), 1.0 / self.rate_hz, self.n, wv[ok], nterm[ok].astype(float))
+
+
+def scale_variance(x, rate_hz: float, m=None, increments: bool = False, chunk: int = 1 << 18) -> ScaleVariance:
+    """:class:`ScaleVariance` of the rows of ``x`` (an array or an HDF5 dataset, (N, k) or (N,)), streamed."""
+    n = int(np.shape(x)[0])
+    k = int(np.shape(x)[1]) if len(np.shape(x)) > 1 else 1
+    acc = StreamingScaleVariance(n, rate_hz, k, m, increments=increments)
+    for a in range(0, n, chunk):
+        acc.update(np.asarray(x[a:min(n, a + chunk)], dtype=float))
+    return acc.result()

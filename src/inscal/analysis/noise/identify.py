@@ -1,0 +1,257 @@
+"""Identification of a record's noise, channel by channel: one streamed pass over a static window
+(the Allan/Haar wavelet variance of the six channels on a log grid, the motion statistics, the
+stuck/saturated/count checks), then the fit or the model choice on the octave scales, and the
+result in IEEE 952-2020 / 1293-2018 field units.
+
+Channels: ``gx gy gz`` (the gyro increments /dtheta, rad) and ``ax ay az`` (/dvel, m/s), turned into
+rates by ``/ dt``.  A channel is refused when it is stuck (more than half of its successive
+increments equal), saturated (more than 1 % of it at its extreme value), or holds raw counts
+(every increment a whole number of at least 1: not SI).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from inscal.analysis.allan import MotionStats
+from inscal.analysis.noise.estimators import ScaleVariance, StreamingScaleVariance, log_scales, octave_scales
+from inscal.analysis.noise.fit import Curve, fit_curve, n_params
+from inscal.analysis.noise.intervals import chi2_bounds, wv_interval
+from inscal.analysis.noise.selection import AUTO_MODEL, Selection, readoffs, select
+from inscal.core import noise_models as nm
+from inscal.core import units
+from inscal.io.records import iter_window
+
+CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
+KINDS = {c: ("gyro" if c[0] == "g" else "accel") for c in CHANNELS}
+#: the octave scales a model of p parameters needs: p + 2 (two degrees of freedom left for the J test)
+EXTRA_SCALES = 2
+
+
+class NoiseInputError(ValueError):
+    """A record or curve that cannot be identified (one line: what and where)."""
+
+
+def required_scales(model: str) -> int:
+    """Octave scales a fit of ``model`` (``auto``: the largest model) needs: its p parameters + 2."""
+    codes = nm.parse_model(AUTO_MODEL if model == "auto" else model)
+    return sum(n_params(c) for c in codes) + EXTRA_SCALES
+
+
+def required_samples(model: str) -> int:
+    """Samples a record needs for ``model``: J octave scales up to a tenth of the record,
+    i.e. n >= 10 * 2^(J - 1) (:func:`inscal.analysis.noise.estimators.octave_scales`)."""
+    return int(10 * 2 ** (required_scales(model) - 1))
+
+
+class ChannelChecks:
+    """Stuck, saturated and raw-count signs of each channel, gathered chunk by chunk."""
+
+    def __init__(self, k: int):
+        self.k = k
+        self.n = 0
+        self.equal = np.zeros(k, dtype=np.int64)  # successive equal increments
+        self.hi = np.full(k, -np.inf)
+        self.lo = np.full(k, np.inf)
+        self.n_hi = np.zeros(k, dtype=np.int64)
+        self.n_lo = np.zeros(k, dtype=np.int64)
+        self.integer = np.ones(k, dtype=bool)
+        self.last = None
+
+    def update(self, x) -> None:
+        xx = x if self.last is None else np.concatenate([self.last, x])
+        self.equal += np.sum(np.diff(xx, axis=0) == 0, axis=0)
+        self.last = x[-1:]
+        self.n += x.shape[0]
+        self.integer &= np.all((x == np.round(x)) & (np.abs(x) >= 1) | (x == 0), axis=0)
+        for ext, cnt, fn, better in ((self.hi, self.n_hi, np.max, np.greater), (self.lo, self.n_lo, np.min, np.less)):
+            v = fn(x, axis=0)
+            c = np.sum(x == v, axis=0)
+            new = better(v, ext)
+            same = v == ext
+            cnt[new] = c[new]
+            cnt[same] += c[same]
+            ext[new] = v[new]
+
+    def problems(self, names) -> list[str]:
+        out = []
+        for c, name in enumerate(names):
+            if self.integer[c] and self.hi[c] - self.lo[c] >= 1:
+                out.append(f"{name} holds whole numbers (raw counts?): the record must be in SI (rad, m/s) - "
+                           "convert the counts with the sensor's scale factor first")
+            elif self.n > 1 and self.equal[c] > 0.5 * (self.n - 1):
+                out.append(f"{name} is stuck ({100 * self.equal[c] / (self.n - 1):.0f} % of its successive "
+                           "increments are equal)")
+            elif self.hi[c] > self.lo[c] and max(self.n_hi[c], self.n_lo[c]) > max(0.01 * self.n, 10):
+                side = "maximum" if self.n_hi[c] >= self.n_lo[c] else "minimum"
+                frac = 100 * max(self.n_hi[c], self.n_lo[c]) / self.n
+                out.append(f"{name} is saturated ({frac:.1f} % of its samples at its {side})")
+        return out
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What one pass over a window gathers: the variances of the six channels on the log grid, the
+    motion statistics and the channel checks."""
+
+    sv: ScaleVariance
+    motion: MotionStats
+    checks: ChannelChecks
+    t_first: float
+    t_last: float
+
+
+def scan_window(path, win, chunk_size: int = 1 << 18, per_octave: int = 4) -> Scan:
+    """One streamed pass over the window ``win`` of the record at ``path`` (bounded memory)."""
+    n = win.n
+    acc = StreamingScaleVariance(n, win.rate_hz, 6, log_scales(n, per_octave), increments=True)
+    mot, chk = MotionStats(n, win.rate_hz), ChannelChecks(6)
+    t_first = t_last = None
+    for t, dth, dv, g in iter_window(path, ("time", "dtheta", "dvel", "gimbal"), win.i0, win.i1, chunk_size):
+        t_first = float(t[0]) if t_first is None else t_first
+        t_last = float(t[-1])
+        x = np.concatenate([dth, dv], axis=1)
+        acc.update(x)
+        mot.update(dth, g)
+        chk.update(x)
+    return Scan(acc.result(), mot, chk, t_first, t_last)
+
+
+def octave_curve(sv: ScaleVariance, c: int) -> Curve:
+    """Channel ``c``'s curve at the octave factors only (the fit's scales)."""
+    oct_m = octave_scales(sv.n)
+    sel = np.isin(sv.m, oct_m)
+    sub = ScaleVariance(sv.m[sel], sv.dt, sv.n, sv.wv[sel], sv.n_terms[sel])
+    return Curve.from_scale_variance(sub, c)
+
+
+def identify_curve(curve: Curve, model: str, rng: np.random.Generator, n_starts: int = 12) -> Selection:
+    """``auto``: :func:`select` over the sub-sums of the largest model; else the fit of ``model``."""
+    if model == "auto":
+        return select(curve, AUTO_MODEL, rng)
+    f = fit_curve(curve, model, n_starts=n_starts, rng=rng)
+    return Selection(f, ((f.model, f.wvic, f.objective, f.gof_p, any(f.negligible)),), f"{f.model}: as asked (--model)")
+
+
+def param_key(name: str) -> str:
+    return name.split(".")[1]
+
+
+def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: str | None = None) -> dict:
+    """One channel's result in field units (JSON-ready): the model, why, every parameter with its
+    95 % interval, the discrete forms, the fit's statistics, the IEEE read-offs, and the curves."""
+    kind = kind or KINDS.get(name, "gyro")
+    fu = nm.FIELD_UNITS[kind]
+    f = sel.chosen
+    params = {}
+    for pn, v, lo, hi in zip(f.names, f.values, f.lower, f.upper):
+        u = fu[param_key(pn)]
+        params[pn] = {"value": float(units.from_si(float(v), u)), "lower_95": float(units.from_si(float(lo), u)),
+                      "upper_95": float(units.from_si(float(hi), u)), "unit": u}
+    dt = sv.dt
+    rate_unit = "deg/h" if kind == "gyro" else "ug"
+    lo, hi = wv_interval(sv)
+    tau = sv.taus
+    ro = readoffs(tau, sv.adev[:, c], sv.edf)
+    read = {}
+    for code, d in ro.items():
+        key = {"QN": "q", "WN": "n", "BI": "b", "RW": "k", "DR": "r"}[code]
+        read[code] = {"value": float(units.from_si(d["value"], fu[key])), "unit": fu[key], "read_at_tau_s": d["tau_s"]}
+        if "flat_bottom" in d:
+            read[code]["flat_bottom"] = d["flat_bottom"]
+    contrib = np.stack([t.avar(sv.m, dt) for t in f.terms], axis=1)
+    return {
+        "channel": name, "kind": kind, "model": f.model, "why": sel.reason,
+        "parameters": params,
+        "unseen_terms": [t.code for t, neg in zip(f.terms, f.negligible) if neg],
+        "discrete_per_sample_si": [{"term": t.code, **nm.discrete(t, dt)} for t in f.terms],
+        "objective": f.objective, "j_statistic": f.gof, "j_dof": f.gof_dof, "j_p_value": f.gof_p,
+        "wvic": f.wvic, "starts": f.starts, "starts_at_best": f.hits,
+        "fit_scales": {"m": f.curve.m.tolist(), "scale_index_j": np.log2(2 * f.curve.m).tolist(),
+                       "tau_s": (f.curve.m * dt).tolist(), "wv_si": f.curve.wv.tolist(),
+                       "weights": f.weights.tolist(), "wv_fit_si": f.wv_fit.tolist()},
+        "candidates": [{"model": r[0], "wvic": r[1], "objective": r[2], "j_p_value": r[3], "unseen_term": r[4]}
+                       for r in sel.candidates[:10]],
+        "ieee_readoffs": read,
+        "curve": {"tau_s": tau.tolist(), "m": sv.m.tolist(), "scale_index_j": sv.scale_index.tolist(),
+                  "adev": units.from_si(sv.adev[:, c], rate_unit).tolist(),
+                  "adev_lower_95": units.from_si(np.sqrt(2 * lo[:, c]), rate_unit).tolist(),
+                  "adev_upper_95": units.from_si(np.sqrt(2 * hi[:, c]), rate_unit).tolist(),
+                  "adev_fit": units.from_si(np.sqrt(contrib.sum(axis=1)), rate_unit).tolist(),
+                  "adev_terms": {t.code + (str(i) if t.code == "GM" else ""): units.from_si(np.sqrt(contrib[:, i]), rate_unit).tolist()
+                                 for i, t in enumerate(f.terms)},
+                  "unit": rate_unit},
+    }
+
+
+def noise_model(names, kinds, selections, rate_hz: float) -> nm.NoiseModel:
+    return nm.NoiseModel(tuple(nm.ChannelNoise(n, k, s.chosen.terms) for n, k, s in zip(names, kinds, selections)),
+                         rate_hz)
+
+
+def parse_curve_csv(text: str, where: str) -> tuple[str, Curve]:
+    """A curve computed elsewhere: CSV rows ``tau_s, value, lower, upper`` under a header naming the
+    quantity (``avar``, ``adev`` or ``wvar`` as the second column's name) and a sample interval as a
+    comment ``# dt_s = 0.01``.  The octave scales m = tau / dt are kept; each point's equivalent
+    degrees of freedom come from the ratio of its interval's bounds (the chi-square interval)."""
+    dt = None
+    rows = []
+    header = None
+    for ln, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            if "dt_s" in s:
+                try:
+                    dt = float(s.split("=", 1)[1])
+                except (IndexError, ValueError):
+                    raise NoiseInputError(f"{where} line {ln}: write the sample interval as '# dt_s = 0.01'") from None
+            continue
+        cells = [c.strip() for c in s.split(",")]
+        if header is None:
+            header = [c.lower() for c in cells]
+            if len(header) != 4 or header[0] != "tau_s" or header[1] not in ("avar", "adev", "wvar"):
+                raise NoiseInputError(f"{where}: the header must be 'tau_s,<avar|adev|wvar>,lower,upper' (SI units), "
+                                      f"got {s[:80]!r}")
+            continue
+        try:
+            vals = [float(c) for c in cells]
+        except ValueError:
+            raise NoiseInputError(f"{where} line {ln}: not four numbers: {s[:80]!r}") from None
+        if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+            raise NoiseInputError(f"{where} line {ln}: need four finite numbers (tau_s, value, lower, upper)")
+        if not (vals[0] > 0 and 0 < vals[2] <= vals[1] <= vals[3]):
+            raise NoiseInputError(f"{where} line {ln}: need tau > 0 and 0 < lower <= value <= upper")
+        rows.append(vals)
+    if header is None or len(rows) < 3:
+        raise NoiseInputError(f"{where}: fewer than 3 points")
+    if dt is None or not dt > 0:
+        raise NoiseInputError(f"{where}: no sample interval; add a line '# dt_s = <seconds>'")
+    a = np.array(rows)
+    quantity = header[1]
+    if quantity == "adev":
+        a[:, 1:] = a[:, 1:] ** 2
+    if quantity in ("adev", "avar"):
+        a[:, 1:] /= 2.0  # AVAR = 2 WV
+    m = a[:, 0] / dt
+    if np.any(np.abs(m - np.round(m)) > 1e-6 * m) or np.any(np.diff(m) <= 0):
+        raise NoiseInputError(f"{where}: tau must be increasing whole multiples of dt_s = {dt:g} s")
+    edf = np.array([_edf_from_ratio(u / lo) for lo, u in zip(a[:, 2], a[:, 3])])
+    return quantity, Curve(np.round(m), dt, a[:, 1], a[:, 2], a[:, 3], edf * 2 * np.round(m))
+
+
+def _edf_from_ratio(ratio: float) -> float:
+    """The degrees of freedom whose 95 % chi-square interval has upper/lower = ``ratio``."""
+    lo_e, hi_e = 0.1, 1e9
+    for _ in range(200):
+        e = math.sqrt(lo_e * hi_e)
+        lo, hi = chi2_bounds([e])
+        if hi[0] / lo[0] > ratio:
+            lo_e = e
+        else:
+            hi_e = e
+    return e

@@ -1,0 +1,190 @@
+"""``inscal noise``: identify the noise of a static record (or of an Allan/wavelet variance curve)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from inscal.cli.common import CliError, LazyModule, check_not_input, check_output, fail, print_json, short
+from inscal.cli.limits import check_memory
+
+np = LazyModule("numpy")
+
+PLOT_FORMATS = ("png", "pdf", "svg")
+#: memory per sample of the window: the phase history of six channels (about 0.2 n rows, inscal.analysis.noise.estimators)
+BYTES_PER_SAMPLE = 16
+
+
+def _check_model(model: str) -> str:
+    from inscal.core.noise_models import model_string, parse_model
+
+    if model.strip().lower() == "auto":
+        return "auto"
+    try:
+        return model_string(parse_model(model))
+    except ValueError as exc:
+        raise CliError(f"--model: {exc}") from None
+
+
+def _check_channels(channels: str | None) -> list[str]:
+    from inscal.analysis.noise.identify import CHANNELS
+
+    if channels is None:
+        return list(CHANNELS)
+    names = [c.strip().lower() for c in channels.split(",") if c.strip()]
+    bad = [c for c in names if c not in CHANNELS]
+    if bad or not names or len(set(names)) != len(names):
+        raise CliError(f"--channels {short(channels, 40)!r}: give distinct names among {', '.join(CHANNELS)}")
+    return names
+
+
+def run_noise(data: Path | None, model: str = "auto", channels: str | None = None, start_s: float = 0.0,
+              stop_s: float | None = None, plot: Path | None = None, out: Path | None = None,
+              from_curve: Path | None = None, kind: str = "gyro", seed: int = 0, force: bool = False) -> dict:
+    """The identification as a JSON-ready dict (field units); nothing is written on a refusal."""
+    from inscal import io
+    from inscal.analysis.noise import identify as idf
+
+    model = _check_model(model)
+    names = _check_channels(channels)
+    if (data is None) == (from_curve is None):
+        raise CliError("give a RECORD or --from-curve CSV (one of them)")
+    for name, v in (("--start", start_s), ("--stop", stop_s)):
+        if v is not None and not np.isfinite(v):
+            raise CliError(f"{name} must be a finite time in s, got {v}")
+    src = data if data is not None else from_curve
+    if plot is not None:
+        if plot.suffix.lower().lstrip(".") not in PLOT_FORMATS:
+            raise CliError(f"--plot {short(plot)}: use a .png, .pdf or .svg name")
+        check_output(plot, force)
+        check_not_input(plot, src, what="--plot")
+    if out is not None:
+        if out.suffix.lower() != ".toml":
+            raise CliError(f"--out {short(out)}: the noise model is a .toml file")
+        check_output(out, force)
+        check_not_input(out, src, what="--out")
+    rng = np.random.default_rng(seed)
+    need = idf.required_samples(model)
+    if from_curve is not None:
+        if kind not in ("gyro", "accel"):
+            raise CliError(f"--kind must be gyro or accel, got {kind!r}")
+        if not from_curve.is_file():
+            raise CliError(f"{short(from_curve)}: no such file")
+        try:
+            quantity, curve = idf.parse_curve_csv(from_curve.read_text(encoding="utf-8"), short(from_curve))
+        except (idf.NoiseInputError, UnicodeDecodeError) as exc:
+            raise CliError(str(exc) if isinstance(exc, idf.NoiseInputError) else f"{short(from_curve)}: not a text file") from None
+        j_need = idf.required_scales(model)
+        if curve.m.size < j_need:
+            raise CliError(f"{short(from_curve)}: {curve.m.size} octave points; model {model} needs at least {j_need}")
+        name = names[0] if channels is not None else ("gx" if kind == "gyro" else "ax")
+        sel = idf.identify_curve(curve, model, rng)
+        sv = idf.ScaleVariance(curve.m, curve.dt, int(curve.n_terms[0] + 2 * curve.m[0] - 1), curve.wv[:, None],
+                               curve.n_terms)
+        summaries = [idf.channel_summary(name, sel, sv, 0, kind)]
+        sels, chan_names, kinds, rate_hz = [sel], [name], [kind], 1.0 / curve.dt
+        res = {"curve_file": str(from_curve), "quantity": quantity}
+    else:
+        try:
+            win = io.record_window(data, start_s, stop_s)
+            if win.n < need:
+                raise CliError(f"{short(data)}: the window has {win.n} samples ({win.n / win.rate_hz:.4g} s); model "
+                               f"{model} needs at least {need} ({need / win.rate_hz:.4g} s at {win.rate_hz:g} Hz): "
+                               "a longer static record, or a smaller --model")
+            check_memory(win.n * BYTES_PER_SAMPLE, f"the window of {short(data)} ({win.n} samples)",
+                         "take a shorter window with --start/--stop")
+            scan = idf.scan_window(data, win)
+        except io.DataFileError as exc:
+            raise CliError(str(exc)) from None
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
+        span = scan.motion.moving_span()
+        if scan.motion.warning() is not None:
+            where = (f"between {scan.t_first + span[0]:.4g} s and {scan.t_first + span[1]:.4g} s"
+                     if span else "(the gimbal turns)")
+            raise CliError(f"{short(data)}: the record moves {where}: noise is identified on a static window; "
+                           "choose one with --start/--stop")
+        idx = [idf.CHANNELS.index(c) for c in names]
+        probs = scan.checks.problems(idf.CHANNELS)
+        probs = [p for p in probs if p.split(" ", 1)[0] in names]
+        if probs:
+            raise CliError(f"{short(data)}: {probs[0]}")
+        sels = [idf.identify_curve(idf.octave_curve(scan.sv, c), model, rng) for c in idx]
+        summaries = [idf.channel_summary(nm_, s, scan.sv, c) for nm_, s, c in zip(names, sels, idx)]
+        chan_names, kinds, rate_hz = names, [idf.KINDS[c] for c in names], win.rate_hz
+        res = {"data": str(data), "window_s": [scan.t_first - 1 / win.rate_hz, scan.t_last]}
+    res.update({"model_asked": model, "seed": seed, "channels": summaries,
+                "conventions": "SI inside; values in IEEE Std 952-2020 (gyro) / 1293-2018 (accelerometer) units; "
+                               "AVAR(m) = 2 x Haar wavelet variance at width 2m; 95 % intervals (eta3 chi-square "
+                               "for the curve, GMWM sandwich for the parameters); weights 1/(upper - lower)^2"})
+    if out is not None:
+        from inscal.io.noisefile import write_noise
+
+        nmodel = idf.noise_model(chan_names, kinds, sels, rate_hz)
+        intervals = {}
+        for nme, s in zip(chan_names, sels):
+            f, i, per = s.chosen, 0, {}
+            for ti, t in enumerate(f.terms):
+                per[ti] = {p: (f.lower[i + k], f.upper[i + k]) for k, p in enumerate(t.params)}
+                i += len(t.params)
+            intervals[nme] = per
+        try:
+            write_noise(out, nmodel, intervals, {"source": str(src), "seed": seed}, overwrite=force)
+        except OSError as exc:
+            raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
+        res["out"] = str(out)
+    if plot is not None:
+        from inscal.report.noise import noise_plot
+
+        try:
+            noise_plot(plot, summaries, overwrite=force)
+        except OSError as exc:
+            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+        res["plot"] = str(plot)
+    return res
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("noise")
+    def noise_cmd(
+        data: Path = typer.Argument(None, help="HDF5 record (a static window of it)"),
+        model: str = typer.Option("auto", "--model", help="'auto' (choose among the sub-sums of QN+WN+RW+DR+2GM by "
+                                  "WVIC) or a sum such as 'WN+RW+2GM' (QN WN BI RW DR GM)"),
+        channels: str = typer.Option(None, "--channels", help="comma-separated among gx,gy,gz,ax,ay,az (default all)"),
+        start_s: float = typer.Option(0.0, "--start", help="window start [s]"),
+        stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
+        plot: Path = typer.Option(None, "--plot", help="write the Allan deviation, fit and terms (.png/.pdf/.svg)"),
+        out: Path = typer.Option(None, "--out", help="write the identified model (noise.toml)"),
+        from_curve: Path = typer.Option(None, "--from-curve", help="fit a curve computed elsewhere: CSV "
+                                        "'tau_s,<avar|adev|wvar>,lower,upper' in SI with a '# dt_s = ...' line"),
+        kind: str = typer.Option("gyro", "--kind", help="with --from-curve: gyro or accel"),
+        seed: int = typer.Option(0, "--seed", help="seed of the multi-start solver's draws"),
+        force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
+        json_: bool = typer.Option(False, "--json", help="print results as JSON"),
+    ):
+        """Identify the noise: Allan/wavelet variance with intervals, GMWM fit, model choice, IEEE read-offs."""
+        try:
+            res = run_noise(data, model, channels, start_s, stop_s, plot, out, from_curve, kind, seed, force)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        if json_:
+            print_json(res)
+            return
+        from rich.console import Console
+        from rich.markup import escape
+        from rich.table import Table
+
+        con = Console()
+        for ch in res["channels"]:
+            tab = Table(title=escape(f"{ch['channel']} ({ch['kind']}): {ch['model']}"))
+            for col in ("parameter", "value", "95 % interval", "unit"):
+                tab.add_column(escape(col))
+            for pn, p in ch["parameters"].items():
+                tab.add_row(pn, f"{p['value']:.4g}", f"[{p['lower_95']:.3g}, {p['upper_95']:.3g}]", escape(p["unit"]))
+            for code, r in ch["ieee_readoffs"].items():
+                tab.add_row(f"IEEE read-off {code}", f"{r['value']:.4g}", f"at tau = {r['read_at_tau_s']:.3g} s",
+                            escape(r["unit"]))
+            con.print(tab)
+            typer.echo(f"  why: {ch['why']}; objective {ch['objective']:.4g}, J = {ch['j_statistic']:.3g} "
+                       f"on {ch['j_dof']} dof")

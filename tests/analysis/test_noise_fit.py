@@ -1,0 +1,88 @@
+"""The GMWM-type fit: exact curves give back their parameters (the multi-start reaches the global
+optimum), the covariance V of the wavelet variances against a small Monte Carlo, the intervals on
+one simulated record, the choice among sub-sums, the read-offs on exact curves, the bootstrap."""
+
+import math
+
+import numpy as np
+import pytest
+
+from inscal.analysis.noise.estimators import octave_scales, scale_variance
+from inscal.analysis.noise.fit import Curve, bootstrap, fit_curve, wv_covariance
+from inscal.analysis.noise.intervals import chi2_bounds
+from inscal.analysis.noise.selection import readoffs, select, sub_models
+from inscal.core import noise_models as nm
+
+DT = 0.01
+
+
+def exact_curve(ch, n=1 << 18):
+    """The channel's exact wavelet variance at the octave scales, with eta3 intervals around it."""
+    m = octave_scales(n).astype(float)
+    wv = ch.wvar(m, DT)
+    M = n - 2 * m + 1
+    lo, hi = chi2_bounds(np.maximum(M / (2 * m), 1))
+    return Curve(m, DT, wv, lo * wv, hi * wv, M)
+
+
+@pytest.mark.parametrize("terms", [
+    (nm.WhiteNoise(1e-4), nm.GaussMarkov(3e-5, 5.0)),
+    (nm.Quantization(2e-6), nm.WhiteNoise(1e-4), nm.RandomWalk(3e-6), nm.GaussMarkov(2e-5, 0.5),
+     nm.GaussMarkov(2e-5, 20.0)),
+    (nm.WhiteNoise(1e-4), nm.BiasInstability(1e-5, 50.0), nm.RateRamp(2e-6)),
+])
+def test_exact_curve_gives_back_the_parameters(terms):
+    ch = nm.ChannelNoise("g", "gyro", terms)
+    f = fit_curve(exact_curve(ch), ch.model, n_starts=4, rng=np.random.default_rng(0))
+    truth = np.array([getattr(t, p) for t in ch.terms for p in t.params])
+    np.testing.assert_allclose(f.values, truth, rtol=2e-4)
+    assert f.objective < 1e-10 and f.gof < 1e-6 and not any(f.negligible)
+
+
+def test_wavelet_variance_covariance_against_monte_carlo():
+    """V's diagonal and one neighbour correlation against 300 records of 4096 samples."""
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-3), nm.GaussMarkov(1e-3, 0.3), nm.RandomWalk(1e-4)))
+    rng = np.random.default_rng(11)
+    n = 4096
+    m = octave_scales(n)
+    est = np.array([scale_variance(ch.simulate(n, DT, rng), 1 / DT, m).wv[:, 0] for _ in range(300)])
+    V = wv_covariance(lambda f: ch.spectrum(f, DT), m, n - 2 * m + 1)
+    emp = np.cov(est.T)
+    ratio = np.diag(emp) / np.diag(V)
+    assert np.all(np.abs(ratio[:6] - 1) < 0.3), ratio  # the scales with many terms
+    corr_emp = emp[2, 3] / math.sqrt(emp[2, 2] * emp[3, 3])
+    corr_v = V[2, 3] / math.sqrt(V[2, 2] * V[3, 3])
+    assert abs(corr_emp - corr_v) < 0.15, (corr_emp, corr_v)
+
+
+def test_intervals_cover_on_a_record_and_bootstrap():
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-4), nm.GaussMarkov(4e-5, 3.0)))
+    y = ch.simulate(1 << 16, DT, np.random.default_rng(5))
+    f = fit_curve(Curve.from_scale_variance(scale_variance(y, 1 / DT)), "WN+GM", rng=np.random.default_rng(1))
+    truth = [1e-4, 4e-5, 3.0]
+    assert np.all((f.lower < truth) & (np.array(truth) < f.upper)), (f.lower, f.upper)
+    assert f.gof_dof == f.curve.m.size - 3 and 0 < f.gof_p <= 1
+    lo, hi, draws = bootstrap(f, 1 << 13, 4, np.random.default_rng(2))
+    assert draws.shape == (4, 3) and np.all(lo <= hi)
+
+
+def test_selection_finds_a_clear_model_and_says_why():
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-4), nm.RandomWalk(2e-5)))
+    s = select(exact_curve(ch, 1 << 16), "WN+RW+GM", rng=np.random.default_rng(0))
+    assert s.chosen.model == "WN+RW"
+    assert s.reason.startswith("WN+RW: lowest WVIC") and "J-test" in s.reason
+    assert len(sub_models(nm.parse_model("QN+WN+2GM"))) == 11
+
+
+def test_readoffs_on_exact_curves():
+    """Each read-off equals its term where that term alone makes the curve (IEEE 952 Annex C)."""
+    tau = np.logspace(-2, 4, 200)
+    m = tau / DT
+    for term, code, attr in [(nm.WhiteNoise(2e-4), "WN", "n"), (nm.RandomWalk(3e-6), "RW", "k"),
+                             (nm.RateRamp(1e-7), "DR", "r")]:
+        ro = readoffs(tau, np.sqrt(term.avar(m, DT)))
+        assert ro[code]["value"] == pytest.approx(getattr(term, attr), rel=1e-3)
+    q = nm.Quantization(1e-6)
+    assert readoffs(tau, np.sqrt(q.avar(m, DT)))["QN"]["value"] == pytest.approx(1e-6, rel=1e-9)
+    b = nm.BiasInstability(1e-5, 50.0)
+    assert readoffs(tau, np.sqrt(b.avar(m, DT) + nm.WhiteNoise(1e-9).avar(m, DT)))["BI"]["value"] == pytest.approx(1e-5, rel=2e-2)

@@ -1,0 +1,77 @@
+"""noise.toml round trip and the exports of a noise model (Kalibr, KF-GINS, MATLAB): unit conversions
+written out by hand here."""
+
+import math
+
+import numpy as np
+import pytest
+
+from inscal.core import noise_models as nm
+from inscal.io.exports.noise import kalibr_imu_yaml, kfgins_imunoise, matlab_params, matlab_script
+from inscal.io.noisefile import NoiseFileError, model_from_document, noise_document, read_noise, write_noise
+
+D2R = math.pi / 180
+
+
+def model():
+    g = [nm.ChannelNoise(n, "gyro", (nm.Quantization(1e-7), nm.WhiteNoise(0.003 * D2R / 60 * (1 + i)),
+                                     nm.RandomWalk(1e-9), nm.GaussMarkov(0.02 * D2R / 3600, 3600.0 * (1 + i))))
+         for i, n in enumerate(("gx", "gy", "gz"))]
+    a = [nm.ChannelNoise(n, "accel", (nm.WhiteNoise(0.03 / 60), nm.GaussMarkov(15e-5, 7200.0),
+                                      nm.BiasInstability(1e-5, 5.0), nm.RateRamp(1e-9)))
+         for n in ("ax", "ay", "az")]
+    return nm.NoiseModel(tuple(g + a), 200.0)
+
+
+def test_noise_toml_round_trip(tmp_path):
+    m = model()
+    write_noise(tmp_path / "n.toml", m, meta={"source": "x.h5"})
+    back, meta = read_noise(tmp_path / "n.toml")
+    assert meta == {"source": "x.h5"} and back.rate_hz == 200.0
+    for c0, c1 in zip(m.channels, back.channels):
+        assert c0.name == c1.name and c0.kind == c1.kind and c0.model == c1.model
+        for t0, t1 in zip(c0.terms, c1.terms):
+            for p in t0.params:
+                assert getattr(t1, p) == pytest.approx(getattr(t0, p), rel=1e-14)
+    doc = noise_document(m)
+    assert doc["channel"][0]["term"][1] == {"type": "WN", "n": pytest.approx(0.003), "n_unit": "deg/sqrt(h)"}
+    assert doc["channel"][3]["term"][0]["n"] == pytest.approx(0.03 / 60 / 9.80665e-6)  # ug/sqrt(Hz)
+    with pytest.raises(FileExistsError):
+        write_noise(tmp_path / "n.toml", m)
+    doc["channel"][0]["term"][1]["n_unit"] = "deg/h"
+    with pytest.raises(NoiseFileError, match="rate unit, expected a arw unit"):
+        model_from_document(doc)
+
+
+def test_kalibr():
+    text = kalibr_imu_yaml(model())
+    vals = {ln.split(":")[0]: float(ln.split(":")[1].split("#")[0]) for ln in text.splitlines()
+            if ln and not ln.startswith("#") and "rostopic" not in ln}
+    assert vals["gyroscope_noise_density"] == pytest.approx(0.009 * D2R / 60)  # 0.009 deg/sqrt(h), largest axis
+    assert vals["gyroscope_random_walk"] == pytest.approx(1e-9)
+    assert vals["accelerometer_noise_density"] == pytest.approx(0.0005)
+    # no random walk term: the slowest GM's sigma sqrt(2 / tc)
+    assert vals["accelerometer_random_walk"] == pytest.approx(15e-5 * math.sqrt(2 / 7200.0))
+    assert vals["update_rate"] == 200.0 and "Gauss-Markov" in text
+
+
+def test_kfgins():
+    text = kfgins_imunoise(model(), gsstd_ppm=[300] * 3)
+    rows = {ln.split(":")[0].strip(): ln.split(":")[1].split("#")[0].strip() for ln in text.splitlines()[1:]}
+    arw = np.array(eval(rows["arw"]))  # noqa: S307 (our own text)
+    np.testing.assert_allclose(arw, [0.003, 0.006, 0.009])
+    np.testing.assert_allclose(eval(rows["vrw"]), [0.03] * 3)  # noqa: S307 (0.03/60 m/s/sqrt(s) = 0.03 m/s/sqrt(h))
+    np.testing.assert_allclose(eval(rows["gbstd"]), [0.02] * 3)  # noqa: S307
+    np.testing.assert_allclose(eval(rows["abstd"]), [15.0] * 3)  # noqa: S307 (15e-5 m/s^2 = 15 mGal)
+    assert float(rows["corrtime"]) == pytest.approx(3.0) and "gsstd" in rows and "asstd" not in rows
+
+
+def test_matlab():
+    p = matlab_params(model())
+    g = p["gyroparams"]
+    phi = math.exp(-1 / 200 / (3600 * 3))
+    assert g["BiasInstabilityCoefficients"]["Denominator"] == [1.0, pytest.approx(-phi)]
+    # white noise of std BiasInstability through 1/(1 - phi z^-1) has the GM's stationary std
+    assert g["BiasInstability"][2] / math.sqrt(1 - phi**2) == pytest.approx(0.02 * D2R / 3600)
+    assert g["NoiseDensity"][0] == pytest.approx(0.003 * D2R / 60)
+    assert "gyroparams('NoiseDensity'" in matlab_script(model())
