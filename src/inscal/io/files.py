@@ -133,6 +133,9 @@ class _Unit:
         self.pending: list[tuple[str, FsPath, bool]] = []  # (temporary, output, overwrite)
         self.made_dirs: list[FsPath] = []
         self.claimed: list[FsPath] = []
+        #: steps run in the publication itself, with the interrupts held, after the outputs are checked
+        #: and before the first is renamed into place (a database commit: the record and its files at once)
+        self.before_publish: list = []
 
 
 @contextmanager
@@ -141,7 +144,10 @@ def output_unit():
     temporary until the block ends, then all of them are renamed into place together (SIGINT and
     SIGTERM held off for those renames); if the block raises, is interrupted or cancelled, no
     output is published and the folders made by :func:`make_output_dir` are removed again.  A unit
-    inside another hands its outputs to the outer one."""
+    inside another hands its outputs to the outer one.  ``unit.before_publish`` (callables) run in the
+    same held step, after every target is checked and just before the renames: a commit there and the
+    files' publication cannot be parted by SIGINT or SIGTERM (only SIGKILL or a power cut between the
+    commit and the renames, microseconds, leaves the committed side alone)."""
     unit = _Unit()
     outer = _UNITS[-1] if _UNITS else None
     _UNITS.append(unit)
@@ -156,6 +162,7 @@ def output_unit():
             outer.pending += unit.pending
             outer.made_dirs += unit.made_dirs
             outer.claimed += unit.claimed
+            outer.before_publish += unit.before_publish
             unit.claimed = []
             return
         with _signals_held():
@@ -164,6 +171,8 @@ def output_unit():
                 if not overwrite and os.path.lexists(path):
                     raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force "
                                           "to overwrite it)")
+            for step in unit.before_publish:
+                step()
             for tmp, path, overwrite in unit.pending:
                 _publish(tmp, path, overwrite)
                 PUBLISHED.append(path)

@@ -12,7 +12,9 @@ Write API (what ``inscal calibrate --db`` and a batch of calibrations use)::
     cal = get_calibration(db, rid)                            # parameters, sigma, covariance, fit, provenance
 
 A record (its sha256) is one session of a unit; a session may hold results of several methods
-or options.  A result that replaces an earlier one (the same record recalibrated) names it in
+or options, but one result per (record, options) and per parameter file: the insert of the
+result's key (``result_keys``, unique) is the check, in the result's own transaction, so two
+writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A result that replaces an earlier one (the same record recalibrated) names it in
 ``supersedes``: the earlier one then leaves the history.  Recording a result makes it the
 unit's current calibration unless ``make_current=False``.
 """
@@ -28,9 +30,10 @@ from sqlalchemy.dialects import sqlite as sqlite_dialect
 
 from inscal.core.error_model import PARAMETERS, parameter_components
 from inscal.lab import schema as t
-from inscal.lab.database import Database, DatabaseError, read, write
+from inscal.lab.database import Database, DatabaseError, Staged, begin_write, read, write
 from inscal.lab.model import (
     Calibration,
+    check_date,
     Parameter,
     Session,
     SessionInfo,
@@ -49,11 +52,21 @@ from inscal.lab.record import (
 )
 
 
+class AlreadyRecorded(DatabaseError):
+    """The calibration (same unit, record and options, or the same parameter file) is recorded already, as
+    result ``result_id``; nothing was written."""
+
+    def __init__(self, message: str, result_id: int | None):
+        super().__init__(message)
+        self.result_id = result_id
+
+
 def now() -> dt.datetime:
     return dt.datetime.now(dt.UTC).replace(tzinfo=None, microsecond=0)
 
 
-def _insert_ignore(db_or_conn, table: sa.Table, index: list[str]):
+def _insert_ignore(db_or_conn, table: sa.Table, index: list[str] | None):
+    """An INSERT that does nothing on a conflict with the unique ``index`` (None: with any unique key)."""
     name = db_or_conn.dialect.name
     ins = (pg_dialect.insert if name == "postgresql" else sqlite_dialect.insert)(table)
     return ins.on_conflict_do_nothing(index_elements=index)
@@ -91,7 +104,8 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
 def check_serial(serial: str) -> str:
     s = str(serial).strip()
     if not s or len(s) > 200 or any(not c.isprintable() for c in s):
-        raise DatabaseError(f"serial {serial!r}: give 1 to 200 printable characters")
+        raise DatabaseError(f"serial {str(serial)[:60]!r}{'...' if len(str(serial)) > 60 else ''}: give 1 to 200 "
+                            "printable characters")
     return s
 
 
@@ -104,9 +118,26 @@ def _unit_id(conn, serial: str) -> int:
 
 def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None) -> int:
-    """Record one calibration of unit ``serial`` (registered with :func:`add_unit`) in one transaction
-    and return its id: ``param_text``, the parameter file exactly as written (parsed here for the
+                       make_current: bool | None = None, date_given: bool = False) -> int:
+    """Record one calibration (see :func:`calibration_writer` for the arguments) in one transaction and return
+    its id."""
+    return write(db, calibration_writer(serial, param_text, session, options=options, covariance=covariance,
+                                        supersedes=supersedes, make_current=make_current, date_given=date_given))
+
+
+def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
+    """The transaction of :func:`record_calibration`, run but not committed: ``staged.value`` is the result id,
+    ``staged.commit()`` makes it durable (commit it as the last step of publishing the parameter file, with
+    the interrupts held: :func:`inscal.io.files.output_unit`'s ``before_publish``), ``staged.close()`` rolls it
+    back unless committed."""
+    return begin_write(db, calibration_writer(serial, param_text, session, **kw))
+
+
+def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
+                       options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
+                       make_current: bool | None = None, date_given: bool = False):
+    """The transaction that records one calibration of unit ``serial`` (registered with :func:`add_unit`),
+    ``fn(connection) -> result id`` for :func:`~inscal.lab.database.write`: ``param_text``, the parameter file exactly as written (parsed here for the
     parameters, fit and version); ``session``, its record (:func:`~inscal.lab.record.session_from_record`;
     one session per unit and record sha256: the first one recorded keeps its metadata); ``options``,
     the calibration's options (:func:`~inscal.lab.record.calibration_options`; by default the method
@@ -114,6 +145,11 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     reported 1 sigma); ``supersedes``, the id of a result of the same unit this one replaces;
     ``make_current``: make it the unit's current calibration (None: if its record is not older than
     the current calibration's, so that recording an old calibration afterwards changes nothing).
+    The session's date must lie between :data:`~inscal.lab.model.EARLIEST` and now (plus
+    :data:`~inscal.lab.model.CLOCK_SKEW`); ``date_given``: it was given by the operator, so a session
+    of the record stored already with another date is refused rather than kept silently.
+    The same unit, record and options (or the same parameter file), unless superseding, is refused
+    with :class:`AlreadyRecorded`, in the same transaction as the insert.
     Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
     nothing is recorded."""
     doc = parse_param_text(param_text)
@@ -130,14 +166,22 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     sess = {k: getattr(session, k) for k in ("record_sha256", "record_path", "station", "operator", "latitude_deg",
                                              "longitude_deg", "height_m", "gravity_model", "g_site_m_s2",
                                              "temperature_c", "path_name")}
-    sess["date"] = utc_naive(session.date)
+    try:
+        sess["date"] = check_date(session.date, "the record's date")
+    except ValueError as exc:
+        raise DatabaseError(str(exc)) from None
+    ohash, phash = options_hash(options), text_hash(param_text)
 
     def run(conn):
         uid = _unit_id(conn, serial)
         conn.execute(_insert_ignore(conn, t.sessions, ["unit_id", "record_sha256"]).values(
             unit_id=uid, recorded_at=stamp, **sess))
-        sid = conn.execute(sa.select(t.sessions.c.id).where(t.sessions.c.unit_id == uid,
-                                                            t.sessions.c.record_sha256 == sess["record_sha256"])).scalar_one()
+        sid, sdate = conn.execute(sa.select(t.sessions.c.id, t.sessions.c.date).where(
+            t.sessions.c.unit_id == uid, t.sessions.c.record_sha256 == sess["record_sha256"])).one()
+        if date_given and sdate != sess["date"]:
+            raise DatabaseError(f"the record {sess['record_sha256'][:19]}... of {serial} is stored already with the date "
+                                f"{sdate:%Y-%m-%d %H:%M:%S} UTC, not {sess['date']:%Y-%m-%d %H:%M:%S}: a record has one "
+                                "date (leave --date out to use the stored one)")
         if supersedes is not None:
             owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == supersedes)).scalar()
             if owner is None:
@@ -150,6 +194,18 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
             notes=_notes(doc), covariance=cov, inscal_version=str(doc.get("inscal_version") or "unknown"),
             param_file=param_text, param_file_sha256=text_hash(param_text), supersedes=supersedes,
             recorded_at=stamp).returning(t.results.c.id)).scalar_one()
+        key = conn.execute(_insert_ignore(conn, t.result_keys, None).values(
+            result_id=rid, unit_id=uid, record_sha256=sess["record_sha256"], options_hash=ohash,
+            param_file_sha256=phash, supersedes=supersedes or 0).returning(t.result_keys.c.result_id)).first()
+        if key is None:  # a unique key is taken: the same calibration, recorded already (perhaps a moment ago)
+            k = t.result_keys.c
+            old = conn.execute(sa.select(k.result_id).where(
+                k.unit_id == uid, k.supersedes == (supersedes or 0), k.record_sha256 == sess["record_sha256"],
+                sa.or_(k.options_hash == ohash, k.param_file_sha256 == phash)).order_by(k.result_id).limit(1)).scalar()
+            raise AlreadyRecorded(
+                f"this calibration of {serial} is recorded already, as result {old} (the same record and options, or "
+                f"the same parameter file)" + (f"; --supersedes {old} records a new one in its place"
+                                               if supersedes is None else f", also superseding {supersedes}"), old)
         write_parameters(conn, rid, rows)
         current = make_current
         if current is None:
@@ -162,7 +218,7 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
             conn.execute(sa.insert(t.current).values(unit_id=uid, result_id=rid, set_at=stamp))
         return rid
 
-    return write(db, run)
+    return run
 
 
 def record_result(db: Database, serial: str, result, session: SessionInfo, *, data_file: str | None = None,
