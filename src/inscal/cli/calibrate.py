@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from inscal.cli.guards import check_outputs
 from inscal.cli.common import (  # np: lazy (fast start)
     CliError,
     check_not_input,
@@ -52,16 +53,20 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
+    check_outputs([("--out", out), ("--plots", plots)], [data], db, serial is not None)
     check_output(out, force)
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
     lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options())
+    if lab_db is None:
+        return _calibrate(data, setup, out, force, plots, lab_db)
     try:
         return _calibrate(data, setup, out, force, plots, lab_db)
-    finally:
-        if lab_db is not None:
-            lab_db["db"].close()
+    finally:  # committed with the files when the command's output unit publishes them, else rolled back
+        from inscal.io.files import after_unit
+
+        after_unit(lambda: (lab_db["staged"].close() if "staged" in lab_db else None, lab_db["db"].close()))
 
 
 def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
@@ -100,7 +105,7 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
     if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
         raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
     try:
-        when = lab.parse_date(date) if date is not None else None
+        when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
         d = lab.open_database(db)
     except (lab.DatabaseError, ValueError) as exc:
         raise CliError(str(exc)) from None
@@ -154,8 +159,12 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
     try:
-        with output_unit():  # the parameter file and the plots: all published together, or none
+        with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
+            if lab_db is not None:
+                lab_db["unit"] = unit
             report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic, lab_db)
+        if lab_db is not None:
+            report["db"] = _recorded(lab_db)
     except FileExistsError as exc:  # a file that appeared at an output while this ran is not replaced
         rid = (lab_db or {}).get("result_id")
         if rid is not None:  # the database had committed: its copy of the file is whole
@@ -218,12 +227,15 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None
     if lab_db is not None:
-        report["db"] = _record(lab_db, data, rec, res, text)
+        _stage(lab_db, data, rec, res, text)
     return report
 
 
-def _record(lab_db: dict, data: Path, rec, res, text: str) -> dict:
-    """Record the calibration in the database (one transaction); the ``db`` entry of the report."""
+def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
+    """Write the calibration into the database in one transaction, left open: it is committed as the first
+    step of the output unit's publication, with SIGINT/SIGTERM held, just before the parameter file and
+    the plots are renamed into place (:func:`inscal.io.files.output_unit`), so that an interrupt leaves
+    both or neither; any failure before rolls it back."""
     import sqlalchemy
 
     from inscal import lab
@@ -234,15 +246,33 @@ def _record(lab_db: dict, data: Path, rec, res, text: str) -> dict:
         session = lab.session_from_record(data, record_sha256=lab_db["hash"], date=lab_db["date"],
                                           station=lab_db["station"], operator=lab_db["operator"],
                                           temperature_c=lab_db["temperature_c"], site=rec.site)
-        rid = lab.record_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
-                                     covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"])
-        lab_db["result_id"] = rid
-        cal = lab.get_calibration(d, rid)
+        staged = lab.stage_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
+                                       covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"],
+                                       date_given=lab_db["date"] is not None)
     except (lab.DatabaseError, ParamFileError, ValueError, sqlalchemy.exc.SQLAlchemyError) as exc:
         msg = str(getattr(exc, "orig", None) or exc).split("\n")[0]
         raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") from None
-    return {"db": d.where, "serial": lab_db["serial"], "result_id": rid, "current": cal.current,
-            "date": cal.to_json(False)["date"]}
+    lab_db["staged"] = staged
+
+    def commit():
+        try:
+            staged.commit()
+        except Exception as exc:  # nothing is published: the unit removes the files
+            msg = " ".join(str(getattr(exc, "orig", None) or exc).split())[:300]
+            raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") \
+                from None
+        lab_db["result_id"] = staged.value["result_id"]
+
+    lab_db["unit"].before_publish.append(commit)
+
+
+def _recorded(lab_db: dict) -> dict:
+    """The ``db`` entry of the report: the result as staged (committed when the command's outputs are published)."""
+    from inscal.lab.model import iso
+
+    v = lab_db["staged"].value
+    return {"db": lab_db["db"].where, "serial": lab_db["serial"], "result_id": v["result_id"], "current": v["current"],
+            "date": iso(v["date"])}
 
 
 def fit_lines(fit: dict) -> list[str]:

@@ -136,6 +136,8 @@ class _Unit:
         #: steps run in the publication itself, with the interrupts held, after the outputs are checked
         #: and before the first is renamed into place (a database commit: the record and its files at once)
         self.before_publish: list = []
+        #: steps run when the outermost unit ends, published or not (:func:`after_unit`)
+        self.finally_steps: list = []
 
 
 @contextmanager
@@ -163,7 +165,9 @@ def output_unit():
             outer.made_dirs += unit.made_dirs
             outer.claimed += unit.claimed
             outer.before_publish += unit.before_publish
+            outer.finally_steps += unit.finally_steps
             unit.claimed = []
+            unit.finally_steps = []
             return
         with _signals_held():
             check_cancel()
@@ -190,6 +194,18 @@ def output_unit():
     finally:
         for path in unit.claimed:
             release_output(path)
+        for step in unit.finally_steps:
+            with contextlib.suppress(Exception):
+                step()
+
+
+def after_unit(step) -> None:
+    """Run ``step()`` when the outermost :func:`output_unit` now open ends, its outputs published or not (at
+    once when none is open): the rollback of a database transaction its publication would have committed."""
+    if _UNITS:
+        _UNITS[-1].finally_steps.append(step)
+    else:
+        step()
 
 
 def make_output_dir(path) -> FsPath:

@@ -90,6 +90,7 @@ EXPORTS = {
     "record_calibration": "inscal.lab.store",
     "record_result": "inscal.lab.store",
     "set_current": "inscal.lab.store",
+    "stage_calibration": "inscal.lab.store",
     "table_counts": "inscal.lab.store",
 }
 __all__ = [
@@ -139,6 +140,7 @@ __all__ = [
     "revision_of",
     "session_from_record",
     "set_current",
+    "stage_calibration",
     "table_counts",
     "tail",
     "text_hash",
@@ -208,6 +210,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         record_calibration,
         record_result,
         set_current,
+        stage_calibration,
         table_counts,
     )
 

@@ -227,6 +227,13 @@ def _connect_problem(exc: Exception, where: str) -> DatabaseError:
 
 def _check_sqlite_file(url: sa.URL, create: bool) -> None:
     path = Path(url.database)
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:  # a name too long, a folder that is a file ...
+        raise DatabaseError(f"--db {str(path)[:200]}{'...' if len(str(path)) > 200 else ''}: "
+                            f"{exc.strerror or exc}") from None
     if path.exists():
         if path.is_dir():
             raise DatabaseError(f"--db {path} is a folder, not a database file")

@@ -126,11 +126,21 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
 
 
 def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
-    """The transaction of :func:`record_calibration`, run but not committed: ``staged.value`` is the result id,
-    ``staged.commit()`` makes it durable (commit it as the last step of publishing the parameter file, with
-    the interrupts held: :func:`inscal.io.files.output_unit`'s ``before_publish``), ``staged.close()`` rolls it
-    back unless committed."""
-    return begin_write(db, calibration_writer(serial, param_text, session, **kw))
+    """The transaction of :func:`record_calibration` (same arguments), run but not committed:
+    ``staged.value`` is ``{"result_id", "current", "date"}`` (whether it becomes the unit's current
+    calibration, the record's date as stored); ``staged.commit()`` makes it durable (commit it as a step
+    of publishing the parameter file, with the interrupts held: ``before_publish`` of
+    :func:`inscal.io.files.output_unit`), ``staged.close()`` rolls it back unless committed."""
+    staged = begin_write(db, calibration_writer(serial, param_text, session, **kw))
+    try:
+        rid = staged.value
+        uid, date = staged.conn.execute(sa.select(t.results.c.unit_id, t.sessions.c.date).join(
+            t.sessions, t.sessions.c.id == t.results.c.session_id).where(t.results.c.id == rid)).one()
+        staged.value = {"result_id": rid, "current": current_id(staged.conn, uid) == rid, "date": date}
+    except BaseException:
+        staged.close()
+        raise
+    return staged
 
 
 def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
@@ -183,6 +193,8 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
                                 f"{sdate:%Y-%m-%d %H:%M:%S} UTC, not {sess['date']:%Y-%m-%d %H:%M:%S}: a record has one "
                                 "date (leave --date out to use the stored one)")
         if supersedes is not None:
+            if not 0 < supersedes < 2**63:
+                raise DatabaseError(f"--supersedes {supersedes}: no such result")
             owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == supersedes)).scalar()
             if owner is None:
                 raise DatabaseError(f"--supersedes {supersedes}: no such result")
@@ -336,6 +348,8 @@ def _load(conn, result_rows: list) -> list[Calibration]:
 
 def get_calibration(db: Database, result_id: int) -> Calibration:
     """Result ``result_id`` with all its parameters, sigma, covariance, fit and provenance."""
+    if not 0 < int(result_id) < 2**63:  # beyond any id (and SQLite's 64-bit integers)
+        raise DatabaseError(f"no calibration result {result_id} in {db.where}")
     with read(db) as conn:
         row = conn.execute(sa.select(t.results).where(t.results.c.id == int(result_id))).first()
         if row is None:
