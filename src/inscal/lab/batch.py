@@ -71,6 +71,7 @@ from inscal.lab.database import Database, DatabaseError, database_url, open_data
 from inscal.lab.model import parse_date
 from inscal.lab.record import options_hash, session_from_record
 from inscal.lab.store import (
+    AlreadyRecorded,
     add_unit,
     check_serial,
     find_calibration,
@@ -392,9 +393,12 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
             if rid is None:
                 if register and get_unit(db, item.serial) is None:
                     created = add_unit(db, item.serial, model)[1]
-                rid, _ = record_result(db, item.serial, cal.result, session, data_file=item.path.name,
-                                       metadata=cal.metadata, options=options)
-                status = "done"
+                try:
+                    rid, _ = record_result(db, item.serial, cal.result, session, data_file=item.path.name,
+                                           metadata=cal.metadata, options=options)
+                    status = "done"
+                except AlreadyRecorded as exc:  # recorded meanwhile by a writer outside this lock (inscal calibrate)
+                    rid = exc.result_id
         return Outcome(item.label, item.serial, status, rid, None, time.perf_counter() - t0, created)
     except Exception as exc:  # noqa: BLE001 - one line per failed record, the batch goes on
         return Outcome(item.label, item.serial, "failed", None, failure_text(exc, item.path), time.perf_counter() - t0)
