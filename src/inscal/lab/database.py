@@ -153,12 +153,15 @@ def _sqlite_connect_readonly(dbapi_connection, _record) -> None:
 
 
 def readonly_uri(path: str | os.PathLike) -> str:
-    """The SQLite URI that reads ``path`` without ever writing it: ``mode=ro``, and ``immutable=1`` when its
-    folder cannot be written and it has no write-ahead log (then no writer can be at work, and SQLite
-    could not make the shared-memory file a WAL reader needs)."""
+    """The SQLite URI that reads ``path`` without ever writing it or leaving a file beside it: ``mode=ro``, and
+    ``immutable=1`` while it has no write-ahead log (no writer is at work: a read-only connection would
+    otherwise make the ``-wal`` and ``-shm`` files of a WAL database and, unable to remove them, leave them;
+    and where the folder is read-only it could not make them at all).  With a write-ahead log present
+    (a writer at work) the reader takes part in WAL's locking as any reader does.  What an immutable read
+    does not see: a writer that starts during it (the read is a snapshot of the file as it was)."""
     p = Path(path)
     uri = "file:" + urllib.parse.quote(str(p)) + "?mode=ro"
-    if not os.access(p.parent, os.W_OK) and not Path(f"{p}-wal").exists():
+    if not Path(f"{p}-wal").exists():
         uri += "&immutable=1"
     return uri
 
@@ -359,10 +362,10 @@ def upgrade_database(text: str | os.PathLike | None = None, revision: str = "hea
     """Upgrade an existing calibration database to ``revision`` (the newest); ``(from, to)`` revisions.
     A newer revision than this inscal knows, or a database without one, is refused (:class:`DatabaseError`)."""
     url = database_url(text)
-    if url.get_backend_name() == "sqlite":
+    sqlite = url.get_backend_name() == "sqlite"
+    if sqlite:
         _check_sqlite_file(url, create=False)
-        check_writable(url)
-    db = Database(make_engine(url), url, describe(url))
+    db = Database(make_engine(url, readonly=sqlite), url, describe(url))  # looked at read-only first
     try:
         try:
             rev, _ = _state(db.engine)
@@ -376,6 +379,10 @@ def upgrade_database(text: str | os.PathLike | None = None, revision: str = "hea
                                 "use the inscal that wrote it")
         target = head_revision() if revision == "head" else revision
         if rev != target:
+            if sqlite:
+                check_writable(url)
+                db.engine.dispose()
+                db.engine = make_engine(url)
             _upgrade(db, target)
         return rev, target
     finally:
