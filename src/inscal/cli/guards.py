@@ -28,14 +28,14 @@ def check_not_database(out: Path | None, db: str | None, what: str = "--out") ->
     """Refuse (:class:`CliError`) an output ``out`` that is the calibration database ``db`` or one of its files."""
     if out is None:
         return
-    for f in database_files(db):
+    for i, f in enumerate(database_files(db)):
         try:
             same = Path(out).resolve() == f.resolve() or (f.exists() and Path(out).exists() and f.samefile(out))
         except (OSError, RuntimeError):
             continue
         if same:
-            raise CliError(f"{what} {short(out)} is the calibration database {'' if f.name == Path(out).name else f'file '}"
-                           f"{short(f)}: writing it would destroy the lab's records; choose another name")
+            raise CliError(f"{what} {short(out)} is the calibration database{'' if i == 0 else ' file'} {short(f)}: "
+                           "writing it would destroy the lab's records; choose another name")
 
 
 def check_outputs(outputs: list[tuple[str, Path | None]], inputs: list[Path | None], db: str | None,

@@ -57,10 +57,28 @@ _UNITS: list["_Unit"] = []
 PUBLISHED: list[FsPath] = []
 
 
+#: the longest file name (bytes) of the usual file systems (ext4, XFS, btrfs, APFS, NTFS)
+NAME_MAX = 255
+
+
+def side_name(name: str, suffix: str, room: int = 0) -> str:
+    """``.NAME`` + ``suffix``, the name of a file beside output ``NAME`` (its lock, its temporary), with
+    ``room`` bytes to spare: when that would pass :data:`NAME_MAX`, NAME is cut and a hash of the whole
+    name keeps it apart from any other (``.NAME[:n]~HASH12``), so every legal output name has its lock
+    and its temporary."""
+    full = f".{name}{suffix}"
+    if len(os.fsencode(full)) + room <= NAME_MAX:
+        return full
+    tag = "~" + hashlib.sha256(os.fsencode(name)).hexdigest()[:12]
+    keep = NAME_MAX - room - len(os.fsencode(f".{tag}{suffix}"))
+    head = os.fsencode(name)[:max(0, keep)].decode(errors="ignore")
+    return f".{head}{tag}{suffix}"
+
+
 def lock_path(path) -> FsPath:
-    """The lock file of an output: ``.NAME.lock`` beside it."""
+    """The lock file of an output: ``.NAME.lock`` beside it (NAME shortened when long, :func:`side_name`)."""
     path = FsPath(path)
-    return path.parent / f".{path.name}.lock"
+    return path.parent / side_name(path.name, ".lock")
 
 
 def _key(path) -> str:
@@ -299,7 +317,8 @@ def atomic_path(path, overwrite: bool = False):
             # the file and its registration at once: an interrupt between the two (mkstemp returns through
             # several bytecodes) left a temporary that neither this cleanup nor remove_live_parts knew of
             with _signals_held():
-                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+                fd, tmp = tempfile.mkstemp(prefix=side_name(path.name, ".", room=8 + len(".part")), suffix=".part",
+                                           dir=path.parent)
                 _LIVE_PARTS[tmp] = path
                 os.close(fd)
             yield FsPath(tmp)

@@ -59,7 +59,7 @@ from pathlib import Path
 
 import sqlalchemy as sa
 
-from inscal.io.files import file_hash
+from inscal.io.files import file_hash, side_name
 from inscal.io.records import record_attrs
 from inscal.lab.calibration import (
     CalibrationSetup,
@@ -346,7 +346,7 @@ def record_lock(db: Database, key: str) -> Iterator[None]:
                 conn.commit()
         return
     file = Path(db.url.database)
-    with open(file.with_name(f".{file.name}.batch.lock"), "a") as fh:
+    with open(file.with_name(side_name(file.name, ".batch.lock")), "a") as fh:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         try:
             yield
