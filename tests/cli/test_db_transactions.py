@@ -177,6 +177,24 @@ def test_dates_and_duplicates(lab_dir, tmp_path):
     assert [c.id for c in results(f / "lab.sqlite")] == [rid]
 
 
+def test_impossible_estimates_are_refused_whatever_was_skipped(lab_dir, tmp_path):
+    """A record whose x gyro reads with the wrong sign, the encoder check skipped: the fit is -200 % in scale
+    factor; refused with the likely cause, nothing written or recorded."""
+    import h5py
+
+    f = fresh(lab_dir, tmp_path)
+    with h5py.File(f / "r.h5", "r+") as h5:
+        h5["dtheta"][:, 0] *= -1.0
+    before = snapshot(f)
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--skip-encoder-check",
+                "--serial", "U1", "--db", "lab.sqlite"),
+            "implausible estimates, gyro_scale_factor[0] = -2", "--skip-encoder-check", "flipped sign")
+    rc, _, err = run(lab_dir, f, "batch", "r.h5", "--method", "n25", "--skip-encoder-check", "--serial", "U1", "--db",
+                     "lab.sqlite", "--scheduler", "none", "--no-progress")
+    assert rc == 1 and "implausible estimates, gyro_scale_factor[0] = -2" in err, (rc, err)  # the record failed
+    assert snapshot(f) == before and results(f / "lab.sqlite") == []
+
+
 def _agree(folder: Path, sig: int) -> str:
     """Check that the database and the parameter file agree after a signal; returns the state seen."""
     cals = results(folder / "lab.sqlite")

@@ -41,6 +41,10 @@ MAX_ENCODER_SIGMA = 3600.0  # white noise of an encoder angle [arcsec] (1 deg)
 MAX_ARW = 100.0  # [deg/sqrt(h)]
 MAX_VRW = 1e5  # [ug/sqrt(Hz)]
 MAX_WINDOW_S = 86400.0  # --settle-s, --min-static-s [s]
+#: the plausible estimates of a working inertial sensor, whatever the method: scale factors within +-50 %,
+#: misalignments (installation angles) within 5 deg; beyond them the data, not the sensor, is at fault
+MAX_SCALE_FACTOR = 0.5
+MAX_MISALIGNMENT_RAD = math.radians(5.0)
 
 
 class RecordError(ValueError):
@@ -258,6 +262,34 @@ def load_record(path: Path) -> Record:
     return rec
 
 
+def implausible(res, setup: CalibrationSetup) -> str | None:
+    """The one-line refusal of estimates no working sensor has (a scale factor beyond +-50 %, a misalignment
+    beyond 5 deg), with the likely cause; None when every estimate is plausible.  Checked whatever was
+    skipped: a consistent fit of impossible values is a fit to wrong data (flipped encoder angles, a wrong
+    axis mapping or unit), not a calibration."""
+    imu = res.imu
+    worst = []
+    for name, bound, unit, scale in (("gyro_scale_factor", MAX_SCALE_FACTOR, "ppm", 1e6),
+                                     ("accel_scale_factor", MAX_SCALE_FACTOR, "ppm", 1e6),
+                                     ("gyro_misalignment", MAX_MISALIGNMENT_RAD, "deg", math.degrees(1.0)),
+                                     ("accel_misalignment", MAX_MISALIGNMENT_RAD, "deg", math.degrees(1.0))):
+        v = np.ravel(np.asarray(getattr(imu, name), dtype=float))
+        bad = ~(np.abs(v) <= bound)  # NaN too
+        if bad.any():
+            k = int(np.argmax(np.where(np.isfinite(v), np.abs(v), np.inf)))
+            worst.append(f"{name}[{k}] = {v[k] * scale:.6g} {unit}")
+    if not worst:
+        return None
+    cause = "an axis mapping, sign or unit error of the record's gyros or accelerometers (inscal import --mapping)"
+    if not setup.check_encoders:
+        cause = ("the encoder check was skipped (--skip-encoder-check) and what it catches is the likely cause: encoder "
+                 f"angles with a flipped sign, in other units or from another column; else {cause}")
+    else:
+        cause = f"likely cause: {cause}"
+    return (f"implausible estimates, {', '.join(worst)} (a working sensor stays within +-{MAX_SCALE_FACTOR:.0%} in scale "
+            f"factor and {math.degrees(MAX_MISALIGNMENT_RAD):g} deg in misalignment): not calibrated; {cause}")
+
+
 def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibrated:
     """Calibrate record ``rec`` (read from file ``data``) with ``setup`` (checked with
     :meth:`CalibrationSetup.problem`): the encoder latency and check, the gravity model, the estimator
@@ -301,6 +333,8 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None
+    if (msg := implausible(res, setup)) is not None:
+        raise RecordError(f"{data}: {msg}")
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
             "windows": len(res.windows.windows) if res.windows else None}
     if setup.plateaus:
