@@ -613,6 +613,8 @@ def test_psins_imu_log_imports_with_its_header_site_rate_and_scales(p19, tmp_pat
     (lambda t: t.rsplit("\n", 2)[0] + "\n1 2 3 4.5 5 6 0\n", "counts must be whole numbers"),
     (lambda t: t.replace("9.780327", "0.000000", 1), "not a gravity value"),
     (lambda t: "\n".join(t.splitlines()[:6]) + "\n", "needs 3 header rows and at least 2 samples"),
+    (lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("0.100000 0.100000")) + "\n",
+     "scale-factor row (the 3rd) is missing"),
 ])
 def test_psins_imu_damaged_logs_are_refused_in_one_line(p19, tmp_path, edit, phrase):
     o = p19.rec
