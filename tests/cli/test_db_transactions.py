@@ -267,6 +267,31 @@ def test_signals_at_seeded_points_leave_the_database_and_the_files_agreeing(lab_
     assert seen.get("both", 0) + seen.get("neither", 0) + seen.get("row", 0) == POINTS
 
 
+def test_a_held_lock_is_reported_at_once_with_its_holder(lab_dir, tmp_path):
+    """Another program holds the database's write lock: a write is refused after the short grace (not ~150 s),
+    naming the holder's pid and --wait; with --wait it waits the time given; nothing is written."""
+    f = fresh(lab_dir, tmp_path)
+    with lab.open_database(f / "lab.sqlite", readonly=True) as db:
+        before = lab.table_counts(db)
+    con = sqlite3.connect(f / "lab.sqlite", isolation_level=None)
+    try:  # (no file of the database opened by this process meanwhile: a close would drop its POSIX locks)
+        con.execute("BEGIN IMMEDIATE")
+        t0 = time.monotonic()
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite"),
+                f"locked by another writer (pid {os.getpid()}: ", "--wait SECONDS")
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite", "--wait", "0.5"),
+                "waited 0.5 s")
+        assert time.monotonic() - t0 < 20
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite", "--wait", "-1"), "--wait -1")
+        refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--wait", "5"),
+                "give --serial")
+    finally:
+        con.execute("ROLLBACK")
+        con.close()
+    with lab.open_database(f / "lab.sqlite", readonly=True) as db:
+        assert lab.table_counts(db) == before
+
+
 def test_a_read_only_database_is_read_and_a_write_refused_saying_so(lab_dir, tmp_path):
     """``db list/show/export/history`` open the database read-only: a foreign SQLite file is refused without
     its journal mode switched; an immutable copy is read."""

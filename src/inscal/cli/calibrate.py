@@ -27,7 +27,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   station: str | None = None, operator: str | None = None, date: str | None = None,
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
-                  temperature_sensor: str = "", chamber_label: str = "chamber") -> dict:
+                  temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -58,7 +58,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
-    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options())
+    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options(), wait)
     if lab_db is None:
         return _calibrate(data, setup, out, force, plots, lab_db)
     try:
@@ -86,13 +86,14 @@ def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
 
 
 def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
-              options: dict) -> dict | None:
+              options: dict, wait: float | None = None) -> dict | None:
     """The calibration database and what ``--serial`` records in it, checked before the calibration
     runs: the unit is registered, the record not yet calibrated with the same options (unless
     ``--supersedes``); None without ``--serial``."""
     if serial is None:
         extra = [n for n, v in (("--db", db), ("--station", station), ("--operator", operator), ("--date", date),
-                                ("--temperature-c", temperature_c), ("--supersedes", supersedes)) if v is not None]
+                                ("--temperature-c", temperature_c), ("--supersedes", supersedes), ("--wait", wait))
+                 if v is not None]
         if extra:
             raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
         return None
@@ -106,7 +107,7 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
         raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
     try:
         when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
-        d = lab.open_database(db)
+        d = lab.open_database(db, wait_s=wait)
     except (lab.DatabaseError, ValueError) as exc:
         raise CliError(str(exc)) from None
     try:
@@ -384,6 +385,8 @@ def register(app: typer.Typer) -> None:
         chamber_label: str = typer.Option("chamber", "--chamber-label", help="thermal-plateaus: label prefix of the "
                                           "path's chamber transitions (the plateaus are cut there; without them they "
                                           "are found in the temperature)"),
+        wait: float = typer.Option(None, "--wait", help="with --serial: seconds to wait for another writer of the "
+                                   "database (default: refused after 2 s, naming it)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
@@ -391,7 +394,7 @@ def register(app: typer.Typer) -> None:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
-                                plateau_tol, temperature_sensor, chamber_label)
+                                plateau_tol, temperature_sensor, chamber_label, wait)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

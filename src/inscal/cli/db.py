@@ -43,12 +43,12 @@ def db_errors():
         raise fail(f"database: {' '.join(str(orig).split())[:400]}") from None
 
 
-def open_db(db: str | None, create: bool = False, readonly: bool = False):
+def open_db(db: str | None, create: bool = False, readonly: bool = False, wait: float | None = None):
     """The calibration database of ``--db``; ``readonly`` for the commands that only read it (the file is then
-    never written, and a read-only folder, file system or file is no obstacle)."""
+    never written, and a read-only folder, file system or file is no obstacle); ``wait``: ``--wait SECONDS``."""
     from inscal.lab import open_database
 
-    return open_database(db, create=create, readonly=readonly)
+    return open_database(db, create=create, readonly=readonly, wait_s=wait)
 
 
 def _fmt(v) -> str:
@@ -71,7 +71,7 @@ def _num(v, fmt: str = ".3g") -> str:
 
 def run_add(serial: str, params: Path | None, db: str | None, model: str | None, notes: str | None,
             data: Path | None, station: str | None, operator: str | None, date: str | None,
-            temperature_c: float | None, supersedes: int | None) -> dict:
+            temperature_c: float | None, supersedes: int | None, wait: float | None = None) -> dict:
     """``inscal db add``: register a unit, or record an existing parameter file as one of its calibrations."""
     from inscal import lab
     from inscal.io.files import file_hash, input_problem
@@ -80,7 +80,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
         if any(x is not None for x in (data, station, operator, date, temperature_c, supersedes)):
             raise CliError("--data, --station, --operator, --date, --temperature-c and --supersedes describe a "
                            "calibration: give its parameter file (inscal db add SERIAL PARAMS.toml ...)")
-        with open_db(db, create=True) as d:
+        with open_db(db, create=True, wait=wait) as d:
             unit, created = lab.add_unit(d, serial, model, notes)
             return {"db": d.where, "unit": unit.to_json(), "created": created}
     from inscal.cli.common import load_checked_params
@@ -121,7 +121,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
     pm = meta.get("metadata") or {}
     options = {"method": meta["method"], "recorded_from": "parameter file",
                **{k: pm[k] for k in ("states", "filter_rate_hz") if k in pm}}
-    with open_db(db) as d:
+    with open_db(db, wait=wait) as d:
         if lab.get_unit(d, serial) is None:
             raise CliError(f"unknown unit {serial!r}: register it first with `inscal db add {serial} --model MODEL`")
         dup = lab.find_param_file(d, serial, lab.text_hash(text))
@@ -377,10 +377,12 @@ def add_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
                                      "default: the record's creation time, without --data the parameter file's)"),
             temperature_c: float = typer.Option(None, "--temperature-c", help="the IMU's temperature during the run [deg C]"),
             supersedes: int = typer.Option(None, "--supersedes", help="id of an earlier result this one replaces"),
+            wait: float = typer.Option(None, "--wait", help="seconds to wait for another writer of the database "
+                                       "(default: refused after 2 s, naming it)"),
             json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
     """Register a unit (SERIAL --model ...), or record a parameter file as one of its calibrations."""
     with db_errors():
-        rep = run_add(serial, params, db, model, notes, data, station, operator, date, temperature_c, supersedes)
+        rep = run_add(serial, params, db, model, notes, data, station, operator, date, temperature_c, supersedes, wait)
     if json_:
         print_json(rep)
         return

@@ -314,11 +314,16 @@ def check_units(db: Database, items: list[BatchItem], register: bool = False) ->
 _DATABASES: dict[str, Database] = {}
 
 
-def worker_database(target: str) -> Database:
-    """The database of URL ``target`` opened once in this process."""
+#: how long a batch's write waits for another writer (its sibling workers included) by default [s]
+BATCH_WAIT_S = 10.0
+
+
+def worker_database(target: str, wait_s: float = BATCH_WAIT_S) -> Database:
+    """The database of URL ``target`` opened once in this process (its writes wait ``wait_s`` for another writer)."""
     db = _DATABASES.get(target)
     if db is None:
         db = _DATABASES[target] = open_database(target)
+    db.wait_s = wait_s
     return db
 
 
@@ -371,7 +376,7 @@ def failure_text(exc: BaseException, path: Path | None = None) -> str:
 
 
 def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record_sha256: str,
-                   register: bool = False, model: str | None = None) -> Outcome:
+                   register: bool = False, model: str | None = None, wait_s: float = BATCH_WAIT_S) -> Outcome:
     """Calibrate one record and record the result (the task of a worker): the record read, calibrated
     as ``inscal calibrate`` does (:func:`~inscal.lab.calibration.calibrate_record`) and recorded with its
     session, unless a result of the same record and options is there by then; its unit registered
@@ -379,7 +384,7 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
     :class:`Outcome` with one line."""
     t0 = time.perf_counter()
     try:
-        db = worker_database(target)
+        db = worker_database(target, wait_s)
         attr = record_attrs(item.path, ("imu_serial",))["imu_serial"]
         if attr is not None and attr != item.serial:
             raise RecordError(f"the record's imu_serial attribute is {attr!r}, not {item.serial!r}")
@@ -408,11 +413,12 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
 def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSetup, *, scheduler: str = "local",
               workers: int | None = None, register: bool = False, model: str | None = None,
               on_outcome: Callable[[Outcome], None] | None = None,
-              on_workers: Callable[[int], None] | None = None) -> BatchResult:
+              on_workers: Callable[[int], None] | None = None, wait_s: float = BATCH_WAIT_S) -> BatchResult:
     """Calibrate ``items`` with ``setup`` into the database ``db_text`` (a path or URL; None: ``INSCAL_DB``,
     else calib.sqlite; created when ``register``) on ``scheduler`` ("local", "none" or an address); see
     the module docstring.  ``on_outcome`` gets every record's :class:`Outcome` as it comes,
-    ``on_workers`` the number of workers once they are known.  Raises :class:`BatchError` or
+    ``on_workers`` the number of workers once they are known; ``wait_s``: how long a write waits for another
+    writer (the sibling workers' commits take milliseconds) before the record fails naming it.  Raises :class:`BatchError` or
     :class:`~inscal.lab.database.DatabaseError` before anything is calibrated."""
     t0 = time.perf_counter()
     target = database_url(db_text).render_as_string(hide_password=False)
@@ -459,11 +465,11 @@ def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSet
             if on_workers is not None:
                 on_workers(1)
             for it, h in pending():
-                emit(calibrate_item(target, it, setup, h, register, model))
+                emit(calibrate_item(target, it, setup, h, register, model, wait_s))
         else:
             n = sum(i.problem is None for i in items)
             result.workers = run_dask(target, pending(), setup, scheduler, min(workers or os.cpu_count() or 1, max(n, 1)),
-                                      emit, on_workers, register, model, remote)
+                                      emit, on_workers, register, model, remote, wait_s)
     finally:
         db.close()
         close_worker_databases()
@@ -498,7 +504,7 @@ def start_client(scheduler: str, workers: int):
 
 def run_dask(target: str, pending: Iterable[tuple[BatchItem, str]], setup: CalibrationSetup, scheduler: str,
              workers: int, emit: Callable[[Outcome], None], on_workers: Callable[[int], None] | None = None,
-             register: bool = False, model: str | None = None, client=None) -> int:
+             register: bool = False, model: str | None = None, client=None, wait_s: float = BATCH_WAIT_S) -> int:
     """Submit one task per record of ``pending`` as it comes, pass each outcome to ``emit`` as it
     completes; returns the number of workers (0: nothing to calibrate).  ``client``: of a cluster
     reached already (closed by the caller), else the cluster is started at the first record.  A task
@@ -527,7 +533,7 @@ def run_dask(target: str, pending: Iterable[tuple[BatchItem, str]], setup: Calib
                 if on_workers is not None:
                     on_workers(n_workers)
                 ac = as_completed(loop=client.loop)
-            fut = client.submit(calibrate_item, target, item, setup, h, register, model, pure=False)
+            fut = client.submit(calibrate_item, target, item, setup, h, register, model, wait_s, pure=False)
             futures[fut] = item
             ac.add(fut)
             collect(ac.next_batch(block=False))
