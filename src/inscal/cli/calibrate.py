@@ -7,7 +7,6 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.guards import check_outputs
 from inscal.cli.common import (  # np: lazy (fast start)
     CliError,
     check_not_input,
@@ -17,6 +16,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     print_json,
     read_record,
 )
+from inscal.cli.guards import check_outputs
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,

@@ -38,7 +38,6 @@ from inscal.lab.model import (
     Session,
     SessionInfo,
     Unit,
-    utc_naive,
 )
 from inscal.lab.record import (
     covariance_of,
