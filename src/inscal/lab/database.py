@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
 import sqlite3
 import sys
@@ -289,8 +290,6 @@ def check_wait(wait_s: float | None) -> float:
     """``--wait SECONDS``: how long a write waits for another writer's lock (None: :data:`GRACE_S`)."""
     if wait_s is None:
         return GRACE_S
-    import math
-
     if not (math.isfinite(wait_s) and 0 <= wait_s <= MAX_WAIT_S):
         raise DatabaseError(f"--wait {wait_s}: give 0 .. {MAX_WAIT_S:.0f} seconds")
     return float(wait_s)
