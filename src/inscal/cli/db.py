@@ -128,7 +128,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
         if dup is not None:
             raise CliError(f"{short(params)} is recorded already for {serial} as result {dup}")
         rid = lab.record_calibration(d, serial, text, session, options=options, supersedes=supersedes,
-                                     date_given=date is not None)
+                                     date_given=date is not None, new_file=True)
         cal = lab.get_calibration(d, rid)
         return {"db": d.where, "serial": serial, "result_id": rid, "method": cal.method, "current": cal.current,
                 "date": cal.to_json(False)["date"]}

@@ -107,8 +107,7 @@ result_keys = sa.Table(  # v3: what makes a result unique (the insert is the "re
     sa.Column("param_file_sha256", sa.String(80), nullable=False),
     sa.Column("supersedes", sa.Integer, nullable=False),  # the result superseded, 0 for none
     sa.UniqueConstraint("unit_id", "record_sha256", "options_hash", "supersedes", name="uq_result_keys_options"),
-    sa.UniqueConstraint("unit_id", "record_sha256", "param_file_sha256", "supersedes",
-                        name="uq_result_keys_param_file"),
+    sa.Index("ix_result_keys_param_file", "unit_id", "param_file_sha256"),
 )
 
 #: the tables, parents first (the order rows are copied or counted in)

@@ -117,11 +117,12 @@ def _unit_id(conn, serial: str) -> int:
 
 def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None, date_given: bool = False) -> int:
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False) -> int:
     """Record one calibration (see :func:`calibration_writer` for the arguments) in one transaction and return
     its id."""
     return write(db, calibration_writer(serial, param_text, session, options=options, covariance=covariance,
-                                        supersedes=supersedes, make_current=make_current, date_given=date_given))
+                                        supersedes=supersedes, make_current=make_current, date_given=date_given,
+                                        new_file=new_file))
 
 
 def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
@@ -144,7 +145,7 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
 
 def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None, date_given: bool = False):
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False):
     """The transaction that records one calibration of unit ``serial`` (registered with :func:`add_unit`),
     ``fn(connection) -> result id`` for :func:`~inscal.lab.database.write`: ``param_text``, the parameter file exactly as written (parsed here for the
     parameters, fit and version); ``session``, its record (:func:`~inscal.lab.record.session_from_record`;
@@ -157,8 +158,10 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
     The session's date must lie between :data:`~inscal.lab.model.EARLIEST` and now (plus
     :data:`~inscal.lab.model.CLOCK_SKEW`); ``date_given``: it was given by the operator, so a session
     of the record stored already with another date is refused rather than kept silently.
-    The same unit, record and options (or the same parameter file), unless superseding, is refused
-    with :class:`AlreadyRecorded`, in the same transaction as the insert.
+    The same unit, record and options, unless superseding, is refused with :class:`AlreadyRecorded` by the
+    unique key the insert itself takes (``result_keys``); ``new_file``: a parameter file already stored
+    for the unit is refused too (``inscal db add`` of a file that ``inscal calibrate --serial`` recorded),
+    checked inside the same transaction.
     Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
     nothing is recorded."""
     doc = parse_param_text(param_text)
@@ -205,18 +208,23 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
             notes=_notes(doc), covariance=cov, inscal_version=str(doc.get("inscal_version") or "unknown"),
             param_file=param_text, param_file_sha256=text_hash(param_text), supersedes=supersedes,
             recorded_at=stamp).returning(t.results.c.id)).scalar_one()
+        k = t.result_keys.c
+        if new_file and supersedes is None:
+            old = conn.execute(sa.select(k.result_id).where(k.unit_id == uid, k.param_file_sha256 == phash)
+                               .order_by(k.result_id).limit(1)).scalar()
+            if old is not None:
+                raise AlreadyRecorded(f"this parameter file is recorded already for {serial}, as result {old}", old)
         key = conn.execute(_insert_ignore(conn, t.result_keys, None).values(
             result_id=rid, unit_id=uid, record_sha256=sess["record_sha256"], options_hash=ohash,
             param_file_sha256=phash, supersedes=supersedes or 0).returning(t.result_keys.c.result_id)).first()
-        if key is None:  # a unique key is taken: the same calibration, recorded already (perhaps a moment ago)
-            k = t.result_keys.c
+        if key is None:  # the unique key is taken: the same calibration, recorded already (perhaps a moment ago)
             old = conn.execute(sa.select(k.result_id).where(
                 k.unit_id == uid, k.supersedes == (supersedes or 0), k.record_sha256 == sess["record_sha256"],
-                sa.or_(k.options_hash == ohash, k.param_file_sha256 == phash)).order_by(k.result_id).limit(1)).scalar()
+                k.options_hash == ohash)).scalar()
             raise AlreadyRecorded(
-                f"this calibration of {serial} is recorded already, as result {old} (the same record and options, or "
-                f"the same parameter file)" + (f"; --supersedes {old} records a new one in its place"
-                                               if supersedes is None else f", also superseding {supersedes}"), old)
+                f"this calibration of {serial} (the same record and options) is recorded already, as result {old}"
+                + (f"; --supersedes {old} records a new one in its place" if supersedes is None
+                   else f", also superseding {supersedes}"), old)
         write_parameters(conn, rid, rows)
         current = make_current
         if current is None:

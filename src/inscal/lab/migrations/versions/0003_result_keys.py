@@ -1,7 +1,8 @@
 """v3: ``result_keys``, what makes a result unique: one row per result, unique on (unit, record sha256,
-options hash, the result it supersedes or 0) and on (unit, record, parameter file sha256, the result it
-supersedes or 0).  The "recorded already" check is then the insert itself, one atomic step on every
-back-end, not a look-up before a write that a concurrent writer could slip between.
+options hash, the result it supersedes or 0), with the parameter file's sha256 (indexed: ``db add`` of a
+file stored already is refused in its transaction).  The "recorded already" check is then the insert
+itself, one atomic step on every back-end, not a look-up before a write that a concurrent writer could
+slip between.
 
 The results recorded before (an older inscal could record the same calibration twice) are keyed in
 the order they were recorded: the first of each key keeps it, a later duplicate stays in ``results``
@@ -30,9 +31,8 @@ def upgrade() -> None:
         sa.Column("param_file_sha256", sa.String(80), nullable=False),
         sa.Column("supersedes", sa.Integer, nullable=False),  # the result superseded, 0 for none
         sa.UniqueConstraint("unit_id", "record_sha256", "options_hash", "supersedes", name="uq_result_keys_options"),
-        sa.UniqueConstraint("unit_id", "record_sha256", "param_file_sha256", "supersedes",
-                        name="uq_result_keys_param_file"),
     )
+    op.create_index("ix_result_keys_param_file", "result_keys", ["unit_id", "param_file_sha256"])
     dialect = op.get_bind().dialect.name
     select = ("SELECT r.id, r.unit_id, s.record_sha256, r.options_hash, r.param_file_sha256, COALESCE(r.supersedes, 0) "
               "FROM results r JOIN sessions s ON s.id = r.session_id ORDER BY r.id")
