@@ -120,6 +120,11 @@ def test_outputs_that_are_the_database_or_an_input_are_refused_before_any_work(l
                 "lab.html"), "is the calibration database")
     refused(run(lab_dir, f, "db", "list", "--db", "d" * 300 + ".sqlite"), "File name too long")
     refused(run(lab_dir, f, "db", "show", "U1", "--result", str(2**63), "--db", "lab.sqlite"), "no calibration result")
+    refused(run(lab_dir, f, "batch", "b" * 5000, "--method", "n25", "--db", "lab.sqlite", "--scheduler", "none"),
+            "File name too long")
+    refused(run(lab_dir, f, "db", "add", "U3", "--model", "M" * 300, "--db", "lab.sqlite"), "at most 200")
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db",
+                "lab.sqlite", "--station", "T" * 201), "at most 200")
     assert snapshot(f) == before
 
 

@@ -105,6 +105,9 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
 
     if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
         raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    for name, text in (("--station", station), ("--operator", operator)):  # checked before the calibration runs
+        if text is not None and len(text) > 200:
+            raise CliError(f"{name} {text[:40]!r}...: {len(text)} characters, at most 200")
     try:
         when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
         d = lab.open_database(db, wait_s=wait)

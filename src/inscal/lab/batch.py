@@ -177,6 +177,13 @@ def find_records(specs: Iterable[str]) -> list[tuple[Path, str]]:
     out, seen = [], set()
     for spec in specs:
         p = Path(spec).expanduser()
+        try:
+            os.stat(p)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:  # a name too long for the file system, a file used as a folder ...
+            shown = str(spec) if len(str(spec)) <= 200 else str(spec)[:199] + f"… ({len(str(spec))} characters)"
+            raise BatchError(f"{shown}: {exc.strerror or exc}") from None
         if p.is_dir():
             found = sorted(q for q in p.iterdir() if q.suffix.lower() in RECORD_SUFFIXES and q.is_file())
             why = f"folder {spec} holds no record (*.h5, *.hdf5)"

@@ -85,6 +85,7 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
     """Register unit ``serial``: ``(unit, created)``.  Units are append-only: a unit that exists with
     the same model and notes (or without them given) is returned, one with others is refused."""
     serial = check_serial(serial)
+    check_text(model, "--model")
 
     def run(conn):
         new = conn.execute(_insert_ignore(conn, t.units, ["serial"]).values(
@@ -98,6 +99,12 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
             raise DatabaseError(f"unit {serial} is registered already with {what} {have!r} (units are append-only: "
                                 f"not changed to {given!r})")
     return unit, created
+
+
+def check_text(value: str | None, what: str, limit: int = 200) -> None:
+    """Refuse (:class:`DatabaseError`) a text longer than its column holds (``limit`` characters, on every back-end)."""
+    if value is not None and len(str(value)) > limit:
+        raise DatabaseError(f"{what} {str(value)[:40]!r}...: {len(str(value))} characters, at most {limit}")
 
 
 def check_serial(serial: str) -> str:
@@ -182,6 +189,8 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
         sess["date"] = check_date(session.date, "the record's date")
     except ValueError as exc:
         raise DatabaseError(str(exc)) from None
+    for name in ("station", "operator", "path_name"):  # VARCHAR(200) on PostgreSQL; the same bound on SQLite
+        check_text(sess[name], f"--{name.replace('_', '-')}")
     ohash, phash = options_hash(options), text_hash(param_text)
 
     def run(conn):
