@@ -43,6 +43,7 @@ LONGEST = (
     "cli/test_concurrent_writers.py",  # 20 s
     "io/test_encoders.py",  # 20 s
     "cli/test_db_cli.py",  # 19 s
+    "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
     "analysis/test_montecarlo.py",  # 18 s
     "cli/test_readme_block_0.py",  # 18 s
     "calibrate/test_noise_matrix.py",  # 18 s
@@ -53,6 +54,7 @@ LONGEST = (
     "oracles/test_oracle_calibration.py",  # 12 s
     "cli/test_calibrate_caps.py",  # 10 s
     "cli/test_demo_html.py",  # 9 s
+    "lab/test_db_integrity.py",  # 7 s
 )
 TESTS = Path(__file__).resolve().parent
 
