@@ -124,8 +124,9 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
         h = file_hash(data)
         done = lab.find_calibration(d, h, options, serial)
         if done is not None and supersedes is None:
-            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}); "
-                           f"--supersedes {done} records the new calibration in its place")
+            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}; `inscal db "
+                           f"export {serial} --result {done} --out FILE` writes its parameter file); --supersedes {done} "
+                           "records a new calibration in its place")
     except (lab.DatabaseError, ParamFileError, sqlalchemy.exc.SQLAlchemyError) as exc:
         d.close()
         raise CliError(str(getattr(exc, "orig", None) or exc).split("\n")[0]) from None
