@@ -116,7 +116,7 @@ class CalibrationSetup:
             return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.inner}"
         for name, v, hi, unit in (("--arw", self.arw, MAX_ARW, "deg/sqrt(h)"), ("--vrw", self.vrw, MAX_VRW, "ug/sqrt(Hz)")):
             if v is not None and not (math.isfinite(v) and 0 < v <= hi):
-                return f"--{name[2:]} must be a white-noise level in (0, {hi:g}] {unit}, got {v}"
+                return f"{name} must be a white-noise level > 0 and at most {hi:g} {unit}, got {v}"
         if not (math.isfinite(self.filter_rate_hz) and 0 < self.filter_rate_hz <= MAX_FILTER_RATE_HZ):
             return (f"--filter-rate-hz must be > 0 and at most {MAX_FILTER_RATE_HZ:g} Hz (and the record's rate), got "
                     f"{self.filter_rate_hz}")
