@@ -110,6 +110,7 @@ def test_outputs_that_are_the_database_or_an_input_are_refused_before_any_work(l
     refused(run(lab_dir, f, *cal, "--out", "r.h5", "--db", "lab.sqlite"), "must differ from the input")
     refused(run(lab_dir, f, *cal, "--out", "folder", "--db", "lab.sqlite"), "is a folder")
     refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "folder", "--force"), "is a folder")
+    refused(run(lab_dir, f, "simulate", "psins19", "--out", "folder", "--force"), "is a folder")
     refused(run(lab_dir, f, *cal, "--out", "x" * 251 + ".toml", "--db", "lab.sqlite"), "255")
     refused(run(lab_dir, f, "db", "history", "U1", "--plot", "lab.png", "--force", "--db", "lab.png"),
             "is the calibration database")
