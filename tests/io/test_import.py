@@ -626,6 +626,17 @@ def test_psins_imu_damaged_logs_are_refused_in_one_line(p19, tmp_path, edit, phr
     assert not (tmp_path / "x.h5").exists()
 
 
+def test_psins_imu_log_refuses_a_mapping_of_columns(p19, tmp_path):
+    """A .imu log's columns and scales are its header's: a mapping with [columns] is refused, not ignored."""
+    o = p19.rec
+    src = tmp_path / "run.imu"
+    _write_psins_imu(src, o.time[:200], o.dtheta[:200], o.dvel[:200], 34.0, 108.0, 400.0)
+    (tmp_path / "m.toml").write_text('[columns]\ngx = 1\ngy = 2\ngz = 3\nax = 4\nay = 5\naz = 6\ntime = 0\n')
+    code, _, se = run("import", src, "--format", "psins-imu", "--mapping", tmp_path / "m.toml", "--out", tmp_path / "x.h5")
+    assert code == 2 and "a psins-imu mapping may only hold [site]" in se and len(se.strip().splitlines()) == 1, se
+    assert not (tmp_path / "x.h5").exists()
+
+
 def test_ug_seconds_is_a_velocity_increment_unit_of_mappings():
     from inscal.core import units
     from inscal.io.mapping import parse_mapping

@@ -151,7 +151,7 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         except (TypeError, ValueError) as exc:
             raise ImportFileError(f"[site]: {exc}") from None
     rest = set(d) - {"site"}
-    if fmt in ("psins", "mat"):
+    if fmt in ("psins", "mat", "psins-imu"):  # their columns and units are fixed (a .imu header gives its scales)
         if rest:
             raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format csv|txt; a {fmt} mapping may only hold [site]")
         return None, site
