@@ -285,6 +285,11 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     return rec, info
 
 
+#: the longest stretch at either end of a record that a temperature file's first or last reading is held
+#: over, at least [s] (also 10 % of the record, and 1.5 of the file's own reading interval)
+TEMPERATURE_HOLD_S = 60.0
+
+
 def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: float, offset: float,
                  where: str) -> Temperature | None:
     """The record's temperature from the source's columns (at the rows' sample times) or from a file of
@@ -305,6 +310,17 @@ def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: fl
         raise ImportFileError(f"{file.where}: the temperature readings cover t = {a:.9g} .. {b:.9g} s{shift}; the record "
                               f"runs t = {time[0] - dt:.9g} .. {time[-1]:.9g} s: no overlap (another clock, or a time "
                               "unit: give it in the header, as 'time [ms]')")
+    # the readings are held beyond the first and the last: a file must not leave a long stretch of the record
+    # without any (one reading held over a 30-min warm-up is not the warm-up's temperature)
+    start, end = float(time[0] - dt), float(time[-1])
+    step = float(np.median(np.diff(temp.time))) if temp.time.size > 1 else 0.0
+    tol = max(TEMPERATURE_HOLD_S, 0.1 * (end - start), 1.5 * step)
+    head, tail = a - start, end - b
+    if head > tol or tail > tol:
+        where_ = "before its first" if head >= tail else "after its last"
+        raise ImportFileError(f"{file.where}: {temp.time.size} reading{'s' if temp.time.size != 1 else ''} at t = {a:.9g} "
+                              f".. {b:.9g} s leave {max(head, tail):.6g} s of the record (t = {start:.9g} .. {end:.9g} s) "
+                              f"{where_} reading (at most {tol:.3g} s is held): a temperature file must cover the record")
     return temp
 
 
