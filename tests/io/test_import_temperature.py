@@ -421,3 +421,22 @@ def test_export_refuses_a_sensor_name_that_cannot_head_a_column(tmp_path):
     code, _, se = run("export", f, "--format", "csv", "--out", tmp_path / "x.csv")
     assert code == 2 and "temperature sensor 'gyro,x' cannot name a column of a csv" in se, se
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_source_replaced_while_it_is_imported_is_refused(tmp_path, monkeypatch):
+    """The source is replaced between the hash and the end of its reading: refused (its hash would not be the
+    data's), nothing written."""
+    f = _plain_csv(tmp_path)
+    real = importers.read_source
+
+    def read_then_replace(src, *a, **kw):
+        raw = real(src, *a, **kw)
+        new = tmp_path / "new.csv"
+        new.write_text(f.read_text() + f.read_text().splitlines()[-1] + "\n")
+        new.replace(f)  # another program saves a new version under the same name
+        return raw
+
+    monkeypatch.setattr(importers, "read_source", read_then_replace)
+    code, _, se = run("import", f, "--format", "csv", "--out", tmp_path / "o.h5", *SITE)
+    assert code == 2 and se.count("\n") == 1 and "changed while it was imported" in se, se
+    assert not (tmp_path / "o.h5").exists()

@@ -113,6 +113,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
@@ -285,6 +286,12 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     return rec, info
 
 
+def _identity(path) -> tuple:
+    """What changes when a file is replaced or written to: its inode, size and modification time."""
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
 #: the longest stretch at either end of a record that a temperature file's first or last reading is held
 #: over, at least [s] (also 10 % of the record, and 1.5 of the file's own reading interval)
 TEMPERATURE_HOLD_S = 60.0
@@ -382,7 +389,11 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
+    before, src_hash = _identity(src), file_hash(src)  # the hash of the bytes about to be read
     raw = read_source(src, fmt, mapping, dtype, variable, rates)
+    if _identity(src) != before:  # replaced or written to while read: the hash is not the data's
+        raise ImportFileError(f"{src} changed while it was imported (replaced or written to): nothing written; "
+                              "import it again once it is complete")
     if mapping_file is not None and fmt in ("csv", "txt"):
         safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
         raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
@@ -400,7 +411,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
                              encoder_latency, tfile)
-    attrs = {"file": src.name, "hash": file_hash(src), "format": fmt,
+    attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
