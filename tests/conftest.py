@@ -44,6 +44,7 @@ LONGEST = (
     "cli/test_concurrent_writers.py",  # 20 s
     "io/test_encoders.py",  # 20 s
     "cli/test_db_cli.py",  # 19 s
+    "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
     "analysis/test_montecarlo.py",  # 18 s
     "cli/test_readme_block_0.py",  # 18 s
     "calibrate/test_noise_matrix.py",  # 18 s
@@ -56,6 +57,7 @@ LONGEST = (
     "cli/test_demo_html.py",  # 9 s
     "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)
+    "lab/test_db_integrity.py",  # 7 s
 )
 TESTS = Path(__file__).resolve().parent
 

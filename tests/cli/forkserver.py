@@ -27,6 +27,8 @@ from inscal.cli import main
 for info in pkgutil.walk_packages(inscal.__path__, "inscal."):
     if not info.name.endswith("__main__"):
         importlib.import_module(info.name)
+if len(sys.argv) > 1:  # a warm-up: the kernels a command will run, compiled (or loaded from numba's cache) once
+    exec(sys.argv[1])
 print("ready", flush=True)
 for line in sys.stdin:
     req = json.loads(line)
@@ -78,15 +80,17 @@ for line in sys.stdin:
 class ForkServer:
     """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds"}``; the command's
     stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
-    command (:class:`Forked`: its pid, to signal it) instead; one command at a time per server."""
+    command (:class:`Forked`: its pid, to signal it) instead; one command at a time per server.  ``warm``:
+    Python code the server runs once before its first fork (e.g. a calibration, so that every command finds
+    the numba kernels it runs loaded already)."""
 
-    def __init__(self, env: dict | None = None):
+    def __init__(self, env: dict | None = None, warm: str | None = None):
         env = dict(os.environ if env is None else env)
         for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             env[var] = "1"
         # unbuffered bytes: a reply is read a byte at a time, never ahead, so select() on the pipe says
         # whether the running command's reply is there
-        self.proc = subprocess.Popen([sys.executable, "-c", SERVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        self.proc = subprocess.Popen([sys.executable, "-c", SERVER, *([warm] if warm else [])], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      bufsize=0, env=env)
         ready = self.proc.stdout.readline()
         if ready.strip() != b"ready":

@@ -164,7 +164,7 @@ def test_bad_input_is_one_line_and_writes_nothing(small_db):
     one_line(run("db", "history", "U1", "--db", db, "--method", "n25"), "no n25 calibration", "manual")
     one_line(run("db", "history", "U1", "--db", db, "--plot", tmp / "h.txt"), ".png, .pdf or .svg")
     one_line(run("db", "export", "U1", "--db", db, "--out", tmp / "p1.toml"), "exists; use --force")
-    one_line(run("db", "export", "U1", "--db", db, "--out", db, "--force"), "must differ from the database")
+    one_line(run("db", "export", "U1", "--db", db, "--out", db, "--force"), "is the calibration database")
     one_line(run("db", "export", "U1", "--db", db, "--out", tmp / "nodir" / "x.toml"), "does not exist")
     one_line(run("calibrate", tmp / "run.h5", "--method", "n25", "--out", tmp / "o.toml", "--db", db),
              "--db", "give --serial")
@@ -176,7 +176,8 @@ def test_bad_input_is_one_line_and_writes_nothing(small_db):
                  db, "--supersedes", 99), "no calibration result 99")
     assert sorted(p.name for p in tmp.iterdir()) == before
     with lab.open_database(db) as d:
-        assert lab.table_counts(d) == {"units": 1, "sessions": 1, "results": 1, "parameters": 3, "current": 1}
+        assert lab.table_counts(d) == {"units": 1, "sessions": 1, "results": 1, "parameters": 3, "current": 1,
+                                          "result_keys": 1}
 
 
 def test_db_commands_and_their_json(small_db, monkeypatch):
@@ -189,7 +190,7 @@ def test_db_commands_and_their_json(small_db, monkeypatch):
     assert r.exit_code == 0, r.stderr
     rid = json.loads(r.stdout)["result_id"]
     r = run("db", "init", "--json")
-    assert json.loads(r.stdout) == {"db": str(db), "created": False, "revision": lab.head_revision(), "schema": 2}
+    assert json.loads(r.stdout) == {"db": str(db), "created": False, "revision": lab.head_revision(), "schema": 3}
     r = run("db", "show", "U1")
     assert r.exit_code == 0 and f"result {rid}, manual" in r.stdout and "station T2" in r.stdout
     assert "accel_scale_factor       [15, 0, 0] +- [1, 1, 1] ppm" in r.stdout

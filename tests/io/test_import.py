@@ -613,6 +613,8 @@ def test_psins_imu_log_imports_with_its_header_site_rate_and_scales(p19, tmp_pat
     (lambda t: t.rsplit("\n", 2)[0] + "\n1 2 3 4.5 5 6 0\n", "counts must be whole numbers"),
     (lambda t: t.replace("9.780327", "0.000000", 1), "not a gravity value"),
     (lambda t: "\n".join(t.splitlines()[:6]) + "\n", "needs 3 header rows and at least 2 samples"),
+    (lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("0.100000 0.100000")) + "\n",
+     "scale-factor row (the 3rd) is missing"),
 ])
 def test_psins_imu_damaged_logs_are_refused_in_one_line(p19, tmp_path, edit, phrase):
     o = p19.rec
@@ -621,6 +623,17 @@ def test_psins_imu_damaged_logs_are_refused_in_one_line(p19, tmp_path, edit, phr
     src.write_text(edit(src.read_text()))
     code, _, se = run("import", src, "--format", "psins-imu", "--out", tmp_path / "x.h5")
     assert code == 2 and phrase in se and len(se.strip().splitlines()) == 1, se
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_psins_imu_log_refuses_a_mapping_of_columns(p19, tmp_path):
+    """A .imu log's columns and scales are its header's: a mapping with [columns] is refused, not ignored."""
+    o = p19.rec
+    src = tmp_path / "run.imu"
+    _write_psins_imu(src, o.time[:200], o.dtheta[:200], o.dvel[:200], 34.0, 108.0, 400.0)
+    (tmp_path / "m.toml").write_text('[columns]\ngx = 1\ngy = 2\ngz = 3\nax = 4\nay = 5\naz = 6\ntime = 0\n')
+    code, _, se = run("import", src, "--format", "psins-imu", "--mapping", tmp_path / "m.toml", "--out", tmp_path / "x.h5")
+    assert code == 2 and "a psins-imu mapping may only hold [site]" in se and len(se.strip().splitlines()) == 1, se
     assert not (tmp_path / "x.h5").exists()
 
 

@@ -318,6 +318,24 @@ def test_bad_temperature_file_is_refused_with_one_line(tmp_path, case):
     assert listing(tmp_path) == before
 
 
+def test_a_temperature_file_must_cover_the_record(tmp_path):
+    """One reading held over a 2-min record (or readings that stop long before its end) is refused."""
+    t, dth, dv = _imu(n=1200)
+    f = tmp_path / "imu.csv"
+    f.write_text(",".join(importers.EXPORT_HEADER) + "\n" + "".join(",".join("%.17g" % v for v in r) + "\n"
+                                                                       for r in np.column_stack([t, dth, dv])))
+    tf = tmp_path / "T.csv"
+    for text, words in (("time [s],imu [degC]\n0,20\n", "1 reading at t = 0 .. 0 s leave 120 s of the record"),
+                        ("time [s],imu [degC]\n0,20\n10,21\n20,21\n", "leave 100 s of the record")):
+        tf.write_text(text)
+        before = listing(tmp_path)
+        code, so, se = run("import", f, "--format", "csv", "--out", tmp_path / "o.h5", *SITE, "--temperature", tf)
+        assert code == 2 and se.count("\n") == 1 and words in se and "after its last" in se, se
+        assert listing(tmp_path) == before
+    tf.write_text("time [s],imu [degC]\n0,20\n60,21\n110,21\n")  # within 60 s of both ends: taken
+    assert run("import", f, "--format", "csv", "--out", tmp_path / "o.h5", *SITE, "--temperature", tf)[0] == 0
+
+
 def test_temperature_columns_and_a_temperature_file_are_refused_together(tmp_path):
     _csv(tmp_path / "run.csv", {"T_imu": T_OK})
     tf = tmp_path / "T.csv"
@@ -403,3 +421,22 @@ def test_export_refuses_a_sensor_name_that_cannot_head_a_column(tmp_path):
     code, _, se = run("export", f, "--format", "csv", "--out", tmp_path / "x.csv")
     assert code == 2 and "temperature sensor 'gyro,x' cannot name a column of a csv" in se, se
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_source_replaced_while_it_is_imported_is_refused(tmp_path, monkeypatch):
+    """The source is replaced between the hash and the end of its reading: refused (its hash would not be the
+    data's), nothing written."""
+    f = _plain_csv(tmp_path)
+    real = importers.read_source
+
+    def read_then_replace(src, *a, **kw):
+        raw = real(src, *a, **kw)
+        new = tmp_path / "new.csv"
+        new.write_text(f.read_text() + f.read_text().splitlines()[-1] + "\n")
+        new.replace(f)  # another program saves a new version under the same name
+        return raw
+
+    monkeypatch.setattr(importers, "read_source", read_then_replace)
+    code, _, se = run("import", f, "--format", "csv", "--out", tmp_path / "o.h5", *SITE)
+    assert code == 2 and se.count("\n") == 1 and "changed while it was imported" in se, se
+    assert not (tmp_path / "o.h5").exists()

@@ -13,7 +13,7 @@ import sys
 import click
 import typer
 
-from inscal.cli.common import fail
+from inscal.cli.common import CliError, fail
 from inscal.cli.interrupts import (
     Interrupted,
     catch_interrupts,
@@ -72,8 +72,8 @@ def _one_unit(command):
                     if exc.exit_code:
                         raise
                     return None  # a command that ends early with success: its outputs stand
-        except FileExistsError as exc:  # an output that appeared while the command ran is not replaced
-            raise fail(str(exc)) from None
+        except (FileExistsError, CliError) as exc:  # an output that appeared meanwhile is not replaced; a step
+            raise fail(str(exc)) from None          # of the publication (a database commit) failed: nothing published
 
     return run
 

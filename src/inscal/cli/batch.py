@@ -170,12 +170,13 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
               station: str | None = None, operator: str | None = None, states: str | None = None,
               settle: float = 1.0, min_static: float = 20.0, filter_rate_hz: float = 1.0, arw: float | None = None,
               vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
-              encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True) -> dict:
+              encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True,
+              wait: float | None = None) -> dict:
     """Calibrate the records with ``method`` into ``db`` and return the JSON report (counts, failures,
     every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated."""
     import sqlalchemy
 
-    from inscal.lab import DatabaseError
+    from inscal.lab import DatabaseError, check_wait
     from inscal.lab import batch as lb
     from inscal.lab.calibration import CalibrationSetup
 
@@ -190,6 +191,10 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
     if model is not None and not register:
         raise CliError("--model is the model of the units --register registers: give --register")
     try:
+        wait_s = lb.BATCH_WAIT_S if wait is None else check_wait(wait)
+    except DatabaseError as exc:
+        raise CliError(str(exc)) from None
+    try:
         items = batch_items(records, serial, names, manifest, station, operator)
         check_batch_size(items, setup, scheduler, workers)
         bar = BatchProgress(len(items), progress)
@@ -199,7 +204,7 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
 
         try:
             res = lb.run_batch(db, items, setup, scheduler=scheduler, workers=workers, register=register, model=model,
-                               on_outcome=bar.advance, on_workers=workers_known)
+                               on_outcome=bar.advance, on_workers=workers_known, wait_s=wait_s)
         finally:
             bar.close()
     except (lb.BatchError, DatabaseError) as exc:
@@ -260,12 +265,14 @@ def register(app: typer.Typer) -> None:
                                                 "angles do not follow the gyros"),
         json_: bool = typer.Option(False, "--json", help="print the summary (counts, failures, every record) as JSON"),
         no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar or lines"),
+        wait: float = typer.Option(None, "--wait", help="seconds a record's write waits for another writer of the "
+                                   "database before it fails naming it (default 10)"),
     ):
         """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
         try:
             rep = run_batch(records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
                             station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
-                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_))
+                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

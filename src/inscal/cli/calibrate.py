@@ -16,6 +16,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     print_json,
     read_record,
 )
+from inscal.cli.guards import check_outputs
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
@@ -26,7 +27,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   station: str | None = None, operator: str | None = None, date: str | None = None,
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
-                  temperature_sensor: str = "", chamber_label: str = "chamber", accept_unconverged: bool = False) -> dict:
+                  temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
+                  accept_unconverged: bool = False) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -54,16 +56,20 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
+    check_outputs([("--out", out), ("--plots", plots)], [data], db, serial is not None)
     check_output(out, force)
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
-    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options())
+    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options(), wait)
+    if lab_db is None:
+        return _calibrate(data, setup, out, force, plots, lab_db)
     try:
         return _calibrate(data, setup, out, force, plots, lab_db)
-    finally:
-        if lab_db is not None:
-            lab_db["db"].close()
+    finally:  # committed with the files when the command's output unit publishes them, else rolled back
+        from inscal.io.files import after_unit
+
+        after_unit(lambda: (lab_db["staged"].close() if "staged" in lab_db else None, lab_db["db"].close()))
 
 
 def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
@@ -83,13 +89,14 @@ def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
 
 
 def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
-              options: dict) -> dict | None:
+              options: dict, wait: float | None = None) -> dict | None:
     """The calibration database and what ``--serial`` records in it, checked before the calibration
     runs: the unit is registered, the record not yet calibrated with the same options (unless
     ``--supersedes``); None without ``--serial``."""
     if serial is None:
         extra = [n for n, v in (("--db", db), ("--station", station), ("--operator", operator), ("--date", date),
-                                ("--temperature-c", temperature_c), ("--supersedes", supersedes)) if v is not None]
+                                ("--temperature-c", temperature_c), ("--supersedes", supersedes), ("--wait", wait))
+                 if v is not None]
         if extra:
             raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
         return None
@@ -101,9 +108,12 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
 
     if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
         raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    for name, text in (("--station", station), ("--operator", operator)):  # checked before the calibration runs
+        if text is not None and len(text) > 200:
+            raise CliError(f"{name} {text[:40]!r}...: {len(text)} characters, at most 200")
     try:
-        when = lab.parse_date(date) if date is not None else None
-        d = lab.open_database(db)
+        when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
+        d = lab.open_database(db, wait_s=wait)
     except (lab.DatabaseError, ValueError) as exc:
         raise CliError(str(exc)) from None
     try:
@@ -117,8 +127,9 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
         h = file_hash(data)
         done = lab.find_calibration(d, h, options, serial)
         if done is not None and supersedes is None:
-            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}); "
-                           f"--supersedes {done} records the new calibration in its place")
+            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}; `inscal db "
+                           f"export {serial} --result {done} --out FILE` writes its parameter file); --supersedes {done} "
+                           "records a new calibration in its place")
     except (lab.DatabaseError, ParamFileError, sqlalchemy.exc.SQLAlchemyError) as exc:
         d.close()
         raise CliError(str(getattr(exc, "orig", None) or exc).split("\n")[0]) from None
@@ -156,8 +167,12 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
     try:
-        with output_unit():  # the parameter file and the plots: all published together, or none
+        with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
+            if lab_db is not None:
+                lab_db["unit"] = unit
             report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic, lab_db)
+        if lab_db is not None:
+            report["db"] = _recorded(lab_db)
     except FileExistsError as exc:  # a file that appeared at an output while this ran is not replaced
         rid = (lab_db or {}).get("result_id")
         if rid is not None:  # the database had committed: its copy of the file is whole
@@ -221,12 +236,15 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
             except (FileExistsError, FileNotFoundError, OSError) as exc:
                 raise CliError(f"--plots: {exc}") from None
     if lab_db is not None:
-        report["db"] = _record(lab_db, data, rec, res, text)
+        _stage(lab_db, data, rec, res, text)
     return report
 
 
-def _record(lab_db: dict, data: Path, rec, res, text: str) -> dict:
-    """Record the calibration in the database (one transaction); the ``db`` entry of the report."""
+def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
+    """Write the calibration into the database in one transaction, left open: it is committed as the first
+    step of the output unit's publication, with SIGINT/SIGTERM held, just before the parameter file and
+    the plots are renamed into place (:func:`inscal.io.files.output_unit`), so that an interrupt leaves
+    both or neither; any failure before rolls it back."""
     import sqlalchemy
 
     from inscal import lab
@@ -237,15 +255,33 @@ def _record(lab_db: dict, data: Path, rec, res, text: str) -> dict:
         session = lab.session_from_record(data, record_sha256=lab_db["hash"], date=lab_db["date"],
                                           station=lab_db["station"], operator=lab_db["operator"],
                                           temperature_c=lab_db["temperature_c"], site=rec.site)
-        rid = lab.record_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
-                                     covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"])
-        lab_db["result_id"] = rid
-        cal = lab.get_calibration(d, rid)
+        staged = lab.stage_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
+                                       covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"],
+                                       date_given=lab_db["date"] is not None)
     except (lab.DatabaseError, ParamFileError, ValueError, sqlalchemy.exc.SQLAlchemyError) as exc:
         msg = str(getattr(exc, "orig", None) or exc).split("\n")[0]
         raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") from None
-    return {"db": d.where, "serial": lab_db["serial"], "result_id": rid, "current": cal.current,
-            "date": cal.to_json(False)["date"]}
+    lab_db["staged"] = staged
+
+    def commit():
+        try:
+            staged.commit()
+        except Exception as exc:  # nothing is published: the unit removes the files
+            msg = " ".join(str(getattr(exc, "orig", None) or exc).split())[:300]
+            raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") \
+                from None
+        lab_db["result_id"] = staged.value["result_id"]
+
+    lab_db["unit"].before_publish.append(commit)
+
+
+def _recorded(lab_db: dict) -> dict:
+    """The ``db`` entry of the report: the result as staged (committed when the command's outputs are published)."""
+    from inscal.lab.model import iso
+
+    v = lab_db["staged"].value
+    return {"db": lab_db["db"].where, "serial": lab_db["serial"], "result_id": v["result_id"], "current": v["current"],
+            "date": iso(v["date"])}
 
 
 def fit_lines(fit: dict) -> list[str]:
@@ -357,6 +393,8 @@ def register(app: typer.Typer) -> None:
         chamber_label: str = typer.Option("chamber", "--chamber-label", help="thermal-plateaus: label prefix of the "
                                           "path's chamber transitions (the plateaus are cut there; without them they "
                                           "are found in the temperature)"),
+        wait: float = typer.Option(None, "--wait", help="with --serial: seconds to wait for another writer of the "
+                                   "database (default: refused after 2 s, naming it)"),
         accept_unconverged: bool = typer.Option(False, "--accept-unconverged", help="systematic: keep the last "
                                                 "iterate of a run that does not converge (a note in the text, the JSON "
                                                 "and the parameter file) instead of ending with exit 2"),
@@ -367,7 +405,7 @@ def register(app: typer.Typer) -> None:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
-                                plateau_tol, temperature_sensor, chamber_label, accept_unconverged)
+                                plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

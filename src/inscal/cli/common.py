@@ -57,6 +57,10 @@ def check_output(path: Path, force: bool) -> None:
     if not os.access(path.parent, os.W_OK | os.X_OK):
         raise CliError(f"folder {short(path.parent)} is read-only (or not writable by this user): nothing can be "
                        "written there")
+    if len(os.fsencode(path.name)) > 255:
+        raise CliError(f"{short(path.name)}: a file name of {len(os.fsencode(path.name))} bytes (the most is 255)")
+    if path.is_dir():
+        raise CliError(f"{short(path)} is a folder, not a file name: give a file name (--force replaces files only)")
     try:
         claim_output(path)
     except OutputBusyError as exc:

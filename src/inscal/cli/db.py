@@ -9,12 +9,12 @@ import typer
 
 from inscal.cli.common import (
     CliError,
-    check_not_input,
     check_output,
     fail,
     print_json,
     short,
 )
+from inscal.cli.guards import check_not_database
 
 db_app = typer.Typer(no_args_is_help=True, add_completion=False,
                      help="The calibration database: units, sessions and results over time (SQLite file or "
@@ -43,10 +43,12 @@ def db_errors():
         raise fail(f"database: {' '.join(str(orig).split())[:400]}") from None
 
 
-def open_db(db: str | None, create: bool = False):
+def open_db(db: str | None, create: bool = False, readonly: bool = False, wait: float | None = None):
+    """The calibration database of ``--db``; ``readonly`` for the commands that only read it (the file is then
+    never written, and a read-only folder, file system or file is no obstacle); ``wait``: ``--wait SECONDS``."""
     from inscal.lab import open_database
 
-    return open_database(db, create=create)
+    return open_database(db, create=create, readonly=readonly, wait_s=wait)
 
 
 def _fmt(v) -> str:
@@ -69,7 +71,7 @@ def _num(v, fmt: str = ".3g") -> str:
 
 def run_add(serial: str, params: Path | None, db: str | None, model: str | None, notes: str | None,
             data: Path | None, station: str | None, operator: str | None, date: str | None,
-            temperature_c: float | None, supersedes: int | None) -> dict:
+            temperature_c: float | None, supersedes: int | None, wait: float | None = None) -> dict:
     """``inscal db add``: register a unit, or record an existing parameter file as one of its calibrations."""
     from inscal import lab
     from inscal.io.files import file_hash, input_problem
@@ -78,7 +80,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
         if any(x is not None for x in (data, station, operator, date, temperature_c, supersedes)):
             raise CliError("--data, --station, --operator, --date, --temperature-c and --supersedes describe a "
                            "calibration: give its parameter file (inscal db add SERIAL PARAMS.toml ...)")
-        with open_db(db, create=True) as d:
+        with open_db(db, create=True, wait=wait) as d:
             unit, created = lab.add_unit(d, serial, model, notes)
             return {"db": d.where, "unit": unit.to_json(), "created": created}
     from inscal.cli.common import load_checked_params
@@ -90,7 +92,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
         text = params.read_bytes().decode("utf-8")
     except UnicodeDecodeError:
         raise CliError(f"{short(params)}: not UTF-8 text") from None
-    when = lab.parse_date(date) if date is not None else None
+    when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
     if temperature_c is not None and not -100.0 < temperature_c < 200.0:
         raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
     if data is not None:
@@ -119,13 +121,14 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
     pm = meta.get("metadata") or {}
     options = {"method": meta["method"], "recorded_from": "parameter file",
                **{k: pm[k] for k in ("states", "filter_rate_hz") if k in pm}}
-    with open_db(db) as d:
+    with open_db(db, wait=wait) as d:
         if lab.get_unit(d, serial) is None:
             raise CliError(f"unknown unit {serial!r}: register it first with `inscal db add {serial} --model MODEL`")
         dup = lab.find_param_file(d, serial, lab.text_hash(text))
         if dup is not None:
             raise CliError(f"{short(params)} is recorded already for {serial} as result {dup}")
-        rid = lab.record_calibration(d, serial, text, session, options=options, supersedes=supersedes)
+        rid = lab.record_calibration(d, serial, text, session, options=options, supersedes=supersedes,
+                                     date_given=date is not None, new_file=True)
         cal = lab.get_calibration(d, rid)
         return {"db": d.where, "serial": serial, "result_id": rid, "method": cal.method, "current": cal.current,
                 "date": cal.to_json(False)["date"]}
@@ -138,8 +141,9 @@ def run_history(serial: str, db: str | None, method: str | None, k: float, plot:
     if plot is not None:
         if plot.suffix.lower().lstrip(".") not in PLOT_FORMATS:
             raise CliError(f"--plot {short(plot)}: use a .png, .pdf or .svg name")
+        check_not_database(plot, db, "--plot")
         check_output(plot, force)
-    with open_db(db) as d:
+    with open_db(db, readonly=True) as d:
         h = lab.unit_history(d, serial, method, k)
     rep = h.to_json() | {"db": d.where, "plot": None}
     if plot is not None:
@@ -195,6 +199,7 @@ def run_certificate(serial: str, out: Path, db: str | None, result: int | None, 
     from inscal import lab
     from inscal.io.files import atomic_path, make_output_dir, output_unit
     from inscal.io.jsonfile import to_jsonable
+    from inscal.lab.model import utc_naive
     from inscal.report.certificate import (
         CHROMIUM_ENV,
         CertificateError,
@@ -206,14 +211,18 @@ def run_certificate(serial: str, out: Path, db: str | None, result: int | None, 
         print_pdf,
     )
 
-    when = lab.parse_date(issued) if issued is not None else dt.datetime.now(dt.UTC)
+    when = lab.check_date(lab.parse_date(issued), "--issued") if issued is not None else dt.datetime.now(dt.UTC)
+    check_not_database(out, db)
     chromium = find_chromium() if pdf else None
     if pdf and chromium is None:
         raise CliError("the PDF is printed by headless Chromium, which is not installed (apt-get install chromium, "
                        f"or set {CHROMIUM_ENV} to its path); pass --no-pdf for the HTML and JSON only")
-    with open_db(db) as d:
+    with open_db(db, readonly=True) as d:
         cal = pick_calibration(d, serial, result)
         unit = lab.get_unit(d, serial)
+    if utc_naive(when) < cal.date:
+        raise CliError(f"--issued {utc_naive(when):%Y-%m-%d %H:%M} UTC lies before the calibration it certifies "
+                       f"(result {cal.id}, record of {cal.date:%Y-%m-%d %H:%M} UTC): a certificate is issued after it")
     folder, make, paths = certificate_paths(out, file_stem(cal), pdf)
     stale = None if pdf else certificate_paths(out, file_stem(cal), True)[2][".pdf"]
     if stale is not None and stale.exists():  # it would sit beside the new HTML and JSON without matching them
@@ -221,8 +230,8 @@ def run_certificate(serial: str, out: Path, db: str | None, result: int | None, 
                        "it or choose another --out")
     if not make:
         for p in paths.values():
+            check_not_database(p, db)
             check_output(p, force)
-            check_not_input(p, Path(d.url.database) if d.dialect == "sqlite" else None, role="database")
     doc = certificate_data(cal, unit, issued=when, laboratory=laboratory, authorized_by=authorized_by)
     page = certificate_html(doc)
     data = None
@@ -368,10 +377,12 @@ def add_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
                                      "default: the record's creation time, without --data the parameter file's)"),
             temperature_c: float = typer.Option(None, "--temperature-c", help="the IMU's temperature during the run [deg C]"),
             supersedes: int = typer.Option(None, "--supersedes", help="id of an earlier result this one replaces"),
+            wait: float = typer.Option(None, "--wait", help="seconds to wait for another writer of the database "
+                                       "(default: refused after 2 s, naming it)"),
             json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
     """Register a unit (SERIAL --model ...), or record a parameter file as one of its calibrations."""
     with db_errors():
-        rep = run_add(serial, params, db, model, notes, data, station, operator, date, temperature_c, supersedes)
+        rep = run_add(serial, params, db, model, notes, data, station, operator, date, temperature_c, supersedes, wait)
     if json_:
         print_json(rep)
         return
@@ -397,7 +408,7 @@ def list_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
 
         if not (math.isfinite(k) and k > 0):
             raise CliError(f"--k must be > 0, got {k}")
-        with open_db(db) as d:
+        with open_db(db, readonly=True) as d:
             entries = lab.fleet(d, k, flagged_only=flagged)
             rep = {"db": d.where, "k": k, "units": [e.to_json() for e in entries]}
     if json_:
@@ -422,7 +433,7 @@ def show_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
              json_: bool = typer.Option(False, "--json", help="print the calibration as JSON")):
     """One calibration of a unit with every parameter, 1 sigma, fit, covariance and provenance."""
     with db_errors():
-        with open_db(db) as d:
+        with open_db(db, readonly=True) as d:
             cal = pick_calibration(d, serial, result)
     if json_:
         print_json(cal.to_json() | {"db": d.where})
@@ -443,12 +454,12 @@ def export_cmd(serial: str = typer.Argument(..., help="the unit's serial number"
         from inscal import lab
         from inscal.io.files import atomic_path, output_unit
 
+        check_not_database(out, db)
         check_output(out, force)
-        with open_db(db) as d:
+        with open_db(db, readonly=True) as d:
             cal = pick_calibration(d, serial, result)
         if lab.text_hash(cal.param_text) != cal.param_file_sha256:
             raise CliError(f"result {cal.id}: the stored parameter file does not match its sha256 (damaged database?)")
-        check_not_input(out, Path(d.url.database) if d.dialect == "sqlite" else None, role="database")
         with output_unit(), atomic_path(out, force) as tmp:
             tmp.write_text(cal.param_text, encoding="utf-8")
     rep = {"db": d.where, "serial": serial, "result_id": cal.id, "method": cal.method,

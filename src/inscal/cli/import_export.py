@@ -63,8 +63,8 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     bad = sorted(set(skip or ()) - set(SKIPPABLE))
     if bad:
         raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(SKIPPABLE)}")
-    if not math.isfinite(encoder_latency):
-        raise CliError(f"--encoder-latency must be finite, got {encoder_latency}")
+    if not (math.isfinite(encoder_latency) and abs(encoder_latency) <= 1.0):
+        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
     if fmt == "rosbag" and src.is_dir():  # a ROS 2 bag is a folder

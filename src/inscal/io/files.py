@@ -57,10 +57,28 @@ _UNITS: list["_Unit"] = []
 PUBLISHED: list[FsPath] = []
 
 
+#: the longest file name (bytes) of the usual file systems (ext4, XFS, btrfs, APFS, NTFS)
+NAME_MAX = 255
+
+
+def side_name(name: str, suffix: str, room: int = 0) -> str:
+    """``.NAME`` + ``suffix``, the name of a file beside output ``NAME`` (its lock, its temporary), with
+    ``room`` bytes to spare: when that would pass :data:`NAME_MAX`, NAME is cut and a hash of the whole
+    name keeps it apart from any other (``.NAME[:n]~HASH12``), so every legal output name has its lock
+    and its temporary."""
+    full = f".{name}{suffix}"
+    if len(os.fsencode(full)) + room <= NAME_MAX:
+        return full
+    tag = "~" + hashlib.sha256(os.fsencode(name)).hexdigest()[:12]
+    keep = NAME_MAX - room - len(os.fsencode(f".{tag}{suffix}"))
+    head = os.fsencode(name)[:max(0, keep)].decode(errors="ignore")
+    return f".{head}{tag}{suffix}"
+
+
 def lock_path(path) -> FsPath:
-    """The lock file of an output: ``.NAME.lock`` beside it."""
+    """The lock file of an output: ``.NAME.lock`` beside it (NAME shortened when long, :func:`side_name`)."""
     path = FsPath(path)
-    return path.parent / f".{path.name}.lock"
+    return path.parent / side_name(path.name, ".lock")
 
 
 def _key(path) -> str:
@@ -133,6 +151,11 @@ class _Unit:
         self.pending: list[tuple[str, FsPath, bool]] = []  # (temporary, output, overwrite)
         self.made_dirs: list[FsPath] = []
         self.claimed: list[FsPath] = []
+        #: steps run in the publication itself, with the interrupts held, after the outputs are checked
+        #: and before the first is renamed into place (a database commit: the record and its files at once)
+        self.before_publish: list = []
+        #: steps run when the outermost unit ends, published or not (:func:`after_unit`)
+        self.finally_steps: list = []
 
 
 @contextmanager
@@ -141,7 +164,10 @@ def output_unit():
     temporary until the block ends, then all of them are renamed into place together (SIGINT and
     SIGTERM held off for those renames); if the block raises, is interrupted or cancelled, no
     output is published and the folders made by :func:`make_output_dir` are removed again.  A unit
-    inside another hands its outputs to the outer one."""
+    inside another hands its outputs to the outer one.  ``unit.before_publish`` (callables) run in the
+    same held step, after every target is checked and just before the renames: a commit there and the
+    files' publication cannot be parted by SIGINT or SIGTERM (only SIGKILL or a power cut between the
+    commit and the renames, microseconds, leaves the committed side alone)."""
     unit = _Unit()
     outer = _UNITS[-1] if _UNITS else None
     _UNITS.append(unit)
@@ -156,7 +182,10 @@ def output_unit():
             outer.pending += unit.pending
             outer.made_dirs += unit.made_dirs
             outer.claimed += unit.claimed
+            outer.before_publish += unit.before_publish
+            outer.finally_steps += unit.finally_steps
             unit.claimed = []
+            unit.finally_steps = []
             return
         with _signals_held():
             check_cancel()
@@ -164,6 +193,8 @@ def output_unit():
                 if not overwrite and os.path.lexists(path):
                     raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force "
                                           "to overwrite it)")
+            for step in unit.before_publish:
+                step()
             for tmp, path, overwrite in unit.pending:
                 _publish(tmp, path, overwrite)
                 PUBLISHED.append(path)
@@ -181,6 +212,18 @@ def output_unit():
     finally:
         for path in unit.claimed:
             release_output(path)
+        for step in unit.finally_steps:
+            with contextlib.suppress(Exception):
+                step()
+
+
+def after_unit(step) -> None:
+    """Run ``step()`` when the outermost :func:`output_unit` now open ends, its outputs published or not (at
+    once when none is open): the rollback of a database transaction its publication would have committed."""
+    if _UNITS:
+        _UNITS[-1].finally_steps.append(step)
+    else:
+        step()
 
 
 def make_output_dir(path) -> FsPath:
@@ -274,7 +317,8 @@ def atomic_path(path, overwrite: bool = False):
             # the file and its registration at once: an interrupt between the two (mkstemp returns through
             # several bytecodes) left a temporary that neither this cleanup nor remove_live_parts knew of
             with _signals_held():
-                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+                fd, tmp = tempfile.mkstemp(prefix=side_name(path.name, ".", room=8 + len(".part")), suffix=".part",
+                                           dir=path.parent)
                 _LIVE_PARTS[tmp] = path
                 os.close(fd)
             yield FsPath(tmp)

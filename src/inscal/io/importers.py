@@ -125,6 +125,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
@@ -304,6 +305,17 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     return rec, info
 
 
+def _identity(path) -> tuple:
+    """What changes when a file is replaced or written to: its inode, size and modification time."""
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
+#: the longest stretch at either end of a record that a temperature file's first or last reading is held
+#: over, at least [s] (also 10 % of the record, and 1.5 of the file's own reading interval)
+TEMPERATURE_HOLD_S = 60.0
+
+
 def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: float, offset: float,
                  where: str) -> Temperature | None:
     """The record's temperature from the source's columns (at the rows' sample times) or from a file of
@@ -324,6 +336,17 @@ def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: fl
         raise ImportFileError(f"{file.where}: the temperature readings cover t = {a:.9g} .. {b:.9g} s{shift}; the record "
                               f"runs t = {time[0] - dt:.9g} .. {time[-1]:.9g} s: no overlap (another clock, or a time "
                               "unit: give it in the header, as 'time [ms]')")
+    # the readings are held beyond the first and the last: a file must not leave a long stretch of the record
+    # without any (one reading held over a 30-min warm-up is not the warm-up's temperature)
+    start, end = float(time[0] - dt), float(time[-1])
+    step = float(np.median(np.diff(temp.time))) if temp.time.size > 1 else 0.0
+    tol = max(TEMPERATURE_HOLD_S, 0.1 * (end - start), 1.5 * step)
+    head, tail = a - start, end - b
+    if head > tol or tail > tol:
+        where_ = "before its first" if head >= tail else "after its last"
+        raise ImportFileError(f"{file.where}: {temp.time.size} reading{'s' if temp.time.size != 1 else ''} at t = {a:.9g} "
+                              f".. {b:.9g} s leave {max(head, tail):.6g} s of the record (t = {start:.9g} .. {end:.9g} s) "
+                              f"{where_} reading (at most {tol:.3g} s is held): a temperature file must cover the record")
     return temp
 
 
@@ -403,7 +426,12 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
+    # the hash of the bytes about to be read (a bag folder: its files)
+    before, src_hash = _identity(src), (bag_hash(src) if fmt == "rosbag" else file_hash(src))
     raw = read_source(src, fmt, mapping, dtype, variable, rates, topic, stamps, rate_hz)
+    if _identity(src) != before:  # replaced or written to while read: the hash is not the data's
+        raise ImportFileError(f"{src} changed while it was imported (replaced or written to): nothing written; "
+                              "import it again once it is complete")
     if temperature_topic is not None:
         tfile = read_bag_temperature(src, temperature_topic, raw.source_info["bag"]["epoch_ns"], stamps)
     if mapping_file is not None and fmt in ("csv", "txt"):
@@ -432,7 +460,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                  "grid_rate_hz": ri.rate_hz,
                  "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max,
                  "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
-    attrs = {"file": src.name, "hash": bag_hash(src) if fmt == "rosbag" else file_hash(src), "format": fmt,
+    attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),

@@ -18,7 +18,7 @@ from inscal.io.tomlfile import read_toml
 
 FORMATS = ("psins", "psins-imu", "csv", "txt", "mat", "rosbag", "kf-gins")
 #: formats whose mapping may only hold a [site] table
-SITE_ONLY = ("psins", "mat", "rosbag", "kf-gins")
+SITE_ONLY = ("psins", "mat", "psins-imu", "rosbag", "kf-gins")
 EXPORT_FORMATS = ("csv", "psins", "mat", "kf-gins")
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
@@ -164,7 +164,7 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         except (TypeError, ValueError) as exc:
             raise ImportFileError(f"[site]: {exc}") from None
     rest = set(d) - {"site"}
-    if fmt in SITE_ONLY:
+    if fmt in SITE_ONLY:  # their columns and units are fixed (a .imu header gives its scales)
         if rest:
             raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format csv|txt; a {fmt} mapping may only hold [site]")
         return None, site

@@ -51,6 +51,8 @@ EXPORTS = {
     "revision_number": "inscal.lab.database",
     "revision_of": "inscal.lab.database",
     "upgrade_database": "inscal.lab.database",
+    "check_wait": "inscal.lab.database",
+    "lock_holders": "inscal.lab.database",
     "ComponentDrift": "inscal.lab.drift",
     "DEFAULT_K": "inscal.lab.drift",
     "History": "inscal.lab.drift",
@@ -67,6 +69,9 @@ EXPORTS = {
     "SessionInfo": "inscal.lab.model",
     "Unit": "inscal.lab.model",
     "parse_date": "inscal.lab.model",
+    "check_date": "inscal.lab.model",
+    "CLOCK_SKEW": "inscal.lab.model",
+    "EARLIEST": "inscal.lab.model",
     "calibration_options": "inscal.lab.record",
     "covariance_of": "inscal.lab.record",
     "options_hash": "inscal.lab.record",
@@ -74,6 +79,7 @@ EXPORTS = {
     "session_from_record": "inscal.lab.record",
     "text_hash": "inscal.lab.record",
     "add_unit": "inscal.lab.store",
+    "AlreadyRecorded": "inscal.lab.store",
     "calibrations": "inscal.lab.store",
     "current_calibration": "inscal.lab.store",
     "find_calibration": "inscal.lab.store",
@@ -84,9 +90,16 @@ EXPORTS = {
     "record_calibration": "inscal.lab.store",
     "record_result": "inscal.lab.store",
     "set_current": "inscal.lab.store",
+    "stage_calibration": "inscal.lab.store",
     "table_counts": "inscal.lab.store",
 }
 __all__ = [
+    "CLOCK_SKEW",
+    "EARLIEST",
+    "AlreadyRecorded",
+    "check_date",
+    "check_wait",
+    "lock_holders",
     "DEFAULT_FILE",
     "DEFAULT_K",
     "ENV_VAR",
@@ -127,6 +140,7 @@ __all__ = [
     "revision_of",
     "session_from_record",
     "set_current",
+    "stage_calibration",
     "table_counts",
     "tail",
     "text_hash",
@@ -147,6 +161,8 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         revision_number,
         revision_of,
         upgrade_database,
+        check_wait,
+        lock_holders,
     )
     from inscal.lab.drift import (
         DEFAULT_K,
@@ -169,6 +185,9 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         SessionInfo,
         Unit,
         parse_date,
+        check_date,
+        CLOCK_SKEW,
+        EARLIEST,
     )
     from inscal.lab.record import (
         calibration_options,
@@ -179,6 +198,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         text_hash,
     )
     from inscal.lab.store import (
+        AlreadyRecorded,
         add_unit,
         calibrations,
         current_calibration,
@@ -190,6 +210,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         record_calibration,
         record_result,
         set_current,
+        stage_calibration,
         table_counts,
     )
 

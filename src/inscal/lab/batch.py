@@ -59,7 +59,7 @@ from pathlib import Path
 
 import sqlalchemy as sa
 
-from inscal.io.files import file_hash
+from inscal.io.files import file_hash, side_name
 from inscal.io.records import record_attrs
 from inscal.lab.calibration import (
     CalibrationSetup,
@@ -71,6 +71,7 @@ from inscal.lab.database import Database, DatabaseError, database_url, open_data
 from inscal.lab.model import parse_date
 from inscal.lab.record import options_hash, session_from_record
 from inscal.lab.store import (
+    AlreadyRecorded,
     add_unit,
     check_serial,
     find_calibration,
@@ -176,6 +177,13 @@ def find_records(specs: Iterable[str]) -> list[tuple[Path, str]]:
     out, seen = [], set()
     for spec in specs:
         p = Path(spec).expanduser()
+        try:
+            os.stat(p)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:  # a name too long for the file system, a file used as a folder ...
+            shown = str(spec) if len(str(spec)) <= 200 else str(spec)[:199] + f"… ({len(str(spec))} characters)"
+            raise BatchError(f"{shown}: {exc.strerror or exc}") from None
         if p.is_dir():
             found = sorted(q for q in p.iterdir() if q.suffix.lower() in RECORD_SUFFIXES and q.is_file())
             why = f"folder {spec} holds no record (*.h5, *.hdf5)"
@@ -313,11 +321,16 @@ def check_units(db: Database, items: list[BatchItem], register: bool = False) ->
 _DATABASES: dict[str, Database] = {}
 
 
-def worker_database(target: str) -> Database:
-    """The database of URL ``target`` opened once in this process."""
+#: how long a batch's write waits for another writer (its sibling workers included) by default [s]
+BATCH_WAIT_S = 10.0
+
+
+def worker_database(target: str, wait_s: float = BATCH_WAIT_S) -> Database:
+    """The database of URL ``target`` opened once in this process (its writes wait ``wait_s`` for another writer)."""
     db = _DATABASES.get(target)
     if db is None:
         db = _DATABASES[target] = open_database(target)
+    db.wait_s = wait_s
     return db
 
 
@@ -345,7 +358,7 @@ def record_lock(db: Database, key: str) -> Iterator[None]:
                 conn.commit()
         return
     file = Path(db.url.database)
-    with open(file.with_name(f".{file.name}.batch.lock"), "a") as fh:
+    with open(file.with_name(side_name(file.name, ".batch.lock")), "a") as fh:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         try:
             yield
@@ -370,7 +383,7 @@ def failure_text(exc: BaseException, path: Path | None = None) -> str:
 
 
 def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record_sha256: str,
-                   register: bool = False, model: str | None = None) -> Outcome:
+                   register: bool = False, model: str | None = None, wait_s: float = BATCH_WAIT_S) -> Outcome:
     """Calibrate one record and record the result (the task of a worker): the record read, calibrated
     as ``inscal calibrate`` does (:func:`~inscal.lab.calibration.calibrate_record`) and recorded with its
     session, unless a result of the same record and options is there by then; its unit registered
@@ -378,7 +391,7 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
     :class:`Outcome` with one line."""
     t0 = time.perf_counter()
     try:
-        db = worker_database(target)
+        db = worker_database(target, wait_s)
         attr = record_attrs(item.path, ("imu_serial",))["imu_serial"]
         if attr is not None and attr != item.serial:
             raise RecordError(f"the record's imu_serial attribute is {attr!r}, not {item.serial!r}")
@@ -392,9 +405,12 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
             if rid is None:
                 if register and get_unit(db, item.serial) is None:
                     created = add_unit(db, item.serial, model)[1]
-                rid, _ = record_result(db, item.serial, cal.result, session, data_file=item.path.name,
-                                       metadata=cal.metadata, options=options)
-                status = "done"
+                try:
+                    rid, _ = record_result(db, item.serial, cal.result, session, data_file=item.path.name,
+                                           metadata=cal.metadata, options=options)
+                    status = "done"
+                except AlreadyRecorded as exc:  # recorded meanwhile by a writer outside this lock (inscal calibrate)
+                    rid = exc.result_id
         return Outcome(item.label, item.serial, status, rid, None, time.perf_counter() - t0, created)
     except Exception as exc:  # noqa: BLE001 - one line per failed record, the batch goes on
         return Outcome(item.label, item.serial, "failed", None, failure_text(exc, item.path), time.perf_counter() - t0)
@@ -404,11 +420,12 @@ def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record
 def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSetup, *, scheduler: str = "local",
               workers: int | None = None, register: bool = False, model: str | None = None,
               on_outcome: Callable[[Outcome], None] | None = None,
-              on_workers: Callable[[int], None] | None = None) -> BatchResult:
+              on_workers: Callable[[int], None] | None = None, wait_s: float = BATCH_WAIT_S) -> BatchResult:
     """Calibrate ``items`` with ``setup`` into the database ``db_text`` (a path or URL; None: ``INSCAL_DB``,
     else calib.sqlite; created when ``register``) on ``scheduler`` ("local", "none" or an address); see
     the module docstring.  ``on_outcome`` gets every record's :class:`Outcome` as it comes,
-    ``on_workers`` the number of workers once they are known.  Raises :class:`BatchError` or
+    ``on_workers`` the number of workers once they are known; ``wait_s``: how long a write waits for another
+    writer (the sibling workers' commits take milliseconds) before the record fails naming it.  Raises :class:`BatchError` or
     :class:`~inscal.lab.database.DatabaseError` before anything is calibrated."""
     t0 = time.perf_counter()
     target = database_url(db_text).render_as_string(hide_password=False)
@@ -455,11 +472,11 @@ def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSet
             if on_workers is not None:
                 on_workers(1)
             for it, h in pending():
-                emit(calibrate_item(target, it, setup, h, register, model))
+                emit(calibrate_item(target, it, setup, h, register, model, wait_s))
         else:
             n = sum(i.problem is None for i in items)
             result.workers = run_dask(target, pending(), setup, scheduler, min(workers or os.cpu_count() or 1, max(n, 1)),
-                                      emit, on_workers, register, model, remote)
+                                      emit, on_workers, register, model, remote, wait_s)
     finally:
         db.close()
         close_worker_databases()
@@ -494,7 +511,7 @@ def start_client(scheduler: str, workers: int):
 
 def run_dask(target: str, pending: Iterable[tuple[BatchItem, str]], setup: CalibrationSetup, scheduler: str,
              workers: int, emit: Callable[[Outcome], None], on_workers: Callable[[int], None] | None = None,
-             register: bool = False, model: str | None = None, client=None) -> int:
+             register: bool = False, model: str | None = None, client=None, wait_s: float = BATCH_WAIT_S) -> int:
     """Submit one task per record of ``pending`` as it comes, pass each outcome to ``emit`` as it
     completes; returns the number of workers (0: nothing to calibrate).  ``client``: of a cluster
     reached already (closed by the caller), else the cluster is started at the first record.  A task
@@ -523,7 +540,7 @@ def run_dask(target: str, pending: Iterable[tuple[BatchItem, str]], setup: Calib
                 if on_workers is not None:
                     on_workers(n_workers)
                 ac = as_completed(loop=client.loop)
-            fut = client.submit(calibrate_item, target, item, setup, h, register, model, pure=False)
+            fut = client.submit(calibrate_item, target, item, setup, h, register, model, wait_s, pure=False)
             futures[fut] = item
             ac.add(fut)
             collect(ac.next_batch(block=False))

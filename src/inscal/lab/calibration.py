@@ -35,6 +35,18 @@ from inscal.io.records import (
 from inscal.lab.record import calibration_options
 
 
+#: the bounds of the options (beyond them no calibration is sensible, whatever the record)
+MAX_FILTER_RATE_HZ = 1000.0  # the systematic filter's update rate [Hz] (at most the record's rate, too)
+MAX_ENCODER_SIGMA = 3600.0  # white noise of an encoder angle [arcsec] (1 deg)
+MAX_ARW = 100.0  # [deg/sqrt(h)]
+MAX_VRW = 1e5  # [ug/sqrt(Hz)]
+MAX_WINDOW_S = 86400.0  # --settle-s, --min-static-s [s]
+#: the plausible estimates of a working inertial sensor, whatever the method: scale factors within +-50 %,
+#: misalignments (installation angles) within 5 deg; beyond them the data, not the sensor, is at fault
+MAX_SCALE_FACTOR = 0.5
+MAX_MISALIGNMENT_RAD = math.radians(5.0)
+
+
 class RecordError(ValueError):
     """A calibration option refused, or a record that cannot be calibrated with the options: one line."""
 
@@ -105,14 +117,24 @@ class CalibrationSetup:
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
                                           or self.encoder_sigma is not None):
             return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.inner}"
-        for name, v in (("--arw", self.arw), ("--vrw", self.vrw)):
-            if v is not None and not (math.isfinite(v) and v > 0):
-                return (f"{name} must be a white-noise level > 0 ({'deg/sqrt(h)' if name == '--arw' else 'ug/sqrt(Hz)'}), "
-                        f"got {v}")
-        if not (math.isfinite(self.filter_rate_hz) and self.filter_rate_hz > 0):
-            return f"--filter-rate-hz must be > 0, got {self.filter_rate_hz}"
-        if self.encoder_sigma is not None and not (np.isfinite(self.encoder_sigma) and self.encoder_sigma > 0):
-            return f"--encoder-sigma must be > 0 arcsec, got {self.encoder_sigma}"
+        for name, v, hi, unit in (("--arw", self.arw, MAX_ARW, "deg/sqrt(h)"), ("--vrw", self.vrw, MAX_VRW, "ug/sqrt(Hz)")):
+            if v is not None and not (math.isfinite(v) and 0 < v <= hi):
+                return f"{name} must be a white-noise level > 0 and at most {hi:g} {unit}, got {v}"
+        if not (math.isfinite(self.filter_rate_hz) and 0 < self.filter_rate_hz <= MAX_FILTER_RATE_HZ):
+            return (f"--filter-rate-hz must be > 0 and at most {MAX_FILTER_RATE_HZ:g} Hz (and the record's rate), got "
+                    f"{self.filter_rate_hz}")
+        if self.encoder_sigma is not None and not (np.isfinite(self.encoder_sigma)
+                                                   and 0 < self.encoder_sigma <= MAX_ENCODER_SIGMA):
+            return f"--encoder-sigma must be in (0, {MAX_ENCODER_SIGMA:g}] arcsec, got {self.encoder_sigma}"
+        if not (math.isfinite(self.settle) and 0 <= self.settle <= MAX_WINDOW_S):
+            return f"--settle-s must be 0 .. {MAX_WINDOW_S:g} s, got {self.settle}"
+        if not (math.isfinite(self.min_static) and 0 < self.min_static <= MAX_WINDOW_S):
+            return f"--min-static-s must be > 0 and at most {MAX_WINDOW_S:g} s, got {self.min_static}"
+        if not self.inner_systematic and 2 * self.settle >= self.min_static:
+            return (f"--settle-s {self.settle:g} drops {2 * self.settle:g} s of every window, all of the shortest one "
+                    f"used (--min-static-s {self.min_static:g}): lower --settle-s or raise --min-static-s")
+        if (msg := self.states_problem()) is not None:
+            return msg
         if not math.isfinite(self.encoder_latency) or abs(self.encoder_latency) > 1.0:
             return f"--encoder-latency must be a finite shift of at most 1 s, got {self.encoder_latency}"
         if self.gravity is not None:
@@ -120,6 +142,28 @@ class CalibrationSetup:
                 parse_gravity(self.gravity)
             except ValueError as exc:
                 return f"--gravity: {exc}"
+        return None
+
+    def states_problem(self) -> str | None:
+        """The one-line refusal of a ``--states`` that is not a state set of the method, else None: its syntax
+        (an empty list, an unknown option), and a base (51, 30) other than the method's."""
+        if self.states is None:
+            return None
+        toks = [t.strip() for t in str(self.states).replace("+", ",").split(",")]
+        if not any(toks):
+            return f"--states {self.states!r}: empty; give auto, 51 or 30 and options (e.g. 51,lever9 or auto,psins)"
+        if not all(toks):
+            return f"--states {self.states!r}: an empty option between commas"
+        base = {"systematic30": "30", "unified": "unified"}.get(self.inner, "51")
+        other = [t for t in toks if t in ("51", "30", "unified") and t != base and not (base == "unified" and t == "51")]
+        if other:
+            return (f"--states {self.states}: the state set {other[0]} is not that of --method {self.inner} "
+                    f"({'51,gimbal' if base == 'unified' else base}); use --method "
+                    f"{'systematic30' if other[0] == '30' else 'systematic51'} for it")
+        try:
+            largest_states(base, self.states)
+        except CalibrationError as exc:
+            return f"--states {self.states}: {exc}"
         return None
 
     def thermal_problem(self) -> str | None:
@@ -221,6 +265,34 @@ def load_record(path: Path) -> Record:
     return rec
 
 
+def implausible(res, setup: CalibrationSetup) -> str | None:
+    """The one-line refusal of estimates no working sensor has (a scale factor beyond +-50 %, a misalignment
+    beyond 5 deg), with the likely cause; None when every estimate is plausible.  Checked whatever was
+    skipped: a consistent fit of impossible values is a fit to wrong data (flipped encoder angles, a wrong
+    axis mapping or unit), not a calibration."""
+    imu = res.imu
+    worst = []
+    for name, bound, unit, scale in (("gyro_scale_factor", MAX_SCALE_FACTOR, "ppm", 1e6),
+                                     ("accel_scale_factor", MAX_SCALE_FACTOR, "ppm", 1e6),
+                                     ("gyro_misalignment", MAX_MISALIGNMENT_RAD, "deg", math.degrees(1.0)),
+                                     ("accel_misalignment", MAX_MISALIGNMENT_RAD, "deg", math.degrees(1.0))):
+        v = np.ravel(np.asarray(getattr(imu, name), dtype=float))
+        bad = ~(np.abs(v) <= bound)  # NaN too
+        if bad.any():
+            k = int(np.argmax(np.where(np.isfinite(v), np.abs(v), np.inf)))
+            worst.append(f"{name}[{k}] = {v[k] * scale:.6g} {unit}")
+    if not worst:
+        return None
+    cause = "an axis mapping, sign or unit error of the record's gyros or accelerometers (inscal import --mapping)"
+    if not setup.check_encoders:
+        cause = ("the encoder check was skipped (--skip-encoder-check) and what it catches is the likely cause: encoder "
+                 f"angles with a flipped sign, in other units or from another column; else {cause}")
+    else:
+        cause = f"likely cause: {cause}"
+    return (f"implausible estimates, {', '.join(worst)} (a working sensor stays within +-{MAX_SCALE_FACTOR:.0%} in scale "
+            f"factor and {math.degrees(MAX_MISALIGNMENT_RAD):g} deg in misalignment): not calibrated; {cause}")
+
+
 def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibrated:
     """Calibrate record ``rec`` (read from file ``data``) with ``setup`` (checked with
     :meth:`CalibrationSetup.problem`): the encoder latency and check, the gravity model, the estimator
@@ -242,6 +314,10 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
             rec = dataclasses.replace(rec, site=rec.site.with_gravity(parse_gravity(setup.gravity)))
         except ValueError as exc:
             raise RecordError(f"--gravity: {exc}") from None
+    rate = float(getattr(rec, "rate_hz", 0.0) or 0.0)
+    if setup.inner_systematic and rate > 0 and setup.filter_rate_hz > rate * (1 + 1e-9):
+        raise RecordError(f"--filter-rate-hz {setup.filter_rate_hz:g} is above the rate of {data} ({rate:g} Hz): the "
+                          f"filter updates at most once per sample; give at most {rate:g}")
     try:
         if setup.inner_systematic:
             # the state set: chosen from the data unless given (inscal.calibrate.systematic.selection); per
@@ -262,6 +338,8 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None
+    if (msg := implausible(res, setup)) is not None:
+        raise RecordError(f"{data}: {msg}")
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
             "windows": len(res.windows.windows) if res.windows else None}
     if setup.plateaus:

@@ -16,16 +16,29 @@ Writes (:func:`write`) are single transactions: all of a result or none of it, w
 the process.  SQLite runs in WAL mode (readers do not block the writer) with a busy timeout, and
 a write transaction starts with ``BEGIN IMMEDIATE`` (it takes the write lock up front, so two
 writers never deadlock on a lock upgrade); a transaction that still meets a locked database, or a
-PostgreSQL serialization failure or deadlock, is retried whole.
+PostgreSQL serialization failure or deadlock, is retried whole.  A writer waits for another one
+for :data:`GRACE_S` (inscal's own transactions take milliseconds), then is refused at once with who
+holds the lock (:func:`lock_holders`), unless the caller asked to wait longer (``wait_s``, the
+``--wait SECONDS`` of the commands).
+
+Read-only use: a database opened with ``readonly=True`` is read through a read-only SQLite
+connection (``mode=ro``; ``immutable=1`` when nobody can write it: a read-only folder without a
+write-ahead log), so a command that only reads never changes the file, its journal mode included,
+and works on a read-only folder, file system or immutable file.  Opening for writing checks first,
+over such a connection, that the file is an inscal database (a foreign or empty file is refused
+untouched), then that it can be written ("read-only" in one line otherwise).
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
 import sqlite3
+import sys
 import time
+import urllib.parse
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Self
@@ -40,9 +53,14 @@ from alembic.script import ScriptDirectory
 DEFAULT_FILE = "calib.sqlite"
 ENV_VAR = "INSCAL_DB"
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
-#: how long a writer waits for a locked SQLite database, per attempt and in all [s]
-BUSY_TIMEOUT_S = 30.0
-LOCK_RETRY_S = 120.0
+#: how long a writer waits for another writer's lock before it is refused (without ``wait_s``) [s]
+GRACE_S = 2.0
+#: the longest wait a caller may ask for [s] (a day)
+MAX_WAIT_S = 86400.0
+#: a waiting writer says so every this many seconds [s]
+WAIT_REPORT_S = 10.0
+#: the SQLite busy timeout of one attempt [s] (the attempts repeat until the wait is over)
+BUSY_TIMEOUT_S = 0.5
 #: SQLSTATEs of a PostgreSQL transaction that lost a race and may be run again
 PG_RETRY_STATES = ("40001", "40P01")
 
@@ -60,6 +78,9 @@ class Database:
     engine: sa.Engine
     url: sa.URL
     where: str
+    readonly: bool = False
+    #: how long a write waits for another writer's lock [s] (:data:`GRACE_S` unless asked)
+    wait_s: float = GRACE_S
 
     @property
     def dialect(self) -> str:
@@ -125,12 +146,40 @@ def _sqlite_connect(dbapi_connection, _record) -> None:
     cur.close()
 
 
+def _sqlite_connect_readonly(dbapi_connection, _record) -> None:
+    dbapi_connection.isolation_level = None
+    cur = dbapi_connection.cursor()
+    cur.execute(f"PRAGMA busy_timeout = {int(BUSY_TIMEOUT_S * 1000)}")
+    cur.close()
+
+
+def readonly_uri(path: str | os.PathLike) -> str:
+    """The SQLite URI that reads ``path`` without ever writing it or leaving a file beside it: ``mode=ro``, and
+    ``immutable=1`` while it has no write-ahead log (no writer is at work: a read-only connection would
+    otherwise make the ``-wal`` and ``-shm`` files of a WAL database and, unable to remove them, leave them;
+    and where the folder is read-only it could not make them at all).  With a write-ahead log present
+    (a writer at work) the reader takes part in WAL's locking as any reader does.  What an immutable read
+    does not see: a writer that starts during it (the read is a snapshot of the file as it was)."""
+    p = Path(path)
+    uri = "file:" + urllib.parse.quote(str(p)) + "?mode=ro"
+    if not Path(f"{p}-wal").exists():
+        uri += "&immutable=1"
+    return uri
+
+
 def _sqlite_begin(conn) -> None:
     conn.exec_driver_sql("BEGIN IMMEDIATE" if conn.get_execution_options().get("inscal_write") else "BEGIN")
 
 
-def make_engine(url: sa.URL) -> sa.Engine:
-    """The SQLAlchemy engine of ``url`` (SQLite: WAL, busy timeout, foreign keys, explicit BEGIN)."""
+def make_engine(url: sa.URL, readonly: bool = False) -> sa.Engine:
+    """The SQLAlchemy engine of ``url`` (SQLite: WAL, busy timeout, foreign keys, explicit BEGIN;
+    ``readonly``: a connection that cannot write the file, see :func:`readonly_uri`)."""
+    if url.get_backend_name() == "sqlite" and readonly:
+        uri = readonly_uri(url.database)
+        engine = sa.create_engine("sqlite://", creator=lambda: sqlite3.connect(uri, uri=True, check_same_thread=False))
+        sa.event.listen(engine, "connect", _sqlite_connect_readonly)
+        sa.event.listen(engine, "begin", _sqlite_begin)
+        return engine
     if url.get_backend_name() == "sqlite":
         engine = sa.create_engine(url)  # a pool: a connection kept open spares the WAL checkpoint of the last close
         sa.event.listen(engine, "connect", _sqlite_connect)
@@ -182,6 +231,13 @@ def _connect_problem(exc: Exception, where: str) -> DatabaseError:
 
 def _check_sqlite_file(url: sa.URL, create: bool) -> None:
     path = Path(url.database)
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:  # a name too long, a folder that is a file ...
+        raise DatabaseError(f"--db {str(path)[:200]}{'...' if len(str(path)) > 200 else ''}: "
+                            f"{exc.strerror or exc}") from None
     if path.exists():
         if path.is_dir():
             raise DatabaseError(f"--db {path} is a folder, not a database file")
@@ -195,16 +251,48 @@ def _check_sqlite_file(url: sa.URL, create: bool) -> None:
                             "(or `inscal db add SERIAL --model ...`)")
     if not path.parent.is_dir():
         raise DatabaseError(f"--db {path}: folder {path.parent} does not exist")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise DatabaseError(f"--db {path}: folder {path.parent} is read-only: no database can be created there")
 
 
-def open_database(text: str | os.PathLike | None = None, create: bool = False, upgrade: bool = False) -> Database:
+def check_writable(url: sa.URL) -> None:
+    """Refuse (:class:`DatabaseError`, saying "read-only") a SQLite database that this process cannot write:
+    the file, or its folder (where SQLite keeps its write-ahead log), read-only or on a read-only file
+    system, or an immutable file."""
+    if url.get_backend_name() != "sqlite":
+        return
+    path = Path(url.database)
+    for what, p in (("file", path), ("folder", path.parent)):
+        if p.exists() and not os.access(p, os.W_OK):
+            raise DatabaseError(f"--db {path} is read-only (its {what} cannot be written by this user, or the file "
+                                "system is read-only): it can be read (inscal db list/show/export/history) but "
+                                "nothing can be recorded in it")
+
+
+def open_database(text: str | os.PathLike | None = None, create: bool = False, upgrade: bool = False,
+                  readonly: bool = False, wait_s: float | None = None) -> Database:
     """Open the calibration database of ``text`` (see :func:`database_url`) at this inscal's schema.
 
     ``create``: a missing SQLite file, or a server database without tables, is created at the
     newest revision.  ``upgrade``: a database at an older revision is upgraded (else refused with
     the command that upgrades it).  A newer revision, or tables that are not an inscal database,
-    are refused.  Raises :class:`DatabaseError` (one line)."""
-    return _open(database_url(text), create, upgrade)[0]
+    are refused.  ``readonly``: only read (the file is never written; a write raises
+    :class:`DatabaseError`).  ``wait_s``: how long a write waits for another writer (default
+    :data:`GRACE_S`).  Raises :class:`DatabaseError` (one line)."""
+    if readonly and (create or upgrade):
+        raise ValueError("a database opened read-only is neither created nor upgraded")
+    db = _open(database_url(text), create, upgrade, readonly=readonly)[0]
+    db.wait_s = check_wait(wait_s)
+    return db
+
+
+def check_wait(wait_s: float | None) -> float:
+    """``--wait SECONDS``: how long a write waits for another writer's lock (None: :data:`GRACE_S`)."""
+    if wait_s is None:
+        return GRACE_S
+    if not (math.isfinite(wait_s) and 0 <= wait_s <= MAX_WAIT_S):
+        raise DatabaseError(f"--wait {wait_s}: give 0 .. {MAX_WAIT_S:.0f} seconds")
+    return float(wait_s)
 
 
 def init_database(text: str | os.PathLike | None = None, revision: str = "head") -> tuple[Database, bool]:
@@ -214,17 +302,28 @@ def init_database(text: str | os.PathLike | None = None, revision: str = "head")
     return _open(database_url(text), True, False, revision)
 
 
-def _open(url: sa.URL, create: bool, upgrade: bool, revision: str = "head") -> tuple[Database, bool]:
+def _open(url: sa.URL, create: bool, upgrade: bool, revision: str = "head",
+          readonly: bool = False) -> tuple[Database, bool]:
     where = describe(url)
-    if url.get_backend_name() == "sqlite":
+    sqlite = url.get_backend_name() == "sqlite"
+    if sqlite:
         _check_sqlite_file(url, create)
-    db = Database(make_engine(url), url, where)
+    exists = sqlite and Path(url.database).exists()
+    # a SQLite file is looked at read-only first: a foreign or empty file is refused as it is (no WAL switch)
+    db = Database(make_engine(url, readonly=readonly or exists), url, where, readonly=readonly)
     created = False
     try:
         try:
             rev, tables = _state(db.engine)
         except sa.exc.DBAPIError as exc:
             raise _connect_problem(exc, where) from None
+        if exists and not readonly:
+            if rev is None and (not create or [t for t in tables if t != "alembic_version"]):
+                pass  # refused below, untouched
+            else:
+                check_writable(url)
+                db.engine.dispose()
+                db.engine = make_engine(url)
         head = head_revision()
         if rev is None:
             others = [t for t in tables if t != "alembic_version"]
@@ -262,9 +361,10 @@ def upgrade_database(text: str | os.PathLike | None = None, revision: str = "hea
     """Upgrade an existing calibration database to ``revision`` (the newest); ``(from, to)`` revisions.
     A newer revision than this inscal knows, or a database without one, is refused (:class:`DatabaseError`)."""
     url = database_url(text)
-    if url.get_backend_name() == "sqlite":
+    sqlite = url.get_backend_name() == "sqlite"
+    if sqlite:
         _check_sqlite_file(url, create=False)
-    db = Database(make_engine(url), url, describe(url))
+    db = Database(make_engine(url, readonly=sqlite), url, describe(url))  # looked at read-only first
     try:
         try:
             rev, _ = _state(db.engine)
@@ -278,6 +378,10 @@ def upgrade_database(text: str | os.PathLike | None = None, revision: str = "hea
                                 "use the inscal that wrote it")
         target = head_revision() if revision == "head" else revision
         if rev != target:
+            if sqlite:
+                check_writable(url)
+                db.engine.dispose()
+                db.engine = make_engine(url)
             _upgrade(db, target)
         return rev, target
     finally:
@@ -293,25 +397,134 @@ def _retryable(exc: sa.exc.DBAPIError) -> bool:
     orig = getattr(exc, "orig", None)
     if getattr(orig, "sqlstate", None) in PG_RETRY_STATES:
         return True
-    text = str(orig or exc).lower()
+    return _locked(exc)
+
+
+def _locked(exc: sa.exc.DBAPIError) -> bool:
+    text = str(getattr(exc, "orig", None) or exc).lower()
     return "database is locked" in text or "database is busy" in text or "database table is locked" in text
 
 
-def write(db: Database, fn, retry_s: float = LOCK_RETRY_S):
+def lock_holders(path: str | os.PathLike) -> list[tuple[int, str]]:
+    """The processes holding a write lock of SQLite database ``path`` (its file or its shared-memory
+    file): ``[(pid, command line)]``, read from Linux's ``/proc/locks`` (empty elsewhere, or when the
+    holder cannot be seen, e.g. on another machine of a network file system)."""
+    inodes = set()
+    for p in (Path(path), Path(f"{path}-shm")):
+        with contextlib.suppress(OSError):
+            inodes.add(os.stat(p).st_ino)
+    pids: list[int] = []
+    try:
+        with open("/proc/locks", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                f = line.split()
+                if "->" in f:  # a waiter, not a holder
+                    continue
+                if len(f) >= 6 and f[1] in ("POSIX", "OFDLCK", "FLOCK") and f[3] == "WRITE":
+                    pid, ino = f[4], f[5].rsplit(":", 1)[-1]
+                    if ino.isdigit() and int(ino) in inodes and pid.lstrip("-").isdigit() and int(pid) > 0 \
+                            and int(pid) != os.getpid() and int(pid) not in pids:
+                        pids.append(int(pid))
+    except OSError:
+        return []
+    out = []
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as fh:
+                cmd = " ".join(a.decode(errors="replace") for a in fh.read().split(b"\0") if a)
+        except OSError:
+            cmd = "?"
+        out.append((pid, cmd[:120]))
+    return out
+
+
+def locked_message(db: Database) -> str:
+    """The one line of a write refused because another writer holds the database."""
+    who = ""
+    if db.dialect == "sqlite":
+        holders = lock_holders(db.url.database)
+        who = " (" + "; ".join(f"pid {p}: {c}" for p, c in holders) + ")" if holders else \
+            " (a process this one cannot see)"
+    return (f"{db.where} is locked by another writer{who}; nothing was recorded: wait for it to finish, or give "
+            f"--wait SECONDS to wait for it (waited {db.wait_s:g} s)")
+
+
+@dataclass
+class Staged:
+    """A write transaction run but not committed (:func:`begin_write`): its ``value``; :meth:`commit`, or
+    :meth:`close` (a rollback unless committed; the death of the process rolls it back too)."""
+
+    conn: sa.Connection
+    trans: sa.RootTransaction
+    value: object
+    committed: bool = False
+
+    def commit(self) -> None:
+        self.trans.commit()
+        self.committed = True
+        self.close()
+
+    def close(self) -> None:
+        if not self.committed:
+            with contextlib.suppress(Exception):
+                self.trans.rollback()
+        with contextlib.suppress(Exception):
+            self.conn.close()
+
+
+def write(db: Database, fn, retry_s: float | None = None, progress=None):
     """Run ``fn(connection)`` in one write transaction and commit; return its value.  The whole
-    transaction is run again while the database is locked by another writer (up to ``retry_s``), so
-    concurrent writers all get through; any other error rolls everything back and propagates."""
-    deadline = time.monotonic() + retry_s
+    transaction is run again while the database is locked by another writer, for up to ``retry_s``
+    (default ``db.wait_s``: a short grace, :data:`GRACE_S`, unless the caller asked to wait), then
+    refused at once with who holds the lock (:class:`DatabaseError`); ``progress(line)`` (default: a
+    line on stderr) hears every :data:`WAIT_REPORT_S` of a wait longer than the grace.  A database
+    opened read-only, or a file that cannot be written, is refused saying so; any other error rolls
+    everything back and propagates."""
+    staged = begin_write(db, fn, retry_s, progress)
+    try:
+        staged.commit()
+    finally:
+        staged.close()
+    return staged.value
+
+
+def begin_write(db: Database, fn, retry_s: float | None = None, progress=None) -> Staged:
+    """:func:`write` without the commit: the transaction is left open, and the caller commits it
+    (:meth:`Staged.commit`) when its other outputs are ready, so that the commit can be the last step
+    of publishing them (or closes it: a rollback).  Hold it briefly: other writers wait meanwhile."""
+    if db.readonly:
+        raise DatabaseError(f"{db.where} was opened read-only: nothing can be recorded in it")
+    retry_s = db.wait_s if retry_s is None else retry_s
+    t0 = time.monotonic()
+    deadline = t0 + retry_s
+    said = t0 + max(GRACE_S, WAIT_REPORT_S / 2)
     delay = 0.005
     while True:
+        conn = db.engine.connect().execution_options(inscal_write=True)
         try:
-            with db.engine.connect() as conn:
-                conn = conn.execution_options(inscal_write=True)
-                with conn.begin():
-                    return fn(conn)
-        except sa.exc.DBAPIError as exc:
-            if not _retryable(exc) or time.monotonic() > deadline:
+            trans = conn.begin()
+            return Staged(conn, trans, fn(conn))
+        except BaseException as exc:
+            with contextlib.suppress(Exception):
+                conn.rollback()
+            conn.close()
+            if not isinstance(exc, sa.exc.DBAPIError):
                 raise
+            text = str(getattr(exc, "orig", None) or exc).lower()
+            if "readonly" in text or "read-only" in text:
+                raise DatabaseError(f"{db.where} is read-only (the file, its folder or its file system cannot be "
+                                    "written): nothing was recorded") from None
+            if not _retryable(exc):
+                raise
+            if time.monotonic() > deadline:
+                if _locked(exc):
+                    raise DatabaseError(locked_message(db)) from None
+                raise
+        now = time.monotonic()
+        if now >= said and now < deadline:
+            line = f"inscal: waiting for {db.where}, locked by another writer ({now - t0:.0f} of {retry_s:g} s)"
+            (progress or (lambda m: print(m, file=sys.stderr, flush=True)))(line)
+            said = now + WAIT_REPORT_S
         time.sleep(delay)
         delay = min(2 * delay, 0.25)
 

@@ -26,17 +26,40 @@ def iso(t: dt.datetime | None) -> str | None:
     return None if t is None else utc_naive(t).isoformat(timespec="seconds") + "Z"
 
 
+#: the earliest date of a record, a calibration or a certificate (digital IMU records are younger)
+EARLIEST = dt.datetime(1950, 1, 1)
+#: how far in the future a date may lie (clocks of the lab's machines that disagree) [s]
+CLOCK_SKEW = dt.timedelta(hours=1)
+
+
 def parse_date(text: str) -> dt.datetime:
     """A date (``2025-01-31``) or ISO time (``2025-01-31T12:00:00Z``, ``...+01:00``; no zone: UTC)
     as naive UTC.  Raises ValueError."""
     s = str(text).strip()
     if s.endswith(("Z", "z")):
         s = s[:-1] + "+00:00"
+    shown = str(text) if len(str(text)) <= 60 else str(text)[:57] + "..."
     try:
         t = dt.datetime.fromisoformat(s)
+        return utc_naive(t)
     except ValueError:
-        raise ValueError(f"{text!r} is not a date (YYYY-MM-DD) nor an ISO time (YYYY-MM-DDTHH:MM:SSZ)") from None
-    return utc_naive(t)
+        raise ValueError(f"{shown!r} is not a date (YYYY-MM-DD) nor an ISO time (YYYY-MM-DDTHH:MM:SSZ)") from None
+    except OverflowError:  # year 1 or 9999 moved out of range by its zone
+        raise ValueError(f"{shown!r}: not a date between {EARLIEST:%Y} and now") from None
+
+
+def check_date(t: dt.datetime, what: str = "the date", now: dt.datetime | None = None) -> dt.datetime:
+    """``t`` (naive UTC, or with a zone) as naive UTC if it lies between :data:`EARLIEST` and ``now`` (default: the
+    clock) plus :data:`CLOCK_SKEW`; else ValueError in one line (a date in the future would stay a unit's current
+    calibration for ever)."""
+    t = utc_naive(t)
+    now = utc_naive(now) if now is not None else dt.datetime.now(dt.UTC).replace(tzinfo=None)
+    if t > now + CLOCK_SKEW:
+        raise ValueError(f"{what} {t:%Y-%m-%d %H:%M:%S} UTC lies in the future (now {now:%Y-%m-%d %H:%M} UTC; clocks may "
+                         f"differ by {CLOCK_SKEW.total_seconds() / 3600:g} h at most)")
+    if t < EARLIEST:
+        raise ValueError(f"{what} {t:%Y-%m-%d} lies before {EARLIEST:%Y}: not the date of a record")
+    return t
 
 
 @dataclass(frozen=True)

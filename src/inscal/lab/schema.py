@@ -13,7 +13,7 @@ in SI (``results.covariance["units"]`` says which).  Times are UTC, stored witho
 
 The schema's history is in :mod:`inscal.lab.migrations` (Alembic): revision ``0001_initial``
 (v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
-added it.
+added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results.
 """
 
 from __future__ import annotations
@@ -98,5 +98,17 @@ current = sa.Table(
     sa.Index("ix_current_unit", "unit_id"),
 )
 
+result_keys = sa.Table(  # v3: what makes a result unique (the insert is the "recorded already" check)
+    "result_keys", metadata,
+    sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), primary_key=True, autoincrement=False),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
+    sa.Column("record_sha256", sa.String(80), nullable=False),
+    sa.Column("options_hash", sa.String(80), nullable=False),
+    sa.Column("param_file_sha256", sa.String(80), nullable=False),
+    sa.Column("supersedes", sa.Integer, nullable=False),  # the result superseded, 0 for none
+    sa.UniqueConstraint("unit_id", "record_sha256", "options_hash", "supersedes", name="uq_result_keys_options"),
+    sa.Index("ix_result_keys_param_file", "unit_id", "param_file_sha256"),
+)
+
 #: the tables, parents first (the order rows are copied or counted in)
-TABLES = (units, sessions, results, parameters, current)
+TABLES = (units, sessions, results, parameters, current, result_keys)

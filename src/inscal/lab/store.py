@@ -12,7 +12,9 @@ Write API (what ``inscal calibrate --db`` and a batch of calibrations use)::
     cal = get_calibration(db, rid)                            # parameters, sigma, covariance, fit, provenance
 
 A record (its sha256) is one session of a unit; a session may hold results of several methods
-or options.  A result that replaces an earlier one (the same record recalibrated) names it in
+or options, but one result per (record, options) and per parameter file: the insert of the
+result's key (``result_keys``, unique) is the check, in the result's own transaction, so two
+writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A result that replaces an earlier one (the same record recalibrated) names it in
 ``supersedes``: the earlier one then leaves the history.  Recording a result makes it the
 unit's current calibration unless ``make_current=False``.
 """
@@ -28,14 +30,14 @@ from sqlalchemy.dialects import sqlite as sqlite_dialect
 
 from inscal.core.error_model import PARAMETERS, parameter_components
 from inscal.lab import schema as t
-from inscal.lab.database import Database, DatabaseError, read, write
+from inscal.lab.database import Database, DatabaseError, Staged, begin_write, read, write
 from inscal.lab.model import (
     Calibration,
+    check_date,
     Parameter,
     Session,
     SessionInfo,
     Unit,
-    utc_naive,
 )
 from inscal.lab.record import (
     covariance_of,
@@ -49,11 +51,21 @@ from inscal.lab.record import (
 )
 
 
+class AlreadyRecorded(DatabaseError):
+    """The calibration (same unit, record and options, or the same parameter file) is recorded already, as
+    result ``result_id``; nothing was written."""
+
+    def __init__(self, message: str, result_id: int | None):
+        super().__init__(message)
+        self.result_id = result_id
+
+
 def now() -> dt.datetime:
     return dt.datetime.now(dt.UTC).replace(tzinfo=None, microsecond=0)
 
 
-def _insert_ignore(db_or_conn, table: sa.Table, index: list[str]):
+def _insert_ignore(db_or_conn, table: sa.Table, index: list[str] | None):
+    """An INSERT that does nothing on a conflict with the unique ``index`` (None: with any unique key)."""
     name = db_or_conn.dialect.name
     ins = (pg_dialect.insert if name == "postgresql" else sqlite_dialect.insert)(table)
     return ins.on_conflict_do_nothing(index_elements=index)
@@ -73,6 +85,7 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
     """Register unit ``serial``: ``(unit, created)``.  Units are append-only: a unit that exists with
     the same model and notes (or without them given) is returned, one with others is refused."""
     serial = check_serial(serial)
+    check_text(model, "--model")
 
     def run(conn):
         new = conn.execute(_insert_ignore(conn, t.units, ["serial"]).values(
@@ -88,10 +101,17 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
     return unit, created
 
 
+def check_text(value: str | None, what: str, limit: int = 200) -> None:
+    """Refuse (:class:`DatabaseError`) a text longer than its column holds (``limit`` characters, on every back-end)."""
+    if value is not None and len(str(value)) > limit:
+        raise DatabaseError(f"{what} {str(value)[:40]!r}...: {len(str(value))} characters, at most {limit}")
+
+
 def check_serial(serial: str) -> str:
     s = str(serial).strip()
     if not s or len(s) > 200 or any(not c.isprintable() for c in s):
-        raise DatabaseError(f"serial {serial!r}: give 1 to 200 printable characters")
+        raise DatabaseError(f"serial {str(serial)[:60]!r}{'...' if len(str(serial)) > 60 else ''}: give 1 to 200 "
+                            "printable characters")
     return s
 
 
@@ -104,9 +124,37 @@ def _unit_id(conn, serial: str) -> int:
 
 def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None) -> int:
-    """Record one calibration of unit ``serial`` (registered with :func:`add_unit`) in one transaction
-    and return its id: ``param_text``, the parameter file exactly as written (parsed here for the
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False) -> int:
+    """Record one calibration (see :func:`calibration_writer` for the arguments) in one transaction and return
+    its id."""
+    return write(db, calibration_writer(serial, param_text, session, options=options, covariance=covariance,
+                                        supersedes=supersedes, make_current=make_current, date_given=date_given,
+                                        new_file=new_file))
+
+
+def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
+    """The transaction of :func:`record_calibration` (same arguments), run but not committed:
+    ``staged.value`` is ``{"result_id", "current", "date"}`` (whether it becomes the unit's current
+    calibration, the record's date as stored); ``staged.commit()`` makes it durable (commit it as a step
+    of publishing the parameter file, with the interrupts held: ``before_publish`` of
+    :func:`inscal.io.files.output_unit`), ``staged.close()`` rolls it back unless committed."""
+    staged = begin_write(db, calibration_writer(serial, param_text, session, **kw))
+    try:
+        rid = staged.value
+        uid, date = staged.conn.execute(sa.select(t.results.c.unit_id, t.sessions.c.date).join(
+            t.sessions, t.sessions.c.id == t.results.c.session_id).where(t.results.c.id == rid)).one()
+        staged.value = {"result_id": rid, "current": current_id(staged.conn, uid) == rid, "date": date}
+    except BaseException:
+        staged.close()
+        raise
+    return staged
+
+
+def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
+                       options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False):
+    """The transaction that records one calibration of unit ``serial`` (registered with :func:`add_unit`),
+    ``fn(connection) -> result id`` for :func:`~inscal.lab.database.write`: ``param_text``, the parameter file exactly as written (parsed here for the
     parameters, fit and version); ``session``, its record (:func:`~inscal.lab.record.session_from_record`;
     one session per unit and record sha256: the first one recorded keeps its metadata); ``options``,
     the calibration's options (:func:`~inscal.lab.record.calibration_options`; by default the method
@@ -114,6 +162,13 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     reported 1 sigma); ``supersedes``, the id of a result of the same unit this one replaces;
     ``make_current``: make it the unit's current calibration (None: if its record is not older than
     the current calibration's, so that recording an old calibration afterwards changes nothing).
+    The session's date must lie between :data:`~inscal.lab.model.EARLIEST` and now (plus
+    :data:`~inscal.lab.model.CLOCK_SKEW`); ``date_given``: it was given by the operator, so a session
+    of the record stored already with another date is refused rather than kept silently.
+    The same unit, record and options, unless superseding, is refused with :class:`AlreadyRecorded` by the
+    unique key the insert itself takes (``result_keys``); ``new_file``: a parameter file already stored
+    for the unit is refused too (``inscal db add`` of a file that ``inscal calibrate --serial`` recorded),
+    checked inside the same transaction.
     Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
     nothing is recorded."""
     doc = parse_param_text(param_text)
@@ -130,15 +185,27 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     sess = {k: getattr(session, k) for k in ("record_sha256", "record_path", "station", "operator", "latitude_deg",
                                              "longitude_deg", "height_m", "gravity_model", "g_site_m_s2",
                                              "temperature_c", "path_name")}
-    sess["date"] = utc_naive(session.date)
+    try:
+        sess["date"] = check_date(session.date, "the record's date")
+    except ValueError as exc:
+        raise DatabaseError(str(exc)) from None
+    for name in ("station", "operator", "path_name"):  # VARCHAR(200) on PostgreSQL; the same bound on SQLite
+        check_text(sess[name], f"--{name.replace('_', '-')}")
+    ohash, phash = options_hash(options), text_hash(param_text)
 
     def run(conn):
         uid = _unit_id(conn, serial)
         conn.execute(_insert_ignore(conn, t.sessions, ["unit_id", "record_sha256"]).values(
             unit_id=uid, recorded_at=stamp, **sess))
-        sid = conn.execute(sa.select(t.sessions.c.id).where(t.sessions.c.unit_id == uid,
-                                                            t.sessions.c.record_sha256 == sess["record_sha256"])).scalar_one()
+        sid, sdate = conn.execute(sa.select(t.sessions.c.id, t.sessions.c.date).where(
+            t.sessions.c.unit_id == uid, t.sessions.c.record_sha256 == sess["record_sha256"])).one()
+        if date_given and sdate != sess["date"]:
+            raise DatabaseError(f"the record {sess['record_sha256'][:19]}... of {serial} is stored already with the date "
+                                f"{sdate:%Y-%m-%d %H:%M:%S} UTC, not {sess['date']:%Y-%m-%d %H:%M:%S}: a record has one "
+                                "date (leave --date out to use the stored one)")
         if supersedes is not None:
+            if not 0 < supersedes < 2**63:
+                raise DatabaseError(f"--supersedes {supersedes}: no such result")
             owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == supersedes)).scalar()
             if owner is None:
                 raise DatabaseError(f"--supersedes {supersedes}: no such result")
@@ -150,6 +217,23 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
             notes=_notes(doc), covariance=cov, inscal_version=str(doc.get("inscal_version") or "unknown"),
             param_file=param_text, param_file_sha256=text_hash(param_text), supersedes=supersedes,
             recorded_at=stamp).returning(t.results.c.id)).scalar_one()
+        k = t.result_keys.c
+        if new_file and supersedes is None:
+            old = conn.execute(sa.select(k.result_id).where(k.unit_id == uid, k.param_file_sha256 == phash)
+                               .order_by(k.result_id).limit(1)).scalar()
+            if old is not None:
+                raise AlreadyRecorded(f"this parameter file is recorded already for {serial}, as result {old}", old)
+        key = conn.execute(_insert_ignore(conn, t.result_keys, None).values(
+            result_id=rid, unit_id=uid, record_sha256=sess["record_sha256"], options_hash=ohash,
+            param_file_sha256=phash, supersedes=supersedes or 0).returning(t.result_keys.c.result_id)).first()
+        if key is None:  # the unique key is taken: the same calibration, recorded already (perhaps a moment ago)
+            old = conn.execute(sa.select(k.result_id).where(
+                k.unit_id == uid, k.supersedes == (supersedes or 0), k.record_sha256 == sess["record_sha256"],
+                k.options_hash == ohash)).scalar()
+            raise AlreadyRecorded(
+                f"this calibration of {serial} (the same record and options) is recorded already, as result {old}"
+                + (f"; --supersedes {old} records a new one in its place" if supersedes is None
+                   else f", also superseding {supersedes}"), old)
         write_parameters(conn, rid, rows)
         current = make_current
         if current is None:
@@ -162,7 +246,7 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
             conn.execute(sa.insert(t.current).values(unit_id=uid, result_id=rid, set_at=stamp))
         return rid
 
-    return write(db, run)
+    return run
 
 
 def record_result(db: Database, serial: str, result, session: SessionInfo, *, data_file: str | None = None,
@@ -280,6 +364,8 @@ def _load(conn, result_rows: list) -> list[Calibration]:
 
 def get_calibration(db: Database, result_id: int) -> Calibration:
     """Result ``result_id`` with all its parameters, sigma, covariance, fit and provenance."""
+    if not 0 < int(result_id) < 2**63:  # beyond any id (and SQLite's 64-bit integers)
+        raise DatabaseError(f"no calibration result {result_id} in {db.where}")
     with read(db) as conn:
         row = conn.execute(sa.select(t.results).where(t.results.c.id == int(result_id))).first()
         if row is None:

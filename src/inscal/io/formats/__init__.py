@@ -191,8 +191,13 @@ def read_psins_imu(path) -> Raw:
                               f"is no IMU's ({lo:g} .. {hi:g} ms; PSINS writes it in milliseconds): {why}")
     if not (9.7 < g < 9.9):
         raise ImportFileError(f"{p}: header gravity {g:g} m/s^2 is not a gravity value (9.7 .. 9.9)")
-    if not np.all(scales > 0):
-        raise ImportFileError(f"{p}: header scale factors must be positive, got {scales.tolist()}")
+    like_sample = len(rows[2][1].split()) == len(rows[3][1].split()) and len(rows[2][1].split()) in (6, 7)
+    if not np.all(scales > 0) or (like_sample and len(rows[2][1].split()) == 7):  # 7 values: a dithered sample
+        raise ImportFileError(
+            f"{p}: line {rows[2][0]}: " + ("the header's scale-factor row (the 3rd) is missing: this line is a sample "
+                                           "row like the ones after it (6 or 7 counts); add the scale factors"
+                                           if like_sample else
+                                           f"header scale factors must be positive, got {scales.tolist()}"))
     body = rows[3:]
     ncol = len(body[0][1].split())
     if ncol not in (6, 7):

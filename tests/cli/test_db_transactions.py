@@ -1,0 +1,317 @@
+"""``inscal calibrate --serial`` and ``inscal db``: a result and its parameter file are published together or
+not at all whatever signal arrives when (fault injection at seeded points around the commit and the
+publication), an output that is the database or an input is refused before any work, the options are
+refused up front for ``calibrate`` as for ``batch``, dates are bounded, and a calibration or parameter
+file recorded already is refused.  Every refusal: exit 2, one line, every file byte for byte as it was.
+
+The commands run in a fork server warmed with one calibration of the record (tests/cli/forkserver.py), so
+a command costs its own work, not the interpreter's start nor numba's cache."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import shutil
+import signal
+import sqlite3
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from forkserver import ForkServer
+
+from inscal import lab
+from inscal.core.turntable import n25_twelve
+from inscal.sim.scenarios import build
+from inscal.sim.simulate import write_simulation
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and fork")
+
+#: seeded signal points of the fault injection (each a calibration of the record)
+POINTS = 10
+#: the signal comes at a seeded share, up to this, of the time a run takes from its parameter file's temporary
+#: to the file published (measured first: the staging of the result, the commit and the renames lie in it)
+SPREAD = 3.0
+
+
+@pytest.fixture(scope="module")
+def lab_dir(tmp_path_factory):
+    """A short N25 record at 10 Hz, a database with unit U1 (a template copied per test), and a fork server
+    that has calibrated the record once."""
+    d = tmp_path_factory.mktemp("dbtx")
+    sc = dataclasses.replace(build("n25"), rate_hz=10.0, path=n25_twelve(dwell_s=25.0, rate_dps=20.0,
+                                                                         rate_test_dps=20.0, rate_test_turns=1,
+                                                                         accel_dps2=20.0))
+    write_simulation(d / "r.h5", sc, np.random.default_rng(7))
+    with lab.open_database(d / "template.sqlite", create=True) as db:
+        lab.add_unit(db, "U1", model="M")
+    warm = ("from pathlib import Path\nfrom inscal.lab.calibration import CalibrationSetup, calibrate_record, "
+            f"load_record\np = Path({str(d / 'r.h5')!r})\ncalibrate_record(load_record(p), p, CalibrationSetup('n25'))")
+    with ForkServer(warm=warm) as fs:
+        yield d, fs
+
+
+def fresh(lab_dir, tmp_path, name="lab.sqlite") -> Path:
+    """A folder with the record and a copy of the template database (unit U1 registered)."""
+    d, _ = lab_dir
+    shutil.copy(d / "r.h5", tmp_path / "r.h5")
+    shutil.copy(d / "template.sqlite", tmp_path / name)
+    return tmp_path
+
+
+def run(lab_dir, folder: Path, *args):
+    _, fs = lab_dir
+    logs = folder.parent / f"{folder.name}-logs"
+    r = fs.run([str(a) for a in args], folder, logs)
+    return r["rc"], (logs / "stdout").read_text(), (logs / "stderr").read_text()
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file of ``folder`` (hidden ones too) with the sha256 of its bytes."""
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()} | {
+        p.name + "/": "" for p in folder.iterdir() if p.is_dir()}
+
+
+def refused(result, *phrases) -> str:
+    rc, out, err = result
+    assert rc == 2, (rc, out, err)
+    err = err.strip()
+    assert err.startswith("inscal: error: ") and "\n" not in err and "Traceback" not in err, err
+    for p in phrases:
+        assert p in err, (p, err)
+    return err
+
+
+def results(db: Path) -> list:
+    with lab.open_database(db, readonly=True) as d:
+        return lab.calibrations(d, "U1", superseded=True)
+
+
+def file_hash(path: Path) -> str:
+    return "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_outputs_that_are_the_database_or_an_input_are_refused_before_any_work(lab_dir, tmp_path):
+    f = fresh(lab_dir, tmp_path)
+    shutil.copy(f / "lab.sqlite", f / "lab.png")  # a database that a careless name makes look like a plot
+    shutil.copy(f / "lab.sqlite", f / "lab.html")
+    (f / "link.toml").symlink_to(f / "lab.sqlite")
+    (f / "folder").mkdir()
+    before = snapshot(f)
+    cal = ["calibrate", "r.h5", "--method", "n25", "--serial", "U1", "--force"]
+    refused(run(lab_dir, f, *cal, "--out", "lab.sqlite", "--db", "lab.sqlite"), "is the calibration database")
+    refused(run(lab_dir, f, *cal, "--out", "link.toml", "--db", "lab.sqlite"), "is the calibration database")
+    refused(run(lab_dir, f, *cal, "--out", "lab.sqlite-wal", "--db", "lab.sqlite"), "calibration database file")
+    refused(run(lab_dir, f, *cal, "--out", "lab.sqlite", "--db", "sqlite:///" + str(f / "lab.sqlite")),
+            "is the calibration database")
+    refused(run(lab_dir, f, *cal, "--out", "r.h5", "--db", "lab.sqlite"), "must differ from the input")
+    refused(run(lab_dir, f, *cal, "--out", "folder", "--db", "lab.sqlite"), "is a folder")
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "folder", "--force"), "is a folder")
+    refused(run(lab_dir, f, "simulate", "psins19", "--out", "folder", "--force"), "is a folder")
+    refused(run(lab_dir, f, *cal, "--out", "x" * 251 + ".toml", "--db", "lab.sqlite"), "255")
+    refused(run(lab_dir, f, "db", "history", "U1", "--plot", "lab.png", "--force", "--db", "lab.png"),
+            "is the calibration database")
+    refused(run(lab_dir, f, "db", "export", "U1", "--out", "lab.sqlite", "--force", "--db", "lab.sqlite"),
+            "is the calibration database")
+    refused(run(lab_dir, f, "db", "export", "U1", "--out", "folder", "--force", "--db", "lab.sqlite"), "is a folder")
+    refused(run(lab_dir, f, "db", "certificate", "U1", "--out", "lab.html", "--no-pdf", "--force", "--db",
+                "lab.html"), "is the calibration database")
+    refused(run(lab_dir, f, "db", "list", "--db", "d" * 300 + ".sqlite"), "File name too long")
+    refused(run(lab_dir, f, "db", "show", "U1", "--result", str(2**63), "--db", "lab.sqlite"), "no calibration result")
+    refused(run(lab_dir, f, "batch", "b" * 5000, "--method", "n25", "--db", "lab.sqlite", "--scheduler", "none"),
+            "File name too long")
+    refused(run(lab_dir, f, "db", "add", "U3", "--model", "M" * 300, "--db", "lab.sqlite"), "at most 200")
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db",
+                "lab.sqlite", "--station", "T" * 201), "at most 200")
+    assert snapshot(f) == before
+
+
+def test_options_are_refused_up_front_for_calibrate_and_batch(lab_dir, tmp_path):
+    f = fresh(lab_dir, tmp_path)
+    before = snapshot(f)
+    cases = [
+        (["--method", "systematic51", "--states", ""], "empty"),
+        (["--method", "systematic51", "--states", ",,,"], "empty"),
+        (["--method", "systematic51", "--states", "51,,lever9"], "empty option"),
+        (["--method", "systematic51", "--states", "bogus"], "unknown state option 'bogus'"),
+        (["--method", "systematic51", "--states", "30,auto"], "not that of --method systematic51"),
+        (["--method", "systematic30", "--states", "51"], "not that of --method systematic30"),
+        (["--method", "n25", "--settle-s", "-1"], "--settle-s must be"),
+        (["--method", "n25", "--settle-s", "10"], "drops 20 s of every window"),
+        (["--method", "n25", "--min-static-s", "nan"], "--min-static-s must be"),
+        (["--method", "systematic51", "--filter-rate-hz", "1e9"], "--filter-rate-hz must be"),
+        (["--method", "unified", "--encoder-sigma", "1e300"], "--encoder-sigma must be"),
+        (["--method", "systematic51", "--arw", "1e300"], "--arw must be"),
+    ]
+    for k, (opts, phrase) in enumerate(cases):
+        refused(run(lab_dir, f, "calibrate", "r.h5", "--out", "p.toml", *opts), phrase)
+        if k % 3 == 0:  # batch checks them in the same place (CalibrationSetup.problem): a share suffices
+            refused(run(lab_dir, f, "batch", "r.h5", "--serial", "U1", "--db", "lab.sqlite", "--scheduler", "none",
+                        *opts), phrase)
+    # the filter rate above the record's (10 Hz): refused, not run at the record's rate and stored as asked
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--out", "p.toml", "--method", "systematic30", "--states", "30",
+                "--filter-rate-hz", "50"), "above the rate of r.h5 (10 Hz)")
+    refused(run(lab_dir, f, "import", "r.h5", "--format", "psins", "--rate-hz", "100", "--out", "x.h5",
+                "--encoder-latency", "1e6"), "--encoder-latency must be")
+    assert snapshot(f) == before
+
+
+def test_dates_and_duplicates(lab_dir, tmp_path):
+    f = fresh(lab_dir, tmp_path)
+    cal = ["calibrate", "r.h5", "--method", "n25", "--serial", "U1", "--db", "lab.sqlite"]
+    before = snapshot(f)
+    refused(run(lab_dir, f, *cal, "--out", "p.toml", "--date", "2999-12-31"), "lies in the future")
+    refused(run(lab_dir, f, *cal, "--out", "p.toml", "--date", "0001-01-01T00:00:00+01:00"), "not a date between")
+    refused(run(lab_dir, f, *cal, "--out", "p.toml", "--date", "1900-01-01"), "before 1950")
+    assert snapshot(f) == before
+    rc, out, err = run(lab_dir, f, *cal, "--out", "p.toml", "--date", "2025-03-01")
+    assert rc == 0, err
+    (rid,) = [c.id for c in results(f / "lab.sqlite")]
+    before = snapshot(f)
+    refused(run(lab_dir, f, *cal, "--out", "q.toml"), "recorded already", f"result {rid}")
+    refused(run(lab_dir, f, "db", "add", "U1", "p.toml", "--db", "lab.sqlite"), "recorded already", f"result {rid}")
+    # the same record with other options, given another date: a record has one date
+    refused(run(lab_dir, f, *cal, "--out", "q.toml", "--min-static-s", "15", "--date", "2025-04-01"),
+            "stored already with the date 2025-03-01")
+    refused(run(lab_dir, f, "db", "certificate", "U1", "--out", "cert", "--no-pdf", "--issued", "1991-01-01",
+                "--db", "lab.sqlite"), "before the calibration it certifies")
+    refused(run(lab_dir, f, "db", "certificate", "U1", "--out", "cert", "--no-pdf", "--issued", "2999-01-01",
+                "--db", "lab.sqlite"), "in the future")
+    assert snapshot(f) == before
+    assert [c.id for c in results(f / "lab.sqlite")] == [rid]
+
+
+def test_impossible_estimates_are_refused_whatever_was_skipped(lab_dir, tmp_path):
+    """A record whose x gyro reads with the wrong sign, the encoder check skipped: the fit is -200 % in scale
+    factor; refused with the likely cause, nothing written or recorded."""
+    import h5py
+
+    f = fresh(lab_dir, tmp_path)
+    with h5py.File(f / "r.h5", "r+") as h5:
+        h5["dtheta"][:, 0] *= -1.0
+    before = snapshot(f)
+    refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--skip-encoder-check",
+                "--serial", "U1", "--db", "lab.sqlite"),
+            "implausible estimates, gyro_scale_factor[0] = -2", "--skip-encoder-check", "flipped sign")
+    rc, _, err = run(lab_dir, f, "batch", "r.h5", "--method", "n25", "--skip-encoder-check", "--serial", "U1", "--db",
+                     "lab.sqlite", "--scheduler", "none", "--no-progress")
+    assert rc == 1 and "implausible estimates, gyro_scale_factor[0] = -2" in err, (rc, err)  # the record failed
+    assert snapshot(f) == before and results(f / "lab.sqlite") == []
+
+
+def _agree(folder: Path, sig: int) -> str:
+    """Check that the database and the parameter file agree after a signal; returns the state seen."""
+    cals = results(folder / "lab.sqlite")
+    assert len(cals) <= 1, [c.id for c in cals]  # never a duplicate
+    out = folder / "p.toml"
+    if out.exists():  # a file published: its result is committed, byte for byte
+        assert len(cals) == 1 and cals[0].param_file_sha256 == file_hash(out)
+        state = "both"
+    elif cals:  # committed, not published: only SIGKILL between the commit and the rename (microseconds)
+        assert sig == signal.SIGKILL
+        state = "row"
+    else:
+        state = "neither"
+    left = [p.name for p in folder.iterdir() if p.name.endswith((".part", ".lock"))]
+    if sig != signal.SIGKILL:  # SIGKILL leaves what it cut short (the next writer takes a stale lock over)
+        assert not left, left
+    return state
+
+
+def test_signals_at_seeded_points_leave_the_database_and_the_files_agreeing(lab_dir, tmp_path):
+    """SIGTERM and SIGKILL at seeded times after the parameter file's temporary appears (the result is staged
+    in the database and committed with the files' publication): afterwards the result is in both or
+    neither (SIGKILL between commit and rename: in the database, whose copy ``db export`` writes back byte
+    for byte), never twice, and a rerun records it exactly once."""
+    _, fs = lab_dir
+    rng = np.random.default_rng(20261127)
+
+    def start(f: Path, logs: Path):
+        """The calibration running in ``f``, once its parameter file's temporary is there: (run, when)."""
+        proc = fs.start(["calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db",
+                         "lab.sqlite"], f, logs)
+        t_end = time.monotonic() + 60
+        while proc.poll() is None and not any(n.endswith(".part") for n in os.listdir(f)):
+            assert time.monotonic() < t_end
+            time.sleep(0.0005)
+        return proc, time.monotonic()
+
+    (tmp_path / "free").mkdir()
+    f = fresh(lab_dir, tmp_path / "free")
+    proc, t_part = start(f, tmp_path / "free-logs")
+    while proc.poll() is None and not (f / "p.toml").exists():
+        time.sleep(0.0005)
+    window = time.monotonic() - t_part  # from the temporary to the file published, unhindered
+    assert proc.wait(60) == 0 and _agree(f, signal.SIGTERM) == "both"
+    seen: dict[str, int] = {}
+    for k in range(POINTS):
+        sig = (signal.SIGTERM, signal.SIGKILL)[k % 2]
+        f = tmp_path / f"p{k}"
+        f.mkdir()
+        fresh(lab_dir, f)
+        delay = float(rng.uniform(0.0, SPREAD)) * window
+        proc, t_part = start(f, tmp_path / f"p{k}-logs")
+        delay -= time.monotonic() - t_part
+        time.sleep(max(0.0, delay))
+        proc.send_signal(sig)
+        rc = proc.wait(60)
+        assert rc in (0, 128 + sig, -sig), (rc, proc.communicate())
+        state = _agree(f, sig)
+        seen[state] = seen.get(state, 0) + 1
+        if state == "row":  # the database's copy restores the file
+            (rid,) = [c.id for c in results(f / "lab.sqlite")]
+            assert run(lab_dir, f, "db", "export", "U1", "--out", "p.toml", "--db", "lab.sqlite")[0] == 0
+            assert _agree(f, sig) == "both"
+        if k < 2:  # a rerun: recorded once, whatever the interrupted run left
+            rc, _, err = run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "q.toml", "--serial",
+                             "U1", "--db", "lab.sqlite")
+            assert (rc == 0) == (state == "neither"), err
+            assert len(results(f / "lab.sqlite")) == 1
+    print(f"seeded points: {seen} (window {window * 1e3:.3g} ms)")
+    assert seen.get("both", 0) + seen.get("neither", 0) + seen.get("row", 0) == POINTS
+
+
+def test_a_held_lock_is_reported_at_once_with_its_holder(lab_dir, tmp_path):
+    """Another program holds the database's write lock: a write is refused after the short grace (not ~150 s),
+    naming the holder's pid and --wait; with --wait it waits the time given; nothing is written."""
+    f = fresh(lab_dir, tmp_path)
+    with lab.open_database(f / "lab.sqlite", readonly=True) as db:
+        before = lab.table_counts(db)
+    con = sqlite3.connect(f / "lab.sqlite", isolation_level=None)
+    try:  # (no file of the database opened by this process meanwhile: a close would drop its POSIX locks)
+        con.execute("BEGIN IMMEDIATE")
+        t0 = time.monotonic()
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite"),
+                f"locked by another writer (pid {os.getpid()}: ", "--wait SECONDS")
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite", "--wait", "0.5"),
+                "waited 0.5 s")
+        assert time.monotonic() - t0 < 20
+        refused(run(lab_dir, f, "db", "add", "U2", "--model", "M", "--db", "lab.sqlite", "--wait", "-1"), "--wait -1")
+        refused(run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--wait", "5"),
+                "give --serial")
+    finally:
+        con.execute("ROLLBACK")
+        con.close()
+    with lab.open_database(f / "lab.sqlite", readonly=True) as db:
+        assert lab.table_counts(db) == before
+
+
+def test_a_read_only_database_is_read_and_a_write_refused_saying_so(lab_dir, tmp_path):
+    """``db list/show/export/history`` open the database read-only: a foreign SQLite file is refused without
+    its journal mode switched; an immutable copy is read."""
+    f = fresh(lab_dir, tmp_path)
+    with sqlite3.connect(f / "other.sqlite") as con:
+        con.execute("CREATE TABLE t (x)")
+    con.close()
+    (f / "empty.sqlite").write_bytes(b"")
+    before = snapshot(f)
+    for db in ("other.sqlite", "empty.sqlite"):
+        refused(run(lab_dir, f, "db", "list", "--db", db))
+        refused(run(lab_dir, f, "db", "init", "--db", db) if db == "other.sqlite" else run(lab_dir, f, "db", "list",
+                                                                                          "--db", db))
+    rc, out, err = run(lab_dir, f, "db", "list", "--db", "lab.sqlite")
+    assert rc == 0 and "U1" in out, err
+    assert snapshot(f) == before
