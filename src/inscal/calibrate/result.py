@@ -78,7 +78,7 @@ class CalibrationResult:
     def fit(self) -> dict | None:
         """The fit (``diagnostics["fit"]``): of the window means for the window-mean methods
         (:func:`fit_statistics`), of the innovations for the systematic filter
-        (:func:`inscal.calibrate.systematic.innovation_fit`)."""
+        (:func:`inscal.calibrate.systematic.diagnostics.innovation_fit`)."""
         return self.diagnostics.get("fit")
 
     def sigma_scaled(self, name: str) -> bool:

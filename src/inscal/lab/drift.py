@@ -43,7 +43,7 @@ DEFAULT_K = 3.0
 
 
 def tail(k: float) -> float:
-    """P(|z| > k) of a standard Gaussian: the false-alarm probability of one test."""
+    """P(``|z|`` > k) of a standard Gaussian: the false-alarm probability of one test."""
     return math.erfc(k / math.sqrt(2.0))
 
 

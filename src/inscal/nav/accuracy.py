@@ -119,6 +119,7 @@ def oscillation_components(t: np.ndarray, x: np.ndarray, lat: float) -> dict:
       peak-to-peak modulation over a Foucault period).  Otherwise one line at w_s and
       ``foucault`` = None.  Needs at least one Schuler period.
     * Earth: the line at W (needs >= 24 h, else None).
+
     Amplitudes in the unit of ``x``; ``trend`` per second.
     """
     return oscillation_components_of(t, np.asarray(x, dtype=float)[:, None], lat)[0]

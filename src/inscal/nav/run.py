@@ -253,6 +253,8 @@ def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = 
         /position (N,3) lat rad, lon rad, h m; /vehicle_attitude (N,3) rad roll/pitch/yaw;
         /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
         attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
+
+    The output is published whole or not at all, and an existing file is replaced only with ``overwrite``.
     """
 
 

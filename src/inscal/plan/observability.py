@@ -285,7 +285,7 @@ class ObservabilityReport:
 # ----------------------------------------------------------------------------- input
 def load_source(source):
     """``(Scenario, kind, label)`` from a :class:`~inscal.sim.simulate.Scenario`, a
-    :class:`~inscal.core.turntable.Path`, a built-in scenario or path name, a scenario TOML or a
+    :class:`~inscal.core.turntable.RotationPath`, a built-in scenario or path name, a scenario TOML or a
     path TOML (a ``[path]`` table only, or the path keys at the top level)."""
 
     if isinstance(source, Scenario):

@@ -94,7 +94,7 @@ DEFAULT_SIGMA0 = {
     "gimbal_nonorthogonality": units.to_si(60.0, "arcsec"), "mount_attitude": units.to_si(1.0, "deg"),
 }
 #: prior 1 sigma of each thermal term's change over the record's temperature span (SI of the base quantity): the
-#: coefficient of order k gets ``sigma / span^k`` (span = the largest |T - T_ref| of the record, at least
+#: coefficient of order k gets ``sigma / span^k`` (span = the largest ``|T - T_ref|`` of the record, at least
 #: 1 degC); the dT/dt term its own sigma [rad/degC]
 THERMAL_SIGMA0 = {"gyro_bias": units.to_si(1.0, "deg/h"), "gyro_scale_factor": 1e-3, "accel_bias": 3000 * UG,
                   "accel_scale_factor": 1e-3, "gyro_bias_rate": units.to_si(1.0, "deg/h/(degC/min)")}
