@@ -32,6 +32,11 @@ def _public_modules():
             yield importlib.import_module(info.name)
 
 
+def _function(obj) -> bool:
+    """A Python function, or a numba kernel (its dispatcher keeps the Python function as ``py_func``)."""
+    return inspect.isfunction(obj) or inspect.isfunction(getattr(obj, "py_func", None))
+
+
 def _own(module, obj) -> bool:
     return getattr(obj, "__module__", None) == module.__name__
 
@@ -43,7 +48,7 @@ def _undocumented() -> tuple[str, ...]:
         if not (module.__doc__ or "").strip():
             missing.append(f"module {module.__name__}")
         for name, obj in vars(module).items():
-            if name.startswith("_") or not (inspect.isfunction(obj) or inspect.isclass(obj)) or not _own(module, obj):
+            if name.startswith("_") or not (_function(obj) or inspect.isclass(obj)) or not _own(module, obj):
                 continue
             if not _documented(obj):
                 missing.append(f"{module.__name__}.{name}")
