@@ -69,6 +69,7 @@ from inscal import __version__ as inscal_version
 from inscal.core.stats import chi2_ppf
 from inscal.io.jsonfile import to_jsonable
 
+#: version of the layout of a study folder's run files
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
 #: a study stops when its first this-many new runs all fail (a broken setup, not bad luck)

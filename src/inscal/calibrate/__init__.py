@@ -58,6 +58,7 @@ from inscal.calibrate.twelve_position import twelve_position
 from inscal.calibrate.unified import unified
 from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means
 
+#: the calibration methods by name: the functions :func:`calibrate` dispatches to
 METHODS = {
     "six-position": six_position,
     "twelve-position": twelve_position,

@@ -385,8 +385,8 @@ class ImuNoise:
 
 
 # ----------------------------------------------------------------------------------
-# Parameter registry: name -> (object, attribute, unit kind, field unit, shape).
-# The field units are what files, reports and the CLI use; conversion is in units.py.
+#: Parameter registry: name -> (object, attribute, unit kind, field unit, shape).
+#: The field units are what files, reports and the CLI use; conversion is in units.py.
 PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
     "gyro_scale_factor": ("imu", "gyro_scale_factor", "dimensionless", "ppm", (3,)),
     "gyro_misalignment": ("imu", "gyro_misalignment", "angle", "arcsec", (6,)),

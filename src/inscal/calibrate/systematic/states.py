@@ -108,6 +108,7 @@ TH_RATE_ROW = 12
 #: default orders (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor, dT/dt term 0/1):
 #: those of the built-in thermal scenarios' model (``inscal.sim.scenarios.THERMAL_ERRORS``)
 THERMAL_ORDERS = (2, 2, 3, 2, 1)
+#: the thermal terms the filter can carry as states, in the order of their rows
 THERMAL_TERM_NAMES = tuple(THERMAL_ROWS)
 #: default white noise of each encoder angle (gimbal states)
 ENCODER_SIGMA = units.to_si(1.0, "arcsec")
