@@ -35,7 +35,8 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "**/README.rst", "sg_execution_times.rst", "examples/README.txt"]
+exclude_patterns = ["_build", "**/README.rst", "sg_execution_times.rst", "examples/README.txt",
+                    "reference/generated"]  # tables written by _ext/inscal_docs.py, included by formats.md
 templates_path: list[str] = []
 
 # --- MyST: Markdown pages with math, fenced directives and definition lists
@@ -61,10 +62,6 @@ napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 add_module_names = False
 python_use_unqualified_type_names = True
-suppress_warnings = [
-    # guide/index.md globs the guide's folder for pages other helpers add; none may be there yet
-    "toc.empty_glob",
-]
 
 # --- executed examples (docs/examples/*.py -> docs/auto_examples/): run as the site builds, kept
 # until the script changes (sphinx-gallery compares each script's checksum)

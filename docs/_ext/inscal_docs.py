@@ -289,7 +289,78 @@ def write_api_pages(app) -> None:
             stale.unlink()
 
 
+#: what each parameter of the error model means (the unit and shape come from the registry itself)
+PARAMETER_MEANINGS = {
+    "gyro_scale_factor": "K_g, diagonal of (I + K_g)",
+    "gyro_misalignment": "E_g off-diagonals ``[xy, xz, yx, yz, zx, zy]`` (N25 eq. 3)",
+    "gyro_bias": "ε, the gyro bias",
+    "gyro_g_sensitivity": "G, 3×3 (S16 eq. 1)",
+    "accel_scale_factor": "K_a, diagonal of (I + K_a)",
+    "accel_misalignment": "E_a off-diagonals (N25 eq. 4)",
+    "accel_bias": "∇, the accelerometer bias",
+    "accel_nonlinearity": "K_a2 diagonal (S16 eq. 5)",
+    "accel_cross_coupling": "``[xy, xz, yx, yz, zx, zy]`` (S16 eq. 12 rows)",
+    "accel_lever_arm": "row i = position of accelerometer i (S16 size effect: the diagonal); sign of S16 eq. 9",
+    "time_asynchrony": "accelerometer samples lag the gyro samples by τ",
+    "gimbal_nonorthogonality": "dθ between the gimbal axes (N25 eq. 5)",
+    "mount_attitude": "base attitude ``[α0, β0, γ0]`` (N25 eq. 8)",
+}
+
+
+def write_generated_tables(app) -> None:
+    """The parameter table (from :data:`inscal.core.error_model.PARAMETERS`) and the database tables
+    (from :mod:`inscal.lab.schema`), included by ``reference/formats.md``."""
+    from inscal.core.error_model import NOISE_FIELDS, PARAMETERS
+    from inscal.lab import schema
+
+    missing = sorted(set(PARAMETERS) - set(PARAMETER_MEANINGS))
+    if missing:
+        raise ExtensionError(f"docs/_ext/inscal_docs.py: no meaning written for the parameters {missing}")
+    params = ["| name | unit in files | shape | meaning |", "|---|---|---|---|"]
+    for name, (_obj, _attr, _kind, unit, shape) in PARAMETERS.items():
+        dims = "×".join(str(n) for n in shape) or "scalar"
+        params.append(f"| `{name}` | {unit} | {dims} | {PARAMETER_MEANINGS[name]} |")
+    params += ["", "Noise (`[noise]`):", "", "| name | unit |", "|---|---|"]
+    params += [f"| `{name}` | {unit} |" for name, (_attr, _kind, unit) in NOISE_FIELDS.items()]
+    tables = []
+    for table in schema.metadata.sorted_tables:
+        tables += [f"**`{table.name}`**", "", "| column | type | null | references |", "|---|---|---|---|"]
+        for col in table.columns:
+            refs = ", ".join(f"`{fk.target_fullname}`" for fk in col.foreign_keys)
+            key = " (primary key)" if col.primary_key else (" (unique)" if col.unique else "")
+            tables.append(f"| `{col.name}`{key} | {col.type} | {'yes' if col.nullable else 'no'} | {refs} |")
+        tables.append("")
+    out = Path(app.srcdir) / "reference" / "generated"
+    out.mkdir(exist_ok=True)
+    for file, lines in (("parameters.md", params), ("database.md", tables)):
+        text = "\n".join(lines) + "\n"
+        path = out / file
+        if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            path.write_text(text, encoding="utf-8")
+
+
+def _napoleon_except_data(app, what, name, obj, options, lines) -> None:
+    """Napoleon's docstring parsing, except for data and attributes: it reads a ``#:`` comment such as
+    "a rate of note [degC/s]: ..." as "TYPE: text" and makes every word of the first part a type."""
+    from sphinx.ext.napoleon import _process_docstring
+
+    if what not in ("attribute", "data", "property"):
+        _process_docstring(app, what, name, obj, options, lines)
+
+
+def _replace_napoleon(app) -> None:
+    from sphinx.ext.napoleon import _process_docstring
+
+    for listener in list(app.events.listeners.get("autodoc-process-docstring", [])):
+        if listener.handler is _process_docstring:
+            app.disconnect(listener.id)
+            app.connect("autodoc-process-docstring", _napoleon_except_data, priority=listener.priority)
+
+
 def setup(app):
+    app.setup_extension("sphinx.ext.napoleon")
+    _replace_napoleon(app)
+    app.connect("builder-inited", write_generated_tables)
     app.connect("builder-inited", write_api_pages)
     app.connect("builder-inited", write_equation_index)
     app.connect("builder-inited", write_cli_page)
