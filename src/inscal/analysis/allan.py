@@ -20,6 +20,10 @@ BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 
 @dataclass(frozen=True)
 class AllanResult:
+    """An Allan deviation: ``adev`` (n_tau, channels) at ``taus`` [s] in the rate unit of the input (SI) with
+    its 1-sigma ``adev_err``, the white-noise coefficient ``white`` [unit sqrt(s)] (ARW or VRW), the bias
+    instability [unit] and the tau of the curve's minimum [s].
+    """
     taus: np.ndarray  # [s]
     adev: np.ndarray  # (n_tau, n_channels) in the rate unit of the input (SI)
     adev_err: np.ndarray
@@ -29,6 +33,7 @@ class AllanResult:
 
 
 def octave_taus(n: int, rate_hz: float, max_fraction: float = 0.1) -> np.ndarray:
+    """Octave-spaced averaging times [s]: 1, 2, 4, ... samples up to ``max_fraction`` of the ``n`` samples."""
     m = 2 ** np.arange(0, int(math.log2(max(2, n * max_fraction))) + 1)
     return m / rate_hz
 
@@ -109,6 +114,9 @@ class StreamingAllan:
         self.c = None
 
     def update(self, increments) -> None:
+        """Feed the next chunk of increments ((N, channels), or (N,) for one); more than the announced
+        count, a wrong shape or a NaN/inf is a ValueError.
+        """
         x = np.asarray(increments, dtype=float)
         if x.ndim == 1:
             x = x[:, None]
@@ -153,6 +161,9 @@ class StreamingAllan:
             self.next_i[j] = i1 + 1
 
     def result(self, white_tau_max: float = 1.0) -> AllanResult:
+        """The Allan deviation of everything fed (exactly the announced count): the octave taus with more
+        than one term, as allantools keeps them; ``white_tau_max`` as :func:`allan`.
+        """
         if self.fed != self.n:
             raise ValueError(f"fed {self.fed} of the announced {self.n} increments")
         nterm = (self.n + 1 - 2 * self.m).astype(float)
@@ -217,6 +228,7 @@ class MotionStats:
         self.gmin = self.gmax = None
 
     def update(self, dtheta, gimbal=None) -> None:
+        """Feed the next chunk of angle increments (and gimbal angles, when the record has them)."""
         if self.nb < self.k:
             x = np.concatenate([self.rest, dtheta]) if self.rest.shape[0] else dtheta
             nfull = min(x.shape[0] // self.m, self.k - self.nb)
@@ -230,6 +242,9 @@ class MotionStats:
             self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
 
     def warning(self) -> str | None:
+        """One line when the window is not static (the gyro rate departs from its median by more than the
+        threshold in over 1 % of it, or the gimbal angles move), else None.
+        """
         k, m = self.k, self.m
         rates = self.sums[: self.nb] * self.rate_hz / m
         dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion

@@ -47,6 +47,7 @@ class RawTemperature:
     where: str = ""  # the file
 
     def at(self, i: int) -> str:
+        """Where reading ``i`` came from, for messages: ``line N`` of a text file, else ``row N`` (1-based)."""
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
 
 
@@ -72,6 +73,7 @@ class Raw:
     temperature: RawTemperature | None = None  # temperature columns of the same file
 
     def at(self, i: int) -> str:
+        """Where sample ``i`` came from, for messages: ``line N`` of a text file, else ``row N`` (1-based)."""
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
 
 

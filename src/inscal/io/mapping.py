@@ -240,6 +240,9 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
 
 
 def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:
+    """Read and check a mapping TOML for format ``fmt``: ``(Mapping or None, Site or None)`` (a psins/mat
+    mapping may hold only ``[site]``); every malformed key is an :class:`ImportFileError` naming the file.
+    """
     p = Path(path)
     d = read_toml(p, ImportFileError, "mapping file")
     try:
