@@ -39,6 +39,7 @@ from inscal.sim.simulate import simulate
 #: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them
 LONGEST = (
     "paper/test_systematic_stats.py",  # 39 s
+    "oracles/test_robust_sweep.py",  # 36 s
     "cli/test_signals_under_load.py",  # 23 s
     "cli/test_concurrent_writers.py",  # 20 s
     "io/test_encoders.py",  # 20 s
@@ -53,6 +54,7 @@ LONGEST = (
     "oracles/test_oracle_calibration.py",  # 12 s
     "cli/test_calibrate_caps.py",  # 10 s
     "cli/test_demo_html.py",  # 9 s
+    "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)
 )
 TESTS = Path(__file__).resolve().parent
 

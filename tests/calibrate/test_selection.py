@@ -101,11 +101,13 @@ def test_auto_tests_are_nested_fits_and_options_are_checked():
     rec = _record(async_s=1e-3, noise=True, seed=5)
     res = select_states(rec, "51", add=("async",), drop=())
     (t,) = res.diagnostics["selection"]["tests"]
-    small = systematic(rec, "51")
     big = systematic(rec, "51,async")
-    # the smaller model starts from the full estimate (async at zero): the same converged fit
+    # the smaller model starts from the full estimate (async at zero) and shares its frozen model-error
+    # factors: the same converged fit as a run of it with those factors
+    small = systematic(rec, "51", weights=big.model_error)
     assert t["chi2_small"] == pytest.approx(small.diagnostics["innovations"]["chi2"], rel=1e-4)
     assert t["chi2_large"] == pytest.approx(big.diagnostics["innovations"]["chi2"], rel=1e-12)
+    assert t["status"] == "tested"
     assert t["dk"] == 1 and t["accepted"]
     assert res.imu.time_asynchrony == pytest.approx(1e-3, rel=0.02)
     with pytest.raises(CalibrationError, match="unknown candidate"):

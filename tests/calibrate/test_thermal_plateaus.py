@@ -305,3 +305,20 @@ def test_refusals(clean):
         calibrate(window_means(plateau_records(rec, find_plateaus(rec)[:1])[0]), "thermal-plateaus")
     assert "needs the record" in one_line(e)
     assert check_orders(None)["gyro_bias"] == 2 and check_orders({"accel_bias": 3})["accel_bias"] == 3
+
+
+def test_noise_free_plateaus_give_the_coefficients_back():
+    """A noise-free record: every plateau estimate has a zero sigma.  The fit cannot weight them; it fits them
+    alike (they are exact up to round-off), returns the polynomial, and says so, instead of stopping with "a
+    plateau estimate has a zero or non-finite sigma"."""
+    dT = np.array([-30.0, -10.0, 0.0, 15.0, 30.0])
+    coef = np.array([[1e-4, -2e-4, 3e-4], [2e-6, 1e-6, -1e-6], [3e-8, -1e-8, 2e-8]])  # order 2, three axes
+    y = np.array([coef[0] + coef[1] * t + coef[2] * t * t for t in dT])
+    f = fit_term("accel_bias", dT, y, [np.zeros((3, 3)) for _ in dT], 2)
+    assert np.allclose(f.coef, coef, rtol=1e-9, atol=1e-18)
+    assert np.all(f.sigma < 1e-12 * np.abs(coef) + 1e-20) and "noise-free" in f.note and math.isnan(f.p_value)
+    # with a misfit (a plateau off by 1e-6) the residual scatter sets the sigma
+    y2 = y.copy()
+    y2[2] += 1e-6
+    f2 = fit_term("accel_bias", dT, y2, [np.zeros((3, 3)) for _ in dT], 2)
+    assert np.all(f2.sigma[0] > 1e-7) and np.all(np.abs(f2.coef - coef) < 5 * f2.sigma + 1e-12)

@@ -119,6 +119,37 @@ def rough_alpha0(ws: WindowSet) -> float | None:
     return math.atan2(-ws.windows[pos[(90, 0)]].accel[2], ws.windows[pos[(0, 0)]].accel[2])
 
 
+def model_L(ws: WindowSet, pairs, X: np.ndarray) -> np.ndarray:
+    """``L`` of N25 eq. 40 as the exact model (eq. 5-12) predicts it at ``X = [tan b0, a0, dth]``: the
+    normalised difference of the gravity reactions at the two positions of each pair, minus its ideal value.
+    ``model_L(ws, pairs, 0) = 0``; eq. 42's design matrix is its Jacobian at 0."""
+    beta0, alpha0, dth = math.atan(X[0]), X[1], X[2]
+    up = np.array([0.0, 0.0, 1.0])
+    out = []
+    for k1, k2 in pairs:
+        t1, t2 = ws.windows[k1].theta, ws.windows[k2].theta
+        d = 0.5 * (C_n_s(*t1, dth, [alpha0, beta0, 0.0]) @ up - C_n_s(*t2, dth, [alpha0, beta0, 0.0]) @ up)[:2]
+        out.append(d - math.sin(t1[0]) * np.array([math.sin(t1[1]), math.cos(t1[1])]))
+    return np.concatenate(out)
+
+
+#: Gauss-Newton iterations of the exact eq. 40 (each one gains the square of the small angles)
+EXACT_ITER = 20
+
+
+def exact_X(ws: WindowSet, pairs, Ma: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """``X`` with the exact model's ``L`` (:func:`model_L`) equal to the measured one in the least-squares sense:
+    eq. 44 is its first Gauss-Newton step from 0 (the design matrix of eq. 42 as the Jacobian), which leaves
+    errors of second order in the angles (a mount tilt of 1 deg biased alpha0 by 0.4"); the iteration removes them."""
+    L, A = L_vector(ws, pairs, Ma)
+    for _ in range(EXACT_ITER):
+        dX, *_ = np.linalg.lstsq(A, L - model_L(ws, pairs, X), rcond=None)
+        X = X + dX
+        if np.max(np.abs(dX)) < 1e-15:
+            break
+    return X
+
+
 def solve_X(ws: WindowSet, idx: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Steps 1-2: rough twelve-position calibration and the eq. 44 least squares."""
     Ma0, _ = accel_twelve(ws, idx)
@@ -151,22 +182,19 @@ def _core(ws: WindowSet, idx: list[int]):
     X, _, _ = solve_X(ws, idx)
     # step 3: refined accelerometer errors with the model inputs (eq. 19 with true inputs)
     Ma, nabla = _refined_accel(ws, idx, X)
-    if [nominal_position(ws.windows[k]) for k in idx] != TWELVE:
-        # Without the full inner-symmetric set the rough (ideal-input) calibration of step 1
-        # keeps the leveling error to first order (N25 eq. 24-26 cancel it only over all twelve),
-        # which biases step 2 (on the N25 path less the (90, 0)/(90, 180) pair: beta0 off by
-        # 68", dth by 0.3").  Beyond the paper: repeat step 2 with the refined M_a and step 3
-        # at the new X until X settles (a fixed point; the eq. 40 residual is then of second
-        # order in the small angles, as with the twelve positions).
-        pairs = inner_pairs(ws, idx)
-        for _ in range(MAX_REFINE):
-            L, A = L_vector(ws, pairs, Ma)
-            X_new, *_ = np.linalg.lstsq(A, L, rcond=None)  # N25 eq. 44
-            Ma, nabla = _refined_accel(ws, idx, X_new)
-            done = np.max(np.abs(X_new - X)) < 1e-12
-            X = X_new
-            if done:
-                break
+    # Without the full inner-symmetric set the rough (ideal-input) calibration of step 1 keeps the leveling
+    # error to first order (N25 eq. 24-26 cancel it only over all twelve), which biases step 2 (on the N25 path
+    # less the (90, 0)/(90, 180) pair: beta0 off by 68", dth by 0.3"); with all twelve, eq. 42's linearisation
+    # leaves errors of second order in the angles (alpha0 off by 0.4" at a 1 deg mount tilt).  Beyond the paper:
+    # step 2 with the refined M_a and the exact eq. 40 (exact_X), then step 3 at the new X, until X settles.
+    pairs = inner_pairs(ws, idx)
+    for _ in range(MAX_REFINE):
+        X_new = exact_X(ws, pairs, Ma, X)
+        Ma, nabla = _refined_accel(ws, idx, X_new)
+        done = np.max(np.abs(X_new - X)) < 1e-12
+        X = X_new
+        if done:
+            break
     beta0, alpha0, dth = math.atan(X[0]), X[1], X[2]
     # step 4: gyro matrix from rate tests about the true turning axes, then eps and w^b
     Mg, used_rate = gyro_matrix_from_rate_tests(ws, dth=dth, ideal=False)

@@ -26,7 +26,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   station: str | None = None, operator: str | None = None, date: str | None = None,
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
-                  temperature_sensor: str = "", chamber_label: str = "chamber") -> dict:
+                  temperature_sensor: str = "", chamber_label: str = "chamber", accept_unconverged: bool = False) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -41,13 +41,15 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     leaves neither); ``supersedes``: the id of an earlier result this one replaces.
     Method ``thermal-plateaus``: ``per_plateau`` (default n25) runs on each temperature plateau, then the
     thermal model is fitted with ``thermal_order`` (``["gyro_bias=2", ...]``), ``t_ref`` [degC] (default 20),
-    ``plateau_tol`` [degC], ``temperature_sensor`` and ``chamber_label`` (:mod:`inscal.calibrate.thermal`)."""
+    ``plateau_tol`` [degC], ``temperature_sensor`` and ``chamber_label`` (:mod:`inscal.calibrate.thermal`).
+    ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
+    instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`)."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
-                             plateau_tol, temperature_sensor, chamber_label)
+                             plateau_tol, temperature_sensor, chamber_label, accept_unconverged)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -203,7 +205,8 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
         d = res.diagnostics
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
                        "innovations": d["innovations"], "noise": d["noise"], "passes": d["passes"],
-                       "converged": d["converged"]})
+                       "converged": d["converged"], "convergence": d.get("convergence"),
+                       "model_error": d.get("model_error")})
         report["unobservable"] = d.get("unobservable", [])  # components at (nearly) their prior sigma
         if "selection" in d:  # --states auto: every nested-model test
             report["selection"] = d["selection"]
@@ -354,6 +357,9 @@ def register(app: typer.Typer) -> None:
         chamber_label: str = typer.Option("chamber", "--chamber-label", help="thermal-plateaus: label prefix of the "
                                           "path's chamber transitions (the plateaus are cut there; without them they "
                                           "are found in the temperature)"),
+        accept_unconverged: bool = typer.Option(False, "--accept-unconverged", help="systematic: keep the last "
+                                                "iterate of a run that does not converge (a note in the text, the JSON "
+                                                "and the parameter file) instead of ending with exit 2"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
@@ -361,7 +367,7 @@ def register(app: typer.Typer) -> None:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
-                                plateau_tol, temperature_sensor, chamber_label)
+                                plateau_tol, temperature_sensor, chamber_label, accept_unconverged)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -391,6 +397,9 @@ def register(app: typer.Typer) -> None:
             for t in sel["tests"]:
                 verb = ("added" if t["accepted"] else "not needed") if t["step"] == "add" else \
                     ("dropped" if t["accepted"] else "kept")
+                if t.get("status", "tested") != "tested":
+                    typer.echo(f"    {t['term']:8s} {verb:10s} not compared: {t['status']}")
+                    continue
                 typer.echo(f"    {t['term']:8s} {verb:10s} statistic {t['statistic']:.4g} on {t['dk']} dof "
                            f"(dispersion {t['dispersion']:.3g}), p = {t['p_value']:.3g}")
         if "innovations" in rep:

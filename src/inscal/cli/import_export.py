@@ -49,7 +49,9 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                lat: float | None = None, lon: float | None = None, height: float | None = None,
                rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None) -> dict:
+               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None,
+               topic: str | None = None, stamps: str = "header", config: Path | None = None,
+               temperature_topic: str | None = None) -> dict:
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
@@ -65,11 +67,14 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"--encoder-latency must be finite, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if (msg := input_problem(src, "file")) is not None:
+    if fmt == "rosbag" and src.is_dir():  # a ROS 2 bag is a folder
+        if not (src / "metadata.yaml").is_file():
+            raise CliError(f"{src}: a ROS 2 bag folder holds metadata.yaml, and this one has none")
+    elif (msg := input_problem(src, "file")) is not None:
         raise CliError(msg)
     check_output(out, force)
     check_not_input(out, src, role="source file")
-    check_not_input(out, mapping, path, gimbal, temperature)
+    check_not_input(out, mapping, path, gimbal, temperature, config)
     try:
         site = _site(lat, lon, height, mapping, fmt)
         gmodel = None
@@ -79,8 +84,37 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
             gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
         return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
-                           gravity=gmodel, temperature_file=temperature)
+                           gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
+                           config_file=config, temperature_topic=temperature_topic)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
+
+
+def _is_record(p: Path) -> bool:
+    """True for an HDF5 file (a record), False for anything else (a parameter file)."""
+    try:
+        with open(p, "rb") as fh:
+            return fh.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return True
+
+
+def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = False) -> dict:
+    from inscal.io.exports.calibration import export_calibration
+    from inscal.io.paramfile import ParamFileError
+
+    check_output(out, force)
+    check_not_input(out, params, role="parameter file")
+    if fmt == "c":
+        if out.suffix != ".c":
+            raise CliError(f"{out}: --format c writes NAME.c and NAME.h: give --out NAME.c")
+        check_output(out.with_suffix(".h"), force)
+        check_not_input(out.with_suffix(".h"), params, role="parameter file")
+    try:
+        return export_calibration(params, out, fmt, overwrite=force)
+    except (ParamFileError, FileExistsError, FileNotFoundError, ValueError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
@@ -88,15 +122,27 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
                force: bool = False, temperature_out: Path | None = None) -> dict:
+    from inscal.io.exports.calibration import CALIBRATION_FORMATS
     from inscal.io.files import input_problem
     from inscal.io.importers import export_record
     from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
-    if fmt not in EXPORT_FORMATS:
-        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+    known = list(EXPORT_FORMATS) + [f for f in CALIBRATION_FORMATS if f not in EXPORT_FORMATS]
+    if fmt not in known:
+        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(known)}")
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
+    if not _is_record(data):  # a parameter file
+        if fmt not in CALIBRATION_FORMATS:
+            raise CliError(f"{data} is not a record (HDF5); a parameter file exports as "
+                           f"{' | '.join(CALIBRATION_FORMATS)}")
+        if gimbal_out or path_out or temperature_out:
+            raise CliError("--gimbal-out, --path-out and --temperature-out apply to a record")
+        return run_export_calibration(data, fmt, out, force)
+    if fmt not in EXPORT_FORMATS:
+        raise CliError(f"{data} is a record; --format {fmt} exports a parameter file (a record exports as "
+                       f"{' | '.join(EXPORT_FORMATS)})")
     named = {"the outputs": out, "--gimbal-out": gimbal_out, "--path-out": path_out, "--temperature-out": temperature_out}
     outs = [(what, p) for what, p in named.items() if p is not None]
     for _, p in outs:
@@ -116,8 +162,9 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
 def register(app: typer.Typer) -> None:
     @app.command("import")
     def import_(
-        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text)"),
-        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt"),
+        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text, KF-GINS text, "
+                                   "ROS 1 .bag, ROS 2 bag folder)"),
+        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt | rosbag | kf-gins"),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
         mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
         path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
@@ -144,13 +191,22 @@ def register(app: typer.Typer) -> None:
         temperature: Path = typer.Option(None, "--temperature", help="temperature readings at their own times: a header "
                                          "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
                                          "then rows on the source's clock"),
+        topic: str = typer.Option(None, "--topic", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
+                                  "one; the topics are listed otherwise)"),
+        stamps: str = typer.Option("header", "--stamps", help="rosbag: the samples' time: header (the messages' "
+                                   "header.stamp) | receive (when the bag recorded them)"),
+        temperature_topic: str = typer.Option(None, "--temperature-topic", help="rosbag: a sensor_msgs/Temperature "
+                                              "topic (degC) for the record's temperature"),
+        config: Path = typer.Option(None, "--config", help="kf-gins: its YAML configuration (imunoise block and "
+                                    "imudatarate, kept with the record)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Import IMU data (PSINS .bin/.mat, csv, text) into an HDF5 record, with checks."""
+        """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
         try:
             res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature)
+                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
+                             topic, stamps, config, temperature_topic)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -171,6 +227,12 @@ def register(app: typer.Typer) -> None:
             extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
         if res["time_regridded"]:
             extra.append("time regridded")
+        if (bag := res.get("bag")) is not None:
+            extra.append(f"topic {bag['topic']} ({bag['storage']}, {bag['stamps']} stamps, {bag['messages']} messages)")
+        if (ig := res.get("integration")) is not None:
+            b = ig["error_bound"]
+            extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
+                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s")
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
@@ -179,8 +241,9 @@ def register(app: typer.Typer) -> None:
 
     @app.command("export")
     def export(
-        data: Path = typer.Argument(..., help="HDF5 record"),
-        fmt: str = typer.Option(..., "--format", "-f", help="csv | psins | mat"),
+        data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
+        fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
+                                "file: kalibr | imucal | kf-gins | c"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
@@ -192,13 +255,19 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t) or .mat."""
+        """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
+        KF-GINS text; or a calibration in Kalibr's, imucal's or KF-GINS's convention, or as C99 source."""
         try:
             res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             print_json(res)
+        elif "params" in res:
+            typer.echo(f"exported {res['params']} ({res['format']}) -> {', '.join(res['files'])}")
+            if res["dropped"]:
+                typer.echo(f"inscal: warning: {res['format']} cannot hold {', '.join(res['dropped'])} (non-zero in "
+                           f"{res['params']}): compensating with the export differs from inscal compensate", err=True)
         else:
             typer.echo(f"exported {res['samples']} samples ({res['format']}) -> {res['out']}"
                        + (f"; gimbal angles -> {gimbal_out}" if gimbal_out else "")

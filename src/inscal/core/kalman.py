@@ -51,6 +51,8 @@ called from the model's compiled loop.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -156,6 +158,40 @@ def robust_inflation(hph, r, z, cap, max_iter=30):
             break
         alpha *= nis / cap
     return alpha, nis0
+
+
+@njit(cache=True)
+def robust_jump(S, hqh, z, cap, iters=60):
+    """Bounded influence in the form of a state jump: the factor ``lam >= 1`` with
+    ``nu^T (S + (lam - 1) H Q H^T)^-1 nu = cap`` (``S`` the innovation covariance, ``hqh = H Q H^T`` of a unit
+    process noise, ``z`` the innovation), by bisection on ``log lam`` (the NIS never increases with ``lam``);
+    1 when the NIS is within the cap, at most ``1e12``.  Unlike an inflated ``R`` (:func:`robust_inflation`), the
+    misfit is then taken up by the states the noise drives (a velocity jump), so the next step starts clean."""
+    Sl = np.empty(S.shape)
+    lo = 0.0
+    hi = math.log(1e12)
+    if not _nis_jump(S, hqh, z, lo, Sl) > cap:
+        return 1.0
+    if _nis_jump(S, hqh, z, hi, Sl) > cap:
+        return math.exp(hi)
+    for _ in range(iters):
+        mid = 0.5 * (lo + hi)
+        if _nis_jump(S, hqh, z, mid, Sl) > cap:
+            lo = mid
+        else:
+            hi = mid
+    return math.exp(hi)
+
+
+@njit(cache=True)
+def _nis_jump(S, hqh, z, log_lam, Sl):
+    """``z^T (S + (exp(log_lam) - 1) hqh)^-1 z`` (symmetrised; ``Sl`` work)."""
+    lam = math.exp(log_lam)
+    m = S.shape[0]
+    for a in range(m):
+        for b in range(m):
+            Sl[a, b] = 0.5 * (S[a, b] + S[b, a]) + (lam - 1.0) * 0.5 * (hqh[a, b] + hqh[b, a])
+    return z @ np.linalg.solve(Sl, z)
 
 
 # ----------------------------------------------------------------------------- square-root form

@@ -42,9 +42,11 @@ FACTOR: dict[str, float] = {
     "g": G0,
     "mg": 1e-3 * G0,
     "ug": 1e-6 * G0,
+    "mGal": 1e-5,  # the gravimetric milligal (KF-GINS's accelerometer bias unit)
     # velocity random walk
     "m/s/sqrt(s)": 1.0,
     "ug/sqrt(Hz)": 1e-6 * G0,  # (m/s^2)/sqrt(Hz) == m/s/sqrt(s)
+    "m/s/sqrt(h)": 1.0 / math.sqrt(HOUR),  # KF-GINS's velocity random walk unit
     # accelerometer nonlinearity (output per input squared)
     "1/(m/s^2)": 1.0,
     "ug/g^2": 1e-6 * G0 / G0**2,
@@ -116,8 +118,8 @@ KIND: dict[str, str] = {
     "rad": "angle", "deg": "angle", "arcsec": "angle", "urad": "angle",
     "rad/s": "rate", "deg/s": "rate", "deg/h": "rate",
     "rad/sqrt(s)": "arw", "deg/sqrt(h)": "arw",
-    "m/s^2": "accel", "g": "accel", "mg": "accel", "ug": "accel",
-    "m/s/sqrt(s)": "vrw", "ug/sqrt(Hz)": "vrw",
+    "m/s^2": "accel", "g": "accel", "mg": "accel", "ug": "accel", "mGal": "accel",
+    "m/s/sqrt(s)": "vrw", "ug/sqrt(Hz)": "vrw", "m/s/sqrt(h)": "vrw",
     "1/(m/s^2)": "nonlinearity", "ug/g^2": "nonlinearity",
     "(rad/s)/(m/s^2)": "g-sensitivity", "deg/h/g": "g-sensitivity",
     "m": "length", "cm": "length", "mm": "length", "nmi": "length",

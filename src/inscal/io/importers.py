@@ -22,10 +22,21 @@ Sources
     delimited text described by a mapping TOML (below); without a mapping, the file
     must start with the header line that :func:`export_record` writes.  ``txt``
     defaults to whitespace-separated columns.
+``rosbag``
+    a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
+    messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
+    rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
+    error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+``kf-gins``
+    KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
+    block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
 
 Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 
-    kind = "increments"            # default; or "rates" (then multiplied by the sample interval)
+    kind = "increments"            # default; or "rates" (then multiplied by the sample interval), or
+                                   #   "sampled-rates": rates at their own (jittered) time stamps, integrated
+                                   #   onto a uniform grid (--rate-hz; default their mean rate) by the rule
+                                   #   of inscal.io.formats.rates
     delimiter = ","                # one character, or "whitespace"; default "," (csv), whitespace (txt)
     header_rows = 1                # default 0; lines before the data (names are read from the last one)
     comment = "#"                  # default; lines starting with it (and blank lines) are skipped
@@ -52,6 +63,9 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
     # gyro_scale = "0.1 arcsec"    #   a rate unit for rates) or a number in SI (rad, rad/s per count)
     # accel = "counts"             #   likewise for the accelerometers (m/s or m/s^2 per count)
     # accel_scale = 1e-6
+    # gyro_bits = 24               # raw words: their width (a count beyond it is refused), read as
+    # gyro_twos_complement = true  #   unsigned 0 .. 2^bits - 1 two's complement words when true;
+    # gyro_offset = 0              #   value = scale * (count - offset) (likewise accel_*)
     gimbal = "deg"                 # deg | rad; required with the outer/inner columns
     temperature = "degC"           # degC (default) | K | degF, converted to degC
     [site]                         # optional; --lat/--lon/--height override it
@@ -142,6 +156,8 @@ from inscal.io.checks import (
 )
 from inscal.io.encoders import apply_latency
 from inscal.io.files import atomic_path, file_hash
+from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
+from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
 from inscal.io.formats import (
     Raw,
     RawTemperature,
@@ -181,18 +197,23 @@ from inscal.io.records import (
 
 # ----------------------------------------------------------------------------- import
 def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "float64", variable: str | None = None,
-                rates: bool = False) -> Raw:
+                rates: bool = False, topic: str | None = None, stamps: str = "header",
+                rate_hz: float | None = None) -> Raw:
     """Read ``src`` in ``fmt`` (see the module docstring) into a :class:`Raw`."""
     if fmt not in FORMATS:
         raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
     p = Path(src)
+    if fmt == "rosbag":
+        return read_bag(p, topic, stamps, rate_hz)[0]
+    if fmt == "kf-gins":
+        return read_kfgins_text(p)
     if fmt == "psins":
         return read_mat(p, variable, rates) if p.suffix.lower() == ".mat" else read_psins_bin(p, dtype, rates)
     if fmt == "mat":
         return read_mat(p, variable, rates)
     if fmt == "psins-imu":
         return read_psins_imu(p)
-    return read_text(p, mapping, fmt)
+    return read_text(p, mapping, fmt, rate_hz)
 
 
 def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,
@@ -344,17 +365,35 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
-                gravity=None, temperature_file=None) -> dict:
+                gravity=None, temperature_file=None, topic: str | None = None, stamps: str = "header",
+                config_file=None, temperature_topic: str | None = None) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
     ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
     wherever the site comes from (the options, the mapping's ``[site]`` or a PSINS ``.imu`` header)
     (``encoders``: the encoder check's summary, its ``latency_s`` what remains after the applied
     ``encoder_latency_s``).  ``temperature_file``: temperature readings at their own times
     (:func:`~inscal.io.formats.read_temperature_file`); ``temperature`` in the summary: the sensors, the
-    number of readings, whether they are on the record's grid, their source and time span."""
+    number of readings, whether they are on the record's grid, their source and time span.
+    ``topic``, ``stamps``: a ROS bag's IMU topic and its time (``header`` stamps or ``receive`` times);
+    ``temperature_topic``: its ``sensor_msgs/Temperature`` topic, the record's temperature;
+    ``config_file``: a KF-GINS configuration whose ``imunoise`` block (and ``imudatarate``) come with a
+    ``kf-gins`` import (kept in the record's ``source`` attribute, SI).  ``integration`` in the summary:
+    for rates sampled at their stamps (a bag, ``kind = "sampled-rates"``), the grid and the rule's
+    error bound (:mod:`inscal.io.formats.rates`)."""
     src = Path(src)
     if fmt not in FORMATS:
         raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+    if fmt != "rosbag" and (topic is not None or stamps != "header" or temperature_topic is not None):
+        raise ImportFileError("--topic, --stamps and --temperature-topic apply to --format rosbag")
+    if temperature_topic is not None and temperature_file is not None:
+        raise ImportFileError("--temperature-topic and --temperature would give the temperature twice")
+    if stamps not in STAMPS:
+        raise ImportFileError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
+    if config_file is not None and fmt != "kf-gins":
+        raise ImportFileError("--config applies to --format kf-gins (its imunoise block)")
+    noise = read_kfgins_noise(config_file) if config_file is not None else None
+    if noise is not None and rate_hz is None:
+        rate_hz = noise.rate_hz
     if dtype != "float64" and fmt != "psins":
         raise ImportFileError("--dtype applies to --format psins (.bin)")
     if variable is not None and fmt not in ("psins", "mat"):
@@ -370,7 +409,9 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
-    raw = read_source(src, fmt, mapping, dtype, variable, rates)
+    raw = read_source(src, fmt, mapping, dtype, variable, rates, topic, stamps, rate_hz)
+    if temperature_topic is not None:
+        tfile = read_bag_temperature(src, temperature_topic, raw.source_info["bag"]["epoch_ns"], stamps)
     if mapping_file is not None and fmt in ("csv", "txt"):
         safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
         raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
@@ -382,19 +423,42 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         site = Site(lat * DEG, lon * DEG, h)
     if gravity is not None:
         site = site.with_gravity(gravity)
-    if mapping is not None:
+    if raw.integration is not None:  # rates integrated to increments in SI by the reader
+        ud = ("rad", "m/s")
+    elif mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
                              encoder_latency, tfile)
-    attrs = {"file": src.name, "hash": file_hash(src), "format": fmt,
+    integ = None
+    if raw.integration is not None:
+        ri = raw.integration
+        integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
+                 "grid_rate_hz": ri.rate_hz,
+                 "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max,
+                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
+    attrs = {"file": src.name, "hash": bag_hash(src) if fmt == "rosbag" else file_hash(src), "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
              "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"],
              "temperature_file": None if temperature_file is None else str(temperature_file)}
+    if raw.source_info is not None:
+        attrs.update(raw.source_info)
+    if temperature_topic is not None:
+        attrs["bag"] = {**attrs["bag"], "temperature_topic": temperature_topic}
+    if integ is not None:
+        attrs["integration"] = integ
+    if noise is not None:
+        attrs["imunoise"] = {"config": str(config_file), "arw_rad_sqrt_s": noise.noise.arw.tolist(),
+                             "vrw_m_s_sqrt_s": noise.noise.vrw.tolist(),
+                             "gyro_bias_sigma_rad_s": noise.noise.gyro_bias_instability.tolist(),
+                             "accel_bias_sigma_m_s2": noise.noise.accel_bias_instability.tolist(),
+                             "gyro_scale_sigma": noise.scale_sigma[0].tolist(),
+                             "accel_scale_sigma": noise.scale_sigma[1].tolist(),
+                             "correlation_time_s": noise.noise.gyro_bias_tau}
     n = write_imported(out, rec, attrs, overwrite)
     return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
             "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
@@ -402,12 +466,14 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
-            "encoders": info["encoders"], "temperature": info["temperature"]}
+            "encoders": info["encoders"], "temperature": info["temperature"],
+            **({k: attrs[k] for k in ("bag", "integration", "imunoise") if k in attrs})}
 
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,
                   chunk_size: int = 1 << 18, temperature_out=None) -> dict:
-    """Export the record ``data`` as ``csv``, ``psins`` (.bin float64) or ``mat`` (atomic writes).
+    """Export the record ``data`` as ``csv``, ``psins`` (.bin float64), ``mat`` or ``kf-gins`` (KF-GINS IMU text:
+    rows ``t dtheta dvel`` [s, rad, m/s], 17 digits) (atomic writes).
 
     ``gimbal_out``: a CSV of ``time, outer, inner`` [s, rad, rad] (psins / mat only; the csv
     export carries the angles in its own columns).  ``path_out``: the record's rotation path
@@ -517,7 +583,7 @@ def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, g
                 scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
             return
         temp = info.temperature if fmt == "csv" else None
-        with open(tmp, "w" if fmt == "csv" else "wb") as fh:
+        with open(tmp, "w" if fmt in ("csv", "kf-gins") else "wb") as fh:
             if fmt == "csv":
                 head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
                 head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
@@ -537,6 +603,8 @@ def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, g
                     if temp is not None:
                         cols.append(_temperature_block(temp, rows, k0, t))
                     write_rows(fh, np.column_stack(cols), blanks=blanks)
+                elif fmt == "kf-gins":  # KF-GINS IMU text: t, dtheta, dvel (s, rad, m/s)
+                    np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")
                 else:
                     np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
                 if gfh is not None:

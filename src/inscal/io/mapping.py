@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from inscal.core import units
 from inscal.core.earth import Site
 from inscal.core.turntable import BUILTIN_PATHS, PathError, RotationPath
@@ -14,8 +16,10 @@ from inscal.core.units import DEG
 from inscal.io.records import DataFileError
 from inscal.io.tomlfile import read_toml
 
-FORMATS = ("psins", "psins-imu", "csv", "txt", "mat")
-EXPORT_FORMATS = ("csv", "psins", "mat")
+FORMATS = ("psins", "psins-imu", "csv", "txt", "mat", "rosbag", "kf-gins")
+#: formats whose mapping may only hold a [site] table
+SITE_ONLY = ("psins", "mat", "rosbag", "kf-gins")
+EXPORT_FORMATS = ("csv", "psins", "mat", "kf-gins")
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 
@@ -74,11 +78,20 @@ class Mapping:
     #: temperature sensors: ``((name, column), ...)``, a column being a 0-based index or a header name
     temperature: tuple = ()
     temperature_unit: str = "degC"
+    #: raw counts of a triad: ``(offset, bits, twos_complement)`` (None: not counts, or no width given);
+    #: the SI value is ``scale * (decoded - offset)`` (:func:`decode_counts`)
+    gyro_counts: tuple | None = None
+    accel_counts: tuple | None = None
 
 
 _TOP = {"kind", "delimiter", "header_rows", "comment", "axes", "signs", "columns", "units", "site"}
 _COLS = {"time", "gx", "gy", "gz", "ax", "ay", "az", "outer", "inner", "temperature"}
-_UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal", "temperature"}
+_UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal", "temperature",
+          "gyro_offset", "accel_offset", "gyro_bits", "accel_bits", "gyro_twos_complement", "accel_twos_complement"}
+_COUNTS_KEYS = ("offset", "bits", "twos_complement")
+#: ``kind``: increments, rates held over each sample interval (multiplied by it), or rates sampled at
+#: their time stamps (integrated onto a uniform grid by :mod:`inscal.io.formats.rates`)
+KINDS = ("increments", "rates", "sampled-rates")
 _SITE = {"latitude_deg", "longitude_deg", "height_m"}
 
 
@@ -152,15 +165,17 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         except (TypeError, ValueError) as exc:
             raise ImportFileError(f"[site]: {exc}") from None
     rest = set(d) - {"site"}
-    if fmt in ("psins", "mat"):
+    if fmt in SITE_ONLY:
         if rest:
             raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format csv|txt; a {fmt} mapping may only hold [site]")
         return None, site
     if "columns" not in d:
         raise ImportFileError("mapping needs a [columns] table (gx, gy, gz, ax, ay, az, and time)")
     kind = d.get("kind", "increments")
-    if kind not in ("increments", "rates"):
-        raise ImportFileError(f"kind must be \"increments\" or \"rates\", got {kind!r}")
+    if kind not in KINDS:
+        raise ImportFileError(f"kind must be one of {', '.join(repr(k) for k in KINDS)}, got {kind!r}")
+    if kind == "sampled-rates" and "time" not in d["columns"]:
+        raise ImportFileError("kind = \"sampled-rates\" needs a [columns] time (a stamp per sample)")
     cols = d["columns"]
     _keys("[columns]", cols, _COLS)
     cols = dict(cols)
@@ -185,7 +200,7 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
             raise ImportFileError(f"[units] needs {k} (e.g. gyro = \"deg\", accel = \"m/s\" for increments)")
     inc = kind == "increments"
     gk, ak = ("angle", "velocity") if inc else ("rate", "accel")
-    conv = {}
+    conv, counts = {}, {"gyro": None, "accel": None}
     for k, uk in (("gyro", gk), ("accel", ak)):
         unit = u[k]
         if not isinstance(unit, str):
@@ -194,9 +209,11 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
             if f"{k}_scale" not in u:
                 raise ImportFileError(f"[units] {k} = \"counts\" needs {k}_scale (value of one count)")
             conv[k] = ("counts", _scale(u[f"{k}_scale"], uk, f"{k}_scale"))
+            counts[k] = _counts(u, k)
         else:
-            if f"{k}_scale" in u:
-                raise ImportFileError(f"[units] {k}_scale applies to {k} = \"counts\" only")
+            extra = [f"{k}_{c}" for c in ("scale", *_COUNTS_KEYS) if f"{k}_{c}" in u]
+            if extra:
+                raise ImportFileError(f"[units] {extra[0]} applies to {k} = \"counts\" only")
             try:
                 conv[k] = (units.check_kind(unit, uk), None)
             except units.UnitError as exc:
@@ -235,8 +252,53 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"comment must be one character, got {comment!r}")
     m = Mapping(dict(cols), kind, tu, conv["gyro"][0], conv["accel"][0], conv["gyro"][1], conv["accel"][1], gu,
                 tuple("xyz".index(a) for a in axes), tuple(float(s) for s in signs),
-                None if delim == "whitespace" else delim, hr, comment, temps, tu_c)
+                None if delim == "whitespace" else delim, hr, comment, temps, tu_c, counts["gyro"], counts["accel"])
     return m, site
+
+
+def _counts(u: dict, k: str) -> tuple | None:
+    """``(offset, bits, twos_complement)`` of raw counts from ``[units] {k}_offset`` (counts subtracted
+    before scaling, default 0), ``{k}_bits`` (the word width, 2 .. 64) and ``{k}_twos_complement``
+    (the file holds the words as unsigned numbers 0 .. 2^bits - 1, read as two's complement;
+    needs ``{k}_bits``); None when neither a width nor an offset is given."""
+    off = u.get(f"{k}_offset", 0)
+    if isinstance(off, bool) or not isinstance(off, (int, float)) or not math.isfinite(off):
+        raise ImportFileError(f"[units] {k}_offset must be a number of counts, got {off!r}")
+    bits = u.get(f"{k}_bits")
+    if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int) or not 2 <= bits <= 64):
+        raise ImportFileError(f"[units] {k}_bits must be a whole number of bits 2 .. 64, got {bits!r}")
+    twos = u.get(f"{k}_twos_complement", False)
+    if not isinstance(twos, bool):
+        raise ImportFileError(f"[units] {k}_twos_complement must be true or false, got {twos!r}")
+    if twos and bits is None:
+        raise ImportFileError(f"[units] {k}_twos_complement needs {k}_bits (the word width)")
+    if bits is None and off == 0:
+        return None
+    return float(off), bits, twos
+
+
+def decode_counts(x, spec: tuple | None, where: str, labels, at) -> np.ndarray:
+    """Raw counts ``x`` (N, 3) of one triad decoded by ``spec = (offset, bits, twos_complement)`` and the
+    offset removed: words beyond the width (``0 .. 2^bits - 1`` read as two's complement, else
+    ``-2^(bits-1) .. 2^(bits-1) - 1``) are refused with one line naming the channel and the row
+    (``labels[i]``, ``at(row)``)."""
+    x = np.asarray(x, dtype=float)
+    if spec is None:
+        return x
+    off, bits, twos = spec
+    if bits is not None:
+        lo, hi = (0.0, 2.0 ** bits - 1) if twos else (-(2.0 ** (bits - 1)), 2.0 ** (bits - 1) - 1)
+        with np.errstate(invalid="ignore"):
+            out = (x < lo) | (x > hi)
+        if np.any(out):
+            r, c = map(int, np.argwhere(out)[0])
+            form = f"{bits}-bit two's complement words {lo:.0f} .. {hi:.0f}" if twos else \
+                f"{bits}-bit signed counts {lo:.0f} .. {hi:.0f}"
+            raise ImportFileError(f"{where}: {labels[c]} is {x[r, c]:.17g} at {at(r)}: beyond its bit width "
+                                  f"({form}; {int(np.count_nonzero(out))} value(s) out of range)")
+        if twos:
+            x = np.where(x >= 2.0 ** (bits - 1), x - 2.0 ** bits, x)
+    return x - off
 
 
 def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:

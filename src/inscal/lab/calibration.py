@@ -69,6 +69,7 @@ class CalibrationSetup:
     plateau_tol: float = PLATEAU_TOL_C
     temperature_sensor: str = ""
     chamber_label: str = CHAMBER_LABEL
+    accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
 
     @property
     def systematic(self) -> bool:
@@ -99,6 +100,8 @@ class CalibrationSetup:
             return msg
         if plots and not self.systematic:
             return f"--plots applies to the systematic methods, not {self.method}"
+        if self.accept_unconverged and not self.inner_systematic:
+            return f"--accept-unconverged applies to the systematic methods, not {self.inner}"
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
                                           or self.encoder_sigma is not None):
             return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.inner}"
@@ -252,6 +255,8 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                 opts["vrw"] = units.to_si(setup.vrw, "ug/sqrt(Hz)")
             if setup.encoder_sigma is not None:
                 opts["encoder_sigma"] = units.to_si(setup.encoder_sigma, "arcsec")
+            if setup.accept_unconverged:
+                opts["accept_unconverged"] = True
         else:
             opts = {"settle": setup.settle, "min_static": setup.min_static}
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
@@ -267,4 +272,7 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                      "filter_rate_hz": d["filter_rate_hz"], "nis_mean": d["innovations"]["nis_mean"],
                      "chi2": d["innovations"]["chi2"], "dof": d["innovations"]["dof"],
                      "p_value": d["innovations"]["p_value"]})
+        verdict = (d.get("convergence") or {}).get("verdict")
+        if verdict:  # --accept-unconverged: the parameter file says what it holds
+            meta["not_converged"] = f"NOT A CONVERGED CALIBRATION (kept by --accept-unconverged): {verdict}"
     return Calibrated(res, rec, meta, enc_report)

@@ -23,8 +23,12 @@ from inscal.calibrate.systematic.diagnostics import (
     truth_imu,
     unobservable,
 )
+from inscal.calibrate.systematic.model_error import WEIGHT_PASSES, ModelError, moving_steps, update_factors
+from inscal.calibrate.systematic.model_error import initial as no_model_error
+from inscal.calibrate.systematic.model_error import note as model_error_note
 from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
+from inscal.calibrate.systematic.sensitivity import forcings, parameter_shift, tolerances
 from inscal.calibrate.systematic.record_stats import (
     column_quantum,
     first_turn,
@@ -49,7 +53,7 @@ from inscal.calibrate.systematic.thermal_states import T_REF_C, sample_inputs, t
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
-from inscal.core.error_model import GimbalErrors, ImuErrors
+from inscal.core.error_model import GimbalErrors, ImuErrors, parameter_components
 from inscal.core.stats import chi2_sf
 from inscal.core.thermal import RATE_WINDOW_S
 from inscal.nav.align import coarse_align
@@ -60,6 +64,19 @@ ALIGN_STATIC_RATE = 0.05 * math.pi / 180.0
 NIS_CAP = 36.0
 #: the median of chi2 with 6 degrees of freedom
 CHI2_6_MEDIAN = 5.348
+#: the first pass whose innovations may set the model-error factors (model_error), and the pass whose innovations
+#: set them at the latest; before that a pass sets them once it changed the estimate by less than FACTOR_CHANGE
+#: sigma (its innovations then show the record, not the linearisation point).  The passes before run with
+#: bounded influence
+FIRST_FACTOR_PASS = 2
+LAST_BOUNDED_PASS = 4
+FACTOR_CHANGE = 100.0
+#: an estimate further than this many prior sigma from its nominal ends the run (convergence_verdict)
+PRIOR_EXCESS = 5.0
+#: runs asked for fewer passes than this are deliberate first iterates: only a diverged navigation ends them
+MIN_VERDICT_PASSES = 4
+#: a position innovation beyond this [m] on a static site ends the run (the navigation diverged)
+STATIC_POSITION_LIMIT = 10.0
 #: default interval between the stored history rows [s]
 HISTORY_S = 10.0
 #: peak memory of the driver's working copies of the increments, beyond the record itself [bytes per sample]:
@@ -154,14 +171,73 @@ def float32_rounding(x: np.ndarray, max_rows: int = 200_000) -> np.ndarray:
     return out
 
 
-def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 5,
+def inputs_assumed(out, site, sig, gain: np.ndarray, J: np.ndarray, sigma: np.ndarray, names, T: float) -> dict:
+    """The site latitude and the time-scale accuracy the reported sigma assume
+    (:mod:`inscal.calibrate.systematic.sensitivity`): how far each may be off before the largest shift of a
+    parameter reaches its sigma, from the last pass's gains.  ``gain``: the driver's change of prior (``P_post
+    Pf^-1``), ``J`` the canonical Jacobian, ``sigma`` the reported canonical sigma."""
+    lat = site.latitude
+    h = 1e-4
+    dg = (site.gravity_model.g(lat + h, site.height) - site.gravity_model.g(lat - h, site.height)) / (2 * h)
+    sm = out.smoother
+    shift = parameter_shift(sm.K_st, sm.phinn_st, sm.phinp_st, out.steps, np.asarray(sig, float),
+                            forcings(lat, site.gravity, dg), T)
+    can = J @ (gain @ shift)
+    tol_lat, tol_time, i_lat, i_time = tolerances(can, sigma)
+    labels = [f"{n}[{c}]" if c else n for n in names for c in parameter_components(n)]
+    lat_deg = math.degrees(tol_lat)
+    r_earth = 6.371e6
+    note = (f"inputs the fit cannot check: the sigma assume the site latitude right to {lat_deg:.2g} deg "
+            f"({tol_lat * r_earth:.3g} m; {labels[i_lat]} moves by its sigma beyond that) and the sample rate right to "
+            f"{tol_time * 1e6:.3g} ppm ({labels[i_time]})")
+    return {"latitude_deg": lat_deg, "latitude_m": tol_lat * r_earth, "latitude_parameter": labels[i_lat],
+            "time_scale_ppm": tol_time * 1e6, "time_scale_parameter": labels[i_time],
+            "shift_per_deg_latitude": dict(zip(labels, (can[:, 0] * math.pi / 180.0).tolist())),
+            "shift_per_ppm_time_scale": dict(zip(labels, (can[:, 1] * 1e-6).tolist())),
+            "rule": "the largest |shift| / sigma of a canonical parameter reaches 1 (linear, from the last pass's "
+                    "gains: inscal.calibrate.systematic.sensitivity)", "note": note}
+
+
+class NotConverged(CalibrationError):
+    """The passes did not settle, an estimate left its prior far behind, or the navigation wandered off the static
+    site: the last iterate is no calibration (``accept_unconverged`` keeps it, with a note)."""
+
+
+def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.ndarray, labels: list,
+                        position_max: float, truncated: bool = False) -> str:
+    """Why a run's last iterate is not a calibration, in one clause ("" when it is): passes that did not
+    settle (oscillating or drifting, with the last changes in sigma), an estimate beyond
+    :data:`PRIOR_EXCESS` prior sigma of its nominal, or a position innovation beyond
+    :data:`STATIC_POSITION_LIMIT` on a static site.  A ``truncated`` run (fewer than :data:`MIN_VERDICT_PASSES`
+    passes asked for: a deliberate first iterate, as the observability report and the demo run) is judged on
+    its position innovations only."""
+    if position_max > STATIC_POSITION_LIMIT:
+        return (f"position innovations reach {position_max:.3g} m on a static site (limit {STATIC_POSITION_LIMIT:g} m): "
+                "the navigation diverged (a wrong path, rate or site, or an error far beyond the model)")
+    if truncated:
+        return ""
+    worst = int(np.argmax(np.abs(prior_z))) if prior_z.size else 0
+    if prior_z.size and abs(prior_z[worst]) > PRIOR_EXCESS:
+        return (f"the estimate of {labels[worst]} lies {abs(prior_z[worst]):.3g} prior sigma from its nominal (limit "
+                f"{PRIOR_EXCESS:g}): the unit is far outside the prior (widen it with --prior) or the run diverged")
+    if not converged:
+        changes = [p["change_max_sigma"] for p in passes if p["change_max_sigma"] is not None]
+        tail = ", ".join(f"{c:.3g}" for c in changes[-4:])
+        kind = ("oscillating" if len(changes) >= 3 and changes[-1] > 0.5 * changes[-3] else "still moving")
+        return (f"not converged in {len(passes)} passes ({kind}: the largest change per pass {tail} sigma, "
+                f"tolerance {tol:g})")
+    return ""
+
+
+def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: float = 1.0, max_passes: int = 10,
                tol: float = 0.2, arw=None, vrw=None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, prior: dict | None = None, history_s: float = HISTORY_S,
                align_s: float = 120.0, initial: ImuErrors | None = None, method_name: str | None = None,
                keep_passes: bool = False, encoder_sigma: float | None = None,
                encoder_every: int = 1, nis_cap: float | None = NIS_CAP, thermal_orders: dict | None = None,
                t_ref: float = T_REF_C, temperature_sensor: str = "",
-               temperature_rate_window_s: float = RATE_WINDOW_S) -> CalibrationResult:
+               temperature_rate_window_s: float = RATE_WINDOW_S, robust: bool = True,
+               weights=None, accept_unconverged: bool = False) -> CalibrationResult:
     """Systematic calibration of a static-site rotation record (S16 section 3).
 
     ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
@@ -171,9 +247,15 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     Gimbal states (``gimbal``/``unified``): ``encoder_sigma`` the white noise of each encoder angle
     [rad] (default :data:`ENCODER_SIGMA`, 1"), ``encoder_every`` the encoder attitude rows every n-th
     filter step (default every step); the record's ``gimbal`` dataset, else its ``path``.
-    ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`): a step whose NIS exceeds
-    it has its R inflated until its NIS equals the cap (default :data:`NIS_CAP`, a 1e-6 tail of chi2(6): on
-    data the model fits, no step reaches it); None: plain Kalman updates.
+    ``robust`` (default True): the velocity model-error term of :mod:`inscal.calibrate.systematic.model_error`,
+    factors on the accelerometer noise per motion state and for isolated outliers, estimated from the
+    innovations of the first passes and then frozen; ``nis_cap`` the NIS above which a step (at its motion
+    state's factor) is an outlier (default :data:`NIS_CAP`, a 1e-6 tail of chi2(6); None: no outliers).
+    ``weights``: frozen factors (a :class:`~inscal.calibrate.systematic.model_error.ModelError` or an (M,) array)
+    instead of estimating them (the nested fits of ``--states auto`` share the full model's).
+    ``accept_unconverged``: return the last iterate, with a note, where the run would end with
+    :class:`NotConverged` (passes that do not settle within ``max_passes``, an estimate beyond
+    :data:`PRIOR_EXCESS` prior sigma, position innovations beyond :data:`STATIC_POSITION_LIMIT`).
     Thermal states (``thermal``; :mod:`inscal.calibrate.systematic.thermal_states`): the record's
     ``temperature`` readings (sensor ``temperature_sensor``, default the mean of the sensors; dT/dt their
     least-squares slope over ``temperature_rate_window_s``) drive the model about ``t_ref`` [degC];
@@ -286,7 +368,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     cap = np.inf if nis_cap is None else float(nis_cap)
     if not cap > 0:
         raise CalibrationError(f"nis_cap must be > 0 (or None for plain updates), got {nis_cap}")
-    cap_pass = cap
+    Msteps = dth.shape[0] // n_per
+    moving = moving_steps(dth, dt, n_per, Msteps)
+    if weights is not None:  # a caller's frozen factors (the nested fits of --states auto share the full model's)
+        me = weights if isinstance(weights, ModelError) else ModelError(
+            np.asarray(weights, float), np.ones(Msteps), {}, 0, True)
+        if me.q_factor.shape[0] < Msteps:
+            raise CalibrationError(f"model-error factors for {me.q_factor.shape[0]} steps, the record has {Msteps}")
+    else:
+        me = no_model_error(Msteps)
+    frozen = weights is not None or not robust
+    updates = 0
     passes = []
     p_start = start
     prev = None
@@ -294,12 +386,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     inv_prior = 1.0 / sig_par**2
     sig_pass = sig.copy()
     first = None
+    rs_scaled = r / sig[3:N_NAV] ** 2
+    qam = float(np.mean(qa))
     for ip in range(max_passes):
         out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
+        sig_used = sig_pass
         try:
             out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig, nis_cap=cap_pass,
-                           temperature=None if tin is None else (tin["dT"], tin["rate"]))
+                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig,
+                           nis_cap=cap if (updates == 0 and ip < LAST_BOUNDED_PASS) else np.inf,
+                           temperature=None if tin is None else (tin["dT"], tin["rate"]), q_factor=me.q_factor,
+                           r_factor=me.r_factor)
         except np.linalg.LinAlgError:
             raise CalibrationError(
                 f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
@@ -333,27 +430,52 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         C0 = dcm_from_rotvec(-phi0) @ C0
         if first is None:  # its history needs only the smoothed states at the stored rows (run_pass has them)
             first = (out.without_stores() if max_passes > 1 else out, sig_pass.copy())
-        passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)),
-                       "downweighted_steps": int(np.sum(out.r_factor > 1.0)), "nis_cap": cap_pass,
+        change = None if prev is None else float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))
+        passes.append({"pass": ip + 1, "nis_mean": float(np.mean(out.nis)), "change_max_sigma": change,
+                       "downweighted_steps": int(np.sum(out.q_used[:out.steps] > me.q_factor[:out.steps])),
+                       "position_innovation_max_m": float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
+                       "model_error": me.as_dict() | {"frozen": bool(frozen)},
                        "prior_deflation": float(np.max(sig_par / sp)),
-                       "change_max_sigma": None if prev is None else
-                       float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))})
-        if prev is not None and passes[-1]["change_max_sigma"] < tol:
+                       "prior_excess_sigma": float(np.max(np.abs(est.error_state(st, nominal)) / sig_par))})
+        # The passes before the model-error term exists run with bounded influence (R inflated where a step's NIS
+        # passes the cap): a safety net against a numerical failure.  The first pass linearises about the nominal
+        # parameters, and its innovations show that start, not the record: the factors come from the second pass
+        # on, once a pass changed the estimate by less than FACTOR_CHANGE sigma.
+        capped = bool(np.any(out.q_used[:out.steps] > me.q_factor[:out.steps]))
+        kept = True  # this pass's factors stay for the next one
+        near = change is not None and change < FACTOR_CHANGE  # this pass linearised near its end point
+        if not frozen and ip + 1 >= FIRST_FACTOR_PASS and (near or ip + 1 >= LAST_BOUNDED_PASS):
+            updates += 1  # the model-error factors of the next pass, from this pass's innovations (model_error)
+            Si = out.smoother.Si_st[:out.steps]
+            D = sig_pass[3:N_NAV]
+            S_raw = np.linalg.inv(Si) * np.outer(D, D)[None]
+            expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
+            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor,
+                                 out.q_used, cap)
+            if new.settled:
+                frozen = True  # the factors this pass ran with stand
+            else:
+                me, kept = new, False
+                frozen = updates >= WEIGHT_PASSES
+        # converged: this pass ran with the weights that stay (no step capped, factors kept) and moved the estimate
+        # by less than tol sigma from its start, the previous pass's estimate: it is the fixed point of one weighted
+        # least-squares problem to the tolerance (the previous pass's weights do not enter)
+        if change is not None and change < tol and kept and not capped:
             converged = True
             p_start = est
             break
         prev = est
         p_start = est
-        # the next pass's cap follows the robust scale of this pass's innovations (median NIS against the
-        # chi2(6) median 5.35): on a noise-free record the noise floors make every NIS tiny, and a step
-        # that misfits by a fraction of a floor sigma is as much an outlier as one at 6 sigma on noisy data
-        # (never above NIS_CAP: a model that misfits everywhere must not lose its protection)
-        if math.isfinite(cap):
-            cap_pass = cap * min(max(float(np.median(out.nis)) / CHI2_6_MEDIAN, 1e-8), 1.0)
         # next pass: prior widths of at most DEFLATE posterior sigmas about the new start (its
         # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
         sig_pass = sig.copy()
         sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
+    verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[N_NAV:],
+                                  float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
+                                  truncated=max_passes < MIN_VERDICT_PASSES)
+    if verdict and not accept_unconverged:
+        raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
+                           "or --accept-unconverged to keep the last iterate")
     # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the caller
     last = smooth_pass(out) if keep_passes else out
     names = estimated_names(st)
@@ -378,11 +500,22 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     rs_scaled = r / sig[3:N_NAV] ** 2
     Si_diag = np.diagonal(last.smoother.Si_st[:last.steps], axis1=1, axis2=2)
     per_step = 6.0 - Si_diag @ rs_scaled
-    per_step[last.r_factor[:last.steps] > 1.0] = 6.0
+    per_step[last.q_used[:last.steps] > me.q_factor[:last.steps]] = 6.0  # bounded steps (a jump): their own
+    # NIS is that of the nominal model
     expected = float(np.sum(per_step))
     fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
+    if any(f > 1.0 for f in me.group_factor.values()):
+        # the chi2 is of the model with its velocity model-error term, estimated to fit: the model as given
+        # misfits the record beyond its noise (model_error), which the fit says; the sigma of the weighted
+        # filter carry the misfit already (not scaled again unless the chi2 itself rejects)
+        fit["consistent"] = False
+        fit["cause"] = fit["cause"] or "model error: the record misfits the model beyond its noise"
+        fit["model_error"] = me.as_dict()
+        fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(moving)))
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
+    assumed = None if st.gimbal else inputs_assumed(last, site, sig_used, P_post @ Pf_inv, J, sflat * fit["scale"],
+                                                    names, T)
     diag = {
         "states": st.n_states, "state_options": state_spec(st), "frame": "accelerometer-defined (PSINS triangular)"
         if st.psins else "gyro-defined (S16 m-frame)",
@@ -405,11 +538,25 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         "initial_attitude_deg": np.degrees(euler_of(C0)).tolist(),
     }
     diag["fit"] = fit
+    diag["inputs_assumed"] = assumed
+    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
+                                          "outlier_cap": None if not math.isfinite(cap) else cap,
+                                          "shared": weights is not None}
+    diag["convergence"] = {"converged": converged, "verdict": verdict or None,
+                           "accepted_unconverged": bool(verdict) and accept_unconverged}
     diag["formal_sigma"] = formal
     diag["unobservable"] = unobs
     notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
+    if verdict:
+        notes.append(f"NOT A CONVERGED CALIBRATION: {verdict}; the last iterate is kept on request "
+                     "(--accept-unconverged)")
     if fit["note"]:
         notes.append(fit["note"])
+    if assumed is not None:
+        notes.append(assumed["note"])
+    me_note = model_error_note(me, int(np.sum(moving)))
+    if me_note and me_note not in (fit["note"] or ""):
+        notes.append(me_note)
     if unobs_note:
         notes.append(unobs_note)
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
@@ -442,6 +589,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res.history = pass_history(h_out, st, names, h_sig, J, est, P_post)
     res.history["time_s"] = res.history["t_steps"] * T
     res.states = st
+    res.model_error = me  # the frozen model-error factors (the nested fits of --states auto share them)
     res.covariance = {"labels": st.labels()[N_NAV:], "P": P_post}
     if keep_passes:
         res.pass_output = last

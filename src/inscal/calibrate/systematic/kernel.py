@@ -83,7 +83,9 @@ class PassInputs(NamedTuple):
     qa: np.ndarray  # (3,) accelerometer white-noise PSD
     r: np.ndarray  # (6,) velocity/position measurement variances
     hist_every: int  # steps between stored history rows
-    nis_cap: float  # bounded influence: R inflated where a step's NIS exceeds it (inf: plain updates)
+    nis_cap: float  # bounded influence: the accelerometer noise raised where a step's NIS exceeds it (inf: none)
+    q_factor: np.ndarray  # (M,) factor on the accelerometer white-noise PSD of each step (model-error term; 1: none)
+    r_factor: np.ndarray  # (M,) factor on R of each step (a frozen outlier weight; 1: none)
     tdT: np.ndarray  # (n,) thermal states: T - T_ref of each sample [degC] (empty without them)
     trate: np.ndarray  # (n,) ... and dT/dt [degC/s]
 
@@ -119,7 +121,9 @@ class PassStore(NamedTuple):
     hist_ref: np.ndarray  # (nh, REF_WIDTH) pre-update reference parameters
     hist_Pf: np.ndarray  # (nh, N) filtered variances
     nav_out: np.ndarray  # (10,) the final navigation state
-    rw_st: np.ndarray  # (M,) the factor on R of each step (1: the model fits; see robust_inflation)
+    rw_st: np.ndarray  # (M,) the factor on R of each step (1: the model fits; a frozen outlier weight)
+    qw_st: np.ndarray  # (M,) the factor on the accelerometer noise of each step (q_factor, times the jump of
+    # bounded influence where the NIS passed nis_cap: kalman.robust_jump)
 
 
 class EncoderRows(NamedTuple):
@@ -162,10 +166,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
-    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, tdT, trate = inp
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate = inp
     Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th = par
     thermal = tdT.shape[0] > 0
-    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st = st
+    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st, qw_st = st
     enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
     npar = N - 9
@@ -235,6 +239,14 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     xs = np.empty(N)
     z = np.empty(6)
     rs = np.empty(6)
+    rsk = np.empty(6)
+    Ft = np.empty((N, 6))
+    Qa = np.empty((9, 9))
+    F2s = np.empty((9, 9))
+    phs = np.empty((9, 9))
+    I9 = np.eye(9)
+    Z9 = np.zeros((9, npar))
+    nis0 = 0.0
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
     have_enc = enc.shape[0] > 0
@@ -334,7 +346,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         nav_F(lat0, h0, fn, F, g_scale)
         phinn = phinn_st[k]
         phinp = phinp_st[k]
-        discretise(F, T, qgm, qam, sig, F2, phinn, Qd)
+        discretise(F, T, qgm, qam * qf[k], sig, F2, phinn, Qd)  # qf: the velocity model-error term (driver)
         step_moments(Cb, Bb, Wm, start, src, CW, R)
         parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
         filters.sr_predict(U, 9, phinn, phinp, Qd)
@@ -363,10 +375,32 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
             hist_ref[ih, _TH0:_TH1] = th.ravel()
-        # bounded influence: a step the model cannot fit (a misfit during moves, an outlier) is
-        # down-weighted to NIS = nis_cap instead of dragging the constants with a tiny R
-        nis_st[k], alpha = filters.sr_update(U, IDX_MEAS, rs, z, K, Si, xs, nis_cap)
-        rw_st[k] = alpha
+        for a in range(6):
+            rsk[a] = rs[a] * rf[k]  # a frozen outlier weight of the driver's robust scheme (1: none)
+        jump = 1.0
+        if nis_cap < np.inf:
+            # bounded influence as a velocity jump (kalman.robust_jump): a step the model cannot fit (a misfit
+            # during moves, an outlier) has its accelerometer noise raised until its NIS equals nis_cap, so the
+            # velocity takes the misfit up instead of the constants, and the next step starts clean
+            for a in range(6):
+                for j in range(N):
+                    Ft[j, a] = U[3 + a, j]
+            Sm = Ft.T @ Ft
+            for a in range(6):
+                Sm[a, a] += rsk[a]
+            nis0 = z @ np.linalg.solve(Sm, z)
+            if nis0 > nis_cap:
+                discretise(F, T, 0.0, qam * qf[k], sig, F2s, phs, Qa)
+                jump = filters.robust_jump(Sm, np.ascontiguousarray(Qa[3:9, 3:9]), z, nis_cap)
+                if jump > 1.0:
+                    for i in range(9):
+                        for j in range(9):
+                            Qa[i, j] *= jump - 1.0
+                    filters.sr_predict(U, 9, I9, Z9, Qa)
+        nis_k, _ = filters.sr_update(U, IDX_MEAS, rsk, z, K, Si, xs, np.inf)
+        nis_st[k] = nis0 if jump > 1.0 else nis_k  # the NIS of the nominal model
+        rw_st[k] = rf[k]
+        qw_st[k] = qf[k] * jump
         K_st[k] = K
         Si_st[k] = Si
         for a in range(6):
@@ -551,7 +585,8 @@ class PassOutput:
     H_att: np.ndarray | None = None
     R_att: np.ndarray | None = None
     smoother: SmootherData | None = None  # the stored data of the forward pass (run_pass sets it)
-    r_factor: np.ndarray | None = None  # (M,) factor on R per step (bounded influence; 1 where the model fits)
+    r_factor: np.ndarray | None = None  # (M,) factor on R per step (frozen outlier weights; 1 elsewhere)
+    q_used: np.ndarray | None = None  # (M,) factor on the accelerometer noise per step (model-error term and jumps)
     Uf: np.ndarray | None = None  # upper-triangular square root of Pf (Pf = Uf Uf^T; scaled)
 
     def without_stores(self) -> PassOutput:
@@ -584,11 +619,16 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
 
 def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet, sig, qg, qa, r, hist_every,
              keep_phi: bool = False, smooth: bool = True, enc=None, enc_sigma: float = ENCODER_SIGMA,
-             nis_cap: float = np.inf, temperature=None) -> PassOutput:
+             nis_cap: float = np.inf, temperature=None, q_factor=None, r_factor=None) -> PassOutput:
     """One forward filter pass and its smoother (compiled kernels).  ``smooth=False`` runs only
     the adjoint recursion for the smoothed states, at the start and the stored steps (:func:`smooth_pass` adds
     their covariances).
-    ``nis_cap``: bounded influence (:func:`inscal.core.kalman.robust_inflation`; inf: plain updates).
+    ``nis_cap``: bounded influence as a velocity jump (:func:`inscal.core.kalman.robust_jump`; inf: plain updates).
+    ``q_factor`` (M,): a factor >= 1 on the accelerometer white-noise PSD of each step (the velocity model-error
+    term of the driver's robust scheme; None: 1 everywhere, the plain noise model); ``r_factor`` (M,): a factor
+    >= 1 on R of each step (frozen outlier weights; None: 1).  The stored NIS and ``S^-1`` are those of the
+    weighted update; the output has the factors each step ran with (``r_factor`` on R, ``q_used`` on the
+    accelerometer noise, the jumps of ``nis_cap`` included).
     Gimbal states: ``enc`` (>= M, 2) the encoder angles [outer, inner] at the end of each filter step
     (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring).  Thermal states:
     ``temperature = (dT, rate)``, ``T - T_ref`` [degC] and dT/dt [degC/s] of every sample."""
@@ -629,10 +669,11 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     tdT, trate = _temperature_inputs(states, temperature, dth.shape[0])
     inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
-                     qa, r, int(hist_every), float(nis_cap), tdT, trate)
+                     qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate)
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     rw = np.ones(M)
-    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw)
+    qw = np.ones(M)
+    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw, qw)
     er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
                      Ha_st, nisa_st, za_st, Ra_st)
     Mk = _pass_kernel(inp, par, U, st, er)
@@ -644,6 +685,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, hist_x, None, hist_Pm, U @ U.T)
     out.Uf = U
     out.r_factor = rw
+    out.q_used = qw
     out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,
                                 sza_st, Ha_st, er.enc_floor)
     out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
@@ -654,6 +696,16 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     if smooth:
         smooth_pass(out)
     return out
+
+
+def _step_factors(q_factor, M: int) -> np.ndarray:
+    """The per-step factors on the accelerometer noise of a pass of ``M`` steps (ones when None)."""
+    if q_factor is None:
+        return np.ones(M)
+    qf = np.ascontiguousarray(q_factor, dtype=float)
+    if qf.shape[0] < M or not np.all(qf[:M] >= 1.0):
+        raise CalibrationError(f"model-error factors: {M} factors >= 1 needed, got shape {qf.shape}")
+    return qf[:M].copy()
 
 
 def _temperature_inputs(states: StateSet, temperature, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -701,10 +753,10 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
     tdT, trate = _temperature_inputs(states, temperature, n)
     inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                      np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
-                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, tdT, trate)
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate)
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
     st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
-                   one(REF_WIDTH), one(N), out, np.ones(1))
+                   one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1))
     er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
                      np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
     _pass_kernel(inp, par, P, st, er)

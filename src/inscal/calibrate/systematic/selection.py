@@ -66,6 +66,7 @@ class Decision:
     statistic: float  # (chi2_small - chi2_large) / phi, chi2(dk) under the smaller model
     p_value: float
     accepted: bool
+    status: str = "tested"  # "tested"; "not converged" or "nesting violated": not compared, the term stays
 
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
@@ -75,6 +76,11 @@ class Decision:
                 ("drop", False): "kept"}[(self.step, self.accepted)]
         what = self.term if self.step == "add" else {"gdiag": "g-sensitivity off-diagonals",
                                                      "nocross": "cross-coupling"}[self.term]
+        if self.status == "not converged":
+            return f"{what} {verb}: the fit without it did not converge, so it was not compared (the term stays)"
+        if self.status == "nesting violated":
+            return (f"{what} {verb}: NESTING VIOLATED, the smaller model ends with the lower chi2 ({self.chi2_small:.6g} "
+                    f"< {self.chi2_large:.6g}): no test is possible, the term stays")
         return (f"{what} {verb}: chi2 {self.chi2_small:.6g} -> {self.chi2_large:.6g} with {self.dk} more "
                 f"parameters, dispersion {self.dispersion:.3g}, statistic {self.statistic:.4g}, p = {self.p_value:.3g}")
 
@@ -84,11 +90,24 @@ def _chi2(res: CalibrationResult) -> tuple[float, int]:
     return float(inn["chi2"]), int(inn["dof"])
 
 
+#: a chi2 of the smaller model below the larger one's by more than this (in units of the test statistic, after the
+#: dispersion) is a violated nesting; less is the round-off of two equal fits (the term adds nothing: statistic 0)
+NESTING_TOL = 1.0
+
+
 def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResult, dk: int,
           alpha: float) -> Decision:
+    """The nested test of ``small`` against ``large`` (module docstring).  A smaller fit that did not converge
+    is not compared, nor one whose chi2 is below the larger model's by more than :data:`NESTING_TOL` (a violated
+    nesting is no evidence for dropping anything): the term stays in both cases."""
     c_s, _ = _chi2(small)
     c_l, dof = _chi2(large)
     phi = max(1.0, c_l / max(dof - dk, 1))
+    keep = step == "add"  # a term that stays: accepted when it is an added one, not accepted (kept) when droppable
+    if not small.diagnostics.get("convergence", {}).get("converged", True):
+        return Decision(step, term, c_s, c_l, dk, phi, float("nan"), float("nan"), keep, "not converged")
+    if (c_l - c_s) / phi > NESTING_TOL:
+        return Decision(step, term, c_s, c_l, dk, phi, (c_s - c_l) / phi, float("nan"), keep, "nesting violated")
     stat = max(0.0, (c_s - c_l) / phi)
     p = chi2_sf(stat, dk)
     return Decision(step, term, c_s, c_l, dk, phi, stat, p, p < alpha if step == "add" else p >= alpha)
@@ -153,6 +172,10 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     full_st = _full(base_st, cands)
     full = fit(record, full_st, **options)
     fits = 1
+    # the smaller fits share the full model's frozen model-error factors (model_error): their chi2 are then of
+    # one noise model and compare; one that does not converge is kept as it ends and not compared (_test)
+    options["weights"] = getattr(full, "model_error", None)
+    options["accept_unconverged"] = True
 
     def without(st: StateSet, terms) -> StateSet:
         kw = {}
@@ -168,19 +191,29 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     singles: dict[str, CalibrationResult] = {}
     for t in cands:
         small_st = without(full_st, [t])
-        singles[t] = fit(record, small_st, initial=_removed(full.imu, [t]), **options)
         fits += 1
-        tests[t] = _test("drop" if t in DROP else "add", t, singles[t], full, full_st.n_params - small_st.n_params,
-                         alpha)
+        step = "drop" if t in DROP else "add"
+        try:
+            singles[t] = fit(record, small_st, initial=_removed(full.imu, [t]), **options)
+        except CalibrationError:  # the smaller model fails on this record (a numerical failure): it cannot be compared
+            tests[t] = Decision(step, t, float("nan"), _chi2(full)[0], full_st.n_params - small_st.n_params, 1.0,
+                                float("nan"), float("nan"), step == "add", "not converged")
+            continue
+        tests[t] = _test(step, t, singles[t], full, full_st.n_params - small_st.n_params, alpha)
     # remove the insignificant ones, least significant first, while the joint removal stays insignificant
-    removable = sorted((t for t, d in tests.items() if d.p_value >= alpha), key=lambda t: -tests[t].p_value)
+    removable = sorted((t for t, d in tests.items() if d.status == "tested" and d.p_value >= alpha),
+                       key=lambda t: -tests[t].p_value)
     st, cur, gone = full_st, full, []
     for t in removable:
         trial_st = without(full_st, gone + [t])
         if gone:
-            trial = fit(record, trial_st, initial=_removed(full.imu, gone + [t]), **options)
             fits += 1
-            if _test("drop", t, trial, full, full_st.n_params - trial_st.n_params, alpha).p_value < alpha:
+            try:
+                trial = fit(record, trial_st, initial=_removed(full.imu, gone + [t]), **options)
+            except CalibrationError:
+                break
+            joint = _test("drop", t, trial, full, full_st.n_params - trial_st.n_params, alpha)
+            if joint.status != "tested" or joint.p_value < alpha:
                 break
         else:
             trial = singles[t]
@@ -188,6 +221,8 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
         st, cur = trial_st, trial
     decided = {t: dataclasses.replace(d, accepted=(t not in gone) if t in ADD else (t in gone))
                for t, d in tests.items()}
+    if cur is not full:
+        cur.diagnostics["model_error"]["shared"] = True
     cur.diagnostics["selection"] = {"base": state_spec(base_st), "chosen": state_spec(st), "alpha": alpha,
                                     "fits": fits, "full": state_spec(full_st),
                                     "tests": [d.to_json() for d in decided.values()]}

@@ -111,6 +111,12 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     mixed = ~fixed & ~np.isfinite(sig).all(axis=0)
     if np.any(mixed):
         raise CalibrationError(f"{name}: estimated on some plateaus and held fixed on others; cannot fit over temperature")
+    # a noise-free record: plateau estimates with a zero sigma cannot be weighted; they are exact up to round-off,
+    # so an unweighted fit (each component alike) returns the coefficients, with sigma from the residual scatter
+    unweighted = bool(np.any(~fixed & np.any(~(sig > 0), axis=0)))
+    if unweighted:
+        covs = [np.eye(m) for _ in range(P)]
+        sig = np.where(fixed[None, :], np.nan, np.ones((P, m)))
     free = np.flatnonzero(~fixed)
     mf = free.size
     K = order
@@ -150,8 +156,10 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     res_n[:, free] = (values[:, free] - fitted) / sig[:, free]
     chi2_c = np.full(m, np.nan)
     chi2_c[free] = np.sum(res_n[:, free] ** 2, axis=0)
-    p_value = chi2_sf(chi2, dof) if dof > 0 else math.nan
+    p_value = chi2_sf(chi2, dof) if dof > 0 and not unweighted else math.nan
     consistent = not (dof > 0 and p_value < P_INCONSISTENT)
+    if unweighted:  # the residual variance per component takes the place of the plateau sigma
+        cov_g = cov_g * (chi2 / dof if dof > 0 else 0.0)
     # back to unscaled dT: coefficient k divided by s^k (full index k*m + c); the gains per plateau:
     # coef_free = D R^-1 Q^T blockdiag(W_p) y, the rows of Q^T taken plateau by plateau
     unscale = np.repeat(s ** -np.arange(K + 1, dtype=float), mf)
@@ -163,7 +171,11 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     factor = np.ones(full_idx.size)
     s_c = np.ones(m)
     note = ""
-    if dof == 0:
+    if unweighted:
+        note = (f"{name}: the plateau estimates have a zero sigma (a noise-free record): unweighted least squares, "
+                f"sigma from the residual scatter ({'none' if dof == 0 else f'rms {math.sqrt(chi2 / dof):.3g} SI'}), "
+                "no chi2 test")
+    elif dof == 0:
         note = f"{name}: order {K} through {P} plateaus leaves no degree of freedom: the fit cannot be tested"
     elif not consistent:
         # the misfit treated as systematic (calibrate.fit.SIGMA_RULE): the largest error a misfit of the

@@ -16,6 +16,7 @@ import numpy as np
 from inscal.core import units
 from inscal.core.units import DEG
 from inscal.io.files import check_input
+from inscal.io.formats.rates import check_stamps, integrate_rates
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
@@ -25,6 +26,7 @@ from inscal.io.mapping import (
     MIN_RATE_HZ,
     ImportFileError,
     Mapping,
+    decode_counts,
     default_mapping,
     export_layout,
 )
@@ -71,6 +73,8 @@ class Raw:
     time_unit: str = "s"  # the unit the time column was read in
     time_fix: str = ""  # how to declare the time column's unit here ("{unit}": the unit, "{factor}": the factor)
     temperature: RawTemperature | None = None  # temperature columns of the same file
+    integration: object | None = None  # rates integrated onto a grid (inscal.io.formats.rates.RateIntegration)
+    source_info: dict | None = None  # what a reader adds to the record's ``source`` attribute (JSON-ready)
 
     def at(self, i: int) -> str:
         """Where sample ``i`` came from, for messages: ``line N`` of a text file, else ``row N`` (1-based)."""
@@ -382,8 +386,9 @@ def _parse_table(p: FsPath, m: Mapping, blank: dict | None = None,
     raise ImportFileError(f"{p}: cannot parse the data rows")  # pragma: no cover - loadtxt and the scan disagree
 
 
-def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
-    """A delimited text file read through ``mapping`` (None: the inscal export layout)."""
+def read_text(path, mapping: Mapping | None, fmt: str = "csv", rate_hz: float | None = None) -> Raw:
+    """A delimited text file read through ``mapping`` (None: the inscal export layout); ``rate_hz``: the
+    grid of ``kind = "sampled-rates"`` (default their mean rate)."""
     p = FsPath(path)
     given = mapping is not None
     if mapping is None:
@@ -415,11 +420,21 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
     raw6 = data[:, [idx[c] for c in CHANNELS]]
     inc = m.kind == "increments"
 
-    def conv(x, unit, scale, kind):
-        return x * scale if unit == "counts" else units.to_si(x, unit, kind)
+    def label(key: str, c: int) -> str:
+        return f"{key} (column {c}" + (f" {names[c]!r})" if names and c < len(names) else ")")
 
-    g = conv(raw6[:, 0:3], m.gyro_unit, m.gyro_scale, "angle" if inc else "rate")
-    a = conv(raw6[:, 3:6], m.accel_unit, m.accel_scale, "velocity" if inc else "accel")
+    labels = tuple(label(c, idx[c]) for c in CHANNELS)
+
+    def at(i: int) -> str:
+        return f"line {int(line_no[i])}" if line_no is not None else f"row {i + 1}"
+
+    def conv(x, unit, scale, kind, spec, lab):
+        if unit == "counts":
+            return decode_counts(x, spec, str(p), lab, at) * scale
+        return units.to_si(x, unit, kind)
+
+    g = conv(raw6[:, 0:3], m.gyro_unit, m.gyro_scale, "angle" if inc else "rate", m.gyro_counts, labels[0:3])
+    a = conv(raw6[:, 3:6], m.accel_unit, m.accel_scale, "velocity" if inc else "accel", m.accel_counts, labels[3:6])
     gyro = np.empty_like(g)
     accel = np.empty_like(a)
     for i in range(3):
@@ -428,10 +443,6 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
     t = units.to_si(data[:, idx["time"]], m.time_unit, "time") if "time" in idx else None
     gim = units.to_si(data[:, [idx["outer"], idx["inner"]]], m.gimbal_unit, "angle") if "outer" in idx else None
 
-    def label(key: str, c: int) -> str:
-        return f"{key} (column {c}" + (f" {names[c]!r})" if names and c < len(names) else ")")
-
-    labels = tuple(label(c, idx[c]) for c in CHANNELS)
     counts = (m.gyro_unit == "counts", m.accel_unit == "counts")
     tl = f"time (column {idx['time']})" if "time" in idx else "time"
     fix = ("set [units] time = \"{unit}\" in the mapping" if given else
@@ -445,8 +456,23 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv") -> Raw:
                               tuple(label(f"temperature {n!r}", c) for (n, _), c in zip(m.temperature, cols)),
                               line_no, (m.temperature_unit,) * len(cols),
                               "set [units] temperature = \"{unit}\" in the mapping" if given else "", str(p))
+    if m.kind == "sampled-rates":
+        return _sampled_rates(p, t, gyro, accel, gim, temp, labels, at, rate_hz)
     return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl, axes=m.axes, time_unit=m.time_unit,
                time_fix=fix, temperature=temp)
+
+
+def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at, rate_hz: float | None) -> Raw:
+    """Rates sampled at their own stamps (``kind = "sampled-rates"``) -> increments on a uniform grid
+    (:mod:`inscal.io.formats.rates`; the stamps checked first)."""
+    if gim is not None or temp is not None:
+        raise ImportFileError(f"{p}: kind = \"sampled-rates\" takes no gimbal or temperature columns (import them "
+                              "with --gimbal / --temperature at their own times)")
+    check_stamps(t, str(p), "sample", at)
+    integ = integrate_rates(t, gyro, accel, rate_hz)
+    inc_labels = tuple(lab.replace("gx", "dthx").replace("gy", "dthy").replace("gz", "dthz") for lab in labels)
+    return Raw(integ.time, integ.gyro, integ.accel, "increments", None, inc_labels, None, "",
+               np.column_stack([integ.gyro, integ.accel]), integration=integ)
 
 
 def _header_cell(p, cell: str, what: str) -> tuple[str, str | None]:

@@ -1,0 +1,42 @@
+"""``inscal export PARAMS --format kalibr|imucal|kf-gins|c``: a parameter file written in another tool's
+convention (one module each in :mod:`inscal.io.exports`), atomically, with the terms it cannot hold."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from inscal.io.exports.c import export_c
+from inscal.io.exports.imucal import imucal_json
+from inscal.io.exports.kalibr import kalibr_yaml
+from inscal.io.exports.kfgins import kfgins_yaml
+from inscal.io.files import atomic_path
+from inscal.io.paramfile import load_params
+
+#: the calibration export formats and the file each writes
+CALIBRATION_FORMATS = {"kalibr": "YAML (imu0: M_accel, M_gyro, A, C_gyro_i[, rx_i ry_i rz_i])",
+                       "imucal": "JSON (Ferraris calibration)", "kf-gins": "YAML (initial IMU error blocks)",
+                       "c": "C99 NAME.c + NAME.h"}
+
+
+def export_calibration(params, out, fmt: str, overwrite: bool = False) -> dict:
+    """Write the parameter file ``params`` to ``out`` in ``fmt``; returns a summary (``dropped``: the
+    non-zero terms the convention cannot hold)."""
+    if fmt not in CALIBRATION_FORMATS:
+        raise ValueError(f"unknown calibration export {fmt!r}; choose one of: {', '.join(CALIBRATION_FORMATS)}")
+    params, out = Path(params), Path(out)
+    imu, _gimbal, meta = load_params(params)
+    thermal = meta.get("thermal")
+    res = {"params": str(params), "format": fmt, "out": str(out), "method": meta.get("method", "")}
+    if fmt == "c":
+        res.update(export_c(imu, thermal, out, overwrite, params.name, meta.get("method", "")), dropped=[])
+        return res
+    if fmt == "kalibr":
+        text, info = kalibr_yaml(imu, thermal, source=params.name)
+    elif fmt == "imucal":
+        text, info = imucal_json(imu, thermal, comment=f"exported by inscal from {params.name}")
+    else:
+        text, info = kfgins_yaml(imu, meta.get("sigma"), thermal, source=params.name)
+    with atomic_path(out, overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    res.update(info, files=[str(out)])
+    return res
