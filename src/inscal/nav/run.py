@@ -77,6 +77,7 @@ class HeightReference:
 
     @property
     def constant(self) -> bool:
+        """Whether the reference is one constant height (no time series)."""
         return self.time is None
 
     def __call__(self, t):
@@ -85,6 +86,7 @@ class HeightReference:
         return np.interp(t, self.time, self.height)
 
     def span(self) -> tuple[float, float] | None:
+        """The (first, last) time [s] of the height series, or None for a constant."""
         return None if self.time is None else (float(self.time[0]), float(self.time[-1]))
 
     @classmethod
@@ -118,6 +120,10 @@ class HeightReference:
 # ============================================================================ orchestration
 @dataclass
 class NavResult:
+    """A navigation: its output, its errors against the truth or the static site (with a summary), the
+    alignment when one was run, the configuration, how it started (``truth`` or ``align``) and the
+    thermal compensation applied.
+    """
     output: NavOutput
     errors: NavErrors | None
     summary: dict | None
