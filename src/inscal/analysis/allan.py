@@ -21,6 +21,10 @@ BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 
 @dataclass(frozen=True)
 class AllanResult:
+    """An Allan deviation: ``adev`` (n_tau, channels) at ``taus`` [s] in the rate unit of the input (SI) with
+    its 1-sigma ``adev_err``, the white-noise coefficient ``white`` [unit sqrt(s)] (ARW or VRW), the bias
+    instability [unit] and the tau of the curve's minimum [s].
+    """
     taus: np.ndarray  # [s]
     adev: np.ndarray  # (n_tau, n_channels) in the rate unit of the input (SI)
     adev_err: np.ndarray
@@ -30,6 +34,7 @@ class AllanResult:
 
 
 def octave_taus(n: int, rate_hz: float, max_fraction: float = 0.1) -> np.ndarray:
+    """Octave-spaced averaging times [s]: 1, 2, 4, ... samples up to ``max_fraction`` of the ``n`` samples."""
     m = 2 ** np.arange(0, int(math.log2(max(2, n * max_fraction))) + 1)
     return m / rate_hz
 
@@ -91,6 +96,9 @@ class StreamingAllan:
         self.n, self.rate_hz, self.k = self.engine.n, self.engine.rate_hz, self.engine.k
 
     def update(self, increments) -> None:
+        """Feed the next chunk of increments ((N, channels), or (N,) for one); more than the announced
+        count, a wrong shape or a NaN/inf is a ValueError.
+        """
         self.engine.update(increments)
 
     def result(self, white_tau_max: float = 1.0) -> AllanResult:
@@ -155,6 +163,7 @@ class MotionStats:
         self.gmin = self.gmax = None
 
     def update(self, dtheta, gimbal=None) -> None:
+        """Feed the next chunk of angle increments (and gimbal angles, when the record has them)."""
         if self.nb < self.k:
             x = np.concatenate([self.rest, dtheta]) if self.rest.shape[0] else dtheta
             nfull = min(x.shape[0] // self.m, self.k - self.nb)
@@ -187,6 +196,9 @@ class MotionStats:
         return float(idx[0] * self.m / self.rate_hz), float((idx[-1] + 1) * self.m / self.rate_hz)
 
     def warning(self) -> str | None:
+        """One line when the window is not static (the gyro rate departs from its median by more than the
+        threshold in over 1 % of it, or the gimbal angles move), else None.
+        """
         mask, thr = self._moving()
         frac = float(np.mean(mask)) if self.k else 0.0
         moving = frac > 0.01

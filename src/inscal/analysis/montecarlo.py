@@ -69,6 +69,7 @@ from inscal import __version__ as inscal_version
 from inscal.core.stats import chi2_ppf
 from inscal.io.jsonfile import to_jsonable
 
+#: version of the layout of a study folder's run files
 SCHEMA_VERSION = 1
 RUNS_FILE = "runs.jsonl"
 #: a study stops when its first this-many new runs all fail (a broken setup, not bad luck)
@@ -78,7 +79,7 @@ CONNECT_TIMEOUT = "15s"
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
 SUMMARY_PNG = "summary.png"
-#: the environment of the workers of a local cluster.  Dask's nanny sets MALLOC_TRIM_THRESHOLD_
+#: the environment of the workers of a local cluster.  Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_``
 #: (64 kB) to hand freed memory back to the OS at once; that also pins glibc's mmap threshold, so
 #: every array of a run (MB each) is mapped, page-faulted and unmapped again, which made a run of
 #: ``n25-fig5`` 1.6x slower on a worker than in the driver.  A run's memory is freed and reused by

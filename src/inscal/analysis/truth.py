@@ -35,6 +35,7 @@ def parameter_errors(imu: ImuErrors, gimbal: GimbalErrors | None, true_imu: ImuE
 
 
 def estimated_parameter_names(result) -> list[str]:
+    """The names of :data:`~inscal.core.error_model.PARAMETERS` that ``result`` estimates (all of them when it does not say)."""
     est = getattr(result, "estimated", None)
     names = [n for n in (est or PARAMETERS) if n in PARAMETERS]
     return names

@@ -17,25 +17,33 @@ A :class:`WindowSet` from :func:`window_means` may be passed instead of a record
 
 Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
 
-``six-position``     scheme 2: eq. 15-19 accelerometers (ideal inputs), Earth-rate gyro
-                     bias, CW/CCW rate tests (eq. 28).
-``twelve-position``  inner-symmetric version (eq. 24-26).
-``n25``              scheme 1: rough alpha0 (eq. 38), the eq. 40-44 least squares for
-                     [tan beta0, alpha0, dth], refined accelerometer and gyro errors.
-``unified``          the systematic filter (S16, 51 states) with the gimbal non-orthogonality
-                     and mount attitude estimated from the encoder angles (58 states;
-                     :mod:`.unified`); reads the record like the systematic methods.
-``thermal-plateaus`` a thermal-chamber calibration: another method (``per_plateau``, default
-                     ``n25``) on each temperature plateau of the record, then a weighted polynomial
-                     fit of every thermal term over the plateaus (:mod:`.thermal`; ``result.thermal``).
-``multi-position``   no turntable: still poses at unknown orientations found by
-                     :mod:`.static_detect`, the accelerometer model from the gravity magnitude and
-                     the gyro model from the rotations between poses (:mod:`.multiposition`,
-                     Tedaldi 2014); options ``min_static``, ``settle``, ``quadratic``, ...
-``ferraris``         no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995).
-``joint``            one nonlinear least-squares fit of all IMU errors, dth and the mounting
-                     attitude to every window, 1 sigma from the Jacobian and the measured
-                     window noise; unobservable directions are reported and held fixed.
+``six-position``
+    scheme 2: eq. 15-19 accelerometers (ideal inputs), Earth-rate gyro
+    bias, CW/CCW rate tests (eq. 28).
+``twelve-position``
+    inner-symmetric version (eq. 24-26).
+``n25``
+    scheme 1: rough alpha0 (eq. 38), the eq. 40-44 least squares for
+    [tan beta0, alpha0, dth], refined accelerometer and gyro errors.
+``unified``
+    the systematic filter (S16, 51 states) with the gimbal non-orthogonality
+    and mount attitude estimated from the encoder angles (58 states;
+    :mod:`.unified`); reads the record like the systematic methods.
+``thermal-plateaus``
+    a thermal-chamber calibration: another method (``per_plateau``, default
+    ``n25``) on each temperature plateau of the record, then a weighted polynomial
+    fit of every thermal term over the plateaus (:mod:`.thermal`; ``result.thermal``).
+``multi-position``
+    no turntable: still poses at unknown orientations found by
+    :mod:`.static_detect`, the accelerometer model from the gravity magnitude and
+    the gyro model from the rotations between poses (:mod:`.multiposition`,
+    Tedaldi 2014); options ``min_static``, ``settle``, ``quadratic``, ...
+``ferraris``
+    no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995).
+``joint``
+    one nonlinear least-squares fit of all IMU errors, dth and the mounting
+    attitude to every window, 1 sigma from the Jacobian and the measured
+    window noise; unobservable directions are reported and held fixed.
 
 Options (``**options``) go to :func:`window_means` (``settle``, ``min_static``, ...) and to
 the method (``uncertainty=False`` skips the error propagation; ``joint``: ``fix``,
@@ -59,6 +67,7 @@ from inscal.calibrate.twelve_position import twelve_position
 from inscal.calibrate.unified import unified
 from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means
 
+#: the calibration methods by name: the functions :func:`calibrate` dispatches to
 METHODS = {
     "six-position": six_position,
     "twelve-position": twelve_position,

@@ -71,6 +71,7 @@ P_INCONSISTENT = 1e-3
 #: floors of the window-mean sigma (noise-free data stay well conditioned): 1e-6 deg/h, 1e-6 ug
 CHANNELS = ("gyro", "accel")
 
+#: how the reported 1 sigma follows from the fit (the text written with every result)
 SIGMA_RULE = ("consistent fit: sigma = formal (measured window noise); inconsistent fit (p < 0.001): for each channel "
               "whose own fit is inconsistent the misfit is treated as systematic, sigma_i = sqrt(sum_consistent "
               "S_ij^2 + (sum_inconsistent |S_ij| s_c)^2) with S_ij = d x_i / d m_j * sigma_j and s_c = "

@@ -17,7 +17,7 @@ with the exact forward model of :mod:`.model` (no small-angle approximation).
   ``result.diagnostics["unobservable"]`` and ``result.notes``.
 * 1 sigma: ``sqrt(diag((J^T J)^-1))`` of the weighted Jacobian at the solution (the
   measured window noise) while the fit is consistent.  The fit (chi^2, dof, p, per-window
-  residuals, ``diagnostics["fit"]``, :func:`.result.fit_statistics`) is always reported;
+  residuals, ``diagnostics["fit"]``, :func:`.fit.fit_statistics`) is always reported;
   when it is inconsistent (p < 0.001) the likely cause is named in a note and the sigma are
   scaled for the misfit (:data:`.result.SIGMA_RULE`; the formal ones stay in
   ``diagnostics["formal_sigma"]``).  A misfit is systematic (unmodelled terms), so the

@@ -21,19 +21,23 @@ GIMBAL = ("gimbal_nonorthogonality", "mount_attitude")
 
 
 def param_value(imu: ImuErrors, gimbal: GimbalErrors, name: str) -> np.ndarray:
+    """The value of parameter ``name`` (SI, its shape in :data:`~inscal.core.error_model.PARAMETERS`) from the IMU or gimbal errors."""
     obj, attr, _, _, _ = PARAMETERS[name]
     return np.asarray(getattr(imu if obj == "imu" else gimbal, attr), dtype=float)
 
 
 def flatten(imu: ImuErrors, gimbal: GimbalErrors, names) -> np.ndarray:
+    """The parameters ``names`` as one flat vector (SI), in that order, each raveled row-major."""
     return np.concatenate([np.atleast_1d(param_value(imu, gimbal, n)).ravel() for n in names])
 
 
 def nparams(names) -> int:
+    """The number of scalar components of the parameters ``names``."""
     return sum(int(np.prod(PARAMETERS[n][4])) if PARAMETERS[n][4] else 1 for n in names)
 
 
 def unflatten(vec, names) -> dict[str, np.ndarray]:
+    """The inverse of :func:`flatten`: ``{name: value}`` (SI, each in its shape; a scalar parameter as a float)."""
     out, k = {}, 0
     for n in names:
         shape = PARAMETERS[n][4]
@@ -78,7 +82,7 @@ class CalibrationResult:
     def fit(self) -> dict | None:
         """The fit (``diagnostics["fit"]``): of the window means for the window-mean methods
         (:func:`fit_statistics`), of the innovations for the systematic filter
-        (:func:`inscal.calibrate.systematic.innovation_fit`)."""
+        (:func:`inscal.calibrate.systematic.diagnostics.innovation_fit`)."""
         return self.diagnostics.get("fit")
 
     def sigma_scaled(self, name: str) -> bool:

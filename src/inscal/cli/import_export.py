@@ -102,6 +102,10 @@ def _is_record(p: Path) -> bool:
 
 
 def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = False) -> dict:
+    """Export the parameter file ``params`` into another tool's convention ``fmt`` at ``out``
+    (:func:`inscal.io.exports.calibration.export_calibration`; ``c`` writes ``NAME.c`` and ``NAME.h``);
+    the outputs are checked first and a bad file is one line (:class:`~inscal.cli.common.CliError`).
+    """
     from inscal.io.exports.calibration import export_calibration
     from inscal.io.paramfile import ParamFileError
 

@@ -52,18 +52,21 @@ def axis_angle_dcm(axis, angle):
 
 @njit(cache=True)
 def rot_x(t):
+    """The elementary rotation matrix about x by ``t`` [rad], active and right-handed."""
     c, s = math.cos(t), math.sin(t)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 @njit(cache=True)
 def rot_y(t):
+    """The elementary rotation matrix about y by ``t`` [rad], active and right-handed."""
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 @njit(cache=True)
 def rot_z(t):
+    """The elementary rotation matrix about z by ``t`` [rad], active and right-handed."""
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -102,6 +105,7 @@ def quat_from_dcm(c) -> np.ndarray:
 
 
 def dcm_from_quat(q) -> np.ndarray:
+    """The rotation matrix of the unit quaternion ``q = [w, x, y, z]`` (scalar first), shape (4,) or (N, 4)."""
     q = np.asarray(q, dtype=float)
     return Rotation.from_quat(np.roll(q, -1, axis=-1)).as_matrix()
 
@@ -145,6 +149,8 @@ def quat_from_rotvec(v):
 
 @njit(cache=True)
 def quat_to_dcm(q):
+    """The rotation matrix of the unit quaternion ``q = [w, x, y, z]`` (scalar first): the kernel form of
+    :func:`dcm_from_quat` for one quaternion."""
     w, x, y, z = q[0], q[1], q[2], q[3]
     return np.array(
         [

@@ -142,6 +142,7 @@ class GravityModel:
         return self.g(lat, h) / float(normal_gravity(lat, h))
 
     def to_json(self) -> dict:
+        """The model as a JSON table: ``{"kind", "value"}``, plus ``"height"`` [m] for a measured value."""
         d = {"kind": self.kind, "value": self.value}
         if self.height is not None:
             d["height"] = self.height
@@ -149,6 +150,7 @@ class GravityModel:
 
     @classmethod
     def from_json(cls, d) -> "GravityModel":
+        """The model from :meth:`to_json`'s table or from its text form (``wgs84`` | ``psins`` | a value in m/s^2); None is WGS-84."""
         if d is None:
             return WGS84_GRAVITY
         if isinstance(d, str):
@@ -160,6 +162,7 @@ class GravityModel:
         return cls(str(d["kind"]), None if v is None else float(v), None if hh is None else float(hh))
 
     def describe(self) -> str:
+        """One line for reports: the model's name, or the measured value [m/s^2] and its height."""
         if self.kind != "measured":
             return self.kind
         return f"measured {self.value!r} m/s^2" + ("" if self.height is None else f" at {self.height:g} m")
@@ -221,4 +224,5 @@ class Site:
 
     @property
     def earth_rate_n(self) -> np.ndarray:
+        """The Earth rate in the ENU frame at the site's latitude [rad/s]."""
         return earth.earth_rate_n(self.latitude)

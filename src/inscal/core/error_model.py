@@ -76,6 +76,7 @@ def off_diagonal(angles) -> np.ndarray:
 
 
 def off_diagonal_angles(e) -> np.ndarray:
+    """The 6 angles ``[xy, xz, yx, yz, zx, zy]`` of a zero-diagonal installation matrix E: the inverse of :func:`off_diagonal`."""
     return np.array([e[i, j] for i, j in MISALIGN_INDEX])
 
 
@@ -162,6 +163,7 @@ class ImuErrors:
             object.__setattr__(self, f.name, _arr(val, shape, f.name))
 
     def replace(self, **kw) -> "ImuErrors":
+        """A copy with the fields given in ``kw`` replaced (:func:`dataclasses.replace`)."""
         return dataclasses.replace(self, **kw)
 
     # -- matrices
@@ -177,10 +179,12 @@ class ImuErrors:
 
     @property
     def K_cross(self) -> np.ndarray:
+        """The 3x3 cross-coupling matrix ``Kx`` of the S16 eq. 12 row layout, from ``accel_cross_coupling``."""
         return cross_matrix(self.accel_cross_coupling)
 
     @property
     def has_nonlinear(self) -> bool:
+        """Whether any accelerometer nonlinearity, cross-coupling or lever arm is non-zero."""
         return bool(np.any(self.accel_nonlinearity) or np.any(self.accel_cross_coupling) or np.any(self.accel_lever_arm))
 
     @property
@@ -379,14 +383,15 @@ class ImuNoise:
 
     @property
     def is_zero(self) -> bool:
+        """Whether every noise term (white noise, bias instability, quantization, encoder noise) is zero."""
         return not any(np.any(getattr(self, n)) for n in (
             "arw", "vrw", "gyro_bias_instability", "accel_bias_instability",
             "gyro_quantization", "accel_quantization", "encoder_noise"))
 
 
 # ----------------------------------------------------------------------------------
-# Parameter registry: name -> (object, attribute, unit kind, field unit, shape).
-# The field units are what files, reports and the CLI use; conversion is in units.py.
+#: Parameter registry: name -> (object, attribute, unit kind, field unit, shape).
+#: The field units are what files, reports and the CLI use; conversion is in units.py.
 PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
     "gyro_scale_factor": ("imu", "gyro_scale_factor", "dimensionless", "ppm", (3,)),
     "gyro_misalignment": ("imu", "gyro_misalignment", "angle", "arcsec", (6,)),
@@ -403,6 +408,7 @@ PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
     "mount_attitude": ("gimbal", "mount_attitude", "angle", "arcsec", (3,)),
 }
 
+#: the noise parameters of a ``[noise]`` table: name -> (attribute, unit kind, field unit)
 NOISE_FIELDS: dict[str, tuple[str, str, str]] = {
     # name -> (attribute, kind, field unit)
     "arw": ("arw", "arw", "deg/sqrt(h)"),
@@ -466,6 +472,10 @@ def errors_to_field(imu: ImuErrors | None, gimbal: GimbalErrors | None = None) -
 
 
 def noise_from_field(d: dict) -> ImuNoise:
+    """An :class:`ImuNoise` (SI) from a ``[noise]`` table in field units (names and units of
+    :data:`NOISE_FIELDS`; a bare value is in the field unit, or ``{value = ..., unit = "..."}``).
+    An unknown name is a ValueError.
+    """
     unknown = set(d) - set(NOISE_FIELDS)
     if unknown:
         raise ValueError(f"unknown noise parameter(s) {sorted(unknown)}; known: {', '.join(NOISE_FIELDS)}")
@@ -502,11 +512,13 @@ class S16Parameters:
 
     @property
     def T_g(self) -> np.ndarray:
+        """S16's gyro misalignment matrix ``T_g`` (lower-triangular, the three angles ``gamma``)."""
         yz, zx, zy = self.gamma
         return np.array([[1.0, 0.0, 0.0], [-yz, 1.0, 0.0], [zy, -zx, 1.0]])
 
     @property
     def T_a(self) -> np.ndarray:
+        """S16's accelerometer misalignment matrix ``T_a`` (the six angles ``alpha``)."""
         xy, xz, yx, yz, zx, zy = self.alpha
         return np.array([[1.0, xz, -xy], [-yz, 1.0, yx], [zy, -zx, 1.0]])
 

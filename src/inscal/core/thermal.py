@@ -123,6 +123,7 @@ class ThermalModel:
         object.__setattr__(self, "gyro_bias_rate", d)
 
     def replace(self, **kw) -> ThermalModel:
+        """A copy with the fields given in ``kw`` replaced (:func:`dataclasses.replace`)."""
         return dataclasses.replace(self, **kw)
 
     # -- structure
@@ -132,18 +133,22 @@ class ThermalModel:
 
     @property
     def orders(self) -> dict[str, int]:
+        """The polynomial order of every thermal term, by name (0: the term is constant)."""
         return {name: self.order(name) for name in THERMAL_TERMS}
 
     @property
     def has_rate(self) -> bool:
+        """Whether the gyro bias has a non-zero dT/dt term."""
         return bool(np.any(self.gyro_bias_rate))
 
     @property
     def has_misalignment(self) -> bool:
+        """Whether either triad's misalignment follows the temperature."""
         return bool(np.any(self.gyro_misalignment) or np.any(self.accel_misalignment))
 
     @property
     def is_zero(self) -> bool:
+        """Whether the model changes nothing (every coefficient zero)."""
         return not (self.has_rate or any(np.any(getattr(self, n)) for n in THERMAL_TERMS))
 
     # -- evaluation

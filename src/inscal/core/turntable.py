@@ -97,6 +97,7 @@ class RotationPath:
                     )
 
     def final_angles(self) -> tuple[float, float]:
+        """The (outer, inner) gimbal angles [rad] after the last move."""
         th = list(self.initial)
         for m in self.moves:
             if m.axis != "none":
@@ -105,13 +106,16 @@ class RotationPath:
 
     @property
     def duration(self) -> float:
+        """The length of the path [s], dwells included."""
         return float(self.segments().t1[-1])
 
     def segments(self) -> "Segments":
+        """The path compiled into its piecewise-quadratic segments (:func:`compile_path`)."""
         return compile_path(self)
 
     # -- (de)serialisation in field units (deg, deg/s, s)
     def to_dict(self) -> dict:
+        """The path as a table in the units of a path file (degrees, seconds), as :meth:`from_dict` reads it."""
         return {
             "name": self.name,
             "accel_dps2": self.accel / DEG,
@@ -125,10 +129,12 @@ class RotationPath:
         }
 
     def to_json(self) -> str:
+        """The path as JSON text (:meth:`to_dict`), as a record's ``path`` attribute holds it."""
         return json.dumps(self.to_dict())
 
     @classmethod
     def from_dict(cls, d: dict) -> "RotationPath":
+        """A path from a ``[path]`` table (degrees, seconds); unknown keys and malformed moves are a :class:`PathError`."""
         known = {"name", "accel_dps2", "initial_deg", "initial_dwell_s", "closed", "moves"}
         unknown = set(d) - known
         if unknown:
@@ -166,6 +172,7 @@ class RotationPath:
 
     @classmethod
     def from_json(cls, s: str) -> "RotationPath":
+        """A path from :meth:`to_json`'s text."""
         return cls.from_dict(json.loads(s))
 
 
@@ -192,6 +199,9 @@ class Segments:
 
 
 def compile_path(path: RotationPath) -> Segments:
+    """The path as :class:`Segments`: for each piece its start and end time, the angles, rates and
+    angular accelerations of both gimbals at its start, and the move it belongs to (-1: the initial dwell).
+    """
     t0, t1, th0, w0, acc, mi = [], [], [], [], [], []
     t = 0.0
     th = np.array(path.initial, dtype=float)

@@ -157,6 +157,7 @@ KIND: dict[str, str] = {
 
 
 def canonical(unit: str) -> str:
+    """The canonical name of ``unit`` (aliases such as ``°/h`` resolved); an unknown unit is a :class:`UnitError`."""
     u = unit.strip()
     u = ALIASES.get(u, u)
     if u not in FACTOR:

@@ -55,6 +55,9 @@ SKIPPABLE = CHECKS + ("encoders",)
 
 # ----------------------------------------------------------------------------- checks
 def check_finite(raw: Raw, where: str) -> None:
+    """Refuse (:class:`~inscal.io.mapping.ImportFileError`) a NaN or Inf in the time, the six sensor channels or the gimbal
+    angles, naming the channel, how many and the first line or row.
+    """
     chans = [(raw.time_label, raw.time)] if raw.time is not None else []
     chans += [(raw.labels[k], raw.raw_channels[:, k]) for k in range(6)]
     if raw.gimbal is not None:
@@ -67,6 +70,9 @@ def check_finite(raw: Raw, where: str) -> None:
 
 
 def check_integers(raw: Raw, where: str) -> None:
+    """Refuse a sensor channel that holds only whole numbers while its unit is not ``counts``: integer
+    counts read as physical units (the message names the mapping's ``counts`` and its scale).
+    """
     for k in range(6):
         if raw.counts[k // 3]:
             continue
@@ -274,6 +280,9 @@ def check_values(raw: Raw, rate_hz: float, where: str, gyro_unit: str = "rad", a
 
 
 def check_constant(raw: Raw, where: str) -> None:
+    """Refuse a sensor channel that is constant over the whole file: a dead or disconnected channel
+    (``--skip-check constant`` imports anyway).
+    """
     for k in range(6):
         x = raw.raw_channels[:, k]
         if np.ptp(x) == 0:

@@ -114,6 +114,7 @@ class EncoderCheck:
 
     @property
     def latency_samples(self) -> float:
+        """The estimated encoder latency in samples of the record (``latency_s`` times the rate)."""
         return self.latency_s * self.rate_hz
 
     def summary(self) -> dict:
@@ -123,6 +124,9 @@ class EncoderCheck:
                 "latency_sigma_s": _num(self.latency_sigma_s), "latency_samples": _num(self.latency_samples)}
 
     def to_dict(self) -> dict:
+        """The check as JSON: :meth:`summary` plus every move's comparison and every hypothesis tested
+        (a sign, swapped columns, a unit, an offset) with its largest residual [deg].
+        """
         d = self.summary()
         d["move_list"] = [asdict(m) for m in self.moves]
         d["hypotheses"] = [{"name": n, "max_residual_deg": _num(r), "moves_within": k} for n, r, k in self.hypotheses]

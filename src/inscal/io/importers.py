@@ -4,26 +4,32 @@
 
 Sources
 -------
-``psins``  raw binary (PSINS ``.bin``): little-endian float64 (default) or float32 rows of 7
-           values ``[dθx dθy dθz dvx dvy dvz t]`` (rad, m/s, s), or with ``rates=True`` the
-           rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
-           interval.  ``t`` is the END time of each sample interval (PSINS convention and the
-           record's).
-``psins-imu``  PSINS compact text log (``.imu``): a header with the initial attitude, the site, the
-           start time, the sampling interval, g and the scale factors (arcsec and ug*s per count),
-           then integer counts (see :func:`~inscal.io.formats.read_psins_imu`); the site comes from
-           the header unless one is given.
-``mat``    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
-           the first 2-D numeric variable with 7 columns, or the named ``variable``.
-``csv``    delimited text described by a mapping TOML (below); without a mapping, the file
-``txt``    must start with the header line that :func:`export_record` writes.  ``txt``
-           defaults to whitespace-separated columns.
-``rosbag`` a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
-           messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
-           rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
-           error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
-``kf-gins`` KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
-           block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
+``psins``
+    raw binary (PSINS ``.bin``): little-endian float64 (default) or float32 rows of 7
+    values ``[dθx dθy dθz dvx dvy dvz t]`` (rad, m/s, s), or with ``rates=True`` the
+    rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
+    interval.  ``t`` is the END time of each sample interval (PSINS convention and the
+    record's).
+``psins-imu``
+    PSINS compact text log (``.imu``): a header with the initial attitude, the site, the
+    start time, the sampling interval, g and the scale factors (arcsec and ug*s per count),
+    then integer counts (see :func:`~inscal.io.formats.read_psins_imu`); the site comes from
+    the header unless one is given.
+``mat``
+    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
+    the first 2-D numeric variable with 7 columns, or the named ``variable``.
+``csv``, ``txt``
+    delimited text described by a mapping TOML (below); without a mapping, the file
+    must start with the header line that :func:`export_record` writes.  ``txt``
+    defaults to whitespace-separated columns.
+``rosbag``
+    a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
+    messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
+    rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
+    error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+``kf-gins``
+    KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
+    block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
 
 Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 

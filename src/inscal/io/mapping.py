@@ -42,6 +42,7 @@ REGRID_TOL = 0.1
 #: specific force [m/s^2] (1,000 g), gimbal angle [rad] (1.6 million turns), timestamp [s] (31,700 years)
 MAX_RATE = 2.0 * math.pi * 100.0
 MAX_ACCEL = 1000.0 * units.G0
+#: the largest plausible angle of an import [rad] (1.6 million turns)
 MAX_ANGLE = 2.0 * math.pi * 1.6e6
 MAX_TIME = 1e12
 #: sample rates an IMU record can have [Hz]: a slower log (over 1.5 s between samples) or a faster one
@@ -301,6 +302,9 @@ def decode_counts(x, spec: tuple | None, where: str, labels, at) -> np.ndarray:
 
 
 def load_mapping(path, fmt: str) -> tuple[Mapping | None, Site | None]:
+    """Read and check a mapping TOML for format ``fmt``: ``(Mapping or None, Site or None)`` (a psins/mat
+    mapping may hold only ``[site]``); every malformed key is an :class:`ImportFileError` naming the file.
+    """
     p = Path(path)
     d = read_toml(p, ImportFileError, "mapping file")
     try:

@@ -81,6 +81,7 @@ from inscal.io.files import atomic_path, check_input, file_hash
 from inscal.io.jsonfile import to_jsonable
 from inscal.io.records import record_attrs
 
+#: version of the parameter file layout (``schema_version``)
 PARAM_SCHEMA_VERSION = 1
 KIND = "inscal-parameters"
 

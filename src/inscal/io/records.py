@@ -62,6 +62,9 @@ class DataFileError(ValueError):
 
 @dataclass(frozen=True)
 class Truth:
+    """What a simulated record was made with (SI): the IMU errors (at ``T_ref`` when there is a thermal
+    model), the gimbal errors, the noise, and the thermal model if any (``/truth`` of the record).
+    """
     imu: ImuErrors
     gimbal: GimbalErrors
     noise: ImuNoise
@@ -142,10 +145,12 @@ class Record:
 
     @property
     def n_samples(self) -> int:
+        """The number of samples N."""
         return int(self.time.shape[0])
 
     @property
     def duration(self) -> float:
+        """The record's length N / rate [s]."""
         return float(self.n_samples / self.rate_hz)
 
 
@@ -340,6 +345,7 @@ def _check_header(h5, p) -> None:
 
 #: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
 def truth_groups() -> dict:
+    """The dataclass of each ``/truth`` group: ``{"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}``."""
     from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 
     return {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
@@ -476,6 +482,9 @@ def read_record(path) -> Record:
 
 @dataclass
 class RecordInfo:
+    """A record's metadata without its arrays (:func:`record_info`): size, rate, site, path, truth,
+    scenario, whether it has gimbal angles, its temperature sensors and its file.
+    """
     n_samples: int
     rate_hz: float
     site: Site
@@ -562,6 +571,7 @@ class Window:
 
     @property
     def n(self) -> int:
+        """The number of samples in the window, ``i1 - i0``."""
         return self.i1 - self.i0
 
 

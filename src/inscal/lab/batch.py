@@ -130,6 +130,7 @@ class Outcome:
     registered: bool = False
 
     def to_json(self) -> dict:
+        """The record's outcome as JSON: path, serial, status, result id, seconds, and the error when it failed."""
         d = {"path": self.path, "serial": self.serial, "status": self.status, "result_id": self.result_id,
              "elapsed_s": round(self.elapsed_s, 3)}
         if self.error is not None:
@@ -152,6 +153,7 @@ class BatchResult:
         return sorted({o.serial for o in self.outcomes if o.registered})
 
     def count(self, status: str) -> int:
+        """How many records ended with ``status`` (``done``, ``skipped`` or ``failed``)."""
         return sum(o.status == status for o in self.outcomes)
 
     def calibration_s(self) -> float | None:
@@ -160,6 +162,7 @@ class BatchResult:
         return sum(t) / len(t) if t else None
 
     def to_json(self) -> dict:
+        """The batch as ``inscal batch --json`` prints it: the counts, workers, times, the failures and every record's outcome."""
         mean = self.calibration_s()
         return {"db": self.db, "records": len(self.outcomes), "done": self.count("done"), "skipped": self.count("skipped"),
                 "failed": self.count("failed"), "registered": self.registered, "workers": self.workers,

@@ -61,7 +61,7 @@ class CalibrationSetup:
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
     ``per_plateau`` (default n25) on each temperature plateau with the options above that apply to it, then
     fits the thermal model: ``thermal_orders`` ((term, order) pairs over
-    :data:`inscal.calibrate.thermal.DEFAULT_ORDERS`), ``t_ref`` [degC], ``plateau_tol`` [degC],
+    :data:`inscal.calibrate.thermal.method.DEFAULT_ORDERS`), ``t_ref`` [degC], ``plateau_tol`` [degC],
     ``temperature_sensor`` ("" = the mean of the record's sensors) and ``chamber_label``."""
 
     method: str

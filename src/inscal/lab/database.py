@@ -84,9 +84,11 @@ class Database:
 
     @property
     def dialect(self) -> str:
+        """The SQL dialect of the database: ``sqlite`` or ``postgresql``."""
         return self.engine.dialect.name
 
     def close(self) -> None:
+        """Release the database's connections (dispose of its engine)."""
         self.engine.dispose()
 
     def __enter__(self) -> Self:
@@ -205,6 +207,7 @@ def script() -> ScriptDirectory:
 
 
 def head_revision() -> str:
+    """The newest schema revision the shipped Alembic scripts define."""
     return script().get_current_head()
 
 

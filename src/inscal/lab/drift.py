@@ -43,11 +43,12 @@ DEFAULT_K = 3.0
 
 
 def tail(k: float) -> float:
-    """P(|z| > k) of a standard Gaussian: the false-alarm probability of one test."""
+    """P(``|z|`` > k) of a standard Gaussian: the false-alarm probability of one test."""
     return math.erfc(k / math.sqrt(2.0))
 
 
 def months_between(t0: dt.datetime, t: dt.datetime) -> float:
+    """The time from ``t0`` to ``t`` in months of :data:`MONTH_DAYS` days."""
     return (t - t0).total_seconds() / 86400.0 / MONTH_DAYS
 
 
@@ -86,6 +87,7 @@ class ComponentDrift:
         return self.rate * self.span_months
 
     def to_json(self) -> dict:
+        """The component's history as JSON: values and 1 sigma over time, repeatability, drift rate and flags."""
         return to_jsonable({
             "label": self.label, "unit": self.unit, "n": self.n, "ids": list(self.ids),
             "months": self.months, "values": self.values, "sigma": self.sigma, "span_months": self.span_months,
@@ -157,10 +159,12 @@ class History:
 
     @property
     def flagged(self) -> list[ComponentDrift]:
+        """The components that raised a drift or step flag."""
         return [c for c in self.components if c.flags]
 
     @property
     def tests(self) -> int:
+        """The number of tests made over all components (to weigh the flags expected by chance)."""
         return sum(c.tests for c in self.components)
 
     @property
@@ -169,6 +173,7 @@ class History:
         return self.tests * tail(self.k)
 
     def to_json(self) -> dict:
+        """The unit's history as ``inscal db history --json`` prints it, per parameter and component."""
         params: dict[str, dict] = {}
         for c in self.components:
             params.setdefault(c.name, {"unit": c.unit, "components": []})["components"].append(c.to_json())

@@ -36,6 +36,7 @@ class FleetEntry:
     history: History | None
 
     def to_json(self) -> dict:
+        """The unit as one row of ``inscal db list --json``: its results, current calibration and flags."""
         cur = self.current
         h = self.history
         return {**self.unit.to_json(), "results": self.results,

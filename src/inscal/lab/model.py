@@ -73,6 +73,7 @@ class Unit:
     created_at: dt.datetime
 
     def to_json(self) -> dict:
+        """The unit as JSON: serial, model, notes and when it was registered."""
         return {"serial": self.serial, "model": self.model, "notes": self.notes, "created_at": iso(self.created_at)}
 
 
@@ -97,6 +98,7 @@ class SessionInfo:
     path_name: str | None = None
 
     def to_json(self) -> dict:
+        """The calibration run as JSON: the record (hash, path, date), station, operator, site, gravity, temperature, path."""
         return {"record_sha256": self.record_sha256, "record_path": self.record_path, "date": iso(self.date),
                 "station": self.station, "operator": self.operator,
                 "site": {"latitude_deg": self.latitude_deg, "longitude_deg": self.longitude_deg,
@@ -113,6 +115,7 @@ class Session(SessionInfo):
     recorded_at: dt.datetime
 
     def to_json(self) -> dict:
+        """The stored run as JSON: :meth:`SessionInfo.to_json` with its id and the time it was recorded."""
         return {"id": self.id, **super().to_json(), "recorded_at": iso(self.recorded_at)}
 
 
@@ -136,6 +139,7 @@ class Parameter:
                 np.asarray(units.to_si(self.sigma, self.unit, kind), dtype=float))
 
     def to_json(self) -> dict:
+        """The parameter as JSON: value, 1 sigma (and the formal one when scaled) and unit."""
         out = {"value": self.value, "sigma": self.sigma, "unit": self.unit}
         if self.sigma_formal is not None:
             out["sigma_formal"] = self.sigma_formal
@@ -181,6 +185,9 @@ class Calibration:
         return self.session.date
 
     def to_json(self, with_covariance: bool = True) -> dict:
+        """The result as ``inscal db show --json`` prints it: parameters, fit, notes, provenance and,
+        with ``with_covariance``, the covariance.
+        """
         out = {"id": self.id, "serial": self.serial, "model": self.unit_model, "method": self.method,
                "state_set": self.state_set, "date": iso(self.date), "current": self.current,
                "supersedes": self.supersedes, "superseded_by": list(self.superseded_by),

@@ -11,7 +11,7 @@ file, with the unit's name in ``parameters.unit``; a covariance over the paramet
 in the same field units, a covariance over an estimator's own states (the systematic filter's)
 in SI (``results.covariance["units"]`` says which).  Times are UTC, stored without a zone.
 
-The schema's history is in :mod:`inscal.lab.migrations` (Alembic): revision ``0001_initial``
+The schema's history is in ``inscal/lab/migrations/`` (Alembic scripts): revision ``0001_initial``
 (v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
 added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results.
 """

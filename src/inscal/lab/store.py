@@ -61,6 +61,7 @@ class AlreadyRecorded(DatabaseError):
 
 
 def now() -> dt.datetime:
+    """The current UTC time without a zone, to the second (how the database stores times)."""
     return dt.datetime.now(dt.UTC).replace(tzinfo=None, microsecond=0)
 
 
@@ -76,6 +77,7 @@ def _unit(row) -> Unit:
 
 
 def get_unit(db: Database, serial: str) -> Unit | None:
+    """The unit registered as ``serial``, or None."""
     with read(db) as conn:
         row = conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).first()
     return None if row is None else _unit(row)
@@ -108,6 +110,7 @@ def check_text(value: str | None, what: str, limit: int = 200) -> None:
 
 
 def check_serial(serial: str) -> str:
+    """``serial`` stripped, when it is 1 to 200 printable characters; else a :class:`~inscal.lab.database.DatabaseError`."""
     s = str(serial).strip()
     if not s or len(s) > 200 or any(not c.isprintable() for c in s):
         raise DatabaseError(f"serial {str(serial)[:60]!r}{'...' if len(str(serial)) > 60 else ''}: give 1 to 200 "
@@ -306,6 +309,7 @@ def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | 
 
 
 def current_id(conn, unit_id: int) -> int | None:
+    """The id of the unit's current result (its newest ``current`` row), or None."""
     return conn.execute(sa.select(t.current.c.result_id).where(t.current.c.unit_id == unit_id)
                         .order_by(t.current.c.id.desc()).limit(1)).scalar()
 

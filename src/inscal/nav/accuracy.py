@@ -33,6 +33,7 @@ class NavErrors:
 
     @property
     def horizontal(self) -> np.ndarray:
+        """The horizontal position error [m] at each output time."""
         return np.hypot(self.position[:, 0], self.position[:, 1])
 
 
@@ -76,6 +77,7 @@ def schuler_frequency(lat: float, h: float = 0.0) -> float:
 
 
 def foucault_frequency(lat: float) -> float:
+    """The Foucault frequency ``OMEGA_IE |sin L|`` [rad/s] at latitude ``lat`` [rad]."""
     return earth.OMEGA_IE * abs(math.sin(lat))
 
 
@@ -119,6 +121,7 @@ def oscillation_components(t: np.ndarray, x: np.ndarray, lat: float) -> dict:
       peak-to-peak modulation over a Foucault period).  Otherwise one line at w_s and
       ``foucault`` = None.  Needs at least one Schuler period.
     * Earth: the line at W (needs >= 24 h, else None).
+
     Amplitudes in the unit of ``x``; ``trend`` per second.
     """
     return oscillation_components_of(t, np.asarray(x, dtype=float)[:, None], lat)[0]

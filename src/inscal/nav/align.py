@@ -68,6 +68,9 @@ class AlignConfig:
 
 @dataclass
 class AlignResult:
+    """The outcome of an alignment: the navigation state at its end, the samples and time it used, the
+    coarse attitude, the residual gyro and accelerometer bias estimates and the attitude's final 1 sigma.
+    """
     state: NavState  # at the end of the alignment
     k_end: int  # number of samples used
     time_end: float

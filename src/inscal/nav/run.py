@@ -77,6 +77,7 @@ class HeightReference:
 
     @property
     def constant(self) -> bool:
+        """Whether the reference is one constant height (no time series)."""
         return self.time is None
 
     def __call__(self, t):
@@ -85,6 +86,7 @@ class HeightReference:
         return np.interp(t, self.time, self.height)
 
     def span(self) -> tuple[float, float] | None:
+        """The (first, last) time [s] of the height series, or None for a constant."""
         return None if self.time is None else (float(self.time[0]), float(self.time[-1]))
 
     @classmethod
@@ -118,6 +120,10 @@ class HeightReference:
 # ============================================================================ orchestration
 @dataclass
 class NavResult:
+    """A navigation: its output, its errors against the truth or the static site (with a summary), the
+    alignment when one was run, the configuration, how it started (``truth`` or ``align``) and the
+    thermal compensation applied.
+    """
     output: NavOutput
     errors: NavErrors | None
     summary: dict | None
@@ -253,6 +259,8 @@ def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = 
         /position (N,3) lat rad, lon rad, h m; /vehicle_attitude (N,3) rad roll/pitch/yaw;
         /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
         attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
+
+    The output is published whole or not at all, and an existing file is replaced only with ``overwrite``.
     """
 
 

@@ -576,6 +576,7 @@ class NavOutput:
 
     @property
     def C_s_n(self) -> np.ndarray:
+        """The attitude ``C_s^n`` at each output time, from the stored quaternions."""
         return dcm_from_quat(self.quaternion)
 
     def vehicle_attitude(self, gimbal_model: GimbalErrors | None = None) -> np.ndarray:
@@ -670,6 +671,7 @@ class Strapdown:
 
     # -- state access
     def set_state(self, s: NavState) -> None:
+        """Start (or restart) the navigation from state ``s``; the Earth quantities are recomputed at its position."""
         q = quat_from_dcm(s.C_s_n)
         self.st[S_Q:S_Q + 4] = q / np.linalg.norm(q)
         self.st[S_V:S_V + 3] = s.velocity
@@ -680,6 +682,7 @@ class Strapdown:
 
     @property
     def state(self) -> NavState:
+        """The current navigation state (attitude, velocity, position)."""
         st = self.st
         return NavState(dcm_from_quat(st[S_Q:S_Q + 4]), st[S_V:S_V + 3].copy(), st[S_LAT], st[S_LON], st[S_H])
 

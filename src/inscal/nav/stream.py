@@ -54,6 +54,7 @@ class SampleStream:
         return self._pending
 
     def take(self, n: int):
+        """The next ``n`` samples as one ``(time, dtheta, dvel, gimbal)`` tuple (fewer at the end; None when none are left)."""
         parts, have = [], 0
         while have < n:
             try:
@@ -73,6 +74,7 @@ class SampleStream:
                 np.concatenate([p[2] for p in parts]), g)
 
     def chunks(self) -> Iterator:
+        """The remaining samples, chunk by chunk."""
         while True:
             try:
                 yield self._next()

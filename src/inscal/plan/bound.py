@@ -170,6 +170,7 @@ class Setup:
 
     @property
     def n_params(self) -> int:
+        """The number of parameter states the bound covers."""
         return len(self.labels)
 
     @property
@@ -179,6 +180,7 @@ class Setup:
 
     def scenario(self, path: RotationPath):
 
+        """A scenario of ``path`` at the setup's site and gimbal (for the functions that need one)."""
         return Scenario(path.name, path, self.site, gimbal=self.gimbal)
 
 
@@ -310,6 +312,7 @@ class Bound:
 
     @property
     def labels(self) -> tuple[str, ...]:
+        """The parameter states' labels, in the order of ``sigma``."""
         return self.setup.labels
 
     @property
@@ -319,6 +322,7 @@ class Bound:
 
     @property
     def prior(self) -> np.ndarray:
+        """The prior 1 sigma of every parameter state (SI)."""
         return self.setup.prior
 
     @property
@@ -333,6 +337,7 @@ class Bound:
         return np.sqrt(np.maximum(self.history, 0.0))
 
     def by_label(self) -> dict[str, float]:
+        """The bound's 1 sigma (SI) of every parameter state, by label."""
         return dict(zip(self.labels, self.sigma.tolist()))
 
     def table(self) -> list[dict]:
@@ -355,6 +360,9 @@ class Bound:
         return {g: float(np.sqrt(np.mean(np.square(v)))) for g, v in out.items()}
 
     def to_dict(self) -> dict:
+        """The bound as JSON (``observability --crlb --json``): path, states, rates, site, noise and every
+        parameter's bound in field units.
+        """
         su = self.setup
         return {"path": {"name": self.path_name, "duration_s": self.duration_s}, "states": _spec(su.states),
                 "n_params": su.n_params, "filter_rate_hz": 1.0 / su.T, "sub_rate_hz": su.n_sub / su.T,

@@ -25,6 +25,7 @@ from inscal.core.kinematics import (  # segment_at: smallest s with seg_t1[s] > 
 
 @njit(cache=True)
 def is_static(s, seg_w0, seg_acc):
+    """Whether segment ``s`` of the path holds both gimbal axes still: zero rate and zero angular acceleration."""
     return seg_w0[s, 0] == 0.0 and seg_w0[s, 1] == 0.0 and seg_acc[s, 0] == 0.0 and seg_acc[s, 1] == 0.0
 
 

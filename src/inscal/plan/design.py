@@ -120,6 +120,7 @@ class Limits:
             raise DesignError("max_moves must be >= 1")
 
     def range_of(self, ax: int) -> tuple[float, float]:
+        """The allowed angle range [rad] of axis ``ax`` (0 outer, 1 inner): its own range and the cable wrap."""
         lo, hi = -math.inf, math.inf
         r = self.outer_range if ax == 0 else self.inner_range
         if r is not None:
@@ -129,6 +130,7 @@ class Limits:
         return lo, hi
 
     def to_dict(self) -> dict:
+        """The turntable limits as JSON, in degrees and seconds."""
         f = lambda r: None if r is None else [r[0] / DEG, r[1] / DEG]  # noqa: E731
         return {"axes": list(self.axes), "max_rate_dps": self.max_rate / DEG, "max_accel_dps2": self.max_accel / DEG,
                 "min_rate_fraction": self.min_rate_fraction, "outer_range_deg": f(self.outer_range),
@@ -204,6 +206,7 @@ def seed_genomes(limits: Limits) -> list:
 
 
 def random_genes(rng: np.random.Generator, limits: Limits, n: int | None = None) -> list:
+    """A random move sequence (8 to 30 moves unless ``n`` is given, at most ``limits.max_moves``) drawn from ``rng``."""
     axes = [AXES.index(a) for a in limits.axes]
     n = int(rng.integers(8, 31)) if n is None else n
     return [_random_gene(rng, axes, limits) for _ in range(min(n, limits.max_moves))]
@@ -216,6 +219,8 @@ def _random_gene(rng, axes, limits) -> Gene:
 
 
 def mutate(genes: list, rng: np.random.Generator, limits: Limits) -> list:
+    """A copy of ``genes`` changed by one to three random operations drawn from ``rng``, within ``limits``:
+    insert, delete or swap moves, or change one move's axis, angle, rate or dwell."""
     g = list(genes)
     axes = [AXES.index(a) for a in limits.axes]
     for _ in range(int(rng.integers(1, 4))):
@@ -247,6 +252,7 @@ def mutate(genes: list, rng: np.random.Generator, limits: Limits) -> list:
 
 
 def crossover(a: list, b: list, rng: np.random.Generator) -> list:
+    """A child of two move sequences: the head of ``a`` and the tail of ``b``, cut at random points drawn from ``rng``."""
     if not a or not b:
         return list(a or b)
     i = int(rng.integers(0, len(a) + 1))
@@ -271,6 +277,9 @@ class Objective:
             raise DesignError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
 
     def value(self, sigma: np.ndarray) -> float:
+        """The objective of the bound ``sigma``: the worst ratio to the targets (``worst-normalised``), or
+        the mean squared ratio.
+        """
         x = (np.asarray(sigma) / self.targets)[self.mask]
         return float(np.max(x)) if self.kind == "worst-normalised" else float(np.mean(x * x))
 
@@ -350,6 +359,7 @@ class SearchSize:
 
     @property
     def total_steps(self) -> float:
+        """The filter steps of the whole search (steps per candidate times candidates)."""
         return self.steps * self.candidates
 
     @property
@@ -437,6 +447,9 @@ class _Evaluator:
 
 @dataclass
 class DesignResult:
+    """A designed path with its bound, the objective and its value, the value of S16's own path for
+    comparison, the time budget and the turntable limits.
+    """
     path: RotationPath
     bound: Bound
     objective: Objective
@@ -451,9 +464,11 @@ class DesignResult:
     trace: list = field(default_factory=list)  # best score (Objective.score) after each generation
 
     def groups(self) -> dict:
+        """The bound per S16 Table 2 group against S16's own path."""
         return group_summary(self.bound.sigma, self.bound.setup, self.objective.reference)
 
     def to_dict(self) -> dict:
+        """The design as ``inscal design --json`` prints it."""
         g = self.groups()
         t2 = {k: {"bound_rms": g[k]["bound_rms"], "s16_path_rms": g[k]["s16_path_rms"],
                   "worst_ratio_to_s16_path": g[k]["worst_ratio"], "s16_table2": S16_TABLE2[k],

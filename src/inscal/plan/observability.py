@@ -163,6 +163,7 @@ class StateResult:
     verdict: str
 
     def to_dict(self) -> dict:
+        """The state's result as JSON."""
         return dict(self.__dict__)
 
 
@@ -177,10 +178,12 @@ class Direction:
     components: tuple[tuple[str, float], ...]
 
     def to_dict(self) -> dict:
+        """The direction as JSON: its singular value and the weight of each state."""
         return {"singular_value": self.singular_value,
                 "components": [{"label": lab, "weight": w} for lab, w in self.components]}
 
     def describe(self) -> str:
+        """The direction as one line: ``+0.71 label_a -0.71 label_b ...``."""
         return " ".join(f"{w:+.2f} {lab}" for lab, w in self.components)
 
 
@@ -218,15 +221,18 @@ class ObservabilityReport:
 
     @property
     def n_params(self) -> int:
+        """The number of parameter states reported."""
         return len(self.states)
 
     def by_label(self, label: str) -> StateResult:
+        """The result of the state ``label``; a KeyError when there is none."""
         for s in self.states:
             if s.label == label:
                 return s
         raise KeyError(label)
 
     def ratios(self) -> dict[str, float]:
+        """The posterior over prior 1 sigma of every parameter state, by label."""
         return {s.label: s.ratio for s in self.states}
 
     def null_weight(self, label: str) -> float:
@@ -242,6 +248,7 @@ class ObservabilityReport:
         return float(np.linalg.norm(null[:, j]))
 
     def weakest_states(self, n: int = 5) -> list[StateResult]:
+        """The ``n`` states the path observes least (largest posterior/prior ratio first)."""
         return sorted(self.states, key=lambda s: -s.ratio)[:n]
 
     def groups(self) -> dict[str, dict]:
@@ -257,6 +264,7 @@ class ObservabilityReport:
         return out
 
     def to_dict(self) -> dict:
+        """The report as ``inscal observability --json`` prints it."""
         return {
             "source": self.source, "kind": self.kind, "path": {"name": self.path_name, "duration_s": self.duration_s},
             "site": self.site, "states": self.state_spec, "n_states": self.n_states, "n_params": self.n_params,
@@ -285,7 +293,7 @@ class ObservabilityReport:
 # ----------------------------------------------------------------------------- input
 def load_source(source):
     """``(Scenario, kind, label)`` from a :class:`~inscal.sim.simulate.Scenario`, a
-    :class:`~inscal.core.turntable.Path`, a built-in scenario or path name, a scenario TOML or a
+    :class:`~inscal.core.turntable.RotationPath`, a built-in scenario or path name, a scenario TOML or a
     path TOML (a ``[path]`` table only, or the path keys at the top level)."""
 
     if isinstance(source, Scenario):
@@ -325,6 +333,10 @@ def _bare(path: RotationPath):
 
 
 def resolve_noise(sc, kind: str, arw, vrw) -> tuple[np.ndarray, np.ndarray, str]:
+    """The gyro and accelerometer white noise (SI, per axis) for the bound: ``arw`` / ``vrw`` when
+    given, else the scenario's, else S16's defaults; returns them with where they came from.
+    A non-positive value is an :class:`ObservabilityError`.
+    """
     sa, sv = np.asarray(sc.noise.arw, float), np.asarray(sc.noise.vrw, float)
     have = kind == "scenario" and np.all(sa > 0) and np.all(sv > 0)
     if arw is None:

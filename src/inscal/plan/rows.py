@@ -43,6 +43,7 @@ class BiasNoise:
 
     @property
     def active(self) -> bool:
+        """Whether any bias random walk or Gauss-Markov term is non-zero."""
         return bool(np.any(self.gyro_rw) or np.any(self.accel_rw) or np.any(self.gyro_gm) or np.any(self.accel_gm))
 
     @classmethod
@@ -52,6 +53,7 @@ class BiasNoise:
                    accel_gm=noise.accel_bias_instability, accel_tau=noise.accel_bias_tau)
 
     def to_dict(self) -> dict:
+        """The bias noise as JSON, in field units."""
         return {"gyro_rw_deg_h_sqrt_h": (units.from_si(self.gyro_rw, "deg/h") * math.sqrt(3600.0)).tolist(),
                 "accel_rw_ug_sqrt_s": units.from_si(self.accel_rw, "ug").tolist(),
                 "gyro_gm_deg_h": units.from_si(self.gyro_gm, "deg/h").tolist(), "gyro_tau_s": self.gyro_tau,
@@ -103,6 +105,10 @@ def encoder_rows(st: StateSet, sc, t: np.ndarray, options: dict):
 
 
 def extra_rows(st: StateSet, sc, t: np.ndarray, sig: np.ndarray, options: dict | None = None):
+    """The measurement rows (H of shape (steps, rows, states), their noise) that the state set ``st``
+    adds to the zero-velocity and position updates (e.g. the encoder rows of the gimbal states),
+    from the registered row builders; none: empty arrays.
+    """
     Hs, rs = [], []
     for applies, builder in _ROW_BUILDERS:
         if applies(st):

@@ -115,7 +115,7 @@ def plateau_points(items) -> list[PlateauPoint]:
 # ------------------------------------------------------------------------------ the record's temperature
 def temperature_data(temp, window_s: float = RATE_WINDOW_S, max_points: int = SERIES_POINTS) -> dict:
     """The numbers behind the temperature plot of a record's readings (:class:`inscal.io.records.Temperature`):
-    per sensor its range and largest |dT/dt| (the least-squares slope over ``window_s``,
+    per sensor its range and largest ``|dT/dt|`` (the least-squares slope over ``window_s``,
     :func:`~inscal.core.thermal.temperature_rate`, on every reading), the series thinned to at most
     ``max_points`` readings, and a one-line summary."""
     t = np.asarray(temp.time, dtype=float)

@@ -1,7 +1,7 @@
 """IMU-on-a-dual-axis-turntable simulator.
 
 Produces angular and velocity increments (``dtheta = int w_is^s dt``, ``dv = int f^s dt``)
-at a fixed rate for a static site, through the gimbal motion of a :class:`~inscal.core.turntable.Path`.
+at a fixed rate for a static site, through the gimbal motion of a :class:`~inscal.core.turntable.RotationPath`.
 
 Exactness: inside each sample interval the gimbal angles are piecewise quadratic in
 time; the interval is split at every segment boundary and each piece is integrated

@@ -30,7 +30,7 @@ shared helpers in ``common``).
     method are the error and 1 sigma of every estimated component (field units, truth in the
     filter's frame) and the NEES of the parameter error state (e from
     :meth:`~inscal.calibrate.systematic.CompParams.error_state`, P = ``res.covariance["P"]``,
-    dof = len(e)).  Summary: per group the median over runs of the mean |error| against the
+    dof = len(e)).  Summary: per group the median over runs of the mean absolute error against the
     S16 Table 2 figures (:data:`S16_TABLE2`) and against its expectation from the reported
     sigma (sqrt(2/pi) x mean sigma: a target below it is not reachable from this record),
     51 vs 30 for every group, the mean NEES against its 95 % chi-square band

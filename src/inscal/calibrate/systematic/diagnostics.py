@@ -48,7 +48,7 @@ UNOBSERVABLE_RATIO = 0.5
 def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet,
                    signature: dict | None = None, expected: float | None = None) -> dict:
     """The fit of a systematic-filter run, in the form of the window-mean methods' fit
-    (:func:`inscal.calibrate.result.fit_statistics`): chi^2 of the normalised innovations on
+    (:func:`inscal.calibrate.fit.fit_statistics`): chi^2 of the normalised innovations on
     ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
     mean NIS (expected 6 less the pseudo-measurement part, ``expected``) with the velocity / position
     innovation RMS.

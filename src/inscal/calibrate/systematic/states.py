@@ -94,7 +94,7 @@ DEFAULT_SIGMA0 = {
     "gimbal_nonorthogonality": units.to_si(60.0, "arcsec"), "mount_attitude": units.to_si(1.0, "deg"),
 }
 #: prior 1 sigma of each thermal term's change over the record's temperature span (SI of the base quantity): the
-#: coefficient of order k gets ``sigma / span^k`` (span = the largest |T - T_ref| of the record, at least
+#: coefficient of order k gets ``sigma / span^k`` (span = the largest ``|T - T_ref|`` of the record, at least
 #: 1 degC); the dT/dt term its own sigma [rad/degC]
 THERMAL_SIGMA0 = {"gyro_bias": units.to_si(1.0, "deg/h"), "gyro_scale_factor": 1e-3, "accel_bias": 3000 * UG,
                   "accel_scale_factor": 1e-3, "gyro_bias_rate": units.to_si(1.0, "deg/h/(degC/min)")}
@@ -108,6 +108,7 @@ TH_RATE_ROW = 12
 #: default orders (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor, dT/dt term 0/1):
 #: those of the built-in thermal scenarios' model (``inscal.sim.scenarios.THERMAL_ERRORS``)
 THERMAL_ORDERS = (2, 2, 3, 2, 1)
+#: the thermal terms the filter can carry as states, in the order of their rows
 THERMAL_TERM_NAMES = tuple(THERMAL_ROWS)
 #: default white noise of each encoder angle (gimbal states)
 ENCODER_SIGMA = units.to_si(1.0, "arcsec")

@@ -2,7 +2,7 @@
 
 The template (package data, ``templates/inscal_compensation.{h,c}``) implements exactly what
 ``inscal compensate`` does with a parameter file (:meth:`inscal.core.error_model.ImuErrors.compensate`
-on rates = increments / dt, and :meth:`inscal.core.thermal.ThermalModel.to_reference` before it):
+on rates = increments / dt, and :meth:`inscal.core.thermal.ThermalModel.to_reference` before it)::
 
     thermal (optional):  N_0 = M_0 (I + E(T))^-1 (N(T) - b(T) dt) / (1 + K(T)) + b_0 dt
     linear (S16 eq. 3, 6):  w0 = M_g^-1 (dth/dt - eps),   f0 = M_a^-1 (dv/dt - nabla)

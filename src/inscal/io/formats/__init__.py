@@ -49,6 +49,7 @@ class RawTemperature:
     where: str = ""  # the file
 
     def at(self, i: int) -> str:
+        """Where reading ``i`` came from, for messages: ``line N`` of a text file, else ``row N`` (1-based)."""
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
 
 
@@ -76,6 +77,7 @@ class Raw:
     source_info: dict | None = None  # what a reader adds to the record's ``source`` attribute (JSON-ready)
 
     def at(self, i: int) -> str:
+        """Where sample ``i`` came from, for messages: ``line N`` of a text file, else ``row N`` (1-based)."""
         return f"line {int(self.lines[i])}" if self.lines is not None else f"row {i + 1}"
 
 
