@@ -104,7 +104,7 @@ def test_auto_tests_are_nested_fits_and_options_are_checked():
     big = systematic(rec, "51,async")
     # the smaller model starts from the full estimate (async at zero) and shares its frozen model-error
     # factors: the same converged fit as a run of it with those factors
-    small = systematic(rec, "51", weights=big.model_error)
+    small = systematic(rec, "51", weights=big.model_error, accept_unconverged=True)
     assert t["chi2_small"] == pytest.approx(small.diagnostics["innovations"]["chi2"], rel=1e-4)
     assert t["chi2_large"] == pytest.approx(big.diagnostics["innovations"]["chi2"], rel=1e-12)
     assert t["status"] == "tested"
@@ -119,12 +119,15 @@ def test_auto_tests_are_nested_fits_and_options_are_checked():
 
 def test_misfit_signature_names_where_the_innovations_misfit():
     """51 states on a record with a 1 ms asynchrony: the fit is rejected and the note says where (NIS at
-    rest and turning, what the NIS correlates with, the worst steps); the JSON has the numbers."""
+    rest and turning, what the NIS correlates with, the worst steps); the JSON has the numbers.  The
+    velocity model-error term carries the moves' misfit (a large factor on the moving steps), so the final
+    pass's NIS is near its expectation, higher turning than at rest."""
     rec = _record(async_s=1e-3, noise=True, seed=2)
     fit = systematic(rec, "51").diagnostics["fit"]
     sig = fit["signature"]
     assert not fit["consistent"] and "where: NIS mean" in fit["note"] and "worst steps ending at" in fit["note"]
-    assert sig["turning_steps"] > 100 and sig["nis_mean_turning"] > 100 * 6
+    assert sig["turning_steps"] > 100 and sig["nis_mean_turning"] > sig["nis_mean_static"]
+    assert fit["model_error"]["group_factor"]["moving"] > 100 and "model-error" in fit["note"]
     assert len(sig["worst_steps"]) == 5 and sig["worst_steps"][0]["nis"] >= sig["worst_steps"][-1]["nis"]
     assert set(sig["rank_correlation"]) == {"rate", "rate_squared", "angular_acceleration",
                                             "angular_acceleration_at_step_end"}
