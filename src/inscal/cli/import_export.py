@@ -112,6 +112,15 @@ def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = Fals
             raise CliError(f"{out}: --format c writes NAME.c and NAME.h: give --out NAME.c")
         check_output(out.with_suffix(".h"), force)
         check_not_input(out.with_suffix(".h"), params, role="parameter file")
+    if fmt == "imu-tk":
+        from inscal.io.exports.calibration import imutk_gyro_path
+
+        try:
+            gout = imutk_gyro_path(out)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        check_output(gout, force)
+        check_not_input(gout, params, role="parameter file")
     try:
         return export_calibration(params, out, fmt, overwrite=force)
     except (ParamFileError, FileExistsError, FileNotFoundError, ValueError) as exc:
@@ -243,7 +252,8 @@ def register(app: typer.Typer) -> None:
     def export(
         data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
         fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
-                                "file: kalibr | imucal | kf-gins | c"),
+                                "file: kalibr | imucal | imu-tk (--out NAME_acc.calib, and NAME_gyro.calib) | "
+                                "kf-gins | c"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
@@ -256,7 +266,7 @@ def register(app: typer.Typer) -> None:
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
-        KF-GINS text; or a calibration in Kalibr's, imucal's or KF-GINS's convention, or as C99 source."""
+        KF-GINS text; or a calibration in Kalibr's, imucal's, imu_tk's or KF-GINS's convention, or as C99 source."""
         try:
             res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
         except CliError as exc:
