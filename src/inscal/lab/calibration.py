@@ -11,13 +11,14 @@ This module loads the estimators (numba, SciPy): it is imported on its own, not 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inscal.calibrate import METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate
+from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.selection import largest_states
 from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
@@ -44,7 +45,10 @@ class CalibrationSetup:
     """The options of a calibration, as ``inscal calibrate`` takes them (field units: ``arw``
     deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec; times in s): ``states``, ``arw``,
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
-    ``min_static`` to the window-mean ones; ``gravity`` (wgs84 | psins | m/s^2) overrides the
+    ``min_static`` to the window-mean and the no-turntable ones (None: the method's own default, that of
+    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 2 s for the still poses
+    of ``multi-position`` and ``ferraris``; :attr:`window_options`), ``quadratic`` (the quadratic
+    accelerometer terms) to ``multi-position``; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
     ``per_plateau`` (default n25) on each temperature plateau with the options above that apply to it, then
@@ -54,8 +58,8 @@ class CalibrationSetup:
 
     method: str
     states: str | None = None
-    settle: float = 1.0
-    min_static: float = 20.0
+    settle: float | None = None
+    min_static: float | None = None
     filter_rate_hz: float = 1.0
     arw: float | None = None
     vrw: float | None = None
@@ -70,6 +74,7 @@ class CalibrationSetup:
     temperature_sensor: str = ""
     chamber_label: str = CHAMBER_LABEL
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
+    quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
 
     @property
     def systematic(self) -> bool:
@@ -91,6 +96,19 @@ class CalibrationSetup:
         """Whether the method that reads the increments is a systematic one (its options apply)."""
         return self.inner in RECORD_METHODS
 
+    @property
+    def window_options(self) -> dict:
+        """``settle`` and ``min_static`` [s] of a window-mean or no-turntable method, a None replaced by
+        the default of the function that uses it (:func:`~inscal.calibrate.window_means`, or the
+        no-turntable method itself); ``quadratic`` for ``multi-position`` when asked."""
+        fn = METHODS.get(self.inner) if self.inner in NO_TABLE_METHODS else window_means
+        sig = inspect.signature(fn).parameters
+        out = {k: float(sig[k].default if v is None else v) for k, v in (("settle", self.settle),
+                                                                         ("min_static", self.min_static))}
+        if self.quadratic:
+            out["quadratic"] = True
+        return out
+
     def problem(self, plots: bool = False) -> str | None:
         """The one-line refusal of a bad option (``plots``: convergence plots are asked for), None if
         the options are usable; checked before any record is read."""
@@ -100,6 +118,11 @@ class CalibrationSetup:
             return msg
         if plots and not self.systematic:
             return f"--plots applies to the systematic methods, not {self.method}"
+        if self.quadratic and self.inner != "multi-position":
+            return f"--quadratic applies to --method multi-position, not {self.inner}"
+        for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
+            if v is not None and not (math.isfinite(v) and v >= 0):
+                return f"{name} must be a duration >= 0 s, got {v}"
         if self.accept_unconverged and not self.inner_systematic:
             return f"--accept-unconverged applies to the systematic methods, not {self.inner}"
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
@@ -156,10 +179,14 @@ class CalibrationSetup:
     def options(self) -> dict:
         """The canonical options (:func:`inscal.lab.record.calibration_options`): what identifies "the
         same calibration of the same record" in the database."""
-        opts = calibration_options(self.method, states=self.states, settle=self.settle, min_static=self.min_static,
+        win = {} if self.inner_systematic else self.window_options
+        opts = calibration_options(self.method, states=self.states, settle=win.get("settle", 1.0),
+                                   min_static=win.get("min_static", 20.0),
                                    filter_rate_hz=self.filter_rate_hz, arw=self.arw, vrw=self.vrw, gravity=self.gravity,
                                    encoder_sigma=self.encoder_sigma, encoder_latency=self.encoder_latency,
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
+        if win.get("quadratic"):
+            opts["quadratic"] = True
         th = self.thermal_options()
         if th:
             opts.update(per_plateau=th["per_plateau"], thermal_orders=check_orders(th["orders"]), t_ref_c=th["t_ref"],
@@ -258,7 +285,7 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
             if setup.accept_unconverged:
                 opts["accept_unconverged"] = True
         else:
-            opts = {"settle": setup.settle, "min_static": setup.min_static}
+            opts = setup.window_options
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None
