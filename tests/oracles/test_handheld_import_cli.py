@@ -80,7 +80,7 @@ def site(d, mapping="map.toml"):
 def test_jittered_logger_csv_imports_and_calibrates_within_3_sigma(logger):
     d, rows, truth = logger
     csv = write_csv(d / "log.csv", rows)
-    # a MEMS gyro bias (0.3 deg/s) is far above the Earth rate: the magnitude check takes it for degrees
+    # a MEMS gyro bias (0.3 deg/s) is far above the Earth rate: the magnitude check cannot tell it from degrees
     code, out, err = invoke("import", csv, "--format", "csv", *site(d), "--skip-check", "magnitudes",
                             "--out", d / "log.h5", "--json")
     assert code == 0, err
