@@ -241,7 +241,9 @@ def register(app: typer.Typer) -> None:
         if (ig := res.get("integration")) is not None:
             b = ig["error_bound"]
             extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
-                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s")
+                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
+                         + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
+                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else ""))
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
