@@ -320,7 +320,8 @@ def register(app: typer.Typer) -> None:
         min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
                                          "multi-position, ferraris: 2)"),
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
-                                       "accelerometer terms too (12 parameters, at least 12 poses)"),
+                                       "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
+                                       "accelerometer degrees of freedom)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
