@@ -1,4 +1,4 @@
-"""``inscal export PARAMS --format kalibr|imucal|kf-gins``: each file read back as its tool would, and each
+"""``inscal export PARAMS --format kalibr|imucal|imu-tk|kf-gins``: each file read back as its tool would, and each
 tool's published compensation formula (written here from its documentation, not imported) applied to
 raw increments gives inscal's compensated increments back to 1e-12; the terms a convention cannot hold
 are named; the refusals are one line, exit 2, nothing written."""
@@ -127,6 +127,40 @@ def test_imucal_round_trip(tmp_path):
     close(acc * DT, cdv)
 
 
+def imutk_load(path):
+    """imu_tk's ``CalibratedTriad_::load``: 9 + 9 + 3 whitespace-separated numbers, the matrices row-major."""
+    x = np.array(path.read_text().split(), float)
+    assert x.size == 21
+    return x[:9].reshape(3, 3), x[9:18].reshape(3, 3), x[18:]
+
+
+def test_imutk_round_trip(tmp_path):
+    imu = LINEAR.replace(gyro_g_sensitivity=np.zeros((3, 3)))  # imu_tk's gyro model has no g-sensitivity
+    p = params_file(tmp_path / "p.toml", imu)
+    code, out, err = invoke("export", p, "--format", "imu-tk", "--out", tmp_path / "imu_acc.calib", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["dropped"] == [] and res["files"][1].endswith("imu_gyro.calib")
+    (Ta, Ka, Ba), (Tg, Kg, Bg) = imutk_load(tmp_path / "imu_acc.calib"), imutk_load(tmp_path / "imu_gyro.calib")
+    Cbs = np.array(res["C_b_s"])
+    # imu_tk's structure: unit-diagonal T, the accelerometers' upper triangular ("body" frame), diagonal K
+    assert np.all(np.diag(Ta) == 1.0) and np.all(np.diag(Tg) == 1.0) and np.all(np.tril(Ta, -1) == 0)
+    assert np.all(Ka == np.diag(np.diag(Ka))) and np.all(Kg == np.diag(np.diag(Kg)))
+    assert np.allclose(Cbs @ Cbs.T, np.eye(3), rtol=0, atol=1e-15) and np.linalg.det(Cbs) > 0
+    assert 0 < res["frame_angle_rad"] < 1e-3  # a rotation of the size of the misalignments
+    dth, dv = raw_samples()
+    # imu_tk (Tedaldi et al. 2014; CalibratedTriad_::unbiasNormalize): X' = T K (X - B), in its body frame
+    acc_b = (Ta @ Ka @ (dv / DT - Ba).T).T
+    gyr_b = (Tg @ Kg @ (dth / DT - Bg).T).T
+    cdth, cdv = inscal_compensated(imu, dth, dv)
+    close(gyr_b @ Cbs * DT, cdth)  # x_s = C_b_s^T x_b
+    close(acc_b @ Cbs * DT, cdv)
+    # the g-sensitivity is named when there is one
+    q = params_file(tmp_path / "q.toml", LINEAR)
+    code, out, err = invoke("export", q, "--format", "imu-tk", "--out", tmp_path / "q_acc.calib")
+    assert code == 0 and "imu-tk cannot hold gyro_g_sensitivity" in err, err
+
+
 def test_kfgins_round_trip_and_dropped_terms(tmp_path):
     diag = ImuErrors(gyro_scale_factor=LINEAR.gyro_scale_factor, gyro_bias=LINEAR.gyro_bias,
                      accel_scale_factor=LINEAR.accel_scale_factor, accel_bias=LINEAR.accel_bias)
@@ -155,7 +189,8 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path):
     before = set(tmp_path.iterdir())
     for args, needle in ((("--format", "c", "--out", tmp_path / "x.txt"), "give --out NAME.c"),
                          (("--format", "csv", "--out", tmp_path / "x.csv"), "a parameter file exports as"),
-                         (("--format", "kalibr", "--out", tmp_path / "no" / "x.yaml"), "does not exist")):
+                         (("--format", "kalibr", "--out", tmp_path / "no" / "x.yaml"), "does not exist"),
+                         (("--format", "imu-tk", "--out", tmp_path / "x.calib"), "give --out NAME_acc.calib")):
         code, out, err = invoke("export", p, *args)
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
     (tmp_path / "x.yaml").write_text("keep")
@@ -164,10 +199,11 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path):
     assert set(tmp_path.iterdir()) == before | {tmp_path / "x.yaml"}
 
 
-@pytest.mark.parametrize("fmt", ["kalibr", "imucal"])
+@pytest.mark.parametrize("fmt", ["kalibr", "imucal", "imu-tk"])
 def test_nonlinear_terms_are_named(tmp_path, fmt):
     imu = LINEAR.replace(accel_nonlinearity=np.array([20, -15, 10]) * UG / G0 ** 2, time_asynchrony=1e-4)
     p = params_file(tmp_path / "p.toml", imu)
-    code, out, err = invoke("export", p, "--format", fmt, "--out", tmp_path / "o", "--json")
+    code, out, err = invoke("export", p, "--format", fmt, "--out", tmp_path / "o_acc.calib", "--json")
     assert code == 0, err
-    assert json.loads(out)["dropped"] == ["accel_nonlinearity", "time_asynchrony"]
+    g = ["gyro_g_sensitivity"] if fmt == "imu-tk" else []
+    assert json.loads(out)["dropped"] == g + ["accel_nonlinearity", "time_asynchrony"]

@@ -1,17 +1,23 @@
 """The Ferraris method (six faces, three whole turns) against the independent hand-held generator: the
 accelerometers exact on noise-free faces, the gyros within the sigma that holds the horizontal Earth
-rate the method leaves in, noisy logs within 3 sigma; a missing face or turn is refused in one line."""
+rate the method leaves in, noisy logs within 3 sigma; a missing face or turn is refused in one line; the
+command line with the method's defaults, and the result exported in imucal's convention."""
 
+import json
 import math
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from handheld_imu import canonical_truth, generate, grade, rot
+from typer.testing import CliRunner
 
+from inscal import io
 from inscal.calibrate import calibrate
 from inscal.calibrate.windows import CalibrationError
+from inscal.cli.app import app
 from inscal.core.earth import Site
+from inscal.io.paramfile import load_params
 
 
 def face(axis, sign, heading):
@@ -54,3 +60,30 @@ def test_a_missing_face_is_refused():
     rec, _ = session("mems", 2, 1.0, drop=8)  # no -z face (and so no third turn is needed to fail first)
     with pytest.raises(CalibrationError, match=r"no pose with -z up"):
         calibrate(rec, "ferraris", min_static=2.0, settle=0.25)
+
+
+def test_ferraris_on_the_command_line_with_its_defaults_and_the_imucal_export(tmp_path):
+    """``inscal calibrate --method ferraris`` with no --settle-s / --min-static-s (the method's 0.25 s and
+    2 s), then ``inscal export --format imucal``: imucal's compensation (Ferraris 1995, written here from its
+    documentation) gives inscal's compensated increments back to 1e-12."""
+    rec, truth = session("mems", 1, 1.0)
+    path = tmp_path / "f.h5"
+    io.write_record(path, io.Record(rec.time, rec.dtheta, rec.dvel, None, 50.0, rec.site, scenario="ferraris"))
+    r = CliRunner().invoke(app, ["calibrate", str(path), "--method", "ferraris", "--out", str(tmp_path / "p.toml")])
+    assert r.exit_code == 0, r.stderr
+    r = CliRunner().invoke(app, ["export", str(tmp_path / "p.toml"), "--format", "imucal", "--out",
+                                 str(tmp_path / "cal.json"), "--json"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["dropped"] == [], r.stderr
+    doc = json.loads((tmp_path / "cal.json").read_text())
+    K_a, R_a, b_a, K_g, R_g, K_ga, b_g = (np.array(doc[k]) for k in ("K_a", "R_a", "b_a", "K_g", "R_g", "K_ga", "b_g"))
+    imu, _, _ = load_params(tmp_path / "p.toml")
+    assert np.allclose(imu.accel_bias, truth["accel_bias"], rtol=0, atol=0.01)  # the file holds the calibration
+    rng = np.random.default_rng(4)
+    dt = 0.02
+    dth, dv = rng.uniform(-2, 2, (200, 3)) * dt, (rng.normal(0, 1, (200, 3)) + [0, 0, 9.8]) * dt
+    # imucal: acc = R_a^-1 K_a^-1 (acc_raw - b_a); gyr = R_g^-1 K_g^-1 (gyr_raw - K_ga acc - b_g) [deg/s]
+    acc = np.linalg.solve(K_a @ R_a, (dv / dt - b_a).T).T
+    gyr = np.radians(np.linalg.solve(K_g @ R_g, (dth / dt - acc @ K_ga.T - b_g).T).T)
+    cdth, cdv = imu.compensate_increments(dt, dth, dv)
+    assert np.abs(gyr * dt - cdth).max() <= 1e-12 * np.abs(cdth).max()
+    assert np.abs(acc * dt - cdv).max() <= 1e-12 * np.abs(cdv).max()

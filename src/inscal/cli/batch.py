@@ -168,7 +168,7 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
               workers: int | None = None, serial: str | None = None, names: str | None = None,
               manifest: Path | None = None, register: bool = False, model: str | None = None,
               station: str | None = None, operator: str | None = None, states: str | None = None,
-              settle: float = 1.0, min_static: float = 20.0, filter_rate_hz: float = 1.0, arw: float | None = None,
+              settle: float | None = None, min_static: float | None = None, filter_rate_hz: float = 1.0, arw: float | None = None,
               vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
               encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True,
               wait: float | None = None) -> dict:
@@ -249,8 +249,10 @@ def register(app: typer.Typer) -> None:
         station: str = typer.Option(None, "--station", help="the turntable / station of the runs (a manifest's "
                                     "column wins)"),
         operator: str = typer.Option(None, "--operator", help="who ran them (a manifest's column wins)"),
-        settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
-        min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
+        settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
+                                     "(default 1; multi-position, ferraris: 0.25)"),
+        min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
+                                         "multi-position, ferraris: 2)"),
         states: str = typer.Option(None, "--states", help="systematic: the state set, as for inscal calibrate"),
         filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
         arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)]"),

@@ -1,4 +1,5 @@
-"""``inscal calibrate``: estimate IMU and gimbal errors from a turntable record."""
+"""``inscal calibrate``: estimate IMU and gimbal errors from a turntable record, or IMU errors from a
+hand-held one (``multi-position``, ``ferraris``)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ from inscal.cli.common import (  # np: lazy (fast start)
 from inscal.cli.guards import check_outputs
 
 
-def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float = 1.0,
-                  min_static: float = 20.0, states: str | None = None, plots: Path | None = None,
+def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float | None = None,
+                  min_static: float | None = None, states: str | None = None, plots: Path | None = None,
                   filter_rate_hz: float = 1.0, arw: float | None = None, vrw: float | None = None,
                   gravity: str | None = None, encoder_sigma: float | None = None, encoder_latency: float = 0.0,
                   check_encoders: bool = True, db: str | None = None, serial: str | None = None,
@@ -28,7 +29,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
-                  accept_unconverged: bool = False) -> dict:
+                  accept_unconverged: bool = False, quadratic: bool = False) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -45,13 +46,15 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     thermal model is fitted with ``thermal_order`` (``["gyro_bias=2", ...]``), ``t_ref`` [degC] (default 20),
     ``plateau_tol`` [degC], ``temperature_sensor`` and ``chamber_label`` (:mod:`inscal.calibrate.thermal`).
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
-    instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`)."""
+    instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
+    ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
+    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
-                             plateau_tol, temperature_sensor, chamber_label, accept_unconverged)
+                             plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -342,11 +345,18 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="HDF5 record (inscal simulate, or a recorded run)"),
         method: str = typer.Option(..., "--method", "-m",
                                    help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
-                                        "unified | thermal-plateaus"),
+                                        "unified | thermal-plateaus (a turntable record) | multi-position | ferraris "
+                                        "(no turntable: still poses at unknown orientations; six faces and three "
+                                        "whole turns)"),
         out: Path = typer.Option(..., "--out", "-o", help="parameter file to write (TOML)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing parameter file"),
-        settle: float = typer.Option(1.0, "--settle-s", help="settling time dropped at both ends of each window [s]"),
-        min_static: float = typer.Option(20.0, "--min-static-s", help="shortest static window used [s]"),
+        settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
+                                     "(default 1; multi-position, ferraris: 0.25)"),
+        min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
+                                         "multi-position, ferraris: 2)"),
+        quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
+                                       "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
+                                       "accelerometer degrees of freedom)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -405,7 +415,7 @@ def register(app: typer.Typer) -> None:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
-                                plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged)
+                                plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

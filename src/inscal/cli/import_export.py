@@ -116,6 +116,15 @@ def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = Fals
             raise CliError(f"{out}: --format c writes NAME.c and NAME.h: give --out NAME.c")
         check_output(out.with_suffix(".h"), force)
         check_not_input(out.with_suffix(".h"), params, role="parameter file")
+    if fmt == "imu-tk":
+        from inscal.io.exports.calibration import imutk_gyro_path
+
+        try:
+            gout = imutk_gyro_path(out)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        check_output(gout, force)
+        check_not_input(gout, params, role="parameter file")
     try:
         return export_calibration(params, out, fmt, overwrite=force)
     except (ParamFileError, FileExistsError, FileNotFoundError, ValueError) as exc:
@@ -236,7 +245,9 @@ def register(app: typer.Typer) -> None:
         if (ig := res.get("integration")) is not None:
             b = ig["error_bound"]
             extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
-                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s")
+                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
+                         + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
+                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else ""))
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
@@ -247,7 +258,8 @@ def register(app: typer.Typer) -> None:
     def export(
         data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
         fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
-                                "file: kalibr | imucal | kf-gins | c"),
+                                "file: kalibr | imucal | imu-tk (--out NAME_acc.calib, and NAME_gyro.calib) | "
+                                "kf-gins | c"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),
@@ -260,7 +272,7 @@ def register(app: typer.Typer) -> None:
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
         """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
-        KF-GINS text; or a calibration in Kalibr's, imucal's or KF-GINS's convention, or as C99 source."""
+        KF-GINS text; or a calibration in Kalibr's, imucal's, imu_tk's or KF-GINS's convention, or as C99 source."""
         try:
             res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
         except CliError as exc:

@@ -138,7 +138,8 @@ def register(app: typer.Typer) -> None:
     def simulate(
         scenario: str = typer.Argument(..., help="built-in scenario (s16, s16-table3, s16-gimbal, psins19, n25, n25-rotmod, "
                                        "n25-static, static, static-24h, rotmod16, rotmod16-6h, thermal-plateaus, "
-                                       "thermal-plateaus-s16, thermal-ramp, thermal-cycle, thermal-warmup) or a .toml file"),
+                                       "thermal-plateaus-s16, thermal-ramp, thermal-cycle, thermal-warmup; without a "
+                                       "turntable: handheld-mems, handheld-tactical, handheld-navigation) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
         seed: int = typer.Option(0, help="seed of the noise generator"),
         duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
@@ -149,7 +150,7 @@ def register(app: typer.Typer) -> None:
                                     "(default: the scenario's, wgs84 unless its site table says otherwise)"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
     ):
-        """Simulate an IMU on a dual-axis turntable and write an HDF5 record."""
+        """Simulate an IMU on a dual-axis turntable (or hand-held) and write an HDF5 record."""
         try:
             res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
                                gravity=gravity)

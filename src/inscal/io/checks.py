@@ -371,7 +371,8 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
     raise ImportFileError(
         f"{where}: gyros read at least {p5:.4g} rad/s ({p5 / DEG * 3600:.4g} deg/h, 5th percentile of 1-s means, "
         f"as {kind} in {gyro_unit}) where the Earth rate is {om / DEG * 3600:.4g} deg/h: the values look like {look} "
-        "(--skip-check magnitudes to import anyway)")
+        + ("or a gyro bias far above the Earth rate (a MEMS gyro's) " if look == "degrees, not radians" else "")
+        + "(--skip-check magnitudes to import anyway)")
 
 
 def check_motion(dtheta: np.ndarray, theta: np.ndarray, dt: float, what: str, time: np.ndarray,

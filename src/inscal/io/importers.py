@@ -37,6 +37,9 @@ Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
                                    #   "sampled-rates": rates at their own (jittered) time stamps, integrated
                                    #   onto a uniform grid (--rate-hz; default their mean rate) by the rule
                                    #   of inscal.io.formats.rates
+    max_gap_s = 0.05               # sampled-rates: a logger's gaps up to this long [s] are bridged by that rule
+                                   #   (its error bound takes the longest step); default: a step over 1.5
+                                   #   median steps is refused as dropped samples
     delimiter = ","                # one character, or "whitespace"; default "," (csv), whitespace (txt)
     header_rows = 1                # default 0; lines before the data (names are read from the last one)
     comment = "#"                  # default; lines starting with it (and blank lines) are skipped
@@ -464,7 +467,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         ri = raw.integration
         integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
                  "grid_rate_hz": ri.rate_hz,
-                 "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max,
+                 "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max, "gaps_bridged": ri.gaps,
                  "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
     attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),

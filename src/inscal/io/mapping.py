@@ -82,9 +82,12 @@ class Mapping:
     #: the SI value is ``scale * (decoded - offset)`` (:func:`decode_counts`)
     gyro_counts: tuple | None = None
     accel_counts: tuple | None = None
+    #: ``kind = "sampled-rates"``: the longest step between stamps bridged by the rule [s] (None: a step
+    #: over :data:`inscal.io.formats.rates.GAP_FACTOR` median steps is refused)
+    max_gap: float | None = None
 
 
-_TOP = {"kind", "delimiter", "header_rows", "comment", "axes", "signs", "columns", "units", "site"}
+_TOP = {"max_gap_s", "kind", "delimiter", "header_rows", "comment", "axes", "signs", "columns", "units", "site"}
 _COLS = {"time", "gx", "gy", "gz", "ax", "ay", "az", "outer", "inner", "temperature"}
 _UNITS = {"time", "gyro", "accel", "gyro_scale", "accel_scale", "gimbal", "temperature",
           "gyro_offset", "accel_offset", "gyro_bits", "accel_bits", "gyro_twos_complement", "accel_twos_complement"}
@@ -176,6 +179,13 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"kind must be one of {', '.join(repr(k) for k in KINDS)}, got {kind!r}")
     if kind == "sampled-rates" and "time" not in d["columns"]:
         raise ImportFileError("kind = \"sampled-rates\" needs a [columns] time (a stamp per sample)")
+    max_gap = d.get("max_gap_s")
+    if max_gap is not None:
+        if kind != "sampled-rates":
+            raise ImportFileError(f"max_gap_s applies to kind = \"sampled-rates\", not {kind!r}")
+        if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float)) or not (0 < max_gap < math.inf):
+            raise ImportFileError(f"max_gap_s must be a duration > 0 s, got {max_gap!r}")
+        max_gap = float(max_gap)
     cols = d["columns"]
     _keys("[columns]", cols, _COLS)
     cols = dict(cols)
@@ -252,7 +262,8 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         raise ImportFileError(f"comment must be one character, got {comment!r}")
     m = Mapping(dict(cols), kind, tu, conv["gyro"][0], conv["accel"][0], conv["gyro"][1], conv["accel"][1], gu,
                 tuple("xyz".index(a) for a in axes), tuple(float(s) for s in signs),
-                None if delim == "whitespace" else delim, hr, comment, temps, tu_c, counts["gyro"], counts["accel"])
+                None if delim == "whitespace" else delim, hr, comment, temps, tu_c, counts["gyro"], counts["accel"],
+                max_gap)
     return m, site
 
 

@@ -11,13 +11,14 @@ This module loads the estimators (numba, SciPy): it is imported on its own, not 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inscal.calibrate import METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate
+from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.selection import largest_states
 from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
@@ -56,7 +57,10 @@ class CalibrationSetup:
     """The options of a calibration, as ``inscal calibrate`` takes them (field units: ``arw``
     deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec; times in s): ``states``, ``arw``,
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
-    ``min_static`` to the window-mean ones; ``gravity`` (wgs84 | psins | m/s^2) overrides the
+    ``min_static`` to the window-mean and the no-turntable ones (None: the method's own default, that of
+    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 2 s for the still poses
+    of ``multi-position`` and ``ferraris``; :attr:`window_options`), ``quadratic`` (the quadratic
+    accelerometer terms) to ``multi-position``; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
     ``per_plateau`` (default n25) on each temperature plateau with the options above that apply to it, then
@@ -66,8 +70,8 @@ class CalibrationSetup:
 
     method: str
     states: str | None = None
-    settle: float = 1.0
-    min_static: float = 20.0
+    settle: float | None = None
+    min_static: float | None = None
     filter_rate_hz: float = 1.0
     arw: float | None = None
     vrw: float | None = None
@@ -82,6 +86,7 @@ class CalibrationSetup:
     temperature_sensor: str = ""
     chamber_label: str = CHAMBER_LABEL
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
+    quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
 
     @property
     def systematic(self) -> bool:
@@ -103,6 +108,19 @@ class CalibrationSetup:
         """Whether the method that reads the increments is a systematic one (its options apply)."""
         return self.inner in RECORD_METHODS
 
+    @property
+    def window_options(self) -> dict:
+        """``settle`` and ``min_static`` [s] of a window-mean or no-turntable method, a None replaced by
+        the default of the function that uses it (:func:`~inscal.calibrate.window_means`, or the
+        no-turntable method itself); ``quadratic`` for ``multi-position`` when asked."""
+        fn = METHODS.get(self.inner) if self.inner in NO_TABLE_METHODS else window_means
+        sig = inspect.signature(fn).parameters
+        out = {k: float(sig[k].default if v is None else v) for k, v in (("settle", self.settle),
+                                                                         ("min_static", self.min_static))}
+        if self.quadratic:
+            out["quadratic"] = True
+        return out
+
     def problem(self, plots: bool = False) -> str | None:
         """The one-line refusal of a bad option (``plots``: convergence plots are asked for), None if
         the options are usable; checked before any record is read."""
@@ -112,6 +130,11 @@ class CalibrationSetup:
             return msg
         if plots and not self.systematic:
             return f"--plots applies to the systematic methods, not {self.method}"
+        if self.quadratic and self.inner != "multi-position":
+            return f"--quadratic applies to --method multi-position, not {self.inner}"
+        for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
+            if v is not None and not (math.isfinite(v) and v >= 0):
+                return f"{name} must be a duration >= 0 s, got {v}"
         if self.accept_unconverged and not self.inner_systematic:
             return f"--accept-unconverged applies to the systematic methods, not {self.inner}"
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
@@ -126,13 +149,16 @@ class CalibrationSetup:
         if self.encoder_sigma is not None and not (np.isfinite(self.encoder_sigma)
                                                    and 0 < self.encoder_sigma <= MAX_ENCODER_SIGMA):
             return f"--encoder-sigma must be in (0, {MAX_ENCODER_SIGMA:g}] arcsec, got {self.encoder_sigma}"
-        if not (math.isfinite(self.settle) and 0 <= self.settle <= MAX_WINDOW_S):
+        if self.settle is not None and not (math.isfinite(self.settle) and 0 <= self.settle <= MAX_WINDOW_S):
             return f"--settle-s must be 0 .. {MAX_WINDOW_S:g} s, got {self.settle}"
-        if not (math.isfinite(self.min_static) and 0 < self.min_static <= MAX_WINDOW_S):
+        if self.min_static is not None and not (math.isfinite(self.min_static) and 0 < self.min_static <= MAX_WINDOW_S):
             return f"--min-static-s must be > 0 and at most {MAX_WINDOW_S:g} s, got {self.min_static}"
-        if not self.inner_systematic and 2 * self.settle >= self.min_static:
-            return (f"--settle-s {self.settle:g} drops {2 * self.settle:g} s of every window, all of the shortest one "
-                    f"used (--min-static-s {self.min_static:g}): lower --settle-s or raise --min-static-s")
+        if not self.inner_systematic:
+            win = self.window_options  # a None is the method's own default
+            if 2 * win["settle"] >= win["min_static"]:
+                return (f"--settle-s {win['settle']:g} drops {2 * win['settle']:g} s of every window, all of the "
+                        f"shortest one used (--min-static-s {win['min_static']:g}): lower --settle-s or raise "
+                        "--min-static-s")
         if (msg := self.states_problem()) is not None:
             return msg
         if not math.isfinite(self.encoder_latency) or abs(self.encoder_latency) > 1.0:
@@ -200,10 +226,14 @@ class CalibrationSetup:
     def options(self) -> dict:
         """The canonical options (:func:`inscal.lab.record.calibration_options`): what identifies "the
         same calibration of the same record" in the database."""
-        opts = calibration_options(self.method, states=self.states, settle=self.settle, min_static=self.min_static,
+        win = {} if self.inner_systematic else self.window_options
+        opts = calibration_options(self.method, states=self.states, settle=win.get("settle", 1.0),
+                                   min_static=win.get("min_static", 20.0),
                                    filter_rate_hz=self.filter_rate_hz, arw=self.arw, vrw=self.vrw, gravity=self.gravity,
                                    encoder_sigma=self.encoder_sigma, encoder_latency=self.encoder_latency,
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
+        if win.get("quadratic"):
+            opts["quadratic"] = True
         th = self.thermal_options()
         if th:
             opts.update(per_plateau=th["per_plateau"], thermal_orders=check_orders(th["orders"]), t_ref_c=th["t_ref"],
@@ -334,7 +364,7 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
             if setup.accept_unconverged:
                 opts["accept_unconverged"] = True
         else:
-            opts = {"settle": setup.settle, "min_static": setup.min_static}
+            opts = setup.window_options
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None

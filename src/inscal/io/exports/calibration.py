@@ -1,4 +1,4 @@
-"""``inscal export PARAMS --format kalibr|imucal|kf-gins|c``: a parameter file written in another tool's
+"""``inscal export PARAMS --format kalibr|imucal|imu-tk|kf-gins|c``: a parameter file written in another tool's
 convention (one module each in :mod:`inscal.io.exports`), atomically, with the terms it cannot hold."""
 
 from __future__ import annotations
@@ -7,6 +7,7 @@ from pathlib import Path
 
 from inscal.io.exports.c import export_c
 from inscal.io.exports.imucal import imucal_json
+from inscal.io.exports.imutk import ACC_SUFFIX, GYRO_SUFFIX, imutk_files
 from inscal.io.exports.kalibr import kalibr_yaml
 from inscal.io.exports.kfgins import kfgins_yaml
 from inscal.io.files import atomic_path
@@ -14,7 +15,8 @@ from inscal.io.paramfile import load_params
 
 #: the calibration export formats and the file each writes
 CALIBRATION_FORMATS = {"kalibr": "YAML (imu0: M_accel, M_gyro, A, C_gyro_i[, rx_i ry_i rz_i])",
-                       "imucal": "JSON (Ferraris calibration)", "kf-gins": "YAML (initial IMU error blocks)",
+                       "imucal": "JSON (Ferraris calibration)",
+                       "imu-tk": "NAME_acc.calib + NAME_gyro.calib (T, K, B of each triad)", "kf-gins": "YAML (initial IMU error blocks)",
                        "c": "C99 NAME.c + NAME.h"}
 
 
@@ -30,6 +32,14 @@ def export_calibration(params, out, fmt: str, overwrite: bool = False) -> dict:
     if fmt == "c":
         res.update(export_c(imu, thermal, out, overwrite, params.name, meta.get("method", "")), dropped=[])
         return res
+    if fmt == "imu-tk":
+        acc, gyro, info = imutk_files(imu, thermal)
+        gout = imutk_gyro_path(out)
+        with atomic_path(out, overwrite) as tmp, atomic_path(gout, overwrite) as gtmp:
+            tmp.write_text(acc, encoding="utf-8")
+            gtmp.write_text(gyro, encoding="utf-8")
+        res.update(info, files=[str(out), str(gout)])
+        return res
     if fmt == "kalibr":
         text, info = kalibr_yaml(imu, thermal, source=params.name)
     elif fmt == "imucal":
@@ -40,3 +50,11 @@ def export_calibration(params, out, fmt: str, overwrite: bool = False) -> dict:
         tmp.write_text(text, encoding="utf-8")
     res.update(info, files=[str(out)])
     return res
+
+
+def imutk_gyro_path(out) -> Path:
+    """The gyro file beside the accelerometer file ``NAME_acc.calib`` (``--format imu-tk``): ``NAME_gyro.calib``."""
+    out = Path(out)
+    if not out.name.endswith(ACC_SUFFIX):
+        raise ValueError(f"{out}: --format imu-tk writes NAME{ACC_SUFFIX} and NAME{GYRO_SUFFIX}: give --out NAME{ACC_SUFFIX}")
+    return out.with_name(out.name[: -len(ACC_SUFFIX)] + GYRO_SUFFIX)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import re
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from io import StringIO
 from pathlib import Path as FsPath
 
@@ -16,7 +16,7 @@ import numpy as np
 from inscal.core import units
 from inscal.core.units import DEG
 from inscal.io.files import check_input
-from inscal.io.formats.rates import check_stamps, integrate_rates
+from inscal.io.formats.rates import GAP_FACTOR, check_stamps, integrate_rates
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
@@ -462,19 +462,21 @@ def read_text(path, mapping: Mapping | None, fmt: str = "csv", rate_hz: float | 
                               line_no, (m.temperature_unit,) * len(cols),
                               "set [units] temperature = \"{unit}\" in the mapping" if given else "", str(p))
     if m.kind == "sampled-rates":
-        return _sampled_rates(p, t, gyro, accel, gim, temp, labels, at, rate_hz)
+        return _sampled_rates(p, t, gyro, accel, gim, temp, labels, at, rate_hz, m.max_gap)
     return Raw(t, gyro, accel, m.kind, gim, labels, line_no, "", raw6, counts, tl, axes=m.axes, time_unit=m.time_unit,
                time_fix=fix, temperature=temp)
 
 
-def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at, rate_hz: float | None) -> Raw:
+def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at, rate_hz: float | None,
+                   max_gap: float | None = None) -> Raw:
     """Rates sampled at their own stamps (``kind = "sampled-rates"``) -> increments on a uniform grid
-    (:mod:`inscal.io.formats.rates`; the stamps checked first)."""
+    (:mod:`inscal.io.formats.rates`; the stamps checked first, steps up to ``max_gap`` [s] bridged)."""
     if gim is not None or temp is not None:
         raise ImportFileError(f"{p}: kind = \"sampled-rates\" takes no gimbal or temperature columns (import them "
                               "with --gimbal / --temperature at their own times)")
-    check_stamps(t, str(p), "sample", at)
+    step = check_stamps(t, str(p), "sample", at, max_gap)
     integ = integrate_rates(t, gyro, accel, rate_hz)
+    integ = replace(integ, gaps=int(np.count_nonzero(np.diff(t) > GAP_FACTOR * step)))
     inc_labels = tuple(lab.replace("gx", "dthx").replace("gy", "dthy").replace("gz", "dthz") for lab in labels)
     return Raw(integ.time, integ.gyro, integ.accel, "increments", None, inc_labels, None, "",
                np.column_stack([integ.gyro, integ.accel]), integration=integ)

@@ -58,13 +58,15 @@ class RateIntegration:
     h_max: float
     bound: np.ndarray
     on_grid: bool
+    gaps: int = 0  # steps of over GAP_FACTOR median steps bridged by the interpolant (``max_gap``)
 
 
-def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None) -> float:
+def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None, max_gap: float | None = None) -> float:
     """The median step [s] of the stamps ``t`` (N,), after refusing a duplicated stamp, one going
     backwards (out-of-order messages) and a gap of over :data:`GAP_FACTOR` median steps (dropped
     messages), each with one line naming the ``what`` (``at(i)``: how to name sample i; default
-    "message i + 1")."""
+    "message i + 1").  ``max_gap`` [s]: a longer step up to it is accepted (a logger's gaps, bridged by
+    the linear interpolant; the error bound takes the longest step, ``h_max``)."""
     t = np.asarray(t, dtype=float)
     name = at if at is not None else (lambda i: f"{what} {i + 1}")
     if t.shape[0] < 3:
@@ -81,13 +83,15 @@ def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None) -> f
         i = int(np.argmax(d == 0)) + 1
         raise ImportFileError(f"{where}: duplicated stamp at {name(i)}: t = {t[i]:.9f} s, the same as {name(i - 1)}")
     step = float(np.median(d))
-    big = d > GAP_FACTOR * step
+    big = d > max(GAP_FACTOR * step, max_gap or 0.0)
     if np.any(big):
         i = int(np.argmax(big)) + 1
         lost = int(round(d[i - 1] / step)) - 1
         raise ImportFileError(f"{where}: {max(lost, 1)} {what}(s) dropped before {name(i)}: a gap of {d[i - 1]:.6g} s "
                               f"from t = {t[i - 1]:.9f} s to {t[i]:.9f} s, the median step being {step:.6g} s "
-                              f"({int(np.count_nonzero(big))} gap(s) in all)")
+                              f"({int(np.count_nonzero(big))} gap(s) in all"
+                              + (f" over max_gap_s = {max_gap:g}" if max_gap else "; max_gap_s in the mapping bridges "
+                                 "them") + ")")
     return step
 
 
