@@ -296,7 +296,7 @@ def test_encoder_latency_needs_encoder_angles_and_a_finite_value(exported, tmp_p
     assert code == 2 and "--encoder-latency applies to encoder angles" in se, se
     code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", x.gimbal, "--out", tmp_path / "o.h5",
                       "--encoder-latency", "nan")
-    assert code == 2 and "--encoder-latency must be finite" in se, se
+    assert code == 2 and "--encoder-latency must be a finite shift" in se, se
     code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", x.gimbal, "--out", tmp_path / "o.h5",
                       "--skip-check", "encoder")
     assert code == 2 and "known checks: constant, saturation, magnitudes, motion, encoders" in se, se

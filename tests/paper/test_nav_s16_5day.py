@@ -67,4 +67,5 @@ def test_51_state_parameters_cut_the_5_day_error_by_at_least_20_percent(study):
     # the 51-state filter's innovations agree with its noise model; the 30-state ones do not
     cal = study["calibrations"]
     assert 5.0 < cal["51-state"]["nis_mean"] < 7.0
-    assert cal["30-state"]["nis_mean"] > 100.0
+    # (the velocity model-error term carries the 30-state misfit: a large factor on the noise, a rejected fit)
+    assert cal["30-state"]["model_error_factor"] > 100.0 and not cal["30-state"]["fit_consistent"]

@@ -175,7 +175,8 @@ def _calibration(rec, method: str, kw: dict, truth: Scenario) -> tuple[ImuErrors
     return res.imu, {"method": method, "runtime_s": time.perf_counter() - t, "nis_mean": inn["nis_mean"],
                      "p_value": inn["p_value"], "passes": len(res.diagnostics["passes"]),
                      "converged": res.diagnostics["converged"], "noise": res.diagnostics["noise"],
-                     "field": res.to_field(truth)}
+                     "model_error_factor": max(res.diagnostics["model_error"]["group_factor"].values(), default=1.0),
+                     "fit_consistent": res.diagnostics["fit"]["consistent"], "field": res.to_field(truth)}
 
 
 def _consistent_30(rec, kw: dict, truth: Scenario, vrw_est_ug: np.ndarray) -> tuple[ImuErrors, dict]:

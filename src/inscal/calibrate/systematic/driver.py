@@ -73,8 +73,6 @@ LAST_BOUNDED_PASS = 4
 FACTOR_CHANGE = 100.0
 #: an estimate further than this many prior sigma from its nominal ends the run (convergence_verdict)
 PRIOR_EXCESS = 5.0
-#: a model-error factor at rest beyond this ends the run (convergence_verdict): sigma x 31.6 at rest
-MAX_STATIC_FACTOR = 1e3
 #: runs asked for fewer passes than this are deliberate first iterates: only a diverged navigation ends them
 MIN_VERDICT_PASSES = 4
 #: a position innovation beyond this [m] on a static site ends the run (the navigation diverged)
@@ -206,14 +204,11 @@ class NotConverged(CalibrationError):
 
 
 def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.ndarray, labels: list,
-                        position_max: float, truncated: bool = False, static_factor: float = 1.0) -> str:
+                        position_max: float, truncated: bool = False) -> str:
     """Why a run's last iterate is not a calibration, in one clause ("" when it is): passes that did not
     settle (oscillating or drifting, with the last changes in sigma), an estimate beyond
     :data:`PRIOR_EXCESS` prior sigma of its nominal, or a position innovation beyond
-    :data:`STATIC_POSITION_LIMIT` on a static site, or dwells that misfit beyond any noise (a model-error factor
-    at rest, ``static_factor``, above :data:`MAX_STATIC_FACTOR`: the model lacks terms the record has, and a
-    variance inflation no longer stands for a systematic misfit of that size: on psins19 with a 10-ms asynchrony
-    left out, a factor 5e4 at rest left errors of 7.7 sigma).  A ``truncated`` run (fewer than :data:`MIN_VERDICT_PASSES`
+    :data:`STATIC_POSITION_LIMIT` on a static site.  A ``truncated`` run (fewer than :data:`MIN_VERDICT_PASSES`
     passes asked for: a deliberate first iterate, as the observability report and the demo run) is judged on
     its position innovations only."""
     if position_max > STATIC_POSITION_LIMIT:
@@ -221,10 +216,6 @@ def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.n
                 "the navigation diverged (a wrong path, rate or site, or an error far beyond the model)")
     if truncated:
         return ""
-    if static_factor > MAX_STATIC_FACTOR:
-        return (f"the dwells misfit the model {math.sqrt(static_factor):.3g} times beyond their noise (a model-error "
-                f"factor of {static_factor:.3g} at rest, limit {MAX_STATIC_FACTOR:g}): the model lacks terms this "
-                "record has (try more --states, e.g. 51 or auto) or --arw/--vrw are far too small")
     worst = int(np.argmax(np.abs(prior_z))) if prior_z.size else 0
     if prior_z.size and abs(prior_z[worst]) > PRIOR_EXCESS:
         return (f"the estimate of {labels[worst]} lies {abs(prior_z[worst]):.3g} prior sigma from its nominal (limit "
@@ -481,8 +472,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
     verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[N_NAV:],
                                   float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
-                                  truncated=max_passes < MIN_VERDICT_PASSES,
-                                  static_factor=float(me.group_factor.get("static", 1.0)))
+                                  truncated=max_passes < MIN_VERDICT_PASSES)
     if verdict and not accept_unconverged:
         raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
                            "or --accept-unconverged to keep the last iterate")
