@@ -221,9 +221,10 @@ def test_noise_is_estimated_and_innovations_are_consistent(s16_noisy_short):
 
 
 def test_smoother_is_consistent_with_the_feedback(s16_noisy_short):
-    """The adjoint (MBF/RTS) recursion on the closed-loop filter: the smoothed parameters at every
-    stored step, corrected from that step's reference, equal the final estimate (constants), here
-    in a well-conditioned configuration (loose velocity and position measurements)."""
+    """The smoother on the closed-loop filter: the smoothed parameters at every stored step (that step's
+    reference plus the feedback still to come), corrected from that step's reference, equal the final estimate
+    (constants) to first order, here in a well-conditioned configuration (loose velocity and position
+    measurements)."""
     sc, rec = s16_noisy_short
     res = calibrate(rec, "systematic51", max_passes=1, velocity_sigma=1e-3, position_sigma=1e-3,
                     arw=units.to_si(1e-3, "deg/sqrt(h)"), vrw=units.to_si(100.0, "ug/sqrt(Hz)"))

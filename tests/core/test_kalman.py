@@ -257,7 +257,7 @@ def test_smoothed_constant_keeps_the_constants_when_the_data_dwarf_the_prior():
         if k > 0:
             filters.smoother_step(lam, Lam, idx, K_st[k - 1], Si_st[k - 1], sz_st[k - 1])
         Pk_m, ref = (Pm[k - 1], yref[k - 1]) if k > 0 else (np.eye(N), np.zeros(N))
-        e, Pk = filters.smoothed_constant(Pk_m, lam, Lam, n, rem[max(k - 1, 0)], Pf[n:, n:])
+        e, Pk = filters.smoothed_constant(Pk_m, lam, Lam, n, rem[max(k - 1, 0)], np.ascontiguousarray(Pf[n:, n:]))
         e_plain, P_plain = filters.smoothed(Pk_m, lam, Lam)
         s = np.sqrt(np.diag(Ps_ref[k]))
         o = np.outer(s, s)

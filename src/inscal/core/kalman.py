@@ -36,7 +36,11 @@ with the adjoint ``lambda``, ``Lambda`` (zero after the last update), backwards:
     l_{k-1} = Phi_k^T lt_k,                   L_{k-1} = Phi_k^T Lt_k Phi_k
 
 so ``P_{k|k-1}`` is only needed at the steps where a smoothed estimate is wanted
-(``tests/core/test_kalman.py`` checks the equality with the dense eq. 13-16 form).
+(``tests/core/test_kalman.py`` checks the equality with the dense eq. 13-16 form).  With constant
+parameters (``q_p = 0``) their smoothed estimate and covariance are the final filtered ones at every
+step; :func:`smoothed_constant` takes them from the filter and conditions the dynamic states on them,
+because ``P - P L P`` cancels catastrophically in the parameter directions when the data dwarf the
+prior (checked against a batch least-squares smoother in the tests).
 
 Feedback.  A closed-loop filter removes its estimate from the reference after every
 update (S16 eq. 27), so ``x_{k|k-1} = 0`` always and the innovation is the raw measurement.
