@@ -545,6 +545,9 @@ def main(argv=None) -> int:
                 "Pf_diag_rel": float(np.max(np.abs(np.diag(dres["Pf"]) - pf) / pf)),
                 "xf_last": float(np.max(np.abs(dres["xs"][-1] - eng["xs"][-1]) / np.sqrt(pf))),
                 "xs_abs": float(np.max(np.abs(dx))),
+                # the first stored step (step 0: its predicted covariance is the prior's) apart from the others
+                "xs_nav_sig": (float(np.max(np.abs(dx[0, :9]) / np.sqrt(np.abs(dgd[0, :9])))),
+                               float(np.max(np.abs(dx[1:, :9]) / np.sqrt(np.abs(dgd[1:, :9]))))),
                 "xs_par_post": float(np.max(np.abs(dx[:, 9:]) / sdp)),
                 "xs_par_last": float(np.max(np.abs(dx[-1, 9:]) / sdp)),
                 "Ps_abs": float(np.max(np.abs(dgd - dgo))),
@@ -599,6 +602,8 @@ def main(argv=None) -> int:
         lab = f"      smoothed states, {dense['nh']} stored steps: max diff"
         print(f"  {lab:<{w}} {dense['xs_abs']:>10.1e}")
         print(f"  {'        parameters: max diff / final sigma':<{w}} {dense['xs_par_post']:>10.1e}")
+        print(f"  {'        navigation / dense smoothed sigma: first stored step':<{w}} {dense['xs_nav_sig'][0]:>10.1e}")
+        print(f"  {'        navigation / dense smoothed sigma: the others':<{w}} {dense['xs_nav_sig'][1]:>10.1e}")
         print(f"  {'      smoothed P diagonal, stored steps: max diff':<{w}} {dense['Ps_abs']:>10.1e}")
         print(f"  {'    invariant (constant parameters), ours | filterpy:':<{w}}")
         print(f"  {'      smoothed params = final filtered: max dev / sigma':<{w}} "

@@ -19,7 +19,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec
 from inscal.calibrate.systematic.params import CompParams, canonical_flat, truth_in_frame
-from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, StateSet
+from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, IDX_MEAS, StateSet
 from inscal.sim.simulate import simulate
 
 # the issue's noise-free tolerances, per field unit
@@ -258,6 +258,19 @@ def test_smoothed_constants_are_the_final_filtered_ones(s16_noisy_short):
     sd = np.sqrt(pf)
     assert np.max(np.abs(out.hist_x[:, n:] - rem[out.hist_step]) / sd) < 1e-6
     assert np.max(np.abs(out.x0s[n:] - rem[0]) / sd) < 1e-6
+
+
+def test_stored_predicted_covariance_is_the_one_the_gain_used(s16_noisy_short):
+    """At every stored step the smoother's predicted covariance is the one the update's gain came from
+    (``K = P H^T S^-1``), bounded-influence jump steps included (their extra velocity noise is part of it)."""
+    sc, rec = s16_noisy_short
+    out = calibrate(rec, "systematic51", max_passes=1, keep_passes=True, history_s=1.0).pass_output
+    sm = out.smoother
+    jumps = np.flatnonzero(out.q_used[:out.steps] > out.q_used[:out.steps].min() * (1 + 1e-12))
+    assert jumps.size > 0 and np.array_equal(out.hist_step, np.arange(out.steps))
+    for k in np.concatenate([jumps, [0, 1, out.steps // 2]]):
+        K = out.hist_Pm[k][:, IDX_MEAS] @ sm.Si_st[k]
+        np.testing.assert_allclose(K, sm.K_st[k], rtol=1e-6, atol=1e-9 * np.abs(sm.K_st[k]).max())
 
 
 def test_bad_input_is_refused():

@@ -397,6 +397,11 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                         for j in range(9):
                             Qa[i, j] *= jump - 1.0
                     filters.sr_predict(U, 9, I9, Z9, Qa)
+                    if k % hist_every == 0 or k == M - 1:  # the smoother's predicted covariance has the jump
+                        if thermal:
+                            _upper_outer(U, hist_Pm[ih])
+                        else:
+                            hist_Pm[ih] = U @ U.T
         nis_k, _ = filters.sr_update(U, IDX_MEAS, rsk, z, K, Si, xs, np.inf)
         nis_st[k] = nis0 if jump > 1.0 else nis_k  # the NIS of the nominal model
         rw_st[k] = rf[k]
