@@ -143,9 +143,10 @@ def smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, his
 def smooth_vector_steps(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st,
                          Sia_st, sza_st, Ha_st, lam, k0, k1, rem):
     """Steps ``k1 - 1`` down to ``k0`` of the adjoint recursion for the smoothed states alone (the vector half of
-    :func:`smooth_steps`, the same arithmetic): the smoothed errors at the stored steps (``hist_x``,
-    ``P_{k|k-1} lambda_k``) and, when ``k0 == 0``, at the start (``x0 = P_0 lambda_0`` with ``P_0 = I``): what the
-    passes need but the last (the initial attitude) and the history (the recursion's parameter values).
+    :func:`smooth_steps`, the same arithmetic): the smoothed errors at the stored steps (``hist_x``: the navigation
+    states ``(P_{k|k-1} lambda_k)_n``, the constants the feedback still to come) and, when ``k0 == 0``, at the start
+    (``x0``: ``lambda_0`` with ``P_0 = I``, and the pass's whole feedback): what the passes need but the last (the
+    initial attitude) and the history.
     ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``; ``rem``: the constants' feedback from step
     ``k1`` on (:func:`smooth_steps`), in place."""
     N = x0.shape[0]
