@@ -51,9 +51,11 @@ from inscal.core import kalman as filters
 from inscal.sim import scenarios, simulate
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.dynamics import nav_F
+from inscal.calibrate.systematic.jacobian import discretise
 from inscal.calibrate.systematic import driver as DRIVER
 from inscal.calibrate.systematic import kernel as KERNEL
 from inscal.calibrate.systematic.kernel import _pass_kernel, run_pass
+from inscal.calibrate.systematic.smoother import add_feedback
 from inscal.calibrate.systematic.states import IDX_MEAS
 
 TARGET_S, GOAL_S, TARGET_RATIO, TARGET_MB = 3.0, 1.0, 10.0, 500.0
@@ -159,39 +161,43 @@ def _engine_forward(P, phinn_st, phinp_st, Qd_st, rs, zs, hist_every, K_st, Si_s
 
 
 @njit(cache=True)
-def _engine_backward(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, hist_Pm, hist_x, hist_P, part):
-    """The MBF smoother of inscal.core.kalman (as _smooth_kernel).  ``part`` (for the profile): 0 all;
-    1 smoother_step only; 2 adjoint_back only; 3 the smoothed estimates only."""
+def _engine_backward(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, hist_Pm, hist_x, hist_P, Ppp, part):
+    """The MBF smoother of inscal.core.kalman (as the smoother's smooth_steps: the constants' feedback still to
+    come and their final filtered covariance ``Ppp`` into ``smoothed_constant``).  ``part`` (for the profile):
+    0 all; 1 smoother_step only; 2 adjoint_back only; 3 the smoothed estimates only."""
     N = P0.shape[0]
     M = K_st.shape[0]
     lam = np.zeros(N)
     Lam = np.zeros((N, N))
+    rem = np.zeros(N - 9)
     ih = hist_Pm.shape[0] - 1
     for k in range(M - 1, -1, -1):
         if part == 0 or part == 1:
             filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
-        if (part == 0 or part == 3) and (k % hist_every == 0 or k == M - 1):
-            x, Ps = filters.smoothed(hist_Pm[ih], lam, Lam)
-            hist_x[ih] = x
-            hist_P[ih] = Ps
-            ih -= 1
+        if part == 0 or part == 3:
+            add_feedback(rem, K_st[k], Si_st[k], sz_st[k], 9)
+            if k % hist_every == 0 or k == M - 1:
+                x, Ps = filters.smoothed_constant(hist_Pm[ih], lam, Lam, 9, rem, Ppp)
+                hist_x[ih] = x
+                hist_P[ih] = Ps
+                ih -= 1
         if part == 0 or part == 2:
             filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
-    return filters.smoothed(P0, lam, Lam)
+    return filters.smoothed_constant(P0, lam, Lam, 9, rem, Ppp)
 
 
 @njit(cache=True)
-def _rebuild_qd(phinn_st, sig, lat0, h0, T, qgm, qam, Qd_st):
+def _rebuild_qd(phinn_st, sig, lat0, h0, g_scale, T, qgm, qam, q_used, Qd_st):
     """The pass kernel's scaled Q_d per step: recover the step's mean f^n from its scaled
-    Phi_nn (fixed point on Phi[4,2], Phi[5,0], Phi[3,1] = f_E, f_N, f_U T + ...), then the
-    third-order Van Loan series of _pass_kernel.  Returns max |Phi_nn(model) - Phi_nn(stored)|."""
+    Phi_nn (fixed point on Phi[4,2], Phi[5,0], Phi[3,1] = f_E, f_N, f_U T + ...), then the kernel's own
+    ``discretise`` with the accelerometer PSD times the step's factor ``q_used`` (the pass's model-error
+    term and bounded-influence jumps: ``PassOutput.q_used``).  Returns max |Phi_nn(model) - Phi_nn(stored)|."""
     M = phinn_st.shape[0]
     F = np.zeros((9, 9))
+    F2 = np.empty((9, 9))
+    ph_model = np.empty((9, 9))
+    Qd = np.empty((9, 9))
     fn = np.zeros(3)
-    Qc = np.zeros((9, 9))
-    for i in range(3):
-        Qc[i, i] = qgm
-        Qc[3 + i, 3 + i] = qam
     worst = 0.0
     for k in range(M):
         ph = np.empty((9, 9))
@@ -202,27 +208,21 @@ def _rebuild_qd(phinn_st, sig, lat0, h0, T, qgm, qam, Qd_st):
         fn[1] = ph[5, 0] / T
         fn[2] = ph[3, 1] / T
         for _ in range(6):
-            nav_F(lat0, h0, fn, F)
+            nav_F(lat0, h0, fn, F, g_scale)
             F2 = F @ F
             F3 = F2 @ F
             model = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
             fn[0] -= (model[4, 2] - ph[4, 2]) / T
             fn[1] -= (model[5, 0] - ph[5, 0]) / T
             fn[2] -= (model[3, 1] - ph[3, 1]) / T
-        nav_F(lat0, h0, fn, F)
-        F2 = F @ F
-        F3 = F2 @ F
-        model = np.eye(9) + F * T + F2 * (T * T / 2.0) + F3 * (T * T * T / 6.0)
+        nav_F(lat0, h0, fn, F, g_scale)
+        discretise(F, T, qgm, qam * q_used[k], sig, F2, ph_model, Qd)
         for i in range(9):
             for j in range(9):
-                e = abs(model[i, j] * sig[j] / sig[i] - phinn_st[k, i, j])
+                e = abs(ph_model[i, j] - phinn_st[k, i, j])
                 if e > worst:
                     worst = e
-        FQ = F @ Qc
-        Qd = Qc * T + (FQ + FQ.T) * (T * T / 2.0) + (F2 @ Qc + 2.0 * FQ @ F.T + Qc @ F2.T) * (T * T * T / 6.0)
-        for i in range(9):
-            for j in range(9):
-                Qd_st[k, i, j] = Qd[i, j] / (sig[i] * sig[j])
+                Qd_st[k, i, j] = Qd[i, j]
     return worst
 
 
@@ -477,8 +477,12 @@ def main(argv=None) -> int:
     T = pa["n_per"] * pa["dt"]
     site = np.asarray(pa["site"], float)
     Qd = np.empty((steps, 9, 9))
-    phi_err = _rebuild_qd(out.phinn, sig, site[0], site[2], T, float(np.mean(pa["qg"])), float(np.mean(pa["qa"])), Qd)
+    g_scale = float(site[3]) if site.shape[0] > 3 else 1.0
+    phi_err = _rebuild_qd(out.phinn, sig, site[0], site[2], g_scale, T, float(np.mean(pa["qg"])),
+                          float(np.mean(pa["qa"])), np.ascontiguousarray(out.q_used[:steps]), Qd)
     rs = pa["r"] / sig[3:9] ** 2
+    if np.any(out.r_factor[:steps] != 1.0):
+        print("  (the pass ran with per-step factors on R: the replay's constant R differs from it)")
     zs = out.z / sig[3:9]
     he = int(pa["hist_every"])
     nh = out.hist_Pm.shape[0]
@@ -493,7 +497,7 @@ def main(argv=None) -> int:
     def bwd(st, part=0):
         hx, hP = np.empty((nh, N)), np.empty((nh, N, N))
         x0, P0 = _engine_backward(np.eye(N), st["K"], st["Si"], st["sz"], out.phinn, out.phinp, he, st["Pm"], hx, hP,
-                                  part)
+                                  np.ascontiguousarray(st["P"][9:, 9:]), part)
         return hx, hP, x0, P0
 
     fwd(), bwd(fwd())  # compile
@@ -532,15 +536,22 @@ def main(argv=None) -> int:
             # constant parameters: the open-loop smoothed parameters and their smoothed covariance are
             # the final filtered ones at every step (an exact invariant, checked for both smoothers)
             xo, c = dres["x_open"], dres["C"]
+            # ours: the pass's own feedback (K z of every update), accumulated to each step's reference; not the
+            # dense replay's, whose filter may differ from the pass (a Q_d or R that is not the pass's)
+            fb = np.einsum("kna,ka->kn", out.smoother.K_st[:steps, 9:], zs)
+            c_pass = np.concatenate([np.zeros((1, N - 9)), np.cumsum(fb, axis=0)])
             dense = {
                 "t_fwd": tf, "t_smooth": ts,
                 "Pf_diag_rel": float(np.max(np.abs(np.diag(dres["Pf"]) - pf) / pf)),
                 "xf_last": float(np.max(np.abs(dres["xs"][-1] - eng["xs"][-1]) / np.sqrt(pf))),
                 "xs_abs": float(np.max(np.abs(dx))),
+                # the first stored step (step 0: its predicted covariance is the prior's) apart from the others
+                "xs_nav_sig": (float(np.max(np.abs(dx[0, :9]) / np.sqrt(np.abs(dgd[0, :9])))),
+                               float(np.max(np.abs(dx[1:, :9]) / np.sqrt(np.abs(dgd[1:, :9]))))),
                 "xs_par_post": float(np.max(np.abs(dx[:, 9:]) / sdp)),
                 "xs_par_last": float(np.max(np.abs(dx[-1, 9:]) / sdp)),
                 "Ps_abs": float(np.max(np.abs(dgd - dgo))),
-                "inv_x": (float(np.max(np.abs(out.hist_x[:, 9:] + c[hs, 9:] - xo[-1, 9:]) / sdp)),
+                "inv_x": (float(np.max(np.abs(out.hist_x[:, 9:] + c_pass[hs] - c_pass[-1]) / sdp)),
                           float(np.max(np.abs(xo[hs, 9:] - xo[-1, 9:]) / sdp))),
                 "inv_P": (float(np.max(np.abs(dgo[:, 9:] - pf[9:]))), float(np.max(np.abs(dgd[:, 9:] - pf[9:])))),
                 "neg": (int(np.sum(np.any(dgo <= 0, axis=1))), int(np.sum(np.any(dgd <= 0, axis=1)))),
@@ -591,6 +602,8 @@ def main(argv=None) -> int:
         lab = f"      smoothed states, {dense['nh']} stored steps: max diff"
         print(f"  {lab:<{w}} {dense['xs_abs']:>10.1e}")
         print(f"  {'        parameters: max diff / final sigma':<{w}} {dense['xs_par_post']:>10.1e}")
+        print(f"  {'        navigation / dense smoothed sigma: first stored step':<{w}} {dense['xs_nav_sig'][0]:>10.1e}")
+        print(f"  {'        navigation / dense smoothed sigma: the others':<{w}} {dense['xs_nav_sig'][1]:>10.1e}")
         print(f"  {'      smoothed P diagonal, stored steps: max diff':<{w}} {dense['Ps_abs']:>10.1e}")
         print(f"  {'    invariant (constant parameters), ours | filterpy:':<{w}}")
         print(f"  {'      smoothed params = final filtered: max dev / sigma':<{w}} "

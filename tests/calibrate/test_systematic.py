@@ -19,7 +19,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.diagnostics import dcm_from_rotvec
 from inscal.calibrate.systematic.params import CompParams, canonical_flat, truth_in_frame
-from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, StateSet
+from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, IDX_MEAS, StateSet
 from inscal.sim.simulate import simulate
 
 # the issue's noise-free tolerances, per field unit
@@ -221,9 +221,10 @@ def test_noise_is_estimated_and_innovations_are_consistent(s16_noisy_short):
 
 
 def test_smoother_is_consistent_with_the_feedback(s16_noisy_short):
-    """The adjoint (MBF/RTS) recursion on the closed-loop filter: the smoothed parameters at every
-    stored step, corrected from that step's reference, equal the final estimate (constants), here
-    in a well-conditioned configuration (loose velocity and position measurements)."""
+    """The smoother on the closed-loop filter: the smoothed parameters at every stored step (that step's
+    reference plus the feedback still to come), corrected from that step's reference, equal the final estimate
+    (constants) to first order, here in a well-conditioned configuration (loose velocity and position
+    measurements)."""
     sc, rec = s16_noisy_short
     res = calibrate(rec, "systematic51", max_passes=1, velocity_sigma=1e-3, position_sigma=1e-3,
                     arw=units.to_si(1e-3, "deg/sqrt(h)"), vrw=units.to_si(100.0, "ug/sqrt(Hz)"))
@@ -235,6 +236,43 @@ def test_smoother_is_consistent_with_the_feedback(s16_noisy_short):
     assert np.max(dev) < 0.5
     # and they are not trivially equal: the filtered estimates early on differ by many sigma
     assert np.max(np.abs(h["filtered"][1] - h["smoothed"][1])[ok] / sig[ok]) > 3
+
+
+def test_smoothed_constants_are_the_final_filtered_ones(s16_noisy_short):
+    """The full smoother of a pass (realistic noise: zero-velocity updates ~1e8 times more informative than the
+    prior): the constants' smoothed covariance at every stored step is the final filtered one and positive, and
+    their smoothed error of each step's reference is the feedback still to come (the plain MBF ``Pm - Pm Lam Pm``
+    gave parameter variances off by a factor 60 and negative ones on the first stored steps)."""
+    sc, rec = s16_noisy_short
+    out = calibrate(rec, "systematic51", max_passes=1, keep_passes=True).pass_output
+    n = 9
+    pf = np.diag(out.Pf)[n:]
+    d = np.diagonal(out.hist_P, axis1=1, axis2=2)
+    np.testing.assert_allclose(d[:, n:], np.broadcast_to(pf, d[:, n:].shape), rtol=1e-12)
+    np.testing.assert_allclose(np.diag(out.P0s)[n:], pf, rtol=1e-12)
+    assert np.all(d[1:] > 0)  # (the first stored step's unmeasured attitude: see smoothed_constant)
+    # the smoothed constants relative to each step's reference: the feedback of that step and the later ones
+    sm = out.smoother
+    fb = np.array([sm.K_st[k] @ np.linalg.solve(sm.Si_st[k], sm.sz_st[k]) for k in range(out.steps)])[:, n:]
+    rem = np.cumsum(fb[::-1], axis=0)[::-1]
+    sd = np.sqrt(pf)
+    assert np.max(np.abs(out.hist_x[:, n:] - rem[out.hist_step]) / sd) < 1e-6
+    assert np.max(np.abs(out.x0s[n:] - rem[0]) / sd) < 1e-6
+
+
+def test_stored_predicted_covariance_is_the_one_the_gain_used(s16_noisy_short):
+    """At every stored step the smoother's predicted covariance is the one the update's gain came from
+    (``K = P H^T S^-1``), bounded-influence jump steps included (their extra velocity noise is part of it)."""
+    sc, rec = s16_noisy_short
+    n = int(1200 * rec.rate_hz)  # 20 minutes, every step stored
+    rec = SimpleNamespace(dtheta=rec.dtheta[:n], dvel=rec.dvel[:n], rate_hz=rec.rate_hz, site=rec.site)
+    out = calibrate(rec, "systematic51", max_passes=1, keep_passes=True, history_s=1.0).pass_output
+    sm = out.smoother
+    jumps = np.flatnonzero(out.q_used[:out.steps] > out.q_used[:out.steps].min() * (1 + 1e-12))
+    assert jumps.size > 0 and np.array_equal(out.hist_step, np.arange(out.steps))
+    for k in np.concatenate([jumps, [0, 1, out.steps // 2]]):
+        K = out.hist_Pm[k][:, IDX_MEAS] @ sm.Si_st[k]
+        np.testing.assert_allclose(K, sm.K_st[k], rtol=1e-6, atol=1e-9 * np.abs(sm.K_st[k]).max())
 
 
 def test_bad_input_is_refused():

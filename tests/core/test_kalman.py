@@ -179,3 +179,98 @@ def test_sr_update_stays_positive_semidefinite():
         filters.sr_update(U, idx, r, rng.normal(size=6) * 1e-8, K, S, x)
     ev = np.linalg.eigvalsh(U @ U.T)
     assert ev.min() >= -1e-14 * ev.max() and np.all(np.isfinite(U))
+
+
+# ----------------------------------------------------------------------------- constant parameters, informative data
+def _batch_smoother(P0, phis, qnn, H, r, zs, n):
+    """Independent reference: the fixed-interval smoother as one batch least-squares problem in the unknowns
+    ``theta = [x_0, w_1 .. w_M]`` (``x_k = Phi_k x_{k-1} + [w_k; 0]``), whitened and solved by QR (no Kalman
+    recursion, no inverse of an ill-conditioned covariance).  Returns the smoothed states and covariances at
+    k = 0..M."""
+    N = P0.shape[0]
+    M = len(zs)
+    nt = N + n * M
+    Lq = np.linalg.cholesky(qnn)
+    A = [np.zeros((N, nt))]
+    A[0][:, :N] = np.eye(N)
+    rows, rhs = [np.linalg.solve(np.linalg.cholesky(P0), A[0])], [np.zeros(N)]
+    for k in range(1, M + 1):
+        Ak = phis[k] @ A[-1]
+        Ak[:n, N + n * (k - 1):N + n * k] += Lq  # w_k = Lq u_k, u_k ~ N(0, I)
+        A.append(Ak)
+        prior = np.zeros((n, nt))
+        prior[:, N + n * (k - 1):N + n * k] = np.eye(n)
+        rows.append(prior)
+        rhs.append(np.zeros(n))
+        rows.append((H @ Ak) / np.sqrt(r)[:, None])
+        rhs.append(zs[k - 1] / np.sqrt(r))
+    Q_, R_ = np.linalg.qr(np.vstack(rows))
+    theta = np.linalg.solve(R_, Q_.T @ np.concatenate(rhs))
+    Ri = np.linalg.solve(R_, np.eye(nt))  # Cov(theta) = Ri Ri^T
+    return [Ak @ theta for Ak in A], [(Ak @ Ri) @ (Ak @ Ri).T for Ak in A]
+
+
+def test_smoothed_constant_keeps_the_constants_when_the_data_dwarf_the_prior():
+    """Zero-velocity-like updates ~1e10 times more informative than the prior: ``Pm - Pm Lam Pm`` of the plain MBF
+    form cancels catastrophically in the constants' directions (their variances far off, negative); the split form
+    (:func:`inscal.core.kalman.smoothed_constant`) gives the final filtered constants at every step, and the batch
+    least-squares smoother's covariances once the predicted covariance is no longer the prior's (the first steps'
+    unmeasured dynamic state keeps a cancellation of its own, orders of magnitude smaller than the plain form's)."""
+    rng = np.random.default_rng(11)
+    n, p, M = 3, 4, 60
+    N = n + p
+    idx = np.array([1, 2], dtype=np.int64)
+    r = np.array([1e-10, 1e-10])
+    H = np.zeros((2, N))
+    H[[0, 1], idx] = 1.0
+    qnn = 1e-10 * np.eye(n)
+    phinn = [np.eye(n) + 0.1 * rng.standard_normal((n, n)) for _ in range(M + 1)]
+    phinp = [np.ascontiguousarray(rng.standard_normal((n, p))) for _ in range(M + 1)]
+    phis = [None] + [_dense_phi(phinn[k], phinp[k]) for k in range(1, M + 1)]
+    x = rng.standard_normal(N)
+    zs = []
+    for k in range(1, M + 1):
+        x = phis[k] @ x
+        x[:n] += rng.standard_normal(n) * 1e-5
+        zs.append(H @ x + rng.standard_normal(2) * 1e-5)
+    xs_ref, Ps_ref = _batch_smoother(np.eye(N), phis, qnn, H, r, zs, n)
+    # closed-loop square-root filter (as the systematic kernel): reference y, error e = y - x, fed back
+    U = np.eye(N)
+    y = np.zeros(N)
+    K_st, Si_st, sz_st = np.empty((M, N, 2)), np.empty((M, 2, 2)), np.empty((M, 2))
+    Pm, yref, xh_st = np.empty((M, N, N)), np.empty((M, N)), np.empty((M, N))
+    Kk, Si, xh = np.empty((N, 2)), np.empty((2, 2)), np.empty(N)
+    for k in range(1, M + 1):
+        filters.sr_predict(U, n, phinn[k], phinp[k], qnn)
+        y = phis[k] @ y
+        Pm[k - 1], yref[k - 1] = U @ U.T, y
+        z = H @ y - zs[k - 1]
+        filters.sr_update(U, idx, r, z, Kk, Si, xh)
+        K_st[k - 1], Si_st[k - 1], sz_st[k - 1], xh_st[k - 1] = Kk, Si, Si @ z, xh
+        y = y - xh
+    Pf = U @ U.T
+    np.testing.assert_allclose(y, xs_ref[M], atol=1e-6 * np.sqrt(np.diag(Pf)).min())
+    rem = np.cumsum(xh_st[::-1, n:], axis=0)[::-1]  # the constants' feedback from step k on
+    lam, Lam = np.zeros(N), np.zeros((N, N))
+    worst_plain = 0.0
+    for k in range(M, -1, -1):
+        if k > 0:
+            filters.smoother_step(lam, Lam, idx, K_st[k - 1], Si_st[k - 1], sz_st[k - 1])
+        Pk_m, ref = (Pm[k - 1], yref[k - 1]) if k > 0 else (np.eye(N), np.zeros(N))
+        e, Pk = filters.smoothed_constant(Pk_m, lam, Lam, n, rem[max(k - 1, 0)], np.ascontiguousarray(Pf[n:, n:]))
+        e_plain, P_plain = filters.smoothed(Pk_m, lam, Lam)
+        s = np.sqrt(np.diag(Ps_ref[k]))
+        o = np.outer(s, s)
+        # the constants: the final filtered ones, at every step
+        np.testing.assert_allclose((ref - e)[n:] / s[n:], xs_ref[k][n:] / s[n:], rtol=0, atol=1e-4)
+        np.testing.assert_allclose(Pk[n:, n:] / o[n:, n:], Ps_ref[k][n:, n:] / o[n:, n:], rtol=0, atol=1e-6)
+        worst_plain = max(worst_plain, np.max(np.abs(np.diag(P_plain)[n:] / np.diag(Ps_ref[k])[n:] - 1.0)))
+        assert np.array_equal(e[:n], e_plain[:n])  # the dynamic states: the plain form's (Pm lam)_n
+        for b in (np.s_[:n, :n], np.s_[:n, n:]):  # their covariance: never worse than the plain form's
+            assert np.max(np.abs(Pk - Ps_ref[k])[b] / o[b]) <= np.max(np.abs(P_plain - Ps_ref[k])[b] / o[b]) + 1e-6
+        if k >= 5:  # the data dominate the predicted covariance: everything agrees
+            assert np.max(np.abs(ref - e - xs_ref[k]) / s) < 1e-4
+            np.testing.assert_allclose(Pk / o, Ps_ref[k] / o, rtol=0, atol=1e-6)
+        if k > 0:
+            filters.adjoint_back(lam, Lam, n, phinn[k], phinp[k])
+    assert worst_plain > 1.0  # the case is hard: the plain form's constant variances are off by more than 100 %

@@ -151,6 +151,7 @@ def _library(tmp: Path) -> None:
     lam, Lam = np.zeros(N), np.zeros((N, N))
     kalman.smoother_step(lam, Lam, idx, K, Sinv, np.zeros(3))
     kalman.adjoint_back(lam, Lam, n, np.eye(n), np.zeros((n, N - n)))
+    kalman.smoothed_constant(np.eye(N), lam, Lam, n, np.zeros(N - n), np.eye(N - n))
 
 
 STEP_FUNCTIONS = {"records": _records, "systematic": _systematic, "observability": _observability,

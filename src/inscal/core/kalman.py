@@ -36,7 +36,11 @@ with the adjoint ``lambda``, ``Lambda`` (zero after the last update), backwards:
     l_{k-1} = Phi_k^T lt_k,                   L_{k-1} = Phi_k^T Lt_k Phi_k
 
 so ``P_{k|k-1}`` is only needed at the steps where a smoothed estimate is wanted
-(``tests/core/test_kalman.py`` checks the equality with the dense eq. 13-16 form).
+(``tests/core/test_kalman.py`` checks the equality with the dense eq. 13-16 form).  With constant
+parameters (``q_p = 0``) their smoothed estimate and covariance are the final filtered ones at every
+step; :func:`smoothed_constant` takes them from the filter and conditions the dynamic states on them,
+because ``P - P L P`` cancels catastrophically in the parameter directions when the data dwarf the
+prior (checked against a batch least-squares smoother in the tests).
 
 Feedback.  A closed-loop filter removes its estimate from the reference after every
 update (S16 eq. 27), so ``x_{k|k-1} = 0`` always and the innovation is the raw measurement.
@@ -382,6 +386,63 @@ def smoothed(Pm, lam, Lam):
     PL = Pm @ Lam
     Ps = Pm - PL @ Pm
     return x, 0.5 * (Ps + Ps.T)
+
+
+@njit(cache=True)
+def smoothed_constant(Pm, lam, Lam, n, xp, Ppp):
+    """:func:`smoothed` for states ``[n dynamic | p constants]`` given the constants' smoothed estimate ``xp``
+    and covariance ``Ppp`` (with no parameter noise: the final filtered ones, at every step).
+
+    ``Pm - Pm Lam Pm`` cancels catastrophically in the constants' directions: early in a record ``P_pp`` is the
+    prior while the adjoint ``Lam`` carries the information of the whole rest of it, so ``Lam_pp`` is ``P_pp^-1``
+    less a part ~1e-8 of it, accumulated from terms ``H^T S^-1 H`` many orders larger (smoothed variances off by
+    a factor 60, some negative, on a 1-hour record).  Split ``x_n = V x_p + y`` at the predicted time,
+    ``V = P_np P_pp^-1``: ``y`` and ``x_p`` are uncorrelated with covariances ``C = P_nn - V P_pn`` and ``P_pp``; in
+    ``(y, x_p)`` the adjoint's blocks are ``Lam'_yy = Lam_nn``, ``Lam'_yp = Lam_nn V + Lam_np``, so (MBF in those
+    coordinates, the ``pp`` block replaced by the given ``Ppp``)::
+
+        C_yy = C - C Lam_nn C,     C_yp = -C (Lam_nn P_np + Lam_np P_pp)
+        P_nn = C_yy + V C_yp^T + C_yp V^T + V Ppp V^T,     P_np = C_yp + V Ppp,     P_pp = Ppp
+
+    (the same as :func:`smoothed` in exact arithmetic when ``xp``, ``Ppp`` are its own values): no information-sized
+    term of the constants is subtracted.  The dynamic states keep :func:`smoothed`'s ``(Pm lam)_n`` (as accurate
+    as the split form's ``C lam_n + V xp`` or more on the measured states); ``x_p = xp``.  Where the predicted
+    covariance is still the prior's (the first steps), an unmeasured dynamic state that the rest of the record
+    pins down keeps a cancellation of its own in ``C - C Lam_nn C`` (orders of magnitude smaller than the plain
+    form's).  Returns ``(x, P)``."""
+    N = Pm.shape[0]
+    Ppp = np.ascontiguousarray(Ppp)
+    Pnn = np.ascontiguousarray(Pm[:n, :n])
+    Pnp = np.ascontiguousarray(Pm[:n, n:])
+    Pp = np.ascontiguousarray(Pm[n:, n:])
+    Lc = np.linalg.cholesky(0.5 * (Pp + Pp.T))
+    V = np.ascontiguousarray(np.linalg.solve(Lc.T, np.linalg.solve(Lc, np.ascontiguousarray(Pnp.T))).T)  # P_np P_pp^-1
+    C = Pnn - V @ Pnp.T
+    C = 0.5 * (C + C.T)
+    x = np.empty(N)
+    x[:n] = np.ascontiguousarray(Pm[:n, :]) @ lam
+    x[n:] = xp
+    Lnn = np.ascontiguousarray(Lam[:n, :n])
+    Lnp = np.ascontiguousarray(Lam[:n, n:])
+    Cyy = C - C @ Lnn @ C
+    Cyp = -(C @ (Lnn @ Pnp + Lnp @ Pp))
+    VP = V @ Ppp
+    CV = Cyp @ V.T
+    Snn = Cyy + CV + CV.T + VP @ V.T
+    P = np.empty((N, N))
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (Snn[i, j] + Snn[j, i])
+            P[i, j] = v
+            P[j, i] = v
+        for j in range(n, N):
+            v = Cyp[i, j - n] + VP[i, j - n]
+            P[i, j] = v
+            P[j, i] = v
+    for i in range(n, N):
+        for j in range(n, N):
+            P[i, j] = 0.5 * (Ppp[i - n, j - n] + Ppp[j - n, i - n])
+    return x, P
 
 
 def dense_rts(xf, Pf, xp, Pp, Phis):

@@ -397,6 +397,11 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                         for j in range(9):
                             Qa[i, j] *= jump - 1.0
                     filters.sr_predict(U, 9, I9, Z9, Qa)
+                    if k % hist_every == 0 or k == M - 1:  # the smoother's predicted covariance has the jump
+                        if thermal:
+                            _upper_outer(U, hist_Pm[ih])
+                        else:
+                            hist_Pm[ih] = U @ U.T
         nis_k, _ = filters.sr_update(U, IDX_MEAS, rsk, z, K, Si, xs, np.inf)
         nis_st[k] = nis0 if jump > 1.0 else nis_k  # the NIS of the nominal model
         rw_st[k] = rf[k]
@@ -679,8 +684,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     Mk = _pass_kernel(inp, par, U, st, er)
     x0 = np.empty(N)
     hist_x = np.empty((nh, N))
-    smooth_vector_kernel(K_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, x0, att_used, Ka_st,
-                          sza_st, Ha_st)
+    smooth_vector_kernel(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), Mk, hist_Pm, hist_x, x0, att_used,
+                          Ka_st, Sia_st, sza_st, Ha_st)
     steps = np.array(sorted(set(range(0, Mk, hist_every)) | {Mk - 1}))
     out = PassOutput(p, None, x0, nis, z_st, Mk, steps, hist_ref, hist_x, None, hist_Pm, U @ U.T)
     out.Uf = U
@@ -732,7 +737,7 @@ def smooth_pass(out: PassOutput) -> PassOutput:
     x0 = np.empty(N)
     out.P0s = np.empty((N, N))
     smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
-                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st)
+                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st, out.Pf[N_NAV:, N_NAV:])
     out.x0s = x0
     return out
 
