@@ -62,9 +62,18 @@ reference kept at that step gives the smoothed estimate, consistent with the fee
 parameters are constants (zero process noise), so their smoothed estimate and covariance at
 every step equal the final filtered ones: the result and the smoothed history use that
 identity, and the recursion supplies the smoothed navigation states (the initial attitude
-of the next pass).  Its own parameter values agree with the identity where the record is well
-conditioned (``tests/calibrate/test_systematic.py``); with zero-velocity updates ~1e8 times more
-informative than the prior, the recursion's parameter part loses digits early in the record.
+of the next pass).  Its constants' block is that identity (:func:`inscal.core.kalman.smoothed_constant`: the
+plain ``Pm - Pm Lam Pm`` cancels catastrophically there when zero-velocity updates are ~1e8 times more
+informative than the prior).
+
+Robust scheme (:mod:`~inscal.calibrate.systematic.model_error`).  The first passes run with bounded influence
+as a velocity jump (a step whose NIS passes a cap has its accelerometer noise raised until it meets it); then a
+velocity model-error term (a factor on the accelerometer noise per motion state, held to the dwells' own noise
+level) and frozen outlier weights on R are estimated from the innovations and frozen, so the remaining passes are
+a Gauss-Newton iteration of one weighted problem.  A run that does not converge, an estimate beyond 5 prior sigma
+or a position innovation beyond 10 m ends with :class:`~inscal.calibrate.systematic.driver.NotConverged` unless
+``accept_unconverged``.  The site latitude and the time scale the sigma assume are stated
+(:mod:`~inscal.calibrate.systematic.sensitivity`).
 
 Sample-to-sample terms.  The time asynchrony and the size effect's w-dot use centred
 differences of the neighbouring samples (one sample of look-ahead), as
