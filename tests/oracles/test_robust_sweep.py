@@ -130,3 +130,29 @@ def test_frozen_factors_are_used_as_given(base, gen):
     again = systematic(_rec(gen), FULL, weights=me, initial=base.imu)
     assert again.diagnostics["model_error"]["shared"] and again.diagnostics["converged"]
     assert np.allclose(again.imu.gyro_scale_factor, base.imu.gyro_scale_factor, atol=0.01e-6)
+
+
+def test_cli_ends_an_unconverged_run_with_one_line_or_keeps_it_marked(gen, tmp_path):
+    """Through ``inscal calibrate``: a gravity 1 % off (the accelerometer scale factors ~10 prior sigma out) ends with
+    one line naming what happened and what to try, exit 2, nothing written; ``--accept-unconverged`` keeps the
+    last iterate, marked in the text, the JSON and the parameter file."""
+    import json
+
+    from adapter import write_inscal_record
+    from typer.testing import CliRunner
+
+    from inscal.cli.app import app
+
+    rec, out = tmp_path / "rec.h5", tmp_path / "p.toml"
+    write_inscal_record(rec, gen)
+    args = ["calibrate", str(rec), "--method", "systematic51", "--states", FULL, "--gravity", "9.89", "--out", str(out)]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 2 and not out.exists()
+    line = r.output.strip()
+    assert "\n" not in line and "prior sigma" in line and "--accept-unconverged" in line, line
+    r = CliRunner().invoke(app, args + ["--accept-unconverged", "--json"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    assert rep["convergence"]["accepted_unconverged"] and rep["convergence"]["verdict"]
+    assert any("NOT A CONVERGED CALIBRATION" in n for n in rep["notes"])
+    assert "NOT A CONVERGED CALIBRATION" in out.read_text()
