@@ -63,6 +63,8 @@ class Curve:
 
     @classmethod
     def from_scale_variance(cls, sv: ScaleVariance, channel: int = 0) -> "Curve":
+        """The curve of channel ``channel`` of ``sv``, with the 95 % chi-square interval of its wavelet
+        variances (:func:`inscal.analysis.noise.intervals.wv_interval`)."""
         lo, hi = wv_interval(sv)
         return cls(sv.m, sv.dt, sv.wv[:, channel], lo[:, channel], hi[:, channel], sv.n_terms)
 
@@ -76,10 +78,12 @@ def term_from_theta(code: str, th, dt: float):
 
 
 def n_params(code: str) -> int:
+    """The number of parameters of the term ``code``: 2 for a Gauss-Markov term (sigma, tc), 1 otherwise."""
     return 2 if code == "GM" else 1
 
 
 def param_names(codes) -> list[str]:
+    """The parameter labels of the terms ``codes`` in order, e.g. ``WN.n``, ``RW.k``, ``GM1.sigma``, ``GM1.tc``."""
     out, g = [], 0
     for c in codes:
         if c == "GM":
@@ -91,6 +95,8 @@ def param_names(codes) -> list[str]:
 
 
 def terms_of(codes, theta, dt: float) -> tuple:
+    """The processes of the terms ``codes`` from the stacked log-parameters ``theta`` (sample
+    interval ``dt`` [s]), in order."""
     out, i = [], 0
     for c in codes:
         p = n_params(c)
@@ -224,6 +230,8 @@ def jacobian(codes, theta, m, dt: float) -> np.ndarray:
 
 
 def avar_term(code: str, th, m, dt: float) -> np.ndarray:
+    """The exact Allan variance at factors ``m`` of the term ``code`` with log-parameters ``th``
+    (sample interval ``dt`` [s]), in SI rate units squared."""
     return term_from_theta(code, th, dt).avar(m, dt)
 
 
@@ -254,10 +262,14 @@ class NoiseFit:
 
     @property
     def se_theta(self) -> np.ndarray:
+        """The standard errors of the log-parameters ``theta``: the square roots of the sandwich
+        covariance's diagonal."""
         return np.sqrt(np.diag(self.cov_theta))
 
     @property
     def wvic(self) -> float:
+        """The wavelet variance information criterion: the objective plus its optimism ``penalty``
+        (smaller is better; model selection compares it across candidate models)."""
         return self.objective + self.penalty
 
 
