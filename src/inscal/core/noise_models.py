@@ -13,7 +13,7 @@ Allan variance at ``m``.  With ``V(k)`` the variance of a sum of ``k`` consecuti
 stationary ``y``,  ``AVAR(m) = (4 V(m) - V(2m)) / (2 m^2)``  (the blocks' sums S_a, S_b: var(S_b - S_a)).
 
 The processes (IEEE Std 952-2020 Annex C, IEEE Std 1293-2018 for accelerometers), each defined in
-discrete time so that its variances below are exact for every ``m >= 1``, not only asymptotically:
+discrete time so that its variances below are exact for every ``m >= 1``, not only asymptotically::
 
 =====  ===========================================  ==========================================
  Q     quantization: white phase error of var Q^2     AVAR = 3 Q^2 / tau^2
@@ -114,7 +114,7 @@ class WhiteNoise:
 
 @dataclass(frozen=True)
 class BiasInstability:
-    """Flicker (1/f) rate noise B [rad/s] ([m/s^2]) with two-sided density B^2 / (2 pi |f|) up to the
+    """Flicker (1/f) rate noise B [rad/s] ([m/s^2]) with two-sided density B^2 / (2 pi abs(f)) up to the
     cut-off ``f0`` [Hz] (at most the Nyquist frequency), zero above (IEEE 952 eq. C.16).  The sampled
     process has the same spectrum (no aliasing), so AVAR is the exact integral of it through the
     Allan filter; it rises to the plateau (2 ln 2 / pi) B^2 for tau >> 1/f0."""

@@ -6,7 +6,7 @@ divided by ``dt``) and an averaging factor ``m`` (``tau = m dt``), each term
 
     D_i(m) = x_{i+2m} - 2 x_{i+m} + x_i,   i = 0 .. n - 2m   (M = n - 2m + 1 terms)
 
-is ``m`` times the difference of two adjacent m-sample means, so
+is ``m`` times the difference of two adjacent m-sample means, so::
 
     AVAR(m) = sum D^2 / (2 m^2 M)   (the overlapping estimator of IEEE 952 eq. C.8 and allantools.oadev)
     WV(m)   = sum D^2 / (4 m^2 M)   (the MODWT Haar wavelet variance at width L = 2m, scale index

@@ -2,24 +2,24 @@
 
 The generalized method of wavelet moments (Guerrier, Skaloud, Stebler, Victoria-Feser, JASA 108
 (2013) 1021-1030) estimates the parameters ``theta`` of a sum of processes by weighted least
-squares on the wavelet variance at the octave scales:
+squares on the wavelet variance at the octave scales::
 
     theta_hat = argmin (nu_hat - nu(theta))' Omega (nu_hat - nu(theta))        (Guerrier 2013 eq. 5)
 
 with ``nu(theta)`` the exact discrete-time wavelet variances of :mod:`inscal.core.noise_models`.
-Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, |r|, each GM's sigma and
+Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, ``abs(r)``, each GM's sigma and
 tc: no bounds to keep inside, and intervals that stay positive); the default
 ``Omega = diag(1 / (upper - lower)^2)`` of the 95 % eta3 intervals (GMWM's default, so objective
 values compare across tools).  The solver is multi-start: a deterministic start from the IEEE
 read-offs, then ``n_starts`` starts drawn around it from a seeded generator, each polished by
 ``scipy.optimize.least_squares`` (trust-region reflective); the best objective wins.
 
-Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich):
+Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich)::
 
     cov(theta_hat) = (D' Omega D)^-1 D' Omega V Omega D (D' Omega D)^-1,   D = d nu / d theta
 
 where ``V = cov(nu_hat)`` at the fitted model, from the spectrum S of the channel
-(Percival & Walden 2000 eq. 313a, extended across scales):
+(Percival & Walden 2000 eq. 313a, extended across scales)::
 
     V_jk = 2 / max(M_j, M_k) int_{-1/2}^{1/2} |H_j(f)|^2 |H_k(f)|^2 S(f)^2 df,
     |H_j(f)|^2 = sin^4(pi f m_j) / (m_j^2 sin^2(pi f))  (the Haar MODWT filter of width 2 m_j).
