@@ -15,16 +15,16 @@ stationary ``y``,  ``AVAR(m) = (4 V(m) - V(2m)) / (2 m^2)``  (the blocks' sums S
 The processes (IEEE Std 952-2020 Annex C, IEEE Std 1293-2018 for accelerometers), each defined in
 discrete time so that its variances below are exact for every ``m >= 1``, not only asymptotically::
 
-=====  ===========================================  ==========================================
- Q     quantization: white phase error of var Q^2     AVAR = 3 Q^2 / tau^2
- N     white rate noise, var N^2 / dt (ARW, VRW)      AVAR = N^2 / tau
- B     flicker rate noise cut off at f0               AVAR -> (2 ln 2 / pi) B^2 (the plateau)
-       (two-sided S(f) = B^2 / (2 pi |f|), |f| <= f0)   (IEEE 952 eq. C.17, integrated exactly)
- K     rate random walk, steps of var K^2 dt          AVAR = K^2 tau / 3 + K^2 dt^2 / (6 tau)
- R     rate ramp y = R t (deterministic)              AVAR = R^2 tau^2 / 2
- GM    first-order Gauss-Markov (AR(1)): stationary   AVAR = s^2 F / (m^2 (1 - phi)^2),
-       std s, correlation time T, phi = exp(-dt/T)      F below (Guerrier et al. 2013 appendix)
-=====  ===========================================  ==========================================
+    =====  ===========================================  ==========================================
+     Q     quantization: white phase error of var Q^2     AVAR = 3 Q^2 / tau^2
+     N     white rate noise, var N^2 / dt (ARW, VRW)      AVAR = N^2 / tau
+     B     flicker rate noise cut off at f0               AVAR -> (2 ln 2 / pi) B^2 (the plateau)
+           (two-sided S(f) = B^2 / (2 pi |f|), |f| <= f0)   (IEEE 952 eq. C.17, integrated exactly)
+     K     rate random walk, steps of var K^2 dt          AVAR = K^2 tau / 3 + K^2 dt^2 / (6 tau)
+     R     rate ramp y = R t (deterministic)              AVAR = R^2 tau^2 / 2
+     GM    first-order Gauss-Markov (AR(1)): stationary   AVAR = s^2 F / (m^2 (1 - phi)^2),
+           std s, correlation time T, phi = exp(-dt/T)      F below (Guerrier et al. 2013 appendix)
+    =====  ===========================================  ==========================================
 
 Sources: IEEE Std 952-2020 (gyros), IEEE Std 1293-2018 (accelerometers); N. El-Sheimy, H. Hou,
 X. Niu, "Analysis and modeling of inertial sensors using Allan variance", IEEE TIM 57 (2008);
