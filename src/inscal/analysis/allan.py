@@ -102,6 +102,9 @@ class StreamingAllan:
         self.engine.update(increments)
 
     def result(self, white_tau_max: float = 1.0) -> AllanResult:
+        """The :class:`AllanResult` of the fed increments (all ``n`` of them): the octave taus with at
+        least two terms, each deviation's 1-sigma ``adev / sqrt(terms)``, the white-noise coefficient read
+        at taus up to ``white_tau_max`` [s]."""
         sv = self.engine.result()
         ok = sv.n_terms > 1  # allantools drops the taus with a single term
         adev = sv.adev[ok]

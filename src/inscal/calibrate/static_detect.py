@@ -70,9 +70,11 @@ class Candidate:
 
     @property
     def duration(self) -> float:
+        """The candidate's length ``t1 - t0`` [s]."""
         return self.t1 - self.t0
 
     def describe(self) -> str:
+        """One line for the user: the pose number, its time span [s], kept or rejected, and why."""
         return f"pose {self.number} ({self.t0:.2f}-{self.t1:.2f} s): {'kept' if self.kept else 'rejected'}, {self.reason}"
 
 
@@ -90,10 +92,12 @@ class StillIntervals:
 
     @property
     def kept(self) -> list[Candidate]:
+        """The candidates kept as still poses, in time order."""
         return [c for c in self.candidates if c.kept]
 
     @property
     def rejected(self) -> list[Candidate]:
+        """The candidates rejected, in time order (each with its reason)."""
         return [c for c in self.candidates if not c.kept]
 
     def report(self) -> list[dict]:

@@ -146,6 +146,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
 
 
 def register(app: typer.Typer) -> None:
+    """Add the ``inscal noise`` command (noise identification) to ``app``."""
     @app.command("noise")
     def noise_cmd(
         data: Path = typer.Argument(None, help="HDF5 record (a static window of it)"),

@@ -13,18 +13,18 @@ Allan variance at ``m``.  With ``V(k)`` the variance of a sum of ``k`` consecuti
 stationary ``y``,  ``AVAR(m) = (4 V(m) - V(2m)) / (2 m^2)``  (the blocks' sums S_a, S_b: var(S_b - S_a)).
 
 The processes (IEEE Std 952-2020 Annex C, IEEE Std 1293-2018 for accelerometers), each defined in
-discrete time so that its variances below are exact for every ``m >= 1``, not only asymptotically:
+discrete time so that its variances below are exact for every ``m >= 1``, not only asymptotically::
 
-=====  ===========================================  ==========================================
- Q     quantization: white phase error of var Q^2     AVAR = 3 Q^2 / tau^2
- N     white rate noise, var N^2 / dt (ARW, VRW)      AVAR = N^2 / tau
- B     flicker rate noise cut off at f0               AVAR -> (2 ln 2 / pi) B^2 (the plateau)
-       (two-sided S(f) = B^2 / (2 pi |f|), |f| <= f0)   (IEEE 952 eq. C.17, integrated exactly)
- K     rate random walk, steps of var K^2 dt          AVAR = K^2 tau / 3 + K^2 dt^2 / (6 tau)
- R     rate ramp y = R t (deterministic)              AVAR = R^2 tau^2 / 2
- GM    first-order Gauss-Markov (AR(1)): stationary   AVAR = s^2 F / (m^2 (1 - phi)^2),
-       std s, correlation time T, phi = exp(-dt/T)      F below (Guerrier et al. 2013 appendix)
-=====  ===========================================  ==========================================
+    =====  ===========================================  ==========================================
+     Q     quantization: white phase error of var Q^2     AVAR = 3 Q^2 / tau^2
+     N     white rate noise, var N^2 / dt (ARW, VRW)      AVAR = N^2 / tau
+     B     flicker rate noise cut off at f0               AVAR -> (2 ln 2 / pi) B^2 (the plateau)
+           (two-sided S(f) = B^2 / (2 pi |f|), |f| <= f0)   (IEEE 952 eq. C.17, integrated exactly)
+     K     rate random walk, steps of var K^2 dt          AVAR = K^2 tau / 3 + K^2 dt^2 / (6 tau)
+     R     rate ramp y = R t (deterministic)              AVAR = R^2 tau^2 / 2
+     GM    first-order Gauss-Markov (AR(1)): stationary   AVAR = s^2 F / (m^2 (1 - phi)^2),
+           std s, correlation time T, phi = exp(-dt/T)      F below (Guerrier et al. 2013 appendix)
+    =====  ===========================================  ==========================================
 
 Sources: IEEE Std 952-2020 (gyros), IEEE Std 1293-2018 (accelerometers); N. El-Sheimy, H. Hou,
 X. Niu, "Analysis and modeling of inertial sensors using Allan variance", IEEE TIM 57 (2008);
@@ -79,12 +79,15 @@ class Quantization:
     params = ("q",)
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The exact Allan variance ``3 Q^2 / tau^2`` at factors ``m`` (``tau = m dt``) [(rad/s)^2 or (m/s^2)^2]."""
         return 3.0 * self.q**2 / (_m(m) * dt) ** 2  # IEEE 952 eq. C.3 (exact for white phase)
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """The two-sided rate spectrum ``4 Q^2 sin^2(pi nu) / dt^2`` per cycle/sample at ``nu`` [cycles/sample]."""
         return 4.0 * self.q**2 * np.sin(np.pi * np.asarray(nu)) ** 2 / dt**2
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """``n`` rate samples [SI]: the differences of a white phase error of std Q, over ``dt``."""
         return np.diff(rng.normal(0.0, self.q, n + 1)) / dt
 
 
@@ -97,18 +100,21 @@ class WhiteNoise:
     params = ("n",)
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The exact Allan variance ``N^2 / tau`` at factors ``m`` (``tau = m dt``)."""
         return self.n**2 / (_m(m) * dt)  # IEEE 952 eq. C.6
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """The flat two-sided rate spectrum ``N^2 / dt`` per cycle/sample at ``nu`` [cycles/sample]."""
         return np.full(np.shape(nu), self.n**2 / dt)
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """``n`` independent normal rate samples of std ``N / sqrt(dt)`` [SI]."""
         return rng.normal(0.0, self.n / math.sqrt(dt), n)
 
 
 @dataclass(frozen=True)
 class BiasInstability:
-    """Flicker (1/f) rate noise B [rad/s] ([m/s^2]) with two-sided density B^2 / (2 pi |f|) up to the
+    """Flicker (1/f) rate noise B [rad/s] ([m/s^2]) with two-sided density B^2 / (2 pi abs(f)) up to the
     cut-off ``f0`` [Hz] (at most the Nyquist frequency), zero above (IEEE 952 eq. C.16).  The sampled
     process has the same spectrum (no aliasing), so AVAR is the exact integral of it through the
     Allan filter; it rises to the plateau (2 ln 2 / pi) B^2 for tau >> 1/f0."""
@@ -130,9 +136,12 @@ class BiasInstability:
         return (2.0 / math.pi) * np.asarray(out).reshape(np.shape(m))
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The exact Allan variance at factors ``m``: ``B^2`` times :meth:`unit_avar`."""
         return self.b**2 * self.unit_avar(m, dt)
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """The two-sided rate spectrum ``B^2 / (2 pi abs(nu))`` per cycle/sample for ``0 < abs(nu) <= f0 dt``, zero
+        elsewhere (``nu`` in cycles/sample)."""
         nu = np.abs(np.asarray(nu, dtype=float))
         with np.errstate(divide="ignore"):
             s = self.b**2 / (2.0 * math.pi * nu)
@@ -178,14 +187,18 @@ class RandomWalk:
     params = ("k",)
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The exact Allan variance ``K^2 dt (2 m^2 + 1) / (6 m)`` at factors ``m`` (``K^2 tau / 3`` for large m)."""
         m = _m(m)
         return self.k**2 * dt * (2.0 * m**2 + 1.0) / (6.0 * m)  # var(S_b - S_a) = s^2 m (2 m^2 + 1) / 3
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """The two-sided rate spectrum ``K^2 dt / (4 sin^2(pi nu))`` per cycle/sample at ``nu`` [cycles/sample]
+        (infinite at ``nu = 0``)."""
         with np.errstate(divide="ignore"):
             return self.k**2 * dt / (4.0 * np.sin(np.pi * np.asarray(nu, dtype=float)) ** 2)
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """``n`` rate samples [SI]: the running sum of normal steps of std ``K sqrt(dt)``, from zero."""
         return np.cumsum(rng.normal(0.0, self.k * math.sqrt(dt), n))
 
 
@@ -198,12 +211,15 @@ class RateRamp:
     params = ("r",)
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The exact Allan variance ``R^2 tau^2 / 2`` at factors ``m`` (``tau = m dt``)."""
         return 0.5 * (self.r * _m(m) * dt) ** 2  # IEEE 952 eq. C.14
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """Zeros shaped like ``nu``: a deterministic ramp adds nothing to the estimator's variance."""
         return np.zeros(np.shape(nu))  # deterministic: no contribution to the estimator's variance
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """``n`` rate samples [SI] of the ramp ``R t`` at ``t = 0, dt, ...`` (``rng`` unused)."""
         return self.r * dt * np.arange(n)
 
 
@@ -219,6 +235,7 @@ class GaussMarkov:
     params = ("sigma", "tc")
 
     def phi(self, dt: float) -> float:
+        """The AR(1) coefficient ``exp(-dt / tc)`` at sample interval ``dt`` [s]."""
         return math.exp(-dt / self.tc)
 
     def avar(self, m, dt: float) -> np.ndarray:
@@ -244,11 +261,14 @@ class GaussMarkov:
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
         # sigma^2 (1 - phi^2) / |1 - phi e^{-i 2 pi nu}|^2, written with expm1 so that phi -> 1 (tc >> dt) stays finite
+        """The two-sided rate spectrum of the AR(1),
+        ``sigma^2 (1 - phi^2) / abs(1 - phi exp(-2 pi i nu))^2`` per cycle/sample, at ``nu`` [cycles/sample]."""
         b = dt / self.tc
         den = np.expm1(-b) ** 2 + 4 * math.exp(-b) * np.sin(np.pi * np.asarray(nu, dtype=float)) ** 2
         return self.sigma**2 * -np.expm1(-2 * b) / den
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """``n`` rate samples [SI] of the AR(1), stationary from the first sample (``y_0`` of std sigma)."""
         p = self.phi(dt)
         e = rng.normal(0.0, 1.0, n)
         e[0] *= self.sigma
@@ -343,9 +363,11 @@ class ChannelNoise:
 
     @property
     def model(self) -> str:
+        """The channel's model string, e.g. ``"WN+RW+2GM"`` (:func:`model_string` of its terms)."""
         return model_string(t.code for t in self.terms)
 
     def avar(self, m, dt: float) -> np.ndarray:
+        """The channel's exact Allan variance at factors ``m``: the sum of its terms' (independent processes)."""
         return sum((t.avar(m, dt) for t in self.terms), np.zeros(np.shape(m)))
 
     def wvar(self, m, dt: float) -> np.ndarray:
@@ -353,6 +375,7 @@ class ChannelNoise:
         return 0.5 * self.avar(m, dt)
 
     def spectrum(self, nu, dt: float) -> np.ndarray:
+        """The channel's two-sided rate spectrum at ``nu`` [cycles/sample]: the sum of its terms'."""
         return sum((t.spectrum(nu, dt) for t in self.terms), np.zeros(np.shape(nu)))
 
     def simulate(self, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
@@ -372,6 +395,7 @@ class NoiseModel:
     rate_hz: float
 
     def channel(self, name: str) -> ChannelNoise:
+        """The channel named ``name`` (``gx`` ... ``az``); KeyError naming the channels there are otherwise."""
         for c in self.channels:
             if c.name == name:
                 return c

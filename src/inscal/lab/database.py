@@ -463,11 +463,13 @@ class Staged:
     committed: bool = False
 
     def commit(self) -> None:
+        """Commit the transaction, then release its connection."""
         self.trans.commit()
         self.committed = True
         self.close()
 
     def close(self) -> None:
+        """Roll the transaction back unless it was committed, and release its connection (never raises)."""
         if not self.committed:
             with contextlib.suppress(Exception):
                 self.trans.rollback()

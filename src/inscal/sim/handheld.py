@@ -58,6 +58,7 @@ class HandheldMotion:
 
     @property
     def duration(self) -> float:
+        """The session's length [s]: every still pose and the moves between them."""
         return self.poses * self.still_s + (self.poses - 1) * self.move_s
 
     def attitudes(self) -> list[np.ndarray]:
@@ -89,6 +90,8 @@ class HandheldMotion:
         return out
 
     def still_intervals(self) -> list[tuple[float, float]]:
+        """``(start, end)`` [s] of every still pose, in time order (the body is at rest on the Earth there:
+        the tremor only rides on the moves)."""
         return [(j * (self.still_s + self.move_s), j * (self.still_s + self.move_s) + self.still_s)
                 for j in range(self.poses)]
 

@@ -547,6 +547,8 @@ def gravity_from_field(g) -> GravityModel:
 
 
 def read_noise_file(path) -> NoiseModel:
+    """The :class:`~inscal.core.noise_models.NoiseModel` of the noise.toml at ``path`` (a scenario's
+    ``[noise] file``); ScenarioError with one line when it cannot be read."""
     try:
         return read_noise(path)[0]
     except NoiseFileError as exc:

@@ -6,7 +6,7 @@ divided by ``dt``) and an averaging factor ``m`` (``tau = m dt``), each term
 
     D_i(m) = x_{i+2m} - 2 x_{i+m} + x_i,   i = 0 .. n - 2m   (M = n - 2m + 1 terms)
 
-is ``m`` times the difference of two adjacent m-sample means, so
+is ``m`` times the difference of two adjacent m-sample means, so::
 
     AVAR(m) = sum D^2 / (2 m^2 M)   (the overlapping estimator of IEEE 952 eq. C.8 and allantools.oadev)
     WV(m)   = sum D^2 / (4 m^2 M)   (the MODWT Haar wavelet variance at width L = 2m, scale index
@@ -58,14 +58,17 @@ class ScaleVariance:
 
     @property
     def taus(self) -> np.ndarray:
+        """The averaging times ``tau = m dt`` [s], shape (J,)."""
         return self.m * self.dt
 
     @property
     def avar(self) -> np.ndarray:
+        """The Allan variance ``2 wv`` at ``taus``, (J, k), in the squared rate unit of the input."""
         return 2.0 * self.wv
 
     @property
     def adev(self) -> np.ndarray:
+        """The Allan deviation ``sqrt(avar)`` at ``taus``, (J, k), in the rate unit of the input."""
         return np.sqrt(self.avar)
 
     @property
@@ -79,6 +82,7 @@ class ScaleVariance:
         return np.maximum(self.n_terms / (2.0 * self.m), 1.0)
 
     def channel(self, c: int) -> "ScaleVariance":
+        """The variances of channel ``c`` alone: a :class:`ScaleVariance` with ``k = 1``."""
         return ScaleVariance(self.m, self.dt, self.n, self.wv[:, c:c + 1], self.n_terms)
 
 
@@ -114,6 +118,8 @@ class StreamingScaleVariance:
         self._tmp = np.empty((self.piece + m_max, self.k))  # scratch for the terms (no allocation per m)
 
     def update(self, x) -> None:
+        """Feed the next chunk ((N, k), or (N,) for one channel) of rates or increments; more than the
+        announced ``n`` samples, a wrong shape or a NaN/inf is a ValueError."""
         x = np.asarray(x, dtype=float)
         if x.ndim == 1:
             x = x[:, None]
@@ -168,6 +174,8 @@ class StreamingScaleVariance:
             self.next_i[j] = i1 + 1
 
     def result(self) -> ScaleVariance:
+        """The :class:`ScaleVariance` of the ``n`` samples fed (a ValueError before all of them are):
+        the factors with at least one term, the wavelet variance in rate units squared."""
         if self.fed != self.n:
             raise ValueError(f"fed {self.fed} of the announced {self.n} increments")
         nterm = self.n + 1 - 2 * self.m

@@ -2,24 +2,24 @@
 
 The generalized method of wavelet moments (Guerrier, Skaloud, Stebler, Victoria-Feser, JASA 108
 (2013) 1021-1030) estimates the parameters ``theta`` of a sum of processes by weighted least
-squares on the wavelet variance at the octave scales:
+squares on the wavelet variance at the octave scales::
 
     theta_hat = argmin (nu_hat - nu(theta))' Omega (nu_hat - nu(theta))        (Guerrier 2013 eq. 5)
 
 with ``nu(theta)`` the exact discrete-time wavelet variances of :mod:`inscal.core.noise_models`.
-Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, |r|, each GM's sigma and
+Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, ``abs(r)``, each GM's sigma and
 tc: no bounds to keep inside, and intervals that stay positive); the default
 ``Omega = diag(1 / (upper - lower)^2)`` of the 95 % eta3 intervals (GMWM's default, so objective
 values compare across tools).  The solver is multi-start: a deterministic start from the IEEE
 read-offs, then ``n_starts`` starts drawn around it from a seeded generator, each polished by
 ``scipy.optimize.least_squares`` (trust-region reflective); the best objective wins.
 
-Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich):
+Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich)::
 
     cov(theta_hat) = (D' Omega D)^-1 D' Omega V Omega D (D' Omega D)^-1,   D = d nu / d theta
 
 where ``V = cov(nu_hat)`` at the fitted model, from the spectrum S of the channel
-(Percival & Walden 2000 eq. 313a, extended across scales):
+(Percival & Walden 2000 eq. 313a, extended across scales)::
 
     V_jk = 2 / max(M_j, M_k) int_{-1/2}^{1/2} |H_j(f)|^2 |H_k(f)|^2 S(f)^2 df,
     |H_j(f)|^2 = sin^4(pi f m_j) / (m_j^2 sin^2(pi f))  (the Haar MODWT filter of width 2 m_j).
@@ -63,6 +63,8 @@ class Curve:
 
     @classmethod
     def from_scale_variance(cls, sv: ScaleVariance, channel: int = 0) -> "Curve":
+        """The curve of channel ``channel`` of ``sv``, with the 95 % chi-square interval of its wavelet
+        variances (:func:`inscal.analysis.noise.intervals.wv_interval`)."""
         lo, hi = wv_interval(sv)
         return cls(sv.m, sv.dt, sv.wv[:, channel], lo[:, channel], hi[:, channel], sv.n_terms)
 
@@ -76,10 +78,12 @@ def term_from_theta(code: str, th, dt: float):
 
 
 def n_params(code: str) -> int:
+    """The number of parameters of the term ``code``: 2 for a Gauss-Markov term (sigma, tc), 1 otherwise."""
     return 2 if code == "GM" else 1
 
 
 def param_names(codes) -> list[str]:
+    """The parameter labels of the terms ``codes`` in order, e.g. ``WN.n``, ``RW.k``, ``GM1.sigma``, ``GM1.tc``."""
     out, g = [], 0
     for c in codes:
         if c == "GM":
@@ -91,6 +95,8 @@ def param_names(codes) -> list[str]:
 
 
 def terms_of(codes, theta, dt: float) -> tuple:
+    """The processes of the terms ``codes`` from the stacked log-parameters ``theta`` (sample
+    interval ``dt`` [s]), in order."""
     out, i = [], 0
     for c in codes:
         p = n_params(c)
@@ -224,6 +230,8 @@ def jacobian(codes, theta, m, dt: float) -> np.ndarray:
 
 
 def avar_term(code: str, th, m, dt: float) -> np.ndarray:
+    """The exact Allan variance at factors ``m`` of the term ``code`` with log-parameters ``th``
+    (sample interval ``dt`` [s]), in SI rate units squared."""
     return term_from_theta(code, th, dt).avar(m, dt)
 
 
@@ -254,10 +262,14 @@ class NoiseFit:
 
     @property
     def se_theta(self) -> np.ndarray:
+        """The standard errors of the log-parameters ``theta``: the square roots of the sandwich
+        covariance's diagonal."""
         return np.sqrt(np.diag(self.cov_theta))
 
     @property
     def wvic(self) -> float:
+        """The wavelet variance information criterion: the objective plus its optimism ``penalty``
+        (smaller is better; model selection compares it across candidate models)."""
         return self.objective + self.penalty
 
 

@@ -62,6 +62,8 @@ class ChannelChecks:
         self.last = None
 
     def update(self, x) -> None:
+        """Take the next chunk of increments, (N, k): count successive equal values, track each
+        channel's extremes and how often they occur, and whether every value is a whole number."""
         xx = x if self.last is None else np.concatenate([self.last, x])
         self.equal += np.sum(np.diff(xx, axis=0) == 0, axis=0)
         self.last = x[-1:]
@@ -77,6 +79,8 @@ class ChannelChecks:
             ext[new] = v[new]
 
     def problems(self, names) -> list[str]:
+        """One line per channel (named by ``names``) that looks like raw counts, stuck or saturated;
+        empty when every channel looks sound."""
         out = []
         for c, name in enumerate(names):
             if self.integer[c] and self.hi[c] - self.lo[c] >= 1:
@@ -137,6 +141,7 @@ def identify_curve(curve: Curve, model: str, rng: np.random.Generator, n_starts:
 
 
 def param_key(name: str) -> str:
+    """The parameter key of a label (``GM1.tc`` -> ``tc``), which indexes the unit tables."""
     return name.split(".")[1]
 
 
@@ -188,6 +193,8 @@ def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: 
 
 
 def noise_model(names, kinds, selections, rate_hz: float) -> nm.NoiseModel:
+    """The :class:`~inscal.core.noise_models.NoiseModel` of the chosen fits: one channel per name,
+    of kind ``kinds`` ('gyro' or 'accel'), identified at ``rate_hz`` [Hz]."""
     return nm.NoiseModel(tuple(nm.ChannelNoise(n, k, s.chosen.terms) for n, k, s in zip(names, kinds, selections)),
                          rate_hz)
 
