@@ -390,7 +390,7 @@ def test_refusals(clean):
     _, _, rec = clean
     plain = dataclasses.replace(rec, temperature=None)
     assert "need the record's temperature" in _refusal(plain, states="51,thermal")
-    assert "t_ref 80 degC lies outside the record's temperatures -20 .. 60 degC" in _refusal(rec, states="51,thermal",
+    assert "t_ref 80 degC lies above the record's temperatures (-20 .. 60 degC, by 20 degC)" in _refusal(rec, states="51,thermal",
                                                                                           t_ref=80.0)
     assert "t_ref must be a temperature" in _refusal(rec, states="51,thermal", t_ref=math.nan)
     assert "thermal=9: expected five digits" in _refusal(rec, states="51,thermal=9")

@@ -75,3 +75,25 @@ def test_matlab():
     assert g["BiasInstability"][2] / math.sqrt(1 - phi**2) == pytest.approx(0.02 * D2R / 3600)
     assert g["NoiseDensity"][0] == pytest.approx(0.003 * D2R / 60)
     assert "gyroparams('NoiseDensity'" in matlab_script(model())
+
+
+def test_inscal_export_writes_a_noise_model_in_each_tool_convention(tmp_path):
+    """``inscal export noise.toml --format kalibr|kf-gins|matlab``: the same text as the library's, atomically,
+    one line for a format the noise model has no export for, nothing written."""
+    from typer.testing import CliRunner
+
+    from inscal.cli.app import app
+
+    m = model()
+    write_noise(tmp_path / "noise.toml", m)
+    m, _ = read_noise(tmp_path / "noise.toml")  # what the file holds (field units, printed digits)
+    for fmt, fn, name in (("kalibr", kalibr_imu_yaml, "imu.yaml"), ("kf-gins", kfgins_imunoise, "kfgins.yaml"),
+                          ("matlab", matlab_script, "params.m")):
+        r = CliRunner().invoke(app, ["export", str(tmp_path / "noise.toml"), "--format", fmt, "--out",
+                                     str(tmp_path / name)])
+        assert r.exit_code == 0, r.output
+        assert (tmp_path / name).read_text() == fn(m)
+    r = CliRunner().invoke(app, ["export", str(tmp_path / "noise.toml"), "--format", "imucal", "--out",
+                                 str(tmp_path / "x.json")])
+    assert r.exit_code == 2 and "a noise model exports as kalibr | kf-gins | matlab" in r.output
+    assert not (tmp_path / "x.json").exists()

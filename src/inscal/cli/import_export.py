@@ -135,21 +135,21 @@ def run_export_calibration(params: Path, fmt: str, out: Path, force: bool = Fals
 
 def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, path_out: Path | None = None,
                force: bool = False, temperature_out: Path | None = None) -> dict:
-    from inscal.io.exports.calibration import CALIBRATION_FORMATS
+    from inscal.io.exports.calibration import CALIBRATION_FORMATS, NOISE_FORMATS
     from inscal.io.files import input_problem
     from inscal.io.importers import export_record
     from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
     from inscal.io.records import DataFileError
 
-    known = list(EXPORT_FORMATS) + [f for f in CALIBRATION_FORMATS if f not in EXPORT_FORMATS]
+    known = list(EXPORT_FORMATS) + [f for f in list(CALIBRATION_FORMATS) + list(NOISE_FORMATS) if f not in EXPORT_FORMATS]
     if fmt not in known:
         raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(known)}")
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
     if not _is_record(data):  # a parameter file
-        if fmt not in CALIBRATION_FORMATS:
+        if fmt not in CALIBRATION_FORMATS and fmt not in NOISE_FORMATS:
             raise CliError(f"{data} is not a record (HDF5); a parameter file exports as "
-                           f"{' | '.join(CALIBRATION_FORMATS)}")
+                           f"{' | '.join(CALIBRATION_FORMATS)}, a noise model (noise.toml) as {' | '.join(NOISE_FORMATS)}")
         if gimbal_out or path_out or temperature_out:
             raise CliError("--gimbal-out, --path-out and --temperature-out apply to a record")
         return run_export_calibration(data, fmt, out, force)
@@ -259,7 +259,8 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
         fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
                                 "file: kalibr | imucal | imu-tk (--out NAME_acc.calib, and NAME_gyro.calib) | "
-                                "kf-gins | c"),
+                                "kf-gins | c; a noise model (inscal noise --out noise.toml): kalibr (imu.yaml) | "
+                                "kf-gins (imunoise) | matlab (gyroparams/accelparams)"),
         out: Path = typer.Option(..., "--out", "-o", help="file to write"),
         gimbal_out: Path = typer.Option(None, "--gimbal-out", help="psins/mat: also write the gimbal angles "
                                         "(time in s, outer and inner in rad, said in its header) for import --gimbal"),

@@ -70,8 +70,10 @@ def sample_inputs(rec, n: int, rate_hz: float, t_ref: float, sensor: str = "",
         raise CalibrationError(str(exc)) from None
     t_min, t_max = float(np.min(Ts)), float(np.max(Ts))
     if not t_min <= t_ref <= t_max:
-        raise CalibrationError(f"t_ref {t_ref:g} degC lies outside the record's temperatures {t_min:.4g} .. "
-                               f"{t_max:.4g} degC: the thermal model would be extrapolated to its reference")
+        side, edge = ("below", t_min) if t_ref < t_min else ("above", t_max)
+        raise CalibrationError(f"t_ref {t_ref:.6g} degC lies {side} the record's temperatures ({t_min:.6g} .. "
+                               f"{t_max:.6g} degC, by {abs(t_ref - edge):.3g} degC): the thermal model would be "
+                               "extrapolated to its reference; give a --t-ref within them")
     dT = Ts - float(t_ref)
     return {"dT": dT, "rate": rs, "t_min": t_min, "t_max": t_max, "span": float(np.max(np.abs(dT))),
             "rate_max": float(np.max(np.abs(rs))), "sensor": sensor, "t_ref": float(t_ref),

@@ -1,8 +1,12 @@
 """``inscal export PARAMS --format kalibr|imucal|imu-tk|kf-gins|c``: a parameter file written in another tool's
-convention (one module each in :mod:`inscal.io.exports`), atomically, with the terms it cannot hold."""
+convention (one module each in :mod:`inscal.io.exports`), atomically, with the terms it cannot hold; and
+``inscal export noise.toml --format kalibr|kf-gins|matlab``: a noise model (``inscal noise --out``) as Kalibr's
+``imu.yaml``, KF-GINS's ``imunoise`` block or MATLAB's ``gyroparams``/``accelparams``
+(:mod:`inscal.io.exports.noise`)."""
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 from inscal.io.exports.c import export_c
@@ -10,7 +14,10 @@ from inscal.io.exports.imucal import imucal_json
 from inscal.io.exports.imutk import ACC_SUFFIX, GYRO_SUFFIX, imutk_files
 from inscal.io.exports.kalibr import kalibr_yaml
 from inscal.io.exports.kfgins import kfgins_yaml
+from inscal.io.exports.noise import kalibr_imu_yaml, kfgins_imunoise, matlab_script
 from inscal.io.files import atomic_path
+from inscal.io.noisefile import FORMAT as NOISE_FORMAT
+from inscal.io.noisefile import read_noise
 from inscal.io.paramfile import load_params
 
 #: the calibration export formats and the file each writes
@@ -18,14 +25,40 @@ CALIBRATION_FORMATS = {"kalibr": "YAML (imu0: M_accel, M_gyro, A, C_gyro_i[, rx_
                        "imucal": "JSON (Ferraris calibration)",
                        "imu-tk": "NAME_acc.calib + NAME_gyro.calib (T, K, B of each triad)", "kf-gins": "YAML (initial IMU error blocks)",
                        "c": "C99 NAME.c + NAME.h"}
+#: the noise-model export formats (a noise.toml) and the file each writes
+NOISE_FORMATS = {"kalibr": "YAML (Kalibr imu.yaml: noise densities and random walks)",
+                 "kf-gins": "YAML (KF-GINS imunoise block)", "matlab": "MATLAB script (gyroparams, accelparams)"}
+
+
+def is_noise_file(path) -> bool:
+    """Whether ``path`` is a noise model file (``format = "inscal-noise"``) rather than a parameter file."""
+    try:
+        return tomllib.loads(Path(path).read_text(encoding="utf-8")).get("format") == NOISE_FORMAT
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+
+
+def export_noise(path, out, fmt: str, overwrite: bool = False) -> dict:
+    """Write the noise model file ``path`` to ``out`` in ``fmt`` (:data:`NOISE_FORMATS`); returns a summary."""
+    if fmt not in NOISE_FORMATS:
+        raise ValueError(f"a noise model exports as {' | '.join(NOISE_FORMATS)}, not {fmt!r}")
+    model, _meta = read_noise(path)
+    text = {"kalibr": kalibr_imu_yaml, "kf-gins": kfgins_imunoise, "matlab": matlab_script}[fmt](model)
+    with atomic_path(out, overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return {"params": str(path), "format": fmt, "out": str(out), "method": "noise model", "dropped": [],
+            "files": [str(out)]}
 
 
 def export_calibration(params, out, fmt: str, overwrite: bool = False) -> dict:
     """Write the parameter file ``params`` to ``out`` in ``fmt``; returns a summary (``dropped``: the
     non-zero terms the convention cannot hold)."""
-    if fmt not in CALIBRATION_FORMATS:
-        raise ValueError(f"unknown calibration export {fmt!r}; choose one of: {', '.join(CALIBRATION_FORMATS)}")
     params, out = Path(params), Path(out)
+    if is_noise_file(params):
+        return export_noise(params, out, fmt, overwrite)
+    if fmt not in CALIBRATION_FORMATS:
+        raise ValueError(f"unknown calibration export {fmt!r}; choose one of: {', '.join(CALIBRATION_FORMATS)}"
+                         + (" (matlab exports a noise model, noise.toml)" if fmt == "matlab" else ""))
     imu, _gimbal, meta = load_params(params)
     thermal = meta.get("thermal")
     res = {"params": str(params), "format": fmt, "out": str(out), "method": meta.get("method", "")}
