@@ -250,3 +250,17 @@ def test_a_systematic_calibration_keeps_the_filter_covariance(tmp_path):
         assert lab.get_calibration(d, cal.id).superseded_by == (new["result_id"],)
     r = run("db", "export", "PSINS-1", "--db", db, "--out", tmp_path / "e.toml")
     assert r.exit_code == 0 and (tmp_path / "e.toml").read_bytes() == (tmp_path / "t.toml").read_bytes()
+
+
+def test_a_serial_with_spaces_at_its_ends_is_stored_stripped_and_says_so(tmp_path):
+    """The database stores serials without the spaces at their ends; the command says so instead of doing it silently."""
+    from typer.testing import CliRunner
+
+    from inscal.cli.app import app
+
+    db = tmp_path / "lab.sqlite"
+    r = CliRunner().invoke(app, ["db", "add", "  FOG-9 ", "--model", "FOG", "--db", str(db)])
+    assert r.exit_code == 0, r.output
+    assert "serial '  FOG-9 ' is stored as 'FOG-9' (spaces at its ends removed)" in r.stderr
+    r = CliRunner().invoke(app, ["db", "list", "--db", str(db), "--json"])
+    assert r.exit_code == 0 and "FOG-9" in r.stdout and "  FOG-9 " not in r.stdout

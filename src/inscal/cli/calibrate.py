@@ -13,6 +13,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     check_not_input,
     check_output,
     fail,
+    normal_serial,
     np,
     print_json,
     read_record,
@@ -103,6 +104,7 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
         if extra:
             raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
         return None
+    serial = normal_serial(serial)
     import sqlalchemy
 
     from inscal import lab

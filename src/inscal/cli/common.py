@@ -111,6 +111,16 @@ def read_record(path: Path):
 MAX_ECHO = 200
 
 
+def normal_serial(serial: str) -> str:
+    """A unit's serial as the calibration database stores it (spaces at its ends removed), with a note on
+    standard error when that changed what was typed."""
+    s = str(serial).strip()
+    if s != str(serial) and s:
+        typer.echo(f"inscal: note: serial {short(repr(str(serial)))} is stored as {s!r} (spaces at its ends removed)",
+                   err=True)
+    return s
+
+
 def short(value, limit: int = MAX_ECHO) -> str:
     """``str(value)`` cut to ``limit`` characters (with an ellipsis and the full length) for messages."""
     s = str(value)

@@ -11,6 +11,7 @@ from inscal.cli.common import (
     CliError,
     check_output,
     fail,
+    normal_serial,
     print_json,
     short,
 )
@@ -73,6 +74,7 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
             data: Path | None, station: str | None, operator: str | None, date: str | None,
             temperature_c: float | None, supersedes: int | None, wait: float | None = None) -> dict:
     """``inscal db add``: register a unit, or record an existing parameter file as one of its calibrations."""
+    serial = normal_serial(serial)
     from inscal import lab
     from inscal.io.files import file_hash, input_problem
 
