@@ -22,18 +22,30 @@ from inscal.cli.common import (
 NOISE_MIN_SAMPLES = 2000
 
 
-def run_report(data: Path, params: list[Path], out: Path, force: bool = False, warn=None) -> dict:
+def run_report(data: Path, params: list[Path], out: Path, force: bool = False, warn=None,
+               noise: list[Path] | None = None) -> dict:
     """Write the report; ``warn(line)`` is called at once for each provenance warning (a parameter file
     calibrated from another record, scenario or IMU serial: its errors against this record's truth
-    mean nothing), also in the result's ``warnings``."""
+    mean nothing), also in the result's ``warnings``.  ``noise``: noise.toml files whose models the report
+    shows (each read and checked before any work)."""
     from inscal.io.files import input_problem
     from inscal.io.paramfile import provenance_mismatch
     from inscal.report.record import record_report
     from inscal.report.thermal import PlateauError, params_plateaus
 
     check_output(out, force)
-    check_not_input(out, data, *params)
+    check_not_input(out, data, *params, *(noise or []))
     from inscal import io
+    from inscal.io.noisefile import NoiseFileError, model_from_document
+    from inscal.io.tomlfile import read_toml
+
+    models = []
+    for p in noise or []:
+        try:
+            doc = read_toml(p, NoiseFileError, "noise model file")
+            models.append((str(p), model_from_document(doc, short(p)), doc))
+        except NoiseFileError as exc:
+            raise CliError(str(exc)) from None
 
     sets = [(str(p), *load_checked_params(p)) for p in params]
     for p, _, _, meta in sets:
@@ -50,7 +62,7 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
     try:
         # the samples stay on disk: the report streams them (bounded memory for multi-day records)
         with io.open_record(data) as rec:
-            res = record_report(out, rec, sets, overwrite=force)
+            res = record_report(out, rec, sets, overwrite=force, noise_models=models)
             if "arw_deg_rth" not in res:  # the noise section was left out: say why, in one line
                 from inscal.analysis.allan import first_dwell
 
@@ -78,15 +90,21 @@ def register(app: typer.Typer) -> None:
         params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable); "
                                           "a file with a thermal model also gets each thermal parameter's curve "
                                           "over its calibrated range with its 1-sigma band"),
+        noise: list[Path] = typer.Option([], "--noise", help="noise model(s) from 'inscal noise --out' (noise.toml, "
+                                         "repeatable): each process per channel in IEEE 952/1293 units with its 95 % "
+                                         "interval and per-sample form, and the model's Allan deviation over the "
+                                         "record's first dwell"),
         out: Path = typer.Option(..., "--out", "-o", help="HTML report to write"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing report"),
         json_: bool = typer.Option(False, "--json", help="print a JSON summary, with the numbers behind the "
                                    "temperature and thermal plots (field units)"),
     ):
         """Write an HTML report: gimbal motion, sensor outputs, temperature and dT/dt, Allan deviation,
-        parameters vs truth, thermal parameters over temperature with their 1-sigma bands."""
+        identified noise models, parameters vs truth, thermal parameters over temperature with their 1-sigma
+        bands."""
         try:
-            res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
+            res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
+                             noise=noise)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -16,13 +16,14 @@ from inscal.plan.bound import evaluate, make_setup
 from inscal.plan.rows import BoundError
 from inscal.report.figures import new_figure, png_base64
 from inscal.report.html import fmt_value
+from inscal.report.noise_model import noise_model_section
 from inscal.report.path import html_fragment, path_figure
 from inscal.report.thermal import STYLE as THERMAL_STYLE
 from inscal.report.thermal import params_thermal, temperature_section, thermal_section
 
 
 def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] | None = None,
-                  overwrite: bool = False, max_points: int = 20000) -> dict:
+                  overwrite: bool = False, max_points: int = 20000, noise_models: list | None = None) -> dict:
     """Write a self-contained HTML report of a record (plots embedded) and return its summary.
 
     ``param_sets``: ``[(label, ImuErrors, GimbalErrors, metadata)]`` from parameter files; each
@@ -30,6 +31,8 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
     /temperature gets its temperature and dT/dt (``summary["temperature"]``); a parameter set with a
     thermal model (``metadata["thermal"]``) gets each thermal parameter's curve over its calibrated
     range with its 1-sigma band (:mod:`inscal.report.thermal`; ``summary["thermal"][label]``).
+    ``noise_models``: ``[(label, NoiseModel, document)]`` from noise.toml files; each gets its table and its
+    Allan-deviation figure over the first dwell's (:mod:`inscal.report.noise_model`; ``summary["noise_model"]``).
     """
 
     plt = new_figure()
@@ -61,6 +64,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
                      "scenario": rec.scenario, "simulated": rec.truth is not None}
     # Allan deviation of the first dwell (static window at the start), if long enough
     first = first_dwell(rec.gimbal, rec.n_samples)  # streamed: rec may be an on-disk io.open_record
+    measured = {}
     if first >= 2000:
         g, a = allan_of(rec.dtheta, first, rec.rate_hz), allan_of(rec.dvel, first, rec.rate_hz)
         fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
@@ -76,6 +80,14 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
         plt.close(fig)
         summary["arw_deg_rth"] = units.from_si(g.white, "deg/sqrt(h)").tolist()
         summary["vrw_ug_rthz"] = units.from_si(a.white, "ug/sqrt(Hz)").tolist()
+        for k, lab in enumerate("xyz"):
+            measured[f"g{lab}"] = (g.taus, g.adev[:, k])
+            measured[f"a{lab}"] = (a.taus, a.adev[:, k])
+    noise_parts = []
+    for label, model, doc in noise_models or []:
+        frag, data = noise_model_section(label, model, doc, measured)
+        noise_parts.append(frag)
+        summary.setdefault("noise_model", {})[label] = data
     temp_section, span = None, None
     if getattr(rec, "temperature", None) is not None:
         temp_section, temp_data = temperature_section(rec.temperature)
@@ -110,6 +122,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
                                if not isinstance(v, (list, dict))) + "</p>"]
     for title, b64 in figs:
         parts.append(f"<h2>{title}</h2><img src='data:image/png;base64,{b64}'/>")
+    parts += noise_parts
     if temp_section:
         parts.append(temp_section)
     if path_section:
@@ -129,6 +142,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
         tmp.write_text(doc, encoding="utf-8")
     summary["figures"] = [f[0] for f in figs] + (["Temperature"] if temp_section else [])
     summary["parameter_tables"] = [t[0] for t in tables]
+    summary["noise_models"] = [label for label, _, _ in noise_models or []]
     return summary
 
 
