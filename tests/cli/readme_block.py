@@ -124,7 +124,7 @@ CHECKS = [
     (lambda ln: "systematic30" in ln or "systematic51" in ln, check_systematic),
 ]
 #: files the block must leave behind (each checked in the part that writes it)
-FILES = ("s16-51.toml", "n25.html", "n25-comp.h5", "n25-imported.h5", "path20.toml", "mc-schemes/summary.json",
+FILES = ("s16-51.toml", "n25.html", "st.html", "n25-comp.h5", "n25-imported.h5", "path20.toml", "mc-schemes/summary.json",
          "demo-output/report.html")
 
 
