@@ -1,0 +1,139 @@
+"""Study: the identified noise model used by the systematic filter (Gauss-Markov bias states) against today's
+white-noise filter, on units whose gyro and accelerometer biases wander as first-order Gauss-Markov processes.
+
+For each scenario (``s16``: the S16 unit and path, 51 states; ``n25``: the N25 unit and 12-position path, the
+unified filter ``51,gimbal``) and each level (1x, 3x, 10x a navigation-grade bias instability: gyro
+``GYRO_GM`` deg/h, accelerometer ``ACCEL_GM`` ug, correlation time ``TC`` s, on every axis):
+
+1. the unit's noise model is identified from a static record of the same unit (``--static-h`` hours, simulated
+   at ``--static-rate`` Hz with its own seed), model ``WN+GM`` per channel (:mod:`inscal.analysis.noise`, the
+   engine of ``inscal noise``);
+2. ``--seeds`` calibration records are simulated (seed k), and each is calibrated twice: the white-noise filter
+   (noise estimated from the record, as ``inscal calibrate`` does by default) and the filter with the identified
+   model (``--noise``: its white terms and one GM bias state per channel);
+3. error/sigma of every estimated parameter component (reported sigma; error = estimate - truth in the
+   filter's frame) is pooled over the parameters and seeds: its standard deviation (the spread: 1 when the sigma
+   cover the error), the fraction beyond 3 sigma and the largest |error/sigma|.
+
+Run: ``python bench/gm_states_study.py [--seeds 20] [--levels 1,3,10] [--scenarios s16,n25] [--filter-rate-hz 1]``.
+Prints one table row per scenario and level, and a JSON summary with ``--json FILE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+
+from inscal.analysis.noise.estimators import scale_variance
+from inscal.analysis.noise.identify import identify_curve, noise_model, octave_curve
+from inscal.calibrate.systematic import systematic
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import units
+from inscal.core.error_model import ImuNoise
+from inscal.sim import scenarios
+from inscal.sim.simulate import simulate
+
+#: navigation-grade bias instability (1x): gyro [deg/h], accelerometer [ug], correlation time [s]
+GYRO_GM, ACCEL_GM, TC = 0.003, 10.0, 300.0
+STATES = {"s16": "51", "n25": "unified"}
+NAMES = ("gx", "gy", "gz", "ax", "ay", "az")
+
+
+def unit_noise(base: ImuNoise, level: float) -> ImuNoise:
+    """The scenario's white noise with Gauss-Markov biases at ``level`` times the navigation-grade one."""
+    return dataclasses.replace(base, gyro_bias_instability=np.full(3, units.to_si(level * GYRO_GM, "deg/h")),
+                               gyro_bias_tau=TC, accel_bias_instability=np.full(3, units.to_si(level * ACCEL_GM, "ug")),
+                               accel_bias_tau=TC)
+
+
+def identify(noise: ImuNoise, hours: float, rate: float, seed: int):
+    """The WN+GM model of each channel, identified from a static record of the unit."""
+    sc = scenarios.build("static", duration_s=hours * 3600.0, rate_hz=rate)
+    sc = dataclasses.replace(sc, noise=noise)
+    d = simulate(sc, np.random.default_rng(seed))
+    x = np.concatenate([d.dtheta, d.dvel], axis=1)
+    sv = scale_variance(x, rate, increments=True)
+    rng = np.random.default_rng(seed + 1)
+    sel = [identify_curve(octave_curve(sv, c), "WN+GM", rng) for c in range(6)]
+    return noise_model(NAMES, ["gyro"] * 3 + ["accel"] * 3, sel, rate)
+
+
+def ratios(res, sc) -> np.ndarray:
+    """error / sigma of every estimated component (NaN sigma: fixed by the frame, left out)."""
+    out = []
+    for e in res.to_field((sc.imu, sc.gimbal)).values():
+        err, sig = np.asarray(e["error"], float), np.asarray(e["sigma"], float)
+        ok = np.isfinite(sig) & (sig > 0)
+        out += list(err[ok] / sig[ok])
+    return np.array(out)
+
+
+def summary(z: list) -> dict:
+    """Spread (std of error/sigma), RMS, fraction beyond 3 sigma, largest |error/sigma|, count."""
+    if not z:
+        return {"spread": math.nan, "rms": math.nan, "beyond3": math.nan, "max": math.nan, "n": 0}
+    a = np.concatenate(z)
+    return {"spread": float(np.std(a)), "rms": float(np.sqrt(np.mean(a**2))), "beyond3": float(np.mean(np.abs(a) > 3)),
+            "max": float(np.max(np.abs(a))), "n": int(a.size)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--levels", default="1,3,10")
+    ap.add_argument("--scenarios", default="s16,n25")
+    ap.add_argument("--filter-rate-hz", type=float, default=1.0)
+    ap.add_argument("--static-h", type=float, default=6.0)
+    ap.add_argument("--static-rate", type=float, default=10.0)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    rows = []
+    for name in a.scenarios.split(","):
+        base = scenarios.build(name)
+        for level in (float(v) for v in a.levels.split(",")):
+            t0 = time.perf_counter()
+            noise = unit_noise(base.noise, level)
+            model = identify(noise, a.static_h, a.static_rate, seed=1000 + int(level))
+            gm = {c.name: [(round(units.from_si(t.sigma, "deg/h" if c.kind == "gyro" else "ug"), 5), round(t.tc, 1))
+                           for t in c.terms if t.code == "GM"] for c in model.channels}
+            t_id = time.perf_counter() - t0
+            sc = dataclasses.replace(base, noise=noise)
+            z = {"white": [], "gm": []}
+            fails = {"white": 0, "gm": 0}
+            t1 = time.perf_counter()
+            for seed in range(a.seeds):
+                d = simulate(sc, np.random.default_rng(seed))
+                rec = SimpleNamespace(time=d.time, dtheta=d.dtheta, dvel=d.dvel, gimbal=d.gimbal, rate_hz=sc.rate_hz,
+                                      site=sc.site, path=sc.path)
+                for kind, kw in (("white", {}), ("gm", {"noise": model})):
+                    try:
+                        res = systematic(rec, STATES[name], filter_rate_hz=a.filter_rate_hz, accept_unconverged=True,
+                                         **kw)
+                    except CalibrationError as exc:
+                        fails[kind] += 1
+                        print(f"  {name} {level:g}x seed {seed} {kind}: {exc}")
+                        continue
+                    z[kind].append(ratios(res, sc))
+            t_cal = (time.perf_counter() - t1) / max(a.seeds, 1)
+            row = {"scenario": name, "level": level, "white": summary(z["white"]), "gm": summary(z["gm"]),
+                   "fails": fails, "identified_gm": gm, "identify_s": t_id, "per_seed_s": t_cal}
+            rows.append(row)
+            w, g = row["white"], row["gm"]
+            print(f"{name:4s} {level:4g}x  white: spread {w['spread']:.2f} >3sig {100 * w['beyond3']:.1f}% max "
+                  f"{w['max']:.1f} | GM: spread {g['spread']:.2f} >3sig {100 * g['beyond3']:.1f}% max {g['max']:.1f} "
+                  f"| n {g['n']} fails {fails} | identified GM (gx, ax) {gm['gx']} {gm['ax']} | {t_cal:.1f} s/seed",
+                  flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump({"gyro_gm_deg_h": GYRO_GM, "accel_gm_ug": ACCEL_GM, "tc_s": TC, "seeds": a.seeds,
+                       "filter_rate_hz": a.filter_rate_hz, "rows": rows}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,96 @@
+"""Gauss-Markov bias states of the systematic filter (calibrate.systematic.gm_states): the GM columns of Phi
+against finite differences of the nonlinear propagation, the exact AR(1) transition and noise, the noise model's
+white and GM terms, and the refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from inscal.calibrate.systematic.gm_states import gm_states, gm_step_arrays, noise_setup, white_noise
+from inscal.calibrate.systematic.kernel import one_step
+from inscal.calibrate.systematic.params import truth_in_frame
+from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, GMState, StateSet
+from inscal.calibrate.windows import CalibrationError
+from inscal.core import noise_models as nm
+from inscal.core import units
+from inscal.core.attitude import quat_from_dcm
+from inscal.core.kinematics import true_attitude
+
+
+def _model(gm_gyro=0.005, gm_accel=20.0, tc=600.0, bi=False):
+    """A six-channel model: WN everywhere, one GM per channel (deg/h, ug), optionally a BI term on gx."""
+    chans = []
+    for name in ("gx", "gy", "gz", "ax", "ay", "az"):
+        gyro = name[0] == "g"
+        n = units.to_si(0.002, "deg/sqrt(h)") if gyro else units.to_si(10.0, "ug/sqrt(Hz)")
+        s = units.to_si(gm_gyro, "deg/h") if gyro else units.to_si(gm_accel, "ug")
+        terms = [nm.WhiteNoise(n), nm.GaussMarkov(s, tc)]
+        if bi and name == "gx":
+            terms.append(nm.BiasInstability(1e-8, 50.0))
+        chans.append(nm.ChannelNoise(name, "gyro" if gyro else "accel", tuple(terms)))
+    return nm.NoiseModel(tuple(chans), 100.0)
+
+
+def test_noise_model_gives_white_noise_and_gm_states():
+    m = _model()
+    arw, vrw = white_noise(m)
+    assert np.allclose(units.from_si(arw, "deg/sqrt(h)"), 0.002) and np.allclose(units.from_si(vrw, "ug/sqrt(Hz)"), 10)
+    gm = gm_states(m)
+    assert [(g.sensor, g.axis) for g in gm] == [("gyro", 0), ("gyro", 1), ("gyro", 2), ("accel", 0), ("accel", 1),
+                                                ("accel", 2)]
+    a, v, st, note = noise_setup(m, None, 1e-4, StateSet.parse("51"))
+    assert v == 1e-4 and np.allclose(a, arw) and note is None
+    assert st.n_dyn == 15 and st.n_states == 57 and st.labels()[9] == "gm_gyro_bias[x]"
+    assert st.offsets()["gyro_matrix"] == 15
+    _, _, _, note = noise_setup(_model(bi=True), None, None, StateSet.parse("51"))
+    assert "gx: BI" in note
+    with pytest.raises(CalibrationError, match="thermal"):
+        noise_setup(m, None, None, StateSet.parse("51,thermal"))
+    short = nm.NoiseModel(m.channels[:5], 100.0)
+    with pytest.raises(CalibrationError, match="az"):
+        noise_setup(short, None, None, StateSet.parse("51"))
+
+
+def test_gm_step_constants_are_the_exact_ar1():
+    st = StateSet(gm=(GMState("gyro", 1, 2e-8, 300.0), GMState("accel", 2, 1e-4, 50.0)))
+    sig = np.ones(st.n_states)
+    g = gm_step_arrays(st, sig, 2.0)
+    assert np.allclose(g["phi"], [math.exp(-2.0 / 300.0), math.exp(-2.0 / 50.0)], rtol=1e-15)
+    assert np.allclose(g["q"], [4e-16 * (1 - math.exp(-4.0 / 300.0)), 1e-8 * (1 - math.exp(-4.0 / 50.0))], rtol=1e-14)
+    off = st.offsets()
+    assert list(g["col"]) == [off["gyro_bias"] - st.n_dyn + 1, off["accel_bias"] - st.n_dyn + 2]
+
+
+@pytest.mark.parametrize("t0", [180.2, 829.6])
+def test_gm_columns_match_finite_differences(noise_free_data, nav_error, t0):
+    """The navigation rows of each GM column over one 1-s step (a turning and a cruising one): central differences
+    of the nonlinear propagation with the GM estimate offset (decaying sample by sample), and the transition
+    exp(-T/tc) of the state itself."""
+    sc, d = noise_free_data("s16")
+    tc = 200.0  # the column's factor exp(-T/(2 tc)) is exact in the attitude rows to O((T/tc)^2), T/(6 tc) off in
+    # the velocity rows (gm_states docstring): 8e-4 here, inside the tolerance of the parameter columns' test
+    gm = (GMState("gyro", 0, 1e-7, tc), GMState("gyro", 2, 1e-7, tc), GMState("accel", 1, 1e-4, tc))
+    st = StateSet(gm=gm)
+    truth = truth_in_frame(sc.imu, StateSet())
+    k0, n = int(round(t0 * sc.rate_hz)), int(sc.rate_hz)
+    dth, dv, dt = d.dtheta[k0:k0 + n], d.dvel[k0:k0 + n], 1.0 / sc.rate_hz
+    site = np.array([sc.site.latitude, sc.site.longitude, sc.site.height])
+    C0, C1 = true_attitude(sc, np.array([t0, t0 + 1.0]))
+    nav0 = np.concatenate([quat_from_dcm(C0), np.zeros(3), site])
+    _, phinn, _ = one_step(dth, dv, dt, nav0, site, truth, st)
+    rows = [0, 1, 2, 3, 4, 5, 8]  # horizontal positions in radians are too coarse for differences
+    for g, gs in enumerate(gm):
+        h = 1e-2 * DEFAULT_SIGMA0["gyro_bias" if gs.sensor == "gyro" else "accel_bias"]
+        e = np.zeros(len(gm))
+        e[g] = h
+        xp = nav_error(one_step(dth, dv, dt, nav0, site, truth, st, gm_start=e)[0], C1, site)
+        xm = nav_error(one_step(dth, dv, dt, nav0, site, truth, st, gm_start=-e)[0], C1, site)
+        fd = (xp - xm) / (2 * h)
+        col = phinn[:9, 9 + g]
+        err = np.max(np.abs(fd[rows] - col[rows]))
+        assert err <= 2e-3 * np.max(np.abs(fd[rows])) + 1e-14 / h, (g, fd, col)
+        assert phinn[9 + g, 9 + g] == pytest.approx(math.exp(-1.0 / tc), rel=1e-14)
+        assert np.all(phinn[9 + g, :9] == 0.0)
