@@ -5,6 +5,7 @@ white and GM terms, and the refusals."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -94,3 +95,58 @@ def test_gm_columns_match_finite_differences(noise_free_data, nav_error, t0):
         assert err <= 2e-3 * np.max(np.abs(fd[rows])) + 1e-14 / h, (g, fd, col)
         assert phinn[9 + g, 9 + g] == pytest.approx(math.exp(-1.0 / tc), rel=1e-14)
         assert np.all(phinn[9 + g, :9] == 0.0)
+
+
+def test_calibration_setup_checks_the_noise_model_up_front(tmp_path):
+    """``--noise``: read and checked before any record (one line each), and part of the options' identity."""
+    from inscal.io.noisefile import write_noise
+    from inscal.lab.calibration import CalibrationSetup
+
+    good = tmp_path / "noise.toml"
+    write_noise(good, _model())
+    setup = CalibrationSetup("systematic51", states="51", noise=str(good))
+    assert setup.problem() is None
+    assert setup.options()["noise_model"][0]["term"][1]["type"] == "GM"
+    assert setup.options() != CalibrationSetup("systematic51", states="51").options()
+    assert "drop --arw" in CalibrationSetup("systematic51", arw=0.01, noise=str(good)).problem()
+    assert CalibrationSetup("n25", noise=str(good)).problem() is None
+    assert "window methods, not multi-position" in CalibrationSetup("multi-position", noise=str(good)).problem()
+    assert "thermal" in CalibrationSetup("systematic51", states="51,thermal", noise=str(good)).problem()
+    missing = CalibrationSetup("systematic51", noise=str(tmp_path / "none.toml")).problem()
+    assert missing.startswith("--noise") and "\n" not in missing
+    five = tmp_path / "five.toml"
+    write_noise(five, nm.NoiseModel(_model().channels[:5], 100.0))
+    assert "az" in CalibrationSetup("systematic51", noise=str(five)).problem()
+
+
+def test_window_sigma_widened_by_the_slow_terms():
+    """A rate random walk K widens each window by its Allan variance K^2 tau / 3 + K^2 dt^2 / (6 tau) (IEEE 952
+    eq. C.12 with the discrete term) at the window's length or its spacing to the nearest window, whichever is
+    longer; white noise alone widens nothing."""
+    from inscal.calibrate.window_noise import widened
+
+    rate, k = 100.0, 1e-7
+    chans = tuple(nm.ChannelNoise(n, "gyro" if n[0] == "g" else "accel", (nm.WhiteNoise(1e-6), nm.RandomWalk(k)))
+                  for n in ("gx", "gy", "gz", "ax", "ay", "az"))
+    model = nm.NoiseModel(chans, rate)
+
+    @dataclass(frozen=True)
+    class Win:
+        i0: int
+        i1: int
+        gyro_sigma: np.ndarray
+        accel_sigma: np.ndarray
+
+    wins = [Win(0, 2000, np.full(3, 1e-7), np.full(3, 1e-5)), Win(2500, 4500, np.full(3, 1e-7), np.full(3, 1e-5)),
+            Win(20000, 21000, np.full(3, 1e-7), np.full(3, 1e-5))]
+    out, info = widened(wins, model, rate)
+    dt = 1.0 / rate
+    for w, o, m in zip(wins, out, (2500.0, 2500.0, 17000.0)):  # spacing to the nearest centre, >= the length
+        tau = m * dt
+        add = k**2 * tau / 3 + k**2 * dt**2 / (6 * tau)
+        assert np.allclose(o.gyro_sigma**2 - w.gyro_sigma**2, add, rtol=1e-12)
+        assert np.allclose(o.accel_sigma**2 - w.accel_sigma**2, add, rtol=1e-9)
+    assert [i["m"] for i in info] == [2500.0, 2500.0, 17000.0]
+    white = nm.NoiseModel(tuple(nm.ChannelNoise(c.name, c.kind, c.terms[:1]) for c in chans), rate)
+    same, _ = widened(wins, white, rate)
+    assert all(np.array_equal(a.gyro_sigma, b.gyro_sigma) for a, b in zip(same, wins))

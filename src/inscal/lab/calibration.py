@@ -22,6 +22,7 @@ from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.gm_states import noise_setup
 from inscal.calibrate.systematic.states import StateSet
+from inscal.calibrate.window_noise import slow_terms
 from inscal.calibrate.systematic.selection import largest_states
 from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
@@ -233,8 +234,8 @@ class CalibrationSetup:
         """The one-line refusal of ``--noise`` (a noise.toml the calibration cannot use), None if usable."""
         if self.noise is None:
             return None
-        if not self.inner_systematic:
-            return f"--noise applies to the systematic methods, not {self.inner}"
+        if self.inner in NO_TABLE_METHODS:
+            return f"--noise applies to the systematic and the turntable window methods, not {self.inner}"
         if self.arw is not None or self.vrw is not None:
             return "--noise gives the white noise: drop --arw/--vrw, or drop --noise"
         try:
@@ -246,7 +247,10 @@ class CalibrationSetup:
         except CalibrationError:  # a bad --states is refused on its own
             st = StateSet()
         try:
-            noise_setup(model, None, None, st)
+            if self.inner_systematic:
+                noise_setup(model, None, None, st)
+            else:
+                slow_terms(model)
         except CalibrationError as exc:
             return f"--noise {self.noise}: {exc}"
         return None
@@ -400,7 +404,9 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
             if setup.noise is not None:
                 opts["noise"] = setup.noise_model()
         else:
-            opts = setup.window_options
+            opts = dict(setup.window_options)
+            if setup.noise is not None:
+                opts["noise"] = setup.noise_model()
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None
