@@ -11,6 +11,8 @@ unified filter ``51,gimbal``) and each level (1x, 3x, 10x a navigation-grade bia
 2. ``--seeds`` calibration records are simulated (seed k), and each is calibrated twice: the white-noise filter
    (noise estimated from the record, as ``inscal calibrate`` does by default) and the filter with the identified
    model (``--noise``: its white terms and one GM bias state per channel);
+   With ``--windows`` (n25 only) the N25 window method is run instead, without and with the model's widening of
+   the window sigma (``--noise`` with a window method: :mod:`inscal.calibrate.window_noise`);
 3. error/sigma of every estimated parameter component (reported sigma; error = estimate - truth in the
    filter's frame) is pooled over the parameters and seeds: its standard deviation (the spread: 1 when the sigma
    cover the error), the fraction beyond 3 sigma and the largest |error/sigma|.
@@ -32,6 +34,7 @@ import numpy as np
 
 from inscal.analysis.noise.estimators import scale_variance
 from inscal.analysis.noise.identify import identify_curve, noise_model, octave_curve
+from inscal.calibrate import calibrate
 from inscal.calibrate.systematic import systematic
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
@@ -92,6 +95,7 @@ def main() -> None:
     ap.add_argument("--static-h", type=float, default=6.0)
     ap.add_argument("--static-rate", type=float, default=10.0)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--windows", action="store_true", help="the n25 window method, white vs widened")
     a = ap.parse_args()
     rows = []
     for name in a.scenarios.split(","):
@@ -113,15 +117,18 @@ def main() -> None:
                                       site=sc.site, path=sc.path)
                 for kind, kw in (("white", {}), ("gm", {"noise": model})):
                     try:
-                        res = systematic(rec, STATES[name], filter_rate_hz=a.filter_rate_hz, accept_unconverged=True,
-                                         **kw)
+                        if a.windows:
+                            res = calibrate(rec, "n25", **kw)
+                        else:
+                            res = systematic(rec, STATES[name], filter_rate_hz=a.filter_rate_hz,
+                                             accept_unconverged=True, **kw)
                     except CalibrationError as exc:
                         fails[kind] += 1
                         print(f"  {name} {level:g}x seed {seed} {kind}: {exc}")
                         continue
                     z[kind].append(ratios(res, sc))
             t_cal = (time.perf_counter() - t1) / max(a.seeds, 1)
-            row = {"scenario": name, "level": level, "white": summary(z["white"]), "gm": summary(z["gm"]),
+            row = {"scenario": name + (" windows" if a.windows else ""), "level": level, "white": summary(z["white"]), "gm": summary(z["gm"]),
                    "fails": fails, "identified_gm": gm, "identify_s": t_id, "per_seed_s": t_cal}
             rows.append(row)
             w, g = row["white"], row["gm"]
@@ -131,7 +138,7 @@ def main() -> None:
                   flush=True)
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"gyro_gm_deg_h": GYRO_GM, "accel_gm_ug": ACCEL_GM, "tc_s": TC, "seeds": a.seeds,
+            json.dump({"windows": a.windows, "gyro_gm_deg_h": GYRO_GM, "accel_gm_ug": ACCEL_GM, "tc_s": TC, "seeds": a.seeds,
                        "filter_rate_hz": a.filter_rate_hz, "rows": rows}, f, indent=1)
 
 
