@@ -17,7 +17,8 @@ unified filter ``51,gimbal``) and each level (1x, 3x, 10x a navigation-grade bia
    filter's frame) is pooled over the parameters and seeds: its standard deviation (the spread: 1 when the sigma
    cover the error), the fraction beyond 3 sigma and the largest |error/sigma|.
 
-Run: ``python bench/gm_states_study.py [--seeds 20] [--levels 1,3,10] [--scenarios s16,n25] [--filter-rate-hz 1]``.
+Run: ``python bench/gm_states_study.py [--seeds 20] [--levels 1,3,10] [--scenarios s16,n25] [--filter-rate-hz 1]
+[--rate-hz 20] [--windows]``.
 Prints one table row per scenario and level, and a JSON summary with ``--json FILE``.
 """
 
@@ -92,6 +93,8 @@ def main() -> None:
     ap.add_argument("--levels", default="1,3,10")
     ap.add_argument("--scenarios", default="s16,n25")
     ap.add_argument("--filter-rate-hz", type=float, default=1.0)
+    ap.add_argument("--rate-hz", type=float, default=None, help="the calibration records' sample rate (default: the "
+                    "scenario's, 100 Hz; a lower one to fit a shared machine)")
     ap.add_argument("--static-h", type=float, default=6.0)
     ap.add_argument("--static-rate", type=float, default=10.0)
     ap.add_argument("--json", default=None)
@@ -99,7 +102,7 @@ def main() -> None:
     a = ap.parse_args()
     rows = []
     for name in a.scenarios.split(","):
-        base = scenarios.build(name)
+        base = scenarios.build(name, rate_hz=a.rate_hz)
         for level in (float(v) for v in a.levels.split(",")):
             t0 = time.perf_counter()
             noise = unit_noise(base.noise, level)
@@ -138,7 +141,7 @@ def main() -> None:
                   flush=True)
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"windows": a.windows, "gyro_gm_deg_h": GYRO_GM, "accel_gm_ug": ACCEL_GM, "tc_s": TC, "seeds": a.seeds,
+            json.dump({"windows": a.windows, "rate_hz": a.rate_hz, "gyro_gm_deg_h": GYRO_GM, "accel_gm_ug": ACCEL_GM, "tc_s": TC, "seeds": a.seeds,
                        "filter_rate_hz": a.filter_rate_hz, "rows": rows}, f, indent=1)
 
 
