@@ -20,7 +20,7 @@ import numpy as np
 
 from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
-from inscal.calibrate.systematic.gm_states import noise_setup
+from inscal.calibrate.systematic.gm_states import gm_states, noise_setup
 from inscal.calibrate.systematic.states import StateSet
 from inscal.calibrate.window_noise import slow_terms
 from inscal.calibrate.systematic.selection import largest_states
@@ -295,6 +295,11 @@ class CalibrationSetup:
                 if self.inner_systematic else None
         except CalibrationError:
             st = None  # the calibration names the bad state set
+        if st is not None and self.noise is not None:  # the model's Gauss-Markov states too
+            try:
+                st = dataclasses.replace(st, gm=gm_states(self.noise_model()))
+            except (CalibrationError, NoiseFileError, OSError):
+                pass  # refused by noise_problem before
         if st is not None:
             steps = n // samples_per_step(rate, self.filter_rate_hz)
             out.append((held + systematic_bytes(n, rate, st, self.filter_rate_hz),

@@ -572,6 +572,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                                           "sigma": float(units.from_si(g.sigma, "deg/h" if g.sensor == "gyro" else "ug")),
                                           "sigma_unit": "deg/h" if g.sensor == "gyro" else "ug"} for g in st.gm]
         diag["noise"]["from_model"] = True
+        tcs = sorted({round(g.tc, 3) for g in st.gm})
+        notes.append(f"noise model given: white noise of its WN terms, {len(st.gm)} Gauss-Markov bias state(s)"
+                     + (f" (correlation time {', '.join(f'{t:g}' for t in tcs)} s)" if tcs else ""))
         if gm_note:
             notes.append(gm_note)
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
