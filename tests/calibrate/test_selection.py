@@ -10,6 +10,7 @@ import pytest
 from scipy.stats import chi2
 
 from inscal.calibrate.systematic import select_states, systematic, systematic51
+from inscal.calibrate.systematic.driver import NotConverged
 from inscal.calibrate.systematic.states import StateSet
 from inscal.calibrate.unified import unified
 from inscal.calibrate.windows import CalibrationError
@@ -63,6 +64,16 @@ def test_noise_free_record_with_unmodelled_terms_runs_and_flags_the_misfit():
     assert not res.diagnostics["fit"]["consistent"]
     with pytest.raises(CalibrationError, match="nis_cap"):
         systematic(rec, "51", nis_cap=0.0)
+
+
+def test_large_unmodelled_asynchrony_ends_with_the_line():
+    """A noise-free record with a 10 ms asynchrony that the 51 states do not hold: the velocity model-error
+    term made the fit converge with the cross-coupling terms 7.7 sigma off and an inconsistent-fit note only.
+    Adding the candidate terms moves them beyond the limit: the run ends with the line and names the states
+    to use."""
+    rec = _record(async_s=1e-2, noise=False)
+    with pytest.raises(NotConverged, match=r"a term the states leave out .* --states 51,lever9,async"):
+        systematic(rec, "51")
 
 
 def test_noise_free_full_lever_arm_recovered_through_the_corners_of_the_moves():
@@ -121,9 +132,18 @@ def test_misfit_signature_names_where_the_innovations_misfit():
     """51 states on a record with a 1 ms asynchrony: the fit is rejected and the note says where (NIS at
     rest and turning, what the NIS correlates with, the worst steps); the JSON has the numbers.  The
     velocity model-error term carries the moves' misfit (a large factor on the moving steps), so the final
-    pass's NIS is near its expectation, higher turning than at rest."""
+    pass's NIS is near its expectation, higher turning than at rest.  The white term does not make the sigma
+    cover a misfit that an unmodelled term drives (the cross-coupling terms 5-6 sigma off): the same record
+    with the candidate terms added moves them beyond 4 sigma of the two sigma, and the run is refused unless
+    the last iterate is asked for."""
     rec = _record(async_s=1e-3, noise=True, seed=2)
-    fit = systematic(rec, "51").diagnostics["fit"]
+    d = systematic(rec, "51", accept_unconverged=True).diagnostics
+    fit = d["fit"]
+    check = d["convergence"]["term_check"]
+    assert check["done"] and check["shift_max_sigma"] > 4.0 and check["states"] == "51,lever9,async"
+    assert "a term the states leave out drives the estimate" in d["convergence"]["verdict"]
+    assert d["convergence"]["accepted_unconverged"]
+    assert check["model_error_with_terms"]["group_factor"]["moving"] < 2.0  # the terms explain the misfit
     sig = fit["signature"]
     assert not fit["consistent"] and "where: NIS mean" in fit["note"] and "worst steps ending at" in fit["note"]
     assert sig["turning_steps"] > 100 and sig["nis_mean_turning"] > sig["nis_mean_static"]

@@ -23,7 +23,14 @@ from inscal.calibrate.systematic.diagnostics import (
     truth_imu,
     unobservable,
 )
-from inscal.calibrate.systematic.model_error import WEIGHT_PASSES, ModelError, moving_steps, update_factors
+from inscal.calibrate.systematic.model_error import (
+    TERM_SHIFT_LIMIT,
+    WEIGHT_PASSES,
+    ModelError,
+    moving_steps,
+    term_shift,
+    update_factors,
+)
 from inscal.calibrate.systematic.model_error import initial as no_model_error
 from inscal.calibrate.systematic.model_error import note as model_error_note
 from inscal.calibrate.systematic.gm_states import noise_setup
@@ -481,6 +488,34 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[nd:],
                                   float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
                                   truncated=max_passes < MIN_VERDICT_PASSES)
+    x_est = est.error_state(st, nominal)
+    term_check = None
+    wider = dataclasses.replace(st, asynchrony=True, lever9=True)
+    if (not verdict and robust and weights is None and max_passes >= MIN_VERDICT_PASSES and st.extended
+            and not st.gimbal and wider != st and max(me.group_factor.values()) > 1.0):
+        # the record misfits the model beyond its noise: a white model-error term accounts for the misfit only if
+        # no term the states leave out drives it.  The same record with the candidate terms of --states auto added
+        # says whether one does (model_error.term_shift, a Hausman test)
+        try:
+            big = systematic(rec, wider, filter_rate_hz=filter_rate_hz, max_passes=max_passes, tol=tol, arw=arw,
+                             vrw=vrw, velocity_sigma=velocity_sigma, position_sigma=position_sigma, prior=prior,
+                             history_s=history_s, align_s=align_s, initial=est.to_imu(), method_name=method_name,
+                             nis_cap=nis_cap, t_ref=t_ref, temperature_sensor=temperature_sensor,
+                             temperature_rate_window_s=temperature_rate_window_s, robust=robust)
+        except CalibrationError as exc:
+            term_check = {"done": False, "why": str(exc), "states": state_spec(wider)}
+        else:
+            labels = st.labels()[nd:]
+            z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"],
+                           sig_par)
+            worst = int(np.argmax(z))
+            term_check = {"done": True, "states": state_spec(wider), "shift_max_sigma": float(z[worst]),
+                          "state": labels[worst], "limit": TERM_SHIFT_LIMIT,
+                          "model_error_with_terms": big.model_error.as_dict()}
+            if z[worst] > TERM_SHIFT_LIMIT:
+                verdict = (f"the record misfits the model beyond its noise and a term the states leave out drives the "
+                           f"estimate: with --states {state_spec(wider)} {labels[worst]} moves {z[worst]:.3g} sigma "
+                           f"(limit {TERM_SHIFT_LIMIT:g}); calibrate with those states or --states auto")
     if verdict and not accept_unconverged:
         raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
                            "or --accept-unconverged to keep the last iterate")
@@ -551,7 +586,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                                           "outlier_cap": None if not math.isfinite(cap) else cap,
                                           "shared": weights is not None}
     diag["convergence"] = {"converged": converged, "verdict": verdict or None,
-                           "accepted_unconverged": bool(verdict) and accept_unconverged}
+                           "accepted_unconverged": bool(verdict) and accept_unconverged, "term_check": term_check}
     diag["formal_sigma"] = formal
     diag["unobservable"] = unobs
     notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
@@ -609,6 +644,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res.states = st
     res.model_error = me  # the frozen model-error factors (the nested fits of --states auto share them)
     res.covariance = {"labels": st.labels()[nd:], "P": P_post}
+    res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
     if keep_passes:
         res.pass_output = last
     return res
