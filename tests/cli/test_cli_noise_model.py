@@ -59,3 +59,27 @@ def test_noise_refusals_are_one_line(tmp_path, case):
     r = CliRunner().invoke(app, args)
     assert r.exit_code == 2 and r.stderr.count("\n") == 1 and "--noise" in r.stderr, r.output
     assert not out.exists()
+
+
+def test_report_of_a_noise_model(tmp_path):
+    """``inscal report noise.toml``: each channel's terms in field units and the model's Allan deviation; a file
+    that is not a noise model, or --params beside it, is one line with nothing written."""
+    import json
+
+    src = tmp_path / "noise.toml"
+    write_noise(src, _model())
+    out = tmp_path / "r.html"
+    r = CliRunner().invoke(app, ["report", str(src), "--out", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    gx = rep["channels"][0]
+    assert gx["channel"] == "gx" and gx["model"] == "WN+RW+GM"
+    assert ["GM", "sigma", pytest.approx(0.003), "deg/h"] == gx["rows"][1][:4]
+    assert "Allan deviation of the model" in out.read_text() and "°/√h" in out.read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("format = 'other'\n")
+    for args in (["report", str(bad), "--out", str(tmp_path / "b.html")],
+                 ["report", str(src), "--out", str(tmp_path / "b.html"), "--params", str(src)]):
+        r = CliRunner().invoke(app, args)
+        assert r.exit_code == 2 and r.stderr.count("\n") == 1, r.output
+    assert not (tmp_path / "b.html").exists()
