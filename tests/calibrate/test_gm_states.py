@@ -152,15 +152,13 @@ def test_window_sigma_widened_by_the_slow_terms():
     assert all(np.array_equal(a.gyro_sigma, b.gyro_sigma) for a, b in zip(same, wins))
 
 
-def test_gm_states_cover_a_wandering_bias():
+@pytest.fixture(scope="module")
+def psins19_gm():
     """The psins19 unit and path (17 min, at 10 Hz) with gyro and accelerometer biases wandering as Gauss-Markov
-    processes at 3x a navigation-grade level (0.009 deg/h, 30 ug, 300 s): the white-noise filter's sigma miss the
-    error by far (components beyond 10 sigma), the filter with the unit's model covers every component within
-    3 sigma (the seeds' statistics: bench/gm_states_study.py)."""
+    processes at 3x a navigation-grade level (0.009 deg/h, 30 ug, 300 s), seed 1, and the unit's noise model."""
     import dataclasses
     from types import SimpleNamespace
 
-    from inscal.calibrate.systematic import systematic
     from inscal.sim import scenarios
     from inscal.sim.simulate import simulate
 
@@ -176,6 +174,16 @@ def test_gm_states_cover_a_wandering_bias():
               for i, n in enumerate(("ax", "ay", "az"))]
     d = simulate(sc, np.random.default_rng(1))
     rec = SimpleNamespace(dtheta=d.dtheta, dvel=d.dvel, rate_hz=sc.rate_hz, site=sc.site)
+    return sc, rec, nm.NoiseModel(tuple(chans), 10.0)
+
+
+def test_gm_states_cover_a_wandering_bias(psins19_gm):
+    """The white-noise filter's sigma miss the error of a wandering bias by far (components beyond 10 sigma), the
+    filter with the unit's model covers every component within 3 sigma (the seeds' statistics:
+    bench/gm_states_study.py)."""
+    from inscal.calibrate.systematic import systematic
+
+    sc, rec, model = psins19_gm
 
     def worst(res):
         z = []
@@ -185,6 +193,26 @@ def test_gm_states_cover_a_wandering_bias():
         return max(z)
 
     assert worst(systematic(rec, "51")) > 10.0
-    res = systematic(rec, "51", noise=nm.NoiseModel(tuple(chans), 10.0))
+    res = systematic(rec, "51", noise=model)
     assert worst(res) < 3.0
     assert res.diagnostics["states"] == 57 and len(res.diagnostics["noise"]["gauss_markov"]) == 6
+
+
+def test_smoother_with_gm_states(psins19_gm):
+    """The smoother of a pass with GM states (dynamic states 9 + 6): the constants' smoothed covariance at every
+    stored step is the final filtered one, their smoothed error the feedback still to come, and the GM states'
+    smoothed variances lie between 0 and their stationary prior (scaled: 1)."""
+    from inscal.calibrate.systematic import systematic
+
+    _, rec, model = psins19_gm
+    out = systematic(rec, "51", noise=model, max_passes=1, keep_passes=True).pass_output
+    n = 15
+    assert out.smoother.phinn_st.shape[1:] == (n, n)
+    pf = np.diag(out.Pf)[n:]
+    d = np.diagonal(out.hist_P, axis1=1, axis2=2)
+    np.testing.assert_allclose(d[:, n:], np.broadcast_to(pf, d[:, n:].shape), rtol=1e-10)
+    assert np.all(d[1:, 9:n] > 0) and np.all(d[:, 9:n] < 1.0 + 1e-9)
+    sm = out.smoother
+    fb = np.array([sm.K_st[k] @ np.linalg.solve(sm.Si_st[k], sm.sz_st[k]) for k in range(out.steps)])[:, n:]
+    rem = np.cumsum(fb[::-1], axis=0)[::-1]
+    assert np.max(np.abs(out.hist_x[:, n:] - rem[out.hist_step]) / np.sqrt(pf)) < 1e-6
