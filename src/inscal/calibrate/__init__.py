@@ -65,6 +65,7 @@ from inscal.calibrate.systematic.methods import systematic30, systematic51
 from inscal.calibrate.thermal import thermal_plateaus
 from inscal.calibrate.twelve_position import twelve_position
 from inscal.calibrate.unified import unified
+from inscal.calibrate.window_noise import widened
 from inscal.calibrate.windows import CalibrationError, Window, WindowSet, window_means
 
 #: the calibration methods by name: the functions :func:`calibrate` dispatches to
@@ -117,6 +118,7 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
         if isinstance(record_like, WindowSet):
             raise CalibrationError(f"{method} needs the record (increments), not window means")
         return fn(record_like, **options)
+    noise = options.pop("noise", None)  # an identified noise model: the window sigma widened (window_noise)
     seg_keys = set(inspect.signature(window_means).parameters) - {"record_like"}
     seg_opts = {k: v for k, v in options.items() if k in seg_keys}
     meth_keys = set(inspect.signature(fn).parameters) - {"ws"}
@@ -124,4 +126,11 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
     if unknown:
         raise CalibrationError(f"unknown option(s) for {method}: {sorted(unknown)}")
     ws = record_like if isinstance(record_like, WindowSet) else window_means(record_like, **seg_opts)
-    return fn(ws, **{k: v for k, v in options.items() if k in meth_keys})
+    if noise is not None:
+        wins, info = widened(ws.windows, noise, ws.rate_hz)
+        ws = WindowSet(wins, ws.site, ws.rate_hz, dict(ws.info) | {"noise_widening": info})
+    res = fn(ws, **{k: v for k, v in options.items() if k in meth_keys})
+    if noise is not None:
+        res.notes.append("window sigma widened for the bias drift of the noise model (GM, BI, RW, DR terms: their "
+                         "Allan variance at each window's length or spacing; inscal.calibrate.window_noise)")
+    return res

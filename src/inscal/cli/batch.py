@@ -171,9 +171,10 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
               settle: float | None = None, min_static: float | None = None, filter_rate_hz: float = 1.0, arw: float | None = None,
               vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
               encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True,
-              wait: float | None = None) -> dict:
+              wait: float | None = None, noise: Path | None = None) -> dict:
     """Calibrate the records with ``method`` into ``db`` and return the JSON report (counts, failures,
-    every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated."""
+    every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated.
+    ``noise``: a noise.toml for the systematic filter, as ``inscal calibrate --noise``."""
     import sqlalchemy
 
     from inscal.lab import DatabaseError, check_wait
@@ -181,7 +182,7 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
     from inscal.lab.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
-                             encoder_latency, check_encoders)
+                             encoder_latency, check_encoders, noise=None if noise is None else str(noise.resolve()))
     if (msg := setup.problem()) is not None:
         raise CliError(msg)
     scheduler = check_scheduler(scheduler or "local", ("local", "none"))
@@ -265,6 +266,8 @@ def register(app: typer.Typer) -> None:
                                               "seconds before calibrating"),
         skip_encoder_check: bool = typer.Option(False, "--skip-encoder-check", help="calibrate even when the encoder "
                                                 "angles do not follow the gyros"),
+        noise: Path = typer.Option(None, "--noise", help="systematic: an identified noise model (noise.toml), as for "
+                                   "inscal calibrate"),
         json_: bool = typer.Option(False, "--json", help="print the summary (counts, failures, every record) as JSON"),
         no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar or lines"),
         wait: float = typer.Option(None, "--wait", help="seconds a record's write waits for another writer of the "
@@ -274,7 +277,8 @@ def register(app: typer.Typer) -> None:
         try:
             rep = run_batch(records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
                             station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
-                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait)
+                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait,
+                            noise=noise)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

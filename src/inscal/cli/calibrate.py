@@ -30,7 +30,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
-                  accept_unconverged: bool = False, quadratic: bool = False) -> dict:
+                  accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -49,13 +49,16 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
     instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
-    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too."""
+    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too.  ``noise``: a noise.toml
+    (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
+    bias states (:mod:`inscal.calibrate.systematic.gm_states`)."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
-                             plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic)
+                             plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic,
+                             None if noise is None else str(noise))
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -410,6 +413,9 @@ def register(app: typer.Typer) -> None:
         accept_unconverged: bool = typer.Option(False, "--accept-unconverged", help="systematic: keep the last "
                                                 "iterate of a run that does not converge (a note in the text, the JSON "
                                                 "and the parameter file) instead of ending with exit 2"),
+        noise: Path = typer.Option(None, "--noise", help="systematic: an identified noise model (noise.toml of inscal "
+                                   "noise): its white terms weight the filter, its Gauss-Markov terms become bias "
+                                   "states"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
@@ -417,7 +423,8 @@ def register(app: typer.Typer) -> None:
             rep = run_calibrate(data, method, out, force, settle, min_static, states, plots, filter_rate, arw, vrw,
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
-                                plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic)
+                                plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
+                                noise)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 
 import typer
 
@@ -59,11 +60,13 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
 def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
              filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
              bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None,
-             t_ref: float | None = None):
+             t_ref: float | None = None, noise=None):
     """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``source``.  Field units:
     ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
-    ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states)."""
+    ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states).  ``noise``: a
+    noise.toml whose white, Gauss-Markov and random-walk terms are the bound's noise
+    (:func:`inscal.plan.noise_model.bound_noise`), instead of those options."""
     from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
@@ -78,6 +81,9 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
                     ("--accel-rrw", accel_rrw)):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise CliError(f"{name} must be a number >= 0, got {v:g}")
+    model_noise = None
+    if noise is not None:
+        model_noise = _model_noise(noise, arw, vrw, gyro_bi, accel_bi, gyro_rrw, accel_rrw)
     try:  # the size first: memory does not grow with the steps (no history kept), the time does
         sc, _, label = load_source(source)
     except ObservabilityError as exc:
@@ -99,12 +105,34 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
                          accel_rw=units.to_si(accel_rrw or 0.0, "ug"),
                          gyro_gm=units.to_si(gyro_bi or 0.0, "deg/h"), gyro_tau=bi_tau,
                          accel_gm=units.to_si(accel_bi or 0.0, "ug"), accel_tau=bi_tau)
+    arw_si = None if arw is None else units.to_si(arw, "deg/sqrt(h)")
+    vrw_si = None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)")
+    if model_noise is not None:
+        arw_si, vrw_si, bias, _ = model_noise
     try:
-        return crlb(source, states, arw=None if arw is None else units.to_si(arw, "deg/sqrt(h)"),
-                    vrw=None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)"), bias_noise=bias,
+        return crlb(source, states, arw=arw_si, vrw=vrw_si, bias_noise=bias,
                     filter_rate_hz=filter_rate_hz, keep_history=False, t_ref=t_ref)
     except BoundError as exc:
         raise CliError(str(exc)) from None
+
+
+def _model_noise(noise, arw, vrw, gyro_bi, accel_bi, gyro_rrw, accel_rrw):
+    """The bound's noise of the noise.toml ``noise`` (:func:`inscal.plan.noise_model.bound_noise`); CliError
+    (one line) for an unreadable file, a model the bound cannot take, or other noise options beside it."""
+    from inscal.calibrate.windows import CalibrationError
+    from inscal.io.noisefile import NoiseFileError, read_noise
+    from inscal.plan.noise_model import bound_noise
+    from inscal.plan.rows import BoundError
+
+    if any(v is not None for v in (arw, vrw, gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+        raise CliError("--noise gives the white and bias noise: drop --arw, --vrw, --gyro-bi, --accel-bi, --gyro-rrw "
+                       "and --accel-rrw, or drop --noise")
+    try:
+        return bound_noise(read_noise(noise)[0])
+    except (NoiseFileError, OSError) as exc:
+        raise CliError(f"--noise: {exc}") from None
+    except (CalibrationError, BoundError) as exc:
+        raise CliError(f"--noise {noise}: {exc}") from None
 
 
 def _check_t_ref(t_ref: float | None, st) -> None:
@@ -252,6 +280,8 @@ def register(app: typer.Typer) -> None:
                                                                   "[ug/sqrt(s)]"),
         t_ref: float = typer.Option(None, "--t-ref", help="reference temperature of the thermal states [degC] "
                                                           "(default: the scenario's thermal model's, else 20)"),
+        noise: Path = typer.Option(None, "--noise", help="with --crlb: an identified noise model (noise.toml of "
+                                   "inscal noise): its white, Gauss-Markov and random-walk terms are the bound's noise"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
@@ -259,7 +289,7 @@ def register(app: typer.Typer) -> None:
         if crlb:
             try:
                 b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
-                             t_ref)
+                             t_ref, noise)
             except CliError as exc:
                 raise fail(str(exc)) from None
             if json_:
@@ -267,6 +297,8 @@ def register(app: typer.Typer) -> None:
             else:
                 _print_crlb(source, b)
             return
+        if noise is not None:
+            raise fail("--noise applies to the bound (--crlb)")
         if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
             raise fail("--gyro-bi, --accel-bi, --gyro-rrw and --accel-rrw need --crlb (the systematic filter has no "
                        "bias process noise)")

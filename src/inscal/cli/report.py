@@ -35,6 +35,10 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
 
     check_output(out, force)
     check_not_input(out, data, *params, *(noise or []))
+    if data.suffix == ".toml":  # a noise model (noise.toml of inscal noise): its own report
+        if noise:
+            raise CliError("--noise shows a noise model beside a record; a noise model's own report takes none")
+        return _noise_model_report(data, params, out, force)
     from inscal import io
     from inscal.io.noisefile import NoiseFileError, model_from_document
     from inscal.io.tomlfile import read_toml
@@ -83,10 +87,33 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
     return res
 
 
+def _noise_model_report(data: Path, params: list[Path], out: Path, force: bool) -> dict:
+    """The report of a noise.toml (:mod:`inscal.report.noise_model`); CliError (one line) for a file that is not
+    one, or parameter files beside it."""
+    from inscal.io.noisefile import NoiseFileError, read_noise
+    from inscal.io.tomlfile import read_toml
+    from inscal.report.noise_model import noise_model_report
+
+    if params:
+        raise CliError("--params tabulates calibrations against a record; a noise model's report takes none")
+    try:
+        model, _ = read_noise(data)
+        doc = read_toml(data, NoiseFileError, "noise model file")
+    except (NoiseFileError, OSError) as exc:
+        raise CliError(str(exc)) from None
+    try:
+        res = noise_model_report(out, model, doc, str(data), overwrite=force)
+    except OSError as exc:
+        raise CliError(f"cannot write {short(out)}: {exc.strerror or exc}") from None
+    res["out"] = str(out)
+    res["warnings"] = []
+    return res
+
+
 def register(app: typer.Typer) -> None:
     @app.command()
     def report(
-        data: Path = typer.Argument(..., help="HDF5 record"),
+        data: Path = typer.Argument(..., help="HDF5 record, or a noise model (noise.toml of inscal noise)"),
         params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable); "
                                           "a file with a thermal model also gets each thermal parameter's curve "
                                           "over its calibrated range with its 1-sigma band"),

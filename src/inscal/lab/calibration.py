@@ -20,12 +20,16 @@ import numpy as np
 
 from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
+from inscal.calibrate.systematic.gm_states import gm_states, noise_setup
+from inscal.calibrate.systematic.states import StateSet
+from inscal.calibrate.window_noise import slow_terms
 from inscal.calibrate.systematic.selection import largest_states
 from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
 from inscal.io.encoders import apply_latency, check_record_encoders
+from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
 from inscal.io.records import (
     DataFileError,
     Record,
@@ -87,6 +91,7 @@ class CalibrationSetup:
     chamber_label: str = CHAMBER_LABEL
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
     quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
+    noise: str | None = None  # systematic: an identified noise model (noise.toml): white noise and GM bias states
 
     @property
     def systematic(self) -> bool:
@@ -140,6 +145,8 @@ class CalibrationSetup:
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
                                           or self.encoder_sigma is not None):
             return f"--states, --plots, --arw, --vrw and --encoder-sigma apply to the systematic methods, not {self.inner}"
+        if (msg := self.noise_problem()) is not None:
+            return msg
         for name, v, hi, unit in (("--arw", self.arw, MAX_ARW, "deg/sqrt(h)"), ("--vrw", self.vrw, MAX_VRW, "ug/sqrt(Hz)")):
             if v is not None and not (math.isfinite(v) and 0 < v <= hi):
                 return f"{name} must be a white-noise level > 0 and at most {hi:g} {unit}, got {v}"
@@ -223,6 +230,35 @@ class CalibrationSetup:
                 "t_ref": 20.0 if self.t_ref is None else float(self.t_ref), "plateau_tol": float(self.plateau_tol),
                 "sensor": self.temperature_sensor, "chamber_label": self.chamber_label}
 
+    def noise_problem(self) -> str | None:
+        """The one-line refusal of ``--noise`` (a noise.toml the calibration cannot use), None if usable."""
+        if self.noise is None:
+            return None
+        if self.inner in NO_TABLE_METHODS:
+            return f"--noise applies to the systematic and the turntable window methods, not {self.inner}"
+        if self.arw is not None or self.vrw is not None:
+            return "--noise gives the white noise: drop --arw/--vrw, or drop --noise"
+        try:
+            model = self.noise_model()
+        except (NoiseFileError, OSError) as exc:
+            return f"--noise: {exc}"
+        try:
+            st = StateSet.parse(None if self.states in (None, "auto") else self.states.replace("auto", "51"))
+        except CalibrationError:  # a bad --states is refused on its own
+            st = StateSet()
+        try:
+            if self.inner_systematic:
+                noise_setup(model, None, None, st)
+            else:
+                slow_terms(model)
+        except CalibrationError as exc:
+            return f"--noise {self.noise}: {exc}"
+        return None
+
+    def noise_model(self):
+        """The :class:`~inscal.core.noise_models.NoiseModel` of ``--noise`` (None without it)."""
+        return None if self.noise is None else read_noise(self.noise)[0]
+
     def options(self) -> dict:
         """The canonical options (:func:`inscal.lab.record.calibration_options`): what identifies "the
         same calibration of the same record" in the database."""
@@ -234,6 +270,8 @@ class CalibrationSetup:
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
         if win.get("quadratic"):
             opts["quadratic"] = True
+        if self.noise is not None:  # the model itself, not the file's name, decides the result
+            opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
         if th:
             opts.update(per_plateau=th["per_plateau"], thermal_orders=check_orders(th["orders"]), t_ref_c=th["t_ref"],
@@ -257,6 +295,11 @@ class CalibrationSetup:
                 if self.inner_systematic else None
         except CalibrationError:
             st = None  # the calibration names the bad state set
+        if st is not None and self.noise is not None:  # the model's Gauss-Markov states too
+            try:
+                st = dataclasses.replace(st, gm=gm_states(self.noise_model()))
+            except (CalibrationError, NoiseFileError, OSError):
+                pass  # refused by noise_problem before
         if st is not None:
             steps = n // samples_per_step(rate, self.filter_rate_hz)
             out.append((held + systematic_bytes(n, rate, st, self.filter_rate_hz),
@@ -363,8 +406,12 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                 opts["encoder_sigma"] = units.to_si(setup.encoder_sigma, "arcsec")
             if setup.accept_unconverged:
                 opts["accept_unconverged"] = True
+            if setup.noise is not None:
+                opts["noise"] = setup.noise_model()
         else:
-            opts = setup.window_options
+            opts = dict(setup.window_options)
+            if setup.noise is not None:
+                opts["noise"] = setup.noise_model()
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
     except CalibrationError as exc:
         raise RecordError(f"{data}: {exc}") from None

@@ -1,4 +1,5 @@
-"""The report's noise-model section: an identified noise model (``noise.toml``, :mod:`inscal.io.noisefile`) per
+"""The report of an identified noise model, alone (``inscal report noise.toml``) or as a section of a record's
+report (``inscal report RECORD --noise noise.toml``): the model (``noise.toml``, :mod:`inscal.io.noisefile`) per
 channel, as a table of its processes in IEEE Std 952-2020 / 1293-2018 units (continuous form, the 95 % interval
 of the identification when the file has it, and the per-sample form at the model's rate) and a figure of the
 model's exact Allan deviation with each process's contribution, over the record's own Allan deviation of its
@@ -15,8 +16,9 @@ import numpy as np
 
 from inscal.core import noise_models as nm
 from inscal.core import units
+from inscal.io.files import atomic_path
 from inscal.report.figures import new_figure, png_base64
-from inscal.report.html import escape, fmt_num, html_table
+from inscal.report.html import display_unit, escape, fmt_num, html_table
 
 #: field unit of a channel's Allan deviation (a rate: the gyro's in deg/h, the accelerometer's in ug)
 ADEV_UNIT = {"gyro": "deg/h", "accel": "ug"}
@@ -70,7 +72,7 @@ def model_rows(model: nm.NoiseModel, doc: dict) -> tuple[list[list[str]], list[d
                 params[p] = {"value": value, "unit": fu[p],
                              "interval_95": None if lo_hi is None else [float(lo_hi[0]), float(lo_hi[1])]}
                 rows.append([ch.name if i == 0 and j == 0 else "", ch.model if i == 0 and j == 0 else "",
-                             t.code if j == 0 else "", p, fmt_num(value), fu[p],
+                             t.code if j == 0 else "", p, fmt_num(value), display_unit(fu[p]),
                              "—" if lo_hi is None else f"{fmt_num(lo_hi[0])} .. {fmt_num(lo_hi[1])}",
                              disc_text if j == 0 else ""])
             terms.append({"type": t.code, "params": params, "per_sample": disc_field})
@@ -124,3 +126,16 @@ def noise_model_section(label: str, model: nm.NoiseModel, doc: dict, measured: d
             + (", the points the record's own of its first dwell" if measured else "") + ".</p>"
             + html_table(head, rows) + f"<img src='data:image/png;base64,{b64}'/>")
     return html, {"rate_hz": float(model.rate_hz), "channels": data, "meta": doc.get("meta", {})}
+
+
+def noise_model_report(path, model: nm.NoiseModel, doc: dict, source: str, overwrite: bool = False) -> dict:
+    """Write the HTML report of ``model`` alone (read from ``doc``, the file ``source``) to ``path`` (atomic):
+    its section (:func:`noise_model_section`) with no record's curve; returns its summary."""
+    section, data = noise_model_section(source, model, doc)
+    page = ("<!doctype html><html><head><meta charset='utf-8'><title>inscal noise model</title><style>"
+            "body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
+            "td,th{border:1px solid #bbb;padding:3px 8px;font-size:13px}img{max-width:100%}</style></head><body>"
+            f"<h1>inscal noise model: {escape(source)}</h1>" + section + "</body></html>")
+    with atomic_path(path, overwrite) as tmp:
+        tmp.write_text(page, encoding="utf-8")
+    return {"noise_model": source} | data

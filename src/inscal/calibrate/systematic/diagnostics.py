@@ -17,7 +17,7 @@ from inscal.calibrate.systematic.params import (
     truth_in_frame,
 )
 from inscal.calibrate.systematic.record_stats import step_rates
-from inscal.calibrate.systematic.states import FRAME_GIMBAL, N_NAV, StateSet
+from inscal.calibrate.systematic.states import FRAME_GIMBAL, StateSet
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.attitude import euler_from_dcm
@@ -235,7 +235,8 @@ def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams
     when the zero-velocity updates are ~1e8 times more informative than the prior.  The recursion's
     own parameter estimates (``mbf``) are kept for checks; they agree with the final ones once the
     record is well conditioned (tests/calibrate/test_systematic.py)."""
-    sig_par = sig[N_NAV:]
+    nd = st.n_dyn
+    sig_par = sig[nd:]
     t = (out.hist_step + 1).astype(float)
     # canonical values to first order about the final estimate: canon(ref) = canon(final) + J x_ref,
     # x_ref = the error state of each reference relative to the final (exact conversions at both ends)
@@ -243,9 +244,9 @@ def pass_history(out: PassOutput, st: StateSet, names, sig, J, final: CompParams
     xr = ref_error_states(out.hist_ref, st, final)
     filt = fin + xr @ J.T
     filt[0] = canonical_flat(params_from_ref(out.hist_ref[0]), names)
-    mbf = fin + (xr - out.hist_x[:, N_NAV:] * sig_par) @ J.T
+    mbf = fin + (xr - out.hist_x[:, nd:] * sig_par) @ J.T
     # diag(J P J^T) of every row in one product: sum_jk P_jk J_ij J_ik = P (flattened) . (J_i outer J_i)
-    Pm = out.hist_Pm[:, N_NAV:, N_NAV:] * np.outer(sig_par, sig_par)
+    Pm = out.hist_Pm[:, nd:, nd:] * np.outer(sig_par, sig_par)
     JJ = (J[:, :, None] * J[:, None, :]).reshape(J.shape[0], -1)
     sf = np.sqrt(np.maximum(Pm.reshape(Pm.shape[0], -1) @ JJ.T, 0.0))
     sfin = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P_post, J), 0.0))

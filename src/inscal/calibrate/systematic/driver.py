@@ -33,6 +33,7 @@ from inscal.calibrate.systematic.model_error import (
 )
 from inscal.calibrate.systematic.model_error import initial as no_model_error
 from inscal.calibrate.systematic.model_error import note as model_error_note
+from inscal.calibrate.systematic.gm_states import noise_setup
 from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
 from inscal.calibrate.systematic.sensitivity import forcings, parameter_shift, tolerances
@@ -244,7 +245,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                encoder_every: int = 1, nis_cap: float | None = NIS_CAP, thermal_orders: dict | None = None,
                t_ref: float = T_REF_C, temperature_sensor: str = "",
                temperature_rate_window_s: float = RATE_WINDOW_S, robust: bool = True,
-               weights=None, accept_unconverged: bool = False) -> CalibrationResult:
+               weights=None, accept_unconverged: bool = False, noise=None) -> CalibrationResult:
     """Systematic calibration of a static-site rotation record (S16 section 3).
 
     ``states``: a :class:`StateSet` or its spec (``"51"``, ``"30"``, ``"51,lever9,async"``, ...).
@@ -270,11 +271,17 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     them on with those orders.  The result's ``thermal`` is the canonical model with ``thermal_sigma``; the
     prior of each coefficient is ``THERMAL_SIGMA0`` spread over the record's span (``prior`` may name a
     coefficient group, e.g. ``gyro_bias_dT2``, in SI per degC^k).
+    ``noise``: an identified noise model (:class:`inscal.core.noise_models.NoiseModel` of the six channels): its
+    white terms are the white noise (unless ``arw``/``vrw`` are given) and its Gauss-Markov terms become bias
+    states (:mod:`inscal.calibrate.systematic.gm_states`).
     """
     rec = ws_or_record
     st = states if isinstance(states, StateSet) else StateSet.parse(states)
     if thermal_orders is not None:
         st = dataclasses.replace(st, thermal=thermal_orders_from(thermal_orders))
+    gm_note = None
+    if noise is not None:
+        arw, vrw, st, gm_note = noise_setup(noise, arw, vrw, st)
     for attr in ("dtheta", "dvel", "rate_hz", "site"):
         if not hasattr(rec, attr):
             raise CalibrationError(f"systematic calibration needs a record with increments, rate and site (no {attr!r})")
@@ -345,8 +352,9 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     nav_sig0[2] = max(nav_sig0[2], 2.0 * sigma_psi)
     if "mount_attitude" not in (prior or {}):
         sig0["mount_attitude"] = max(sig0["mount_attitude"], 2.0 * sigma_psi)
-    sig = np.concatenate([nav_sig0, prior_sigma(st, sig0, tin["span"] if tin else 1.0)])
-    sig_par = sig[N_NAV:]
+    nd = st.n_dyn  # navigation and Gauss-Markov states; the parameters follow
+    sig = np.concatenate([nav_sig0, [g.sigma for g in st.gm], prior_sigma(st, sig0, tin["span"] if tin else 1.0)])
+    sig_par = sig[nd:]
     start = CompParams() if initial is None else CompParams.from_imu(initial)
     nominal = CompParams()
     try:
@@ -415,14 +423,14 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         if not (np.all(np.isfinite(out.Pf)) and np.all(np.isfinite(out.params.error_state(st, nominal)))):
             raise CalibrationError(f"systematic filter diverged in pass {ip + 1} (non-finite state): the linearisation "
                                    "is too far from the data (a coarse alignment off, or errors beyond the priors)")
-        sp = sig_pass[N_NAV:]
+        sp = sig_pass[nd:]
         # This pass ran with the prior N(p_start, diag(sp^2)) (deflated after pass 1 for numerical range).
         # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
         # L_d = Pf^-1 - diag(sp^-2), posterior P = (L_d + diag(sig0^-2))^-1,
         # x = P (Pf^-1 x' + diag(sig0^-2) mu) with x' the pass's total correction and mu = p_start - nominal.
         # P_pp = U_pp U_pp^T (U upper triangular, navigation first): its inverse from the factor, which has
         # half the dynamic range of P
-        Ui = solve_triangular(out.Uf[N_NAV:, N_NAV:], np.eye(sp.shape[0]))
+        Ui = solve_triangular(out.Uf[nd:, nd:], np.eye(sp.shape[0]))
         Pf_inv = (Ui.T @ Ui) / np.outer(sp, sp)
         Pf_inv = 0.5 * (Pf_inv + Pf_inv.T)
         L_d = Pf_inv - np.diag(1.0 / sp**2)
@@ -476,8 +484,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         # next pass: prior widths of at most DEFLATE posterior sigmas about the new start (its
         # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
         sig_pass = sig.copy()
-        sig_pass[N_NAV:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
-    verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[N_NAV:],
+        sig_pass[nd:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
+    verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[nd:],
                                   float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
                                   truncated=max_passes < MIN_VERDICT_PASSES)
     x_est = est.error_state(st, nominal)
@@ -497,7 +505,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         except CalibrationError as exc:
             term_check = {"done": False, "why": str(exc), "states": state_spec(wider)}
         else:
-            labels = st.labels()[N_NAV:]
+            labels = st.labels()[nd:]
             z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"],
                            sig_par)
             worst = int(np.argmax(z))
@@ -594,6 +602,16 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         notes.append(me_note)
     if unobs_note:
         notes.append(unobs_note)
+    if noise is not None:
+        diag["noise"]["gauss_markov"] = [{"sensor": g.sensor, "axis": "xyz"[g.axis], "tc_s": g.tc,
+                                          "sigma": float(units.from_si(g.sigma, "deg/h" if g.sensor == "gyro" else "ug")),
+                                          "sigma_unit": "deg/h" if g.sensor == "gyro" else "ug"} for g in st.gm]
+        diag["noise"]["from_model"] = True
+        tcs = sorted({round(g.tc, 3) for g in st.gm})
+        notes.append(f"noise model given: white noise of its WN terms, {len(st.gm)} Gauss-Markov bias state(s)"
+                     + (f" (correlation time {', '.join(f'{t:g}' for t in tcs)} s)" if tcs else ""))
+        if gm_note:
+            notes.append(gm_note)
     res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
                             est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
     res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
@@ -625,7 +643,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     res.history["time_s"] = res.history["t_steps"] * T
     res.states = st
     res.model_error = me  # the frozen model-error factors (the nested fits of --states auto share them)
-    res.covariance = {"labels": st.labels()[N_NAV:], "P": P_post}
+    res.covariance = {"labels": st.labels()[nd:], "P": P_post}
     res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
     if keep_passes:
         res.pass_output = last

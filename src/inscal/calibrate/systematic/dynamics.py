@@ -9,6 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
+from inscal.calibrate.systematic.states import K_GIM, K_TH
 from inscal.core import earth
 from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
 
@@ -253,3 +254,53 @@ def gimbal_attitude(gim, tx, tz, C, a, c, Hg):
         Hg[i, 1] = RzRy[i, 0]  # d alpha0: R_z R_y e_x
         Hg[i, 2] = Rzg[i, 1]  # d beta0: R_z e_y
         Hg[i, 3] = 1.0 if i == 2 else 0.0  # d gamma0: e_z
+
+
+@njit(cache=True)
+def feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th, nd=9):
+    """Remove the parameter estimates (physical, ``xs[nd:]``, ``nd`` the dynamic states) from the compensation
+    (in place)."""
+    npar = kinds.shape[0]
+    Dg = np.zeros((3, 3))
+    Da = np.zeros((3, 3))
+    for c in range(npar):
+        v = xs[nd + c]
+        k = kinds[c]
+        i = axes[c]
+        j = js[c]
+        if k == 0:
+            Dg[i, j] = v
+        elif k == 1:
+            bg[i] -= v
+        elif k == 2:
+            G[i, j] -= v
+        elif k == 3:
+            Da[i, j] = v
+        elif k == 4:
+            ba[i] -= v
+        elif k == 5:
+            K2[i] -= v
+        elif k == 6:
+            col = 0 if (j == 0 or j == 2) else (1 if (j == 1 or j == 4) else 2)
+            Kx[i, col] -= v
+        elif k == 7:
+            lev[i, i] -= v
+        elif k == 8:
+            lev[i, j] -= v
+        elif k == K_GIM:
+            gim[j] -= v
+        elif k == K_TH:
+            th[j, i] -= v
+        else:
+            tau[0] -= v
+    left_correct(Dg, Ag)
+    left_correct(Da, Aa)
+
+
+@njit(cache=True, inline="always")
+def left_correct(D, A):
+    """``A <- (I - D) A`` in place (S16 eq. 27 for a compensation matrix)."""
+    for j in range(3):
+        a0, a1, a2 = A[0, j], A[1, j], A[2, j]
+        for i in range(3):
+            A[i, j] = A[i, j] - (D[i, 0] * a0 + D[i, 1] * a1 + D[i, 2] * a2)

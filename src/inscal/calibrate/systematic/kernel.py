@@ -19,11 +19,13 @@ from numba import njit
 from inscal.calibrate.systematic.dynamics import (
     base_bias,
     compensate_sample,
+    feedback_params,
     gimbal_attitude,
     linear,
     nav_F,
     thermal_linear,
 )
+from inscal.calibrate.systematic.gm_states import assemble, effective_biases, gm_step_arrays
 from inscal.calibrate.systematic.jacobian import (
     N_BASIS,
     basis_values,
@@ -40,8 +42,6 @@ from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
     K_GIM,
-    K_TH,
-    N_NAV,
     StateSet,
 )
 from inscal.calibrate.windows import CalibrationError
@@ -88,6 +88,13 @@ class PassInputs(NamedTuple):
     r_factor: np.ndarray  # (M,) factor on R of each step (a frozen outlier weight; 1: none)
     tdT: np.ndarray  # (n,) thermal states: T - T_ref of each sample [degC] (empty without them)
     trate: np.ndarray  # (n,) ... and dT/dt [degC/s]
+    gm_sensor: np.ndarray  # (n_gm,) Gauss-Markov bias states (gm_states): 0 gyro, 1 accelerometer
+    gm_axis: np.ndarray  # (n_gm,) ... the sensor axis
+    gm_col: np.ndarray  # (n_gm,) ... the parameter column of that axis's constant bias
+    gm_phi: np.ndarray  # (n_gm,) ... exp(-T / tc)
+    gm_scale: np.ndarray  # (n_gm,) ... the scaled column factor exp(-T / (2 tc)) sig_gm / sig_bias
+    gm_q: np.ndarray  # (n_gm,) ... the scaled discrete noise sigma^2 (1 - phi^2) / sig_gm^2
+    sigp: np.ndarray  # (9 + npar,) the scaling of the navigation and the parameters (sig without the GM states)
 
 
 class PassParams(NamedTuple):
@@ -105,6 +112,7 @@ class PassParams(NamedTuple):
     tau: np.ndarray
     gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
     th: np.ndarray  # (13, 3) thermal coefficients (params.CompParams.th)
+    gmx: np.ndarray  # (n_gm,) the Gauss-Markov bias estimates [rad/s or m/s^2] (gm_states)
 
 
 class PassStore(NamedTuple):
@@ -166,13 +174,19 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     attitude update's ``K``, ``S^-1``, ``S^-1 nu``, scaled ``H``, NIS, raw ``z`` and ``R`` are stored per
     step (``att_used[k] = 1`` where it ran).
     """
-    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate = inp
-    Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th = par
+    dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate, \
+        gm_sensor, gm_axis, gm_col, gm_phi, gm_scale, gm_q, sigp = inp
+    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx = par
+    ngm = gmx.shape[0]
+    nd = 9 + ngm  # the dynamic states: navigation and Gauss-Markov biases (gm_states); the parameters follow
+    bg = bg_const.copy()  # the biases the compensation subtracts: the constants plus the GM estimates
+    ba = ba_const.copy()
+    effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
     thermal = tdT.shape[0] > 0
     K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st, qw_st = st
     enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
-    npar = N - 9
+    npar = N - nd
     M = dth.shape[0] // n_per
     T = n_per * dt
     lat0, lon0, h0 = site[0], site[1], site[2]
@@ -245,7 +259,12 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     F2s = np.empty((9, 9))
     phs = np.empty((9, 9))
     I9 = np.eye(9)
-    Z9 = np.zeros((9, npar))
+    Z9 = np.zeros((9, N - 9))
+    phn9 = np.empty((9, 9))  # with GM states: the navigation's Phi_nn, Phi_np and Qd before the assembly
+    php9 = np.empty((9, npar))
+    Qd9 = np.empty((9, 9))
+    Qdg = np.empty((nd, nd))
+    gphis = np.exp(np.log(gm_phi) / n_per)  # exp(-dt / tc)
     nis0 = 0.0
     for a in range(6):
         rs[a] = r[a] / sig[3 + a] ** 2
@@ -292,6 +311,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                 f0n[:] = f0c
                 wln[:] = wlc
             compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd)
+            if ngm > 0:  # the AR(1) mean of each GM estimate, sample by sample (gm_states)
+                for g in range(ngm):
+                    gmx[g] *= gphis[g]
+                effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
             f0m[:] = f0c
             f0c[:] = f0n
             wlm[:] = wlc
@@ -346,10 +369,17 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         nav_F(lat0, h0, fn, F, g_scale)
         phinn = phinn_st[k]
         phinp = phinp_st[k]
-        discretise(F, T, qgm, qam * qf[k], sig, F2, phinn, Qd)  # qf: the velocity model-error term (driver)
-        step_moments(Cb, Bb, Wm, start, src, CW, R)
-        parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
-        filters.sr_predict(U, 9, phinn, phinp, Qd)
+        if ngm == 0:
+            discretise(F, T, qgm, qam * qf[k], sig, F2, phinn, Qd)  # qf: the velocity model-error term (driver)
+            step_moments(Cb, Bb, Wm, start, src, CW, R)
+            parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
+            filters.sr_predict(U, 9, phinn, phinp, Qd)
+        else:  # the GM states' rows and columns (gm_states module docstring)
+            discretise(F, T, qgm, qam * qf[k], sig, F2, phn9, Qd9)
+            step_moments(Cb, Bb, Wm, start, src, CW, R)
+            parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sigp, php9)
+            assemble(phn9, Qd9, php9, gm_col, gm_phi, gm_scale, gm_q, phinn, phinp, Qdg)
+            filters.sr_predict(U, nd, phinn, phinp, Qdg)
         # ---- measurement: zero velocity, known position
         rm0, rn0 = earth.radii(lat0)
         z[0], z[1], z[2] = ve, vn, vu
@@ -365,10 +395,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             else:
                 hist_Pm[ih] = U @ U.T
             hist_ref[ih, _AG0:_AG1] = Ag.ravel()
-            hist_ref[ih, _BG0:_BG1] = bg
+            hist_ref[ih, _BG0:_BG1] = bg_const
             hist_ref[ih, _G0:_G1] = G.ravel()
             hist_ref[ih, _AA0:_AA1] = Aa.ravel()
-            hist_ref[ih, _BA0:_BA1] = ba
+            hist_ref[ih, _BA0:_BA1] = ba_const
             hist_ref[ih, _K20:_K21] = K2
             hist_ref[ih, _KX0:_KX1] = Kx.ravel()
             hist_ref[ih, _LV0:_LV1] = lev.ravel()
@@ -396,6 +426,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                     for i in range(9):
                         for j in range(9):
                             Qa[i, j] *= jump - 1.0
+                    # with GM states the identity transition of the navigation block keeps them and the parameters
                     filters.sr_predict(U, 9, I9, Z9, Qa)
                     if k % hist_every == 0 or k == M - 1:  # the smoother's predicted covariance has the jump
                         if thermal:
@@ -433,7 +464,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             for c in range(npar):
                 if kinds[c] == K_GIM:
                     for i in range(3):
-                        Ha[i, 9 + c] = -Hg[i, js[c]] * sig[9 + c]
+                        Ha[i, nd + c] = -Hg[i, js[c]] * sig[nd + c]
             for i in range(3):
                 for j in range(3):
                     Ra[i, j] = enc_var * (ga[i] * ga[j] + gc[i] * gc[j])
@@ -469,7 +500,10 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th)
+        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, nd)
+        for g in range(ngm):
+            gmx[g] -= xs[9 + g]
+        effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
         if thermal:
             base_bias(Ag, bg, eg)
             base_bias(Aa, ba, ea)
@@ -515,55 +549,6 @@ def _pass_kernel(inp: PassInputs, par: PassParams, U: np.ndarray, st: PassStore,
         _pass_steps(inp, par, U, st, er, cr, 0, 0)
     run_in_slices(M, lambda k0, k1: _pass_steps(inp, par, U, st, er, cr, k0, k1), first=_first_slice(inp.n_per))
     return M
-
-
-@njit(cache=True)
-def _feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th):
-    """Remove the parameter estimates (physical, ``xs[9:]``) from the compensation (in place)."""
-    npar = kinds.shape[0]
-    Dg = np.zeros((3, 3))
-    Da = np.zeros((3, 3))
-    for c in range(npar):
-        v = xs[9 + c]
-        k = kinds[c]
-        i = axes[c]
-        j = js[c]
-        if k == 0:
-            Dg[i, j] = v
-        elif k == 1:
-            bg[i] -= v
-        elif k == 2:
-            G[i, j] -= v
-        elif k == 3:
-            Da[i, j] = v
-        elif k == 4:
-            ba[i] -= v
-        elif k == 5:
-            K2[i] -= v
-        elif k == 6:
-            col = 0 if (j == 0 or j == 2) else (1 if (j == 1 or j == 4) else 2)
-            Kx[i, col] -= v
-        elif k == 7:
-            lev[i, i] -= v
-        elif k == 8:
-            lev[i, j] -= v
-        elif k == K_GIM:
-            gim[j] -= v
-        elif k == K_TH:
-            th[j, i] -= v
-        else:
-            tau[0] -= v
-    _left_correct(Dg, Ag)
-    _left_correct(Da, Aa)
-
-
-@njit(cache=True, inline="always")
-def _left_correct(D, A):
-    """``A <- (I - D) A`` in place (S16 eq. 27 for a compensation matrix)."""
-    for j in range(3):
-        a0, a1, a2 = A[0, j], A[1, j], A[2, j]
-        for i in range(3):
-            A[i, j] = A[i, j] - (D[i, 0] * a0 + D[i, 1] * a1 + D[i, 2] * a2)
 
 
 @dataclass
@@ -615,7 +600,7 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
     (every ``hist_every``-th and the last): the predicted and smoothed covariances, the filtered variances,
     the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats)."""
     N = states.n_states
-    per_step = 8.0 * (8 + (15 * N + 42 if stores else 0))
+    per_step = 8.0 * (8 + ((6 + states.n_dyn) * N + 42 if stores else 0))  # 15 N + 42 without GM states
     if states.gimbal:
         per_step += 8.0 * (6 + (6 * N + 21 if stores else 0)) + 1.0
     rows = float(M) / max(1, int(hist_every)) + 2.0
@@ -638,7 +623,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     (NaN rows: none), ``enc_sigma`` their white noise [rad] (module docstring).  Thermal states:
     ``temperature = (dT, rate)``, ``T - T_ref`` [degC] and dT/dt [degC/s] of every sample."""
     N = states.n_states
-    npar = N - N_NAV
+    nd = states.n_dyn
+    npar = N - nd
     M = dth.shape[0] // n_per
     if M < 2:
         raise CalibrationError(f"record too short for the filter: {dth.shape[0] * dt:g} s at a {n_per * dt:g} s step")
@@ -651,8 +637,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     K_st = np.empty((M, N, 6))
     Si_st = np.empty((M, 6, 6))
     sz_st = np.empty((M, 6))
-    phinn_st = np.empty((M, 9, 9))
-    phinp_st = np.empty((M, 9, npar))
+    phinn_st = np.empty((M, nd, nd))
+    phinp_st = np.empty((M, nd, npar))
     nis = np.empty(M)
     z_st = np.empty((M, 6))
     hist_Pm = np.empty((nh, N, N))
@@ -674,8 +660,9 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     tdT, trate = _temperature_inputs(states, temperature, dth.shape[0])
     inp = PassInputs(np.ascontiguousarray(dth, dtype=float), np.ascontiguousarray(dv, dtype=float), float(dt),
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
-                     qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate)
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
+                     qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate,
+                     *_gm_inputs(states, sig, n_per * dt))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)))
     rw = np.ones(M)
     qw = np.ones(M)
     st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw, qw)
@@ -701,6 +688,12 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     if smooth:
         smooth_pass(out)
     return out
+
+
+def _gm_inputs(states: StateSet, sig, T: float) -> tuple:
+    """The Gauss-Markov fields of :class:`PassInputs` (empty arrays without GM states)."""
+    g = gm_step_arrays(states, np.asarray(sig, float), T)
+    return g["sensor"], g["axis"], g["col"], g["phi"], g["scale"], g["q"], np.ascontiguousarray(g["sigp"])
 
 
 def _step_factors(q_factor, M: int) -> np.ndarray:
@@ -731,23 +724,26 @@ def smooth_pass(out: PassOutput) -> PassOutput:
     pass's stored data, in place."""
     K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st, _ = out.smoother
     N = K_st.shape[1]
+    nd = phinn_st.shape[1]
     nh = out.hist_Pm.shape[0]
     out.hist_x = np.empty((nh, N))
     out.hist_P = np.empty((nh, N, N))
     x0 = np.empty(N)
     out.P0s = np.empty((N, N))
     smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
-                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st, out.Pf[N_NAV:, N_NAV:])
+                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st, out.Pf[nd:, nd:])
     out.x0s = x0
     return out
 
 
 # ----------------------------------------------------------------------------- for tests
-def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temperature=None):
+def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temperature=None, gm_start=None):
     """Propagate the navigation over the samples given (one filter step, no update) from the
     navigation state ``nav0 = [q(4), v(3), lat, lon, h]``; returns the final state (10) and the
-    step's physical ``(Phi_nn, Phi_np)``.  For tests of the F blocks against finite differences
-    of this same nonlinear propagation.  ``temperature``: ``(dT, rate)`` per sample (thermal states)."""
+    step's physical ``(Phi_nn, Phi_np)`` (with GM states ``Phi_nn`` is that of the dynamic states, navigation
+    and GM).  For tests of the F blocks against finite differences of this same nonlinear propagation.
+    ``temperature``: ``(dT, rate)`` per sample (thermal states); ``gm_start``: the GM bias estimates over the
+    step (default zero)."""
     N = states.n_states
     n = dth.shape[0]
     p = params.copy()
@@ -758,9 +754,12 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
     tdT, trate = _temperature_inputs(states, temperature, n)
     inp = PassInputs(np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float), float(dt), n,
                      np.asarray(nav0, float), np.asarray(site, float), True, bool(states.asynchrony), kinds, axes, js,
-                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate)
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th)
-    st = PassStore(one(N, 6), one(6, 6), one(6), one(9, 9), one(9, N - N_NAV), np.empty(1), one(6), one(N, N),
+                     np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate,
+                     *_gm_inputs(states, np.ones(N), n * dt))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th,
+                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float))
+    nd = states.n_dyn
+    st = PassStore(one(N, 6), one(6, 6), one(6), one(nd, nd), one(nd, N - nd), np.empty(1), one(6), one(N, N),
                    one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1))
     er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
                      np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))

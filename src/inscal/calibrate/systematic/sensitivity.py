@@ -48,15 +48,18 @@ def parameter_shift(K_st: np.ndarray, phinn_st: np.ndarray, phinp_st: np.ndarray
     unit input, from the pass's stored gains ``K_st`` (M, N, 6), ``Phi_nn`` (M, 9, 9) and ``Phi_np`` (M, 9,
     npar), all in the scaled states (``sig`` (N,): the filter works on ``x / sig``)."""
     N = sig.shape[0]
+    nd = phinn_st.shape[1]  # dynamic states (navigation, and Gauss-Markov biases when there are some)
     k = b.shape[1]
     e = np.zeros((N, k))
+    bd = np.zeros((nd, k))
+    bd[:9] = b
     for s in range(steps):
         phinn = phinn_st[s]
-        u = 0.5 * (np.eye(9) + phinn) @ b * T / sig[:9, None]
-        nav = phinn @ e[:9] + phinp_st[s] @ e[9:] + u
-        e[:9] = nav
+        u = 0.5 * (np.eye(nd) + phinn) @ bd * T / sig[:nd, None]
+        nav = phinn @ e[:nd] + phinp_st[s] @ e[nd:] + u
+        e[:nd] = nav
         e -= K_st[s] @ e[IDX_MEAS]
-    return e[9:] * sig[9:, None]  # the feedback removes the estimated error: the parameters move by +e
+    return e[nd:] * sig[nd:, None]  # the feedback removes the estimated error: the parameters move by +e
 
 
 def tolerances(shift_canonical: np.ndarray, sigma: np.ndarray) -> tuple[float, float, int, int]:

@@ -97,21 +97,22 @@ def smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist
     final filtered constants less the reference of the step reached), ``Ppp`` is their final filtered
     covariance, and :func:`inscal.core.kalman.smoothed_constant` conditions the navigation states on them (the
     plain ``Pm - Pm Lam Pm`` cancels catastrophically in the constants' directions)."""
+    nd = phinn_st.shape[1]  # the dynamic states (navigation, and Gauss-Markov biases when there are some)
     ih = stored_before(k1, M, hist_every) - 1
     for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:
             smoother_step_dense(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
-            add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], 9)
+            add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], nd)
         filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
-        add_feedback(rem, K_st[k], Si_st[k], sz_st[k], 9)
+        add_feedback(rem, K_st[k], Si_st[k], sz_st[k], nd)
         if k % hist_every == 0 or k == M - 1:
-            x, Ps = filters.smoothed_constant(hist_Pm[ih], lam, Lam, 9, rem, Ppp)
+            x, Ps = filters.smoothed_constant(hist_Pm[ih], lam, Lam, nd, rem, Ppp)
             hist_x[ih] = x
             hist_P[ih] = Ps
             ih -= 1
-        filters.adjoint_back(lam, Lam, 9, phinn_st[k], phinp_st[k])
+        filters.adjoint_back(lam, Lam, nd, phinn_st[k], phinp_st[k])
     if k0 == 0:
-        x, Ps = filters.smoothed_constant(P0, lam, Lam, 9, rem, Ppp)
+        x, Ps = filters.smoothed_constant(P0, lam, Lam, nd, rem, Ppp)
         x0[:] = x
         Pc0[:, :] = Ps
 
@@ -132,7 +133,7 @@ def smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, his
     N = P0.shape[0]
     lam = np.zeros(N)
     Lam = np.zeros((N, N))
-    rem = np.zeros(N - 9)
+    rem = np.zeros(N - phinn_st.shape[1])
     Ppp = np.ascontiguousarray(Ppp, dtype=float)
     backward(M, lambda k0, k1: smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm,
                                               hist_x, hist_P, x0, Pc0, att_used, Ka_st, Sia_st, sza_st, Ha_st, lam,
@@ -150,6 +151,7 @@ def smooth_vector_steps(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, h
     ``lam``: the adjoint vector handed from step ``k1`` to ``k0 - 1``; ``rem``: the constants' feedback from step
     ``k1`` on (:func:`smooth_steps`), in place."""
     N = x0.shape[0]
+    nd = phinn_st.shape[1]
     d = np.empty(3)
     ih = stored_before(k1, M, hist_every) - 1
     for k in range(k1 - 1, k0 - 1, -1):
@@ -161,22 +163,22 @@ def smooth_vector_steps(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, h
                 d[a] = s
             for i in range(N):
                 lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
-            add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], 9)
+            add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], nd)
         K = K_st[k]
         ktl = K.T @ lam
         for a in range(IDX_MEAS.shape[0]):
             lam[IDX_MEAS[a]] += sz_st[k, a] - ktl[a]
-        add_feedback(rem, K, Si_st[k], sz_st[k], 9)
+        add_feedback(rem, K, Si_st[k], sz_st[k], nd)
         if k % hist_every == 0 or k == M - 1:
-            hist_x[ih, :9] = hist_Pm[ih, :9] @ lam  # as filters.smoothed_constant
-            hist_x[ih, 9:] = rem
+            hist_x[ih, :nd] = hist_Pm[ih, :nd] @ lam  # as filters.smoothed_constant
+            hist_x[ih, nd:] = rem
             ih -= 1
-        ln = lam[:9].copy()
-        lam[9:] = lam[9:] + phinp_st[k].T @ ln
-        lam[:9] = phinn_st[k].T @ ln
+        ln = lam[:nd].copy()
+        lam[nd:] = lam[nd:] + phinp_st[k].T @ ln
+        lam[:nd] = phinn_st[k].T @ ln
     if k0 == 0:
-        x0[:9] = lam[:9]
-        x0[9:] = rem
+        x0[:nd] = lam[:nd]
+        x0[nd:] = rem
 
 
 def smooth_vector_kernel(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, x0, att_used, Ka_st,
@@ -184,7 +186,7 @@ def smooth_vector_kernel(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, 
     """The adjoint recursion for the smoothed states at the stored steps and the start over all ``M`` steps
     (:func:`smooth_vector_steps`), in slices of steps."""
     lam = np.zeros(x0.shape[0])
-    rem = np.zeros(x0.shape[0] - 9)
+    rem = np.zeros(x0.shape[0] - phinn_st.shape[1])
     backward(M, lambda k0, k1: smooth_vector_steps(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm,
                                                      hist_x, x0, att_used, Ka_st, Sia_st, sza_st, Ha_st, lam, k0, k1,
                                                      rem))

@@ -21,7 +21,12 @@ times ``-dT^k``, ``-(u - b)_i dT^k`` or ``-dT/dt``; the factors ``A e_i`` and ``
 derivative differ from ``e_i`` and 1 by parts in 1e4, and a scale-factor column takes ``(u - b)_i`` of the
 compensated frame for the sensor axis's ``y_i - eps_i``, off by ``|A - I| |u|``: parts in 1e4 of the group's
 largest column, though a nearly level axis's own column may be off by its whole size: a Jacobian approximation
-that the iterated passes do not see in their fixed point).  Thermal misalignment terms are not states."""
+that the iterated passes do not see in their fixed point).  Thermal misalignment terms are not states.
+
+Gauss-Markov bias states (from a noise model with GM terms: :mod:`inscal.calibrate.systematic.gm_states`).  One
+first-order Gauss-Markov bias per GM term of a gyro or accelerometer channel, a *dynamic* state like the navigation
+errors: the state vector is ``[navigation (9) | GM biases (n_gm) | parameters]``, so the square-root prediction and
+the smoother move the first ``n_dyn = 9 + n_gm`` states and keep the parameters constant."""
 
 from __future__ import annotations
 
@@ -143,6 +148,22 @@ _OPTION_FLAGS = {"51": {"extended": True}, "30": {"extended": False}, "lever9": 
 
 
 @dataclass(frozen=True)
+class GMState:
+    """One first-order Gauss-Markov bias state: ``sensor`` 'gyro' or 'accel', sensor ``axis`` 0-2, stationary
+    ``sigma`` [rad/s or m/s^2] and correlation time ``tc`` [s] (:class:`inscal.core.noise_models.GaussMarkov`)."""
+
+    sensor: str
+    axis: int
+    sigma: float
+    tc: float
+
+    @property
+    def label(self) -> str:
+        """``gm_gyro_bias[x]``; a second term on the same axis adds its number (``gm_gyro_bias[x2]``)."""
+        return f"gm_{self.sensor}_bias[{AX[self.axis]}]"
+
+
+@dataclass(frozen=True)
 class StateSet:
     """A configuration of the systematic filter's parameter states (S16 eq. 22)."""
 
@@ -155,6 +176,8 @@ class StateSet:
     cross: bool = True  # the six cross-coupling terms (extended model)
     #: orders of the thermal terms (THERMAL_TERM_NAMES; empty: no thermal states)
     thermal: tuple[int, ...] = ()
+    #: Gauss-Markov bias states (dynamic, between the navigation states and the parameters; empty: none)
+    gm: tuple[GMState, ...] = ()
 
     @classmethod
     def parse(cls, spec: str | None) -> "StateSet":
@@ -226,15 +249,29 @@ class StateSet:
         return sum(g.size for g in self.groups)
 
     @property
+    def n_dyn(self) -> int:
+        """The dynamic states: navigation (9) and the Gauss-Markov biases; the parameters follow them."""
+        return N_NAV + len(self.gm)
+
+    @property
     def n_states(self) -> int:
-        return N_NAV + self.n_params
+        return self.n_dyn + self.n_params
+
+    def gm_labels(self) -> list[str]:
+        """The labels of the Gauss-Markov states (a repeated axis numbered: ``gm_gyro_bias[x2]``)."""
+        out, seen = [], {}
+        for g in self.gm:
+            k = seen[g.label] = seen.get(g.label, 0) + 1
+            out.append(g.label if k == 1 else g.label[:-1] + f"{k}]")
+        return out
 
     def labels(self) -> list[str]:
         nav = [f"attitude[{a}]" for a in "ENU"] + [f"velocity[{a}]" for a in "ENU"] + [f"position[{a}]" for a in "ENU"]
-        return nav + [f"{g.name}[{lab}]" if lab else g.name for g in self.groups for lab in g.labels]
+        return nav + self.gm_labels() + [f"{g.name}[{lab}]" if lab else g.name for g in self.groups
+                                         for lab in g.labels]
 
     def offsets(self) -> dict[str, int]:
-        off, k = {}, N_NAV
+        off, k = {}, self.n_dyn
         for g in self.groups:
             off[g.name] = k
             k += g.size
@@ -370,4 +407,6 @@ def state_spec(st: StateSet) -> str:
                              ("nocross", st.extended and not st.cross)) if f]
     if st.thermal:
         parts.append("thermal" if tuple(st.thermal) == THERMAL_ORDERS else "thermal=" + "".join(map(str, st.thermal)))
+    if st.gm:
+        parts.append(f"gm({len(st.gm)})")
     return ",".join(parts)
