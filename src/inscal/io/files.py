@@ -365,7 +365,8 @@ def atomic_path(path, overwrite: bool = False):
     ``path`` during the write is not replaced.  On any exception, ``BaseException`` included
     (KeyboardInterrupt, the interrupt of a SIGTERM), the temporary file is removed and ``path`` is
     untouched; a pending :func:`cancel` is raised before the rename, so an interrupted write is
-    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.
+    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.  The
+    temporaries of ``path`` that a killed writer left are removed once its lock is taken (:func:`remove_stale_parts`).
     """
     path = FsPath(path)
     if not path.parent.exists():
@@ -375,6 +376,8 @@ def atomic_path(path, overwrite: bool = False):
         taken = claim_output(path)
         if taken and unit is not None:
             unit.claimed.append(path)
+    if fcntl is not None:  # the lock held: no other writer of path is at work
+        remove_stale_parts(path)
     try:
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
@@ -383,8 +386,7 @@ def atomic_path(path, overwrite: bool = False):
             # the file and its registration at once: an interrupt between the two (mkstemp returns through
             # several bytecodes) left a temporary that neither this cleanup nor remove_live_parts knew of
             with _signals_held():
-                fd, tmp = tempfile.mkstemp(prefix=side_name(path.name, ".", room=8 + len(".part")), suffix=".part",
-                                           dir=path.parent)
+                fd, tmp = tempfile.mkstemp(prefix=part_prefix(path), suffix=".part", dir=path.parent)
                 _LIVE_PARTS[tmp] = path
                 os.close(fd)
             yield FsPath(tmp)
@@ -400,6 +402,36 @@ def atomic_path(path, overwrite: bool = False):
     finally:
         if taken and unit is None:
             release_output(path)
+
+
+#: the random part of a temporary's name (``tempfile.mkstemp``)
+_RANDOM_CHARS = 8
+
+
+def part_prefix(path) -> str:
+    """The start of the name of every temporary of output ``path`` (:func:`atomic_path`)."""
+    return side_name(FsPath(path).name, ".", room=_RANDOM_CHARS + len(".part"))
+
+
+def remove_stale_parts(path) -> list[str]:
+    """Remove the temporaries of output ``path`` that a killed writer left beside it (SIGKILL, a power cut);
+    call it holding the output's lock (:func:`claim_output`), so that no writer of ``path`` is at work.  The
+    names removed."""
+    path = FsPath(path)
+    prefix = part_prefix(path)
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return []
+    gone = []
+    for name in names:
+        full = str(path.parent / name)
+        if name.startswith(prefix) and name.endswith(".part") and len(name) == len(prefix) + _RANDOM_CHARS + 5 \
+                and full not in _LIVE_PARTS:
+            with contextlib.suppress(OSError):
+                os.unlink(full)
+                gone.append(name)
+    return gone
 
 
 def remove_part(tmp: str) -> bool:

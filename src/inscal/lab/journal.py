@@ -155,20 +155,24 @@ def recover(conn: sa.Connection) -> Recovery:
             continue
         try:
             taken = claim_output(target)
-        except OutputBusyError:
-            taken = False
+        except OutputBusyError:  # its writer is at work between its commit and its renames
+            rep.waiting.append(f"result {row.result_id}: {target} (being published by pid {row.pid})")
+            continue
         except OSError as exc:  # a folder that cannot be written now: left for a later recovery
             rep.waiting.append(f"result {row.result_id}: {target} ({exc.strerror or exc})")
             continue
-        if not taken:  # its writer (this process, or another) is at work between its commit and its renames
+        if not taken and row.pid == os.getpid():  # this process's own publication, at work (never during an open)
             rep.waiting.append(f"result {row.result_id}: {target} (being published by pid {row.pid})")
             continue
+        # taken, or held by this process for its own output (the command's lock, taken before it opened the
+        # database): in both cases no other process holds it, so the entry's writer is gone
         try:
             rep.done.append(_settle(conn, row))
         except OSError as exc:
             rep.waiting.append(f"result {row.result_id}: {target} ({exc.strerror or exc})")
             continue
         finally:
-            release_output(target)
+            if taken:
+                release_output(target)
         clear(conn, [row.id])
     return rep
