@@ -7,8 +7,10 @@ Calibrate: each point is a fresh folder (a short N25 record at 10 Hz, a database
 comes a seeded share (0 .. 1.5) of the measured window after the parameter file's temporary appears (the
 window: from the temporary to the file published, unhindered).  Afterwards: the file published <=> its
 result committed with the file's exact bytes ("both" / "neither"); the one state SIGKILL may leave besides
-is "row" (committed in the microseconds before the rename, the file not published: ``db export`` writes
-it back byte for byte); never a file without its result, never two results.
+is "row" (committed in the microseconds before the rename: the publication journal holds the file owed);
+never a file without its result, never two results.  Then one later command (a rerun of the calibration,
+``db recover`` or ``db add`` of another unit, in turn): both or neither, nothing owed in the journal, the
+record byte for byte as it was.
 
 Batch: 3 records; the signal at a seeded time within the batch's measured duration; afterwards at most one
 result per record, and a rerun of the same batch completes every record exactly once.
@@ -50,16 +52,27 @@ def results(db: Path, serial: str = "U1") -> list:
         return lab.calibrations(d, serial, superseded=True)
 
 
-def calibrate_state(f: Path, sig: int) -> str:
+def calibrate_state(f: Path) -> str:
+    """``both``, ``neither``, ``row`` (committed, its file owed to the journal), or a defect in capitals."""
     cals = results(f / "lab.sqlite")
     if len(cals) > 1:
         return "DUPLICATE"
     out = f / "p.toml"
     if out.exists():
         return "both" if cals and cals[0].param_file_sha256 == sha(out) else "FILE-WITHOUT-RESULT"
-    if cals:
-        return "row" if sig == signal.SIGKILL else "ROW-AFTER-SIGTERM"
-    return "neither"
+    return "row" if cals else "neither"
+
+
+def settled(f: Path, record: str) -> str:
+    """After one later command: both or neither, nothing owed, the record unchanged (else a defect in capitals)."""
+    state = calibrate_state(f)
+    with lab.open_database(f / "lab.sqlite", readonly=True) as d:
+        owed = lab.pending_publications(d)
+    if owed:
+        return f"{state.upper()}-{owed}-OWED"
+    if sha(f / "U1_2025-01-11.h5") != record:
+        return "INPUT-CHANGED"
+    return state if state in ("both", "neither") else state.upper()
 
 
 def main() -> None:
@@ -109,8 +122,11 @@ def main() -> None:
                 proc.wait()
             window = float(np.median(windows))
             print(f"calibrate: window from the temporary to the file published {window * 1e3:.3g} ms (median of 3)")
+            record = sha(rec)
+            later = [cal, ["db", "recover", "--db", "lab.sqlite"], ["db", "add", "U9", "--model", "M", "--db", "lab.sqlite"]]
             for sig in (signal.SIGTERM, signal.SIGKILL):
                 seen: Counter = Counter()
+                after: Counter = Counter()
                 codes: Counter = Counter()
                 for k in range(args.points):
                     f = folder(f"c{sig}-{k}")
@@ -119,9 +135,13 @@ def main() -> None:
                     time.sleep(max(0.0, delay - (time.monotonic() - t0)))
                     proc.send_signal(sig)
                     codes[proc.wait(60)] += 1
-                    seen[calibrate_state(f, sig)] += 1
+                    state = calibrate_state(f)
+                    seen[state] += 1
+                    fs.run(later[k % len(later)], f, base / "logs")
+                    after[f"{state}->{settled(f, record)}"] += 1
                     shutil.rmtree(f)
-                print(f"calibrate, {signal.Signals(sig).name} at {args.points} seeded points: {dict(seen)}; exit codes "
+                print(f"calibrate, {signal.Signals(sig).name} at {args.points} seeded points: right after {dict(seen)}; "
+                      f"after one later command (calibrate again, db recover or db add) {dict(after)}; exit codes "
                       f"{dict(codes)}")
             batch = ["batch", ".", "--method", "n25", "--db", "lab.sqlite", "--scheduler", "none", "--no-progress"]
             f = folder("batch-free")
