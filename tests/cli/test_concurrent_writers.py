@@ -234,6 +234,22 @@ def test_the_temporaries_a_killed_writer_left_are_removed_by_the_next(tmp_path):
     assert out.read_text() == "whole" and not stale.exists() and other.exists()
 
 
+def test_a_legal_name_of_255_bytes_in_two_byte_characters_has_its_lock_and_temporary(tmp_path):
+    """A name of 125 two-byte characters and .toml (255 bytes, the most ext4 allows): its lock and temporary
+    names are cut on a character boundary, within 255 bytes, and apart from those of a name one character off."""
+    from inscal.io.files import part_prefix
+
+    out, near = tmp_path / ("é" * 125 + ".toml"), tmp_path / ("é" * 124 + "e.toml")
+    assert len(os.fsencode(out.name)) == 255
+    for p in (out, near):
+        for side in (lock_path(p).name, part_prefix(p) + "abcd1234.part"):
+            assert len(os.fsencode(side)) <= 255 and "\ufffd" not in side
+    assert lock_path(out) != lock_path(near) and part_prefix(out) != part_prefix(near)
+    with atomic_path(out) as tmp:
+        tmp.write_text("whole")
+    assert out.read_text() == "whole" and sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+
+
 def test_output_unit_publishes_all_or_nothing(tmp_path):
     a, b, plots = tmp_path / "a.toml", tmp_path / "b.txt", tmp_path / "plots"
     with pytest.raises(RuntimeError), output_unit():
