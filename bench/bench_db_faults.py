@@ -12,10 +12,14 @@ never a file without its result, never two results.  Then one later command (a r
 ``db recover`` or ``db add`` of another unit, in turn): both or neither, nothing owed in the journal, the
 record byte for byte as it was.
 
+Then the signal sent by each step of the publication itself (the fault hooks of ``tests/cli/forkserver.py``):
+as the journal is written before the commit, after the commit before the first rename (the window that
+random times hardly hit), after the renames before the journal is cleared.
+
 Batch: 3 records; the signal at a seeded time within the batch's measured duration; afterwards at most one
 result per record, and a rerun of the same batch completes every record exactly once.
 
-    python bench/bench_db_faults.py [--points 50] [--batch-points 10] [--seed 1]
+    python bench/bench_db_faults.py [--points 50] [--batch-points 10] [--step-points 5] [--seed 1]
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "cli"))
-from forkserver import ForkServer  # noqa: E402
+from forkserver import FAULT_HOOKS, ForkServer  # noqa: E402
 
 from inscal import lab  # noqa: E402
 from inscal.core.turntable import n25_twelve  # noqa: E402
@@ -79,6 +83,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--points", type=int, default=50, help="points per signal for calibrate")
     ap.add_argument("--batch-points", type=int, default=10, help="points per signal for batch")
+    ap.add_argument("--step-points", type=int, default=5, help="runs per step and signal of the publication (journal "
+                    "written before the commit, committed before the rename, renamed before the journal is cleared)")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
@@ -95,7 +101,7 @@ def main() -> None:
                 lab.add_unit(db, f"U{k + 1}")
         warm = ("from pathlib import Path\nfrom inscal.lab.calibration import CalibrationSetup, calibrate_record, "
                 f"load_record\np = Path({str(rec)!r})\ncalibrate_record(load_record(p), p, CalibrationSetup('n25'))")
-        with ForkServer(warm=warm) as fs:
+        with ForkServer(warm=warm + FAULT_HOOKS) as fs:
             def folder(name: str) -> Path:
                 f = base / name
                 f.mkdir()
@@ -106,8 +112,8 @@ def main() -> None:
 
             cal = ["calibrate", rec.name, "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db", "lab.sqlite"]
 
-            def start(f: Path):
-                proc = fs.start(cal, f, base / "logs")
+            def start(f: Path, fault: str = ""):
+                proc = fs.start(cal, f, base / "logs", env={"INSCAL_TEST_FAULT": fault})
                 while proc.poll() is None and not any(n.endswith(".part") for n in os.listdir(f)):
                     time.sleep(0.0005)
                 return proc, time.monotonic()
@@ -143,6 +149,21 @@ def main() -> None:
                 print(f"calibrate, {signal.Signals(sig).name} at {args.points} seeded points: right after {dict(seen)}; "
                       f"after one later command (calibrate again, db recover or db add) {dict(after)}; exit codes "
                       f"{dict(codes)}")
+            for sig in (signal.SIGTERM, signal.SIGKILL):  # at each step of the publication, sent by the step itself
+                table = []
+                for step in ("journal", "rename", "clear"):
+                    seen, after = Counter(), Counter()
+                    for k in range(args.step_points):
+                        f = folder(f"s{sig}-{step}-{k}")
+                        proc, _ = start(f, f"{step}:{int(sig)}")
+                        proc.wait(60)
+                        state = calibrate_state(f)
+                        seen[state] += 1
+                        fs.run(later[k % len(later)], f, base / "logs")
+                        after[f"{state}->{settled(f, record)}"] += 1
+                        shutil.rmtree(f)
+                    table.append(f"{step}: right after {dict(seen)}, after one later command {dict(after)}")
+                print(f"calibrate, {signal.Signals(sig).name} at each step x {args.step_points}: " + "; ".join(table))
             batch = ["batch", ".", "--method", "n25", "--db", "lab.sqlite", "--scheduler", "none", "--no-progress"]
             f = folder("batch-free")
             t0 = time.monotonic()

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from forkserver import ForkServer
+from forkserver import FAULT_HOOKS, ForkServer
 
 from inscal import lab
 from inscal.core.turntable import n25_twelve
@@ -31,28 +31,9 @@ from inscal.sim.simulate import write_simulation
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and fork")
 
 #: seeded signal points of the fault injection (each a calibration of the record)
-POINTS = 10
 #: the signal comes at a seeded share, up to this, of the time a run takes from its parameter file's temporary
 #: to the file published (measured first: the staging of the result, the commit and the renames lie in it)
 SPREAD = 3.0
-
-#: a fault at a named step of the publication (env INSCAL_TEST_FAULT=STEP:SIGNAL): the step's function sends
-#: the signal to its own process (run once in the fork server, so every forked command has the hooks)
-FAULT_HOOKS = r"""
-import os
-import inscal.io.files as F, inscal.lab as L, inscal.lab.database as D, inscal.lab.journal as J
-def _hook(step, fn):
-    def at_step(*a, **k):
-        name, _, sig = os.environ.get("INSCAL_TEST_FAULT", "").partition(":")
-        if name == step:
-            os.kill(os.getpid(), int(sig))
-        return fn(*a, **k)
-    return at_step
-J.add = _hook("journal", J.add)        # the result staged, its files' journal being written: before the commit
-F.publish = _hook("rename", F.publish)  # committed, before the first rename
-J.publish = _hook("rename", J.publish)  # a recovery, before its rename
-D.published = L.published = _hook("clear", D.published)  # every file in place, the journal not yet cleared
-"""
 
 
 @pytest.fixture(scope="module")

@@ -197,7 +197,9 @@ def output_unit():
             return
         with _signals_held():
             check_cancel()
-            for tmp, path, overwrite in unit.pending:  # every target is checked before any is replaced
+            # every target checked before anything is committed or replaced (an early refusal: the rename
+            # itself refuses a file that appears after this check, atomically, see rename_noreplace)
+            for tmp, path, overwrite in unit.pending:
                 if not overwrite and os.path.lexists(path):
                     raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force "
                                           "to overwrite it)")

@@ -28,7 +28,9 @@ could not be rebuilt from the file.  A row whose target's lock is held belongs t
 is left to that host, whose file system holds the paths.  Read-only commands never write: they may
 only say that results await their files (:func:`waiting_line`).
 
-What cannot be rolled forward is said and the row cleared: a target whose folder is gone, a plot
+An empty file at a target is the placeholder that :func:`inscal.io.files.rename_noreplace` makes on a file
+system without hard links, cut before its replace: it is replaced.  What cannot be rolled forward is
+said and the row cleared: a target whose folder is gone, a plot
 whose temporary is gone (the database keeps only the parameter file), and a target where another
 program put a file between the command's last check and its rename (not replaced without ``--force``;
 the result's parameter file is then exported from the database with ``inscal db export``).
@@ -114,13 +116,15 @@ def _settle(conn: sa.Connection, row) -> str:
         with contextlib.suppress(OSError):
             tmp.unlink()  # a hard link left between the link and the unlink of a publication
         return f"{what} was in place"
-    if have is not None and not row.overwrite:
+    placeholder = have is not None and target.stat().st_size == 0  # rename_noreplace's, cut before its replace
+    if have is not None and not row.overwrite and not placeholder:
         with contextlib.suppress(OSError):
             tmp.unlink()
         return (f"{what} is another file (it appeared while the result was published; not replaced): `inscal db "
                 f"export` writes the result's parameter file elsewhere")
+    overwrite = row.overwrite or placeholder
     if _sha(tmp) == row.sha256:
-        publish(tmp, target, row.overwrite)
+        publish(tmp, target, overwrite)
         return f"{what} published from its temporary"
     text = conn.execute(sa.select(t.results.c.param_file).where(
         t.results.c.id == row.result_id, t.results.c.param_file_sha256 == row.sha256)).scalar()
@@ -128,13 +132,11 @@ def _settle(conn: sa.Connection, row) -> str:
         tmp.unlink()
     if text is None:
         return f"{what} lost (its temporary is gone and the database keeps only the parameter file)"
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)  # its own name again: nothing else has it
-    try:
-        os.write(fd, text.encode("utf-8"))
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    publish(tmp, target, row.overwrite)
+    with open(tmp, "xb") as fh:  # its own name again (exclusive): nothing else has it
+        fh.write(text.encode("utf-8"))
+        fh.flush()
+        os.fsync(fh.fileno())
+    publish(tmp, target, overwrite)
     return f"{what} written again from the database"
 
 
