@@ -324,9 +324,10 @@ def published(db: Database, ids: list[int]) -> None:
 
 
 def pending_publications(db: Database) -> int:
-    """How many files of committed results are not yet in place (a read: see :func:`recover_publications`)."""
+    """How many files of committed results are not in place (a read of the journal and the files, nothing
+    written: see :func:`recover_publications`)."""
     with read(db) as conn:
-        return journal.pending_count(conn)
+        return journal.owed(conn)
 
 
 def check_wait(wait_s: float | None) -> float:

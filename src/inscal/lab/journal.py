@@ -90,8 +90,16 @@ def clear(conn: sa.Connection, ids: list[int]) -> None:
 
 
 def pending_count(conn: sa.Connection) -> int:
-    """How many files the journal says are owed (results committed whose files are not yet in place)."""
+    """How many journal entries there are (owed files, and files in place whose entry was not yet cleared)."""
     return int(conn.execute(sa.select(sa.func.count()).select_from(t.publications)).scalar_one())
+
+
+def owed(conn: sa.Connection) -> int:
+    """How many files of committed results are not in place, reading only: the entries whose target does not
+    hold the journal's sha256 (an entry of another host counts: its files cannot be seen from here)."""
+    rows = conn.execute(sa.select(t.publications.c.target, t.publications.c.sha256, t.publications.c.host)).all()
+    me = host()
+    return sum(r.host != me or _sha(Path(r.target)) != r.sha256 for r in rows)
 
 
 def waiting_line(n: int, where: str) -> str:
