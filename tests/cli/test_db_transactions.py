@@ -1,6 +1,6 @@
 """``inscal calibrate --serial`` and ``inscal db``: a result and its parameter file are published together or
-not at all whatever signal arrives when (fault injection at seeded points around the commit and the
-publication), an output that is the database or an input is refused before any work, the options are
+not at all whatever signal arrives when (fault injection at each step of the publication and at seeded
+times, then one later command), an output that is the database or an input is refused before any work, the options are
 refused up front for ``calibrate`` as for ``batch``, dates are bounded, and a calibration or parameter
 file recorded already is refused.  Every refusal: exit 2, one line, every file byte for byte as it was.
 

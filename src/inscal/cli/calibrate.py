@@ -249,8 +249,9 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
 def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
     """Write the calibration into the database in one transaction, left open: it is committed as the first
     step of the output unit's publication, with SIGINT/SIGTERM held, just before the parameter file and
-    the plots are renamed into place (:func:`inscal.io.files.output_unit`), so that an interrupt leaves
-    both or neither; any failure before rolls it back."""
+    the plots are renamed into place (:func:`inscal.io.files.output_unit`), together with the journal of
+    those files (:mod:`inscal.lab.journal`), so that an interrupt leaves both or neither and a SIGKILL
+    after the commit leaves a publication that the next write completes; any failure before rolls it back."""
     import sqlalchemy
 
     from inscal import lab
