@@ -77,6 +77,25 @@ for line in sys.stdin:
 """
 
 
+#: a fault at a named step of the publication (env INSCAL_TEST_FAULT=STEP:SIGNAL): the step's function sends
+#: the signal to its own process (run once in the fork server, so every forked command has the hooks)
+FAULT_HOOKS = r"""
+import os
+import inscal.io.files as F, inscal.lab as L, inscal.lab.database as D, inscal.lab.journal as J
+def _hook(step, fn):
+    def at_step(*a, **k):
+        name, _, sig = os.environ.get("INSCAL_TEST_FAULT", "").partition(":")
+        if name == step:
+            os.kill(os.getpid(), int(sig))
+        return fn(*a, **k)
+    return at_step
+J.add = _hook("journal", J.add)        # the result staged, its files' journal being written: before the commit
+F.publish = _hook("rename", F.publish)  # committed, before the first rename
+J.publish = _hook("rename", J.publish)  # a recovery, before its rename
+D.published = L.published = _hook("clear", D.published)  # every file in place, the journal not yet cleared
+"""
+
+
 class ForkServer:
     """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds"}``; the command's
     stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running

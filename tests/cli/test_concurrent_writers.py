@@ -22,6 +22,7 @@ from test_signals_under_load import started
 from inscal import io
 from inscal.cli.interrupts import Interrupted, catch_interrupts, release_interrupts
 from inscal.io.files import OutputBusyError, atomic_path, claim_output, lock_path, output_unit, release_output
+from inscal.io.files import part_prefix as files_prefix
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX locks and signals")
 
@@ -193,6 +194,60 @@ def test_a_lock_left_by_a_killed_writer_is_taken_over(tmp_path):
     with atomic_path(out) as tmp:
         tmp.write_text("mine")
     assert out.read_text() == "mine" and sorted(x.name for x in tmp_path.iterdir()) == ["a.txt"]
+
+
+@pytest.mark.parametrize("missing", ["", "renameat2", "renameat2+link"])
+def test_publication_never_replaces_a_file_that_is_there(tmp_path, monkeypatch, missing):
+    """The rename refuses an existing target in one atomic step: renameat2(RENAME_NOREPLACE), else a hard link,
+    else an exclusive placeholder (a file system without hard links); --force replaces atomically."""
+    from inscal.io import files
+
+    if "renameat2" in missing:
+        monkeypatch.setattr(files, "_renameat2", lambda src, dst: False)
+    if "link" in missing:
+        def no_link(src, dst):
+            raise PermissionError(1, "Operation not permitted")
+
+        monkeypatch.setattr(files.os, "link", no_link)
+    src, dst = tmp_path / ".a.part", tmp_path / "a.toml"
+    src.write_text("new")
+    dst.write_text("theirs")
+    with pytest.raises(FileExistsError, match="appeared while this command ran"):
+        files.publish(src, dst, overwrite=False)
+    assert dst.read_text() == "theirs" and src.read_text() == "new"
+    files.publish(src, tmp_path / "b.toml", overwrite=False)
+    assert (tmp_path / "b.toml").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["a.toml",
+                                                                                                         "b.toml"]
+    (tmp_path / ".c.part").write_text("forced")
+    files.publish(tmp_path / ".c.part", dst, overwrite=True)
+    assert dst.read_text() == "forced"
+
+
+def test_the_temporaries_a_killed_writer_left_are_removed_by_the_next(tmp_path):
+    out = tmp_path / "p.toml"
+    stale = tmp_path / (files_prefix(out) + "abcd1234.part")
+    stale.write_text("half")
+    other = tmp_path / ".p.toml.x.part"  # not a name of ours (the random part has 8 characters)
+    other.write_text("keep")
+    with atomic_path(out) as tmp:
+        tmp.write_text("whole")
+    assert out.read_text() == "whole" and not stale.exists() and other.exists()
+
+
+def test_a_legal_name_of_255_bytes_in_two_byte_characters_has_its_lock_and_temporary(tmp_path):
+    """A name of 125 two-byte characters and .toml (255 bytes, the most ext4 allows): its lock and temporary
+    names are cut on a character boundary, within 255 bytes, and apart from those of a name one character off."""
+    from inscal.io.files import part_prefix
+
+    out, near = tmp_path / ("é" * 125 + ".toml"), tmp_path / ("é" * 124 + "e.toml")
+    assert len(os.fsencode(out.name)) == 255
+    for p in (out, near):
+        for side in (lock_path(p).name, part_prefix(p) + "abcd1234.part"):
+            assert len(os.fsencode(side)) <= 255 and "\ufffd" not in side
+    assert lock_path(out) != lock_path(near) and part_prefix(out) != part_prefix(near)
+    with atomic_path(out) as tmp:
+        tmp.write_text("whole")
+    assert out.read_text() == "whole" and sorted(p.name for p in tmp_path.iterdir()) == [out.name]
 
 
 def test_output_unit_publishes_all_or_nothing(tmp_path):

@@ -1,6 +1,6 @@
 """``inscal calibrate --serial`` and ``inscal db``: a result and its parameter file are published together or
-not at all whatever signal arrives when (fault injection at seeded points around the commit and the
-publication), an output that is the database or an input is refused before any work, the options are
+not at all whatever signal arrives when (fault injection at each step of the publication and at seeded
+times, then one later command), an output that is the database or an input is refused before any work, the options are
 refused up front for ``calibrate`` as for ``batch``, dates are bounded, and a calibration or parameter
 file recorded already is refused.  Every refusal: exit 2, one line, every file byte for byte as it was.
 
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from forkserver import ForkServer
+from forkserver import FAULT_HOOKS, ForkServer
 
 from inscal import lab
 from inscal.core.turntable import n25_twelve
@@ -31,7 +31,6 @@ from inscal.sim.simulate import write_simulation
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and fork")
 
 #: seeded signal points of the fault injection (each a calibration of the record)
-POINTS = 10
 #: the signal comes at a seeded share, up to this, of the time a run takes from its parameter file's temporary
 #: to the file published (measured first: the staging of the result, the commit and the renames lie in it)
 SPREAD = 3.0
@@ -50,7 +49,7 @@ def lab_dir(tmp_path_factory):
         lab.add_unit(db, "U1", model="M")
     warm = ("from pathlib import Path\nfrom inscal.lab.calibration import CalibrationSetup, calibrate_record, "
             f"load_record\np = Path({str(d / 'r.h5')!r})\ncalibrate_record(load_record(p), p, CalibrationSetup('n25'))")
-    with ForkServer(warm=warm) as fs:
+    with ForkServer(warm=warm + FAULT_HOOKS) as fs:
         yield d, fs
 
 
@@ -202,76 +201,108 @@ def test_impossible_estimates_are_refused_whatever_was_skipped(lab_dir, tmp_path
     assert snapshot(f) == before and results(f / "lab.sqlite") == []
 
 
-def _agree(folder: Path, sig: int) -> str:
-    """Check that the database and the parameter file agree after a signal; returns the state seen."""
+def _state(folder: Path) -> str:
+    """What the database and the parameter file say right after a signal: ``both``, ``neither``, or ``row``
+    (committed, its file owed: the journal holds it); never a file without its result, never two results."""
     cals = results(folder / "lab.sqlite")
     assert len(cals) <= 1, [c.id for c in cals]  # never a duplicate
     out = folder / "p.toml"
     if out.exists():  # a file published: its result is committed, byte for byte
         assert len(cals) == 1 and cals[0].param_file_sha256 == file_hash(out)
-        state = "both"
-    elif cals:  # committed, not published: only SIGKILL between the commit and the rename (microseconds)
-        assert sig == signal.SIGKILL
-        state = "row"
-    else:
-        state = "neither"
-    left = [p.name for p in folder.iterdir() if p.name.endswith((".part", ".lock"))]
-    if sig != signal.SIGKILL:  # SIGKILL leaves what it cut short (the next writer takes a stale lock over)
-        assert not left, left
+        return "both"
+    return "row" if cals else "neither"
+
+
+def _agree(folder: Path) -> str:
+    """After one later command: the result in both or neither, nothing owed, no temporary of the result left."""
+    state = _state(folder)
+    assert state in ("both", "neither"), state
+    with lab.open_database(folder / "lab.sqlite", readonly=True) as d:
+        assert lab.pending_publications(d) == 0
+    if state == "both":
+        assert not [p.name for p in folder.iterdir() if p.name.startswith(".p.toml.") and p.name.endswith(".part")]
     return state
 
 
-def test_signals_at_seeded_points_leave_the_database_and_the_files_agreeing(lab_dir, tmp_path):
-    """SIGTERM and SIGKILL at seeded times after the parameter file's temporary appears (the result is staged
-    in the database and committed with the files' publication): afterwards the result is in both or
-    neither (SIGKILL between commit and rename: in the database, whose copy ``db export`` writes back byte
-    for byte), never twice, and a rerun records it exactly once."""
-    _, fs = lab_dir
+def test_signals_at_every_step_then_one_command_leave_the_database_and_the_files_agreeing(lab_dir, tmp_path):
+    """SIGTERM and SIGKILL at each step of ``calibrate --serial``'s publication (before the commit, between the
+    commit and the rename, between the rename and the journal's clearing) and at seeded times after the
+    parameter file's temporary appears; a SIGKILL of the recovery itself.  Right after: never a file without
+    its result nor two results.  After one later command (``db recover``, a rerun, ``db add`` of another
+    unit; ``db list`` only says what is owed and changes nothing): both or neither, nothing owed, the record
+    byte for byte as it was.  ``batch`` killed at seeded times, then rerun: the record recorded once."""
+    d, fs = lab_dir
     rng = np.random.default_rng(20261127)
+    cal = ["calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db", "lab.sqlite"]
+    record = file_hash(d / "r.h5")
+    recover = ["db", "recover", "--db", "lab.sqlite"]
+    later = [cal, recover, ["db", "add", "U2", "--model", "M", "--db", "lab.sqlite"]]  # (a rerun: refused or done)
 
-    def start(f: Path, logs: Path):
-        """The calibration running in ``f``, once its parameter file's temporary is there: (run, when)."""
-        proc = fs.start(["calibrate", "r.h5", "--method", "n25", "--out", "p.toml", "--serial", "U1", "--db",
-                         "lab.sqlite"], f, logs)
+    def start(f: Path, logs: Path, fault: str = ""):
+        """The calibration running in ``f`` once its parameter file's temporary is there: (run, when)."""
+        proc = fs.start(cal, f, logs, env={"INSCAL_TEST_FAULT": fault})
         t_end = time.monotonic() + 60
         while proc.poll() is None and not any(n.endswith(".part") for n in os.listdir(f)):
             assert time.monotonic() < t_end
             time.sleep(0.0005)
         return proc, time.monotonic()
 
-    (tmp_path / "free").mkdir()
-    f = fresh(lab_dir, tmp_path / "free")
+    def folder(name: str) -> Path:
+        (tmp_path / name).mkdir()
+        return fresh(lab_dir, tmp_path / name)
+
+    f = folder("free")
+    t0 = time.monotonic()
     proc, t_part = start(f, tmp_path / "free-logs")
     while proc.poll() is None and not (f / "p.toml").exists():
         time.sleep(0.0005)
     window = time.monotonic() - t_part  # from the temporary to the file published, unhindered
-    assert proc.wait(60) == 0 and _agree(f, signal.SIGTERM) == "both"
+    assert proc.wait(60) == 0 and _agree(f) == "both"
+    span = time.monotonic() - t0  # a whole calibration (that of a batch of the one record, but for its start)
+    # (step, signal, the state right after); a step's signal is sent by the step itself
+    points = [("journal", signal.SIGTERM, "both"), ("journal", signal.SIGKILL, "neither"),
+              ("rename", signal.SIGTERM, "both"), ("rename", signal.SIGKILL, "row"),
+              ("clear", signal.SIGTERM, "both"), ("clear", signal.SIGKILL, "both")]
+    points += [(float(rng.uniform(0.0, SPREAD)) * window, sig, None) for sig in (signal.SIGTERM, signal.SIGKILL)]
     seen: dict[str, int] = {}
-    for k in range(POINTS):
-        sig = (signal.SIGTERM, signal.SIGKILL)[k % 2]
-        f = tmp_path / f"p{k}"
-        f.mkdir()
-        fresh(lab_dir, f)
-        delay = float(rng.uniform(0.0, SPREAD)) * window
-        proc, t_part = start(f, tmp_path / f"p{k}-logs")
-        delay -= time.monotonic() - t_part
-        time.sleep(max(0.0, delay))
-        proc.send_signal(sig)
+    for k, (at, sig, expect) in enumerate(points):
+        f = folder(f"p{k}")
+        proc, t_part = start(f, tmp_path / f"p{k}-logs", f"{at}:{int(sig)}" if expect else "")
+        if expect is None:
+            time.sleep(max(0.0, at - (time.monotonic() - t_part)))
+            proc.send_signal(sig)
         rc = proc.wait(60)
         assert rc in (0, 128 + sig, -sig), (rc, proc.communicate())
-        state = _agree(f, sig)
-        seen[state] = seen.get(state, 0) + 1
-        if state == "row":  # the database's copy restores the file
-            (rid,) = [c.id for c in results(f / "lab.sqlite")]
-            assert run(lab_dir, f, "db", "export", "U1", "--out", "p.toml", "--db", "lab.sqlite")[0] == 0
-            assert _agree(f, sig) == "both"
-        if k < 2:  # a rerun: recorded once, whatever the interrupted run left
-            rc, _, err = run(lab_dir, f, "calibrate", "r.h5", "--method", "n25", "--out", "q.toml", "--serial",
-                             "U1", "--db", "lab.sqlite")
-            assert (rc == 0) == (state == "neither"), err
-            assert len(results(f / "lab.sqlite")) == 1
-    print(f"seeded points: {seen} (window {window * 1e3:.3g} ms)")
-    assert seen.get("both", 0) + seen.get("neither", 0) + seen.get("row", 0) == POINTS
+        state = _state(f)
+        assert state == expect or expect is None and (state != "row" or sig == signal.SIGKILL), (at, sig, state)
+        if state == "row":
+            before = snapshot(f)  # a read-only command says what is owed and changes nothing
+            rc, out, err = run(lab_dir, f, "db", "list", "--db", "lab.sqlite")
+            assert rc == 0 and "1 file of results recorded" in err and "inscal db recover" in err, err
+            assert snapshot(f) == before
+            # the recovery itself killed in its rename: the next one completes it
+            r = fs.run(recover, f, tmp_path / f"p{k}-rk", env={"INSCAL_TEST_FAULT": f"rename:{int(signal.SIGKILL)}"})
+            assert r["rc"] == -signal.SIGKILL and _state(f) == "row", r
+        rc, out, err = run(lab_dir, f, *later[k % len(later)])
+        assert rc in (0, 2) and "Traceback" not in err, (rc, err)
+        if state == "row":
+            assert "published from its temporary" in out + err, (out, err)
+        after = _agree(f)
+        seen[f"{state}->{after}"] = seen.get(f"{state}->{after}", 0) + 1
+        assert file_hash(f / "r.h5") == record
+    print(f"signal points: {seen} (window {window * 1e3:.3g} ms)")
+    # batch: killed at seeded times, then one rerun records the record exactly once
+    batch = ["batch", "r.h5", "--method", "n25", "--serial", "U1", "--db", "lab.sqlite", "--scheduler", "none",
+             "--no-progress"]
+    for k, sig in enumerate((signal.SIGTERM, signal.SIGKILL)):
+        f = folder(f"b{k}")
+        proc = fs.start(batch, f, tmp_path / f"b{k}-logs")
+        time.sleep(float(rng.uniform(0.3, 1.2)) * span)
+        proc.send_signal(sig)
+        proc.wait(60)
+        assert len(results(f / "lab.sqlite")) <= 1
+        assert fs.run(batch, f, tmp_path / f"b{k}-logs2")["rc"] == 0
+        assert len(results(f / "lab.sqlite")) == 1 and file_hash(f / "r.h5") == record
 
 
 def test_a_held_lock_is_reported_at_once_with_its_holder(lab_dir, tmp_path):

@@ -15,6 +15,7 @@ from pathlib import Path
 import typer
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
+from inscal.cli.guards import recovery_note
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
 
 #: most records of one batch (10^6: months of calibrations at a few seconds each)
@@ -281,6 +282,8 @@ def register(app: typer.Typer) -> None:
                             noise=noise)
         except CliError as exc:
             raise fail(str(exc)) from None
+        for line in rep.get("recovered", []):
+            recovery_note(line)
         if json_:
             print_json(rep)
         else:

@@ -18,7 +18,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     print_json,
     read_record,
 )
-from inscal.cli.guards import check_outputs
+from inscal.cli.guards import check_outputs, database_notes
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float | None = None,
@@ -124,6 +124,7 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
         d = lab.open_database(db, wait_s=wait)
     except (lab.DatabaseError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    database_notes(d)
     try:
         if lab.get_unit(d, serial) is None:
             raise CliError(f"unknown unit {serial!r} in {d.where}: register it first with `inscal db add {serial} "
@@ -251,12 +252,14 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
 def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
     """Write the calibration into the database in one transaction, left open: it is committed as the first
     step of the output unit's publication, with SIGINT/SIGTERM held, just before the parameter file and
-    the plots are renamed into place (:func:`inscal.io.files.output_unit`), so that an interrupt leaves
-    both or neither; any failure before rolls it back."""
+    the plots are renamed into place (:func:`inscal.io.files.output_unit`), together with the journal of
+    those files (:mod:`inscal.lab.journal`), so that an interrupt leaves both or neither and a SIGKILL
+    after the commit leaves a publication that the next write completes; any failure before rolls it back."""
     import sqlalchemy
 
     from inscal import lab
     from inscal.io.paramfile import ParamFileError
+    from inscal.lab.journal import add as journal_add
 
     d = lab_db["db"]
     try:
@@ -271,8 +274,11 @@ def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
         raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") from None
     lab_db["staged"] = staged
 
-    def commit():
+    unit, entries = lab_db["unit"], []
+
+    def commit():  # the result and the journal of its files in one transaction (inscal.lab.journal)
         try:
+            entries.extend(journal_add(staged.conn, staged.value["result_id"], unit.pending))
             staged.commit()
         except Exception as exc:  # nothing is published: the unit removes the files
             msg = " ".join(str(getattr(exc, "orig", None) or exc).split())[:300]
@@ -280,7 +286,8 @@ def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
                 from None
         lab_db["result_id"] = staged.value["result_id"]
 
-    lab_db["unit"].before_publish.append(commit)
+    unit.before_publish.append(commit)
+    unit.after_publish.append(lambda: lab.published(d, entries))  # every file in place: the journal cleared
 
 
 def _recorded(lab_db: dict) -> dict:

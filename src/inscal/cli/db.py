@@ -1,4 +1,4 @@
-"""``inscal db``: the calibration database (init, upgrade, add, list, show, export, history, certificate)."""
+"""``inscal db``: the calibration database (init, upgrade, recover, add, list, show, export, history, certificate)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from inscal.cli.common import (
     print_json,
     short,
 )
-from inscal.cli.guards import check_not_database
+from inscal.cli.guards import check_not_database, database_notes
 
 db_app = typer.Typer(no_args_is_help=True, add_completion=False,
                      help="The calibration database: units, sessions and results over time (SQLite file or "
@@ -44,12 +44,21 @@ def db_errors():
         raise fail(f"database: {' '.join(str(orig).split())[:400]}") from None
 
 
-def open_db(db: str | None, create: bool = False, readonly: bool = False, wait: float | None = None):
+def open_db(db: str | None, create: bool = False, readonly: bool = False, wait: float | None = None,
+            notes: bool = True):
     """The calibration database of ``--db``; ``readonly`` for the commands that only read it (the file is then
-    never written, and a read-only folder, file system or file is no obstacle); ``wait``: ``--wait SECONDS``."""
+    never written, and a read-only folder, file system or file is no obstacle); ``wait``: ``--wait SECONDS``;
+    ``notes``: say on standard error what the opening recovered, or that files await it (:func:`database_notes`)."""
     from inscal.lab import open_database
 
-    return open_database(db, create=create, readonly=readonly, wait_s=wait)
+    d = open_database(db, create=create, readonly=readonly, wait_s=wait)
+    if notes:
+        try:
+            database_notes(d)
+        except BaseException:
+            d.close()
+            raise
+    return d
 
 
 def _fmt(v) -> str:
@@ -362,6 +371,30 @@ def upgrade_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
     else:
         typer.echo(f"{rep['db']}: upgraded from schema v{rep['schema_from']} ({old}) to v{rep['schema_to']} ({new}); "
                    + ", ".join(f"{n} {t}" for t, n in rep["rows"].items()))
+
+
+@db_app.command("recover")
+def recover_cmd(db: str = typer.Option(None, "--db", help=DB_HELP),
+                wait: float = typer.Option(None, "--wait", help="seconds to wait for another writer of the database "
+                                           "(default: refused after 2 s, naming it)"),
+                json_: bool = typer.Option(False, "--json", help="print the result as JSON")):
+    """Complete the publication of the files of results a killed command recorded but did not publish (any
+    later write to the database does it too; read-only commands only say so)."""
+    with db_errors():
+        from inscal import lab
+
+        with open_db(db, wait=wait, notes=False) as d:
+            again = lab.recover_publications(d, strict=True)  # what the opening left (a writer held the lock)
+            rep = {"db": d.where, "recovered": d.recovery.done + again.done, "waiting": again.waiting}
+    if json_:
+        print_json(rep)
+        return
+    for line in rep["recovered"]:
+        typer.echo(f"completed: {line}")
+    for line in rep["waiting"]:
+        typer.echo(f"waiting: {line}")
+    if not rep["recovered"] and not rep["waiting"]:
+        typer.echo(f"{rep['db']}: every result's files are in place; nothing to recover")
 
 
 @db_app.command("add")

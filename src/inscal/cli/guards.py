@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import typer
+
 from inscal.cli.common import CliError, check_not_input, short
 
 
@@ -56,3 +58,24 @@ def check_outputs(outputs: list[tuple[str, Path | None]], inputs: list[Path | No
         if key in seen:
             raise CliError(f"{what} and {seen[key]} name the same file {short(out)}")
         seen[key] = what
+
+
+def recovery_note(line: str) -> None:
+    """Say on standard error what opening the database rolled forward of an interrupted publication."""
+    typer.echo(f"inscal: note: an interrupted publication completed: {line}", err=True)
+
+
+def database_notes(d) -> None:
+    """The notes of opening calibration database ``d``: what its opening for writing rolled forward of
+    the publication journal (:mod:`inscal.lab.journal`); opened read-only, how many files are owed."""
+    from inscal import lab
+
+    if d.readonly:
+        n = lab.pending_publications(d)
+        if n:
+            from inscal.lab.journal import waiting_line
+
+            typer.echo(f"inscal: note: {waiting_line(n, d.where)}", err=True)
+        return
+    for line in d.recovery.done:
+        recovery_note(line)

@@ -5,6 +5,8 @@ per output, across processes), the removal of partial outputs on an interrupt, a
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import errno
 import hashlib
 import os
 import signal
@@ -154,6 +156,9 @@ class _Unit:
         #: steps run in the publication itself, with the interrupts held, after the outputs are checked
         #: and before the first is renamed into place (a database commit: the record and its files at once)
         self.before_publish: list = []
+        #: steps run in the publication once every output is in place, before the locks are released (the
+        #: entries of a publication journal cleared); they must not raise
+        self.after_publish: list = []
         #: steps run when the outermost unit ends, published or not (:func:`after_unit`)
         self.finally_steps: list = []
 
@@ -165,9 +170,11 @@ def output_unit():
     SIGTERM held off for those renames); if the block raises, is interrupted or cancelled, no
     output is published and the folders made by :func:`make_output_dir` are removed again.  A unit
     inside another hands its outputs to the outer one.  ``unit.before_publish`` (callables) run in the
-    same held step, after every target is checked and just before the renames: a commit there and the
-    files' publication cannot be parted by SIGINT or SIGTERM (only SIGKILL or a power cut between the
-    commit and the renames, microseconds, leaves the committed side alone)."""
+    same held step, after every target is checked and its temporary flushed to the disk, just before the
+    renames: a commit there and the files' publication cannot be parted by SIGINT or SIGTERM; against
+    SIGKILL or a power cut between the commit and the renames, the commit records what it publishes (a
+    journal, :mod:`inscal.lab.journal`) and ``unit.after_publish`` (callables, which must not raise) clears
+    it once every file is in place, before the output locks are released."""
     unit = _Unit()
     outer = _UNITS[-1] if _UNITS else None
     _UNITS.append(unit)
@@ -183,21 +190,33 @@ def output_unit():
             outer.made_dirs += unit.made_dirs
             outer.claimed += unit.claimed
             outer.before_publish += unit.before_publish
+            outer.after_publish += unit.after_publish
             outer.finally_steps += unit.finally_steps
             unit.claimed = []
             unit.finally_steps = []
             return
         with _signals_held():
             check_cancel()
-            for tmp, path, overwrite in unit.pending:  # every target is checked before any is replaced
+            # every target checked before anything is committed or replaced (an early refusal: the rename
+            # itself refuses a file that appears after this check, atomically, see rename_noreplace)
+            for tmp, path, overwrite in unit.pending:
                 if not overwrite and os.path.lexists(path):
                     raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force "
                                           "to overwrite it)")
+            if unit.before_publish:  # a commit will vouch for the files: they are on the disk first
+                for tmp, _, _ in unit.pending:
+                    fsync_path(tmp)
             for step in unit.before_publish:
                 step()
             for tmp, path, overwrite in unit.pending:
-                _publish(tmp, path, overwrite)
+                publish(tmp, path, overwrite)
                 PUBLISHED.append(path)
+            if unit.before_publish:
+                for folder in {FsPath(p).parent for _, p, _ in unit.pending}:
+                    fsync_path(folder)
+            for step in unit.after_publish:
+                with contextlib.suppress(Exception):
+                    step()
     except BaseException:
         for tmp, _, _ in unit.pending:
             remove_part(tmp)
@@ -267,26 +286,75 @@ def _signals_held():
         check_cancel()
 
 
-def _publish(tmp: str, path: FsPath, overwrite: bool) -> None:
-    """Rename temporary ``tmp`` onto ``path``; without ``overwrite`` never replace a file that is there
-    now (one that appeared after the command checked its outputs)."""
+def publish(tmp, path, overwrite: bool) -> None:
+    """Rename temporary ``tmp`` onto ``path`` (mode set from the umask); with ``overwrite`` an atomic replace,
+    else :func:`rename_noreplace`: a file that is at ``path`` now (one that appeared after the command
+    checked its outputs) is never replaced (FileExistsError), with no window between a check and the rename."""
+    tmp, path = str(tmp), FsPath(path)
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; outputs follow the umask like any file
     if overwrite:
         os.replace(tmp, path)
     else:
         try:
-            os.link(tmp, path)  # atomic and refuses an existing target, unlike a rename
+            rename_noreplace(tmp, path)
         except FileExistsError:
             raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force to "
                                   "overwrite it)") from None
-        except OSError:  # a file system without hard links
-            if os.path.lexists(path):
-                raise FileExistsError(f"{path} appeared while this command ran; not replaced (use --force to "
-                                      "overwrite it)") from None
-            os.replace(tmp, path)
-        else:
-            os.unlink(tmp)
     _LIVE_PARTS.pop(tmp, None)
+
+
+#: ``renameat2`` flag: fail with EEXIST rather than replace the target (Linux >= 3.15, glibc >= 2.28)
+RENAME_NOREPLACE = 1
+_AT_FDCWD = -100
+
+
+def _renameat2(src: str, dst: str) -> bool:
+    """``renameat2(src, dst, RENAME_NOREPLACE)``: True if renamed, False where the C library or the file
+    system lacks it; FileExistsError if ``dst`` exists."""
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
+    except (AttributeError, OSError):
+        return False
+    fn.argtypes = (ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint)
+    if fn(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), RENAME_NOREPLACE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err == errno.EEXIST:
+        raise FileExistsError(err, os.strerror(err), dst)
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.ENOTSUP):  # the flag unsupported here
+        return False
+    raise OSError(err, os.strerror(err), dst)
+
+
+def rename_noreplace(src, dst) -> None:
+    """Rename ``src`` to ``dst`` unless ``dst`` exists (FileExistsError, ``src`` kept), atomically against a
+    file that appears at ``dst`` at any moment: ``renameat2(RENAME_NOREPLACE)`` (Linux); where the C library
+    or the file system lacks it, a hard link (which refuses an existing target) then the unlink of ``src``;
+    on a file system without hard links (FAT, some network shares) ``dst`` is first created exclusively
+    (``O_EXCL``: the same refusal) as a placeholder that ``src`` then replaces.  Never a check then an act."""
+    src, dst = str(src), str(dst)
+    if _renameat2(src, dst):
+        return
+    try:
+        os.link(src, dst)
+    except FileExistsError:
+        raise
+    except OSError:  # no hard links here: reserve the name exclusively, then replace the reservation
+        os.close(os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        os.replace(src, dst)
+    else:
+        os.unlink(src)
+
+
+def fsync_path(path) -> None:
+    """Flush a file's (or a folder's: its entries) data to the disk, so it survives a power cut."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:  # a folder some file systems cannot fsync: nothing more can be done
+        pass
+    finally:
+        os.close(fd)
 
 
 @contextmanager
@@ -299,7 +367,8 @@ def atomic_path(path, overwrite: bool = False):
     ``path`` during the write is not replaced.  On any exception, ``BaseException`` included
     (KeyboardInterrupt, the interrupt of a SIGTERM), the temporary file is removed and ``path`` is
     untouched; a pending :func:`cancel` is raised before the rename, so an interrupted write is
-    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.
+    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.  The
+    temporaries of ``path`` that a killed writer left are removed once its lock is taken (:func:`remove_stale_parts`).
     """
     path = FsPath(path)
     if not path.parent.exists():
@@ -309,6 +378,8 @@ def atomic_path(path, overwrite: bool = False):
         taken = claim_output(path)
         if taken and unit is not None:
             unit.claimed.append(path)
+    if fcntl is not None:  # the lock held: no other writer of path is at work
+        remove_stale_parts(path)
     try:
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path} exists; refusing to overwrite it (use --force / overwrite=True)")
@@ -317,8 +388,7 @@ def atomic_path(path, overwrite: bool = False):
             # the file and its registration at once: an interrupt between the two (mkstemp returns through
             # several bytecodes) left a temporary that neither this cleanup nor remove_live_parts knew of
             with _signals_held():
-                fd, tmp = tempfile.mkstemp(prefix=side_name(path.name, ".", room=8 + len(".part")), suffix=".part",
-                                           dir=path.parent)
+                fd, tmp = tempfile.mkstemp(prefix=part_prefix(path), suffix=".part", dir=path.parent)
                 _LIVE_PARTS[tmp] = path
                 os.close(fd)
             yield FsPath(tmp)
@@ -326,7 +396,7 @@ def atomic_path(path, overwrite: bool = False):
             if unit is not None:
                 unit.pending.append((tmp, path, overwrite))
             else:
-                _publish(tmp, path, overwrite)
+                publish(tmp, path, overwrite)
         except BaseException:
             if tmp is not None:
                 remove_part(tmp)
@@ -334,6 +404,36 @@ def atomic_path(path, overwrite: bool = False):
     finally:
         if taken and unit is None:
             release_output(path)
+
+
+#: the random part of a temporary's name (``tempfile.mkstemp``)
+_RANDOM_CHARS = 8
+
+
+def part_prefix(path) -> str:
+    """The start of the name of every temporary of output ``path`` (:func:`atomic_path`)."""
+    return side_name(FsPath(path).name, ".", room=_RANDOM_CHARS + len(".part"))
+
+
+def remove_stale_parts(path) -> list[str]:
+    """Remove the temporaries of output ``path`` that a killed writer left beside it (SIGKILL, a power cut);
+    call it holding the output's lock (:func:`claim_output`), so that no writer of ``path`` is at work.  The
+    names removed."""
+    path = FsPath(path)
+    prefix = part_prefix(path)
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return []
+    gone = []
+    for name in names:
+        full = str(path.parent / name)
+        if name.startswith(prefix) and name.endswith(".part") and len(name) == len(prefix) + _RANDOM_CHARS + 5 \
+                and full not in _LIVE_PARTS:
+            with contextlib.suppress(OSError):
+                os.unlink(full)
+                gone.append(name)
+    return gone
 
 
 def remove_part(tmp: str) -> bool:

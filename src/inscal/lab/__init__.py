@@ -91,6 +91,9 @@ EXPORTS = {
     "record_result": "inscal.lab.store",
     "set_current": "inscal.lab.store",
     "stage_calibration": "inscal.lab.store",
+    "pending_publications": "inscal.lab.database",
+    "published": "inscal.lab.database",
+    "recover_publications": "inscal.lab.database",
     "table_counts": "inscal.lab.store",
 }
 __all__ = [
@@ -134,7 +137,10 @@ __all__ = [
     "options_hash",
     "param_file_text",
     "parse_date",
+    "pending_publications",
+    "published",
     "record_calibration",
+    "recover_publications",
     "record_result",
     "revision_number",
     "revision_of",
@@ -162,6 +168,9 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         revision_of,
         upgrade_database,
         check_wait,
+        pending_publications,
+        published,
+        recover_publications,
         lock_holders,
     )
     from inscal.lab.drift import (

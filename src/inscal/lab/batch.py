@@ -146,6 +146,8 @@ class BatchResult:
     db: str = ""
     workers: int = 0
     wall_s: float = 0.0
+    #: the publications of killed writers that opening the database rolled forward (:mod:`inscal.lab.journal`)
+    recovered: tuple[str, ...] = ()
 
     @property
     def registered(self) -> list[str]:
@@ -169,7 +171,8 @@ class BatchResult:
                 "wall_s": round(self.wall_s, 3), "seconds_per_record": None if mean is None else round(mean, 4),
                 "failures": [{"path": o.path, "serial": o.serial, "error": o.error}
                              for o in self.outcomes if o.status == "failed"],
-                "results": [o.to_json() for o in self.outcomes]}
+                "results": [o.to_json() for o in self.outcomes]} | ({"recovered": list(self.recovered)}
+                                                                      if self.recovered else {})
 
 
 # --------------------------------------------------------------------------- the records
@@ -441,7 +444,7 @@ def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSet
         if remote is not None:
             remote.close()
         raise
-    result = BatchResult([], db.where)
+    result = BatchResult([], db.where, recovered=tuple(db.recovery.done))
 
     def emit(o: Outcome) -> None:
         result.outcomes.append(o)

@@ -32,6 +32,7 @@ untouched), then that it can be written ("read-only" in one line otherwise).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import math
 import os
@@ -48,6 +49,8 @@ from alembic import command
 from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
+
+from inscal.lab import journal
 
 #: the file the commands use when neither ``--db`` nor ``INSCAL_DB`` names one
 DEFAULT_FILE = "calib.sqlite"
@@ -81,6 +84,8 @@ class Database:
     readonly: bool = False
     #: how long a write waits for another writer's lock [s] (:data:`GRACE_S` unless asked)
     wait_s: float = GRACE_S
+    #: what opening it for writing rolled forward of the publication journal (:func:`recover_publications`)
+    recovery: journal.Recovery = dataclasses.field(default_factory=journal.Recovery)
 
     @property
     def dialect(self) -> str:
@@ -285,8 +290,44 @@ def open_database(text: str | os.PathLike | None = None, create: bool = False, u
     if readonly and (create or upgrade):
         raise ValueError("a database opened read-only is neither created nor upgraded")
     db = _open(database_url(text), create, upgrade, readonly=readonly)[0]
-    db.wait_s = check_wait(wait_s)
+    try:
+        db.wait_s = check_wait(wait_s)
+        if not readonly:
+            db.recovery = recover_publications(db)
+    except BaseException:
+        db.close()
+        raise
     return db
+
+
+def recover_publications(db: Database, strict: bool = False) -> journal.Recovery:
+    """Roll forward the publications that a writer killed between its commit and its renames left owed
+    (:mod:`inscal.lab.journal`), in one write transaction (only when the journal has entries: a look
+    first).  A database another writer holds beyond the wait is left as it is for a later write, unless
+    ``strict`` (``inscal db recover``: refused then, :class:`DatabaseError`)."""
+    with read(db) as conn:
+        if not journal.pending_count(conn):
+            return journal.Recovery()
+    try:
+        return write(db, journal.recover)
+    except DatabaseError:
+        if strict:
+            raise
+        return journal.Recovery()
+
+
+def published(db: Database, ids: list[int]) -> None:
+    """Clear the journal entries ``ids`` once their files are in place (step 4 of :mod:`inscal.lab.journal`);
+    never raises: an entry left is found in place by the next recovery."""
+    with contextlib.suppress(Exception):
+        write(db, lambda conn: journal.clear(conn, ids))
+
+
+def pending_publications(db: Database) -> int:
+    """How many files of committed results are not in place (a read of the journal and the files, nothing
+    written: see :func:`recover_publications`)."""
+    with read(db) as conn:
+        return journal.owed(conn)
 
 
 def check_wait(wait_s: float | None) -> float:

@@ -1,7 +1,9 @@
 """The tables of the calibration database (SQLAlchemy Core), at the newest schema revision.
 
-Every table is append-only: rows are inserted, never updated nor deleted (database triggers refuse
-an ``UPDATE`` or ``DELETE``, see the first migration).  A result that replaces an earlier one
+Every table but ``publications`` is append-only: rows are inserted, never updated nor deleted (database
+triggers refuse an ``UPDATE`` or ``DELETE``, see the first migration).  ``publications`` is a journal: the
+files a result's transaction is about to publish, each row deleted once its file is in place
+(:mod:`inscal.lab.journal`).  A result that replaces an earlier one
 names it in ``results.supersedes``; the unit's current calibration is the newest row of
 ``current`` for the unit.
 
@@ -13,7 +15,8 @@ in SI (``results.covariance["units"]`` says which).  Times are UTC, stored witho
 
 The schema's history is in ``inscal/lab/migrations/`` (Alembic scripts): revision ``0001_initial``
 (v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
-added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results.
+added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results;
+``0004_publications`` (v4) added ``publications``, the journal of the files being published.
 """
 
 from __future__ import annotations
@@ -110,5 +113,19 @@ result_keys = sa.Table(  # v3: what makes a result unique (the insert is the "re
     sa.Index("ix_result_keys_param_file", "unit_id", "param_file_sha256"),
 )
 
+publications = sa.Table(  # v4: the journal of the files a committed result is publishing (rows deleted when done)
+    "publications", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), nullable=False),
+    sa.Column("target", sa.Text, nullable=False),  # the output's absolute path
+    sa.Column("temporary", sa.Text, nullable=False),  # its temporary beside it, complete and fsynced
+    sa.Column("sha256", sa.String(80), nullable=False),  # io.file_hash of the temporary: "sha256:<hex>"
+    sa.Column("overwrite", sa.Boolean, nullable=False),  # --force: the output may replace a file there
+    sa.Column("host", sa.String(255), nullable=False),  # the machine whose file system holds the paths
+    sa.Column("pid", sa.Integer, nullable=False),
+    sa.Column("created_at", sa.DateTime, nullable=False),
+    sa.Index("ix_publications_result", "result_id"),
+)
+
 #: the tables, parents first (the order rows are copied or counted in)
-TABLES = (units, sessions, results, parameters, current, result_keys)
+TABLES = (units, sessions, results, parameters, current, result_keys, publications)
