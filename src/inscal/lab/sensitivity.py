@@ -206,11 +206,11 @@ def sensitivities(ws: WindowSet, geo: Geometry, x: Callable[[WindowSet], np.ndar
 WINDOW_METHODS = ("n25", "six-position", "twelve-position", "joint")
 
 
-def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, **options):
+def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, windows=None, **options):
     """The :class:`inscal.lab.budget.Budget` of a window-mean calibration ``result`` (it keeps its
     windows) at ``station``: coefficients by :func:`sensitivities` at the estimated geometry, the
     estimator's sigma as Type A with the fit's dof, ``rep`` = ``(u_rep, dof)`` (SI) or None;
-    ``options``: the method's options the result was computed with."""
+    ``windows``: as :func:`sensitivities`; ``options``: the method's options the result was computed with."""
     if result.method not in WINDOW_METHODS or result.windows is None:
         raise ValueError(f"an uncertainty budget needs a window-mean method ({', '.join(WINDOW_METHODS)}), "
                          f"not {result.method}")
@@ -219,7 +219,7 @@ def calibration_budget(result: CalibrationResult, station, rep=None, coverage: f
     geo = Geometry.of(result)
     x = estimator(result.method, names, **options)
     kinds = {k: v.kind for k, v in INPUTS.items()}
-    sens = sensitivities(ws, geo, x, kinds)
+    sens = sensitivities(ws, geo, x, kinds, windows=windows)
     if "gimbal_nonorthogonality" in names:  # the method estimates the table's dth: its error, not its value
         sens.glob["axis_nonorthogonality"][nparams(names[:names.index("gimbal_nonorthogonality")])] -= 1.0
     values = flatten(result.imu, result.gimbal, names)

@@ -1,0 +1,205 @@
+"""The GUM budget: the arithmetic against hand-computed cases, and the sensitivity coefficients of the
+N25 estimator against closed forms and against the other route (what the estimator believes)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from inscal.calibrate import calibrate, window_means
+from inscal.core.attitude import dcm_from_euler
+from inscal.core.earth import OMEGA_IE
+from inscal.lab import budget as gum
+from inscal.lab import sensitivity as S
+from inscal.lab.station import INPUTS
+
+ARCSEC = math.pi / 180 / 3600
+NAMES = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
+         "accel_bias", "gimbal_nonorthogonality", "mount_attitude")
+# flat layout of NAMES: 3 + 6 + 3 + 3 + 6 + 3 + 1 + 3
+SL = {"gsf": slice(0, 3), "gmis": slice(3, 9), "gb": slice(9, 12), "asf": slice(12, 15), "amis": slice(15, 21),
+      "ab": slice(21, 24), "dth": 24, "mount": slice(25, 28)}
+KINDS = {k: v.kind for k, v in INPUTS.items()}
+
+
+def test_welch_satterthwaite_and_k_by_hand():
+    # two equal inputs with 10 dof each: nu_eff = (2 u^2)^2 / (2 u^4 / 10) = 20 (GUM eq. G.2b)
+    assert gum.welch_satterthwaite([1.0, 1.0], [10, 10]) == pytest.approx(20.0)
+    assert gum.welch_satterthwaite([3.0, 4.0], [None, 4]) == pytest.approx(625 / 64)  # 25^2 / (256 / 4)
+    assert math.isinf(gum.welch_satterthwaite([1.0, 2.0], [math.inf, None]))
+    assert gum.coverage_factor(20) == pytest.approx(2.085963, abs=1e-6)  # t_0.975(20), tables
+    assert gum.coverage_factor(math.inf) == pytest.approx(1.959964, abs=1e-6)
+    c = gum.combine("accel_bias", 1, 9.80665e-6, [("a", None, "ug", "normal", 3.0, 1.0, math.inf, 1),
+                                                  ("b", None, "ug", "normal", 2.0, 2.0, 4.0, 1)])
+    assert c.value == pytest.approx(1.0) and c.u_c == pytest.approx(5.0) and c.label == "accel_bias[1]"
+    assert c.dof_eff == pytest.approx(625 / 64) and c.k == pytest.approx(stats.t.ppf(0.975, 625 / 64))
+    assert [x.share for x in c.contributions] == pytest.approx([9 / 25, 16 / 25])
+    assert c.U == pytest.approx(c.k * 5.0)
+
+
+def test_repeatability_is_the_excess_over_the_estimator_noise():
+    v = np.array([[1.0, 0.0], [3.0, 0.1], [2.0, -0.1]])  # spreads: var 1, var 0.01
+    u, dof = gum.repeatability(v, np.full_like(v, 0.5))
+    assert dof == 2 and u == pytest.approx([math.sqrt(0.75), 0.0])
+    with pytest.raises(ValueError):
+        gum.repeatability(v[:1], v[:1])
+
+
+@pytest.fixture(scope="module")
+def n25(noise_free_data, as_record):
+    sc, d = noise_free_data("n25")
+    ws = window_means(as_record(d, sc))
+    r = calibrate(ws, "n25", uncertainty=False)
+    return sc, ws, r, S.Geometry.of(r), S.estimator("n25", NAMES)
+
+
+@pytest.fixture(scope="module")
+def glob(n25):
+    _, ws, _, geo, x = n25
+    return S.sensitivities(ws, geo, x, KINDS, stop_inputs=()).glob
+
+
+def test_gravity_enters_the_accelerometer_scale_factors_one_to_one(n25, glob):
+    g = n25[1].site.gravity
+    c = glob["gravity"] * g  # d(scale factor) / (dg / g)
+    assert c[SL["asf"]] == pytest.approx(1.0, abs=2e-4)
+    rest = np.delete(c, np.r_[SL["asf"]])
+    assert np.abs(rest[:-3]).max() < 2e-3  # gyro, misalignments [rad/rad], biases [(m/s^2) / 1]: ~0
+
+
+def test_rate_and_time_base_closed_forms(glob):
+    assert glob["table_rate"][SL["gsf"]] == pytest.approx(1.0, abs=2e-4)  # the rate tests' scale 1:1
+    assert np.abs(glob["table_rate"][SL["asf"]]).max() < 1e-6
+    # one acquisition clock: the means and the recorded rates scale together -> gyro scale unchanged,
+    # the accelerometer scale (against the site's gravity) 1:1
+    assert glob["time_base"][SL["asf"]] == pytest.approx(1.0, abs=2e-4)
+    assert np.abs(glob["time_base"][SL["gsf"]]).max() < 2e-4
+
+
+def test_latitude_moves_the_earth_rate_not_the_gyro_biases(n25, glob):
+    """N25 fits ``N_g = M_g C_b^s w^b + eps`` with w^b free: a latitude error moves w^b by
+    ``C_n^b dw^n``, ``dw^n = Omega (0, -sin L, cos L) dL`` (ENU), and leaves eps exactly."""
+    sc, ws, r, geo, _ = n25
+    assert np.abs(glob["latitude"][SL["gb"]]).max() < 1e-9 * OMEGA_IE
+    h = 1e-4
+    lat = ws.site.latitude
+    dwn = OMEGA_IE * np.array([0.0, -math.sin(lat), math.cos(lat)]) * h
+    r2 = calibrate(S.perturb(ws, geo, S.Deviation(latitude=h)), "n25", uncertainty=False)
+    dwb = np.asarray(r2.diagnostics["earth_rate_b"]) - np.asarray(r.diagnostics["earth_rate_b"])
+    assert dwb == pytest.approx(dcm_from_euler(sc.gimbal.mount_attitude).T @ dwn, abs=2e-3 * OMEGA_IE * h)
+    assert np.abs(r2.imu.gyro_bias - r.imu.gyro_bias).max() < 1e-12
+
+
+def test_common_table_angle_offsets_closed_forms(n25):
+    """A reading off by e at every stop: on the inner axis the IMU turns by e about z_s, so
+    ``M' = M R_z(-e)``: the xy misalignments +e and yx -e (N25 eq. 3, gyros and accelerometers);
+    on the outer axis the whole path turns about the outer axis: the mounting roll +e, IMU unchanged."""
+    _, ws, r, geo, x = n25
+    e = 3e-5
+    x0 = x(ws)
+    nw = len(ws.windows)
+    dz = x(S.perturb(ws, geo, S.Deviation(angle=np.tile([0.0, e], (nw, 1))))) - x0
+    for mis in (SL["gmis"], SL["amis"]):
+        assert dz[mis][[0, 2]] == pytest.approx([e, -e], rel=1e-3)  # [xy, yx]
+        assert np.abs(dz[mis][[1, 3, 4, 5]]).max() < 1e-3 * e
+    dx = x(S.perturb(ws, geo, S.Deviation(angle=np.tile([e, 0.0], (nw, 1))))) - x0
+    assert dx[SL["mount"]][0] == pytest.approx(e, rel=1e-3)
+    assert np.abs(dx[:24]).max() < 2e-3 * e
+
+
+def test_truth_route_equals_belief_route(n25, glob):
+    """The same errors written into the truth (the means) and into the estimator's belief (readings,
+    rates, site) give the same coefficients: two independent paths through the kinematics."""
+    _, ws, _, geo, x = n25
+    x0 = x(ws)
+    nw = len(ws.windows)
+    static = [k for k, w in enumerate(ws.windows) if w.kind == "static"]
+    for k, j in ((static[1], 0), (static[3], 1), (static[5], 0), (static[10], 1)):
+        a = np.zeros((nw, 2))
+        a[k, j] = 2e-5
+        dev = S.Deviation(angle=a)
+        ta, be = x(S.perturb(ws, geo, dev)) - x0, x(S.believe(ws, dev)) - x0
+        assert np.abs(ta).max() > 1e-6 and np.abs(ta - be).max() < 2e-3 * np.abs(ta).max()
+    for dev, key, h in ((S.Deviation(gravity=2e-4), "gravity", 2e-4), (S.Deviation(rate_scale=2e-5), "table_rate", 2e-5),
+                        (S.Deviation(latitude=1e-4), "latitude", 1e-4)):
+        be = (x(S.believe(ws, dev)) - x0) / h
+        assert np.abs(be - glob[key]).max() < 2e-3 * max(np.abs(glob[key]).max(), 1.0)
+    # no estimator reads the partial turns' means: the per-stop loop skips them
+    turn = [k for k, w in enumerate(ws.windows) if w.kind == "turn"]
+    a = np.zeros((nw, 2))
+    a[turn] = 1e-4
+    assert np.abs(x(S.perturb(ws, geo, S.Deviation(angle=a, tilt=a))) - x0).max() == 0.0
+
+
+def test_rate_test_axis_turned_by_an_inner_angle_error(n25):
+    """An outer-axis rate test with the inner gimbal off by e turns the rate axis a = R_z^T u by
+    ``da = -e [z x] a`` (N25 eq. 9); eq. 28 (one window of the CW/CCW pair) then moves that column of
+    M_g by ``-(e/2) [z x] a``, i.e. one gyro misalignment by e/2.  (The estimator rounds the rate
+    tests' fixed angle, so only the truth route sees this error.)"""
+    _, ws, _, geo, x = n25
+    x0 = x(ws)
+    nw = len(ws.windows)
+    for k in [k for k, w in enumerate(ws.windows) if w.kind == "rate" and w.axis == "outer"]:
+        e = 2e-5
+        a = np.zeros((nw, 2))
+        a[k, 1] = e
+        dz = (x(S.perturb(ws, geo, S.Deviation(angle=a))) - x0) / e
+        ax = np.array([math.cos(ws.windows[k].theta[1]), -math.sin(ws.windows[k].theta[1]), 0.0])
+        j = int(np.argmax(np.abs(ax)))
+        col = -0.5 * np.cross([0.0, 0.0, 1.0], np.round(ax)) * np.sign(ax[j])  # the move of M_g's column j
+        E = np.zeros((3, 3))
+        E[:, j] = col
+        want = np.array([E[0, 1], E[0, 2], E[1, 0], E[1, 2], E[2, 0], E[2, 1]])  # [xy, xz, yx, yz, zx, zy]
+        assert dz[SL["gmis"]] == pytest.approx(want, abs=1e-3)
+        assert np.abs(dz[SL["asf"].start:SL["mount"].start]).max() < 1e-3
+
+
+def test_common_tilt_is_a_mounting_attitude_change(n25):
+    """A wobble tilt t (ENU) that is the same at every stop turns the whole table: the base attitude
+    becomes ``(I + [t x]) C_b^n`` and the IMU errors stay; expected mounting angles by inverting the
+    Euler angles of that matrix (scipy, not the package's own code)."""
+    from scipy.spatial.transform import Rotation
+
+    _, ws, r, geo, x = n25
+    x0 = x(ws)
+    t = np.array([3e-5, -2e-5])
+    dx = x(S.perturb(ws, geo, S.Deviation(tilt=np.tile(t, (len(ws.windows), 1))))) - x0
+    C = Rotation.from_euler("ZYX", r.gimbal.mount_attitude[::-1]).as_matrix()  # R_z(yaw) R_y(pitch) R_x(roll)
+    tv = np.array([t[0], t[1], 0.0])
+    C2 = Rotation.from_rotvec(tv).as_matrix() @ C
+    want = Rotation.from_matrix(C2).as_euler("ZYX")[::-1] - r.gimbal.mount_attitude
+    assert dx[SL["mount"]] == pytest.approx(want, abs=2e-3 * 3e-5)
+    assert np.abs(dx[:24]).max() < 2e-3 * 3e-5
+
+
+def test_budget_of_a_calibration(n25):
+    """The budget's lines in field units: gravity 1 mGal -> 1e-5 / g = 1.021 ppm on the accelerometer
+    scale factors; the estimator's line is the result's sigma; the encoder's rounding shares the table
+    angle's coefficients (rectangular, a / sqrt(3)); the table's non-orthogonality does not enter the
+    dth N25 estimates; the JSON form reads back equal."""
+    from pathlib import Path
+
+    from inscal.lab.station import read_station
+
+    sc, ws, _, _, _ = n25
+    st = read_station(Path(__file__).resolve().parents[1] / "data" / "station.toml")
+    r = calibrate(ws, "n25")
+    k = [k for k, w in enumerate(ws.windows) if w.kind == "static"][2]
+    b = S.calibration_budget(r, st, windows=[k])
+    asf = b.component("accel_scale_factor[0]")
+    lines = {c.input: c for c in asf.contributions}
+    assert lines["gravity"].sensitivity == pytest.approx(1e-5 / ws.site.gravity * 1e6, rel=1e-3)
+    assert lines["gravity"].contribution == pytest.approx(1e-5 / ws.site.gravity * 1e6, rel=1e-3)
+    assert lines[gum.ESTIMATOR].u == pytest.approx(r.sigma["accel_scale_factor"][0] * 1e6)
+    assert lines["encoder_resolution"].sensitivity == pytest.approx(lines["table_angle"].sensitivity)
+    assert lines["encoder_resolution"].u == pytest.approx(0.18 / math.sqrt(3))
+    assert asf.u_c == pytest.approx(math.sqrt(sum(c.contribution ** 2 for c in asf.contributions)))
+    assert sum(c.share for c in asf.contributions) == pytest.approx(1.0)
+    dth = {c.input: c for c in b.component("gimbal_nonorthogonality").contributions}
+    assert dth["axis_nonorthogonality"].sensitivity < 1e-3
+    assert any("temperature_stability" in n for n in b.notes)
+    assert gum.Budget.from_dict(b.to_dict()) == b
