@@ -6,6 +6,7 @@ import math
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from inscal.lab.station import INPUTS, StationError, read_station, station_from_dict
@@ -61,3 +62,15 @@ def test_unreadable_file(tmp_path):
     p.write_text("[station\nname = 1")
     with pytest.raises(StationError, match="malformed TOML"):
         read_station(p)
+
+
+def test_draws_have_the_stated_standard_uncertainty():
+    st = read_station(DATA)
+    rng = np.random.default_rng(5)
+    for name in ("table_angle", "table_rate", "temperature_stability"):  # normal, rectangular, arcsine
+        x = st[name].draw(rng, 40000)
+        assert np.std(x) == pytest.approx(st[name].u, rel=0.02) and abs(np.mean(x)) < 0.02 * st[name].u
+    d = doc()
+    d["inputs"]["axis_wobble"] = {"unit": "arcsec", "distribution": "triangular", "half_width": 6.0, "source": "x"}
+    w = station_from_dict(d)["axis_wobble"]
+    assert np.std(w.draw(rng, 40000)) == pytest.approx(w.u, rel=0.02)

@@ -43,6 +43,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from inscal.core import units
 from inscal.io.tomlfile import read_toml
 
@@ -118,6 +120,18 @@ class StationInput:
     def field(self, si: float, unit: str | None = None) -> float:
         """An SI value of this input's kind in its field unit (``unit``: the uncertainty's by default)."""
         return _from_si(si, unit or self.uncertainty_unit, self.spec.kind)
+
+    def draw(self, rng: np.random.Generator, size=None) -> np.ndarray:
+        """Deviations from the value drawn from this input's distribution (SI; JCGM 101 6.4): normal
+        ``N(0, u)``, rectangular ``U(-a, a)``, triangular on ``[-a, a]``, arcsine ``a sin(2 pi U)``."""
+        a = self.half_width
+        if self.distribution == "normal":
+            return rng.normal(0.0, self.u, size)
+        if self.distribution == "rectangular":
+            return rng.uniform(-a, a, size)
+        if self.distribution == "triangular":
+            return rng.triangular(-a, 0.0, a, size)
+        return a * np.sin(2.0 * np.pi * rng.uniform(0.0, 1.0, size))  # JCGM 101 6.4.6
 
     def to_dict(self) -> dict:
         """The input as a station file's table (field units), as :func:`station_from_dict` reads it."""
