@@ -203,3 +203,20 @@ def test_budget_of_a_calibration(n25):
     assert dth["axis_nonorthogonality"].sensitivity < 1e-3
     assert any("temperature_stability" in n for n in b.notes)
     assert gum.Budget.from_dict(b.to_dict()) == b
+
+
+def test_coverage_factor_of_non_normal_outputs():
+    """Closed forms of P(|y| <= k u) = 0.95: rectangular 0.95 sqrt(3); arcsine sqrt(2) sin(0.95 pi / 2);
+    two equal rectangulars (a triangle on [-2a, 2a]) 2 (1 - sqrt(0.05)) / sqrt(2/3); normal 1.96."""
+    k = gum.linear_coverage_factor
+    assert k([("rectangular", 1.0)]) == pytest.approx(0.95 * math.sqrt(3), rel=1e-5)
+    assert k([("arcsine", 2.0)]) == pytest.approx(math.sqrt(2) * math.sin(0.95 * math.pi / 2), rel=1e-4)
+    assert k([("rectangular", 1.0), ("rectangular", 1.0)]) == pytest.approx(2 * (1 - math.sqrt(0.05)) / math.sqrt(2 / 3),
+                                                                              rel=1e-5)
+    assert k([("triangular", 1.0)]) == pytest.approx((1 - math.sqrt(0.05)) * math.sqrt(6), rel=1e-5)
+    assert k([("normal", 1.0), ("normal", 2.0)]) == pytest.approx(1.959964, abs=1e-6)
+    # a small rectangular beside a large normal: almost normal
+    assert 1.95 < k([("normal", 1.0), ("rectangular", 0.2)]) < 1.96
+    c = gum.combine("gyro_scale_factor", 0, 0.0, [("rate", None, "ppm", "rectangular", 10.0, 1.0, math.inf, 1),
+                                                  ("est", None, "ppm", "normal", 1.0, 1.0, 10.0, 1)])
+    assert c.k < 1.96 and c.U == pytest.approx(c.k * c.u_c)

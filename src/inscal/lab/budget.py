@@ -14,6 +14,13 @@ table shows that root-sum-square as its coefficient.  The effective degrees of f
 
     nu_eff = u_c^4 / sum_i (u_i^4 / nu_i),    k = t_{(1+p)/2}(nu_eff),    U = k u_c
 
+When a non-normal input dominates (a rectangular rate error, say) the output is not normal and
+``t`` over-covers (a rectangular one: 100 % instead of 95 %; GUM G.6.5-G.6.6).  So ``k`` is taken from
+the distribution of the linear model itself (:func:`linear_coverage_factor`: the non-normal lines
+convolved, the normal ones as one normal), times ``t_{(1+p)/2}(nu_eff) / z_{(1+p)/2}`` for a finite
+``nu_eff``; with only normal inputs this is the GUM's ``t`` factor exactly.  The JCGM 101 Monte Carlo
+of ``bench/budget_mc.py`` checks the result.
+
 Repeatability from the database (GUM 4.2): the spread ``s`` of the unit's earlier results of a
 component holds the estimator's noise once more, so only its excess enters,
 ``u_rep = sqrt(max(s^2 - mean(sigma^2), 0))`` with ``n - 1`` degrees of freedom.
@@ -149,6 +156,54 @@ def coverage_factor(dof: float, p: float = COVERAGE) -> float:
     return float(stats.t.ppf(0.5 + p / 2, dof))
 
 
+#: points of the grid on which the non-normal contributions are convolved
+GRID = 4001
+
+
+def _cdf(dist: str, x: np.ndarray, a: float) -> np.ndarray:
+    """The CDF of a zero-centred rectangular / triangular / arcsine distribution of half-width ``a``."""
+    z = np.clip(x / a, -1.0, 1.0)
+    if dist == "rectangular":
+        return 0.5 * (z + 1.0)
+    if dist == "triangular":
+        return np.where(z < 0, 0.5 * (z + 1.0) ** 2, 1.0 - 0.5 * (1.0 - z) ** 2)
+    return 0.5 + np.arcsin(z) / np.pi  # arcsine
+
+
+def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
+    """``k`` of the linear model ``y = sum c_i x_i`` from the distributions themselves (GUM G.6.5-G.6.6,
+    JCGM 101 on the linear model): the normal contributions combine into one normal of sigma ``s_N``;
+    the others (``(distribution, half-width in y)``) are convolved on a grid (exact bin masses of their
+    CDFs); ``P(|y| <= q) = p`` is solved and ``k = q / u_c``.  ``lines`` = ``(distribution, u_i(y))``."""
+    from scipy.optimize import brentq
+
+    s2 = sum(u * u for d, u in lines if d == "normal")
+    other = [(d, u * {"rectangular": math.sqrt(3.0), "triangular": math.sqrt(6.0), "arcsine": math.sqrt(2.0)}[d])
+             for d, u in lines if d != "normal" and u > 0]
+    uc = math.sqrt(s2 + sum(u * u for d, u in lines if d != "normal"))
+    if uc == 0.0:
+        return coverage_factor(math.inf, p)
+    if not other:
+        return float(stats.norm.ppf(0.5 + p / 2))
+    span = sum(a for _, a in other)
+    h = 2.0 * span / (GRID - 1)
+    mass = np.array([1.0])
+    for d, a in other:
+        n = int(math.ceil(a / h))
+        edges = (np.arange(-n, n + 2) - 0.5) * h
+        mass = np.convolve(mass, np.diff(_cdf(d, edges, a)))
+    x = (np.arange(mass.size) - (mass.size - 1) / 2) * h
+    sN = math.sqrt(s2)
+
+    def inside(q):
+        if sN > 0:
+            return float(np.sum(mass * (stats.norm.cdf((q - x) / sN) - stats.norm.cdf((-q - x) / sN))))
+        return float(np.interp(q, x, np.cumsum(mass)) - np.interp(-q, x, np.cumsum(mass)))
+
+    q = brentq(lambda q: inside(q) - p, 1e-9 * uc, 10.0 * uc, xtol=1e-6 * uc)
+    return q / uc
+
+
 def repeatability(values, sigmas) -> tuple[np.ndarray, float]:
     """``(u_rep, dof)`` per component from earlier results ``values`` (n_runs, n) and their sigmas
     (same shape, same unit): the excess of the between-run spread over the estimator's noise."""
@@ -173,7 +228,9 @@ def combine(parameter: str, index: int, value_si: float, lines: list[tuple], cov
     ui = [abs(c[5]) * c[4] for c in lines]
     uc = math.sqrt(sum(x * x for x in ui))
     nu = welch_satterthwaite(ui, [c[6] for c in lines])
-    k = coverage_factor(nu, coverage)
+    # a per-stop input is a sum over its stops: normal; the others keep their distribution
+    shape = linear_coverage_factor([(c[3] if c[7] <= 1 else "normal", u) for c, u in zip(lines, ui)], coverage)
+    k = shape * coverage_factor(nu, coverage) / coverage_factor(math.inf, coverage)
     contribs = tuple(Contribution(c[0], c[1], c[2], c[3], c[4], abs(c[5]), u, (u * u / (uc * uc)) if uc > 0 else 0.0,
                                   c[6], c[7]) for c, u in zip(lines, ui))
     return ComponentBudget(parameter, index, unit, float(units.from_si(value_si, unit)), uc, nu, k, k * uc, coverage,
