@@ -66,7 +66,7 @@ def test_four_writers_lose_nothing(db_url, synthetic_text):
     assert len(ids) == len(set(ids)) == total
     with lab.open_database(db_url) as db:
         assert lab.table_counts(db) == {"units": 1, "sessions": RECORDS, "results": total, "parameters": total * 6,
-                                        "current": total, "result_keys": total}
+                                        "current": total, "result_keys": total, "stations": 0, "budgets": 0}
         cals = lab.calibrations(db, "SHARED")
         assert sorted(c.id for c in cals) == ids
         seen = {(c.options["writer"], c.options["i"]) for c in cals}
