@@ -65,6 +65,7 @@ class Contribution:
     share: float
     dof: float
     stops: int = 1
+    value_unit: str = ""
 
     def to_dict(self) -> dict:
         """The line as JSON-able numbers (an infinite dof is ``None``)."""
@@ -223,7 +224,7 @@ def _factor(unit: str, kind: str) -> float:
 
 def combine(parameter: str, index: int, value_si: float, lines: list[tuple], coverage: float = COVERAGE) -> ComponentBudget:
     """One component's budget from ``lines`` = ``(input, value, unit, distribution, u, sensitivity, dof,
-    stops)`` in field units (sensitivity in parameter unit per input unit)."""
+    stops[, value unit])`` in field units (sensitivity in parameter unit per input unit)."""
     unit = PARAMETERS[parameter][3]
     ui = [abs(c[5]) * c[4] for c in lines]
     uc = math.sqrt(sum(x * x for x in ui))
@@ -232,7 +233,7 @@ def combine(parameter: str, index: int, value_si: float, lines: list[tuple], cov
     shape = linear_coverage_factor([(c[3] if c[7] <= 1 else "normal", u) for c, u in zip(lines, ui)], coverage)
     k = shape * coverage_factor(nu, coverage) / coverage_factor(math.inf, coverage)
     contribs = tuple(Contribution(c[0], c[1], c[2], c[3], c[4], abs(c[5]), u, (u * u / (uc * uc)) if uc > 0 else 0.0,
-                                  c[6], c[7]) for c, u in zip(lines, ui))
+                                  c[6], c[7], c[8] if len(c) > 8 else "") for c, u in zip(lines, ui))
     return ComponentBudget(parameter, index, unit, float(units.from_si(value_si, unit)), uc, nu, k, k * uc, coverage,
                            contribs)
 
@@ -263,9 +264,25 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
                     c_si, used = float(glob[key][i]), 1
                 value = inp.field(inp.value, inp.unit) if INPUTS[key].needs_value else None
                 lines.append((key, value, inp.uncertainty_unit, inp.distribution, inp.u / f, c_si * f / pf, inp.dof,
-                              max(used, 1)))
+                              max(used, 1), inp.unit if value is not None else ""))
             if rep is not None:
                 lines.append((REPEATABILITY, None, punit, "normal", float(rep[0][i]) / pf, 1.0, rep[1], 1))
             comps.append(combine(name, j, float(values_si[i]), lines, coverage))
             i += 1
     return Budget(station.name, method, coverage, tuple(comps), tuple(notes))
+
+
+def repeatability_of(calibrations, names) -> tuple[np.ndarray, float] | None:
+    """:func:`repeatability` (SI, flat over ``names``) from a unit's earlier calibrations
+    (:class:`inscal.lab.model.Calibration`, the same method) that hold every parameter of ``names``;
+    None when fewer than two do."""
+    vals, sigs = [], []
+    for cal in calibrations:
+        if not all(n in cal.parameters for n in names):
+            continue
+        v, s = zip(*(cal.parameters[n].si() for n in names))
+        vals.append(np.concatenate([np.ravel(x) for x in v]))
+        sigs.append(np.concatenate([np.ravel(x) for x in s]))
+    if len(vals) < 2:
+        return None
+    return repeatability(np.array(vals), np.array(sigs))
