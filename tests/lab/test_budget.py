@@ -4,6 +4,7 @@ N25 estimator against closed forms and against the other route (what the estimat
 from __future__ import annotations
 
 import math
+import types
 from dataclasses import replace
 
 import numpy as np
@@ -176,35 +177,6 @@ def test_common_tilt_is_a_mounting_attitude_change(n25):
     assert np.abs(dx[:24]).max() < 2e-3 * 3e-5
 
 
-def test_budget_of_a_calibration(n25):
-    """The budget's lines in field units: gravity 1 mGal -> 1e-5 / g = 1.021 ppm on the accelerometer
-    scale factors; the estimator's line is the result's sigma; the encoder's rounding shares the table
-    angle's coefficients (rectangular, a / sqrt(3)); the table's non-orthogonality does not enter the
-    dth N25 estimates; the JSON form reads back equal."""
-    from pathlib import Path
-
-    from inscal.lab.station import read_station
-
-    sc, ws, _, _, _ = n25
-    st = read_station(Path(__file__).resolve().parents[1] / "data" / "station.toml")
-    r = calibrate(ws, "n25")
-    k = [k for k, w in enumerate(ws.windows) if w.kind == "static"][2]
-    b = S.calibration_budget(r, st, windows=[k])
-    asf = b.component("accel_scale_factor[0]")
-    lines = {c.input: c for c in asf.contributions}
-    assert lines["gravity"].sensitivity == pytest.approx(1e-5 / ws.site.gravity * 1e6, rel=1e-3)
-    assert lines["gravity"].contribution == pytest.approx(1e-5 / ws.site.gravity * 1e6, rel=1e-3)
-    assert lines[gum.ESTIMATOR].u == pytest.approx(r.sigma["accel_scale_factor"][0] * 1e6)
-    assert lines["encoder_resolution"].sensitivity == pytest.approx(lines["table_angle"].sensitivity)
-    assert lines["encoder_resolution"].u == pytest.approx(0.18 / math.sqrt(3))
-    assert asf.u_c == pytest.approx(math.sqrt(sum(c.contribution ** 2 for c in asf.contributions)))
-    assert sum(c.share for c in asf.contributions) == pytest.approx(1.0)
-    dth = {c.input: c for c in b.component("gimbal_nonorthogonality").contributions}
-    assert dth["axis_nonorthogonality"].sensitivity < 1e-3
-    assert any("temperature_stability" in n for n in b.notes)
-    assert gum.Budget.from_dict(b.to_dict()) == b
-
-
 def test_coverage_factor_of_non_normal_outputs():
     """Closed forms of P(|y| <= k u) = 0.95: rectangular 0.95 sqrt(3); arcsine sqrt(2) sin(0.95 pi / 2);
     two equal rectangulars (a triangle on [-2a, 2a]) 2 (1 - sqrt(0.05)) / sqrt(2/3); normal 1.96."""
@@ -220,3 +192,21 @@ def test_coverage_factor_of_non_normal_outputs():
     c = gum.combine("gyro_scale_factor", 0, 0.0, [("rate", None, "ppm", "rectangular", 10.0, 1.0, math.inf, 1),
                                                   ("est", None, "ppm", "normal", 1.0, 1.0, 10.0, 1)])
     assert c.k < 1.96 and c.U == pytest.approx(c.k * c.u_c)
+
+
+def test_repeatability_from_a_units_history():
+    """Earlier results (field units in the database) -> SI, flat over the names; fewer than two: None."""
+    from inscal.lab.model import Parameter
+
+    def cal(bias_ug, sf_ppm):
+        return types.SimpleNamespace(parameters={
+            "accel_bias": Parameter("accel_bias", "ug", np.array(bias_ug), np.full(3, 0.5), None, ("x", "y", "z")),
+            "gyro_scale_factor": Parameter("gyro_scale_factor", "ppm", np.array(sf_ppm), np.full(3, 1.0), None,
+                                           ("x", "y", "z"))})
+
+    cals = [cal([10, 0, 5], [1, 2, 3]), cal([12, 0, 5], [1, 2, 3]), cal([11, 0, 5], [1, 2, 6])]
+    u, dof = gum.repeatability_of(cals, ("gyro_scale_factor", "accel_bias"))
+    assert dof == 2
+    ug = 1e-6 * 9.80665
+    assert u == pytest.approx([0, 0, math.sqrt(3.0 - 1.0) * 1e-6, math.sqrt(1.0 - 0.25) * ug, 0, 0], abs=1e-15)
+    assert gum.repeatability_of(cals[:1], ("accel_bias",)) is None
