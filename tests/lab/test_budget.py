@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy import stats
+from scipy.spatial.transform import Rotation
 
 from inscal.calibrate import calibrate, window_means
 from inscal.core.attitude import dcm_from_euler
@@ -163,7 +164,6 @@ def test_common_tilt_is_a_mounting_attitude_change(n25):
     """A wobble tilt t (ENU) that is the same at every stop turns the whole table: the base attitude
     becomes ``(I + [t x]) C_b^n`` and the IMU errors stay; expected mounting angles by inverting the
     Euler angles of that matrix (scipy, not the package's own code)."""
-    from scipy.spatial.transform import Rotation
 
     _, ws, r, geo, x = n25
     x0 = x(ws)

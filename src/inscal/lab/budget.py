@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
+from scipy.optimize import brentq
 
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS
@@ -176,7 +177,6 @@ def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
     JCGM 101 on the linear model): the normal contributions combine into one normal of sigma ``s_N``;
     the others (``(distribution, half-width in y)``) are convolved on a grid (exact bin masses of their
     CDFs); ``P(|y| <= q) = p`` is solved and ``k = q / u_c``.  ``lines`` = ``(distribution, u_i(y))``."""
-    from scipy.optimize import brentq
 
     s2 = sum(u * u for d, u in lines if d == "normal")
     other = [(d, u * {"rectangular": math.sqrt(3.0), "triangular": math.sqrt(6.0), "arcsine": math.sqrt(2.0)}[d])
