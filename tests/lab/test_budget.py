@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import types
-from dataclasses import replace
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from inscal.calibrate import calibrate, window_means
 from inscal.core.attitude import dcm_from_euler
-from inscal.core.earth import OMEGA_IE
+from inscal.core.earth import OMEGA_IE, Site
 from inscal.lab import budget as gum
 from inscal.lab import sensitivity as S
 from inscal.lab.station import INPUTS
@@ -210,3 +210,24 @@ def test_repeatability_from_a_units_history():
     ug = 1e-6 * 9.80665
     assert u == pytest.approx([0, 0, math.sqrt(3.0 - 1.0) * 1e-6, math.sqrt(1.0 - 0.25) * ug, 0, 0], abs=1e-15)
     assert gum.repeatability_of(cals[:1], ("accel_bias",)) is None
+
+
+def test_the_filters_belief_route():
+    """The filter methods' route: the site's gravity, latitude and height and the clock moved into what the
+    estimator reads (the truth moves the other way), the gravity held at its value when the latitude moves."""
+    site = Site(math.radians(30.0), 1.0, 10.0)
+
+    @dataclass
+    class Rec:
+        site: Site
+        rate_hz: float
+        time: np.ndarray
+
+    r = Rec(site, 100.0, np.arange(5) / 100.0)
+    b = S.believe_record(r, S.Deviation(gravity=1e-5, latitude=1e-6, time_base=2e-6))
+    assert b.site.gravity == pytest.approx(site.gravity - 1e-5, abs=1e-12)
+    assert b.site.latitude == site.latitude - 1e-6 and b.rate_hz == pytest.approx(100.0 * (1 + 2e-6))
+    assert b.time[1] == pytest.approx(0.01 / (1 + 2e-6))
+    h = S.believe_record(r, S.Deviation(height=100.0))  # free-air gradient, about -0.3086 mGal/m
+    assert (site.gravity - h.site.gravity) / 100.0 == pytest.approx(-3.086e-6, rel=2e-3)
+    assert r.site is site  # the record itself is not changed

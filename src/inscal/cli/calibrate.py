@@ -85,12 +85,12 @@ def station_description(station: str | None, method: str):
     name; refused with one line when it cannot be read or the method has no budget."""
     if station is None or not station.lower().endswith(".toml"):
         return None
-    from inscal.lab.sensitivity import WINDOW_METHODS
+    from inscal.lab.sensitivity import BUDGET_METHODS
     from inscal.lab.station import StationError, read_station
 
-    if method not in WINDOW_METHODS:
-        raise CliError(f"--station {station}: an uncertainty budget needs a window-mean method "
-                       f"({', '.join(WINDOW_METHODS)}), not {method}")
+    if method not in BUDGET_METHODS:
+        raise CliError(f"--station {station}: an uncertainty budget needs one of the methods "
+                       f"{', '.join(BUDGET_METHODS)}, not {method}")
     try:
         return read_station(station)
     except StationError as exc:
@@ -192,7 +192,7 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     except RecordError as exc:
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
-    budget = None if station is None else _budget(res, station, lab_db)
+    budget = None if station is None else _budget(res, station, lab_db, rec, setup)
     try:
         with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
             if lab_db is not None:
@@ -211,12 +211,21 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     return report
 
 
-def _budget(res, station, lab_db: dict | None) -> dict:
+def _budget(res, station, lab_db: dict | None, rec, setup) -> dict:
     """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.lab.sensitivity.calibration_budget`),
     with the repeatability of the unit's earlier results of the method when the database holds two or more;
-    kept in ``lab_db`` to be stored with the result."""
+    kept in ``lab_db`` to be stored with the result.  A filter method's differences rerun it with the state
+    set and the noise it used."""
     from inscal.lab.budget import repeatability_of
-    from inscal.lab.sensitivity import calibration_budget
+    from inscal.core import units
+    from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
+
+    opts = {}
+    if res.method in FILTER_METHODS:
+        d = res.diagnostics
+        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": str(d["states"]),
+                "arw": units.to_si(d["noise"]["arw_deg_sqrt_h"], "deg/sqrt(h)"),
+                "vrw": units.to_si(d["noise"]["vrw_ug_sqrt_hz"], "ug/sqrt(Hz)")}
 
     rep = None
     if lab_db is not None:
@@ -224,7 +233,7 @@ def _budget(res, station, lab_db: dict | None) -> dict:
 
         rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
     try:
-        b = calibration_budget(res, station, rep).to_dict()
+        b = calibration_budget(res, station, rep, record=rec, **opts).to_dict()
     except ValueError as exc:
         raise CliError(f"--station: no uncertainty budget: {exc}") from None
     if lab_db is not None:

@@ -243,7 +243,8 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
            coverage: float = COVERAGE, notes=()) -> Budget:
     """The budget of a calibration: ``names`` the estimated parameters, ``values_si`` / ``sigma_si`` their
     flat estimate and 1 sigma (SI), ``glob`` / ``per_stop`` the coefficients of
-    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI."""
+    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI.  A component
+    whose sigma is NaN (held fixed by the method) has no budget."""
     notes = list(notes) + [f"{k}: {v}" for k, v in NOT_PROPAGATED.items()]
     comps, i = [], 0
     for name in names:
@@ -251,6 +252,9 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
         punit = PARAMETERS[name][3]
         pf = float(units.to_si(1.0, punit))
         for j in range(int(np.prod(shape)) if shape else 1):
+            if not np.isfinite(sigma_si[i]):  # held fixed (a frame convention, unobservable): no uncertainty
+                i += 1
+                continue
             lines = [(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof, 1)]
             for key, inp in station.inputs.items():
                 if key in NOT_PROPAGATED:

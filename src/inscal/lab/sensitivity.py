@@ -43,6 +43,8 @@ from inscal.lab.station import INPUTS
 
 #: finite-difference steps of the inputs (SI): well above rounding, well inside the linear range
 STEPS = {"angle": 2e-5, "dimensionless": 2e-5, "accel": 2e-4, "length": 10.0}
+#: the steps of the filter methods' differences (SI): 100 mGal, 100 ppm, 20 arcsec, 100 m
+FILTER_STEPS = {"accel": 1e-3, "dimensionless": 1e-4, "angle": 1e-4, "length": 100.0}
 #: samples per degree of sweep when a turning window's mean input is averaged (midpoint rule)
 SAMPLES_PER_DEG = 2.0
 #: the inputs whose coefficients :func:`sensitivities` computes by finite differences
@@ -204,30 +206,79 @@ def sensitivities(ws: WindowSet, geo: Geometry, x: Callable[[WindowSet], np.ndar
 
 #: the methods whose budget this module computes: those that read window means
 WINDOW_METHODS = ("n25", "six-position", "twelve-position", "joint")
+#: the systematic filter (S16): its budget from the record (:func:`record_sensitivities`)
+FILTER_METHODS = ("systematic51", "systematic30")
+#: every method with a budget
+BUDGET_METHODS = WINDOW_METHODS + FILTER_METHODS
+#: what the budget of a filter method says of the table's inputs
+FILTER_TABLE_NOTE = ("table_angle, table_rate, axis_wobble, axis_nonorthogonality, encoder_resolution: the systematic "
+                     "filter reads neither the table's angles nor its rates (its observations are the dwells' zero "
+                     "velocity), so they enter with sensitivity 0 (bench/budget_s16.py moves every stop of a "
+                     "simulated path to check it)")
 
 
-def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, windows=None, **options):
+def believe_record(record, dev: Deviation):
+    """The record as the estimator would read it with the site and clock errors ``dev`` moved into its
+    belief (gravity, latitude and height of the site, the rate of the time base); the filter methods'
+    route.  The gravity stays the site's value when the latitude or height moves (their own inputs)."""
+    site = record.site
+    g = site.gravity - dev.gravity
+    if dev.height:  # a height error moves the true gravity by the model's free-air gradient
+        g -= site.gravity_model.g(site.latitude, site.height + dev.height) - site.gravity
+    new_site = Site(site.latitude - dev.latitude, site.longitude, site.height).with_gravity(g) \
+        if (dev.gravity or dev.latitude or dev.height) else site
+    f = 1.0 + dev.time_base
+    return replace(record, site=new_site, rate_hz=record.rate_hz * f, time=np.asarray(record.time) / f)
+
+
+def record_sensitivities(record, x: Callable, kinds: dict[str, str], nwin: int = 1) -> Sensitivities:
+    """Central differences of a filter method's estimate ``x(record)`` through :func:`believe_record`
+    for the site and clock inputs; the table's inputs are zero (:data:`FILTER_TABLE_NOTE`)."""
+    glob = {}
+    for name in GLOBAL_INPUTS:
+        if name in ("table_rate", "axis_nonorthogonality"):
+            continue
+        h = FILTER_STEPS[kinds[name]]  # the filter iterates to a tolerance: steps well above its noise
+        glob[name] = (x(believe_record(record, Deviation(**{name: h})))
+                      - x(believe_record(record, Deviation(**{name: -h})))) / (2 * h)
+    n = next(iter(glob.values())).size
+    glob.update({k: np.zeros(n) for k in ("table_rate", "axis_nonorthogonality")})
+    return Sensitivities(glob, {k: np.zeros((nwin, 2, n)) for k in STOP_INPUTS})
+
+
+def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, windows=None, record=None,
+                       **options):
     """The :class:`inscal.lab.budget.Budget` of a window-mean calibration ``result`` (it keeps its
     windows) at ``station``: coefficients by :func:`sensitivities` at the estimated geometry, the
     estimator's sigma as Type A with the fit's dof, ``rep`` = ``(u_rep, dof)`` (SI) or None;
-    ``windows``: as :func:`sensitivities`; ``options``: the method's options the result was computed with."""
-    if result.method not in WINDOW_METHODS or result.windows is None:
-        raise ValueError(f"an uncertainty budget needs a window-mean method ({', '.join(WINDOW_METHODS)}), "
-                         f"not {result.method}")
+    ``windows``: as :func:`sensitivities`; ``options``: the method's options the result was computed with.
+    A filter method (:data:`FILTER_METHODS`) needs its ``record``: :func:`record_sensitivities` (the filter's
+    sigma is Type A with infinite dof: it is the propagated noise of the whole record)."""
     names = result.estimated
-    ws = result.windows
-    geo = Geometry.of(result)
-    x = estimator(result.method, names, **options)
     kinds = {k: v.kind for k, v in INPUTS.items()}
-    sens = sensitivities(ws, geo, x, kinds, windows=windows)
+    notes = []
+    if result.method in FILTER_METHODS and record is not None:
+        def xr(rec):
+            r = calibrate(rec, result.method, **options)
+            return flatten(r.imu, r.gimbal, names)
+        sens = record_sensitivities(record, xr, kinds)
+        notes.append(FILTER_TABLE_NOTE)
+        site = record.site
+    elif result.method in WINDOW_METHODS and result.windows is not None:
+        ws = result.windows
+        sens = sensitivities(ws, Geometry.of(result), estimator(result.method, names, **options), kinds,
+                             windows=windows)
+        site = ws.site
+    else:
+        raise ValueError(f"an uncertainty budget needs a window-mean method ({', '.join(WINDOW_METHODS)}) or the "
+                         f"record of a filter method ({', '.join(FILTER_METHODS)}), not {result.method}")
     if "gimbal_nonorthogonality" in names:  # the method estimates the table's dth: its error, not its value
         sens.glob["axis_nonorthogonality"][nparams(names[:names.index("gimbal_nonorthogonality")])] -= 1.0
     values = flatten(result.imu, result.gimbal, names)
     sigma = np.concatenate([np.atleast_1d(np.asarray(result.sigma.get(n, np.nan), float)).ravel() for n in names])
     fit = result.fit or {}
-    dof = float(fit.get("dof") or math.inf)
-    notes = []
-    g_used, g_station = ws.site.gravity, station["gravity"].value
+    dof = float(fit.get("dof") or math.inf) if result.method in WINDOW_METHODS else math.inf
+    g_used, g_station = site.gravity, station["gravity"].value
     if abs(g_used - g_station) > 3 * max(station["gravity"].u, 1e-12):
         notes.append(f"gravity: the calibration used {g_used:.6f} m/s^2, the station states {g_station:.6f} m/s^2 "
                      f"(more than 3 u apart)")
