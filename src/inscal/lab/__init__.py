@@ -26,6 +26,11 @@ Calibrating records into the database (these load the estimators, so they are im
 :mod:`inscal.lab.calibration` (one record, as ``inscal calibrate`` does it) and :mod:`inscal.lab.batch`
 (many records on Dask, resumable: ``inscal batch``).
 
+The uncertainty budget of a calibration (GUM): the station's description :mod:`inscal.lab.station`, the
+arithmetic :mod:`inscal.lab.budget` and the sensitivity coefficients by finite differences through the
+estimators :mod:`inscal.lab.sensitivity` (it loads the estimators: imported on its own); stored with the
+result (``record_calibration(..., budget=...)``, :func:`get_budget`).
+
 The names above load their module on first use (PEP 562): a command that imports
 :mod:`inscal.lab.calibration` or :mod:`inscal.lab.record` to calibrate without a database does not pay
 for SQLAlchemy and Alembic (0.3 s of every ``inscal calibrate``'s start).
