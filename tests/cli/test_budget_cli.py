@@ -141,6 +141,6 @@ def test_bad_station_files_are_one_line(setup, tmp_path, edit, phrase):
 
 
 def test_a_method_without_a_budget_is_refused(setup, tmp_path):
-    one_line(run("calibrate", setup[2][0], "-m", "systematic30", "-o", tmp_path / "p.toml", "--station", STATION),
-             "needs a window-mean method")
+    one_line(run("calibrate", setup[2][0], "-m", "unified", "-o", tmp_path / "p.toml", "--station", STATION),
+             "an uncertainty budget needs one of the methods n25, six-position")
     assert not (tmp_path / "p.toml").exists()
