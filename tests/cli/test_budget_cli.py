@@ -117,6 +117,11 @@ def test_budget_stored_printed_and_certified(setup, two_windows):
         assert f"data-exact='{c['U']!r}'" in cells and f"data-exact='{c['k']!r}'" in cells
         assert f"data-key='U' data-exact='{c['U']!r}'" in page
     assert "5a. Uncertainty budget" in page and "U (95 %)" in page
+    # the command writes the same: its JSON copy holds the database's budget
+    r = run("db", "certificate", "U1", "--db", db, "--out", tmp / "cert", "--no-pdf", "--json")
+    assert r.exit_code == 0, r.stderr
+    cert = json.loads((tmp / "cert" / Path(json.loads(r.stdout)["json"]).name).read_text())
+    assert cert["budget"] == json.loads(json.dumps(stored)) and cert["results"]["coverage_probability"] == "95 %"
 
 
 @pytest.mark.parametrize("edit, phrase", [
