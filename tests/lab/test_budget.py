@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import types
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -13,11 +13,15 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from inscal.calibrate import calibrate, window_means
+from inscal.calibrate.result import flatten
 from inscal.core.attitude import dcm_from_euler
 from inscal.core.earth import OMEGA_IE, Site
+from inscal.core.error_model import GimbalErrors, ImuNoise
 from inscal.lab import budget as gum
 from inscal.lab import sensitivity as S
 from inscal.lab.station import INPUTS
+from inscal.sim import scenarios
+from inscal.sim.simulate import simulate
 
 ARCSEC = math.pi / 180 / 3600
 NAMES = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
@@ -231,3 +235,31 @@ def test_the_filters_belief_route():
     h = S.believe_record(r, S.Deviation(height=100.0))  # free-air gradient, about -0.3086 mGal/m
     assert (site.gravity - h.site.gravity) / 100.0 == pytest.approx(-3.086e-6, rel=2e-3)
     assert r.site is site  # the record itself is not changed
+
+
+def test_the_window_route_equals_the_simulator():
+    """The truth route against the simulator, which shares no code with it: the site's gravity and latitude
+    and the table's non-orthogonality put into a simulated n25 record's truth, and an inner-axis reading
+    off by e at every moment (the path started e further, the recorded angles the nominal ones), give the
+    N25 estimate the window means' perturbation gives, to rounding."""
+    sc = replace(scenarios.build("n25", rate_hz=20.0), noise=ImuNoise())
+
+    def est(rec):
+        ws = window_means(rec)
+        r = calibrate(ws, "n25", uncertainty=False)
+        return ws, r, flatten(r.imu, r.gimbal, r.estimated)
+
+    ws0, r0, x0 = est(simulate(sc).to_record())
+    geo, x = S.Geometry.of(r0), S.estimator("n25", r0.estimated)
+    dg, dl, dd, e = 2e-4, 1e-4, 2e-5, 2e-5
+    site = sc.site
+    true = replace(sc, site=Site(site.latitude + dl, site.longitude, site.height).with_gravity(site.gravity + dg),
+                   gimbal=GimbalErrors(sc.gimbal.nonorthogonality + dd, sc.gimbal.mount_attitude))
+    _, _, x1 = est(replace(simulate(true).to_record(), site=site))
+    xp = x(S.perturb(ws0, geo, S.Deviation(gravity=dg, latitude=dl, nonorthogonality=dd)))
+    assert np.abs(x1 - x0).max() > 1e-5 and np.abs(x1 - xp).max() < 1e-12
+    turned = replace(sc, path=replace(sc.path, initial=(sc.path.initial[0], sc.path.initial[1] + e)))
+    rec = simulate(turned).to_record()
+    _, _, x2 = est(replace(rec, gimbal=rec.gimbal - np.array([0.0, e])))
+    xq = x(S.perturb(ws0, geo, S.Deviation(angle=np.tile([0.0, e], (len(ws0.windows), 1)))))
+    assert np.abs(x2 - x0).max() > 1e-5 and np.abs(x2 - xq).max() < 1e-12
