@@ -19,6 +19,7 @@ from inscal.core.earth import OMEGA_IE, Site
 from inscal.core.error_model import GimbalErrors, ImuNoise
 from inscal.lab import budget as gum
 from inscal.lab import sensitivity as S
+from inscal.lab.model import Parameter
 from inscal.lab.station import INPUTS
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
@@ -200,7 +201,6 @@ def test_coverage_factor_of_non_normal_outputs():
 
 def test_repeatability_from_a_units_history():
     """Earlier results (field units in the database) -> SI, flat over the names; fewer than two: None."""
-    from inscal.lab.model import Parameter
 
     def cal(bias_ug, sf_ppm):
         return types.SimpleNamespace(parameters={
