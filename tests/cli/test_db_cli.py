@@ -177,7 +177,7 @@ def test_bad_input_is_one_line_and_writes_nothing(small_db):
     assert sorted(p.name for p in tmp.iterdir()) == before
     with lab.open_database(db) as d:
         assert lab.table_counts(d) == {"units": 1, "sessions": 1, "results": 1, "parameters": 3, "current": 1,
-                                          "result_keys": 1, "publications": 0}
+                                          "result_keys": 1, "publications": 0, "stations": 0, "budgets": 0}
 
 
 def test_db_commands_and_their_json(small_db, monkeypatch):

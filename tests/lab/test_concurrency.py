@@ -67,7 +67,7 @@ def test_four_writers_lose_nothing(db_url, synthetic_text):
     with lab.open_database(db_url) as db:
         assert lab.table_counts(db) == {"units": 1, "sessions": RECORDS, "results": total, "parameters": total * 6,
                                         "current": total, "result_keys": total,
-                                        "publications": 0}
+                                        "publications": 0, "stations": 0, "budgets": 0}
         cals = lab.calibrations(db, "SHARED")
         assert sorted(c.id for c in cals) == ids
         seen = {(c.options["writer"], c.options["i"]) for c in cals}

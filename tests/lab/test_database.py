@@ -56,7 +56,7 @@ def test_urls_and_refusals(tmp_path, monkeypatch):
     # created at the newest schema, idempotent
     db, created = lab.init_database(p)
     with db:
-        assert created and lab.revision_of(db) == lab.head_revision() and lab.revision_number(lab.head_revision()) == 4
+        assert created and lab.revision_of(db) == lab.head_revision() and lab.revision_number(lab.head_revision()) == 5
     db, created = lab.init_database(p)
     db.close()
     assert not created
@@ -150,7 +150,7 @@ def test_tables_are_append_only(db_url, synthetic_text):
             with pytest.raises(sa.exc.DBAPIError, match="append-only"), db.engine.begin() as conn:
                 conn.exec_driver_sql(stmt)
         assert lab.table_counts(db) == {"units": 1, "sessions": 1, "results": 1, "parameters": 7, "current": 1,
-                                          "result_keys": 1, "publications": 0}
+                                          "result_keys": 1, "publications": 0, "stations": 0, "budgets": 0}
 
 
 def test_a_failure_inside_the_transaction_leaves_no_half_result(tmp_path, synthetic_text, monkeypatch):
@@ -168,7 +168,7 @@ def test_a_failure_inside_the_transaction_leaves_no_half_result(tmp_path, synthe
         with pytest.raises(RuntimeError, match="disk on fire"):
             lab.record_calibration(db, "U1", synthetic_text(VALUES, SIGMA), session())
         assert lab.table_counts(db) == {"units": 1, "sessions": 0, "results": 0, "parameters": 0, "current": 0,
-                                          "result_keys": 0, "publications": 0}
+                                          "result_keys": 0, "publications": 0, "stations": 0, "budgets": 0}
 
 
 def test_covariance_of_a_result():
@@ -201,7 +201,7 @@ def test_the_commands_on_both_backends(db_url, tmp_path, synthetic_text):
     r = run("db", "show", "U1")
     assert r.exit_code == 2 and r.stderr.startswith("inscal: error: ") and r.stderr.count("\n") == 1
     r = run("db", "init", "--json")
-    assert r.exit_code == 0 and json.loads(r.stdout)["created"] and json.loads(r.stdout)["schema"] == 4
+    assert r.exit_code == 0 and json.loads(r.stdout)["created"] and json.loads(r.stdout)["schema"] == 5
     assert run("db", "add", "U1", "--model", "FOG").exit_code == 0
     text = synthetic_text(VALUES, SIGMA, data_hash="sha256:" + "ab" * 32)
     (tmp_path / "p.toml").write_text(text, encoding="utf-8")

@@ -74,7 +74,7 @@ def test_v1_database_upgrades_keeping_every_row(db_url):
         assert {t: len(r) for t, r in before.items()} == {"units": 2, "sessions": 3, "results": 4, "parameters": 12,
                                                           "current": 4}
     # this inscal refuses it, saying how to upgrade; nothing is changed by the refusal
-    with pytest.raises(DatabaseError, match=r"schema v1 \(0001_initial\) is older than this inscal's v4 .*inscal db "
+    with pytest.raises(DatabaseError, match=r"schema v1 \(0001_initial\) is older than this inscal's v5 .*inscal db "
                                             r"upgrade --db"):
         lab.open_database(db_url)
     err = one_line(runner.invoke(app, ["db", "list", "--db", db_url]))
@@ -82,9 +82,9 @@ def test_v1_database_upgrades_keeping_every_row(db_url):
     r = runner.invoke(app, ["db", "upgrade", "--db", db_url, "--json"])
     assert r.exit_code == 0, r.stderr
     rep = json.loads(r.stdout)
-    assert (rep["from"], rep["to"], rep["schema_from"], rep["schema_to"]) == (V1, lab.head_revision(), 1, 4)
+    assert (rep["from"], rep["to"], rep["schema_from"], rep["schema_to"]) == (V1, lab.head_revision(), 1, 5)
     assert rep["rows"] == {"units": 2, "sessions": 3, "results": 4, "parameters": 12, "current": 4, "result_keys": 4,
-                           "publications": 0}
+                           "publications": 0, "stations": 0, "budgets": 0}
     with lab.open_database(db_url) as db:
         assert dump(db) == before  # every row, every value kept
         with db.engine.connect() as conn:
@@ -95,7 +95,7 @@ def test_v1_database_upgrades_keeping_every_row(db_url):
         assert cals[0].parameters["accel_bias"].value.tolist() == [10.0, 11.0, 12.0]
         assert lab.current_calibration(db, "FOG-2").id == 3
     r = runner.invoke(app, ["db", "upgrade", "--db", db_url])
-    assert r.exit_code == 0 and "already at schema v4" in r.stdout
+    assert r.exit_code == 0 and "already at schema v5" in r.stdout
 
 
 def test_a_database_of_a_newer_inscal_is_refused(db_url):

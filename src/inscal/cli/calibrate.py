@@ -68,15 +68,36 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
-    lab_db = _open_lab(db, serial, station, operator, date, temperature_c, supersedes, data, setup.options(), wait)
+    desc = station_description(station, method)
+    if desc is not None:
+        station = desc.name  # the session's station: the description's name
+    lab_db = _open_lab(db, serial, station if desc is None or serial is not None else None, operator, date,
+                       temperature_c, supersedes, data, setup.options(), wait)
     if lab_db is None:
-        return _calibrate(data, setup, out, force, plots, lab_db)
+        return _calibrate(data, setup, out, force, plots, lab_db, desc)
     try:
-        return _calibrate(data, setup, out, force, plots, lab_db)
+        return _calibrate(data, setup, out, force, plots, lab_db, desc)
     finally:  # committed with the files when the command's output unit publishes them, else rolled back
         from inscal.io.files import after_unit
 
         after_unit(lambda: (lab_db["staged"].close() if "staged" in lab_db else None, lab_db["db"].close()))
+
+
+def station_description(station: str | None, method: str):
+    """The station description of ``--station FILE.toml`` (:mod:`inscal.lab.station`), None for a station's
+    name; refused with one line when it cannot be read or the method has no budget."""
+    if station is None or not station.lower().endswith(".toml"):
+        return None
+    from inscal.lab.sensitivity import BUDGET_METHODS
+    from inscal.lab.station import StationError, read_station
+
+    if method not in BUDGET_METHODS:
+        raise CliError(f"--station {station}: an uncertainty budget needs one of the methods "
+                       f"{', '.join(BUDGET_METHODS)}, not {method}")
+    try:
+        return read_station(station)
+    except StationError as exc:
+        raise CliError(str(exc)) from None
 
 
 def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
@@ -149,7 +170,7 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
             "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
 
 
-def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None) -> dict:
+def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None, station=None) -> dict:
     """The calibration of :func:`run_calibrate` once its options are checked (the record's own part:
     :func:`inscal.lab.calibration.calibrate_record`, which a batch of calibrations runs too)."""
     from inscal import io
@@ -175,11 +196,14 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     except RecordError as exc:
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
+    budget = None if station is None else _budget(res, station, lab_db, rec, setup)
     try:
         with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
             if lab_db is not None:
                 lab_db["unit"] = unit
             report = _write_outputs(data, out, force, plots, res, rec, meta, enc_report, systematic, lab_db)
+            if budget is not None:
+                report["budget"] = budget
         if lab_db is not None:
             report["db"] = _recorded(lab_db)
     except FileExistsError as exc:  # a file that appeared at an output while this ran is not replaced
@@ -189,6 +213,36 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
                            f"{lab_db['serial']} --result {rid} --out FILE writes its parameter file)") from None
         raise CliError(str(exc)) from None
     return report
+
+
+def _budget(res, station, lab_db: dict | None, rec, setup) -> dict:
+    """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.lab.sensitivity.calibration_budget`),
+    with the repeatability of the unit's earlier results of the method when the database holds two or more;
+    kept in ``lab_db`` to be stored with the result.  A filter method's differences rerun it with the state
+    set and the noise it used."""
+    from inscal.lab.budget import repeatability_of
+    from inscal.core import units
+    from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
+
+    opts = {}
+    if res.method in FILTER_METHODS:
+        d = res.diagnostics
+        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": str(d["states"]),
+                "arw": units.to_si(d["noise"]["arw_deg_sqrt_h"], "deg/sqrt(h)"),
+                "vrw": units.to_si(d["noise"]["vrw_ug_sqrt_hz"], "ug/sqrt(Hz)")}
+
+    rep = None
+    if lab_db is not None:
+        from inscal import lab
+
+        rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
+    try:
+        b = calibration_budget(res, station, rep, record=rec, **opts).to_dict()
+    except ValueError as exc:
+        raise CliError(f"--station: no uncertainty budget: {exc}") from None
+    if lab_db is not None:
+        lab_db["budget"] = (station.to_dict(), b)
+    return b
 
 
 def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,
@@ -268,7 +322,7 @@ def _stage(lab_db: dict, data: Path, rec, res, text: str) -> None:
                                           temperature_c=lab_db["temperature_c"], site=rec.site)
         staged = lab.stage_calibration(d, lab_db["serial"], text, session, options=lab_db["options"],
                                        covariance=lab.covariance_of(res), supersedes=lab_db["supersedes"],
-                                       date_given=lab_db["date"] is not None)
+                                       date_given=lab_db["date"] is not None, budget=lab_db.get("budget"))
     except (lab.DatabaseError, ParamFileError, ValueError, sqlalchemy.exc.SQLAlchemyError) as exc:
         msg = str(getattr(exc, "orig", None) or exc).split("\n")[0]
         raise CliError(f"--db {d.where}: not recorded, and {data} not calibrated into a file either: {msg}") from None
@@ -392,7 +446,9 @@ def register(app: typer.Typer) -> None:
                                    "calibration of this unit (registered with inscal db add)"),
         db: str = typer.Option(None, "--db", help="with --serial: the calibration database, a file (SQLite) or "
                                "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
-        station: str = typer.Option(None, "--station", help="with --serial: the turntable / station of the run"),
+        station: str = typer.Option(None, "--station", help="the turntable / station of the run: its name (with "
+                                    "--serial), or a station description FILE.toml (window-mean methods): the GUM "
+                                    "uncertainty budget is computed, printed and, with --serial, stored with the result"),
         operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "
                                  "time (UTC; default: the record's creation time)"),
@@ -475,6 +531,11 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"  plot: {p}")
         for n in rep["notes"]:
             typer.echo(f"  note: {n}")
+        if "budget" in rep:
+            from inscal.report.budget import budget_lines
+
+            for line in budget_lines(rep["budget"], full=False):
+                typer.echo("  " + line)
         if "db" in rep:
             r = rep["db"]
             typer.echo(f"  recorded in {r['db']}: {r['serial']} result {r['result_id']}"

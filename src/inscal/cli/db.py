@@ -231,6 +231,7 @@ def run_certificate(serial: str, out: Path, db: str | None, result: int | None, 
     with open_db(db, readonly=True) as d:
         cal = pick_calibration(d, serial, result)
         unit = lab.get_unit(d, serial)
+        budget = lab.get_budget(d, cal.id)
     if utc_naive(when) < cal.date:
         raise CliError(f"--issued {utc_naive(when):%Y-%m-%d %H:%M} UTC lies before the calibration it certifies "
                        f"(result {cal.id}, record of {cal.date:%Y-%m-%d %H:%M} UTC): a certificate is issued after it")
@@ -243,7 +244,7 @@ def run_certificate(serial: str, out: Path, db: str | None, result: int | None, 
         for p in paths.values():
             check_not_database(p, db)
             check_output(p, force)
-    doc = certificate_data(cal, unit, issued=when, laboratory=laboratory, authorized_by=authorized_by)
+    doc = certificate_data(cal, unit, issued=when, laboratory=laboratory, authorized_by=authorized_by, budget=budget)
     page = certificate_html(doc)
     data = None
     if pdf:
@@ -474,6 +475,30 @@ def show_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
         print_json(cal.to_json() | {"db": d.where})
         return
     for line in show_lines(cal, covariance):
+        typer.echo(line)
+
+
+@db_app.command("budget")
+def budget_cmd(serial: str = typer.Argument(..., help="the unit's serial number"),
+               db: str = typer.Option(None, "--db", help=DB_HELP),
+               result: int = typer.Option(None, "--result", help="this result id (default: the current calibration)"),
+               json_: bool = typer.Option(False, "--json", help="print the budget and its station as JSON")):
+    """The GUM uncertainty budget stored with a calibration (``inscal calibrate --station FILE.toml``)."""
+    from inscal import lab
+    from inscal.report.budget import budget_lines
+
+    with db_errors():
+        with open_db(db, readonly=True) as d:
+            cal = pick_calibration(d, serial, result)
+            got = lab.get_budget(d, cal.id)
+    if got is None:
+        raise fail(f"result {cal.id} of {serial} was recorded without a station description: no uncertainty budget "
+                   "(inscal calibrate ... --station FILE.toml --serial ... records one)")
+    if json_:
+        print_json(got | {"db": d.where, "serial": serial})
+        return
+    typer.echo(f"{serial} result {cal.id} ({cal.method}, {cal.date:%Y-%m-%d})")
+    for line in budget_lines(got["budget"]):
         typer.echo(line)
 
 

@@ -220,6 +220,23 @@ def to_celsius(value, unit: str):
     return np.asarray(value, dtype=float) * scale + offset
 
 
+def temperature_step_to_si(value, unit: str):
+    """A temperature *difference* (a stability, a step) given in ``unit`` (degC, K, degF) in kelvin
+    (= degrees Celsius): the offset of the scale does not enter a difference."""
+    scale, _ = TEMPERATURE_UNITS[temperature_unit(unit)]
+    if isinstance(value, (int, float)):
+        return value * scale
+    return np.asarray(value, dtype=float) * scale
+
+
+def temperature_step_from_si(value, unit: str):
+    """Inverse of :func:`temperature_step_to_si`: a difference in kelvin in ``unit``."""
+    scale, _ = TEMPERATURE_UNITS[temperature_unit(unit)]
+    if isinstance(value, (int, float)):
+        return value / scale
+    return np.asarray(value, dtype=float) / scale
+
+
 def per_degree_unit(unit: str, order: int) -> str:
     """The field unit of a thermal coefficient of ``order`` (``ppm`` -> ``ppm/degC``, ``ppm/degC^2``)."""
     return f"{unit}/degC" if order == 1 else f"{unit}/degC^{order}"

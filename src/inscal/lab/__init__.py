@@ -26,6 +26,11 @@ Calibrating records into the database (these load the estimators, so they are im
 :mod:`inscal.lab.calibration` (one record, as ``inscal calibrate`` does it) and :mod:`inscal.lab.batch`
 (many records on Dask, resumable: ``inscal batch``).
 
+The uncertainty budget of a calibration (GUM): the station's description :mod:`inscal.lab.station`, the
+arithmetic :mod:`inscal.lab.budget` and the sensitivity coefficients by finite differences through the
+estimators :mod:`inscal.lab.sensitivity` (it loads the estimators: imported on its own); stored with the
+result (``record_calibration(..., budget=...)``, :func:`get_budget`).
+
 The names above load their module on first use (PEP 562): a command that imports
 :mod:`inscal.lab.calibration` or :mod:`inscal.lab.record` to calibrate without a database does not pay
 for SQLAlchemy and Alembic (0.3 s of every ``inscal calibrate``'s start).
@@ -84,6 +89,7 @@ EXPORTS = {
     "current_calibration": "inscal.lab.store",
     "find_calibration": "inscal.lab.store",
     "find_param_file": "inscal.lab.store",
+    "get_budget": "inscal.lab.store",
     "get_calibration": "inscal.lab.store",
     "get_unit": "inscal.lab.store",
     "list_units": "inscal.lab.store",
@@ -127,6 +133,7 @@ __all__ = [
     "find_calibration",
     "find_param_file",
     "fleet",
+    "get_budget",
     "get_calibration",
     "get_unit",
     "head_revision",
@@ -213,6 +220,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         current_calibration,
         find_calibration,
         find_param_file,
+        get_budget,
         get_calibration,
         get_unit,
         list_units,

@@ -17,6 +17,8 @@ The schema's history is in ``inscal/lab/migrations/`` (Alembic scripts): revisio
 (v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
 added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results;
 ``0004_publications`` (v4) added ``publications``, the journal of the files being published.
+``0005_budget`` (v5) added ``stations`` (a station description, :mod:`inscal.lab.station`) and
+``budgets`` (a result's uncertainty budget at a station, :mod:`inscal.lab.budget`).
 """
 
 from __future__ import annotations
@@ -127,5 +129,23 @@ publications = sa.Table(  # v4: the journal of the files a committed result is p
     sa.Index("ix_publications_result", "result_id"),
 )
 
+stations = sa.Table(  # v5: a station description as its file states it (field units), once per content
+    "stations", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("name", sa.String(200), nullable=False),
+    sa.Column("document", sa.JSON, nullable=False),  # Station.to_dict()
+    sa.Column("document_sha256", sa.String(80), nullable=False, unique=True),
+    sa.Column("recorded_at", sa.DateTime, nullable=False),
+)
+
+budgets = sa.Table(  # v5: the uncertainty budget of a result at a station (Budget.to_dict(), field units)
+    "budgets", metadata,
+    sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), primary_key=True, autoincrement=False),
+    sa.Column("station_id", sa.Integer, sa.ForeignKey("stations.id"), nullable=False),
+    sa.Column("coverage", sa.Float, nullable=False),
+    sa.Column("budget", sa.JSON, nullable=False),
+    sa.Column("recorded_at", sa.DateTime, nullable=False),
+)
+
 #: the tables, parents first (the order rows are copied or counted in)
-TABLES = (units, sessions, results, parameters, current, result_keys, publications)
+TABLES = (units, sessions, results, parameters, current, result_keys, publications, stations, budgets)

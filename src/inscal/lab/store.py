@@ -22,6 +22,8 @@ unit's current calibration unless ``make_current=False``.
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
+import json
 
 import numpy as np
 import sqlalchemy as sa
@@ -127,12 +129,13 @@ def _unit_id(conn, serial: str) -> int:
 
 def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False) -> int:
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False,
+                       budget: tuple[dict, dict] | None = None) -> int:
     """Record one calibration (see :func:`calibration_writer` for the arguments) in one transaction and return
     its id."""
     return write(db, calibration_writer(serial, param_text, session, options=options, covariance=covariance,
                                         supersedes=supersedes, make_current=make_current, date_given=date_given,
-                                        new_file=new_file))
+                                        new_file=new_file, budget=budget))
 
 
 def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
@@ -155,7 +158,8 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
 
 def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
-                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False):
+                       make_current: bool | None = None, date_given: bool = False, new_file: bool = False,
+                       budget: tuple[dict, dict] | None = None):
     """The transaction that records one calibration of unit ``serial`` (registered with :func:`add_unit`),
     ``fn(connection) -> result id`` for :func:`~inscal.lab.database.write`: ``param_text``, the parameter file exactly as written (parsed here for the
     parameters, fit and version); ``session``, its record (:func:`~inscal.lab.record.session_from_record`;
@@ -171,7 +175,9 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
     The same unit, record and options, unless superseding, is refused with :class:`AlreadyRecorded` by the
     unique key the insert itself takes (``result_keys``); ``new_file``: a parameter file already stored
     for the unit is refused too (``inscal db add`` of a file that ``inscal calibrate --serial`` recorded),
-    checked inside the same transaction.
+    checked inside the same transaction.  ``budget``: ``(station document, budget)`` (:meth:`Station.to_dict
+    <inscal.lab.station.Station.to_dict>`, :meth:`Budget.to_dict <inscal.lab.budget.Budget.to_dict>`), stored
+    with the result (:func:`write_budget`).
     Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
     nothing is recorded."""
     doc = parse_param_text(param_text)
@@ -238,6 +244,8 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
                 + (f"; --supersedes {old} records a new one in its place" if supersedes is None
                    else f", also superseding {supersedes}"), old)
         write_parameters(conn, rid, rows)
+        if budget is not None:
+            write_budget(conn, rid, *budget, stamp)
         current = make_current
         if current is None:
             cid = current_id(conn, uid)
@@ -273,6 +281,28 @@ def _notes(doc: dict) -> list[str]:
 def write_parameters(conn, result_id: int, rows: list[dict]) -> None:
     """Insert the parameter rows of result ``result_id`` (inside the caller's transaction)."""
     conn.execute(sa.insert(t.parameters), [{"result_id": result_id, **r} for r in rows])
+
+
+def write_budget(conn, result_id: int, station: dict, budget: dict, stamp: dt.datetime) -> None:
+    """Store a result's uncertainty budget and its station (the station once per content, by its sha256)."""
+    text = json.dumps(station, sort_keys=True, separators=(",", ":"))
+    sha = "sha256:" + hashlib.sha256(text.encode()).hexdigest()
+    name = str(station["station"]["name"])
+    check_text(name, "the station's name")
+    conn.execute(_insert_ignore(conn, t.stations, ["document_sha256"]).values(
+        name=name, document=station, document_sha256=sha, recorded_at=stamp))
+    sid = conn.execute(sa.select(t.stations.c.id).where(t.stations.c.document_sha256 == sha)).scalar_one()
+    conn.execute(sa.insert(t.budgets).values(result_id=result_id, station_id=sid, coverage=float(budget["coverage"]),
+                                             budget=budget, recorded_at=stamp))
+
+
+def get_budget(db: Database, result_id: int) -> dict | None:
+    """``{"result_id", "station", "budget"}`` of result ``result_id`` (the station's document and the
+    budget as stored, field units), None when it was recorded without a station."""
+    with read(db) as conn:
+        row = conn.execute(sa.select(t.budgets.c.budget, t.stations.c.document).join(
+            t.stations, t.stations.c.id == t.budgets.c.station_id).where(t.budgets.c.result_id == int(result_id))).first()
+    return None if row is None else {"result_id": int(result_id), "station": row.document, "budget": row.budget}
 
 
 def set_current(db: Database, serial: str, result_id: int) -> None:

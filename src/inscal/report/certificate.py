@@ -33,6 +33,7 @@ from pathlib import Path
 from inscal import __version__
 from inscal.calibrate.fit import P_INCONSISTENT
 from inscal.lab.model import Calibration, Unit, iso
+from inscal.report.budget import BUDGET_STATEMENT, budget_section
 from inscal.report.html import display_unit, escape, fmt_num
 
 #: what the JSON copy says it is
@@ -218,16 +219,35 @@ def result_rows(cal: Calibration) -> list[dict]:
     return rows
 
 
+def apply_budget(rows: list[dict], budget: dict) -> None:
+    """Each row's expanded uncertainty from the stored budget (``budget["components"]``): ``U`` with its
+    own ``k`` (95 %), the combined standard uncertainty, and the printed texts again."""
+    comps = {(c["parameter"], int(c["index"])): c for c in budget["components"]}
+    seen: dict[str, int] = {}
+    for r in rows:
+        i = seen[r["parameter"]] = seen.get(r["parameter"], -1) + 1
+        c = comps.get((r["parameter"], i))
+        if c is None or r["fixed"]:
+            continue
+        r.update({"expanded_uncertainty": c["U"], "coverage_factor": c["k"], "combined_standard_uncertainty": c["u_c"],
+                  "budget_label": c["label"]})
+        r["value_text"], r["expanded_uncertainty_text"] = expanded_texts(r["value"], c["U"])
+
+
 def certificate_data(cal: Calibration, unit: Unit | None = None, *, issued: dt.datetime,
-                     laboratory: str | None = None, authorized_by: str | None = None) -> dict:
+                     laboratory: str | None = None, authorized_by: str | None = None, budget: dict | None = None) -> dict:
     """The certificate of calibration ``cal`` as a JSON document (what the ``.json`` file holds and the
-    HTML shows): every number the database's, unrounded, and the printed text of each result."""
+    HTML shows): every number the database's, unrounded, and the printed text of each result.  ``budget``:
+    the result's stored uncertainty budget (:func:`inscal.lab.get_budget`: ``{"station", "budget"}``); then
+    each U is the budget's (its own k for 95 %) and the certificate shows the budget."""
     s = cal.session
     description, refs = METHODS.get(cal.method, HAND_METHOD)
     consistent = fit_verdict(cal)
     table = cal.fit if isinstance(cal.fit, dict) else {}
     ratio = cal.fit_chi2 / cal.fit_dof if cal.fit_chi2 is not None and cal.fit_dof else None
     rows = result_rows(cal)
+    if budget is not None:
+        apply_budget(rows, budget["budget"])
     scaled = any(r["standard_uncertainty_formal"] is not None for r in rows)
     if consistent is None:
         statement = "The method reported no fit statistics: the consistency of the reported σ is not tested."
@@ -252,8 +272,11 @@ def certificate_data(cal: Calibration, unit: Unit | None = None, *, issued: dt.d
                        "temperature_c": s.temperature_c, "path_name": s.path_name, "record_path": s.record_path},
         "method": {"name": cal.method, "description": description, "state_set": cal.state_set,
                    "references": [{"key": r, **REFERENCES[r]} for r in refs], "options": cal.options},
-        "results": {"coverage_factor": K, "coverage_probability": "approximately 95 % (normal distribution)",
-                    "uncertainty_statement": UNCERTAINTY_STATEMENT, "rows": rows},
+        "results": ({"coverage_factor": K, "coverage_probability": "approximately 95 % (normal distribution)",
+                     "uncertainty_statement": UNCERTAINTY_STATEMENT, "rows": rows} if budget is None else
+                    {"coverage_factor": "per result (uncertainty budget)", "coverage_probability": "95 %",
+                     "uncertainty_statement": BUDGET_STATEMENT, "rows": rows}),
+        "budget": budget,
         "fit": {"chi2": cal.fit_chi2, "dof": cal.fit_dof, "chi2_per_dof": ratio, "p_value": cal.fit_p,
                 "consistent": consistent, "statement": statement, "note": table.get("note"),
                 "cause": table.get("cause")},
@@ -308,8 +331,11 @@ def day(t: str | None) -> str:
 
 
 def results_table(rows: list[dict]) -> str:
+    """The results: value and U per component (with the budget's k where a budget gave U)."""
+    budget = any("coverage_factor" in r for r in rows)
     head = ("<thead><tr><th>Parameter</th><th>Component</th><th class='num'>Value</th>"
-            "<th class='num'>U (k = 2)</th><th>Unit</th></tr></thead>")
+            + ("<th class='num'>U (95 %)</th><th class='num'>k</th>" if budget else "<th class='num'>U (k = 2)</th>")
+            + "<th>Unit</th></tr></thead>")
     body = []
     for r in rows:
         value = (f"<td class='num value' data-exact='{escape(repr(r['value']))}'>{escape(r['value_text'])}</td>"
@@ -319,6 +345,9 @@ def results_table(rows: list[dict]) -> str:
         else:
             u = (f"<td class='num U' data-exact='{escape(repr(r['expanded_uncertainty']))}'>"
                  f"{escape(r['expanded_uncertainty_text'])}</td>")
+        if budget:
+            u += ("<td class='num'>—</td>" if "coverage_factor" not in r else
+                  f"<td class='num k' data-exact='{escape(repr(r['coverage_factor']))}'>{r['coverage_factor']:.3f}</td>")
         body.append(f"<tr data-label='{escape(r['label'])}'><td>{escape(r['title'])}</td>"
                     f"<td>{escape(r['component'] or '—')}</td>{value}{u}<td>{escape(display_unit(r['unit']))}</td></tr>")
     return f"<table class='results'>{head}<tbody>{''.join(body)}</tbody></table>"
@@ -374,6 +403,8 @@ def certificate_html(doc: dict) -> str:
         "<h2>5. Results</h2>",
         f"<p class='small'>{escape(res['uncertainty_statement'])}</p>",
         results_table(res["rows"]),
+        ("" if doc.get("budget") is None else
+         "<h2>5a. Uncertainty budget</h2>" + budget_section(doc["budget"]["budget"], doc["budget"]["station"])),
         "<h2>6. Fit</h2>",
         kv([("χ² / degrees of freedom", f"{num('fit.chi2', fit['chi2'], fmt_num(fit['chi2'], 4))} / "
                                        f"{num('fit.dof', fit['dof'], fmt_num(fit['dof'], 6))} = "

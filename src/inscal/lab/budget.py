@@ -1,0 +1,292 @@
+"""The measurement-uncertainty budget of a calibration (JCGM 100:2008, the GUM).
+
+For every calibrated parameter component ``y`` the budget lists its inputs ``x_i``: the estimator's
+own noise (Type A, the method's 1 sigma), the station's inputs (Type B, :mod:`inscal.lab.station`)
+with their sensitivity coefficients ``c_i = dy/dx_i`` (:mod:`inscal.lab.sensitivity`), and, when the
+unit has a history, the repeatability between runs (Type A).  The inputs are independent, so
+
+    u_i(y) = |c_i| u(x_i),    u_c(y)^2 = sum_i u_i(y)^2                    (GUM eq. 10, 5.1.3)
+
+An input that acts independently at each of ``N`` stops (the table's angle, its encoder's rounding,
+the wobble) has one coefficient per stop and axis; it enters as ``u(x) sqrt(sum_j c_j^2)`` and the
+table shows that root-sum-square as its coefficient.  The effective degrees of freedom
+(Welch-Satterthwaite, GUM eq. G.2b) and the coverage factor from Student's t (GUM G.3.4, G.6.4):
+
+    nu_eff = u_c^4 / sum_i (u_i^4 / nu_i),    k = t_{(1+p)/2}(nu_eff),    U = k u_c
+
+When a non-normal input dominates (a rectangular rate error, say) the output is not normal and
+``t`` over-covers (a rectangular one: 100 % instead of 95 %; GUM G.6.5-G.6.6).  So ``k`` is taken from
+the distribution of the linear model itself (:func:`linear_coverage_factor`: the non-normal lines
+convolved, the normal ones as one normal), times ``t_{(1+p)/2}(nu_eff) / z_{(1+p)/2}`` for a finite
+``nu_eff``; with only normal inputs this is the GUM's ``t`` factor exactly.  The JCGM 101 Monte Carlo
+of ``bench/budget_mc.py`` checks the result.
+
+Repeatability from the database (GUM 4.2): the spread ``s`` of the unit's earlier results of a
+component holds the estimator's noise once more, so only its excess enters,
+``u_rep = sqrt(max(s^2 - mean(sigma^2), 0))`` with ``n - 1`` degrees of freedom.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import brentq
+
+from inscal.core import units
+from inscal.core.error_model import PARAMETERS
+from inscal.lab.station import INPUTS, Station
+
+#: the coverage probability of the expanded uncertainty
+COVERAGE = 0.95
+#: the name of the estimator's own (Type A) input and of the repeatability between runs
+ESTIMATOR = "estimator (Type A)"
+REPEATABILITY = "repeatability (Type A)"
+#: per-stop inputs and the coefficients they share (the encoder's rounding is an angle error at a stop)
+STOP_COEFFICIENTS = {"table_angle": "table_angle", "encoder_resolution": "table_angle", "axis_wobble": "axis_wobble"}
+#: inputs no window-mean sensitivity exists for: named in the budget's notes
+NOT_PROPAGATED = {"temperature_stability": "the unit's temperature sensitivity is not known to this calibration "
+                                           "(no thermal model): not propagated"}
+
+
+@dataclass(frozen=True)
+class Contribution:
+    """One line of a component's budget (field units: ``unit`` for the input's value and ``u``, the
+    parameter's unit for ``contribution``; ``sensitivity`` in parameter unit per input unit)."""
+
+    input: str
+    value: float | None
+    unit: str
+    distribution: str
+    u: float
+    sensitivity: float
+    contribution: float
+    share: float
+    dof: float
+    stops: int = 1
+    value_unit: str = ""
+
+    def to_dict(self) -> dict:
+        """The line as JSON-able numbers (an infinite dof is ``None``)."""
+        d = dict(self.__dict__)
+        d["dof"] = None if math.isinf(self.dof) else self.dof
+        return d
+
+
+@dataclass(frozen=True)
+class ComponentBudget:
+    """The budget of one parameter component: ``u_c``, ``dof_eff``, ``k``, ``U`` in ``unit``."""
+
+    parameter: str
+    index: int
+    unit: str
+    value: float
+    u_c: float
+    dof_eff: float
+    k: float
+    U: float
+    coverage: float
+    contributions: tuple[Contribution, ...]
+
+    @property
+    def label(self) -> str:
+        """``name[i]`` (a scalar parameter: its name)."""
+        return self.parameter if not PARAMETERS[self.parameter][4] else f"{self.parameter}[{self.index}]"
+
+    def to_dict(self) -> dict:
+        """The component as JSON-able numbers."""
+        d = {k: v for k, v in self.__dict__.items() if k != "contributions"}
+        d["dof_eff"] = None if math.isinf(self.dof_eff) else self.dof_eff
+        d["label"] = self.label
+        d["contributions"] = [c.to_dict() for c in self.contributions]
+        return d
+
+
+@dataclass(frozen=True)
+class Budget:
+    """The budget of a calibration: per component (:class:`ComponentBudget`), with the station's
+    name, the method and notes (inputs not propagated, checks)."""
+
+    station: str
+    method: str
+    coverage: float
+    components: tuple[ComponentBudget, ...]
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        """The budget as a JSON document (what the database stores and ``--json`` prints)."""
+        return {"station": self.station, "method": self.method, "coverage": self.coverage,
+                "components": [c.to_dict() for c in self.components], "notes": list(self.notes)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Budget:
+        """The inverse of :meth:`to_dict`."""
+        def inf(v):
+            return math.inf if v is None else float(v)
+        comps = []
+        for c in d["components"]:
+            lines = tuple(Contribution(**{**x, "dof": inf(x["dof"])}) for x in c["contributions"])
+            comps.append(ComponentBudget(c["parameter"], int(c["index"]), c["unit"], float(c["value"]), float(c["u_c"]),
+                                         inf(c["dof_eff"]), float(c["k"]), float(c["U"]), float(c["coverage"]), lines))
+        return cls(d["station"], d["method"], float(d["coverage"]), tuple(comps), tuple(d.get("notes", ())))
+
+    def component(self, label: str) -> ComponentBudget:
+        """The component named ``label`` (``accel_scale_factor[0]``)."""
+        for c in self.components:
+            if c.label == label:
+                return c
+        raise KeyError(label)
+
+
+def welch_satterthwaite(u, dof) -> float:
+    """The effective degrees of freedom of ``sqrt(sum u_i^2)`` (GUM eq. G.2b); inputs with an
+    infinite (or ``None``) dof add nothing to the denominator."""
+    u = np.asarray(u, float)
+    nu = np.array([math.inf if v is None else v for v in dof], float)
+    uc4 = float(np.sum(u ** 2)) ** 2
+    finite = np.isfinite(nu) & (u > 0)
+    den = float(np.sum(u[finite] ** 4 / nu[finite]))
+    return math.inf if den == 0.0 else uc4 / den
+
+
+def coverage_factor(dof: float, p: float = COVERAGE) -> float:
+    """``k`` for a coverage probability ``p`` with ``dof`` effective degrees of freedom (Student's t, GUM G.3.4)."""
+    if math.isinf(dof):
+        return float(stats.norm.ppf(0.5 + p / 2))
+    return float(stats.t.ppf(0.5 + p / 2, dof))
+
+
+#: points of the grid on which the non-normal contributions are convolved
+GRID = 4001
+
+
+def _cdf(dist: str, x: np.ndarray, a: float) -> np.ndarray:
+    """The CDF of a zero-centred rectangular / triangular / arcsine distribution of half-width ``a``."""
+    z = np.clip(x / a, -1.0, 1.0)
+    if dist == "rectangular":
+        return 0.5 * (z + 1.0)
+    if dist == "triangular":
+        return np.where(z < 0, 0.5 * (z + 1.0) ** 2, 1.0 - 0.5 * (1.0 - z) ** 2)
+    return 0.5 + np.arcsin(z) / np.pi  # arcsine
+
+
+def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
+    """``k`` of the linear model ``y = sum c_i x_i`` from the distributions themselves (GUM G.6.5-G.6.6,
+    JCGM 101 on the linear model): the normal contributions combine into one normal of sigma ``s_N``;
+    the others (``(distribution, half-width in y)``) are convolved on a grid (exact bin masses of their
+    CDFs); ``P(|y| <= q) = p`` is solved and ``k = q / u_c``.  ``lines`` = ``(distribution, u_i(y))``."""
+
+    s2 = sum(u * u for d, u in lines if d == "normal")
+    other = [(d, u * {"rectangular": math.sqrt(3.0), "triangular": math.sqrt(6.0), "arcsine": math.sqrt(2.0)}[d])
+             for d, u in lines if d != "normal" and u > 0]
+    uc = math.sqrt(s2 + sum(u * u for d, u in lines if d != "normal"))
+    if uc == 0.0:
+        return coverage_factor(math.inf, p)
+    if not other:
+        return float(stats.norm.ppf(0.5 + p / 2))
+    span = sum(a for _, a in other)
+    h = 2.0 * span / (GRID - 1)
+    mass = np.array([1.0])
+    for d, a in other:
+        n = int(math.ceil(a / h))
+        edges = (np.arange(-n, n + 2) - 0.5) * h
+        mass = np.convolve(mass, np.diff(_cdf(d, edges, a)))
+    x = (np.arange(mass.size) - (mass.size - 1) / 2) * h
+    sN = math.sqrt(s2)
+
+    def inside(q):
+        if sN > 0:
+            return float(np.sum(mass * (stats.norm.cdf((q - x) / sN) - stats.norm.cdf((-q - x) / sN))))
+        return float(np.interp(q, x, np.cumsum(mass)) - np.interp(-q, x, np.cumsum(mass)))
+
+    q = brentq(lambda q: inside(q) - p, 1e-9 * uc, 10.0 * uc, xtol=1e-6 * uc)
+    return q / uc
+
+
+def repeatability(values, sigmas) -> tuple[np.ndarray, float]:
+    """``(u_rep, dof)`` per component from earlier results ``values`` (n_runs, n) and their sigmas
+    (same shape, same unit): the excess of the between-run spread over the estimator's noise."""
+    v, s = np.asarray(values, float), np.asarray(sigmas, float)
+    n = v.shape[0]
+    if n < 2:
+        raise ValueError("repeatability needs at least two earlier results")
+    spread = np.var(v, axis=0, ddof=1)
+    noise = np.nanmean(s ** 2, axis=0)
+    return np.sqrt(np.maximum(spread - np.nan_to_num(noise), 0.0)), float(n - 1)
+
+
+def _factor(unit: str, kind: str) -> float:
+    """SI per field unit (a temperature step: 1)."""
+    return 1.0 if kind == "temperature" else float(units.to_si(1.0, unit))
+
+
+def combine(parameter: str, index: int, value_si: float, lines: list[tuple], coverage: float = COVERAGE) -> ComponentBudget:
+    """One component's budget from ``lines`` = ``(input, value, unit, distribution, u, sensitivity, dof,
+    stops[, value unit])`` in field units (sensitivity in parameter unit per input unit)."""
+    unit = PARAMETERS[parameter][3]
+    ui = [abs(c[5]) * c[4] for c in lines]
+    uc = math.sqrt(sum(x * x for x in ui))
+    nu = welch_satterthwaite(ui, [c[6] for c in lines])
+    # a per-stop input is a sum over its stops: normal; the others keep their distribution
+    shape = linear_coverage_factor([(c[3] if c[7] <= 1 else "normal", u) for c, u in zip(lines, ui)], coverage)
+    k = shape * coverage_factor(nu, coverage) / coverage_factor(math.inf, coverage)
+    contribs = tuple(Contribution(c[0], c[1], c[2], c[3], c[4], abs(c[5]), u, (u * u / (uc * uc)) if uc > 0 else 0.0,
+                                  c[6], c[7], c[8] if len(c) > 8 else "") for c, u in zip(lines, ui))
+    return ComponentBudget(parameter, index, unit, float(units.from_si(value_si, unit)), uc, nu, k, k * uc, coverage,
+                           contribs)
+
+
+def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, estimator_dof: float, station: Station,
+           glob: dict[str, np.ndarray], per_stop: dict[str, np.ndarray], rep: tuple[np.ndarray, float] | None = None,
+           coverage: float = COVERAGE, notes=()) -> Budget:
+    """The budget of a calibration: ``names`` the estimated parameters, ``values_si`` / ``sigma_si`` their
+    flat estimate and 1 sigma (SI), ``glob`` / ``per_stop`` the coefficients of
+    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI.  A component
+    whose sigma is NaN (held fixed by the method) has no budget."""
+    notes = list(notes) + [f"{k}: {v}" for k, v in NOT_PROPAGATED.items()]
+    comps, i = [], 0
+    for name in names:
+        shape = PARAMETERS[name][4]
+        punit = PARAMETERS[name][3]
+        pf = float(units.to_si(1.0, punit))
+        for j in range(int(np.prod(shape)) if shape else 1):
+            if not np.isfinite(sigma_si[i]):  # held fixed (a frame convention, unobservable): no uncertainty
+                i += 1
+                continue
+            lines = [(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof, 1)]
+            for key, inp in station.inputs.items():
+                if key in NOT_PROPAGATED:
+                    continue
+                f = _factor(inp.uncertainty_unit, INPUTS[key].kind)
+                if key in STOP_COEFFICIENTS:
+                    c = per_stop[STOP_COEFFICIENTS[key]][:, :, i]
+                    used = int(np.count_nonzero(c))
+                    c_si = float(np.sqrt(np.sum(c * c)))
+                else:
+                    c_si, used = float(glob[key][i]), 1
+                value = inp.field(inp.value, inp.unit) if INPUTS[key].needs_value else None
+                lines.append((key, value, inp.uncertainty_unit, inp.distribution, inp.u / f, c_si * f / pf, inp.dof,
+                              max(used, 1), inp.unit if value is not None else ""))
+            if rep is not None:
+                lines.append((REPEATABILITY, None, punit, "normal", float(rep[0][i]) / pf, 1.0, rep[1], 1))
+            comps.append(combine(name, j, float(values_si[i]), lines, coverage))
+            i += 1
+    return Budget(station.name, method, coverage, tuple(comps), tuple(notes))
+
+
+def repeatability_of(calibrations, names) -> tuple[np.ndarray, float] | None:
+    """:func:`repeatability` (SI, flat over ``names``) from a unit's earlier calibrations
+    (:class:`inscal.lab.model.Calibration`, the same method) that hold every parameter of ``names``;
+    None when fewer than two do."""
+    vals, sigs = [], []
+    for cal in calibrations:
+        if not all(n in cal.parameters for n in names):
+            continue
+        v, s = zip(*(cal.parameters[n].si() for n in names))
+        vals.append(np.concatenate([np.ravel(x) for x in v]))
+        sigs.append(np.concatenate([np.ravel(x) for x in s]))
+    if len(vals) < 2:
+        return None
+    return repeatability(np.array(vals), np.array(sigs))
