@@ -190,7 +190,7 @@ def test_db_commands_and_their_json(small_db, monkeypatch):
     assert r.exit_code == 0, r.stderr
     rid = json.loads(r.stdout)["result_id"]
     r = run("db", "init", "--json")
-    assert json.loads(r.stdout) == {"db": str(db), "created": False, "revision": lab.head_revision(), "schema": 4}
+    assert json.loads(r.stdout) == {"db": str(db), "created": False, "revision": lab.head_revision(), "schema": 5}
     r = run("db", "show", "U1")
     assert r.exit_code == 0 and f"result {rid}, manual" in r.stdout and "station T2" in r.stdout
     assert "accel_scale_factor       [15, 0, 0] +- [1, 1, 1] ppm" in r.stdout
