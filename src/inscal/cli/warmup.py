@@ -127,14 +127,16 @@ def _library(tmp: Path) -> None:
     ``gravity = "psins"``) and the normal gravity called from Python at a latitude alone, the
     covariance-form Kalman steps (tests and benchmark), the square-root and smoother steps called from Python
     (the filters call them from their compiled passes, which caches other entries) and the bias-instability
-    recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), with the argument types
+    recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), the streamed Allan variance's kernels, with the argument types
     their callers use."""
     import numpy as np
 
+    from inscal.analysis.noise.estimators import scale_variance
     from inscal.core import kalman
     from inscal.core.earth import normal_gravity, parse_gravity
     from inscal.sim.kernel import gauss_markov_filter
 
+    scale_variance(np.zeros((64, 2)), 100.0)  # the streamed Allan / Haar wavelet variance (inscal noise)
     parse_gravity("psins").g(0.5, 10.0)
     normal_gravity(0.5)
     gauss_markov_filter(np.zeros((2, 3)), 0.5, np.zeros(3))

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from inscal.analysis.noise.estimators import ScaleVariance, octave_scales, scale_variance
+from inscal.analysis.noise import projection
 from inscal.analysis.noise.intervals import gmwm_weights, wv_interval
 from inscal.core import noise_models as nm
 from inscal.core.stats import chi2_sf
@@ -186,22 +187,31 @@ def _canonical(codes, theta) -> np.ndarray:
 
 
 def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
-          theta0=None):
-    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``."""
+          theta0=None, whiten=None, grid: bool = True):
+    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``.
+    The starts: the best point of the correlation-time grid with the amplitudes solved exactly
+    (:func:`inscal.analysis.noise.projection.profile`, ``grid=True``), ``theta0`` (default: the
+    read-offs) and ``n_starts`` random ones around it.  ``whiten``: a (J, J) matrix W for the objective
+    ``|| W (nu_hat - nu) ||^2`` in place of the diagonal ``weights`` (the efficient ``V^-1/2``)."""
     rng = np.random.default_rng(0) if rng is None else rng
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
-    sw = np.sqrt(w)
+    Wm = np.diag(np.sqrt(w)) if whiten is None else np.asarray(whiten, float)
     th0 = readoff_starts(curve, codes) if theta0 is None else np.asarray(theta0, float)
     lo, hi = _bounds(codes, curve, th0)
+    starts = []
+    if grid:
+        thg = projection.profile(codes, curve.m, curve.dt, curve.wv, Wm)[0]
+        lo, hi = np.minimum(lo, thg - 25), np.maximum(hi, thg + 25)
+        starts.append(np.clip(thg, lo + 1e-9, hi - 1e-9))
     th0 = np.clip(th0, lo + 1e-9, hi - 1e-9)
 
     def resid(th):
-        return sw * (curve.wv - model_wv(codes, th, curve.m, curve.dt))
+        return Wm @ (curve.wv - model_wv(codes, th, curve.m, curve.dt))
 
     def jac(th):
-        return -sw[:, None] * jacobian(codes, th, curve.m, curve.dt)
+        return -Wm @ jacobian(codes, th, curve.m, curve.dt)
 
-    starts = [th0] + [np.clip(th0 + rng.normal(0, 2.0, th0.size), lo + 1e-9, hi - 1e-9) for _ in range(n_starts)]
+    starts += [th0] + [np.clip(th0 + rng.normal(0, 2.0, th0.size), lo + 1e-9, hi - 1e-9) for _ in range(n_starts)]
     best, fbest, hits = None, np.inf, 0
     for s in starts:
         r = least_squares(resid, s, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-8, ftol=1e-10,
