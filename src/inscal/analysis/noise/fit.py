@@ -160,7 +160,7 @@ def readoff_starts(curve: Curve, codes) -> np.ndarray:
     return np.array(th, dtype=float)
 
 
-def _bounds(codes, curve: Curve, th0):
+def _bounds(codes, curve: Curve, th0, tc_max: float | None = None):
     lo, hi = [], []
     T = curve.n_terms[0] * curve.dt * 10
     for c, i in zip(codes, np.cumsum([0] + [n_params(c) for c in codes])[:-1]):
@@ -168,7 +168,7 @@ def _bounds(codes, curve: Curve, th0):
         hi.append(th0[i] + 25)
         if c == "GM":
             lo.append(math.log(2 * curve.dt))  # shorter, a GM is white noise at every scale: not identifiable
-            hi.append(math.log(100 * T))
+            hi.append(math.log(100 * T if tc_max is None else tc_max))
     return np.array(lo), np.array(hi)
 
 
@@ -187,20 +187,23 @@ def _canonical(codes, theta) -> np.ndarray:
 
 
 def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
-          theta0=None, whiten=None, grid: bool = True):
+          theta0=None, whiten=None, grid: bool = True, tc_max: float | None = None):
     """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``.
     The starts: the best point of the correlation-time grid with the amplitudes solved exactly
     (:func:`inscal.analysis.noise.projection.profile`, ``grid=True``), ``theta0`` (default: the
     read-offs) and ``n_starts`` random ones around it.  ``whiten``: a (J, J) matrix W for the objective
-    ``|| W (nu_hat - nu) ||^2`` in place of the diagonal ``weights`` (the efficient ``V^-1/2``)."""
+    ``|| W (nu_hat - nu) ||^2`` in place of the diagonal ``weights`` (the efficient ``V^-1/2``);
+    ``tc_max``: the longest Gauss-Markov correlation time allowed [s] (default: far beyond the record)."""
     rng = np.random.default_rng(0) if rng is None else rng
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
     Wm = np.diag(np.sqrt(w)) if whiten is None else np.asarray(whiten, float)
     th0 = readoff_starts(curve, codes) if theta0 is None else np.asarray(theta0, float)
-    lo, hi = _bounds(codes, curve, th0)
+    lo, hi = _bounds(codes, curve, th0, tc_max)
     starts = []
     if grid:
-        thg = projection.profile(codes, curve.m, curve.dt, curve.wv, Wm)[0]
+        cols = None if tc_max is None else projection.basis(codes, curve.m, curve.dt, projection.tc_grid(
+            curve.m, curve.dt, tc_max=tc_max))
+        thg = projection.profile(codes, curve.m, curve.dt, curve.wv, Wm, cols)[0]
         lo, hi = np.minimum(lo, thg - 25), np.maximum(hi, thg + 25)
         starts.append(np.clip(thg, lo + 1e-9, hi - 1e-9))
     th0 = np.clip(th0, lo + 1e-9, hi - 1e-9)

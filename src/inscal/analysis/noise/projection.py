@@ -40,9 +40,11 @@ def unit_column(code: str, m, dt: float, tc: float | None = None) -> np.ndarray:
     return 0.5 * term.avar(m, dt)
 
 
-def tc_grid(m, dt: float, per_octave: int = PER_OCTAVE) -> np.ndarray:
-    """Correlation times from 2 dt to 4 tau_max (tau_max = the longest scale), ``per_octave`` per octave [s]."""
-    lo, hi = math.log2(2 * dt), math.log2(4 * float(np.max(m)) * dt)
+def tc_grid(m, dt: float, per_octave: int = PER_OCTAVE, tc_max: float | None = None) -> np.ndarray:
+    """Correlation times from 2 dt to ``tc_max`` (default 4 tau_max, tau_max = the longest scale),
+    ``per_octave`` per octave [s]."""
+    lo = math.log2(2 * dt)
+    hi = math.log2(4 * float(np.max(m)) * dt if tc_max is None else tc_max)
     return 2.0 ** np.linspace(lo, hi, int(math.ceil((hi - lo) * per_octave)) + 1)
 
 

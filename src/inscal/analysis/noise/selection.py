@@ -24,11 +24,13 @@ can show:
 
 * a term whose amplitude is zero at the candidate's best fit, or below 5 % of the interval
   half-width at every scale: the candidate without it fits the same curve;
-* a Gauss-Markov term whose correlation time exceeds half the longest scale tau_max: its Allan
-  variance peaks at 1.89 T_c, beyond the record, and below the peak it is a rate random walk
-  (AVAR -> (2 sigma^2 / T_c) tau / 3, K^2 = 2 sigma^2 / T_c): the candidate with RW in its place
-  describes it;
 * a Gauss-Markov term at the shortest correlation time allowed (2 dt): white noise at every scale.
+
+and a Gauss-Markov term's correlation time is kept at most an eighth of the longest scale tau_max:
+its Allan variance peaks at 1.89 T_c, and a GM whose peak does not lie two octaves inside the record
+is, over the record, a rate random walk (AVAR -> (2 sigma^2 / T_c) tau / 3, K^2 = 2 sigma^2 / T_c), which the candidates with RW
+describe with one parameter fewer; so a record's random walk is not taken for a long GM, nor the other
+way round.
 
 The amplitudes of every candidate are solved exactly on a grid of correlation times
 (:mod:`inscal.analysis.noise.projection`), the best candidates polished; the chosen model is then
@@ -58,8 +60,13 @@ from inscal.core.stats import chi2_sf
 AUTO_MODEL = "QN+WN+BI+RW+DR+2GM"
 #: candidates polished after the grid (the lowest criterion on the grid; the others are far above)
 POLISH_MARGIN = 20.0
-#: a GM is a random walk over the record when its correlation time exceeds this share of tau_max
-GM_TC_MAX_SHARE = 0.5
+#: the longest GM correlation time of a candidate, as a share of the longest scale tau_max
+GM_TC_MAX_SHARE = 0.125
+
+
+def tc_limit(curve: Curve) -> float:
+    """The longest Gauss-Markov correlation time a candidate may take [s]: tau_max / 8."""
+    return GM_TC_MAX_SHARE * float(curve.m[-1] * curve.dt)
 
 
 def sub_models(codes) -> list[tuple]:
@@ -90,7 +97,6 @@ def record_samples(curve: Curve) -> float:
 def set_aside(codes, theta, zero, curve: Curve, whiten) -> str:
     """Why the record cannot tell the candidate ``codes`` (at ``theta``) from a smaller one, or ''."""
     terms = terms_of(codes, theta, curve.dt)
-    tau_max = float(curve.m[-1] * curve.dt)
     for t, z in zip(terms, zero):
         if z:
             return f"{t.code} not seen (zero amplitude)"
@@ -100,8 +106,6 @@ def set_aside(codes, theta, zero, curve: Curve, whiten) -> str:
         if x < 0.05:
             return f"{t.code} below 5 % of the interval at every scale"
     for t in terms:
-        if t.code == "GM" and t.tc > GM_TC_MAX_SHARE * tau_max:
-            return f"GM of T_c = {t.tc:.3g} s > tau_max/2 = {0.5 * tau_max:.3g} s: a random walk over this record"
         if t.code == "GM" and t.tc < 2.05 * curve.dt:
             return f"GM of T_c = {t.tc:.3g} s at 2 dt: white noise at every scale"
     return ""
@@ -132,7 +136,8 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     V = wv_covariance(lambda f: sum(t.spectrum(f, curve.dt) for t in full.terms), curve.m, curve.n_terms)
     W = np.linalg.inv(np.linalg.cholesky(V))  # ||W r||^2 = r' V^-1 r
     pen = penalty(criterion, record_samples(curve))
-    cols = projection.basis(codes, curve.m, curve.dt)
+    tcm = tc_limit(curve)
+    cols = projection.basis(codes, curve.m, curve.dt, projection.tc_grid(curve.m, curve.dt, tc_max=tcm))
     rows = []
     for cand in sub_models(codes):
         p = sum(n_params(c) for c in cand)
@@ -144,7 +149,7 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     table, thetas = [], {}
     for cand, p, th, jg, zero in rows:
         if jg + pen * p <= best_grid + POLISH_MARGIN and not any(zero):
-            th, jg, _ = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False)
+            th, jg, _ = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm)
         why = set_aside(cand, th, zero, curve, W)
         name = nm.model_string(cand)
         thetas[name] = (cand, th)
