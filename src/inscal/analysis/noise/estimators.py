@@ -153,8 +153,23 @@ class StreamingScaleVariance:
                 self.buf[:, a: min(rows, a + step)] = self.buf[:, keep0 + a: keep0 + min(rows, a + step)]
         self.b0 += keep0
         self.fill -= keep0
+        self._rebase()
         if self.fill + L > self.buf.shape[1]:  # first shift of a buffer sized for a short record
             self.buf = np.concatenate([self.buf[:, : self.fill], np.empty((self.k, L))], axis=1)
+
+    def _rebase(self) -> None:
+        """Subtract from every phase kept the line through the first and last of them, and its slope
+        from the rate removed from the samples to come: a linear function of the index changes no
+        second difference D, and the phases stay small (their rounding, eps |x|, is what limits D)."""
+        f = self.fill
+        if f < 2:
+            return
+        i = np.arange(f, dtype=float)
+        for ch in range(self.k):
+            x = self.buf[ch, :f]
+            b = (x[-1] - x[0]) / (f - 1)
+            x -= x[0] + b * i
+            self.c[ch] += b
 
     def _feed(self, x) -> None:
         L = x.shape[0]
@@ -188,6 +203,13 @@ def append_phase(buf, start, x, c):
             buf[ch, start + i] = acc
 
 
+@njit(cache=True)
+def second_difference(x2, x1, x0):
+    """``x2 - 2 x1 + x0`` in this order (compiled without reassociation: the rounding of a difference
+    of large phases is that of the plain formula, as in allantools)."""
+    return (x2 - 2.0 * x1) + x0
+
+
 @njit(cache=True, fastmath={"reassoc"})
 def accumulate(buf, b0, last, m, next_i, sums):
     """Add to ``sums[j, ch]`` the squares of every term ``D_i(m_j) = x_{i+2m} - 2 x_{i+m} + x_i`` of
@@ -206,7 +228,7 @@ def accumulate(buf, b0, last, m, next_i, sums):
                 x0, x1, x2 = x[a:e], x[a + mm:e + mm], x[a + 2 * mm:e + 2 * mm]  # slices: no index wrap-around
                 part = 0.0
                 for t in range(e - a):
-                    d = x2[t] - 2.0 * x1[t] + x0[t]
+                    d = second_difference(x2[t], x1[t], x0[t])
                     part += d * d
                 total += part
             sums[j, ch] += total

@@ -8,15 +8,17 @@ its objective is Hansen's J statistic
     J_c = min_theta (nu_hat - nu_c(theta))' V^-1 (nu_hat - nu_c(theta)),   about chi^2(scales - p_c)
 
 and the J of two nested candidates differ by about chi^2 of their difference in parameters.  The
-choice minimises the consistent model-selection criterion of GMM (Andrews & Lu, J. Econometrics 101
-(2001) 123-164, MMSC-BIC)
+choice minimises a model-selection criterion of GMM (Andrews & Lu, J. Econometrics 101 (2001)
+123-164), by default their Hannan-Quinn one (MMSC-HQIC)
 
-    BIC_c = J_c + p_c ln n          (n the samples of the record)
+    HQIC_c = J_c + 2.1 p_c ln ln n          (n the samples of the record)
 
-whose penalty grows with the record, so that a term is kept only where the record shows it and a
-spurious one is dropped with a probability that tends to one (a fixed penalty such as the WVIC's
-``2 tr(...)``, an AIC, keeps a spurious term in a fixed share of records).  ``criterion="hqic"``
-takes Andrews & Lu's Hannan-Quinn penalty ``2.1 ln ln n`` per parameter, ``"aic"`` 2.
+a penalty that grows with the record, so that a spurious term is dropped with a probability that
+tends to one (a fixed penalty such as the WVIC's ``2 tr(...)``, an AIC, keeps one in a fixed share
+of records: P(chi^2_1 > 2) = 16 % per rival), yet slowly enough that a term whose omission raises J
+by 15 or more is kept in more than 93 % of records.  ``criterion="bic"`` takes their BIC penalty
+``ln n`` per parameter (consistent too, but it drops terms that a record of 10^6 samples shows
+plainly: 14 per parameter), ``"aic"`` 2.
 
 The record cannot tell some candidates from smaller ones; they are set aside, not compared (and
 the reason is listed), so that "the right model" is the smallest one that describes what the record
@@ -119,11 +121,11 @@ class Selection:
     chosen: NoiseFit
     candidates: tuple
     reason: str
-    criterion: str = "bic"
+    criterion: str = "hqic"
 
 
 def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | None = None,
-           n_starts: int = 2, criterion: str = "bic") -> Selection:
+           n_starts: int = 2, criterion: str = "hqic") -> Selection:
     """Choose among the sub-sums of ``largest`` by ``criterion`` (module docstring) and refit the
     choice with the GMWM weights."""
     rng = np.random.default_rng(0) if rng is None else rng
