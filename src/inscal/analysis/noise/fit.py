@@ -10,9 +10,11 @@ with ``nu(theta)`` the exact discrete-time wavelet variances of :mod:`inscal.cor
 Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, ``abs(r)``, each GM's sigma and
 tc: no bounds to keep inside, and intervals that stay positive); the default
 ``Omega = diag(1 / (upper - lower)^2)`` of the 95 % eta3 intervals (GMWM's default, so objective
-values compare across tools).  The solver is multi-start: a deterministic start from the IEEE
-read-offs, then ``n_starts`` starts drawn around it from a seeded generator, each polished by
-``scipy.optimize.least_squares`` (trust-region reflective); the best objective wins.
+values compare across tools).  The solver is multi-start: the best point of a grid of GM correlation
+times with the amplitudes solved exactly there (variable projection, :mod:`.projection`: the global
+optimum up to the grid's spacing), a start from the IEEE read-offs, then ``n_starts`` starts drawn
+around it from a seeded generator, each polished by ``scipy.optimize.least_squares``
+(trust-region reflective); the best objective wins.
 
 Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich)::
 

@@ -30,9 +30,10 @@ can show:
 
 and a Gauss-Markov term's correlation time is kept at most an eighth of the longest scale tau_max:
 its Allan variance peaks at 1.89 T_c, and a GM whose peak does not lie two octaves inside the record
-is, over the record, a rate random walk (AVAR -> (2 sigma^2 / T_c) tau / 3, K^2 = 2 sigma^2 / T_c), which the candidates with RW
-describe with one parameter fewer; so a record's random walk is not taken for a long GM, nor the other
-way round.
+is, over the record, a rate random walk (AVAR -> (2 sigma^2 / T_c) tau / 3, K^2 = 2 sigma^2 / T_c),
+which the candidates with RW describe with one parameter fewer; so a record's random walk is not
+taken for a long GM, nor the other way round.  A GM of the sensor longer than that is reported as
+the random walk it looks like over the record (a longer record resolves it).
 
 The amplitudes of every candidate are solved exactly on a grid of correlation times
 (:mod:`inscal.analysis.noise.projection`), the best candidates polished; the chosen model is then
@@ -54,7 +55,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from inscal.analysis.noise import projection
-from inscal.analysis.noise.fit import Curve, NoiseFit, contributions, fit_curve, n_params, solve, terms_of, wv_covariance
+from inscal.analysis.noise.fit import (Curve, NoiseFit, contributions, fit_curve, n_params, solve, terms_of,
+                                      wv_covariance)
 from inscal.core import noise_models as nm
 from inscal.core.stats import chi2_sf
 
