@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from inscal.analysis.noise.estimators import octave_scales, scale_variance
-from inscal.analysis.noise.fit import Curve, bootstrap, fit_curve, wv_covariance
+from inscal.analysis.noise.fit import Curve, bootstrap, curve_covariance, fit_curve, wv_covariance
 from inscal.analysis.noise import projection
 from inscal.analysis.noise.intervals import chi2_bounds, gmwm_weights
 from inscal.analysis.noise.selection import readoffs, select, sub_models
@@ -105,3 +105,19 @@ def test_readoffs_on_exact_curves():
     assert readoffs(tau, np.sqrt(q.avar(m, DT)))["QN"]["value"] == pytest.approx(1e-6, rel=1e-9)
     b = nm.BiasInstability(1e-5, 50.0)
     assert readoffs(tau, np.sqrt(b.avar(m, DT) + nm.WhiteNoise(1e-9).avar(m, DT)))["BI"]["value"] == pytest.approx(1e-5, rel=2e-2)
+
+
+def test_a_ramp_adds_its_cross_term_to_the_covariance():
+    """Beside noise, a rate ramp multiplies the variance of the wavelet variances where it dominates
+    (its constant coefficients shift the noise's): V with the cross term against 300 records."""
+    n = 1 << 13
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-3), nm.RandomWalk(2e-4), nm.RateRamp(3e-4)))
+    rng = np.random.default_rng(3)
+    m = octave_scales(n)
+    est = np.array([scale_variance(ch.simulate(n, DT, rng), 1 / DT, m).wv[:, 0] for _ in range(300)])
+    M = (n - 2 * m + 1).astype(float)
+    V = curve_covariance(ch.terms, Curve(m.astype(float), DT, est.mean(0), est.mean(0), est.mean(0), M))
+    V0 = wv_covariance(lambda f: sum(t.spectrum(f, DT) for t in ch.terms[:2]), m, M)
+    emp = np.var(est, axis=0, ddof=1)
+    assert np.all(np.abs(emp / np.diag(V) - 1) < 0.3), emp / np.diag(V)
+    assert emp[-1] / V0[-1, -1] > 4  # the noise alone misses most of it

@@ -28,7 +28,8 @@ where ``V = cov(nu_hat)`` at the fitted model, from the spectrum S of the channe
 
 The integral runs on a logarithmic frequency grid; where a filter's oscillation is finer than the
 grid (f > 32 / m) its sin^4 is replaced by its mean 3/8 (a documented approximation, below 1 % on
-V; a deterministic ramp adds nothing to V).  95 % intervals are exp(theta_hat +- 1.96 se).  The
+V).  A deterministic ramp adds no variance of its own but a cross term with the noise
+(its coefficients shift the noise's: :func:`ramp_covariance`).  95 % intervals are exp(theta_hat +- 1.96 se).  The
 goodness of fit is ``T = r' V^-1 r`` (r the residual), about chi^2(J - p) for a right model
 (Hansen's J statistic; approximate with a non-optimal Omega).  A parametric bootstrap
 (:func:`bootstrap`) gives percentile intervals on request.
@@ -133,6 +134,52 @@ def wv_covariance(spectrum, m, n_terms, n_grid_per_decade: int = 1500) -> np.nda
     integ = 2.0 * (h * w) @ h.T  # both halves of [-1/2, 1/2]
     mx = np.maximum.outer(np.asarray(n_terms, float), np.asarray(n_terms, float))
     return 2.0 * integ / mx
+
+
+def ramp_covariance(spectrum, ramp_wv, m, n_terms, n_grid_per_decade: int = 1500) -> np.ndarray:
+    """The part of cov(nu_hat) a deterministic rate ramp adds beside noise of spectrum ``spectrum(f)``.
+
+    A ramp's Haar coefficient is the same constant ``c_j = sqrt(nu_DR,j)`` at every time, so
+    ``mean W^2 = c^2 + 2 c mean(w) + mean(w^2)`` (w the noise's coefficients) and
+    ``cov(nu_hat_j, nu_hat_k) += 4 c_j c_k cov(mean w_j, mean w_k)``.  The mean of the M_j
+    coefficients is a linear filter of the rates spanning the whole record (M_j + 2 m_j - 1 = n
+    samples for every j: one linear phase), of real amplitude
+    ``g_j(f) = sin^2(pi f m_j) / (m_j sin(pi f)) * sin(pi f M_j) / (M_j sin(pi f))``, so
+    ``cov(mean w_j, mean w_k) = int_{-1/2}^{1/2} S(f) g_j(f) g_k(f) df``.  Where the Fejer factors
+    oscillate finer than the grid (f M > 32) their product is replaced by its mean
+    ``cos(pi f (M_j - M_k)) / 2`` (0 where that oscillates too), as sin^4 in :func:`wv_covariance`."""
+    m = np.asarray(m, dtype=float)
+    M = np.asarray(n_terms, dtype=float)
+    c = np.sqrt(np.maximum(np.asarray(ramp_wv, dtype=float), 0.0))
+    f_lo = 1e-3 / (M.max() + 2 * m.max())
+    nu = np.logspace(math.log10(f_lo), math.log10(0.5), int(n_grid_per_decade * math.log10(0.5 / f_lo)) + 1)
+    s = np.sin(np.pi * nu)
+    hj = np.stack([np.where(nu * mm > 32, math.sqrt(0.375), np.sin(np.pi * nu * mm) ** 2) / (mm * s) for mm in m])
+    w = np.gradient(np.log(nu)) * nu * spectrum(nu)  # df = f dln f
+    out = np.empty((m.size, m.size))
+    for j in range(m.size):
+        for k in range(j, m.size):
+            fast = nu * min(M[j], M[k]) > 32
+            prod = np.where(fast, np.where(nu * abs(M[j] - M[k]) > 32, 0.0, 0.5 * np.cos(np.pi * nu * (M[j] - M[k]))),
+                            np.sin(np.pi * nu * M[j]) * np.sin(np.pi * nu * M[k]))
+            g = prod / (M[j] * M[k] * s * s)
+            out[j, k] = out[k, j] = 2.0 * np.sum(w * hj[j] * hj[k] * g)  # both halves of [-1/2, 1/2]
+    return 4.0 * np.outer(c, c) * out
+
+
+def curve_covariance(terms, curve: "Curve") -> np.ndarray:
+    """V = cov(nu_hat) at ``curve``'s scales for the sum of processes ``terms``: the noise's
+    (:func:`wv_covariance`) and, with a rate ramp among them, its cross term (:func:`ramp_covariance`)."""
+    noise = [t for t in terms if t.code != "DR"]
+
+    def spec(f):
+        return sum((t.spectrum(f, curve.dt) for t in noise), np.zeros(np.shape(f)))
+
+    V = wv_covariance(spec, curve.m, curve.n_terms)
+    ramps = [t for t in terms if t.code == "DR"]
+    if ramps and noise:
+        V = V + ramp_covariance(spec, sum(0.5 * t.avar(curve.m, curve.dt) for t in ramps), curve.m, curve.n_terms)
+    return V
 
 
 def readoff_starts(curve: Curve, codes) -> np.ndarray:
@@ -303,7 +350,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
     terms = terms_of(codes, theta, curve.dt)
     D = jacobian(codes, theta, curve.m, curve.dt)
     vt = terms if v_terms is None else v_terms
-    V = wv_covariance(lambda f: sum(t.spectrum(f, curve.dt) for t in vt), curve.m, curve.n_terms)
+    V = curve_covariance(vt, curve)
     A = D.T @ (w[:, None] * D)
     Ai = np.linalg.pinv(A)
     WD = w[:, None] * D

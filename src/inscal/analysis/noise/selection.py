@@ -2,7 +2,7 @@
 
 Every sub-sum of a largest model (the terms of ``QN+WN+BI+RW+DR+2GM`` by default) is a candidate.
 Each is fitted with the efficient weights (two-step GMM: ``V`` the covariance of the wavelet
-variances at the largest model's GMWM fit, :func:`inscal.analysis.noise.fit.wv_covariance`), so that
+variances at the largest model's GMWM fit, :func:`inscal.analysis.noise.fit.curve_covariance`), so that
 its objective is Hansen's J statistic
 
     J_c = min_theta (nu_hat - nu_c(theta))' V^-1 (nu_hat - nu_c(theta)),   about chi^2(scales - p_c)
@@ -55,8 +55,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from inscal.analysis.noise import projection
-from inscal.analysis.noise.fit import (Curve, NoiseFit, contributions, fit_curve, n_params, solve, terms_of,
-                                      wv_covariance)
+from inscal.analysis.noise.fit import (Curve, NoiseFit, contributions, curve_covariance, fit_curve, n_params, solve,
+                                      terms_of)
 from inscal.core import noise_models as nm
 from inscal.core.stats import chi2_sf
 
@@ -137,7 +137,7 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     big = codes if fits_full else max((c for c in sub_models(codes) if sum(n_params(x) for x in c) <= J - 1),
                                       key=lambda c: sum(n_params(x) for x in c))
     full = fit_curve(curve, big, n_starts=0, rng=rng)
-    V = wv_covariance(lambda f: sum(t.spectrum(f, curve.dt) for t in full.terms), curve.m, curve.n_terms)
+    V = curve_covariance(full.terms, curve)
     W = np.linalg.inv(np.linalg.cholesky(V))  # ||W r||^2 = r' V^-1 r
     pen = penalty(criterion, record_samples(curve))
     tcm = tc_limit(curve)
