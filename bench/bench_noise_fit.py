@@ -160,6 +160,8 @@ def main():
             cov = np.mean((lo[:, i] <= truth[i]) & (truth[i] <= hi[:, i]))
             print(f"{pn:<11}{truth[i]:>11.4g}{e.mean():>11.4g}{(e.mean() - truth[i]) / sd:>9.3f}"
                   f"{(e.mean() - truth[i]) / se:>9.3f}{se / sd:>7.2f}{cov:>9.3f}")
+        print(f"(a coverage of 0.95 measured on {a.runs} runs lies within +-{1.96 * (0.95 * 0.05 / a.runs) ** 0.5:.3f} "
+              "in 95 % of studies)")
         sel = [o[4] for o in out if o[4] is not None]
         for k, rule in enumerate(("HQIC (default)", "BIC", "AIC")):
             picks = [s[k] for s in sel]
@@ -169,8 +171,11 @@ def main():
                 counts[s] = counts.get(s, 0) + 1
             top = sorted(counts.items(), key=lambda kv: -kv[1])[:4]
             print(f"choice by {rule}: right in {100 * right:.1f} % of {len(picks)} runs; most chosen: {top}")
+        wrong = [o[9] for o in out if o[4] is not None and o[4][0] != ch.model]
         if sel:
             print(f"  e.g.: {out[0][9]}")
+        for w in wrong[:3]:
+            print(f"  a wrong choice: {w}")
         code_key = {"QN": "q", "WN": "n", "RW": "k", "DR": "r"}
         print("IEEE read-offs (tangent lines) beside the fit:")
         for t in ch.terms:

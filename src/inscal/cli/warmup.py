@@ -131,12 +131,13 @@ def _library(tmp: Path) -> None:
     their callers use."""
     import numpy as np
 
-    from inscal.analysis.noise.estimators import scale_variance
+    from inscal.analysis.noise.estimators import StreamingScaleVariance
     from inscal.core import kalman
     from inscal.core.earth import normal_gravity, parse_gravity
     from inscal.sim.kernel import gauss_markov_filter
 
-    scale_variance(np.zeros((64, 2)), 100.0)  # the streamed Allan / Haar wavelet variance (inscal noise)
+    acc = StreamingScaleVariance(4096, 100.0, 2, [1, 2], piece=1024)  # the streamed Allan variance (inscal
+    acc.update(np.zeros((4096, 2)))  # noise), in pieces that shift its history
     parse_gravity("psins").g(0.5, 10.0)
     normal_gravity(0.5)
     gauss_markov_filter(np.zeros((2, 3)), 0.5, np.zeros(3))

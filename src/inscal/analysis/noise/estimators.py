@@ -144,32 +144,17 @@ class StreamingScaleVariance:
             self._feed(x[a:a + self.piece])
 
     def _shift(self, L: int) -> None:
-        """Drop the phases no term needs any more, so that ``L`` more fit."""
+        """Drop the phases no term needs any more, so that ``L`` more fit, and re-base the rest."""
         keep0 = int(min(self.next_i.min(), self.b0 + self.fill - 1)) - self.b0
         rows = self.fill - keep0
-        if keep0 > 0:
-            step = min(keep0, 1 << 16)  # blocks that do not overlap: no temporary copy of the history
-            for a in range(0, rows, step):
-                self.buf[:, a: min(rows, a + step)] = self.buf[:, keep0 + a: keep0 + min(rows, a + step)]
+        if rows >= 2:
+            shift_rebase(self.buf, keep0, rows, self.c)
+        elif keep0 > 0:
+            self.buf[:, :rows] = self.buf[:, keep0:keep0 + rows]
         self.b0 += keep0
         self.fill -= keep0
-        self._rebase()
         if self.fill + L > self.buf.shape[1]:  # first shift of a buffer sized for a short record
             self.buf = np.concatenate([self.buf[:, : self.fill], np.empty((self.k, L))], axis=1)
-
-    def _rebase(self) -> None:
-        """Subtract from every phase kept the line through the first and last of them, and its slope
-        from the rate removed from the samples to come: a linear function of the index changes no
-        second difference D, and the phases stay small (their rounding, eps |x|, is what limits D)."""
-        f = self.fill
-        if f < 2:
-            return
-        i = np.arange(f, dtype=float)
-        for ch in range(self.k):
-            x = self.buf[ch, :f]
-            b = (x[-1] - x[0]) / (f - 1)
-            x -= x[0] + b * i
-            self.c[ch] += b
 
     def _feed(self, x) -> None:
         L = x.shape[0]
@@ -195,12 +180,30 @@ class StreamingScaleVariance:
 @njit(cache=True)
 def append_phase(buf, start, x, c):
     """Continue each channel's phase: ``buf[ch, start + i] = buf[ch, start + i - 1] + x[i, ch] - c[ch]``
-    (the running sum, carried from the last phase known; in order, as ``numpy.cumsum``)."""
+    (the running sum, carried from the last phase known; in order, as ``numpy.cumsum``; the rows of
+    ``x`` read once, the channels' sums side by side)."""
+    k = buf.shape[0]
+    acc = np.empty(k)
+    for ch in range(k):
+        acc[ch] = buf[ch, start - 1]
+    for i in range(x.shape[0]):
+        for ch in range(k):
+            acc[ch] += x[i, ch] - c[ch]
+            buf[ch, start + i] = acc[ch]
+
+
+@njit(cache=True)
+def shift_rebase(buf, keep0, rows, c):
+    """Move each channel's phases ``keep0 .. keep0 + rows - 1`` to the front, minus the line through
+    the first and last of them, and add that line's slope to the rate ``c[ch]`` removed from the samples
+    to come (a linear function of the index changes no second difference D; the phases stay small,
+    and their rounding, eps abs(x), is what limits D)."""
     for ch in range(buf.shape[0]):
-        acc = buf[ch, start - 1]
-        for i in range(x.shape[0]):
-            acc += x[i, ch] - c[ch]
-            buf[ch, start + i] = acc
+        x0 = buf[ch, keep0]
+        b = (buf[ch, keep0 + rows - 1] - x0) / (rows - 1)
+        for a in range(rows):
+            buf[ch, a] = buf[ch, keep0 + a] - (x0 + b * a)
+        c[ch] += b
 
 
 @njit(cache=True)
