@@ -99,7 +99,7 @@ class StreamingScaleVariance:
 
     ``update(x)`` takes rates (``increments=False``) or increments (``increments=True``: they are the
     rates times ``dt``, and the phase is their running sum; the result is then in rate units).
-    Memory: about ``k (2 m_max + piece)`` floats."""
+    Memory: about ``k (3 m_max + piece)`` floats."""
 
     def __init__(self, n: int, rate_hz: float, k: int = 3, m=None, piece: int = 1 << 16,
                  increments: bool = True):
@@ -114,7 +114,7 @@ class StreamingScaleVariance:
         self.scale = 1.0 / self.rate_hz if increments else 1.0  # D / (m scale): a difference of rate means
         m_max = int(self.m.max())
         self.piece = int(max(1024, min(piece, self.n)))
-        self.slack = max(self.piece, m_max // 2)  # rows appended between two shifts of the history
+        self.slack = max(self.piece, m_max)  # rows appended between two shifts of the history
         # the phase history, channel-major (each channel's phases contiguous: the kernels run down them)
         self.buf = np.empty((self.k, min(2 * m_max + 1 + self.slack, self.n + 1)))
         self.buf[:, 0] = 0.0
@@ -180,16 +180,18 @@ class StreamingScaleVariance:
 @njit(cache=True)
 def append_phase(buf, start, x, c):
     """Continue each channel's phase: ``buf[ch, start + i] = buf[ch, start + i - 1] + x[i, ch] - c[ch]``
-    (the running sum, carried from the last phase known; in order, as ``numpy.cumsum``; the rows of
-    ``x`` read once, the channels' sums side by side)."""
+    (the running sum, carried from the last phase known; in order, as ``numpy.cumsum``; two channels'
+    sums side by side, so that one's addition waits less on the other's)."""
     k = buf.shape[0]
-    acc = np.empty(k)
-    for ch in range(k):
-        acc[ch] = buf[ch, start - 1]
-    for i in range(x.shape[0]):
-        for ch in range(k):
-            acc[ch] += x[i, ch] - c[ch]
-            buf[ch, start + i] = acc[ch]
+    for ch0 in range(0, k, 2):
+        ch1 = min(ch0 + 1, k - 1)  # an odd last channel: summed twice, the same values written
+        a0, a1, c0, c1 = buf[ch0, start - 1], buf[ch1, start - 1], c[ch0], c[ch1]
+        r0, r1 = buf[ch0], buf[ch1]
+        for i in range(x.shape[0]):
+            a0 += x[i, ch0] - c0
+            a1 += x[i, ch1] - c1
+            r0[start + i] = a0
+            r1[start + i] = a1
 
 
 @njit(cache=True)
