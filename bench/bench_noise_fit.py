@@ -34,7 +34,7 @@ import numpy as np
 
 from inscal.analysis.noise import projection
 from inscal.analysis.noise.estimators import octave_scales, scale_variance
-from inscal.analysis.noise.fit import Curve, fit_curve, solve, wv_covariance
+from inscal.analysis.noise.fit import Curve, curve_covariance, fit_curve, solve
 from inscal.analysis.noise.intervals import chi2_bounds
 from inscal.analysis.noise.selection import penalty, readoffs, record_samples, select, tc_limit
 from inscal.core import noise_models as nm
@@ -53,7 +53,7 @@ SCENARIOS = {
         nm.GaussMarkov(si(0.05, "sigma"), 5.0), nm.GaussMarkov(si(0.05, "sigma"), 100.0)))),
     "MEMS": (0.01, 1 << 22, nm.ChannelNoise("g", "gyro", (
         nm.Quantization(si(2.0, "q")), nm.WhiteNoise(si(0.2, "n")), nm.RandomWalk(si(60.0, "k")),
-        nm.RateRamp(si(120.0, "r")), nm.GaussMarkov(si(20.0, "sigma"), 0.5), nm.GaussMarkov(si(10.0, "sigma"), 8.0)))),
+        nm.RateRamp(si(200.0, "r")), nm.GaussMarkov(si(20.0, "sigma"), 0.5), nm.GaussMarkov(si(10.0, "sigma"), 8.0)))),
 }
 #: random starts of the fixed-model fit besides the grid and read-off ones
 N_STARTS = 2
@@ -75,7 +75,7 @@ def exact_curve(ch, dt, n):
 def noncentralities(ch, dt, n) -> dict:
     """J of the best rival of the truth on the exact curve (efficient weights at the truth)."""
     c = exact_curve(ch, dt, n)
-    V = wv_covariance(lambda f: ch.spectrum(f, dt), c.m, c.n_terms)
+    V = curve_covariance(ch.terms, c)
     W = np.linalg.inv(np.linalg.cholesky(V))
     codes = nm.parse_model(ch.model)
     alts = {f"without {codes[i]}{i if codes[i] == 'GM' else ''}": codes[:i] + codes[i + 1:] for i in range(len(codes))}
