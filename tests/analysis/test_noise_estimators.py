@@ -77,3 +77,23 @@ def test_guards():
         acc.update(np.array([1.0, math.nan]))
     with pytest.raises(ValueError, match="shape"):
         acc.update(np.zeros((3, 2)))
+
+
+def test_streamed_sums_match_an_extended_precision_reference_on_a_wandering_record():
+    """A rate that wanders far from its first mean (a steep random walk plus a ramp) fed in small
+    pieces, so that the history is shifted and re-based many times: each Allan variance equals the
+    one computed in one go in extended precision (numpy.longdouble) to 1e-12."""
+    rng = np.random.default_rng(9)
+    n = 60_000
+    y = rng.normal(0, 1e-3, (n, 2)) + np.cumsum(rng.normal(0, 1e-4, (n, 2)), axis=0) + 1e-5 * np.arange(n)[:, None]
+    m = octave_scales(n)
+    acc = StreamingScaleVariance(n, RATE, 2, m, piece=1024, increments=False)
+    for a in range(0, n, 777):
+        acc.update(y[a:a + 777])
+    sv = acc.result()
+    for c in range(2):
+        ph = np.concatenate([[0], np.cumsum(y[:, c].astype(np.longdouble))])
+        for j, mm in enumerate(m):
+            d = ph[2 * mm:] - 2 * ph[mm:-mm] + ph[:-2 * mm]
+            ref = float(np.sum(d * d) / (2 * mm * mm * d.size))
+            assert sv.avar[j, c] == pytest.approx(ref, rel=1e-12, abs=0)  # 1e-11 without the re-basing

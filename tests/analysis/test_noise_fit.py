@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from inscal.analysis.noise.estimators import octave_scales, scale_variance
-from inscal.analysis.noise.fit import Curve, bootstrap, fit_curve, wv_covariance
-from inscal.analysis.noise.intervals import chi2_bounds
+from inscal.analysis.noise.fit import Curve, bootstrap, curve_covariance, fit_curve, wv_covariance
+from inscal.analysis.noise import projection
+from inscal.analysis.noise.intervals import chi2_bounds, gmwm_weights
 from inscal.analysis.noise.selection import readoffs, select, sub_models
 from inscal.core import noise_models as nm
 
@@ -67,11 +68,29 @@ def test_intervals_cover_on_a_record_and_bootstrap():
 
 
 def test_selection_finds_a_clear_model_and_says_why():
+    """WN+RW is chosen over every sub-sum of WN+RW+GM; a GM may not stand in for the random walk
+    (its correlation time is held within tau_max / 8, where it imitates one poorly)."""
     ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-4), nm.RandomWalk(2e-5)))
-    s = select(exact_curve(ch, 1 << 16), "WN+RW+GM", rng=np.random.default_rng(0))
-    assert s.chosen.model == "WN+RW"
-    assert s.reason.startswith("WN+RW: lowest WVIC") and "J-test" in s.reason
+    curve = exact_curve(ch, 1 << 16)
+    s = select(curve, "WN+RW+GM", rng=np.random.default_rng(0))
+    assert s.chosen.model == "WN+RW" and s.criterion == "hqic"
+    assert s.reason.startswith("WN+RW: lowest HQIC") and "runner-up" in s.reason and "gap" in s.reason
+    rows = {r[0]: r for r in s.candidates}
+    assert rows["WN+RW"][2] < 1e-6 and rows["WN+GM"][2] > 5  # J of the truth, of the GM in RW's place
+    assert rows["WN+GM"][1] - rows["WN+RW"][1] > 10  # and a parameter more
+    assert rows["WN+RW+GM"][5]  # the GM is not seen beside the random walk: set aside, with its reason
     assert len(sub_models(nm.parse_model("QN+WN+2GM"))) == 11
+
+
+def test_projection_solves_the_amplitudes_and_marks_an_absent_term():
+    """On an exact WN+GM curve the grid's best point for WN+RW+GM has RW's amplitude exactly zero and
+    the others near the truth (the polish then lands on them: test_exact_curve_gives_back_the_parameters)."""
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-4), nm.GaussMarkov(3e-5, 5.0)))
+    c = exact_curve(ch, 1 << 16)
+    th, obj, zero = projection.profile(("WN", "RW", "GM"), c.m, DT, c.wv, np.sqrt(gmwm_weights(c.lower, c.upper)))
+    assert zero == (False, True, False)
+    assert math.exp(th[0]) == pytest.approx(1e-4, rel=0.02) and math.exp(th[2]) == pytest.approx(3e-5, rel=0.1)
+    assert 5.0 / 1.3 < math.exp(th[3]) < 5.0 * 1.3  # on the grid (3 per octave)
 
 
 def test_readoffs_on_exact_curves():
@@ -86,3 +105,19 @@ def test_readoffs_on_exact_curves():
     assert readoffs(tau, np.sqrt(q.avar(m, DT)))["QN"]["value"] == pytest.approx(1e-6, rel=1e-9)
     b = nm.BiasInstability(1e-5, 50.0)
     assert readoffs(tau, np.sqrt(b.avar(m, DT) + nm.WhiteNoise(1e-9).avar(m, DT)))["BI"]["value"] == pytest.approx(1e-5, rel=2e-2)
+
+
+def test_a_ramp_adds_its_cross_term_to_the_covariance():
+    """Beside noise, a rate ramp multiplies the variance of the wavelet variances where it dominates
+    (its constant coefficients shift the noise's): V with the cross term against 300 records."""
+    n = 1 << 13
+    ch = nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-3), nm.RandomWalk(2e-4), nm.RateRamp(3e-4)))
+    rng = np.random.default_rng(3)
+    m = octave_scales(n)
+    est = np.array([scale_variance(ch.simulate(n, DT, rng), 1 / DT, m).wv[:, 0] for _ in range(300)])
+    M = (n - 2 * m + 1).astype(float)
+    V = curve_covariance(ch.terms, Curve(m.astype(float), DT, est.mean(0), est.mean(0), est.mean(0), M))
+    V0 = wv_covariance(lambda f: sum(t.spectrum(f, DT) for t in ch.terms[:2]), m, M)
+    emp = np.var(est, axis=0, ddof=1)
+    assert np.all(np.abs(emp / np.diag(V) - 1) < 0.3), emp / np.diag(V)
+    assert emp[-1] / V0[-1, -1] > 4  # the noise alone misses most of it

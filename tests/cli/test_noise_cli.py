@@ -114,7 +114,7 @@ def _counts(dth, dv, gim):
     (_counts, [], "whole numbers"),
     (None, ["--model", "WN+FOO"], "unknown term"),
     (None, ["--model", "5GM"], "at most 4"),
-    (None, ["--model", "auto", "--stop", "10"], "needs at least 5120"),
+    (None, ["--model", "auto", "--stop", "10"], "needs at least 10240"),
 ])
 def test_refusals_are_one_line_and_write_nothing(tmp_path, static, edit, args, words):
     if edit is _nan:

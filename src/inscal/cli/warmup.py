@@ -127,14 +127,17 @@ def _library(tmp: Path) -> None:
     ``gravity = "psins"``) and the normal gravity called from Python at a latitude alone, the
     covariance-form Kalman steps (tests and benchmark), the square-root and smoother steps called from Python
     (the filters call them from their compiled passes, which caches other entries) and the bias-instability
-    recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), with the argument types
+    recursion of the noise-only simulation (``montecarlo --set simulation=reuse``), the streamed Allan variance's kernels, with the argument types
     their callers use."""
     import numpy as np
 
+    from inscal.analysis.noise.estimators import StreamingScaleVariance
     from inscal.core import kalman
     from inscal.core.earth import normal_gravity, parse_gravity
     from inscal.sim.kernel import gauss_markov_filter
 
+    acc = StreamingScaleVariance(4096, 100.0, 2, [1, 2], piece=1024)  # the streamed Allan variance (inscal
+    acc.update(np.zeros((4096, 2)))  # noise), in pieces that shift its history
     parse_gravity("psins").g(0.5, 10.0)
     normal_gravity(0.5)
     gauss_markov_filter(np.zeros((2, 3)), 0.5, np.zeros(3))

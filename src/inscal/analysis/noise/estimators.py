@@ -16,7 +16,10 @@ is ``m`` times the difference of two adjacent m-sample means, so::
 i.e. AVAR(m) = 2 WV(2m-wide).  The phase is kept for the last ``2 m_max + chunk`` samples only, and
 the squared terms of every ``m`` are summed as soon as their three phases are known: the exact
 sums, not an approximation.  The rounding of the phase is kept small by removing the first chunk's
-mean before summing (a constant rate does not change any D).
+mean before summing (a constant rate does not change any D).  Two numba kernels do the work: the
+running phase, and per factor one pass down each channel's phases (stored channel-major) summing
+D^2 in blocks of :data:`BLOCK` terms (a two-level sum; the inner one spread over vector lanes), about
+0.6 ns per term and factor: a 24-h 100-Hz six-channel record at its 20 octave factors in about a second.
 
 Intervals (:mod:`inscal.analysis.noise.intervals`) use the equivalent degrees of freedom
 ``eta3 = max(M / L, 1)`` (Percival & Walden 2000 eq. 314c), as GMWM's ``wvar`` does.
@@ -28,6 +31,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+
+#: terms summed in one partial sum before it is added to the total (a two-level sum: rounding
+#: about (BLOCK + M / BLOCK) eps instead of M eps on M terms)
+BLOCK = 4096
 
 
 def octave_scales(n: int, max_fraction: float = 0.1) -> np.ndarray:
@@ -91,9 +99,9 @@ class StreamingScaleVariance:
 
     ``update(x)`` takes rates (``increments=False``) or increments (``increments=True``: they are the
     rates times ``dt``, and the phase is their running sum; the result is then in rate units).
-    Memory: about ``2 m_max + piece`` rows of ``k`` floats."""
+    Memory: about ``k (3 m_max + piece)`` floats."""
 
-    def __init__(self, n: int, rate_hz: float, k: int = 3, m=None, piece: int = 1 << 18,
+    def __init__(self, n: int, rate_hz: float, k: int = 3, m=None, piece: int = 1 << 16,
                  increments: bool = True):
         if n < 16:
             raise ValueError(f"need at least 16 samples, got {n}")
@@ -106,16 +114,16 @@ class StreamingScaleVariance:
         self.scale = 1.0 / self.rate_hz if increments else 1.0  # D / (m scale): a difference of rate means
         m_max = int(self.m.max())
         self.piece = int(max(1024, min(piece, self.n)))
-        self.slack = max(self.piece, m_max // 2)  # rows appended between two shifts of the history
-        self.buf = np.empty((min(2 * m_max + 1 + self.slack, self.n + 1), self.k))
-        self.buf[0] = 0.0
+        self.slack = max(self.piece, m_max)  # rows appended between two shifts of the history
+        # the phase history, channel-major (each channel's phases contiguous: the kernels run down them)
+        self.buf = np.empty((self.k, min(2 * m_max + 1 + self.slack, self.n + 1)))
+        self.buf[:, 0] = 0.0
         self.b0 = 0  # global phase index of buf[0]
         self.fill = 1  # rows of buf in use: phases b0 .. b0 + fill - 1
         self.next_i = np.zeros(self.m.size, dtype=np.int64)  # next term index of each m
         self.sums = np.zeros((self.m.size, self.k))
         self.fed = 0
         self.c = None
-        self._tmp = np.empty((self.piece + m_max, self.k))  # scratch for the terms (no allocation per m)
 
     def update(self, x) -> None:
         """Feed the next chunk ((N, k), or (N,) for one channel) of rates or increments; more than the
@@ -123,6 +131,7 @@ class StreamingScaleVariance:
         x = np.asarray(x, dtype=float)
         if x.ndim == 1:
             x = x[:, None]
+        x = np.ascontiguousarray(x)  # the kernels' one compiled layout
         if x.ndim != 2 or x.shape[1] != self.k:
             raise ValueError(f"samples of shape (N, {self.k}) expected, got {x.shape}")
         if self.fed + x.shape[0] > self.n:
@@ -130,48 +139,32 @@ class StreamingScaleVariance:
         if not np.all(np.isfinite(x)):
             raise ValueError("increments contain NaN or inf")
         if self.c is None and x.shape[0]:
-            self.c = x.mean(axis=0)
+            self.c = np.ascontiguousarray(x.mean(axis=0))
         for a in range(0, x.shape[0], self.piece):
             self._feed(x[a:a + self.piece])
 
     def _shift(self, L: int) -> None:
-        """Drop the phases no term needs any more, so that ``L`` more rows fit."""
+        """Drop the phases no term needs any more, so that ``L`` more fit, and re-base the rest."""
         keep0 = int(min(self.next_i.min(), self.b0 + self.fill - 1)) - self.b0
         rows = self.fill - keep0
-        if keep0 > 0:
-            step = min(keep0, 1 << 16)  # blocks that do not overlap: no temporary copy of the history
-            for a in range(0, rows, step):
-                self.buf[a: min(rows, a + step)] = self.buf[keep0 + a: keep0 + min(rows, a + step)]
+        if rows >= 2:
+            shift_rebase(self.buf, keep0, rows, self.c)
+        elif keep0 > 0:
+            self.buf[:, :rows] = self.buf[:, keep0:keep0 + rows]
         self.b0 += keep0
         self.fill -= keep0
-        if self.fill + L > self.buf.shape[0]:  # first shift of a buffer sized for a short record
-            self.buf = np.concatenate([self.buf[: self.fill], np.empty((L, self.k))])
+        if self.fill + L > self.buf.shape[1]:  # first shift of a buffer sized for a short record
+            self.buf = np.concatenate([self.buf[:, : self.fill], np.empty((self.k, L))], axis=1)
 
     def _feed(self, x) -> None:
         L = x.shape[0]
-        if self.fill + L > self.buf.shape[0]:
+        if self.fill + L > self.buf.shape[1]:
             self._shift(L)
-        ph = self.buf[self.fill - 1: self.fill + L]
-        ph[1:] = x - self.c
-        np.cumsum(ph, axis=0, out=ph)  # the running phase, carried from the last row
+        append_phase(self.buf, self.fill, x, self.c)
         self.fill += L
         self.fed += L
         J = self.b0 + self.fill - 1  # the last phase index known
-        b = self.buf
-        for j, m in enumerate(self.m):
-            i0, i1 = int(self.next_i[j]), J - 2 * int(m)  # terms i0 .. i1
-            if i1 < i0:
-                continue
-            l0, cnt = i0 - self.b0, i1 - i0 + 1
-            for a in range(0, cnt, self._tmp.shape[0]):  # D = x_{i+2m} - 2 x_{i+m} + x_i, in place
-                c = min(cnt - a, self._tmp.shape[0])
-                d = self._tmp[:c]
-                s = l0 + a
-                np.multiply(b[s + m: s + m + c], -2.0, out=d)
-                d += b[s + 2 * m: s + 2 * m + c]
-                d += b[s: s + c]
-                self.sums[j] += np.einsum("ij,ij->j", d, d)
-            self.next_i[j] = i1 + 1
+        accumulate(self.buf, self.b0, J, self.m, self.next_i, self.sums)
 
     def result(self) -> ScaleVariance:
         """The :class:`ScaleVariance` of the ``n`` samples fed (a ValueError before all of them are):
@@ -182,6 +175,70 @@ class StreamingScaleVariance:
         wv = self.sums / (4.0 * np.maximum(nterm, 1)[:, None] * (self.m[:, None] * self.scale) ** 2)
         ok = nterm >= 1
         return ScaleVariance(self.m[ok].astype(float), 1.0 / self.rate_hz, self.n, wv[ok], nterm[ok].astype(float))
+
+
+@njit(cache=True)
+def append_phase(buf, start, x, c):
+    """Continue each channel's phase: ``buf[ch, start + i] = buf[ch, start + i - 1] + x[i, ch] - c[ch]``
+    (the running sum, carried from the last phase known; in order, as ``numpy.cumsum``; two channels'
+    sums side by side, so that one's addition waits less on the other's)."""
+    k = buf.shape[0]
+    for ch0 in range(0, k, 2):
+        ch1 = min(ch0 + 1, k - 1)  # an odd last channel: summed twice, the same values written
+        a0, a1, c0, c1 = buf[ch0, start - 1], buf[ch1, start - 1], c[ch0], c[ch1]
+        r0, r1 = buf[ch0], buf[ch1]
+        for i in range(x.shape[0]):
+            a0 += x[i, ch0] - c0
+            a1 += x[i, ch1] - c1
+            r0[start + i] = a0
+            r1[start + i] = a1
+
+
+@njit(cache=True)
+def shift_rebase(buf, keep0, rows, c):
+    """Move each channel's phases ``keep0 .. keep0 + rows - 1`` to the front, minus the line through
+    the first and last of them, and add that line's slope to the rate ``c[ch]`` removed from the samples
+    to come (a linear function of the index changes no second difference D; the phases stay small,
+    and their rounding, eps abs(x), is what limits D)."""
+    for ch in range(buf.shape[0]):
+        x0 = buf[ch, keep0]
+        b = (buf[ch, keep0 + rows - 1] - x0) / (rows - 1)
+        for a in range(rows):
+            buf[ch, a] = buf[ch, keep0 + a] - (x0 + b * a)
+        c[ch] += b
+
+
+@njit(cache=True)
+def second_difference(x2, x1, x0):
+    """``x2 - 2 x1 + x0`` in this order (compiled without reassociation: the rounding of a difference
+    of large phases is that of the plain formula, as in allantools)."""
+    return (x2 - 2.0 * x1) + x0
+
+
+@njit(cache=True, fastmath={"reassoc"})
+def accumulate(buf, b0, last, m, next_i, sums):
+    """Add to ``sums[j, ch]`` the squares of every term ``D_i(m_j) = x_{i+2m} - 2 x_{i+m} + x_i`` of
+    channel ch whose three phases are in ``buf[ch]`` (phase index ``b0`` at column 0, ``last`` the last
+    one known) and not yet counted (from ``next_i[j]``, advanced past the last one): one pass down
+    each channel per factor, in partial sums of :data:`BLOCK` terms (reassociated into vector lanes:
+    the rounding of a sum of positive terms only shrinks)."""
+    for ch in range(buf.shape[0]):  # channel outer: a factor's newest windows are the next one's (cache)
+        x = buf[ch]
+        for j in range(m.size):
+            mm = m[j]
+            i0, i1 = next_i[j] - b0, last - 2 * mm - b0
+            total = 0.0
+            for a in range(i0, i1 + 1, BLOCK):
+                e = min(a + BLOCK, i1 + 1)
+                x0, x1, x2 = x[a:e], x[a + mm:e + mm], x[a + 2 * mm:e + 2 * mm]  # slices: no index wrap-around
+                part = 0.0
+                for t in range(e - a):
+                    d = second_difference(x2[t], x1[t], x0[t])
+                    part += d * d
+                total += part
+            sums[j, ch] += total
+    for j in range(m.size):
+        next_i[j] = max(next_i[j], last - 2 * m[j] + 1)
 
 
 def scale_variance(x, rate_hz: float, m=None, increments: bool = False, chunk: int = 1 << 18) -> ScaleVariance:

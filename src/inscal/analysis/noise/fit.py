@@ -10,9 +10,11 @@ with ``nu(theta)`` the exact discrete-time wavelet variances of :mod:`inscal.cor
 Here ``theta`` are the logarithms of the positive parameters (q, n, b, k, ``abs(r)``, each GM's sigma and
 tc: no bounds to keep inside, and intervals that stay positive); the default
 ``Omega = diag(1 / (upper - lower)^2)`` of the 95 % eta3 intervals (GMWM's default, so objective
-values compare across tools).  The solver is multi-start: a deterministic start from the IEEE
-read-offs, then ``n_starts`` starts drawn around it from a seeded generator, each polished by
-``scipy.optimize.least_squares`` (trust-region reflective); the best objective wins.
+values compare across tools).  The solver is multi-start: the best point of a grid of GM correlation
+times with the amplitudes solved exactly there (variable projection, :mod:`.projection`: the global
+optimum up to the grid's spacing), a start from the IEEE read-offs, then ``n_starts`` starts drawn
+around it from a seeded generator, each polished by ``scipy.optimize.least_squares``
+(trust-region reflective); the best objective wins.
 
 Uncertainty (Guerrier 2013 Proposition 2, the GMM sandwich)::
 
@@ -26,7 +28,8 @@ where ``V = cov(nu_hat)`` at the fitted model, from the spectrum S of the channe
 
 The integral runs on a logarithmic frequency grid; where a filter's oscillation is finer than the
 grid (f > 32 / m) its sin^4 is replaced by its mean 3/8 (a documented approximation, below 1 % on
-V; a deterministic ramp adds nothing to V).  95 % intervals are exp(theta_hat +- 1.96 se).  The
+V).  A deterministic ramp adds no variance of its own but a cross term with the noise
+(its coefficients shift the noise's: :func:`ramp_covariance`).  95 % intervals are exp(theta_hat +- 1.96 se).  The
 goodness of fit is ``T = r' V^-1 r`` (r the residual), about chi^2(J - p) for a right model
 (Hansen's J statistic; approximate with a non-optimal Omega).  A parametric bootstrap
 (:func:`bootstrap`) gives percentile intervals on request.
@@ -41,6 +44,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from inscal.analysis.noise.estimators import ScaleVariance, octave_scales, scale_variance
+from inscal.analysis.noise import projection
 from inscal.analysis.noise.intervals import gmwm_weights, wv_interval
 from inscal.core import noise_models as nm
 from inscal.core.stats import chi2_sf
@@ -132,6 +136,52 @@ def wv_covariance(spectrum, m, n_terms, n_grid_per_decade: int = 1500) -> np.nda
     return 2.0 * integ / mx
 
 
+def ramp_covariance(spectrum, ramp_wv, m, n_terms, n_grid_per_decade: int = 1500) -> np.ndarray:
+    """The part of cov(nu_hat) a deterministic rate ramp adds beside noise of spectrum ``spectrum(f)``.
+
+    A ramp's Haar coefficient is the same constant ``c_j = sqrt(nu_DR,j)`` at every time, so
+    ``mean W^2 = c^2 + 2 c mean(w) + mean(w^2)`` (w the noise's coefficients) and
+    ``cov(nu_hat_j, nu_hat_k) += 4 c_j c_k cov(mean w_j, mean w_k)``.  The mean of the M_j
+    coefficients is a linear filter of the rates spanning the whole record (M_j + 2 m_j - 1 = n
+    samples for every j: one linear phase), of real amplitude
+    ``g_j(f) = sin^2(pi f m_j) / (m_j sin(pi f)) * sin(pi f M_j) / (M_j sin(pi f))``, so
+    ``cov(mean w_j, mean w_k) = int_{-1/2}^{1/2} S(f) g_j(f) g_k(f) df``.  Where the Fejer factors
+    oscillate finer than the grid (f M > 32) their product is replaced by its mean
+    ``cos(pi f (M_j - M_k)) / 2`` (0 where that oscillates too), as sin^4 in :func:`wv_covariance`."""
+    m = np.asarray(m, dtype=float)
+    M = np.asarray(n_terms, dtype=float)
+    c = np.sqrt(np.maximum(np.asarray(ramp_wv, dtype=float), 0.0))
+    f_lo = 1e-3 / (M.max() + 2 * m.max())
+    nu = np.logspace(math.log10(f_lo), math.log10(0.5), int(n_grid_per_decade * math.log10(0.5 / f_lo)) + 1)
+    s = np.sin(np.pi * nu)
+    hj = np.stack([np.where(nu * mm > 32, math.sqrt(0.375), np.sin(np.pi * nu * mm) ** 2) / (mm * s) for mm in m])
+    w = np.gradient(np.log(nu)) * nu * spectrum(nu)  # df = f dln f
+    out = np.empty((m.size, m.size))
+    for j in range(m.size):
+        for k in range(j, m.size):
+            fast = nu * min(M[j], M[k]) > 32
+            prod = np.where(fast, np.where(nu * abs(M[j] - M[k]) > 32, 0.0, 0.5 * np.cos(np.pi * nu * (M[j] - M[k]))),
+                            np.sin(np.pi * nu * M[j]) * np.sin(np.pi * nu * M[k]))
+            g = prod / (M[j] * M[k] * s * s)
+            out[j, k] = out[k, j] = 2.0 * np.sum(w * hj[j] * hj[k] * g)  # both halves of [-1/2, 1/2]
+    return 4.0 * np.outer(c, c) * out
+
+
+def curve_covariance(terms, curve: "Curve") -> np.ndarray:
+    """V = cov(nu_hat) at ``curve``'s scales for the sum of processes ``terms``: the noise's
+    (:func:`wv_covariance`) and, with a rate ramp among them, its cross term (:func:`ramp_covariance`)."""
+    noise = [t for t in terms if t.code != "DR"]
+
+    def spec(f):
+        return sum((t.spectrum(f, curve.dt) for t in noise), np.zeros(np.shape(f)))
+
+    V = wv_covariance(spec, curve.m, curve.n_terms)
+    ramps = [t for t in terms if t.code == "DR"]
+    if ramps and noise:
+        V = V + ramp_covariance(spec, sum(0.5 * t.avar(curve.m, curve.dt) for t in ramps), curve.m, curve.n_terms)
+    return V
+
+
 def readoff_starts(curve: Curve, codes) -> np.ndarray:
     """A deterministic start: each term's coefficient from the tangent of its slope to the Allan curve
     (the IEEE read-offs), GM correlation times spread over the scales."""
@@ -159,7 +209,7 @@ def readoff_starts(curve: Curve, codes) -> np.ndarray:
     return np.array(th, dtype=float)
 
 
-def _bounds(codes, curve: Curve, th0):
+def _bounds(codes, curve: Curve, th0, tc_max: float | None = None):
     lo, hi = [], []
     T = curve.n_terms[0] * curve.dt * 10
     for c, i in zip(codes, np.cumsum([0] + [n_params(c) for c in codes])[:-1]):
@@ -167,7 +217,7 @@ def _bounds(codes, curve: Curve, th0):
         hi.append(th0[i] + 25)
         if c == "GM":
             lo.append(math.log(2 * curve.dt))  # shorter, a GM is white noise at every scale: not identifiable
-            hi.append(math.log(100 * T))
+            hi.append(math.log(100 * T if tc_max is None else tc_max))
     return np.array(lo), np.array(hi)
 
 
@@ -186,22 +236,34 @@ def _canonical(codes, theta) -> np.ndarray:
 
 
 def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
-          theta0=None):
-    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``."""
+          theta0=None, whiten=None, grid: bool = True, tc_max: float | None = None):
+    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``.
+    The starts: the best point of the correlation-time grid with the amplitudes solved exactly
+    (:func:`inscal.analysis.noise.projection.profile`, ``grid=True``), ``theta0`` (default: the
+    read-offs) and ``n_starts`` random ones around it.  ``whiten``: a (J, J) matrix W for the objective
+    ``|| W (nu_hat - nu) ||^2`` in place of the diagonal ``weights`` (the efficient ``V^-1/2``);
+    ``tc_max``: the longest Gauss-Markov correlation time allowed [s] (default: far beyond the record)."""
     rng = np.random.default_rng(0) if rng is None else rng
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
-    sw = np.sqrt(w)
+    Wm = np.diag(np.sqrt(w)) if whiten is None else np.asarray(whiten, float)
     th0 = readoff_starts(curve, codes) if theta0 is None else np.asarray(theta0, float)
-    lo, hi = _bounds(codes, curve, th0)
+    lo, hi = _bounds(codes, curve, th0, tc_max)
+    starts = []
+    if grid:
+        cols = None if tc_max is None else projection.basis(codes, curve.m, curve.dt, projection.tc_grid(
+            curve.m, curve.dt, tc_max=tc_max))
+        thg = projection.profile(codes, curve.m, curve.dt, curve.wv, Wm, cols)[0]
+        lo, hi = np.minimum(lo, thg - 25), np.maximum(hi, thg + 25)
+        starts.append(np.clip(thg, lo + 1e-9, hi - 1e-9))
     th0 = np.clip(th0, lo + 1e-9, hi - 1e-9)
 
     def resid(th):
-        return sw * (curve.wv - model_wv(codes, th, curve.m, curve.dt))
+        return Wm @ (curve.wv - model_wv(codes, th, curve.m, curve.dt))
 
     def jac(th):
-        return -sw[:, None] * jacobian(codes, th, curve.m, curve.dt)
+        return -Wm @ jacobian(codes, th, curve.m, curve.dt)
 
-    starts = [th0] + [np.clip(th0 + rng.normal(0, 2.0, th0.size), lo + 1e-9, hi - 1e-9) for _ in range(n_starts)]
+    starts += [th0] + [np.clip(th0 + rng.normal(0, 2.0, th0.size), lo + 1e-9, hi - 1e-9) for _ in range(n_starts)]
     best, fbest, hits = None, np.inf, 0
     for s in starts:
         r = least_squares(resid, s, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-8, ftol=1e-10,
@@ -288,7 +350,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
     terms = terms_of(codes, theta, curve.dt)
     D = jacobian(codes, theta, curve.m, curve.dt)
     vt = terms if v_terms is None else v_terms
-    V = wv_covariance(lambda f: sum(t.spectrum(f, curve.dt) for t in vt), curve.m, curve.n_terms)
+    V = curve_covariance(vt, curve)
     A = D.T @ (w[:, None] * D)
     Ai = np.linalg.pinv(A)
     WD = w[:, None] * D

@@ -137,7 +137,8 @@ def identify_curve(curve: Curve, model: str, rng: np.random.Generator, n_starts:
     if model == "auto":
         return select(curve, AUTO_MODEL, rng)
     f = fit_curve(curve, model, n_starts=n_starts, rng=rng)
-    return Selection(f, ((f.model, f.wvic, f.objective, f.gof_p, any(f.negligible)),), f"{f.model}: as asked (--model)")
+    row = (f.model, None, f.gof, f.gof_p, len(f.theta), "")
+    return Selection(f, (row,), f"{f.model}: as asked (--model)", "none")
 
 
 def param_key(name: str) -> str:
@@ -178,8 +179,9 @@ def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: 
         "fit_scales": {"m": f.curve.m.tolist(), "scale_index_j": np.log2(2 * f.curve.m).tolist(),
                        "tau_s": (f.curve.m * dt).tolist(), "wv_si": f.curve.wv.tolist(),
                        "weights": f.weights.tolist(), "wv_fit_si": f.wv_fit.tolist()},
-        "candidates": [{"model": r[0], "wvic": r[1], "objective": r[2], "j_p_value": r[3], "unseen_term": r[4]}
-                       for r in sel.candidates[:10]],
+        "selection_criterion": sel.criterion,
+        "candidates": [{"model": r[0], "criterion": r[1], "j_statistic": r[2], "j_p_value": r[3], "parameters": r[4],
+                        "set_aside": r[5]} for r in sel.candidates[:10]],
         "ieee_readoffs": read,
         "curve": {"tau_s": tau.tolist(), "m": sv.m.tolist(), "scale_index_j": sv.scale_index.tolist(),
                   "adev": units.from_si(sv.adev[:, c], rate_unit).tolist(),
