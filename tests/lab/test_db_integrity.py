@@ -82,13 +82,14 @@ def test_eight_processes_record_each_calibration_once(db_url):
 def test_the_same_parameter_file_is_refused_and_superseding_is_keyed_once(db_url):
     with lab.open_database(db_url, create=True) as db:
         lab.add_unit(db, "U1")
-        first = lab.record_calibration(db, "U1", text_for(1), session(1), options={"method": "manual"})
+        text = text_for(1)  # one text: a file made again carries another creation time (another hash)
+        first = lab.record_calibration(db, "U1", text, session(1), options={"method": "manual"})
         before = lab.table_counts(db)
         with pytest.raises(lab.AlreadyRecorded, match=f"as result {first}") as info:
             lab.record_calibration(db, "U1", text_for(1), session(1), options={"method": "manual"})
         # the same file under other options (db add after calibrate): refused in the transaction when asked
         with pytest.raises(lab.AlreadyRecorded, match=f"parameter file is recorded already for U1, as result {first}"):
-            lab.record_calibration(db, "U1", text_for(1), session(1), options={"method": "manual", "from": "file"},
+            lab.record_calibration(db, "U1", text, session(1), options={"method": "manual", "from": "file"},
                                    new_file=True)
         assert info.value.result_id == first and lab.table_counts(db) == before
         again = lab.record_calibration(db, "U1", text_for(1, 101.0), session(1), options={"method": "manual"},
