@@ -3,14 +3,14 @@
 For every calibrated parameter component ``y`` the budget lists its inputs ``x_i``: the estimator's
 own noise (Type A, the method's 1 sigma), the station's inputs (Type B, :mod:`inscal.lab.station`)
 with their sensitivity coefficients ``c_i = dy/dx_i`` (:mod:`inscal.lab.sensitivity`), and, when the
-unit has a history, the repeatability between runs (Type A).  The inputs are independent, so
+unit has a history, the repeatability between runs (Type A).  The inputs are independent, so::
 
     u_i(y) = |c_i| u(x_i),    u_c(y)^2 = sum_i u_i(y)^2                    (GUM eq. 10, 5.1.3)
 
 An input that acts independently at each of ``N`` stops (the table's angle, its encoder's rounding,
 the wobble) has one coefficient per stop and axis; it enters as ``u(x) sqrt(sum_j c_j^2)`` and the
 table shows that root-sum-square as its coefficient.  The effective degrees of freedom
-(Welch-Satterthwaite, GUM eq. G.2b) and the coverage factor from Student's t (GUM G.3.4, G.6.4):
+(Welch-Satterthwaite, GUM eq. G.2b) and the coverage factor from Student's t (GUM G.3.4, G.6.4)::
 
     nu_eff = u_c^4 / sum_i (u_i^4 / nu_i),    k = t_{(1+p)/2}(nu_eff),    U = k u_c
 
