@@ -447,7 +447,8 @@ def register(app: typer.Typer) -> None:
         db: str = typer.Option(None, "--db", help="with --serial: the calibration database, a file (SQLite) or "
                                "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
         station: str = typer.Option(None, "--station", help="the turntable / station of the run: its name (with "
-                                    "--serial), or a station description FILE.toml (window-mean methods): the GUM "
+                                    "--serial), or a station description FILE.toml (n25, six-position, twelve-position, "
+                                    "joint, systematic51, systematic30): the GUM "
                                     "uncertainty budget is computed, printed and, with --serial, stored with the result"),
         operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "

@@ -90,15 +90,15 @@ def run_report(data: Path, params: list[Path], out: Path, force: bool = False, w
 def _noise_model_report(data: Path, params: list[Path], out: Path, force: bool) -> dict:
     """The report of a noise.toml (:mod:`inscal.report.noise_model`); CliError (one line) for a file that is not
     one, or parameter files beside it."""
-    from inscal.io.noisefile import NoiseFileError, read_noise
+    from inscal.io.noisefile import NoiseFileError, model_from_document
     from inscal.io.tomlfile import read_toml
     from inscal.report.noise_model import noise_model_report
 
     if params:
         raise CliError("--params tabulates calibrations against a record; a noise model's report takes none")
     try:
-        model, _ = read_noise(data)
         doc = read_toml(data, NoiseFileError, "noise model file")
+        model = model_from_document(doc, str(data))
     except (NoiseFileError, OSError) as exc:
         raise CliError(str(exc)) from None
     try:

@@ -120,6 +120,18 @@ def model_from_document(doc: dict, where: str = "noise model") -> nm.NoiseModel:
     return nm.NoiseModel(tuple(out), float(rate))
 
 
+def intervals_of(doc: dict) -> dict:
+    """``{channel: {term index: {param: (lower, upper)}}}`` in the file's field units, from a document's
+    ``<param>_lower_95`` / ``<param>_upper_95`` keys (absent where the file has none)."""
+    out: dict = {}
+    for ch in doc.get("channel", []):
+        for i, t in enumerate(ch.get("term", [])):
+            for key, lo in t.items():
+                if key.endswith("_lower_95") and f"{key[:-9]}_upper_95" in t:
+                    out.setdefault(ch.get("name"), {}).setdefault(i, {})[key[:-9]] = (lo, t[f"{key[:-9]}_upper_95"])
+    return out
+
+
 def read_noise(path) -> tuple[nm.NoiseModel, dict]:
     """``(model, meta)`` of a noise.toml; NoiseFileError with one line otherwise."""
     doc = read_toml(path, NoiseFileError, "noise model file")

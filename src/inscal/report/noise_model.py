@@ -17,6 +17,7 @@ import numpy as np
 from inscal.core import noise_models as nm
 from inscal.core import units
 from inscal.io.files import atomic_path
+from inscal.io.noisefile import intervals_of
 from inscal.report.figures import new_figure, png_base64
 from inscal.report.html import display_unit, escape, fmt_num, html_table
 
@@ -36,18 +37,6 @@ DISCRETE_WHAT = {"phase_std": "phase error std", "std": "std per sample", "step_
 #: the Allan-deviation grid of the figure: points per decade, and the longest tau [s] without a record curve
 POINTS_PER_DECADE = 12
 TAU_MAX_S = 1e4
-
-
-def intervals_of(doc: dict) -> dict:
-    """``{channel: {term index: {param: (lower, upper)}}}`` in field units, from a noise.toml document's
-    ``<param>_lower_95`` / ``<param>_upper_95`` keys (absent where the file has none)."""
-    out: dict = {}
-    for ch in doc.get("channel", []):
-        for i, t in enumerate(ch.get("term", [])):
-            for key, lo in t.items():
-                if key.endswith("_lower_95") and f"{key[:-9]}_upper_95" in t:
-                    out.setdefault(ch.get("name"), {}).setdefault(i, {})[key[:-9]] = (lo, t[f"{key[:-9]}_upper_95"])
-    return out
 
 
 def model_rows(model: nm.NoiseModel, doc: dict) -> tuple[list[list[str]], list[dict]]:
@@ -112,12 +101,11 @@ def model_figure(model: nm.NoiseModel, measured: dict | None = None):
 def noise_model_section(label: str, model: nm.NoiseModel, doc: dict, measured: dict | None = None) -> tuple[str, dict]:
     """The HTML section of one noise model and its JSON summary (field units; the figure embedded)."""
     rows, data = model_rows(model, doc)
-    plt = new_figure()
     fig = model_figure(model, measured)
     try:
         b64 = png_base64(fig)
     finally:
-        plt.close(fig)
+        new_figure().close(fig)
     head = ["channel", "model", "process", "parameter", "value", "unit", "95 % interval", f"per sample at "
             f"{fmt_num(model.rate_hz)} Hz"]
     html = (f"<h2>Noise model: {escape(label)}</h2><p>Identified at {fmt_num(model.rate_hz)} Hz; IEEE Std 952-2020 "

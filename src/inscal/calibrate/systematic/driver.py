@@ -495,7 +495,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             and not st.gimbal and wider != st and max(me.group_factor.values()) > 1.0):
         # the record misfits the model beyond its noise: a white model-error term accounts for the misfit only if
         # no term the states leave out drives it.  The same record with the candidate terms of --states auto added
-        # says whether one does (model_error.term_shift, a Hausman test)
+        # says whether one does (model_error.term_shift)
         try:
             big = systematic(rec, wider, filter_rate_hz=filter_rate_hz, max_passes=max_passes, tol=tol, arw=arw,
                              vrw=vrw, velocity_sigma=velocity_sigma, position_sigma=position_sigma, prior=prior,
@@ -506,8 +506,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             term_check = {"done": False, "why": str(exc), "states": state_spec(wider)}
         else:
             labels = st.labels()[nd:]
-            z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"],
-                           sig_par)
+            z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"])
             worst = int(np.argmax(z))
             term_check = {"done": True, "states": state_spec(wider), "shift_max_sigma": float(z[worst]),
                           "state": labels[worst], "limit": TERM_SHIFT_LIMIT,

@@ -193,20 +193,20 @@ def note(me: ModelError, moving: int) -> str:
 
 
 
-#: the largest shift of a parameter, in sigma of the difference, when the candidate terms are added, that the
-#: model without them explains (a 6e-5 two-sided tail per parameter: about 0.3 % over 51 parameters)
+#: the largest shift of a parameter when the candidate terms are added, in units of the sum of the two sigma
+#: (term_shift), that the model without them explains: the sum bounds the sigma of the difference whatever the
+#: correlation of the two estimates, so the test errs towards keeping a result
 TERM_SHIFT_LIMIT = 4.0
 
 
-def term_shift(x: np.ndarray, P: np.ndarray, labels: list, x_big: np.ndarray, P_big: np.ndarray, labels_big: list,
-               prior_sigma: np.ndarray) -> np.ndarray:
-    """Per parameter state of the smaller model, the shift of its estimate when terms are added, in sigma of the
-    difference (a Hausman test, Hausman 1978: when the added terms are zero both estimates are unbiased, the
-    smaller model's is the efficient one and ``Var(x - x_big) = P_big - P`` on the common states).  A term the
-    smaller model leaves out and the record holds (an asynchrony, a lever arm) drags its estimate and shows as
-    a shift beyond :data:`TERM_SHIFT_LIMIT` even where a model-error term has made its fit look consistent.
-    States not in the larger model, or whose difference variance is below 1e-6 of their prior variance or 1 %
-    of the larger model's variance, are given 0."""
+def term_shift(x: np.ndarray, P: np.ndarray, labels: list, x_big: np.ndarray, P_big: np.ndarray,
+               labels_big: list) -> np.ndarray:
+    """Per parameter state of the smaller model, the shift of its estimate when terms are added, over the sum of
+    the two sigma ``|x - x_big| / (sigma + sigma_big)`` (when the added terms are zero both estimates are unbiased
+    and ``sd(x - x_big) <= sigma + sigma_big``; Hausman's 1978 ``P_big - P`` does not apply, as the two runs carry
+    model-error factors of their own).  A term the smaller model leaves out and the record holds (an asynchrony, a
+    lever arm) drags its estimate and shows as a shift beyond :data:`TERM_SHIFT_LIMIT` even where a model-error
+    term has made its fit look consistent.  States not in the larger model are given 0."""
     where = {name: i for i, name in enumerate(labels_big)}
     z = np.zeros(len(labels))
     for i, name in enumerate(labels):
