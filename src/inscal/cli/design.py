@@ -67,10 +67,10 @@ class _Progress:
             self.p.stop()
 
 
-def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | None) -> dict:
+def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | None, station=None) -> dict:
     """The scenario TOML document of a designed path: ``base`` (a built-in scenario: IMU errors,
     site, gimbal, noise) with the designed ``[path]``; ``[noise]`` only when ARW/VRW are overridden
-    (field units: deg/sqrt(h), ug/sqrt(Hz))."""
+    (field units: deg/sqrt(h), ug/sqrt(Hz)); ``[site]`` at a ``station``'s latitude, height and gravity."""
     from inscal import SCHEMA_VERSION
     from inscal.core import units
     from inscal.sim.scenarios import build
@@ -81,6 +81,12 @@ def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | Non
         a = arw if arw is not None else float(units.from_si(sc.noise.arw, "deg/sqrt(h)").mean())
         v = vrw if vrw is not None else float(units.from_si(sc.noise.vrw, "ug/sqrt(Hz)").mean())
         doc["noise"] = {"arw": a, "vrw": v}
+    if station is not None:
+        sc = build(base)
+        doc["site"] = {"latitude_deg": float(units.from_si(station["latitude"].value, "deg")),
+                       "longitude_deg": float(units.from_si(sc.site.longitude, "deg")),
+                       "height_m": float(station["height"].value),
+                       "gravity": {"value": float(station["gravity"].value), "unit": "m/s^2"}}
     doc["path"] = path.to_dict()
     return doc
 
@@ -117,8 +123,9 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
                cable_wrap: float | None = None, min_dwell: float = 5.0, initial_dwell: float = 60.0,
                max_moves: int = 40, seed: int = 0, candidates: int = 256, population: int = 16, scheduler: str | None = None,
                workers: int = 2, base: str = "s16", arw: float | None = None, vrw: float | None = None,
-               plot: FsPath | None = None, force: bool = False, progress: bool = True):
-    """Run the search and write the path; returns ``(DesignResult, document)``."""
+               plot: FsPath | None = None, force: bool = False, progress: bool = True, station=None):
+    """Run the search and write the path; returns ``(DesignResult, document)``.  ``station``: a station
+    (:class:`inscal.lab.station.Station`): the path is designed at its site for the combined uncertainty."""
     import tomli_w
 
     from inscal.core import units
@@ -157,9 +164,15 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     try:
         from inscal.core.turntable import static
 
-        probe = scenario_doc(base, name, static(60.0), arw, vrw)
+        probe = scenario_doc(base, name, static(60.0), arw, vrw, station)
         sc = scenario_from_dict(probe)
-        setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise))
+        consider = None
+        if station is not None:
+            from inscal.cli.bound_budget import consider_u
+
+            consider = consider_u(station)
+        setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise),
+                           consider=consider)
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
     check_size(minutes, candidates, population, workers, scheduler, setup)
@@ -172,9 +185,10 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     finally:
         if bar is not None:
             bar.close()
-    doc = scenario_doc(base, name, res.path, arw, vrw)
+    doc = scenario_doc(base, name, res.path, arw, vrw, station)
     d = res.to_dict()
-    head = [f"# inscal design: {minutes:g} min, states {states}, objective {objective} over {groups} "
+    what = "" if station is None else f" of the combined uncertainty at station {station.name!r}"
+    head = [f"# inscal design: {minutes:g} min, states {states}, objective {objective}{what} over {groups} "
             f"(targets {targets}) = {res.value:.4g} (S16's own 1-h path: {res.reference_value:.4g})",
             f"# seed {seed}, {res.evaluations} candidates; limits {d['limits']}",
             "# the bound of this file: inscal observability THIS.toml --crlb"]
@@ -200,13 +214,17 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     return res, doc
 
 
-def _print(res, out) -> None:
+def _print(res, out, station=None) -> None:
     from rich import box
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     con = Console()
     d = res.to_dict()
+    if station is not None:
+        con.print(f"objective on the combined standard uncertainty at station {escape(station.name)!r}: the bound "
+                  "with the site's and the clock's contributions (\"bound RMS\" below is that combination)")
     tab = Table(title=f"Designed path {out} ({res.path.duration / 60:.1f} min, {len(res.path.moves)} moves): "
                       f"{d['objective']['kind']} = {res.value:.4g} (S16's 1-h path: {res.reference_value:.4g})",
                 box=box.SIMPLE_HEAD)
@@ -218,6 +236,14 @@ def _print(res, out) -> None:
     con.print(tab)
     con.print(f"{res.evaluations} candidates in {res.generations} generations, seed {res.seed}, {res.seconds:.1f} s; "
               f"best score (objective + tie-break) per generation: {res.trace[0]:.3g} -> {res.trace[-1]:.3g}")
+    if station is not None:
+        from inscal.cli.bound_budget import bound_budget, dominant_inputs
+        from inscal.report.budget import INPUT_TITLES
+
+        rows = [r for r in dominant_inputs(bound_budget(res.bound, station)) if r["n_largest"]]
+        con.print("largest input per component of the designed path: " + ", ".join(
+            f"{INPUT_TITLES.get(r['input'], r['input'])} in {r['n_largest']}" for r in rows)
+            + f" (the whole budget: inscal observability {out} --crlb --station FILE)")
 
 
 def register(app: typer.Typer) -> None:
@@ -253,16 +279,27 @@ def register(app: typer.Typer) -> None:
         arw: float = typer.Option(None, "--arw", help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
         vrw: float = typer.Option(None, "--vrw", help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
         plot: FsPath = typer.Option(None, "--plot", help="write the path report: FILE.png and FILE.html"),
+        station: FsPath = typer.Option(None, "--station", help="a station description (station.toml): design at its "
+                                       "site for the combined uncertainty (the bound with the site's gravity, "
+                                       "latitude, height and the time base; GUM)"),
         force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
         json_: bool = typer.Option(False, "--json", help="print the result as JSON"),
     ):
         """Design a calibration path from its Cramér-Rao bound: an evolutionary search over sequences of
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""
+        st = None
+        if station is not None:
+            from inscal.lab.station import StationError, read_station
+
+            try:
+                st = read_station(station)
+            except StationError as exc:
+                raise fail(f"--station {station}: {exc}") from None
         try:
             res, _ = run_design(out, minutes, states, objective, targets, groups, axes, max_rate, max_accel,
                                 outer_range, inner_range, cable_wrap, min_dwell, initial_dwell, max_moves, seed,
                                 candidates,
-                                population, scheduler, workers, base, arw, vrw, plot, force, progress=True)
+                                population, scheduler, workers, base, arw, vrw, plot, force, progress=True, station=st)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -270,6 +307,11 @@ def register(app: typer.Typer) -> None:
             d["out"] = str(out)
             d.pop("bound", None)
             d["bound"] = {"parameters": res.bound.table(), "group_rms": res.bound.group_rms()}
+            if st is not None:
+                from inscal.cli.bound_budget import bound_budget, dominant_inputs
+
+                bud = bound_budget(res.bound, st)
+                d.update(station=st.name, budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))
             print_json(d)
             return
-        _print(res, out)
+        _print(res, out, st)

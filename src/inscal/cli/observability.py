@@ -60,13 +60,14 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
 def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
              filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
              bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None,
-             t_ref: float | None = None, noise=None):
+             t_ref: float | None = None, noise=None, station=None):
     """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``source``.  Field units:
     ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
     ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states).  ``noise``: a
     noise.toml whose white, Gauss-Markov and random-walk terms are the bound's noise
-    (:func:`inscal.plan.noise_model.bound_noise`), instead of those options."""
+    (:func:`inscal.plan.noise_model.bound_noise`), instead of those options.  ``station``: a station
+    (:class:`inscal.lab.station.Station`): the bound at its site, carrying the site and clock sensitivities."""
     from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
@@ -109,9 +110,14 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     vrw_si = None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)")
     if model_noise is not None:
         arw_si, vrw_si, bias, _ = model_noise
+    extra = {}
+    if station is not None:
+        from inscal.cli.bound_budget import consider_u, station_site
+
+        extra = {"consider": consider_u(station), "site": station_site(sc.site, station)}
     try:
         return crlb(source, states, arw=arw_si, vrw=vrw_si, bias_noise=bias,
-                    filter_rate_hz=filter_rate_hz, keep_history=False, t_ref=t_ref)
+                    filter_rate_hz=filter_rate_hz, keep_history=False, t_ref=t_ref, **extra)
     except BoundError as exc:
         raise CliError(str(exc)) from None
 
@@ -182,6 +188,38 @@ def _print_crlb(source: str, b) -> None:
               + f"; {b.steps} steps at {d['filter_rate_hz']:g} Hz ({b.seconds:.3f} s)")
     if "temperature" in d:
         con.print(_temperature_line(d["temperature"]))
+
+
+def _print_budget(source: str, b, bud, full: bool) -> None:
+    """The budget the path promises: one line per component (or its table with ``full``), then the inputs by how
+    many components they dominate."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    from inscal.cli.bound_budget import dominant_inputs
+    from inscal.report.budget import INPUT_TITLES, budget_lines
+
+    con = Console()
+    if not con.is_terminal and "COLUMNS" not in os.environ:
+        con = Console(width=WIDE + 40)
+    con.print(f"Uncertainty budget of {escape(source)} before the run (path {escape(b.path_name)!r}, "
+              f"{b.duration_s:.0f} s, {b.setup.states.n_states}-state filter, {b.steps} steps at "
+              f"{1.0 / b.setup.T:g} Hz, {b.seconds:.3f} s)")
+    lines = budget_lines(bud.to_dict(), full=full)
+    notes = [x for x in lines if x.startswith("  note: ")]
+    for x in lines:
+        if not x.startswith("  note: "):
+            con.print(escape(x), highlight=False)
+    tab = Table(title="which inputs dominate (share of u_c²)")
+    for col in ("input", "largest in", "largest share", "median share"):
+        tab.add_column(col, justify="left" if col == "input" else "right")
+    for r in dominant_inputs(bud):
+        tab.add_row(escape(INPUT_TITLES.get(r["input"], r["input"])), f"{r['n_largest']} of {len(bud.components)}",
+                    f"{r['max_share'] * 100:.1f} %", f"{r['median_share'] * 100:.1f} %")
+    con.print(tab)
+    for x in notes:
+        con.print(escape(x.strip()), highlight=False)
 
 
 def _print_report(rep) -> None:
@@ -282,21 +320,45 @@ def register(app: typer.Typer) -> None:
                                                           "(default: the scenario's thermal model's, else 20)"),
         noise: Path = typer.Option(None, "--noise", help="with --crlb: an identified noise model (noise.toml of "
                                    "inscal noise): its white, Gauss-Markov and random-walk terms are the bound's noise"),
+        station: Path = typer.Option(None, "--station", help="with --crlb: a station description (station.toml): "
+                                     "the bound at its site, and the uncertainty budget the path promises with its "
+                                     "inputs (which dominate, before the run)"),
+        full: bool = typer.Option(False, "--full", help="with --station: every component's budget table"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
         if crlb:
+            st = None
+            if station is not None:
+                from inscal.lab.station import StationError, read_station
+
+                try:
+                    st = read_station(station)
+                except StationError as exc:
+                    raise fail(f"--station {station}: {exc}") from None
             try:
                 b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
-                             t_ref, noise)
+                             t_ref, noise, st)
             except CliError as exc:
                 raise fail(str(exc)) from None
+            bud = None
+            if st is not None:
+                from inscal.cli.bound_budget import bound_budget, dominant_inputs
+
+                bud = bound_budget(b, st)
             if json_:
-                print_json({"source": source, "crlb": b.to_dict()})
+                doc = {"source": source, "crlb": b.to_dict()}
+                if bud is not None:
+                    doc.update(station=st.to_dict(), budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))
+                print_json(doc)
+            elif bud is not None:
+                _print_budget(source, b, bud, full)
             else:
                 _print_crlb(source, b)
             return
+        if station is not None or full:
+            raise fail("--station and --full apply to the bound (--crlb)")
         if noise is not None:
             raise fail("--noise applies to the bound (--crlb)")
         if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):

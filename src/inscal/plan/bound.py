@@ -79,7 +79,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -106,6 +106,7 @@ from inscal.core.error_model import GimbalErrors
 from inscal.core.thermal import RATE_WINDOW_S
 from inscal.core.turntable import RotationPath, outer_axis
 from inscal.plan.bound_kernel import bound_kernel
+from inscal.plan.consider import CONSIDER_INPUTS, consider_columns
 from inscal.plan.observability import (
     DEFAULT_ARW,
     DEFAULT_VRW,
@@ -167,6 +168,8 @@ class Setup:
     units_: tuple[str, ...]  # field unit of each parameter
     temperature: KnownTemperature | None = None  # thermal states: the filter's known temperature
     thermal: dict | None = None  # thermal states: t_ref, t_min, t_max, span, ... (KnownTemperature.info)
+    consider: tuple[str, ...] = ()  # site and clock inputs whose sensitivity the bound carries (inscal.plan.consider)
+    consider_u: np.ndarray | None = None  # their standard uncertainties (SI; zeros: sensitivities only)
 
     @property
     def n_params(self) -> int:
@@ -188,7 +191,8 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
                bias_noise: BiasNoise | None = None, filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ,
                prior: dict | None = None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, encoder_sigma: float | None = None,
-               temperature: KnownTemperature | None = None, t_ref: float | None = None) -> Setup:
+               temperature: KnownTemperature | None = None, t_ref: float | None = None,
+               consider: dict[str, float] | None = None) -> Setup:
     """The path-independent part of a bound (:class:`Setup`).  ``site``: a
     :class:`~inscal.core.earth.Site` (default S16's, 30 N 114 E); ``gimbal``: a
     :class:`~inscal.core.error_model.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
@@ -196,7 +200,9 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     ``prior``: prior 1 sigma per group (SI; default the groups' own); ``encoder_sigma`` [rad]: the
     encoder noise of the gimbal states' attitude rows (default the filter's).  Thermal states: ``temperature``
     the filter's known temperature over the experiment (:class:`~inscal.plan.thermal.KnownTemperature`; its
-    span spreads the coefficients' prior), ``t_ref`` [degC] (default 20)."""
+    span spreads the coefficients' prior), ``t_ref`` [degC] (default 20).  ``consider``: the site and clock inputs
+    (:data:`inscal.plan.consider.CONSIDER_INPUTS`) whose sensitivity the bound carries, with their standard
+    uncertainties (SI; 0: the sensitivity alone), for :attr:`Bound.combined_sigma`."""
 
     try:
         st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -293,9 +299,16 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     psig = float(position_sigma) if position_sigma is not None else vsig * T
     r = np.array([vsig**2] * 3 + [psig**2] * 3)
     rs = r / sig[3:9] ** 2
+    cons = dict(consider or {})
+    for k, v in cons.items():
+        if k not in CONSIDER_INPUTS:
+            raise BoundError(f"consider: unknown input {k!r}; known: {', '.join(CONSIDER_INPUTS)}")
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise BoundError(f"consider: the uncertainty of {k} must be >= 0, got {v}")
     return Setup(st, site, gimbal, arw_v, vrw_v, bias, T, n_sub, sig, n_gm, kinds, axes, js, phinn, F, F2, qd, rs,
                  phi_p, q_p, vsig, psig, floored, need_rates, {"encoder_sigma": encoder_sigma}, tuple(labels),
-                 tuple(groups), tuple(unit_l), temperature if thermal else None, thermal)
+                 tuple(groups), tuple(unit_l), temperature if thermal else None, thermal, tuple(cons),
+                 np.array([float(v) for v in cons.values()]))
 
 
 @dataclass(frozen=True)
@@ -309,6 +322,16 @@ class Bound:
     covariance: np.ndarray  # (p, p) posterior covariance of the parameters (SI)
     history: np.ndarray | None  # (steps, p) posterior variance after each step (SI)
     seconds: float
+    sensitivity: np.ndarray | None = None  # (p, m) d(estimate) / d(consider input), SI per SI (setup.consider)
+
+    @property
+    def combined_sigma(self) -> np.ndarray:
+        """The bound combined with the consider inputs' uncertainties (SI): ``sqrt(sigma^2 + sum_i (S_i u_i)^2)``
+        (GUM eq. 10); the bound itself without them."""
+        s = self.sigma
+        if self.sensitivity is None or not self.setup.consider:
+            return s
+        return np.sqrt(s**2 + np.sum((self.sensitivity * self.setup.consider_u) ** 2, axis=1))
 
     @property
     def labels(self) -> tuple[str, ...]:
@@ -429,6 +452,8 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
     Vs = np.zeros((6, N - N_NAV))
 
     no_temp = np.empty((0, setup.n_sub))
+    Vc = consider_columns(setup.site, setup.consider)
+    E = np.zeros((N, Vc.shape[1]))
 
     def kernel(k0: int, k1: int) -> None:
         xH, xr = extra_rows(setup.states, sc, (np.arange(k0, k1) + 1.0) * T, setup.sig[:ns], setup.row_options)
@@ -441,26 +466,30 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
         bound_kernel(k0, k1, T, setup.n_sub, *segs, u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
                      setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
                      setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
-                     np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs, *th)
+                     np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs, *th,
+                     Vc, E)
 
     run_in_slices(M, kernel, first=max(1, 4096 // setup.n_sub))
     p = setup.n_params
     sp = setup.sig[N_NAV:N_NAV + p]
     cov = P[N_NAV:N_NAV + p, N_NAV:N_NAV + p] * np.outer(sp, sp)
     h = hist[:, N_NAV:N_NAV + p] * sp**2 if keep_history else None
-    return Bound(path.name, float(seg.t1[-1]), setup, M, cov, h, time.perf_counter() - t0)
+    sens = -E[N_NAV:N_NAV + p] * sp[:, None] if setup.consider else None  # the estimate is nominal - x^
+    return Bound(path.name, float(seg.t1[-1]), setup, M, cov, h, time.perf_counter() - t0, sens)
 
 
 def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_noise: BiasNoise | None = None,
          filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ, prior: dict | None = None,
-         keep_history: bool = True, t_ref: float | None = None, rate_window_s: float | None = RATE_WINDOW_S) -> Bound:
+         keep_history: bool = True, t_ref: float | None = None, rate_window_s: float | None = RATE_WINDOW_S,
+         consider: dict[str, float] | None = None, site=None) -> Bound:
     """The bound of an experiment from a Scenario, RotationPath, built-in name or TOML file (as
     :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry
     and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
     bare path at the S16 site with the S16 noise.  Thermal states (``51,thermal``, ``thermal=GSABR``): the
     scenario's temperature profile read as a record carries it is the known temperature of every sub-sample,
     ``dT/dt`` its slope over ``rate_window_s`` (None: the profile's exact rate), about ``t_ref`` [degC] (default
-    the scenario's thermal model's, else 20; :mod:`inscal.plan.thermal`)."""
+    the scenario's thermal model's, else 20; :mod:`inscal.plan.thermal`).  ``consider``: as :func:`make_setup`;
+    ``site``: a :class:`~inscal.core.earth.Site` instead of the scenario's (a station's)."""
 
     try:
         sc, kind, label = load_source(source)
@@ -472,9 +501,11 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
         raise BoundError(str(exc)) from None
     if bias_noise is None and kind == "scenario":
         bias_noise = BiasNoise.from_imu_noise(sc.noise)
+    if site is not None:
+        sc = replace(sc, site=site)
     temp = known_temperature(sc, label, rate_window_s=rate_window_s, error=BoundError) if st.thermal else None
     setup = make_setup(st, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior,
-                       temperature=temp, t_ref=default_t_ref(sc) if t_ref is None else t_ref)
+                       temperature=temp, t_ref=default_t_ref(sc) if t_ref is None else t_ref, consider=consider)
     return evaluate(setup, sc.path, keep_history)
 
 

@@ -8,6 +8,14 @@ known scalar of the sample (``-dT^k``, ``-(w or f)_i dT^k``, ``-dT/dt``;
 :func:`inscal.calibrate.systematic.dynamics.thermal_values`), ``dT`` and ``dT/dt`` given per sub-sample
 (the temperature profile at the sub-sample times).  They change along a dwell while the temperature
 moves, so with thermal states every step takes the sub-sample moments.
+
+Sensitivity to the site and clock (a consider analysis, :mod:`inscal.plan.consider`).  Inputs the filter takes as
+exact enter the true navigation error through constant columns ``Vc`` (6, m) in the navigation frame, in the rows
+where a parameter column acts (``[dphi'; dv']``); the filter, which does not know them, carries the error
+``e = x^ - x`` with ``E = de/ds``::
+
+    E^- = Phi E - Gamma,   Gamma = G6 Vc = int_0^T Phi_nn(T - t) [Vc; 0] dt
+    E^+ = (I - K H) E^-                          (the gain K of the covariance update)
 """
 
 from __future__ import annotations
@@ -88,7 +96,7 @@ def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, 
 @njit(cache=True, fastmath=True)
 def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist, last, phinp, Vs, th_dT,
-                 th_rate):
+                 th_rate, Vc, E):
     """Covariance-only pass (module docstring) in the scaled state over the filter steps ``k0 .. k1 - 1``
     (:mod:`inscal.plan.slices`); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
     update (``(0, N)``: not kept).  ``phinn``, ``F``, ``F2``, ``qd``: physical; ``phi_p``/``q_p``: scaled
@@ -96,7 +104,9 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
     (k1 - k0, m) their scaled variances.  Thermal states: ``th_dT``, ``th_rate`` (k1 - k0, n_sub) the
     temperature difference from T_ref [degC] and its rate [degC/s] at every sub-sample (``(0, n_sub)``: none;
     every step then takes the sub-sample moments).  Carried from one call to the next: ``last`` (1,) the dwell
-    whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p)."""
+    whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p).  Consider inputs
+    (module docstring): ``Vc`` (6, m) their columns (SI), ``E`` (N, m) in/out the sensitivity of the error in the
+    scaled state; ``m = 0``: none."""
     N = P.shape[0]
     p = N - 9
     C = np.empty((3, 3))
@@ -141,6 +151,15 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
     h = T / n_sub
     last_seg = last[0]
     keep = hist.shape[0] > 0
+    m_c = Vc.shape[1]
+    gam = np.zeros((9, m_c))  # the step's Gamma (scaled rows): the same on every step (Vc is constant)
+    for i in range(9):
+        for c in range(m_c):
+            for r in range(6):
+                gam[i, c] += G6[i, r] * Vc[r, c]
+    En = np.empty((9, m_c))
+    Eh = np.empty((6, m_c))
+    he = np.empty(m_c)
     for k in range(k0, k1):
         a = k * T
         b = a + T
@@ -275,6 +294,23 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                 for d in range(p):
                     P[9 + c, 9 + d] *= phi_p[c] * phi_p[d]
                 P[9 + c, 9 + c] += q_p[c]
+        # ---- the consider sensitivity: E_n <- Pn E_n + Phi_np E_p - Gamma, E_p <- phi_p E_p
+        if m_c:
+            for i in range(9):
+                for c in range(m_c):
+                    acc = -gam[i, c]
+                    for l in range(9):
+                        acc += Pn[i, l] * E[l, c]
+                    for l in range(p):
+                        acc += phinp[i, l] * E[9 + l, c]
+                    En[i, c] = acc
+            for i in range(9):
+                for c in range(m_c):
+                    E[i, c] = En[i, c]
+            if dyn_p:
+                for l in range(p):
+                    for c in range(m_c):
+                        E[9 + l, c] *= phi_p[l]
         # ---- update: zero velocity, known position (states 3..8); P <- P - K^T PHt (row layout)
         for a_ in range(6):
             for i in range(N):
@@ -296,6 +332,15 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                 ki = K[a_, i]
                 for j in range(i, N):
                     P[i, j] -= ki * PHt[a_, j]
+        if m_c:  # E <- E - K^T (H E)
+            for a_ in range(6):
+                for c in range(m_c):
+                    Eh[a_, c] = E[3 + a_, c]
+            for i in range(N):
+                for a_ in range(6):
+                    ki = K[a_, i]
+                    for c in range(m_c):
+                        E[i, c] -= ki * Eh[a_, c]
         for i in range(N):
             for j in range(i + 1, N):
                 P[j, i] = P[i, j]
@@ -312,6 +357,14 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                 sv += hr[i] * ph[i]
             for i in range(N):
                 kg[i] = ph[i] / sv
+            for c in range(m_c):
+                acc = 0.0
+                for j in range(N):
+                    acc += hr[j] * E[j, c]
+                he[c] = acc
+            for i in range(N):
+                for c in range(m_c):
+                    E[i, c] -= kg[i] * he[c]
             for i in range(N):
                 for j in range(i, N):
                     v = P[i, j] - kg[i] * ph[j]

@@ -9,6 +9,11 @@ systematic filter's parameters, within the turntable's limits.  Objectives, on t
   target when <= 1);
 * ``weighted``: ``sum_i (sigma_i / t_i)^2 / n`` (a mean squared normalised bound).
 
+With a station (a setup with ``consider`` inputs, :mod:`inscal.plan.consider`) ``sigma_i`` is the combined
+standard uncertainty the path promises, the bound with the site's and the clock's contributions
+(:attr:`~inscal.plan.bound.Bound.combined_sigma`, GUM eq. 10), and so are the targets of S16's own path: a path
+is then not rewarded for a precision the station's gravity or latitude takes away again.
+
 Targets (``targets=``): ``"s16-path"`` (default): the bound of S16's own 1-hour path
 (:func:`inscal.core.turntable.s16_table1`, 5 deg/s, 180 s dwells) under the same site, gimbal and
 noise; ``"s16-table2"``: the S16 Table 2 "after filter" figures for its four groups
@@ -318,7 +323,7 @@ def make_objective(setup: Setup, kind: str = "worst-normalised", targets: str = 
         raise DesignError(f"targets must be one of {', '.join(TARGETS)}, got {targets!r}")
     gs = parse_groups(groups, setup)
     mask = np.array([g in gs for g in setup.groups])
-    ref = s16_reference(setup).sigma
+    ref = s16_reference(setup).combined_sigma
     t = ref.copy()
     if targets == "s16-table2":
         for k, g in enumerate(setup.groups):
@@ -328,8 +333,8 @@ def make_objective(setup: Setup, kind: str = "worst-normalised", targets: str = 
 
 
 def group_summary(sigma: np.ndarray, setup: Setup, reference: np.ndarray) -> dict:
-    """Per group (field units): RMS bound, RMS of the reference (S16 path), worst ratio to it,
-    and the S16 Table 2 figure where there is one."""
+    """Per group (field units): RMS bound (``sigma``: the bound, or the combined uncertainty with a station), RMS of
+    the reference (S16 path), worst ratio to it, and the S16 Table 2 figure where there is one."""
     out: dict[str, dict] = {}
     for k, g in enumerate(setup.groups):
         u = setup.units_[k]
@@ -385,7 +390,7 @@ def evaluate_genes(setup: Setup, objective: Objective, budget: float, limits: Li
         try:
             path, kept = build_path(genes, budget, limits)
             b = evaluate(setup, path, keep_history=False)
-            out.append((objective.score(b.sigma), b.sigma, kept))
+            out.append((objective.score(b.combined_sigma), b.combined_sigma, kept))
         except (DesignError, BoundError, PathError):
             out.append((math.inf, None, genes))
     return out
@@ -465,7 +470,7 @@ class DesignResult:
 
     def groups(self) -> dict:
         """The bound per S16 Table 2 group against S16's own path."""
-        return group_summary(self.bound.sigma, self.bound.setup, self.objective.reference)
+        return group_summary(self.bound.combined_sigma, self.bound.setup, self.objective.reference)
 
     def to_dict(self) -> dict:
         """The design as ``inscal design --json`` prints it."""
@@ -550,5 +555,5 @@ def design(minutes: float, states: str = "51", objective: str = "worst-normalise
         raise DesignError("no feasible path found (limits too tight for the budget?)")
     path, _ = build_path(best_genes, budget, limits, name or f"designed-{minutes:g}min")
     b = evaluate(setup, path)
-    return DesignResult(path, b, obj, obj.value(b.sigma), ref_value, budget, limits, n_eval, gen, seed,
+    return DesignResult(path, b, obj, obj.value(b.combined_sigma), ref_value, budget, limits, n_eval, gen, seed,
                         time.perf_counter() - t0, trace)

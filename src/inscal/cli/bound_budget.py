@@ -1,0 +1,76 @@
+"""The uncertainty budget a path promises before it runs: the Cramér-Rao bound of the systematic filter
+(:mod:`inscal.plan.bound`) with the site and clock inputs carried through it (:mod:`inscal.plan.consider`),
+combined with a station's uncertainties as the GUM budget of :mod:`inscal.lab.budget` (``observability --crlb
+--station``, ``design --station``).  The planner and the laboratory are separate layers; this is where they meet."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from inscal.calibrate.systematic.states import state_spec
+from inscal.core.earth import Site
+from inscal.lab import budget as gum
+from inscal.lab.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS
+from inscal.lab.station import Station
+from inscal.plan.consider import CONSIDER_INPUTS, canonical
+
+#: what a budget before the run says of itself
+BOUND_NOTES = (
+    "before the run: the estimator's line is the Cramér-Rao bound of the path (the systematic filter at the nominal "
+    "unit, its noise model); the site and clock coefficients are the filter's first-order response to them (a "
+    "consider analysis), the table's inputs enter with sensitivity 0 (the filter reads neither its angles nor its "
+    "rates)",
+    "height: the bound uses the station's gravity as a value (its own input), so the height moves nothing the filter "
+    "uses",
+)
+
+
+def consider_u(station: Station) -> dict[str, float]:
+    """The standard uncertainties (SI) of the station's site and clock inputs, by name."""
+    return {k: float(station[k].u) for k in CONSIDER_INPUTS}
+
+
+def station_site(site: Site, station: Station) -> Site:
+    """``site`` moved to the station's latitude and height, with its gravity value."""
+    s = Site(station["latitude"].value, site.longitude, station["height"].value)
+    return s.with_gravity(station["gravity"].value)
+
+
+def at_station(scenario, station: Station):
+    """The scenario at the station's site."""
+    return replace(scenario, site=station_site(scenario.site, station))
+
+
+def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE) -> gum.Budget:
+    """The budget of ``bound`` (computed with ``consider``, e.g. :func:`consider_u`) at ``station``: the bound as the
+    Type-A line (infinite dof), the consider sensitivities for the site and clock, zero for the table."""
+    cb = canonical(bound)
+    n = cb.sigma.size
+    if not bound.setup.consider:
+        raise ValueError("the bound carries no site and clock sensitivities (crlb(..., consider=...))")
+    glob = {k: np.zeros(n) for k in ("table_rate", "axis_nonorthogonality")}
+    glob.update(cb.sensitivity)
+    per_stop = {k: np.zeros((1, 2, n)) for k in STOP_INPUTS}
+    method = f"Cramér-Rao bound of the systematic filter (states {state_spec(bound.setup.states)}) on {bound.path_name}"
+    return gum.budget(method, cb.names, cb.values, cb.sigma, math.inf, station, glob, per_stop, None, coverage,
+                      (*BOUND_NOTES, FILTER_TABLE_NOTE))
+
+
+def dominant_inputs(budget: gum.Budget) -> list[dict]:
+    """Per input of ``budget``: the components whose largest contribution it is, its largest and median share (of
+    ``u_c^2``), most dominant first; what an engineer improves first."""
+    rows: dict[str, dict] = {}
+    for c in budget.components:
+        top = max(c.contributions, key=lambda x: x.share)
+        for x in c.contributions:
+            r = rows.setdefault(x.input, {"input": x.input, "largest_in": [], "shares": []})
+            r["shares"].append(x.share)
+            if x is top:
+                r["largest_in"].append(c.label)
+    out = [{"input": r["input"], "largest_in": r["largest_in"], "n_largest": len(r["largest_in"]),
+            "max_share": float(max(r["shares"])), "median_share": float(np.median(r["shares"]))}
+           for r in rows.values()]
+    return sorted(out, key=lambda r: (-r["n_largest"], -r["max_share"]))
