@@ -121,3 +121,19 @@ def test_design_for_the_combined_uncertainty(tmp_path):
     assert np.all(mine.combined_sigma[k] > mine.sigma[k])
     assert d["station"] == st.name and d["budget"]["components"]
     assert out.read_text().splitlines()[0].startswith("# inscal design") and "combined uncertainty" in out.read_text()
+
+
+def test_a_window_method_from_a_simulated_run():
+    """``--method n25``: the budget of one simulated N25 run at the station, where the table's inputs (read by the
+    method through its angles and rates) dominate; the gravity still gives u(g)/g on the accelerometer scale
+    factors; the filter methods are the bound's, and a method needs a station."""
+    st = read_station(STATION)
+    d = run_json("observability", "n25", "--crlb", "--station", STATION, "--method", "n25")
+    dom = {r["input"]: r for r in d["dominant_inputs"]}
+    assert dom["table_angle"]["n_largest"] >= 5 and dom["table_angle"]["max_share"] > 0.5
+    comps = {c["label"]: c for c in d["budget"]["components"]}
+    lines = {x["input"]: x for x in comps["accel_scale_factor[0]"]["contributions"]}
+    assert lines["gravity"]["contribution"] == pytest.approx(st["gravity"].u / st["gravity"].value * 1e6, rel=1e-3)
+    one_line(run("observability", "n25", "--crlb", "--station", STATION, "--method", "systematic51"),
+             "window-mean method")
+    one_line(run("observability", "n25", "--crlb", "--method", "n25"), "needs --station")

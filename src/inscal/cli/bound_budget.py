@@ -1,7 +1,9 @@
 """The uncertainty budget a path promises before it runs: the Cramér-Rao bound of the systematic filter
 (:mod:`inscal.plan.bound`) with the site and clock inputs carried through it (:mod:`inscal.plan.consider`),
 combined with a station's uncertainties as the GUM budget of :mod:`inscal.lab.budget` (``observability --crlb
---station``, ``design --station``).  The planner and the laboratory are separate layers; this is where they meet."""
+--station``, ``design --station``); for a window-mean method, whose budget the bound does not give, the budget of
+one simulated run (``observability --crlb --station --method n25``).  The planner, the simulator and the laboratory
+are separate layers; this is where they meet."""
 
 from __future__ import annotations
 
@@ -13,9 +15,11 @@ import numpy as np
 from inscal.calibrate.systematic.states import state_spec
 from inscal.core.earth import Site
 from inscal.lab import budget as gum
-from inscal.lab.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS
+from inscal.calibrate import calibrate
+from inscal.lab.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS, calibration_budget
 from inscal.lab.station import Station
 from inscal.plan.consider import CONSIDER_INPUTS, canonical
+from inscal.sim.simulate import simulate
 
 #: what a budget before the run says of itself
 BOUND_NOTES = (
@@ -57,6 +61,16 @@ def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE) -> gum
     method = f"Cramér-Rao bound of the systematic filter (states {state_spec(bound.setup.states)}) on {bound.path_name}"
     return gum.budget(method, cb.names, cb.values, cb.sigma, math.inf, station, glob, per_stop, None, coverage,
                       (*BOUND_NOTES, FILTER_TABLE_NOTE))
+
+
+def simulated_budget(scenario, station: Station, method: str, seed: int = 0):
+    """The budget a window-mean ``method`` (:data:`inscal.lab.sensitivity.WINDOW_METHODS`) promises on
+    ``scenario`` at ``station``: one run simulated at the station's site with the scenario's unit and noise
+    (``seed``), calibrated, and its budget (:func:`inscal.lab.sensitivity.calibration_budget`: the method's own
+    sigma and its coefficients by differences through the method).  Returns ``(budget, result)``."""
+    rec = simulate(at_station(scenario, station), np.random.default_rng(seed)).to_record()
+    res = calibrate(rec, method)
+    return calibration_budget(res, station), res
 
 
 def dominant_inputs(budget: gum.Budget) -> list[dict]:

@@ -190,7 +190,31 @@ def _print_crlb(source: str, b) -> None:
         con.print(_temperature_line(d["temperature"]))
 
 
-def _print_budget(source: str, b, bud, full: bool) -> None:
+def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool) -> None:
+    """``--crlb --station --method M``: the budget of a window-mean method from one simulated run."""
+    from inscal.calibrate.windows import CalibrationError
+    from inscal.cli.bound_budget import dominant_inputs, simulated_budget
+    from inscal.lab.sensitivity import WINDOW_METHODS
+    from inscal.plan.observability import ObservabilityError, load_source
+
+    if st is None:
+        raise fail("--method needs --station (the budget of a window-mean method at a station)")
+    if method not in WINDOW_METHODS:
+        raise fail(f"--method must be a window-mean method ({', '.join(WINDOW_METHODS)}); the systematic filter's "
+                   "budget is the bound's (leave --method out)")
+    try:
+        sc, _, _ = load_source(source)
+        bud, res = simulated_budget(sc, st, method, seed)
+    except (ObservabilityError, CalibrationError, ValueError) as exc:
+        raise fail(f"{source} with --method {method}: {exc}") from None
+    if json_:
+        print_json({"source": source, "method": method, "seed": seed, "station": st.to_dict(), "budget": bud.to_dict(),
+                    "dominant_inputs": dominant_inputs(bud)})
+        return
+    _print_budget(source, None, bud, full, f"{method} on one simulated run (seed {seed})")
+
+
+def _print_budget(source: str, b, bud, full: bool, what: str | None = None) -> None:
     """The budget the path promises: one line per component (or its table with ``full``), then the inputs by how
     many components they dominate."""
     from rich.console import Console
@@ -203,9 +227,12 @@ def _print_budget(source: str, b, bud, full: bool) -> None:
     con = Console()
     if not con.is_terminal and "COLUMNS" not in os.environ:
         con = Console(width=WIDE + 40)
-    con.print(f"Uncertainty budget of {escape(source)} before the run (path {escape(b.path_name)!r}, "
-              f"{b.duration_s:.0f} s, {b.setup.states.n_states}-state filter, {b.steps} steps at "
-              f"{1.0 / b.setup.T:g} Hz, {b.seconds:.3f} s)")
+    if b is None:
+        con.print(f"Uncertainty budget of {escape(source)} before the run: {escape(what)}")
+    else:
+        con.print(f"Uncertainty budget of {escape(source)} before the run (path {escape(b.path_name)!r}, "
+                  f"{b.duration_s:.0f} s, {b.setup.states.n_states}-state filter, {b.steps} steps at "
+                  f"{1.0 / b.setup.T:g} Hz, {b.seconds:.3f} s)")
     lines = budget_lines(bud.to_dict(), full=full)
     notes = [x for x in lines if x.startswith("  note: ")]
     for x in lines:
@@ -324,6 +351,10 @@ def register(app: typer.Typer) -> None:
                                      "the bound at its site, and the uncertainty budget the path promises with its "
                                      "inputs (which dominate, before the run)"),
         full: bool = typer.Option(False, "--full", help="with --station: every component's budget table"),
+        method: str = typer.Option(None, "--method", help="with --station: a window-mean method (n25, six-position, "
+                                   "twelve-position, joint): its budget from one run simulated on the path at the "
+                                   "station (the scenario's unit and noise) instead of the systematic filter's bound"),
+        seed: int = typer.Option(0, "--seed", help="with --method: seed of the simulated run"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
@@ -337,6 +368,9 @@ def register(app: typer.Typer) -> None:
                     st = read_station(station)
                 except StationError as exc:
                     raise fail(f"--station {station}: {exc}") from None
+            if method is not None:
+                _simulated(source, st, method, seed, full, json_)
+                return
             try:
                 b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
                              t_ref, noise, st)
@@ -357,8 +391,8 @@ def register(app: typer.Typer) -> None:
             else:
                 _print_crlb(source, b)
             return
-        if station is not None or full:
-            raise fail("--station and --full apply to the bound (--crlb)")
+        if station is not None or full or method is not None:
+            raise fail("--station, --full and --method apply to the bound (--crlb)")
         if noise is not None:
             raise fail("--noise applies to the bound (--crlb)")
         if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
