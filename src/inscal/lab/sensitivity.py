@@ -117,15 +117,22 @@ def window_inputs(w: Window, site: Site, geo: Geometry, angle=(0.0, 0.0), tilt=(
     return W, F
 
 
-def perturb(ws: WindowSet, geo: Geometry, dev: Deviation) -> WindowSet:
-    """The window means the IMU would have produced with the station's errors ``dev`` (truth route)."""
+def window_baseline(ws: WindowSet, geo: Geometry) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The error-free mean inputs of every window (:func:`window_inputs` without deviations), which
+    :func:`perturb` subtracts: computed once for many perturbations (a Monte Carlo)."""
+    return [window_inputs(w, ws.site, geo) for w in ws.windows]
+
+
+def perturb(ws: WindowSet, geo: Geometry, dev: Deviation, base=None) -> WindowSet:
+    """The window means the IMU would have produced with the station's errors ``dev`` (truth route);
+    ``base``: :func:`window_baseline` of ``ws`` (computed here when None)."""
     glob = any((dev.nonorthogonality, dev.rate_scale, dev.gravity, dev.latitude, dev.height))
     out = []
     for k, w in enumerate(ws.windows):
         a = (0.0, 0.0) if dev.angle is None else tuple(dev.angle[k])
         t = (0.0, 0.0) if dev.tilt is None else tuple(dev.tilt[k])
         if glob or any(a) or any(t):
-            W0, F0 = window_inputs(w, ws.site, geo)
+            W0, F0 = window_inputs(w, ws.site, geo) if base is None else base[k]
             W1, F1 = window_inputs(w, ws.site, geo, a, t, dev.nonorthogonality, dev.rate_scale, dev.gravity,
                                    dev.latitude, dev.height)
             w = replace(w, gyro=w.gyro + geo.M_g @ (W1 - W0), accel=w.accel + geo.M_a @ (F1 - F0))
