@@ -19,8 +19,8 @@ from typer.testing import CliRunner
 
 from inscal import lab
 from inscal.cli.app import app
-from inscal.core.thermal import ThermalModel, thermal_to_field
 from inscal.core import units
+from inscal.core.thermal import ThermalModel, thermal_to_field
 from inscal.lab import sensitivity as S
 from inscal.report.certificate import certificate_data, certificate_html
 
@@ -145,3 +145,52 @@ def test_an_explicit_model_and_files_without_one(setup, two_windows, tmp_path):
     assert not (tmp_path / "o.toml").exists()
     with lab.open_database(db) as d:
         assert lab.table_counts(d) == before
+
+
+#: a short thermal-states run (the psins19 path at 20 Hz; the temperature holds 0 degC, then ramps to 40 degC)
+SCENARIO = """
+base = "psins19"
+[scenario]
+name = "psins19-thermal"
+rate_hz = 20
+[thermal]
+t_ref = 20.0
+t_min = -40.0
+t_max = 60.0
+[[thermal.terms.gyro_bias]]
+order = 1
+value = [0.002, -0.0015, 0.0025]
+unit = "deg/h/degC"
+[[thermal.terms.accel_bias]]
+order = 1
+value = [5.0, -4.0, 6.0]
+unit = "ug/degC"
+[temperature]
+start_c = 0.0
+pieces = [{kind = "hold", duration_s = 120}, {kind = "ramp", target_c = 40, rate_c_per_min = 5}]
+"""
+
+
+def test_a_result_with_thermal_states_has_sensitivity_zero(setup, tmp_path):
+    tmp, _, _, base, _ = setup
+    scen = tmp_path / "scenario.toml"
+    scen.write_text(SCENARIO)
+    rec = tmp_path / "th.h5"
+    assert run("simulate", scen, "--out", rec, "--seed", 2).exit_code == 0
+    model = tmp_path / "thermal.toml"
+    model.write_text(thermal_text(base.read_text(), K1, K2))
+    # the filter's differences rerun the state set the run used (51,thermal=11110: 63 states)
+    r = run("calibrate", rec, "-m", "systematic51", "--states", "51,thermal=11110", "-o", tmp_path / "p.toml",
+            "--station", STATION, "--thermal-model", model, "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["states"] == 63 and "thermal" in rep
+    b = rep["budget"]
+    for c in b["components"]:
+        x = line(c)
+        assert x["sensitivity"] == 0.0 and x["contribution"] == 0.0 and x["u"] == pytest.approx(U_T)
+    note = next(n for n in b["notes"] if n.startswith("temperature_stability:"))
+    assert "sensitivity 0" in note and "measured" in note and "T_ref 20 degC" in note
+    assert "--thermal-model thermal.toml not used" in note
+    gb = next(c for c in b["components"] if c["label"] == "gyro_bias[0]")  # the site's inputs are still there
+    assert {x["input"] for x in gb["contributions"] if x["sensitivity"] > 0} >= {"estimator (Type A)", "latitude"}

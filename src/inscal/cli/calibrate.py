@@ -262,9 +262,14 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
     opts = {}
     if res.method in FILTER_METHODS:
         d = res.diagnostics
-        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": str(d["states"]),
+        # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
+        # Gauss-Markov states come back from the noise model
+        spec = ",".join(p for p in str(d.get("state_options", d["states"])).split(",") if not p.startswith("gm("))
+        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": spec,
                 "arw": units.to_si(d["noise"]["arw_deg_sqrt_h"], "deg/sqrt(h)"),
                 "vrw": units.to_si(d["noise"]["vrw_ug_sqrt_hz"], "ug/sqrt(Hz)")}
+        if setup.noise is not None:
+            opts["noise"] = setup.noise_model()
 
     rep = None
     if lab_db is not None:
@@ -293,7 +298,7 @@ def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, the
 
     if res.thermal is not None:
         t = gum.temperature_measured(res.estimated, res.thermal.t_ref)
-        return t if thermal is None else replace(t, note=t.note + f"; --thermal-model {thermal[0]} not used")
+        return t if thermal is None else replace(t, note=t.note + f"; --thermal-model {Path(thermal[0]).name} not used")
     if thermal is not None:
         path, model = thermal
         source = f"the thermal model of {Path(path).name} (--thermal-model)"
