@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import tomllib
 from pathlib import Path
 
@@ -111,7 +112,9 @@ def test_the_units_thermal_result_is_found_named_and_stored(setup, two_windows):
     got = json.loads(run("db", "budget", "U7", "--db", db, "--json").stdout)
     assert got["budget"] == b
     text = run("db", "budget", "U7", "--db", db).stdout
-    assert "temperature_stability" in text and f"result {ids[0]} of U7" in text
+    rows = re.findall(r"^ +temperature_stability +arcsine +(\S+) +K +(\S+) +(\S+) +(\S+)%$", text, re.M)
+    assert len(rows) == len(b["components"]) and f"result {ids[0]} of U7" in text
+    assert float(rows[9][1]) == pytest.approx(abs(K1[0] + 2 * K2[0] * dT), rel=1e-3)  # gyro_bias[0]: 4 digits
     with lab.open_database(db) as d:
         cal = lab.current_calibration(d, "U7")
         page = certificate_html(certificate_data(cal, None, issued=cal.recorded_at, budget=lab.get_budget(d, cal.id)))

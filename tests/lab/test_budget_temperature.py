@@ -134,3 +134,11 @@ def test_the_records_mean_temperature():
     assert gum.mean_temperature(temp, "b") == pytest.approx(31.75, rel=1e-14)
     assert gum.mean_temperature(temp, "") == pytest.approx(26.75, rel=1e-14)
     assert gum.mean_temperature(temp, "not-there") == pytest.approx(26.75, rel=1e-14)
+
+
+def test_a_record_far_from_the_stated_temperature_is_noted():
+    u = 0.1 / math.sqrt(2)
+    near = gum.temperature_from_model(model(), NAMES, T_C, "m", "w", measured_c=T_C + 2.9 * u, u_t=u)
+    far = gum.temperature_from_model(model(), NAMES, T_C, "m", "w", measured_c=T_C - 3.1 * u, u_t=u)
+    assert "more than 3 u(T)" not in near.note and "more than 3 u(T)" in far.note
+    np.testing.assert_array_equal(near.c, far.c)  # the slope stays the one at the stated temperature

@@ -276,7 +276,7 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
         from inscal import lab
 
         rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
-    temperature = _temperature(res, lab_db, rec, temperature_c, thermal)
+    temperature = _temperature(res, lab_db, rec, temperature_c, thermal, station)
     try:
         b = calibration_budget(res, station, rep, record=rec, temperature=temperature, **opts).to_dict()
     except ValueError as exc:
@@ -286,7 +286,7 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
     return b
 
 
-def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, thermal):
+def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, thermal, station):
     """How the chamber's temperature stability enters the budget (:class:`inscal.lab.budget.TemperatureSensitivity`):
     a result with its own thermal model (thermal states) has sensitivity 0; otherwise the slope of ``thermal``
     (``--thermal-model``: ``(path, model)``) or of the unit's newest result in the database that carries a
@@ -324,9 +324,10 @@ def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, the
         return None
     t_c = lab_db["temperature_c"] if lab_db is not None else temperature_c
     where = "the session's --temperature-c"
-    if t_c is None and rec.temperature is not None:
-        t_c, where = gum.mean_temperature(rec.temperature, model.sensor), "the record's mean temperature"
-    return gum.temperature_from_model(model, res.estimated, t_c, source, where)
+    measured = None if rec.temperature is None else gum.mean_temperature(rec.temperature, model.sensor)
+    if t_c is None and measured is not None:
+        t_c, where = measured, "the record's mean temperature"
+    return gum.temperature_from_model(model, res.estimated, t_c, source, where, measured, station[gum.TEMPERATURE].u)
 
 
 def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,

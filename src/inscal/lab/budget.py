@@ -97,10 +97,13 @@ def temperature_coefficients(model: ThermalModel, names, t_c: float) -> np.ndarr
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def temperature_from_model(model: ThermalModel, names, t_c: float | None, source: str, where: str) -> TemperatureSensitivity:
+def temperature_from_model(model: ThermalModel, names, t_c: float | None, source: str, where: str,
+                           measured_c: float | None = None, u_t: float | None = None) -> TemperatureSensitivity:
     """The temperature coefficients of ``names`` from ``model`` (named by ``source``: "the thermal model of
     result 7 ...") at the stated temperature ``t_c`` [degC] (``where``: how it is known).  Without ``t_c`` a
-    model linear in every term still gives its (constant) slopes; a curved one gives none."""
+    model linear in every term still gives its (constant) slopes; a curved one gives none.  ``measured_c``:
+    the record's mean temperature when ``t_c`` is another one, noted when it lies more than ``3 u_t`` [K] (the
+    station's stability) away: then the station's figure does not describe the run."""
     curved = [n for n in THERMAL_TERMS if n in names and model.order(n) > 1]
     if t_c is None and curved:
         return TemperatureSensitivity(None, f"{source} is curved ({', '.join(curved)}) but the temperature the "
@@ -117,6 +120,9 @@ def temperature_from_model(model: ThermalModel, names, t_c: float | None, source
         note += f"; sensitivity 0 for {', '.join(constant)} (constant in that model)"
     if not model.t_min <= t_eval <= model.t_max:
         note += f"; {t_eval:g} degC lies outside the model's range: its slope is extrapolated"
+    if t_c is not None and measured_c is not None and u_t is not None and abs(measured_c - t_c) > 3 * u_t:
+        note += (f"; the record's mean temperature {measured_c:.4g} degC is {abs(measured_c - t_c):.3g} K from the "
+                 f"stated {t_c:g} degC, more than 3 u(T): the station's stability does not describe this run")
     return TemperatureSensitivity(temperature_coefficients(model, names, t_eval), note)
 
 
