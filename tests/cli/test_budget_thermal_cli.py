@@ -145,6 +145,8 @@ def test_an_explicit_model_and_files_without_one(setup, two_windows, tmp_path):
                      "--station", STATION, "--thermal-model", f, "--supersedes", 1), phrase, str(f.name))
     one_line(run("calibrate", rec, "-m", "n25", "-o", tmp_path / "o.toml", "--thermal-model", model),
              "give --station FILE.toml")
+    one_line(run("calibrate", rec, "-m", "n25", "-o", tmp_path / "o.toml", "--station", STATION, "--temperature-c",
+                 500), "--temperature-c 500.0: not an IMU temperature")
     assert not (tmp_path / "o.toml").exists()
     with lab.open_database(db) as d:
         assert lab.table_counts(d) == before
