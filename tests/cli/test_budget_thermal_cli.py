@@ -1,7 +1,8 @@
 """The chamber's temperature stability in ``inscal calibrate --station FILE.toml``, end to end through the
 database: the unit's newest earlier result with a thermal model is found and named, its slope at the
 session's ``--temperature-c`` is the closed form ``k1 + 2 k2 dT``, and the line is stored, printed by
-``inscal db budget`` and shown by the certificate; ``--thermal-model PARAMS.toml`` without a database;
+``inscal db budget`` and shown by the certificate; the simulator's unit held 0.5 K off calibrates to
+estimates that move by exactly that slope; ``--thermal-model PARAMS.toml`` without a database;
 a file without a thermal model, or none at all, is one line, exit 2, nothing written or recorded.  (The
 per-stop coefficients are computed for two windows only, as in ``test_budget_cli.py``.)"""
 
@@ -68,13 +69,28 @@ def thermal_text(base: str, k1_gb, k2_gb=None) -> str:
     return tomli_w.dumps(doc)
 
 
+def warm_record(folder: Path, t_c: float) -> Path:
+    """A noise-free N25 record (20 Hz) of a unit with the thermal model K1, K2, KA held at ``t_c`` [degC]."""
+    rows = [("gyro_bias", 1, K1, "deg/h/degC"), ("gyro_bias", 2, K2, "deg/h/degC^2"),
+            ("accel_scale_factor", 1, KA, "ppm/degC")]
+    scen = {"base": "n25", "scenario": {"name": "n25-warm", "rate_hz": 20},
+            "thermal": {"t_ref": 20.0, "t_min": -40.0, "t_max": 60.0, "terms": {}},
+            "temperature": {"start_c": t_c, "pieces": [{"kind": "hold", "duration_s": 1e5}]}}
+    for name, k, v, unit in rows:
+        scen["thermal"]["terms"].setdefault(name, []).append({"order": k, "value": v.tolist(), "unit": unit})
+    (folder / f"warm{t_c:g}.toml").write_text(tomli_w.dumps(scen))
+    rec = folder / f"warm{t_c:g}.h5"
+    r = run("simulate", folder / f"warm{t_c:g}.toml", "--out", rec, "--no-noise")
+    assert r.exit_code == 0, r.stderr
+    return rec
+
+
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("budgetthermal")
     db = tmp / "lab.sqlite"
     assert run("db", "add", "U7", "--model", "FOG", "--db", db).exit_code == 0
-    rec = tmp / "r.h5"
-    assert run("simulate", "n25", "--out", rec, "--seed", 5, "--rate-hz", 20).exit_code == 0
+    rec = warm_record(tmp, 35.5)  # the run half a kelvin above the 35 degC it is stated at
     base = tmp / "base.toml"  # a parameter file without a thermal model (and the base of the thermal ones)
     assert run("calibrate", rec, "-m", "n25", "-o", base).exit_code == 0
     ids = []
@@ -108,6 +124,7 @@ def test_the_units_thermal_result_is_found_named_and_stored(setup, two_windows):
     assert sum(x["share"] for x in comps["gyro_bias[0]"]["contributions"]) == pytest.approx(1.0)
     note = next(n for n in b["notes"] if n.startswith("temperature_stability:"))
     assert f"result {ids[0]} of U7 (thermal-plateaus, 2025-03-01)" in note and "35 degC" in note, note
+    assert "mean temperature 35.5 degC is 0.5 K from the stated 35 degC, more than 3 u(T)" in note, note
     # stored as computed: db budget's JSON and its table; the certificate's row
     got = json.loads(run("db", "budget", "U7", "--db", db, "--json").stdout)
     assert got["budget"] == b
@@ -150,6 +167,21 @@ def test_an_explicit_model_and_files_without_one(setup, two_windows, tmp_path):
     assert not (tmp_path / "o.toml").exists()
     with lab.open_database(db) as d:
         assert lab.table_counts(d) == before
+
+
+def test_the_slope_is_what_the_estimate_moves_by(setup, tmp_path):
+    """The simulator's unit at 35.5 and 34.5 degC (noise-free), calibrated by N25: the estimates move by the
+    slope the budget uses, k1 + 2 k2 (35 - 20) per K (a quadratic: the central difference is exact)."""
+    tmp, _, _, base, _ = setup
+    r = run("calibrate", warm_record(tmp_path, 34.5), "-m", "n25", "-o", tmp_path / "cold.toml", "--json")
+    assert r.exit_code == 0, r.stderr
+    cold = json.loads(r.stdout)["parameters"]
+    warm = tomllib.loads(base.read_text())["parameters"]
+    moved = {n: np.array(warm[n]["value"]) - np.array(cold[n]["value"]) for n in cold}
+    np.testing.assert_allclose(moved["gyro_bias"], K1 + 2 * K2 * (35.0 - 20.0), rtol=1e-6)
+    np.testing.assert_allclose(moved["accel_scale_factor"], KA, rtol=1e-6)
+    for n in ("gyro_scale_factor", "accel_bias", "gyro_misalignment", "accel_misalignment"):  # constant in the model
+        assert np.all(np.abs(moved[n]) < 1e-6), (n, moved[n])
 
 
 #: a short thermal-states run (the psins19 path at 20 Hz; the temperature holds 0 degC, then ramps to 40 degC)
