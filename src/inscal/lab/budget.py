@@ -360,7 +360,7 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
                 continue
             lines = [(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof, 1)]
             for key, inp in station.inputs.items():
-                if key not in glob and key not in STOP_COEFFICIENTS:  # not propagated: named in the notes
+                if key == TEMPERATURE and temperature.c is None:  # not propagated: named in the notes
                     continue
                 f = _factor(inp.uncertainty_unit, INPUTS[key].kind)
                 if key in STOP_COEFFICIENTS:
