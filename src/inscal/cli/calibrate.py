@@ -30,7 +30,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_c: float | None = None, supersedes: int | None = None, per_plateau: str | None = None,
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
-                  accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None) -> dict:
+                  accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
+                  thermal_model: Path | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -51,7 +52,10 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
     ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too.  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
-    bias states (:mod:`inscal.calibrate.systematic.gm_states`)."""
+    bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
+    budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
+    with a ``[thermal]`` table) or else the unit's newest thermal result in the database, at ``temperature_c``
+    (allowed without ``serial`` then) or the record's mean temperature."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
@@ -63,20 +67,23 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
         raise CliError(msg)
-    check_outputs([("--out", out), ("--plots", plots)], [data], db, serial is not None)
+    check_outputs([("--out", out), ("--plots", plots)], [data, thermal_model], db, serial is not None)
     check_output(out, force)
     check_not_input(out, data)
     if plots is not None and (plots.exists() and not plots.is_dir() or not plots.parent.is_dir()):
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
     desc = station_description(station, method)
+    thermal = budget_thermal_model(thermal_model, desc, temperature_c if serial is None else None)
+    budget_opts = None if desc is None else {"station": desc, "thermal": thermal, "temperature_c": temperature_c}
     if desc is not None:
         station = desc.name  # the session's station: the description's name
     lab_db = _open_lab(db, serial, station if desc is None or serial is not None else None, operator, date,
-                       temperature_c, supersedes, data, setup.options(), wait)
+                       temperature_c if desc is None or serial is not None else None, supersedes, data,
+                       setup.options(), wait)
     if lab_db is None:
-        return _calibrate(data, setup, out, force, plots, lab_db, desc)
+        return _calibrate(data, setup, out, force, plots, lab_db, budget_opts)
     try:
-        return _calibrate(data, setup, out, force, plots, lab_db, desc)
+        return _calibrate(data, setup, out, force, plots, lab_db, budget_opts)
     finally:  # committed with the files when the command's output unit publishes them, else rolled back
         from inscal.io.files import after_unit
 
@@ -98,6 +105,31 @@ def station_description(station: str | None, method: str):
         return read_station(station)
     except StationError as exc:
         raise CliError(str(exc)) from None
+
+
+def budget_thermal_model(path: Path | None, desc, temperature_c: float | None):
+    """``(path, ThermalModel)`` of ``--thermal-model PARAMS.toml`` (None without it), read before the calibration
+    runs: refused with one line when there is no budget, the file cannot be read or carries no thermal model.
+    ``temperature_c``: a ``--temperature-c`` given without ``--serial`` (the budget's stated temperature), checked."""
+    if desc is None:
+        if path is not None:
+            raise CliError(f"--thermal-model {path}: it serves the uncertainty budget: give --station FILE.toml")
+        return None
+    if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
+        raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    if path is None:
+        return None
+    from inscal.io.paramfile import ParamFileError, load_params
+
+    try:
+        meta = load_params(path)[2]
+    except ParamFileError as exc:
+        raise CliError(f"--thermal-model: {exc}") from None
+    model = meta.get("thermal")
+    if model is None or model.is_zero:
+        raise CliError(f"--thermal-model {path}: the parameter file has no thermal model (no [thermal] table with "
+                       "coefficients; --method thermal-plateaus or --states ...,thermal write one)")
+    return path, model
 
 
 def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
@@ -170,9 +202,10 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
             "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
 
 
-def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None, station=None) -> dict:
+def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None, budget_opts=None) -> dict:
     """The calibration of :func:`run_calibrate` once its options are checked (the record's own part:
-    :func:`inscal.lab.calibration.calibrate_record`, which a batch of calibrations runs too)."""
+    :func:`inscal.lab.calibration.calibrate_record`, which a batch of calibrations runs too); ``budget_opts``:
+    the station description and what :func:`_budget` takes with it (None: no budget)."""
     from inscal import io
     from inscal.cli.common import short
     from inscal.cli.limits import check_memory
@@ -196,7 +229,8 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     except RecordError as exc:
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
-    budget = None if station is None else _budget(res, station, lab_db, rec, setup)
+    budget = None if budget_opts is None else _budget(res, budget_opts["station"], lab_db, rec, setup,
+                                                      budget_opts["temperature_c"], budget_opts["thermal"])
     try:
         with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
             if lab_db is not None:
@@ -215,11 +249,12 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     return report
 
 
-def _budget(res, station, lab_db: dict | None, rec, setup) -> dict:
+def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float | None = None, thermal=None) -> dict:
     """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.lab.sensitivity.calibration_budget`),
-    with the repeatability of the unit's earlier results of the method when the database holds two or more;
-    kept in ``lab_db`` to be stored with the result.  A filter method's differences rerun it with the state
-    set and the noise it used."""
+    with the repeatability of the unit's earlier results of the method when the database holds two or more
+    and the chamber's temperature stability through a thermal model (:func:`_temperature`); kept in ``lab_db``
+    to be stored with the result.  A filter method's differences rerun it with the state set and the noise
+    it used."""
     from inscal.lab.budget import repeatability_of
     from inscal.core import units
     from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
@@ -227,22 +262,72 @@ def _budget(res, station, lab_db: dict | None, rec, setup) -> dict:
     opts = {}
     if res.method in FILTER_METHODS:
         d = res.diagnostics
-        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": str(d["states"]),
+        # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
+        # Gauss-Markov states come back from the noise model
+        spec = ",".join(p for p in str(d.get("state_options", d["states"])).split(",") if not p.startswith("gm("))
+        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": spec,
                 "arw": units.to_si(d["noise"]["arw_deg_sqrt_h"], "deg/sqrt(h)"),
                 "vrw": units.to_si(d["noise"]["vrw_ug_sqrt_hz"], "ug/sqrt(Hz)")}
+        if setup.noise is not None:
+            opts["noise"] = setup.noise_model()
 
     rep = None
     if lab_db is not None:
         from inscal import lab
 
         rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
+    temperature = _temperature(res, lab_db, rec, temperature_c, thermal, station)
     try:
-        b = calibration_budget(res, station, rep, record=rec, **opts).to_dict()
+        b = calibration_budget(res, station, rep, record=rec, temperature=temperature, **opts).to_dict()
     except ValueError as exc:
         raise CliError(f"--station: no uncertainty budget: {exc}") from None
     if lab_db is not None:
         lab_db["budget"] = (station.to_dict(), b)
     return b
+
+
+def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, thermal, station):
+    """How the chamber's temperature stability enters the budget (:class:`inscal.lab.budget.TemperatureSensitivity`):
+    a result with its own thermal model (thermal states) has sensitivity 0; otherwise the slope of ``thermal``
+    (``--thermal-model``: ``(path, model)``) or of the unit's newest result in the database that carries a
+    thermal model, at the session's ``--temperature-c`` or else the record's mean temperature; None (not
+    propagated, with a note) when no model is known."""
+    from dataclasses import replace
+
+    from inscal.lab import budget as gum
+
+    if res.thermal is not None:
+        t = gum.temperature_measured(res.estimated, res.thermal.t_ref)
+        return t if thermal is None else replace(t, note=t.note + f"; --thermal-model {Path(thermal[0]).name} not used")
+    if thermal is not None:
+        path, model = thermal
+        source = f"the thermal model of {Path(path).name} (--thermal-model)"
+    elif lab_db is not None:
+        import sqlalchemy
+
+        from inscal import lab
+        from inscal.lab.model import iso
+        from inscal.lab.store import newest_thermal
+
+        try:
+            found = newest_thermal(lab_db["db"], lab_db["serial"])
+        except (lab.DatabaseError, sqlalchemy.exc.SQLAlchemyError) as exc:
+            raise CliError(f"--station: no uncertainty budget: {str(getattr(exc, 'orig', None) or exc).splitlines()[0]}") \
+                from None
+        if found is None:
+            return gum.TemperatureSensitivity(None, f"no thermal model of {lab_db['serial']}: none of its results in "
+                                                    f"{lab_db['db'].where} carries one and no --thermal-model was given: "
+                                                    "not propagated")
+        cal, model = found
+        source = f"the thermal model of result {cal.id} of {cal.serial} ({cal.method}, {iso(cal.date)[:10]})"
+    else:
+        return None
+    t_c = lab_db["temperature_c"] if lab_db is not None else temperature_c
+    where = "the session's --temperature-c"
+    measured = None if rec.temperature is None else gum.mean_temperature(rec.temperature, model.sensor)
+    if t_c is None and measured is not None:
+        t_c, where = measured, "the record's mean temperature"
+    return gum.temperature_from_model(model, res.estimated, t_c, source, where, measured, station[gum.TEMPERATURE].u)
 
 
 def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,
@@ -454,7 +539,8 @@ def register(app: typer.Typer) -> None:
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "
                                  "time (UTC; default: the record's creation time)"),
         temperature_c: float = typer.Option(None, "--temperature-c", help="with --serial: the IMU's temperature "
-                                            "during the run [deg C]"),
+                                            "during the run [deg C] (with --station FILE.toml also without --serial: "
+                                            "where the budget's temperature slope is taken)"),
         supersedes: int = typer.Option(None, "--supersedes", help="with --serial: id of an earlier result this one "
                                        "replaces (e.g. the same record calibrated again)"),
         per_plateau: str = typer.Option(None, "--per-plateau", help="thermal-plateaus: the method run on each "
@@ -480,6 +566,10 @@ def register(app: typer.Typer) -> None:
         noise: Path = typer.Option(None, "--noise", help="systematic: an identified noise model (noise.toml of inscal "
                                    "noise): its white terms weight the filter, its Gauss-Markov terms become bias "
                                    "states"),
+        thermal_model: Path = typer.Option(None, "--thermal-model", help="with --station FILE.toml: a parameter "
+                                           "file with a thermal model ([thermal], from thermal-plateaus or thermal "
+                                           "states) whose slope dy/dT propagates the chamber's temperature stability "
+                                           "(default: the unit's newest result in the database that has one)"),
         json_: bool = typer.Option(False, "--json", help="print the parameters as JSON"),
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
@@ -488,7 +578,7 @@ def register(app: typer.Typer) -> None:
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
-                                noise)
+                                noise, thermal_model)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -21,6 +21,16 @@ convolved, the normal ones as one normal), times ``t_{(1+p)/2}(nu_eff) / z_{(1+p
 ``nu_eff``; with only normal inputs this is the GUM's ``t`` factor exactly.  The JCGM 101 Monte Carlo
 of ``bench/budget_mc.py`` checks the result.
 
+The chamber's temperature stability ``u(T)`` (the run's mean temperature within ``u(T)`` of the
+temperature the result is stated at) enters through the unit's thermal model
+``y(T) = y_0 + k_1 (T - T_ref) + k_2 (T - T_ref)^2 + k_3 (T - T_ref)^3`` (:mod:`inscal.core.thermal`)::
+
+    c = dy/dT = k_1 + 2 k_2 (T - T_ref) + 3 k_3 (T - T_ref)^2             at the stated temperature T
+
+(:func:`thermal_slope`, GUM 5.1.3; the model's own uncertainty enters at second order, ``u(k) u(T)``).
+Where no model is known the input is not propagated and a note says so; a result that estimated its
+own thermal model from the measured temperature has sensitivity 0 (:func:`temperature_measured`).
+
 Repeatability from the database (GUM 4.2): the spread ``s`` of the unit's earlier results of a
 component holds the estimator's noise once more, so only its excess enters,
 ``u_rep = sqrt(max(s^2 - mean(sigma^2), 0))`` with ``n - 1`` degrees of freedom.
@@ -37,6 +47,7 @@ from scipy.optimize import brentq
 
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS
+from inscal.core.thermal import THERMAL_TERMS, ThermalModel
 from inscal.lab.station import INPUTS, Station
 
 #: the coverage probability of the expanded uncertainty
@@ -46,9 +57,95 @@ ESTIMATOR = "estimator (Type A)"
 REPEATABILITY = "repeatability (Type A)"
 #: per-stop inputs and the coefficients they share (the encoder's rounding is an angle error at a stop)
 STOP_COEFFICIENTS = {"table_angle": "table_angle", "encoder_resolution": "table_angle", "axis_wobble": "axis_wobble"}
-#: inputs no window-mean sensitivity exists for: named in the budget's notes
-NOT_PROPAGATED = {"temperature_stability": "the unit's temperature sensitivity is not known to this calibration "
-                                           "(no thermal model): not propagated"}
+#: the input the unit's thermal model propagates (:class:`TemperatureSensitivity`)
+TEMPERATURE = "temperature_stability"
+#: inputs no sensitivity is known for without more information: named in the budget's notes
+NOT_PROPAGATED = {TEMPERATURE: "the unit's temperature sensitivity is not known to this calibration "
+                               "(no thermal model): not propagated"}
+
+
+@dataclass(frozen=True)
+class TemperatureSensitivity:
+    """How the chamber's temperature stability enters a budget: ``c`` the coefficients dy/dT (SI per K,
+    flat over the budget's parameters; None: not propagated) and ``note`` (where they come from, or why
+    there are none), which the budget's notes carry."""
+
+    c: np.ndarray | None
+    note: str
+
+
+def thermal_slope(model: ThermalModel, name: str, t_c: float) -> np.ndarray:
+    """``dy/dT`` of thermal term ``name`` at ``t_c`` [degC]: ``sum_k k c_k (t_c - T_ref)^(k-1)`` (SI per K,
+    one value per component; zeros where the model holds the term constant)."""
+    c = getattr(model, name)
+    dT = float(t_c) - model.t_ref
+    out = np.zeros(c.shape[1])
+    for k in range(c.shape[0], 0, -1):  # Horner on the derivative: (3 c3 dT + 2 c2) dT + c1
+        out = out * dT + k * c[k - 1]
+    return out
+
+
+def temperature_coefficients(model: ThermalModel, names, t_c: float) -> np.ndarray:
+    """The coefficients ``dy/dT`` at ``t_c`` [degC] of the flat parameter vector of ``names`` (SI per K):
+    :func:`thermal_slope` for the terms of :data:`inscal.core.thermal.THERMAL_TERMS`, 0 for the parameters
+    the thermal model does not make depend on the temperature."""
+    out = []
+    for name in names:
+        shape = PARAMETERS[name][4]
+        n = int(np.prod(shape)) if shape else 1
+        out.append(thermal_slope(model, name, t_c) if name in THERMAL_TERMS else np.zeros(n))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def temperature_from_model(model: ThermalModel, names, t_c: float | None, source: str, where: str,
+                           measured_c: float | None = None, u_t: float | None = None) -> TemperatureSensitivity:
+    """The temperature coefficients of ``names`` from ``model`` (named by ``source``: "the thermal model of
+    result 7 ...") at the stated temperature ``t_c`` [degC] (``where``: how it is known).  Without ``t_c`` a
+    model linear in every term still gives its (constant) slopes; a curved one gives none.  ``measured_c``:
+    the record's mean temperature when ``t_c`` is another one, noted when it lies more than ``3 u_t`` [K] (the
+    station's stability) away: then the station's figure does not describe the run."""
+    curved = [n for n in THERMAL_TERMS if n in names and model.order(n) > 1]
+    if t_c is None and curved:
+        return TemperatureSensitivity(None, f"{source} is curved ({', '.join(curved)}) but the temperature the "
+                                            "result is stated at is not known (give --temperature-c, or a record with "
+                                            "temperatures): not propagated")
+    t_eval = model.t_ref if t_c is None else float(t_c)
+    at = ("a linear model, its slopes hold at any temperature" if t_c is None
+          else f"its slope dy/dT at {t_eval:g} degC ({where})")
+    modelled = [n for n in THERMAL_TERMS if n in names and model.order(n) > 0]
+    constant = [n for n in names if n not in modelled]
+    note = (f"propagated through {source} (T_ref {model.t_ref:g} degC, range {model.t_min:g} .. {model.t_max:g} degC), "
+            f"{at}: c = k1 + 2 k2 (T - T_ref) + 3 k3 (T - T_ref)^2 for {', '.join(modelled) or 'no parameter'}")
+    if constant:
+        note += f"; sensitivity 0 for {', '.join(constant)} (constant in that model)"
+    if not model.t_min <= t_eval <= model.t_max:
+        note += f"; {t_eval:g} degC lies outside the model's range: its slope is extrapolated"
+    if t_c is not None and measured_c is not None and u_t is not None and abs(measured_c - t_c) > 3 * u_t:
+        note += (f"; the record's mean temperature {measured_c:.4g} degC is {abs(measured_c - t_c):.3g} K from the "
+                 f"stated {t_c:g} degC, more than 3 u(T): the station's stability does not describe this run")
+    return TemperatureSensitivity(temperature_coefficients(model, names, t_eval), note)
+
+
+def mean_temperature(temperature, sensor: str = "") -> float:
+    """The time-weighted mean [degC] of a record's temperature readings (:class:`inscal.io.records.Temperature`):
+    the thermal model's ``sensor`` when the record has it, else the mean of its sensors (trapezoids over the
+    readings' own times; one reading: itself)."""
+    y = temperature.series(sensor if sensor in temperature.sensors else "")
+    t = np.asarray(temperature.time, float)
+    if y.size < 2 or t[-1] <= t[0]:
+        return float(np.mean(y))
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)) / (t[-1] - t[0]))
+
+
+def temperature_measured(names, t_ref: float) -> TemperatureSensitivity:
+    """A result that estimated its own thermal model from the record's measured temperature (thermal states)
+    states its parameters at ``t_ref`` through that model: the chamber's stability moves the measured
+    temperature, not the result (sensitivity 0; the sensor's own accuracy is another input)."""
+    n = sum(int(np.prod(PARAMETERS[x][4])) if PARAMETERS[x][4] else 1 for x in names)
+    return TemperatureSensitivity(np.zeros(n), (
+        f"sensitivity 0: this result estimated its thermal model with the parameters from the record's measured "
+        f"temperature and states them at T_ref {t_ref:g} degC through that model, so the chamber's temperature "
+        "wander is measured and compensated, not an error of the result (the temperature sensor's accuracy is)"))
 
 
 @dataclass(frozen=True)
@@ -218,8 +315,8 @@ def repeatability(values, sigmas) -> tuple[np.ndarray, float]:
 
 
 def _factor(unit: str, kind: str) -> float:
-    """SI per field unit (a temperature step: 1)."""
-    return 1.0 if kind == "temperature" else float(units.to_si(1.0, unit))
+    """SI per field unit (a temperature step: kelvin per ``unit``)."""
+    return float(units.temperature_step_to_si(1.0, unit)) if kind == "temperature" else float(units.to_si(1.0, unit))
 
 
 def combine(parameter: str, index: int, value_si: float, lines: list[tuple], coverage: float = COVERAGE) -> ComponentBudget:
@@ -240,12 +337,18 @@ def combine(parameter: str, index: int, value_si: float, lines: list[tuple], cov
 
 def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, estimator_dof: float, station: Station,
            glob: dict[str, np.ndarray], per_stop: dict[str, np.ndarray], rep: tuple[np.ndarray, float] | None = None,
-           coverage: float = COVERAGE, notes=()) -> Budget:
+           coverage: float = COVERAGE, notes=(), temperature: TemperatureSensitivity | None = None) -> Budget:
     """The budget of a calibration: ``names`` the estimated parameters, ``values_si`` / ``sigma_si`` their
     flat estimate and 1 sigma (SI), ``glob`` / ``per_stop`` the coefficients of
-    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI.  A component
-    whose sigma is NaN (held fixed by the method) has no budget."""
-    notes = list(notes) + [f"{k}: {v}" for k, v in NOT_PROPAGATED.items()]
+    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI,
+    ``temperature`` the coefficients of the chamber's temperature stability (None: not propagated, with
+    :data:`NOT_PROPAGATED`'s note).  A component whose sigma is NaN (held fixed by the method) has no budget."""
+    if temperature is None:
+        temperature = TemperatureSensitivity(None, NOT_PROPAGATED[TEMPERATURE])
+    notes = list(notes) + [f"{TEMPERATURE}: {temperature.note}"]
+    if temperature.c is not None and np.size(temperature.c) != np.size(values_si):
+        raise ValueError(f"{TEMPERATURE}: {np.size(temperature.c)} coefficients for {np.size(values_si)} parameters")
+    glob = {**glob, TEMPERATURE: temperature.c} if temperature.c is not None else glob
     comps, i = [], 0
     for name in names:
         shape = PARAMETERS[name][4]
@@ -257,7 +360,7 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
                 continue
             lines = [(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof, 1)]
             for key, inp in station.inputs.items():
-                if key in NOT_PROPAGATED:
+                if key == TEMPERATURE and temperature.c is None:  # not propagated: named in the notes
                     continue
                 f = _factor(inp.uncertainty_unit, INPUTS[key].kind)
                 if key in STOP_COEFFICIENTS:

@@ -254,7 +254,7 @@ def record_sensitivities(record, x: Callable, kinds: dict[str, str], nwin: int =
 
 
 def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, windows=None, record=None,
-                       **options):
+                       temperature: gum.TemperatureSensitivity | None = None, **options):
     """The :class:`inscal.lab.budget.Budget` of a window-mean calibration ``result`` (it keeps its
     windows) at ``station``: coefficients by :func:`sensitivities` at the estimated geometry, the
     estimator's sigma as Type A with the fit's dof, ``rep`` = ``(u_rep, dof)`` (SI) or None;
@@ -290,4 +290,4 @@ def calibration_budget(result: CalibrationResult, station, rep=None, coverage: f
         notes.append(f"gravity: the calibration used {g_used:.6f} m/s^2, the station states {g_station:.6f} m/s^2 "
                      f"(more than 3 u apart)")
     return gum.budget(result.method, names, values, sigma, dof, station, sens.glob, sens.per_stop, rep,
-                              coverage, notes)
+                      coverage, notes, temperature)

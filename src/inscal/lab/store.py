@@ -31,6 +31,8 @@ from sqlalchemy.dialects import postgresql as pg_dialect
 from sqlalchemy.dialects import sqlite as sqlite_dialect
 
 from inscal.core.error_model import PARAMETERS, parameter_components
+from inscal.core.thermal import ThermalModel, thermal_from_field
+from inscal.io.paramfile import ParamFileError
 from inscal.lab import schema as t
 from inscal.lab.database import Database, DatabaseError, Staged, begin_write, read, write
 from inscal.lab.model import (
@@ -429,6 +431,33 @@ def calibrations(db: Database, serial: str, method: str | None = None, supersede
             later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
             q = q.where(t.results.c.id.not_in(later))
         return _load(conn, list(conn.execute(q)))
+
+
+def thermal_of(cal: Calibration) -> ThermalModel | None:
+    """The thermal model the parameter file of ``cal`` carries (its ``[thermal]`` table), None when it has none
+    or one that cannot be read."""
+    try:
+        doc = parse_param_text(cal.param_text)
+    except ParamFileError:
+        return None
+    tdoc = doc.get("thermal")
+    if not isinstance(tdoc, dict):
+        return None
+    try:
+        return thermal_from_field({k: v for k, v in tdoc.items() if k != "fit"})[0]
+    except (ValueError, TypeError, KeyError):
+        return None
+
+
+def newest_thermal(db: Database, serial: str) -> tuple[Calibration, ThermalModel] | None:
+    """The unit's newest result (by its record's date, then by recording) whose parameter file carries a thermal
+    model (``thermal-plateaus``, thermal states), with that model; None when none does.  Superseded results
+    are left out."""
+    for cal in reversed(calibrations(db, serial)):
+        model = thermal_of(cal)
+        if model is not None and not model.is_zero:
+            return cal, model
+    return None
 
 
 def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:

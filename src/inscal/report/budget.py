@@ -102,7 +102,8 @@ CSS = ("table.budget { font-size: 7.5pt; margin-top: 1mm; } table.budget th { ba
 BUDGET_STATEMENT = (
     "The uncertainty of each result is evaluated after the GUM (JCGM 100:2008): the estimator's own uncertainty "
     "from the record's noise (Type A), the station's equipment and site as described below (Type B), with "
-    "sensitivity coefficients by finite differences through the calibration method itself, and the unit's "
+    "sensitivity coefficients by finite differences through the calibration method itself (the chamber's "
+    "temperature stability through the unit's thermal model, where one is known: see the notes), and the unit's "
     "repeatability between runs where its history has one (Type A). The contributions combine in quadrature; "
     "the effective degrees of freedom follow Welch–Satterthwaite; the coverage factor k gives a coverage "
     "probability of 95 % (from the distribution of the linear model where a non-normal input is significant, "
