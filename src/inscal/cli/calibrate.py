@@ -31,7 +31,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   thermal_order: list[str] | None = None, t_ref: float | None = None, plateau_tol: float = 0.5,
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
                   accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
-                  thermal_model: Path | None = None) -> dict:
+                  thermal_model: Path | None = None, mc: int | None = None, mc_seed: int = 0,
+                  mc_workers: int = 1) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -55,7 +56,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
     with a ``[thermal]`` table) or else the unit's newest thermal result in the database, at ``temperature_c``
-    (allowed without ``serial`` then) or the record's mean temperature."""
+    (allowed without ``serial`` then) or the record's mean temperature; ``mc`` trials at most of the budget's JCGM
+    101 Monte Carlo (:mod:`inscal.cli.budget_mc`; seed ``mc_seed``, ``mc_workers`` Dask workers)."""
     from inscal.io.files import input_problem
     from inscal.lab.calibration import CalibrationSetup
 
@@ -74,7 +76,21 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError(f"--plots {plots}: not a folder, nor one that can be created here")
     desc = station_description(station, method)
     thermal = budget_thermal_model(thermal_model, desc, temperature_c if serial is None else None)
-    budget_opts = None if desc is None else {"station": desc, "thermal": thermal, "temperature_c": temperature_c}
+    if mc is not None and desc is None:
+        raise CliError("--mc is the Monte Carlo of the uncertainty budget: give --station FILE.toml")
+    if mc is not None and not 100 <= mc <= 10**7:
+        raise CliError(f"--mc {mc}: between 100 and 10^7 trials")
+    if mc is not None:
+        from inscal.lab.sensitivity import WINDOW_METHODS
+
+        if method not in WINDOW_METHODS:
+            raise CliError(f"--mc: the Monte Carlo of the budget runs the window-mean methods "
+                           f"({', '.join(WINDOW_METHODS)}), not {method}: the site and clock enter a filter linearly, "
+                           "and a thousand filter runs would take hours")
+    if mc_workers < 1:
+        raise CliError(f"--mc-workers {mc_workers}: at least 1")
+    budget_opts = None if desc is None else {"station": desc, "thermal": thermal, "temperature_c": temperature_c,
+                                             "mc": mc, "mc_seed": mc_seed, "mc_workers": mc_workers}
     if desc is not None:
         station = desc.name  # the session's station: the description's name
     lab_db = _open_lab(db, serial, station if desc is None or serial is not None else None, operator, date,
@@ -230,7 +246,8 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         raise CliError(str(exc)) from None
     res, rec, meta, enc_report, systematic = cal.result, cal.record, cal.metadata, cal.encoders, setup.systematic
     budget = None if budget_opts is None else _budget(res, budget_opts["station"], lab_db, rec, setup,
-                                                      budget_opts["temperature_c"], budget_opts["thermal"])
+                                                      budget_opts["temperature_c"], budget_opts["thermal"],
+                                                      budget_opts)
     try:
         with output_unit() as unit:  # the parameter file, the plots and the database row: all together, or none
             if lab_db is not None:
@@ -249,7 +266,8 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     return report
 
 
-def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float | None = None, thermal=None) -> dict:
+def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float | None = None, thermal=None,
+            mc: dict | None = None) -> dict:
     """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.lab.sensitivity.calibration_budget`),
     with the repeatability of the unit's earlier results of the method when the database holds two or more
     and the chamber's temperature stability through a thermal model (:func:`_temperature`); kept in ``lab_db``
@@ -278,9 +296,14 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
         rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
     temperature = _temperature(res, lab_db, rec, temperature_c, thermal, station)
     try:
-        b = calibration_budget(res, station, rep, record=rec, temperature=temperature, **opts).to_dict()
+        bud = calibration_budget(res, station, rep, record=rec, temperature=temperature, **opts)
     except ValueError as exc:
         raise CliError(f"--station: no uncertainty budget: {exc}") from None
+    b = bud.to_dict()
+    if (mc or {}).get("mc"):
+        from inscal.cli.budget_mc import run_budget_mc
+
+        b["monte_carlo"] = run_budget_mc(res, station, bud, mc["mc"], mc["mc_seed"], mc["mc_workers"], opts)
     if lab_db is not None:
         lab_db["budget"] = (station.to_dict(), b)
     return b
@@ -566,6 +589,11 @@ def register(app: typer.Typer) -> None:
         noise: Path = typer.Option(None, "--noise", help="systematic: an identified noise model (noise.toml of inscal "
                                    "noise): its white terms weight the filter, its Gauss-Markov terms become bias "
                                    "states"),
+        mc: int = typer.Option(None, "--mc", help="with --station and a window-mean method: the budget's JCGM 101 "
+                               "Monte Carlo, at most N trials (adaptive: it stops when every component's linear "
+                               "interval is validated or not; e.g. 10000)"),
+        mc_seed: int = typer.Option(0, "--mc-seed", help="seed of the Monte Carlo"),
+        mc_workers: int = typer.Option(1, "--mc-workers", help="Dask workers of the Monte Carlo (1: this process)"),
         thermal_model: Path = typer.Option(None, "--thermal-model", help="with --station FILE.toml: a parameter "
                                            "file with a thermal model ([thermal], from thermal-plateaus or thermal "
                                            "states) whose slope dy/dT propagates the chamber's temperature stability "
@@ -578,7 +606,7 @@ def register(app: typer.Typer) -> None:
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
-                                noise, thermal_model)
+                                noise, thermal_model, mc, mc_seed, mc_workers)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

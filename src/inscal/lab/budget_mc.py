@@ -254,7 +254,7 @@ def _summary(result: CalibrationResult, budget: gum.Budget, parts: list[np.ndarr
     comps, notes = [], []
     linear_inputs = sorted({x.input for c in budget.components for x in c.contributions} - SIMULATED)
     if linear_inputs:
-        notes.append(f"{', '.join(linear_inputs)}: drawn as their budget line states them (c_i x_i)")
+        notes.append(f"{', '.join(linear_inputs)}: drawn as the budget states them (c_i x_i)")
     for c, i in zip(budget.components, idx):
         f = float(units.to_si(1.0, c.unit))
         y = np.concatenate([p[:, i] for p in parts]) / f

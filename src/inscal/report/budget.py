@@ -38,12 +38,36 @@ def summary_line(c: dict) -> str:
             f"largest: {top['input']} {top['share'] * 100:.0f} %)")
 
 
+def mc_line(m: dict) -> str:
+    """A component's JCGM 101 Monte Carlo: its coverage interval, the differences from the linear one, the verdict."""
+    return (f"    JCGM 101: [{fmt_num(m['low'], 6)}, {fmt_num(m['high'], 6)}] {m['unit']} (u {fmt_num(m['u'], 3)}); "
+            f"d_low {fmt_num(m['d_low'], 2)}, d_high {fmt_num(m['d_high'], 2)} against delta {fmt_num(m['delta'], 1)} "
+            f"(+- {fmt_num(2 * m['s_num'], 2)} numerical): {m['verdict']}")
+
+
+def mc_summary(mc: dict) -> str:
+    """One line: the Monte Carlo's trials and how many components each verdict has."""
+    counts: dict[str, int] = {}
+    for m in mc["components"]:
+        counts[m["verdict"]] = counts.get(m["verdict"], 0) + 1
+    return (f"JCGM 101 Monte Carlo: {mc['runs']} trials (seed {mc['seed']}, {mc['batches']} batches); the linear "
+            f"interval " + ", ".join(f"{v} in {n}" for v, n in sorted(counts.items())) + f" of {len(mc['components'])}"
+            f" components (JCGM 101 section 8, tolerance at {mc['n_dig']} significant digit(s) of u_c)")
+
+
 def budget_lines(budget: dict, full: bool = True) -> list[str]:
-    """The budget as text: per component its summary line and, when ``full``, its table."""
+    """The budget as text: per component its summary line and, when ``full``, its table; the JCGM 101 Monte Carlo's
+    interval and verdict below each component when the budget has one."""
     out = [f"uncertainty budget: station {budget['station']!r}, method {budget['method']}, "
            f"coverage {budget['coverage'] * 100:g} %"]
+    mc = budget.get("monte_carlo")
+    by_label = {m["label"]: m for m in mc["components"]} if mc else {}
+    if mc:
+        out.append("  " + mc_summary(mc))
     for c in budget["components"]:
         out.append(summary_line(c))
+        if c["label"] in by_label:
+            out.append(mc_line(by_label[c["label"]]))
         if not full:
             continue
         out.append(f"    {'input':38s} {'value':>16s} {'distribution':12s} {'u(x)':>10s} {'unit':8s} "
@@ -62,8 +86,9 @@ def _cell(value, text: str, cls: str = "num") -> str:
     return f"<td class='{cls}' data-exact='{escape(repr(value))}'>{escape(text)}</td>"
 
 
-def component_table(c: dict) -> str:
-    """The HTML table of one component's budget, with its u_c, nu_eff, k and U below."""
+def component_table(c: dict, mc: dict | None = None) -> str:
+    """The HTML table of one component's budget, with its u_c, nu_eff, k and U below (and the JCGM 101 Monte
+    Carlo's interval and verdict, ``mc``, when there is one)."""
     unit = display_unit(c["unit"])
     head = ("<thead><tr><th>Input</th><th class='num'>Value</th><th>Distribution</th><th class='num'>u(x)</th>"
             f"<th class='num'>Sensitivity<br>({escape(unit)} / unit of x)</th><th class='num'>Contribution<br>"
@@ -90,6 +115,13 @@ def component_table(c: dict) -> str:
             f"coverage factor k = <span data-key='k' data-exact='{escape(repr(c['k']))}'>{c['k']:.3f}</span>; "
             f"expanded uncertainty U = <span data-key='U' data-exact='{escape(repr(c['U']))}'>"
             f"{escape(fmt_num(c['U'], 3))}</span> {escape(unit)} (coverage probability {c['coverage'] * 100:g} %)</p>")
+    if mc is not None:
+        foot += (f"<p class='small' data-mc='{escape(c['label'])}'>JCGM 101 Monte Carlo: coverage interval "
+                 f"[<span data-key='low' data-exact='{escape(repr(mc['low']))}'>{escape(fmt_num(mc['low'], 6))}</span>, "
+                 f"<span data-key='high' data-exact='{escape(repr(mc['high']))}'>{escape(fmt_num(mc['high'], 6))}"
+                 f"</span>] {escape(unit)}; the interval above is <b data-key='verdict'>{escape(mc['verdict'])}</b> "
+                 f"(d<sub>low</sub> {escape(fmt_num(mc['d_low'], 2))}, d<sub>high</sub> "
+                 f"{escape(fmt_num(mc['d_high'], 2))}, tolerance {escape(fmt_num(mc['delta'], 1))} {escape(unit)})</p>")
     return (f"<h3>{escape(c['label'])}</h3><table class='budget' data-label='{escape(c['label'])}'>{head}"
             f"<tbody>{''.join(rows)}</tbody></table>{foot}")
 
@@ -121,6 +153,10 @@ def budget_section(budget: dict, station: dict | None) -> str:
     station_table = ("<table class='kv'><thead><tr><th>Input</th><th>Distribution</th><th>Source</th></tr></thead>"
                      f"<tbody>{''.join(rows)}</tbody></table>") if rows else ""
     notes = "".join(f"<p class='small'>Note: {escape(n)}</p>" for n in budget.get("notes", []))
+    mc = budget.get("monte_carlo")
+    by_label = {m["label"]: m for m in mc["components"]} if mc else {}
+    if mc:
+        notes += f"<p class='small'>{escape(mc_summary(mc))}.</p>"
     return (f"<style>{CSS}</style><p class='small'>{escape(BUDGET_STATEMENT)}</p>"
             f"<p>Station: <b>{escape(budget['station'])}</b></p>"
-            + station_table + notes + "".join(component_table(c) for c in budget["components"]))
+            + station_table + notes + "".join(component_table(c, by_label.get(c["label"])) for c in budget["components"]))
