@@ -132,7 +132,7 @@ def _reference_p(chi2: float, A: np.ndarray | None, rows, dof: int) -> tuple[flo
 
 def fit_statistics(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, n_params: int,
                    model_columns: list[int] | None = None, geometry: bool = False,
-                   A: np.ndarray | None = None) -> dict:
+                   A: np.ndarray | None = None, diagnose: bool = True) -> dict:
     """The fit of a calibration: chi^2 of the predicted minus the measured window means
     (all windows, both channels, exact forward model) over their measured noise.
 
@@ -143,7 +143,9 @@ def fit_statistics(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, n_params
     non-orthogonality are candidate causes); ``A``: from :func:`estimator_reference` for an
     estimator that is not least squares (its chi^2 exceeds dof by the noise it leaves in the
     residuals; the p-value uses that reference distribution, ``expected_chi2`` and
-    ``dof_effective`` report it).  Returns the ``diagnostics["fit"]`` dict::
+    ``dof_effective`` report it); ``diagnose``: name the likely cause of a misfit (:func:`likely_cause`;
+    False: "not diagnosed", for the runs of an estimator whose sigma nobody reads, e.g. the differences and the
+    Monte Carlo of an uncertainty budget).  Returns the ``diagnostics["fit"]`` dict::
 
         chi2, dof (components - n_params), expected_chi2, dof_effective, p_value,
         consistent (p >= 0.001), scale (sqrt(chi2 / expected_chi2) if inconsistent else 1),
@@ -176,7 +178,8 @@ def fit_statistics(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet, n_params
            "channels": chans, "residuals": res,
            "cause": None, "cause_share": None, "note": None, "sigma_rule": SIGMA_RULE}
     if not consistent:
-        cause, share = likely_cause(imu, gimbal, ws, rg, ra, model_columns, geometry)
+        cause, share = likely_cause(imu, gimbal, ws, rg, ra, model_columns, geometry) if diagnose else \
+            ("not diagnosed (no uncertainty asked for)", None)
         fit["cause"], fit["cause_share"] = cause, share
         fit_note(fit)
     return fit

@@ -71,7 +71,7 @@ def finish_ideal(method: str, ws: WindowSet, vals: dict, est, used: dict, static
         S, comp = sensitivity(est, ws, used, flatten(imu, GimbalErrors(), IMU_LINEAR))
         A = estimator_reference(imu, gim, ws, S, comp, list(range(24)), nuisance=[27])
     fit = fit_statistics(imu, gim, ws, nparams(IMU_LINEAR) + 1, model_columns=list(range(24)) + [27], geometry=True,
-                         A=A)
+                         A=A, diagnose=uncertainty)
     fit["nuisance"] = {"gamma0_rad": g0}
     sig, formal = finish_sigma(S, comp, fit, IMU_LINEAR, len(ws.windows))
     diag.update(fit=fit, formal_sigma=formal)

@@ -157,7 +157,7 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     imu_hat = ImuErrors(gyro_scale_factor=kg, gyro_misalignment=eg, gyro_bias=eps, accel_scale_factor=ka,
                         accel_misalignment=ea, accel_bias=nab)
     gim_hat = GimbalErrors(float(dth), np.array(mount))
-    fit = fit_statistics(imu_hat, gim_hat, ws, fi.size, model_columns=list(fi))
+    fit = fit_statistics(imu_hat, gim_hat, ws, fi.size, model_columns=list(fi), diagnose=uncertainty)
     S = idx = None
     if uncertainty:
         J = model.jacobian(p)[:, fi]

@@ -262,7 +262,7 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     if uncertainty:
         S, comp = sensitivity(est, ws, used, flatten(imu, gim, NAMES))
         A = estimator_reference(imu, gim, ws, S, comp, list(range(nparams(NAMES))))
-    fit = fit_statistics(imu, gim, ws, nparams(NAMES), A=A)
+    fit = fit_statistics(imu, gim, ws, nparams(NAMES), A=A, diagnose=uncertainty)
     sig, formal = finish_sigma(S, comp, fit, NAMES, len(ws.windows))
     diag = {"positions": [list(nominal_position(ws.windows[k])) for k in idx], "rough_alpha0_rad": a0, "X": X.tolist(), "earth_rate_b": wb.tolist(),
             "earth_rate_norm_ratio": float(np.linalg.norm(wb) / np.linalg.norm(ws.site.earth_rate_n)),

@@ -98,14 +98,16 @@ def window_inputs(w: Window, site: Site, geo: Geometry, angle=(0.0, 0.0), tilt=(
     s = (np.arange(n) + 0.5) / n
     tx = w.theta0[0] + (w.theta1[0] - w.theta0[0]) * s + angle[0]
     tz = w.theta0[1] + (w.theta1[1] - w.theta0[1]) * s + angle[1]
-    C_sn = np.einsum("ij,njk->nik", C_b_n(geo.mount), C_s_b(tx, tz, geo.dth + dth).reshape(n, 3, 3))  # N25 eq. 7-8
+    # the mean of C_s^n over the sweep (N25 eq. 7-8): w_ie^n and f^n are constant, so the mean inputs are
+    # mean(C_s^n)^T w_ie^n and mean(C_s^n)^T f^n, and C_b^n and the tilt factor out of the mean
+    C_sn = C_b_n(geo.mount) @ C_s_b(tx, tz, geo.dth + dth).reshape(n, 3, 3).mean(axis=0)
     if tilt[0] or tilt[1]:
-        C_sn = np.einsum("ij,njk->nik", np.eye(3) + skew(np.array([tilt[0], tilt[1], 0.0])), C_sn)
+        C_sn = (np.eye(3) + skew(np.array([tilt[0], tilt[1], 0.0]))) @ C_sn
     lat = site.latitude + latitude
     g = site.gravity + gravity + (site.gravity_model.g(site.latitude, site.height + height) - site.gravity)
     wie, f_n = earth_rate_n(lat), np.array([0.0, 0.0, g])  # ENU: the specific force at rest points up
-    W = np.einsum("nji,j->i", C_sn, wie) / n
-    F = np.einsum("nji,j->i", C_sn, f_n) / n
+    W = C_sn.T @ wie
+    F = C_sn.T @ f_n
     if w.kind != "static":
         rate = w.rate * (1.0 + rate_scale)
         if w.axis == "inner":  # N25 eq. 9: the inner axis is z_s, the outer one R_z^T u
