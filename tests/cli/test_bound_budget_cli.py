@@ -126,14 +126,19 @@ def test_design_for_the_combined_uncertainty(tmp_path):
 def test_a_window_method_from_a_simulated_run():
     """``--method n25``: the budget of one simulated N25 run at the station, where the table's inputs (read by the
     method through its angles and rates) dominate; the gravity still gives u(g)/g on the accelerometer scale
-    factors; the filter methods are the bound's, and a method needs a station."""
+    factors; ``--mc``: its JCGM 101 Monte Carlo finds nothing the linear budget misses at a typical station; the filter
+    methods are the bound's, and a method needs a station."""
     st = read_station(STATION)
-    d = run_json("observability", "n25", "--crlb", "--station", STATION, "--method", "n25")
+    d = run_json("observability", "n25", "--crlb", "--station", STATION, "--method", "n25", "--mc", 100)
     dom = {r["input"]: r for r in d["dominant_inputs"]}
     assert dom["table_angle"]["n_largest"] >= 5 and dom["table_angle"]["max_share"] > 0.5
     comps = {c["label"]: c for c in d["budget"]["components"]}
     lines = {x["input"]: x for x in comps["accel_scale_factor[0]"]["contributions"]}
     assert lines["gravity"]["contribution"] == pytest.approx(st["gravity"].u / st["gravity"].value * 1e6, rel=1e-3)
+    mc = d["budget"]["monte_carlo"]  # does the linear budget hold on this path at this station
+    assert mc["runs"] == 100 and [m["label"] for m in mc["components"]] == list(comps)
+    assert "not validated" not in {m["verdict"] for m in mc["components"]}
+    one_line(run("observability", "n25", "--crlb", "--station", STATION, "--mc", 100), "--mc needs --method")
     one_line(run("observability", "n25", "--crlb", "--station", STATION, "--method", "systematic51"),
              "window-mean method")
     one_line(run("observability", "n25", "--crlb", "--method", "n25"), "needs --station")

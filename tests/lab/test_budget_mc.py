@@ -37,6 +37,17 @@ def test_tolerance_and_verdict_by_hand():
     assert M.verdict(0.1, 0.4, 0.5, 0.1) == "undecided"
 
 
+def test_endpoint_accuracy_is_the_spread_of_a_quantile():
+    """The order-statistics accuracy of a 2.5 % quantile of 1000 normal draws against the spread of that quantile
+    over 400 repetitions (asymptotically sqrt(p (1 - p) / N) / phi(z_p) = 0.085)."""
+    rng = np.random.default_rng(1)
+    x = np.sort(rng.standard_normal((400, 1000)), axis=1)
+    spread = np.quantile(x, 0.025, axis=1).std(ddof=1)
+    acc = np.mean([M.endpoint_accuracy(v, 0.025) for v in x])
+    assert spread == pytest.approx(0.085, rel=0.12)
+    assert acc == pytest.approx(spread, rel=0.15)
+
+
 def test_line_draws_have_the_lines_u():
     rng = np.random.default_rng(0)
     for dist in ("normal", "rectangular", "triangular", "arcsine"):

@@ -190,8 +190,10 @@ def _print_crlb(source: str, b) -> None:
         con.print(_temperature_line(d["temperature"]))
 
 
-def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool) -> None:
-    """``--crlb --station --method M``: the budget of a window-mean method from one simulated run."""
+def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool, mc: int | None = None,
+               mc_workers: int = 1) -> None:
+    """``--crlb --station --method M``: the budget of a window-mean method from one simulated run (and its JCGM 101
+    Monte Carlo with ``mc`` trials at most)."""
     from inscal.calibrate.windows import CalibrationError
     from inscal.cli.bound_budget import dominant_inputs, simulated_budget
     from inscal.lab.sensitivity import WINDOW_METHODS
@@ -202,19 +204,29 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool)
     if method not in WINDOW_METHODS:
         raise fail(f"--method must be a window-mean method ({', '.join(WINDOW_METHODS)}); the systematic filter's "
                    "budget is the bound's (leave --method out)")
+    if mc is not None and not 100 <= mc <= 10**7:
+        raise fail(f"--mc {mc}: between 100 and 10^7 trials")
     try:
         sc, _, _ = load_source(source)
         bud, res = simulated_budget(sc, st, method, seed)
     except (ObservabilityError, CalibrationError, ValueError) as exc:
         raise fail(f"{source} with --method {method}: {exc}") from None
+    doc = bud.to_dict()
+    if mc is not None:
+        from inscal.cli.budget_mc import run_budget_mc
+
+        try:
+            doc["monte_carlo"] = run_budget_mc(res, st, bud, mc, seed, mc_workers)
+        except CliError as exc:
+            raise fail(str(exc)) from None
     if json_:
-        print_json({"source": source, "method": method, "seed": seed, "station": st.to_dict(), "budget": bud.to_dict(),
+        print_json({"source": source, "method": method, "seed": seed, "station": st.to_dict(), "budget": doc,
                     "dominant_inputs": dominant_inputs(bud)})
         return
-    _print_budget(source, None, bud, full, f"{method} on one simulated run (seed {seed})")
+    _print_budget(source, None, bud, full, f"{method} on one simulated run (seed {seed})", doc)
 
 
-def _print_budget(source: str, b, bud, full: bool, what: str | None = None) -> None:
+def _print_budget(source: str, b, bud, full: bool, what: str | None = None, doc: dict | None = None) -> None:
     """The budget the path promises: one line per component (or its table with ``full``), then the inputs by how
     many components they dominate."""
     from rich.console import Console
@@ -233,7 +245,7 @@ def _print_budget(source: str, b, bud, full: bool, what: str | None = None) -> N
         con.print(f"Uncertainty budget of {escape(source)} before the run (path {escape(b.path_name)!r}, "
                   f"{b.duration_s:.0f} s, {b.setup.states.n_states}-state filter, {b.steps} steps at "
                   f"{1.0 / b.setup.T:g} Hz, {b.seconds:.3f} s)")
-    lines = budget_lines(bud.to_dict(), full=full)
+    lines = budget_lines(doc or bud.to_dict(), full=full)
     notes = [x for x in lines if x.startswith("  note: ")]
     for x in lines:
         if not x.startswith("  note: "):
@@ -355,6 +367,9 @@ def register(app: typer.Typer) -> None:
                                    "twelve-position, joint): its budget from one run simulated on the path at the "
                                    "station (the scenario's unit and noise) instead of the systematic filter's bound"),
         seed: int = typer.Option(0, "--seed", help="with --method: seed of the simulated run"),
+        mc: int = typer.Option(None, "--mc", help="with --method: the JCGM 101 Monte Carlo of that budget, at most N "
+                               "trials (does the linear budget hold for this path at this station?)"),
+        mc_workers: int = typer.Option(1, "--mc-workers", help="with --mc: Dask workers (1: this process)"),
         json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
@@ -369,8 +384,11 @@ def register(app: typer.Typer) -> None:
                 except StationError as exc:
                     raise fail(f"--station {station}: {exc}") from None
             if method is not None:
-                _simulated(source, st, method, seed, full, json_)
+                _simulated(source, st, method, seed, full, json_, mc, mc_workers)
                 return
+            if mc is not None:
+                raise fail("--mc needs --method (the Monte Carlo of a window-mean method's budget; the filter's site "
+                           "and clock enter it linearly)")
             try:
                 b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
                              t_ref, noise, st)
@@ -391,8 +409,8 @@ def register(app: typer.Typer) -> None:
             else:
                 _print_crlb(source, b)
             return
-        if station is not None or full or method is not None:
-            raise fail("--station, --full and --method apply to the bound (--crlb)")
+        if station is not None or full or method is not None or mc is not None:
+            raise fail("--station, --full, --method and --mc apply to the bound (--crlb)")
         if noise is not None:
             raise fail("--noise applies to the bound (--crlb)")
         if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):

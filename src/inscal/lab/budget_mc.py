@@ -18,9 +18,12 @@ probabilistically symmetric 95 % coverage interval ``[y_low, y_high]`` (the 2.5 
 Validation of the linear budget (JCGM 101 section 8): with ``u_c`` written to ``n_dig`` significant digits
 (one by default) as ``c x 10^l``, the numerical tolerance is ``delta = 10^l / 2`` (8.1.2); the budget's interval
 ``y +- U`` is validated when ``d_low = |y - U - y_low|`` and ``d_high = |y + U - y_high|`` are both within
-``delta`` (8.2).  The Monte Carlo's own numerical accuracy comes from ``h`` batches of trials (7.9.4: the standard
-deviation of the batch endpoints over ``sqrt(h)``): a difference that is within ``delta`` only by more than twice
-that accuracy, or beyond it by less, is "undecided" (more trials), never "validated".
+``delta`` (8.2).  The Monte Carlo's own numerical accuracy ``s`` of each end point comes from the order statistics
+that bracket it (:func:`endpoint_accuracy`: the distribution-free 95 % interval of a quantile, ranks
+``N p +- 1.96 sqrt(N p (1 - p))``, its half-width over 1.96).  JCGM 101 7.9.4 takes it from the spread of ``h``
+batches of at least ``100 / (1 - p)`` trials each; with a few thousand trials in all that spread rests on a few
+batches and can come out small by chance, the order statistics cannot.  A difference within ``delta`` by less than
+``2 s``, or beyond it by less than ``2 s``, is "undecided" (more trials), never "validated".
 
 Trials are grouped in batches, each with its own child of one seed sequence (``SeedSequence(seed).spawn``), so the
 result does not depend on how the batches are spread over processes (``map_fn``).
@@ -188,6 +191,16 @@ def _flat_index_of(names, name: str) -> int:
     raise KeyError(name)
 
 
+def endpoint_accuracy(y_sorted: np.ndarray, p: float) -> float:
+    """The standard uncertainty of the ``p`` quantile of the sorted trials ``y_sorted`` (module docstring): the
+    half-width of the distribution-free 95 % interval between its bracketing order statistics, over 1.96."""
+    n = y_sorted.size
+    half = 1.96 * math.sqrt(n * p * (1.0 - p))
+    j = max(0, math.floor(n * p - half) - 1)
+    k = min(n - 1, math.ceil(n * p + half) - 1)
+    return float(y_sorted[k] - y_sorted[j]) / (2.0 * 1.96)
+
+
 def tolerance(u: float, n_dig: int = 1) -> float:
     """JCGM 101 8.1.2: ``u`` as ``c x 10^l`` with ``c`` an ``n_dig``-digit integer; the tolerance ``10^l / 2``."""
     if not (u > 0 and math.isfinite(u)):
@@ -261,13 +274,9 @@ def _summary(result: CalibrationResult, budget: gum.Budget, parts: list[np.ndarr
         for x in c.contributions:
             if x.input not in SIMULATED and x.contribution > 0:
                 y = y + line_draw(x.distribution, x.contribution, x.dof, rng, y.size)
-        ys = np.split(y, np.cumsum(sizes)[:-1])
         lo, hi = np.quantile(y, [q, 1.0 - q])
-        b_lo = np.array([np.quantile(v, q) for v in ys])
-        b_hi = np.array([np.quantile(v, 1.0 - q) for v in ys])
-        # JCGM 101 7.9.4: the standard deviation of the batch endpoints over sqrt(h), for batches of equal size
-        # (here of about runs / h each; the pooled endpoint is at least as precise)
-        s_num = float(max(b_lo.std(ddof=1), b_hi.std(ddof=1)) / math.sqrt(len(ys)))
+        ys = np.sort(y)
+        s_num = max(endpoint_accuracy(ys, q), endpoint_accuracy(ys, 1.0 - q))
         value = float(x0[i] / f)
         d_low, d_high = abs(value - c.U - lo), abs(value + c.U - hi)
         delta = tolerance(c.u_c, n_dig)
