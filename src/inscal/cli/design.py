@@ -4,6 +4,7 @@ bound within a time budget and the turntable's limits.  See :mod:`inscal.plan.de
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path as FsPath
 
 import typer
@@ -221,6 +222,8 @@ def _print(res, out, station=None) -> None:
     from rich.table import Table
 
     con = Console()
+    if not con.is_terminal and "COLUMNS" not in os.environ:  # a file or a pipe: whole group names, not 80 columns
+        con = Console(width=120)
     d = res.to_dict()
     if station is not None:
         con.print(f"objective on the combined standard uncertainty at station {escape(station.name)!r}: the bound "
