@@ -141,13 +141,19 @@ def line_draw(distribution: str, u: float, dof: float, rng: np.random.Generator,
     return a * np.sin(2.0 * np.pi * rng.uniform(0.0, 1.0, size))
 
 
-def _flat_index(names, budget: gum.Budget) -> list[int]:
-    """The flat index (over ``names``) of every budget component."""
+def _starts(names) -> dict[str, int]:
+    """The flat index (over ``names``) where each parameter's components start."""
     start, k = {}, 0
     for n in names:
         start[n] = k
         shape = PARAMETERS[n][4]
         k += int(np.prod(shape)) if shape else 1
+    return start
+
+
+def _flat_index(names, budget: gum.Budget) -> list[int]:
+    """The flat index (over ``names``) of every budget component."""
+    start = _starts(names)
     return [start[c.parameter] + c.index for c in budget.components]
 
 
@@ -167,9 +173,7 @@ class Trials:
         ws, geo, names = res.windows, S.Geometry.of(res), res.estimated
         nw = len(ws.windows)
         base = S.window_baseline(ws, geo)
-        dth = None
-        if "gimbal_nonorthogonality" in names:
-            dth = _flat_index_of(names, "gimbal_nonorthogonality")
+        dth = _starts(names).get("gimbal_nonorthogonality")
         out = []
         for _ in range(n):
             dev = draw_deviation(self.station, nw, rng)
@@ -179,16 +183,6 @@ class Trials:
                 y[dth] -= dev.nonorthogonality
             out.append(y)
         return np.array(out)
-
-
-def _flat_index_of(names, name: str) -> int:
-    k = 0
-    for n in names:
-        if n == name:
-            return k
-        shape = PARAMETERS[n][4]
-        k += int(np.prod(shape)) if shape else 1
-    raise KeyError(name)
 
 
 def endpoint_accuracy(y_sorted: np.ndarray, p: float) -> float:
