@@ -142,3 +142,26 @@ def test_a_window_method_from_a_simulated_run():
     one_line(run("observability", "n25", "--crlb", "--station", STATION, "--method", "systematic51"),
              "window-mean method")
     one_line(run("observability", "n25", "--crlb", "--method", "n25"), "needs --station")
+
+
+def test_the_chamber_through_the_scenarios_thermal_model():
+    """On thermal-ramp the unit has a thermal model: without thermal states the chamber's stability enters every
+    bias through its slope at the path's mean temperature (the line's u is the station's arcsine 0.1 K / sqrt 2);
+    with thermal states the filter measures and models the temperature: sensitivity 0, said in a note."""
+    from inscal.lab.budget import thermal_slope
+    from inscal.sim.scenarios import build
+
+    st = read_station(STATION)
+    d = run_json("observability", "thermal-ramp", "--crlb", "--station", STATION)
+    comps = {c["label"]: c for c in d["budget"]["components"]}
+    line = {x["input"]: x for x in comps["accel_bias[0]"]["contributions"]}["temperature_stability"]
+    assert line["u"] == pytest.approx(st["temperature_stability"].u, rel=1e-12)  # K
+    sc = build("thermal-ramp")
+    t = np.linspace(0.0, d["crlb"]["path"]["duration_s"], 2001)
+    slope = thermal_slope(sc.thermal, "accel_bias", float(np.mean(sc.temperature.at(t)[0])))[0]  # m/s^2 per K
+    assert line["sensitivity"] == pytest.approx(abs(slope) / 9.80665e-6, rel=1e-6)  # ug per K
+    assert line["share"] > 0.5
+    d = run_json("observability", "thermal-ramp", "--crlb", "--station", STATION, "--states", "51,thermal")
+    assert any("sensitivity 0" in n for n in d["budget"]["notes"])
+    assert all(x["contribution"] == 0.0 for c in d["budget"]["components"] for x in c["contributions"]
+               if x["input"] == "temperature_stability")

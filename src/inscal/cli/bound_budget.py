@@ -48,9 +48,26 @@ def at_station(scenario, station: Station):
     return replace(scenario, site=station_site(scenario.site, station))
 
 
-def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE) -> gum.Budget:
+def scenario_temperature(scenario, names, duration_s: float) -> gum.TemperatureSensitivity | None:
+    """How the chamber's temperature stability enters a budget before the run: through the scenario's own thermal
+    model (the unit's, as the simulator has it) at the scenario's mean temperature over the path (its reference
+    temperature without a profile); None (not propagated) for a unit without one."""
+    model = getattr(scenario, "thermal", None)
+    if model is None or model.is_zero:
+        return None
+    if scenario.temperature is not None:
+        t_c = float(np.mean(scenario.temperature.at(np.linspace(0.0, duration_s, 2001))[0]))
+        where = "the scenario's mean temperature over the path"
+    else:
+        t_c, where = float(model.t_ref), "the scenario's unit stays at its reference temperature"
+    return gum.temperature_from_model(model, names, t_c, "the scenario's thermal model", where)
+
+
+def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE, scenario=None) -> gum.Budget:
     """The budget of ``bound`` (computed with ``consider``, e.g. :func:`consider_u`) at ``station``: the bound as the
-    Type-A line (infinite dof), the consider sensitivities for the site and clock, zero for the table."""
+    Type-A line (infinite dof), the consider sensitivities for the site and clock, zero for the table; the chamber's
+    temperature stability: sensitivity 0 with thermal states (the filter measures and models the temperature), else
+    through the ``scenario``'s thermal model (:func:`scenario_temperature`)."""
     cb = canonical(bound)
     n = cb.sigma.size
     if not bound.setup.consider:
@@ -59,8 +76,12 @@ def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE) -> gum
     glob.update(cb.sensitivity)
     per_stop = {k: np.zeros((1, 2, n)) for k in STOP_INPUTS}
     method = f"Cramér-Rao bound of the systematic filter (states {state_spec(bound.setup.states)}) on {bound.path_name}"
+    if bound.setup.states.thermal:
+        temperature = gum.temperature_measured(cb.names, float(bound.setup.thermal["t_ref"]))
+    else:
+        temperature = scenario_temperature(scenario, cb.names, bound.duration_s)
     return gum.budget(method, cb.names, cb.values, cb.sigma, math.inf, station, glob, per_stop, None, coverage,
-                      (*BOUND_NOTES, FILTER_TABLE_NOTE))
+                      (*BOUND_NOTES, FILTER_TABLE_NOTE), temperature)
 
 
 def simulated_budget(scenario, station: Station, method: str, seed: int = 0):
@@ -70,7 +91,8 @@ def simulated_budget(scenario, station: Station, method: str, seed: int = 0):
     sigma and its coefficients by differences through the method).  Returns ``(budget, result)``."""
     rec = simulate(at_station(scenario, station), np.random.default_rng(seed)).to_record()
     res = calibrate(rec, method)
-    return calibration_budget(res, station), res
+    temperature = scenario_temperature(scenario, res.estimated, float(rec.time[-1] - rec.time[0]))
+    return calibration_budget(res, station, temperature=temperature), res
 
 
 def dominant_inputs(budget: gum.Budget) -> list[dict]:

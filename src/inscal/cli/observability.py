@@ -397,8 +397,9 @@ def register(app: typer.Typer) -> None:
             bud = None
             if st is not None:
                 from inscal.cli.bound_budget import bound_budget, dominant_inputs
+                from inscal.plan.observability import load_source
 
-                bud = bound_budget(b, st)
+                bud = bound_budget(b, st, scenario=load_source(source)[0])
             if json_:
                 doc = {"source": source, "crlb": b.to_dict()}
                 if bud is not None:
