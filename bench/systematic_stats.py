@@ -11,6 +11,9 @@ converged filter's figures to 3 digits; a 50 Hz record is not equivalent).  Prin
 * S16 Table 2 on the first 10 seeds: the median mean |error| of the nonlinearity, cross-coupling and lever-arm
   groups against the paper, the g-sensitivity against its Cramer-Rao expectation.
 
+Measured: 50 runs (35 s): mean NEES 41.77 in [39.5, 44.58], RMS(error/sigma) 0.830 .. 1.198; 200 runs (128 s):
+mean NEES 41.15 in [40.74, 43.28], RMS(error/sigma) 0.904 .. 1.091 over the 42 states.
+
 Run: ``.venv/bin/python bench/systematic_stats.py [--runs 50] [--out /tmp/s16-stats]`` (about a minute).
 """
 
