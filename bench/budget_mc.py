@@ -36,6 +36,7 @@ from inscal.calibrate import calibrate, window_means
 from inscal.calibrate.result import flatten
 from inscal.core.error_model import ImuNoise
 from inscal.lab import sensitivity as S
+from inscal.lab.budget_mc import draw_deviation
 from inscal.lab.station import read_station
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
@@ -59,24 +60,13 @@ def setup(noise_seed: int):
     return sc, ws0, sig, ws1
 
 
-def deviation(station, nw: int, rng: np.random.Generator) -> S.Deviation:
-    """One draw of the station's errors (SI)."""
-    angle = station["table_angle"].draw(rng, (nw, 2)) + station["encoder_resolution"].draw(rng, (nw, 2))
-    tilt = station["axis_wobble"].draw(rng, (nw, 2))
-    one = {k: float(station[k].draw(rng)) for k in ("table_rate", "axis_nonorthogonality", "gravity", "latitude",
-                                                  "height", "time_base")}
-    return S.Deviation(angle=angle, tilt=tilt, nonorthogonality=one["axis_nonorthogonality"],
-                       rate_scale=one["table_rate"], gravity=one["gravity"], latitude=one["latitude"],
-                       height=one["height"], time_base=one["time_base"])
-
-
 def one_run(exp: Experiment, point: int, rng: np.random.Generator) -> dict:
     """One Monte Carlo run: the estimate minus the truth (SI, flat in NAMES)."""
     p = exp.params
     sc, ws0, sig, _ = setup(p["noise_seed"])
     station = read_station(p["station"])
     nw = len(ws0.windows)
-    dev = deviation(station, nw, rng)
+    dev = draw_deviation(station, nw, rng)
     geo = S.Geometry(sc.gimbal.nonorthogonality, sc.gimbal.mount_attitude, sc.imu.M_g, sc.imu.M_a)
     ws = S.perturb(ws0, geo, dev)
     noise = rng.standard_normal((nw, 2, 3)) * sig

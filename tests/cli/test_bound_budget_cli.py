@@ -8,34 +8,18 @@ from __future__ import annotations
 import json
 import math
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 import tomli_w
-from typer.testing import CliRunner
 
-from inscal.cli.app import app
 from inscal.lab.station import read_station
 from inscal.plan import bound as B
 from inscal.core.turntable import s16_table1
 from inscal.plan.rows import BiasNoise
 from inscal.sim.scenarios import load_toml
 
-runner = CliRunner()
-STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-def one_line(r, *phrases):
-    assert r.exit_code == 2, (r.exit_code, r.stdout, r.stderr)
-    err = r.stderr.strip()
-    assert err.startswith("inscal: error: ") and "\n" not in err and "Traceback" not in err, err
-    for p in phrases:
-        assert p in err, (p, err)
+from budget_helpers import STATION, one_line, run
 
 
 @pytest.fixture(scope="module")

@@ -14,29 +14,12 @@ from pathlib import Path
 
 import pytest
 import tomli_w
-from typer.testing import CliRunner
 
 from inscal import lab
-from inscal.cli.app import app
 from inscal.lab import budget as gum
-from inscal.lab import sensitivity as S
 from inscal.report.certificate import certificate_data, certificate_html
 
-runner = CliRunner()
-STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-def one_line(r, *phrases):
-    assert r.exit_code == 2, (r.exit_code, r.stdout, r.stderr)
-    err = r.stderr.strip()
-    assert err.startswith("inscal: error: ") and "\n" not in err and "Traceback" not in err, err
-    for p in phrases:
-        assert p in err, (p, err)
-    return err
+from budget_helpers import STATION, one_line, run
 
 
 @pytest.fixture(scope="module")
@@ -47,18 +30,6 @@ def setup(tmp_path_factory):
     rec = tmp / "r1.h5"
     assert run("simulate", "n25", "--out", rec, "--seed", 1, "--rate-hz", 20).exit_code == 0
     return tmp, db, [rec]
-
-
-@pytest.fixture()
-def two_windows(monkeypatch):
-    full = S.sensitivities
-
-    def short(ws, geo, x, kinds, stop_inputs=tuple(S.STOP_INPUTS), windows=None):
-        static = [k for k, w in enumerate(ws.windows) if w.kind == "static"]
-        rate = [k for k, w in enumerate(ws.windows) if w.kind == "rate"]
-        return full(ws, geo, x, kinds, stop_inputs, [static[0], rate[0]])
-
-    monkeypatch.setattr(S, "sensitivities", short)
 
 
 def test_budget_stored_printed_and_certified(setup, two_windows):

@@ -6,34 +6,11 @@ keep the test short; the Monte Carlo itself is :mod:`tests.lab.test_budget_mc`'s
 from __future__ import annotations
 
 import json
-from pathlib import Path
-
-import pytest
-from typer.testing import CliRunner
 
 from inscal import lab
-from inscal.cli.app import app
-from inscal.lab import sensitivity as S
 from inscal.report.certificate import certificate_data, certificate_html
 
-runner = CliRunner()
-STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-@pytest.fixture()
-def two_windows(monkeypatch):
-    full = S.sensitivities
-
-    def short(ws, geo, x, kinds, stop_inputs=tuple(S.STOP_INPUTS), windows=None):
-        static = [k for k, w in enumerate(ws.windows) if w.kind == "static"]
-        rate = [k for k, w in enumerate(ws.windows) if w.kind == "rate"]
-        return full(ws, geo, x, kinds, stop_inputs, [static[0], rate[0]])
-
-    monkeypatch.setattr(S, "sensitivities", short)
+from budget_helpers import STATION, run
 
 
 def test_monte_carlo_stored_printed_and_certified(tmp_path, two_windows):

@@ -17,47 +17,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tomli_w
-from typer.testing import CliRunner
 
 from inscal import lab
-from inscal.cli.app import app
 from inscal.core import units
 from inscal.core.thermal import ThermalModel, thermal_to_field
-from inscal.lab import sensitivity as S
 from inscal.report.certificate import certificate_data, certificate_html
 
-runner = CliRunner()
-STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
+from budget_helpers import STATION, one_line, run
+
 U_T = 0.1 / math.sqrt(2)  # the station's arcsine +-0.1 K
 DEG_H, PPM = float(units.to_si(1.0, "deg/h")), float(units.to_si(1.0, "ppm"))
 # the newest thermal result: gyro bias linear + quadratic (deg/h/degC, deg/h/degC^2), accel scale factor linear
 K1, K2, KA = np.array([0.02, -0.015, 0.025]), np.array([1e-3, -2e-3, 5e-4]), np.array([0.5, -0.3, 0.2])
 OLD_K1 = np.array([9.0, 9.0, 9.0])  # an older thermal result, which must not be used
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-def one_line(r, *phrases):
-    assert r.exit_code == 2, (r.exit_code, r.stdout, r.stderr)
-    err = r.stderr.strip()
-    assert err.startswith("inscal: error: ") and "\n" not in err and "Traceback" not in err, err
-    for p in phrases:
-        assert p in err, (p, err)
-    return err
-
-
-@pytest.fixture()
-def two_windows(monkeypatch):
-    full = S.sensitivities
-
-    def short(ws, geo, x, kinds, stop_inputs=tuple(S.STOP_INPUTS), windows=None):
-        static = [k for k, w in enumerate(ws.windows) if w.kind == "static"]
-        rate = [k for k, w in enumerate(ws.windows) if w.kind == "rate"]
-        return full(ws, geo, x, kinds, stop_inputs, [static[0], rate[0]])
-
-    monkeypatch.setattr(S, "sensitivities", short)
 
 
 def thermal_text(base: str, k1_gb, k2_gb=None) -> str:

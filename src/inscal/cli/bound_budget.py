@@ -12,12 +12,13 @@ from dataclasses import replace
 
 import numpy as np
 
+from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.states import state_spec
+from inscal.cli.common import fail
 from inscal.core.earth import Site
 from inscal.lab import budget as gum
-from inscal.calibrate import calibrate
 from inscal.lab.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS, calibration_budget
-from inscal.lab.station import Station
+from inscal.lab.station import Station, StationError, read_station
 from inscal.plan.consider import CONSIDER_INPUTS, canonical
 from inscal.sim.simulate import simulate
 
@@ -30,6 +31,17 @@ BOUND_NOTES = (
     "height: the bound uses the station's gravity as a value (its own input), so the height moves nothing the filter "
     "uses",
 )
+
+
+def read_station_option(path) -> Station | None:
+    """The station of ``--station FILE.toml`` (None without it); a file that cannot be used ends the command with
+    one line (:class:`inscal.lab.station.StationError`)."""
+    if path is None:
+        return None
+    try:
+        return read_station(path)
+    except StationError as exc:
+        raise fail(f"--station {path}: {exc}") from None
 
 
 def consider_u(station: Station) -> dict[str, float]:

@@ -290,14 +290,9 @@ def register(app: typer.Typer) -> None:
     ):
         """Design a calibration path from its Cramér-Rao bound: an evolutionary search over sequences of
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""
-        st = None
-        if station is not None:
-            from inscal.lab.station import StationError, read_station
+        from inscal.cli.bound_budget import read_station_option
 
-            try:
-                st = read_station(station)
-            except StationError as exc:
-                raise fail(f"--station {station}: {exc}") from None
+        st = read_station_option(station)
         try:
             res, _ = run_design(out, minutes, states, objective, targets, groups, axes, max_rate, max_accel,
                                 outer_range, inner_range, cable_wrap, min_dwell, initial_dwell, max_moves, seed,

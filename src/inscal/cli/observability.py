@@ -375,14 +375,9 @@ def register(app: typer.Typer) -> None:
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
         if crlb:
-            st = None
-            if station is not None:
-                from inscal.lab.station import StationError, read_station
+            from inscal.cli.bound_budget import read_station_option
 
-                try:
-                    st = read_station(station)
-                except StationError as exc:
-                    raise fail(f"--station {station}: {exc}") from None
+            st = read_station_option(station)
             if method is not None:
                 _simulated(source, st, method, seed, full, json_, mc, mc_workers)
                 return
