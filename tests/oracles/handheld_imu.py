@@ -217,7 +217,7 @@ def ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=0.3, rate_hz=102.4, arw=0.0, 
     vertical (either sense) and the same pose again for ``end_s`` s.  Every placement on a face has its own
     heading and tilt (two components, each normal with sigma ``tilt_deg / sqrt(2)``); a turn is about the
     tilted vertical, so it ends in the attitude it started from.  ``lsb`` (gyro rad/s, accel m/s^2): the
-    readings rounded to a logger's counts (``samples`` readings, not increments)."""
+    mean rates of each interval rounded to a logger's counts."""
     sc = math.radians(tilt_deg) / math.sqrt(2.0)
     poses, stills, turns, tilts, ups = [], [], {}, [], []
     for k in range(6):
@@ -234,10 +234,11 @@ def ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=0.3, rate_hz=102.4, arw=0.0, 
         poses += [C, C]
         stills += [rng.uniform(*end_s), rng.uniform(*end_s)]
     lg = generate(rng, Mg, bg, Ma, ba, poses=poses, turns=turns, still_s=stills, rate_hz=rate_hz, lat=lat, g=g,
-                  arw=arw, vrw=vrw, move_s=move_s, samples=lsb is not None)
+                  arw=arw, vrw=vrw, move_s=move_s)
     if lsb is not None:
-        lg.dtheta = np.round(lg.dtheta / lsb[0]) * lsb[0]
-        lg.dvel = np.round(lg.dvel / lsb[1]) * lsb[1]
+        dt = np.diff(np.concatenate([[0.0], lg.time]))[:, None]
+        lg.dtheta = np.round(lg.dtheta / dt / lsb[0]) * lsb[0] * dt
+        lg.dvel = np.round(lg.dvel / dt / lsb[1]) * lsb[1] * dt
     lg.truth["tilts"] = np.array(tilts)
     lg.truth["ups"] = np.array(ups)
     return lg
