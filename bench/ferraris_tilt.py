@@ -5,8 +5,8 @@ imucal's example: six faces held 4-7 s, three whole turns about the vertical bet
 102.4 Hz, every placement tilted by ``--tilt`` deg rms (default 0.3) at a random heading, the ``mems`` grade
 of errors and noise; ``--lsb``: the rates rounded to a consumer chip's counts, 0.061 deg/s and 0.0048 m/s^2).
 Each is calibrated by ``inscal.calibrate.calibrate(rec, "ferraris", **options)`` (the inscal on the path:
-run it on another tree to compare; ``--min-static``/``--settle`` override the method's defaults) and by
-imucal's equations (``imucal_ferraris`` of the generator module, written from imucal's published code) on
+run it on another tree to compare; ``--min-static``/``--settle``/``--face-tilt`` override the method's defaults) and by
+imucal's equations (``imucal_estimates`` of the generator module, written from imucal's published code) on
 the true regions (the faces trimmed by 0.25 s at both ends, the turns' moves).  Printed per parameter group:
 the share calibrated, RMS(error / sigma) (target 0.8-1.2) and the median |error| of inscal and of imucal.
 
@@ -25,7 +25,7 @@ from types import SimpleNamespace
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "oracles"))
-from handheld_imu import canonical_truth, ferraris_session, grade, imucal_ferraris  # noqa: E402
+from handheld_imu import canonical_truth, ferraris_session, grade, imucal_estimates  # noqa: E402
 
 from inscal.calibrate import calibrate  # noqa: E402
 from inscal.core.earth import Site  # noqa: E402
@@ -38,48 +38,6 @@ UNITS = {"accel_bias": (1e6 / 9.80665, "ug"), "accel_scale_factor": (1e6, "ppm")
 LSB = (math.radians(0.061035), 0.0047900)
 
 
-def split(M):
-    """K = diag(M) - 1 and the off-diagonals E_ij = M_ij / M_ii (xy, xz, yx, yz, zx, zy)."""
-    d = np.diag(M)
-    E = M / d[:, None]
-    return d - 1.0, np.array([E[0, 1], E[0, 2], E[1, 0], E[1, 2], E[2, 0], E[2, 1]])
-
-
-def imucal_in_accel_frame(lg, fs):
-    """imucal's estimates on the true regions, as the parameters of the accelerometer frame."""
-    dt = np.diff(np.concatenate([[0.0], lg.time]))[:, None]
-    w, f = lg.dtheta / dt, lg.dvel / dt
-
-    def region(t0, t1):
-        k = (lg.time - dt[:, 0] >= t0) & (lg.time <= t1)
-        return k
-
-    acc, gyr = {}, {}
-    for k, name in enumerate(("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")):
-        a, b = lg.still[k]
-        r = region(a + 0.25, b - 0.25)
-        acc[name], gyr[name] = f[r], np.degrees(w[r])
-    sense = []
-    for j, a in enumerate("xyz"):
-        r = region(lg.still[6 + 2 * j][1], lg.still[7 + 2 * j][0])
-        acc[a + "_rot"], gyr[a + "_rot"] = f[r], np.degrees(w[r])
-        sense.append(np.sign(np.sum(w[r][:, j])))
-    # one expected angle per turn: run imucal's equations with each sign, take each turn's column from its own
-    cols = {}
-    for s in (-1.0, 1.0):
-        cols[s] = imucal_ferraris(acc, gyr, fs, 9.80, expected_deg=360.0 * s)
-    K_a, R_a, b_a, _, _, _, b_g = cols[1.0]
-    Mg = np.column_stack([(cols[sense[j]][3] @ cols[sense[j]][4])[:, j] for j in range(3)])
-    Ma = K_a @ R_a
-    q, r = np.linalg.qr(Ma.T)  # Ma = L Q, L lower triangular
-    s = np.sign(np.diag(r))
-    L, Q = r.T * s[None, :], (q * s[None, :]).T
-    ka, ea = split(L)
-    kg, eg = split(Mg @ Q.T)
-    return {"accel_bias": b_a, "accel_scale_factor": ka, "accel_misalignment": ea, "gyro_bias": np.radians(b_g),
-            "gyro_scale_factor": kg, "gyro_misalignment": eg}
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=50)
@@ -87,8 +45,11 @@ def main() -> None:
     ap.add_argument("--lsb", action="store_true")
     ap.add_argument("--min-static", type=float, default=None)
     ap.add_argument("--settle", type=float, default=None)
+    ap.add_argument("--face-tilt", type=float, default=None, help="the stated face tilt [deg] (default: the method's)")
     args = ap.parse_args()
-    opts = {k: v for k, v in (("min_static", args.min_static), ("settle", args.settle)) if v is not None}
+    opts = {k: v for k, v in (("min_static", args.min_static), ("settle", args.settle),
+                              ("face_tilt", None if args.face_tilt is None else math.radians(args.face_tilt)))
+            if v is not None}
     fs = 102.4
     z = {n: [] for n in NAMES}
     err = {n: [] for n in NAMES}
@@ -101,7 +62,7 @@ def main() -> None:
         lg = ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=args.tilt, rate_hz=fs, arw=arw, vrw=vrw,
                               lsb=LSB if args.lsb else None)
         truth = canonical_truth(Mg, bg, Ma, ba)
-        im = imucal_in_accel_frame(lg, fs)
+        im = imucal_estimates(lg, fs)
         for n in NAMES:
             free = np.ones(6, bool) if n != "accel_misalignment" else np.isin(np.arange(6), (2, 4, 5))
             err_imucal[n].append((im[n] - truth[n])[free[: truth[n].size]])

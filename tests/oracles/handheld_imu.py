@@ -271,3 +271,42 @@ def imucal_ferraris(acc, gyr, fs, g, expected_deg=360.0):
     K_g = np.diag(np.sqrt(np.diag(Wn @ Wn.T)))
     R_g = np.linalg.solve(K_g, Wn)
     return K_a, R_a, b_a, K_g, R_g, K_ga, b_g
+
+
+def _split(M):
+    d = np.diag(M)
+    E = M / d[:, None]
+    return d - 1.0, np.array([E[0, 1], E[0, 2], E[1, 0], E[1, 2], E[2, 0], E[2, 1]])
+
+
+def imucal_estimates(lg, fs, g=9.80, trim=0.25):
+    """imucal's estimates (:func:`imucal_ferraris`) on the true regions of a :func:`ferraris_session` log (the
+    faces trimmed by ``trim`` s at both ends, the turns' moves, each turn's expected angle with its own sign),
+    as the parameters of the accelerometer frame (``Ma = L Q``, L lower triangular; the gyros ``Mg Q^T``), and
+    the accelerometer bias of Ferraris 1995 eq. 6 as ``b = sum of the six faces / 6`` (``accel_bias_sum6``)."""
+    dt = np.diff(np.concatenate([[0.0], lg.time]))[:, None]
+    w, f = lg.dtheta / dt, lg.dvel / dt
+
+    def region(t0, t1):
+        return (lg.time - dt[:, 0] >= t0) & (lg.time <= t1)
+
+    acc, gyr = {}, {}
+    for k, name in enumerate(("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")):
+        r = region(lg.still[k][0] + trim, lg.still[k][1] - trim)
+        acc[name], gyr[name] = f[r], np.degrees(w[r])
+    sense = []
+    for j, a in enumerate("xyz"):
+        r = region(lg.still[6 + 2 * j][1], lg.still[7 + 2 * j][0])
+        acc[a + "_rot"], gyr[a + "_rot"] = f[r], np.degrees(w[r])
+        sense.append(1.0 if np.sum(w[r][:, j]) > 0 else -1.0)
+    est = {s: imucal_ferraris(acc, gyr, fs, g, expected_deg=360.0 * s) for s in (-1.0, 1.0)}
+    K_a, R_a, b_a, _, _, _, b_g = est[1.0]
+    Mg = np.column_stack([(est[sense[j]][3] @ est[sense[j]][4])[:, j] for j in range(3)])
+    q, r = np.linalg.qr((K_a @ R_a).T)
+    s = np.sign(np.diag(r))
+    L, Q = r.T * s[None, :], (q * s[None, :]).T
+    ka, ea = _split(L)
+    kg, eg = _split(Mg @ Q.T)
+    sum6 = np.mean([np.mean(acc[k], axis=0) for k in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")], axis=0)
+    return {"accel_bias": b_a, "accel_scale_factor": ka, "accel_misalignment": ea, "gyro_bias": np.radians(b_g),
+            "gyro_scale_factor": kg, "gyro_misalignment": eg, "accel_bias_sum6": sum6}

@@ -149,9 +149,10 @@ def true_increments(motion: HandheldMotion, site: Site, rate_hz: float, quadrati
 
 # ------------------------------------------------------------------------------- Ferraris sessions
 def tilted_face(axis: int, sign: float, heading: float, tilt: np.ndarray) -> np.ndarray:
-    """``C_b^n`` of the body resting on a face: body axis ``axis`` up (``sign`` +-1) with its vertical tilted by
-    the small angles ``tilt`` (2,) towards the body axes ``axis + 1``, ``axis + 2`` (mod 3), at ``heading`` [rad]
-    about the vertical."""
+    """``C_b^n`` of the body resting on a face: body axis ``axis`` up (``sign`` +-1), its vertical
+    ``sign e_axis + t_1 e_(axis+1) + t_2 e_(axis+2)`` normalised (``tilt`` = (t_1, t_2): the tangents of the
+    small tilt angles towards the body axes ``axis + 1``, ``axis + 2`` mod 3), at ``heading`` [rad] about the
+    vertical."""
     up = np.zeros(3)
     up[axis] = sign
     up[(axis + 1) % 3] += tilt[0]
@@ -213,7 +214,8 @@ class FerrarisMotion(HandheldMotion):
         return [C for C, _, _ in self._layout()[0]]
 
     def tilts(self) -> np.ndarray:
-        """The tilt (2 angles [rad], module docstring of :func:`tilted_face`) of every pose, (12, 2)."""
+        """The tilt of every pose (12, 2): the tangents of the angles (:func:`tilted_face`); the tilt angle is
+        ``atan(hypot(t))``."""
         return np.array([t for _, _, t in self._layout()[0]])
 
     def still_intervals(self) -> list[tuple[float, float]]:
@@ -238,8 +240,8 @@ class FerrarisMotion(HandheldMotion):
                 R = C0.T @ lay[j + 1][0]
                 v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
                 ang = math.atan2(0.5 * np.linalg.norm(v), 0.5 * (np.trace(R) - 1.0))
-                e = v / np.linalg.norm(v)
-                if ang > math.pi - 1e-6:  # a half turn: R + I = 2 e e^T, its largest column
+                e = v / max(float(np.linalg.norm(v)), 1e-300)
+                if ang > math.pi - 1e-6:  # a half turn (from a face to its opposite): R + I = 2 e e^T
                     S = R + np.eye(3)
                     c = S[:, int(np.argmax(np.diag(S)))]
                     e = c / np.linalg.norm(c)
