@@ -66,12 +66,9 @@ FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 FACE_TILT = math.radians(0.3)
 #: the input vector of :func:`_estimate`: (name, size) in order
 _LAYOUT = (("a", 18), ("w", 18), ("turn", 9), ("T", 3), ("at", 9), ("hb", 3), ("ht", 9), ("tilt", 12))
-_SL = {}
-_k = 0
-for _n, _s in _LAYOUT:
-    _SL[_n] = slice(_k, _k + _s)
-    _k += _s
-N_INPUTS = _k
+_ENDS = np.cumsum([size for _, size in _LAYOUT])
+_SL = {name: slice(int(end) - size, int(end)) for (name, size), end in zip(_LAYOUT, _ENDS)}
+N_INPUTS = int(_ENDS[-1])
 
 
 def _face(f: np.ndarray) -> str:
@@ -133,18 +130,19 @@ def _tilt_moments(fn, x: np.ndarray, var_c: float) -> np.ndarray:
     m = idx.size
     h = 1e-3
     f0 = fn(x)
+
+    def shifted(p, q, dp, dq):
+        e = x.copy()
+        e[idx[p]] += dp
+        e[idx[q]] += dq
+        return fn(e)
+
     H = np.zeros((f0.size, m, m))
     for p in range(m):
-        for q in range(p, m):
-            def at(dp, dq):
-                e = x.copy()
-                e[idx[p]] += dp
-                e[idx[q]] += dq
-                return fn(e)
-            if p == q:
-                H[:, p, p] = (at(h, 0.0) - 2.0 * f0 + at(-h, 0.0)) / h**2
-            else:
-                H[:, p, q] = H[:, q, p] = (at(h, h) - at(h, -h) - at(-h, h) + at(-h, -h)) / (4.0 * h * h)
+        H[:, p, p] = (shifted(p, p, h, 0.0) - 2.0 * f0 + shifted(p, p, -h, 0.0)) / h**2
+        for q in range(p + 1, m):
+            H[:, p, q] = H[:, q, p] = (shifted(p, q, h, h) - shifted(p, q, h, -h) - shifted(p, q, -h, h)
+                                       + shifted(p, q, -h, -h)) / (4.0 * h * h)
     mean = 0.5 * var_c * np.trace(H, axis1=1, axis2=2)
     cov = 0.5 * var_c**2 * np.einsum("kpq,lqp->kl", H, H)
     return cov + np.outer(mean, mean)
@@ -182,18 +180,21 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
              face_tilt: float = FACE_TILT) -> CalibrationResult:
     """Calibrate from six faces and three whole turns (module docstring).  ``settle`` [s] and ``alpha`` go
     to :func:`.static_detect.detect_still`; ``min_static`` [s]: the shortest face pose; ``min_turn_end`` [s]:
-    the shortest still pose at the end of a turn (after ``settle`` at both ends); ``turn_tol_deg``: how far
+    the shortest still pose at the end of a turn (after ``settle`` at both ends; at most ``min_static``);
+    ``turn_tol_deg``: how far
     from 360 deg a turn may be; ``gravity_tol``: the largest relative difference between the faces' median
     specific force and the site's gravity (more is a wrong unit or site); ``face_tilt`` [rad]: the rms angle
     between a face's normal and the vertical, an input of the sigma (0: exact faces)."""
     for name, v, ok in (("settle", settle, settle >= 0), ("min_static", min_static, min_static > 0),
-                        ("min_turn_end", min_turn_end, 0 < min_turn_end <= min_static),
+                        ("min_turn_end", min_turn_end, min_turn_end > 0),
                         ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),
                         ("gravity_tol", gravity_tol, 0 < gravity_tol < 1),
                         ("face_tilt", face_tilt, 0 <= face_tilt < math.radians(10.0))):
         if not (math.isfinite(v) and ok):
-            raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, 0 < min_turn_end <= "
-                                   "min_static, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, 0 <= face_tilt < 10 deg)")
+            raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, min_static > 0, "
+                                   "min_turn_end > 0, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, "
+                                   "0 <= face_tilt < 10 deg)")
+    min_turn_end = min(min_turn_end, min_static)
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
     dv = np.asarray(record_like.dvel, float)
