@@ -21,6 +21,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.cli.app import app
 from inscal.core.earth import Site
 from inscal.io.paramfile import load_params
+from inscal.lab.calibration import CalibrationSetup
 
 
 def face(axis, sign, heading):
@@ -161,3 +162,19 @@ def test_the_command_line_runs_imucals_layout_with_its_defaults_and_takes_the_op
                                 *extra])
         assert r.exit_code == 2 and msg in r.stderr, (extra, r.stderr)
         assert not (tmp_path / "bad.toml").exists()
+
+
+def test_the_method_options_reach_the_method_and_name_the_calibration():
+    """--alpha and --gravity-tol go to multi-position and ferraris, the Ferraris options to ferraris only; the
+    canonical options (what identifies the calibration in the database) name them in the flags' units."""
+    setup = CalibrationSetup("ferraris", method_options=(("face_tilt", math.radians(0.2)), ("min_turn_end", 0.4)))
+    assert setup.problem() is None
+    assert setup.window_options == {"settle": 0.25, "min_static": 2.0, "face_tilt": math.radians(0.2),
+                                    "min_turn_end": 0.4}
+    opts = setup.options()
+    assert math.isclose(opts["face_tilt_deg"], 0.2) and opts["min_turn_end_s"] == 0.4
+    assert opts != CalibrationSetup("ferraris").options()
+    mp = CalibrationSetup("multi-position", method_options=(("alpha", 1e-4), ("gravity_tol", 0.08)))
+    assert mp.problem() is None and mp.window_options["alpha"] == 1e-4 and mp.window_options["gravity_tol"] == 0.08
+    assert "applies to --method ferraris, not multi-position" in CalibrationSetup(
+        "multi-position", method_options=(("turn_tol_deg", 20.0),)).problem()

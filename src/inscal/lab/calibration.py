@@ -298,7 +298,9 @@ class CalibrationSetup:
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
         if win.get("quadratic"):
             opts["quadratic"] = True
-        opts.update({k: float(v) for k, v in self.method_options})
+        for name, v in self.method_options:  # in the flag's unit, named as the flag (face_tilt_deg, min_turn_end_s)
+            flag, _, _, scale, _ = NO_TABLE_OPTIONS[name]
+            opts[flag.lstrip("-").replace("-", "_")] = float(v) * scale
         if self.noise is not None:  # the model itself, not the file's name, decides the result
             opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
