@@ -2,7 +2,8 @@
 
 Sessions of the independent generator of tests/oracles/handheld_imu.py (``ferraris_session``: laid out like
 imucal's example: six faces held 4-7 s, three whole turns about the vertical between poses of 1.0-1.5 s,
-102.4 Hz, every placement tilted by ``--tilt`` deg rms (default 0.3) at a random heading, the ``mems`` grade
+each closing within ``--closure`` deg rms (default 0.2: by hand against a stop), 102.4 Hz, every placement
+tilted by ``--tilt`` deg rms (default 0.3) at a random heading, the ``mems`` grade
 of errors and noise; ``--lsb``: the rates rounded to a consumer chip's counts, 0.061 deg/s and 0.0048 m/s^2).
 Each is calibrated by ``inscal.calibrate.calibrate(rec, "ferraris", **options)`` (the inscal on the path:
 run it on another tree to compare; ``--min-static``/``--settle``/``--face-tilt`` override the method's defaults) and by
@@ -10,7 +11,8 @@ imucal's equations (``imucal_estimates`` of the generator module, written from i
 the true regions (the faces trimmed by 0.25 s at both ends, the turns' moves).  Printed per parameter group:
 the share calibrated, RMS(error / sigma) (target 0.8-1.2) and the median |error| of inscal and of imucal.
 
-Run: ``PYTHONPATH=src python bench/ferraris_tilt.py [--seeds 50] [--tilt 0.3] [--lsb] [--min-static S]``.
+Run: ``PYTHONPATH=src python bench/ferraris_tilt.py [--seeds 50] [--tilt 0.3] [--closure 0.2] [--lsb]
+[--min-static S] [--face-tilt DEG] [--turn-closure DEG]``.
 """
 
 from __future__ import annotations
@@ -42,13 +44,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--tilt", type=float, default=0.3)
+    ap.add_argument("--closure", type=float, default=0.2)
     ap.add_argument("--lsb", action="store_true")
     ap.add_argument("--min-static", type=float, default=None)
     ap.add_argument("--settle", type=float, default=None)
     ap.add_argument("--face-tilt", type=float, default=None, help="the stated face tilt [deg] (default: the method's)")
+    ap.add_argument("--turn-closure", type=float, default=None, help="the stated turn closure [deg] (default: the "
+                    "method's)")
     args = ap.parse_args()
     opts = {k: v for k, v in (("min_static", args.min_static), ("settle", args.settle),
-                              ("face_tilt", None if args.face_tilt is None else math.radians(args.face_tilt)))
+                              ("face_tilt", None if args.face_tilt is None else math.radians(args.face_tilt)),
+                              ("turn_closure", None if args.turn_closure is None else math.radians(args.turn_closure)))
             if v is not None}
     fs = 102.4
     z = {n: [] for n in NAMES}
@@ -60,7 +66,7 @@ def main() -> None:
         rng = np.random.default_rng(5000 + seed)
         Mg, bg, Ma, ba, arw, vrw = grade("mems", rng)
         lg = ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=args.tilt, rate_hz=fs, arw=arw, vrw=vrw,
-                              lsb=LSB if args.lsb else None)
+                              lsb=LSB if args.lsb else None, closure_deg=args.closure)
         truth = canonical_truth(Mg, bg, Ma, ba)
         im = imucal_estimates(lg, fs)
         for n in NAMES:
@@ -79,7 +85,8 @@ def main() -> None:
             err[n].append(e[free])
     cpu = time.process_time() - t0
     ok = args.seeds - len(fails)
-    print(f"{args.seeds} Ferraris sessions, faces tilted {args.tilt:g} deg rms{', counts' if args.lsb else ''}, "
+    print(f"{args.seeds} Ferraris sessions, faces tilted {args.tilt:g} deg rms, turns closing within {args.closure:g} "
+          f"deg rms{', counts' if args.lsb else ''}, "
           f"options {opts or 'defaults'}: {ok} calibrated ({100.0 * ok / args.seeds:.0f} %), {cpu:.1f} s CPU")
     for f in fails[:5]:
         print("  failed:", f)

@@ -211,12 +211,13 @@ def tilted_face(axis, sign, heading, tilt):
 
 
 def ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=0.3, rate_hz=102.4, arw=0.0, vrw=0.0, lat=0.8, g=9.80,
-                     face_s=(4.0, 7.0), end_s=(1.0, 1.5), move_s=3.0, lsb=None):
+                     face_s=(4.0, 7.0), end_s=(1.0, 1.5), move_s=3.0, lsb=None, closure_deg=0.2):
     """A Ferraris session laid out like imucal's example: the six faces +x, -x, +y, -y, +z, -z held
     ``face_s`` s (uniform), then for x, y, z a pose on the + face of ``end_s`` s, one whole turn about the
     vertical (either sense) and the same pose again for ``end_s`` s.  Every placement on a face has its own
     heading and tilt (two components, each normal with sigma ``tilt_deg / sqrt(2)``); a turn is about the
-    tilted vertical, so it ends in the attitude it started from.  ``lsb`` (gyro rad/s, accel m/s^2): the
+    tilted vertical through 360 deg plus a closure error (normal, sigma ``closure_deg``: a turn by hand
+    against a stop), so it ends in the attitude it started from turned by that error.  ``lsb`` (gyro rad/s, accel m/s^2): the
     mean rates of each interval rounded to a logger's counts."""
     sc = math.radians(tilt_deg) / math.sqrt(2.0)
     poses, stills, turns, tilts, ups = [], [], {}, [], []
@@ -230,8 +231,9 @@ def ferraris_session(rng, Mg, bg, Ma, ba, tilt_deg=0.3, rate_hz=102.4, arw=0.0, 
     for j in range(3):
         t = rng.normal(0.0, sc, 2)
         C, up = tilted_face(j, 1.0, rng.uniform(0, 2 * math.pi), t)
-        turns[len(poses)] = (up, rng.choice([-1.0, 1.0]) * 2 * math.pi)
-        poses += [C, C]
+        ang = rng.choice([-1.0, 1.0]) * (2 * math.pi + rng.normal(0.0, math.radians(closure_deg)))
+        turns[len(poses)] = (up, ang)
+        poses += [C, C @ rot(up, ang)]
         stills += [rng.uniform(*end_s), rng.uniform(*end_s)]
     lg = generate(rng, Mg, bg, Ma, ba, poses=poses, turns=turns, still_s=stills, rate_hz=rate_hz, lat=lat, g=g,
                   arw=arw, vrw=vrw, move_s=move_s)

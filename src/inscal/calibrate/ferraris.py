@@ -31,7 +31,8 @@ Gyros (Ferraris 1995 eq. 9-11).  ``b_g`` is the mean of the six faces after the 
 integrates ``int w dt = 2 pi s M_g v + b_g T + W sin L T v + h`` with ``v`` the vertical that face holds in
 the frame c (measured: ``M^-1 (a - b)`` of the turn's end poses, normalised), ``s = +-1`` the sense and
 ``h`` the horizontal Earth rate integrated as the body turns; with ``W`` the columns
-``s (int w - b_g T - W sin L T v - h) / (2 pi)`` and ``V`` the columns ``v``::
+``s (int w - b_g T - W sin L T v - h) / (2 pi)`` (the angle ``2 pi`` of a turn that closes) and ``V`` the
+columns ``v``::
 
     M_g = W V^-1,      reported as  M_g Q^T  (in the frame p)
 
@@ -40,7 +41,8 @@ so the turn's own tilt cancels: the gyro misalignments are known to within the a
 1 sigma.  The noise of the face means, of the turns' end poses and of the turn integrals (the gyro's
 white noise over T); the horizontal Earth rate at the faces' unknown headings (``(W cos L)^2 / 2`` per
 horizontal axis of each face, averaged over the six) and in each turn (``|int exp(i theta) dt|^2 (W cos
-L)^2 / 2`` per horizontal axis, ``theta`` the measured angle turned); and the face tilt ``d``, two
+L)^2 / 2`` per horizontal axis, ``theta`` the measured angle turned); the closure of each turn (its angle
+``2 pi`` within ``turn_closure`` rms: a turn by hand against a stop); and the face tilt ``d``, two
 components of variance ``face_tilt^2 / 2`` per face, propagated to first order (central differences) and
 to second order (the Hessian: its mean and variance, ``tr(H S) / 2`` and ``tr((H S)^2) / 2``, enter the
 covariance as the mean square error: the estimate stays that of exact faces).
@@ -64,8 +66,11 @@ FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: the default face tilt: the rms angle between a face's normal and the vertical of a hand-placed box on a
 #: table (its flatness and squareness, the table's level, what lies under it) [rad]
 FACE_TILT = math.radians(0.3)
+#: the default closure of a whole turn made by hand against a stop (a box's edge): the rms difference
+#: between the angle turned and 360 deg [rad]
+TURN_CLOSURE = math.radians(0.2)
 #: the input vector of :func:`_estimate`: (name, size) in order
-_LAYOUT = (("a", 18), ("w", 18), ("turn", 9), ("T", 3), ("at", 9), ("hb", 3), ("ht", 9), ("tilt", 12))
+_LAYOUT = (("a", 18), ("w", 18), ("turn", 9), ("T", 3), ("at", 9), ("hb", 3), ("ht", 9), ("tilt", 12), ("ang", 3))
 _ENDS = np.cumsum([size for _, size in _LAYOUT])
 _SL = {name: slice(int(end) - size, int(end)) for (name, size), end in zip(_LAYOUT, _ENDS)}
 N_INPUTS = int(_ENDS[-1])
@@ -91,8 +96,8 @@ def _ups(tilt: np.ndarray) -> np.ndarray:
 def _estimate(inp: np.ndarray, g: float, wv: float, sense: np.ndarray) -> np.ndarray:
     """Parameters (K_a 3, E_a 6, b_a 3, K_g 3, E_g 6, b_g 3) from the input vector (:data:`_LAYOUT`): the six
     faces' mean accel and gyro in FACES order, the three turns' integrals and durations, the mean accel of
-    each turn's end poses, the horizontal Earth rate left in the gyro bias and in each turn, the faces' tilts;
-    ``sense``: +-1 per turn (module docstring)."""
+    each turn's end poses, the horizontal Earth rate left in the gyro bias and in each turn, the faces' tilts,
+    the angle of each whole turn (2 pi when it closes); ``sense``: +-1 per turn (module docstring)."""
     a = inp[_SL["a"]].reshape(6, 3)
     w = inp[_SL["w"]].reshape(6, 3)
     turn = inp[_SL["turn"]].reshape(3, 3)
@@ -113,7 +118,8 @@ def _estimate(inp: np.ndarray, g: float, wv: float, sense: np.ndarray) -> np.nda
     v = (at - ba) @ N.T
     v /= np.linalg.norm(v, axis=1)[:, None]  # the vertical each turn is about, frame c
     ht = inp[_SL["ht"]].reshape(3, 3)
-    W = np.column_stack([sense[j] * (turn[j] - bg * T[j] - wv * T[j] * v[j] - ht[j]) / (2.0 * math.pi)
+    ang = inp[_SL["ang"]]
+    W = np.column_stack([sense[j] * (turn[j] - bg * T[j] - wv * T[j] * v[j] - ht[j]) / ang[j]
                          for j in range(3)])  # eq. 10-11
     Mg = W @ np.linalg.inv(v.T)
     L, Q = lower_frame(M)
@@ -177,23 +183,26 @@ def _turns(poses, dth: np.ndarray, time: np.ndarray, turn_tol_deg: float):
 
 def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: float = 1e-4,
              turn_tol_deg: float = 30.0, min_turn_end: float = 0.3, gravity_tol: float = 0.1,
-             face_tilt: float = FACE_TILT) -> CalibrationResult:
+             face_tilt: float = FACE_TILT, turn_closure: float = TURN_CLOSURE) -> CalibrationResult:
     """Calibrate from six faces and three whole turns (module docstring).  ``settle`` [s] and ``alpha`` go
     to :func:`.static_detect.detect_still`; ``min_static`` [s]: the shortest face pose; ``min_turn_end`` [s]:
     the shortest still pose at the end of a turn (after ``settle`` at both ends; at most ``min_static``);
     ``turn_tol_deg``: how far
     from 360 deg a turn may be; ``gravity_tol``: the largest relative difference between the faces' median
     specific force and the site's gravity (more is a wrong unit or site); ``face_tilt`` [rad]: the rms angle
-    between a face's normal and the vertical, an input of the sigma (0: exact faces)."""
+    between a face's normal and the vertical, an input of the sigma (0: exact faces); ``turn_closure`` [rad]:
+    the rms difference between a whole turn's angle and 360 deg (made by hand against a stop; 0: exact), an
+    input of the sigma."""
     for name, v, ok in (("settle", settle, settle >= 0), ("min_static", min_static, min_static > 0),
                         ("min_turn_end", min_turn_end, min_turn_end > 0),
                         ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),
                         ("gravity_tol", gravity_tol, 0 < gravity_tol < 1),
-                        ("face_tilt", face_tilt, 0 <= face_tilt < math.radians(10.0))):
+                        ("face_tilt", face_tilt, 0 <= face_tilt < math.radians(10.0)),
+                        ("turn_closure", turn_closure, 0 <= turn_closure < math.radians(10.0))):
         if not (math.isfinite(v) and ok):
             raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, min_static > 0, "
                                    "min_turn_end > 0, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, "
-                                   "0 <= face_tilt < 10 deg)")
+                                   "0 <= face_tilt, turn_closure < 10 deg)")
     min_turn_end = min(min_turn_end, min_static)
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
@@ -265,6 +274,8 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     vx[_SL["ht"]] = vht.ravel()
     var_c = 0.5 * face_tilt**2  # two components per face
     vx[_SL["tilt"]] = var_c
+    x[_SL["ang"]] = 2.0 * math.pi
+    vx[_SL["ang"]] = turn_closure**2
     # the sense of each turn: + when it turns counterclockwise about the vertical it is about
     sgn = np.array([math.copysign(1.0, turns[j][0][j] * at[j][j]) for j in range(3)])
 
@@ -298,7 +309,8 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     notes = list(si.notes) + tnotes + [
         f"faces tilted by {tilt_deg:.3g} deg rms (stated, --face-tilt-deg) are in the sigma: the misalignments are "
         "known to within the faces' tilt, the biases and scale factors to second order in it; the turns are assumed "
-        "about the vertical; the horizontal Earth rate "
+        f"about the vertical and to close within {math.degrees(turn_closure):.3g} deg rms (stated, --turn-closure-deg; "
+        "in the sigma of the gyro scale factors); the horizontal Earth rate "
         f"({units.from_si(wh, 'deg/h'):.3g} deg/h) at the faces' unknown headings is not removed: the sigma holds it"]
     labels = [f"{n}.{c}" for n, cs in (("accel_scale_factor", "xyz"), ("accel_misalignment", ("xy", "xz", "yx", "yz",
               "zx", "zy")), ("accel_bias", "xyz"), ("gyro_scale_factor", "xyz"), ("gyro_misalignment", ("xy", "xz",
@@ -308,7 +320,7 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
                    "turns": {"xyz"[j]: {"degrees": math.degrees(float(np.linalg.norm(turns[j][0]))),
                                         "seconds": turns[j][1], "poses": [turns[j][4].number, turns[j][5].number]}
                              for j in range(3)},
-                   "face_tilt_deg": tilt_deg,
+                   "face_tilt_deg": tilt_deg, "turn_closure_deg": math.degrees(turn_closure),
                    "covariance": {"labels": [labels[i] for i in keep], "P": cov[np.ix_(keep, keep)]},
                    "frame": "accelerometer frame (x: accel x, y in the accel xy plane)"}
     return CalibrationResult("ferraris", ImuErrors(**values), GimbalErrors(), sigma, tuple(values), None,

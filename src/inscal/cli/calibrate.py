@@ -53,7 +53,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
     ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``method_options``: the
     no-turntable method's keyword options given (:data:`~inscal.lab.calibration.NO_TABLE_OPTIONS`, the function's
-    units: ``face_tilt`` in rad).  ``noise``: a noise.toml
+    units: ``face_tilt``, ``turn_closure`` in rad).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
@@ -516,12 +516,13 @@ def _fmt(v) -> str:
     return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
 
 
-def _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol) -> dict:
+def _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure) -> dict:
     """The no-turntable options given on the command line, in the method function's units."""
     from inscal.core import units
 
     given = {"alpha": alpha, "gravity_tol": gravity_tol, "min_turn_end": min_turn_end, "turn_tol_deg": turn_tol,
-             "face_tilt": None if face_tilt is None else units.to_si(face_tilt, "deg")}
+             "face_tilt": None if face_tilt is None else units.to_si(face_tilt, "deg"),
+             "turn_closure": None if turn_closure is None else units.to_si(turn_closure, "deg")}
     return {k: float(v) for k, v in given.items() if v is not None}
 
 
@@ -556,6 +557,9 @@ def register(app: typer.Typer) -> None:
                                            "ends of a turn, after --settle-s at both ends [s] (default 0.3)"),
         turn_tol: float = typer.Option(None, "--turn-tol-deg", help="ferraris: how far from 360 deg a whole turn "
                                        "may be [deg] (default 30)"),
+        turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference between a "
+                                           "whole turn's angle and 360 deg (a turn by hand against a stop; in the "
+                                           "sigma) [deg] (default 0.2; 0: exact turns)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -632,7 +636,7 @@ def register(app: typer.Typer) -> None:
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
                                 noise, thermal_model, mc, mc_seed, mc_workers,
-                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol))
+                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -53,12 +53,13 @@ MAX_MISALIGNMENT_RAD = math.radians(5.0)
 
 
 #: the options of the no-turntable methods the command line gives: name -> (flag, lower bound (excluded),
-#: upper bound, factor to the flag's unit, unit); face_tilt may also be 0 (exact faces)
+#: upper bound, factor to the flag's unit, unit); face_tilt and turn_closure may also be 0 (exact)
 NO_TABLE_OPTIONS = {"alpha": ("--alpha", 0.0, 0.5, 1.0, ""),
                     "gravity_tol": ("--gravity-tol", 0.0, 0.9, 1.0, ""),
                     "face_tilt": ("--face-tilt-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg"),
                     "min_turn_end": ("--min-turn-end-s", 0.0, MAX_WINDOW_S, 1.0, "s"),
-                    "turn_tol_deg": ("--turn-tol-deg", 0.0, 179.0, 1.0, "deg")}
+                    "turn_tol_deg": ("--turn-tol-deg", 0.0, 179.0, 1.0, "deg"),
+                    "turn_closure": ("--turn-closure-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg")}
 
 
 class RecordError(ValueError):
@@ -102,7 +103,8 @@ class CalibrationSetup:
     quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
     noise: str | None = None  # systematic: an identified noise model (noise.toml): white noise and GM bias states
     #: no-turntable methods: keyword options of the method's function given explicitly, ((name, value), ...) in
-    #: its units (alpha, gravity_tol; ferraris: face_tilt [rad], min_turn_end [s], turn_tol_deg); NO_TABLE_OPTIONS
+    #: its units (alpha, gravity_tol; ferraris: face_tilt, turn_closure [rad], min_turn_end [s], turn_tol_deg);
+    #: NO_TABLE_OPTIONS
     method_options: tuple[tuple[str, float], ...] = ()
 
     @property
@@ -148,7 +150,7 @@ class CalibrationSetup:
             if self.inner not in NO_TABLE_METHODS or name not in inspect.signature(fn).parameters:
                 takes = [m for m in sorted(NO_TABLE_METHODS) if name in inspect.signature(METHODS[m]).parameters]
                 return f"{flag} applies to --method {' and '.join(takes)}, not {self.inner}"
-            if not (math.isfinite(v) and lo < v <= hi) and not (name == "face_tilt" and v == 0):
+            if not (math.isfinite(v) and lo < v <= hi) and not (name in ("face_tilt", "turn_closure") and v == 0):
                 return f"{flag} must be in ({lo * scale:g}, {hi * scale:g}] {unit}, got {v * scale:g}"
         return None
 

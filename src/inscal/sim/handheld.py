@@ -170,25 +170,28 @@ def tilted_face(axis: int, sign: float, heading: float, tilt: np.ndarray) -> np.
 class FerrarisMotion(HandheldMotion):
     """A Ferraris session (Ferraris 1995; laid out like imucal's example): the faces ``+x, -x, +y, -y, +z, -z``
     up for ``face_s`` s each (uniform in the range), then for x, y, z a pose on the + face for ``end_s`` s,
-    one whole turn (360 deg, either sense) about the vertical and the same pose again for ``end_s`` s; the
-    moves last ``move_s`` s.  Every placement on a face has its own heading (uniform) and its own tilt: two
+    one whole turn (360 deg, either sense, plus a closure error: normal, sigma ``turn_closure_deg``, a turn
+    by hand against a stop) about the vertical and the pose it ends in for ``end_s`` s; the moves last
+    ``move_s`` s.  Every placement on a face has its own heading (uniform) and its own tilt: two
     angles, each normal with the sigma ``face_tilt_deg / sqrt(2)`` (``face_tilt_deg`` the rms angle between
-    the face and the horizontal); a turn is about the tilted vertical, so it ends where it started.  All drawn
+    the face and the horizontal); a turn is about the tilted vertical, so it ends on the face it started on.  All drawn
     from ``seed``; ``tremor_deg``/``tremor_hz`` ride on the moves (:class:`HandheldMotion`)."""
 
     face_s: tuple[float, float] = (4.0, 7.0)
     end_s: tuple[float, float] = (1.0, 1.5)
     face_tilt_deg: float = 0.3
+    turn_closure_deg: float = 0.2
     tremor_deg: float = 0.0
 
     def __post_init__(self):
         if not (0 < self.face_s[0] <= self.face_s[1] and 0 < self.end_s[0] <= self.end_s[1] and self.move_s > 0
-                and 0 <= self.face_tilt_deg < 10 and self.tremor_deg >= 0 and self.tremor_hz > 0):
+                and 0 <= self.face_tilt_deg < 10 and 0 <= self.turn_closure_deg < 10 and self.tremor_deg >= 0
+                and self.tremor_hz > 0):
             raise ValueError(f"Ferraris motion: 0 < face_s[0] <= face_s[1], 0 < end_s[0] <= end_s[1], move_s > 0, "
-                             f"0 <= face_tilt_deg < 10, tremor_deg >= 0, tremor_hz > 0; got {self}")
+                             f"0 <= face_tilt_deg, turn_closure_deg < 10, tremor_deg >= 0, tremor_hz > 0; got {self}")
 
     def _layout(self):
-        """(C_b^n, still duration, tilt (2,)) of the 12 poses, and the turns {move index: 2 pi sense}."""
+        """(C_b^n, still duration, tilt (2,)) of the 12 poses, and the turns {move index: angle}."""
         rng = np.random.default_rng([self.seed, 2])
         sc = math.radians(self.face_tilt_deg) / math.sqrt(2.0)
         out, turns = [], {}
@@ -199,8 +202,9 @@ class FerrarisMotion(HandheldMotion):
         for j in range(3):
             t = rng.normal(0.0, sc, 2)
             C = tilted_face(j, 1.0, rng.uniform(0, 2 * math.pi), t)
-            turns[len(out)] = float(rng.choice([-1.0, 1.0])) * 2.0 * math.pi
-            out += [(C, rng.uniform(*self.end_s), t), (C, rng.uniform(*self.end_s), t)]
+            ang = float(rng.choice([-1.0, 1.0])) * (2.0 * math.pi + rng.normal(0.0, math.radians(self.turn_closure_deg)))
+            turns[len(out)] = ang
+            out += [(C, rng.uniform(*self.end_s), t), (C @ _rot(C[2], [ang])[0], rng.uniform(*self.end_s), t)]
         return out, turns
 
     @property

@@ -74,8 +74,9 @@ Built-in (``inscal simulate NAME``):
 ``ferraris-mems``
     A Ferraris session (:class:`inscal.sim.handheld.FerrarisMotion`, laid out like imucal's example):
     the six faces held 4-7 s, then a whole turn about the vertical on the +x, +y and +z faces between
-    poses of 1.0-1.5 s, 3-s moves, every face tilted by 0.3 deg rms, 102.4 Hz, N25 site, the ``mems``
-    errors and noise of :data:`HANDHELD_GRADES` (for ``calibrate --method ferraris``).
+    poses of 1.0-1.5 s (the turns closing within 0.2 deg rms), 3-s moves, every face tilted by 0.3 deg
+    rms, 102.4 Hz, N25 site, the ``mems`` errors and noise of :data:`HANDHELD_GRADES` (for ``calibrate
+    --method ferraris``).
 ``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-cycle``, ``thermal-warmup``
     Temperature (beyond both papers).  The IMU errors follow the temperature with the thermal
     model :data:`THERMAL_ERRORS` (T_ref 20 degC, valid -40 .. +60 degC).  **Its magnitudes are
