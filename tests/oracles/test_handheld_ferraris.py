@@ -155,7 +155,7 @@ def test_the_command_line_runs_imucals_layout_with_its_defaults_and_takes_the_op
     s_def = np.array(out["default"]["accel_misalignment"]["sigma"], dtype=float)
     s_exact = np.array(out["exact"]["accel_misalignment"]["sigma"], dtype=float)
     assert np.nanmax(s_exact) < 0.1 * np.nanmin(s_def), (s_exact, s_def)
-    for extra, msg in ((["--face-tilt-deg", "20"], "--face-tilt-deg must be in"),
+    for extra, msg in ((["--face-tilt-deg", "20"], "--face-tilt-deg must be in [0, 10] deg, got 20"),
                        (["--min-turn-end-s", "-1"], "--min-turn-end-s must be in"),
                        (["--method", "n25", "--alpha", "1e-3"], "--alpha applies to --method ferraris and multi-position")):
         r = runner.invoke(app, ["calibrate", str(path), "--method", "ferraris", "--out", str(tmp_path / "bad.toml"),

@@ -197,12 +197,12 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
                         ("min_turn_end", min_turn_end, min_turn_end > 0),
                         ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),
                         ("gravity_tol", gravity_tol, 0 < gravity_tol < 1),
-                        ("face_tilt", face_tilt, 0 <= face_tilt < math.radians(10.0)),
-                        ("turn_closure", turn_closure, 0 <= turn_closure < math.radians(10.0))):
+                        ("face_tilt", face_tilt, 0 <= face_tilt <= math.radians(10.0)),
+                        ("turn_closure", turn_closure, 0 <= turn_closure <= math.radians(10.0))):
         if not (math.isfinite(v) and ok):
             raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, min_static > 0, "
                                    "min_turn_end > 0, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, "
-                                   "0 <= face_tilt, turn_closure < 10 deg)")
+                                   "0 <= face_tilt, turn_closure <= 10 deg)")
     min_turn_end = min(min_turn_end, min_static)
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)

@@ -54,7 +54,7 @@ MAX_MISALIGNMENT_RAD = math.radians(5.0)
 
 #: the options of the no-turntable methods the command line gives: name -> (flag, lower bound (excluded),
 #: upper bound, factor to the flag's unit, unit); face_tilt and turn_closure may also be 0 (exact)
-NO_TABLE_OPTIONS = {"alpha": ("--alpha", 0.0, 0.5, 1.0, ""),
+NO_TABLE_OPTIONS = {"alpha": ("--alpha", 0.0, 0.1, 1.0, ""),
                     "gravity_tol": ("--gravity-tol", 0.0, 0.9, 1.0, ""),
                     "face_tilt": ("--face-tilt-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg"),
                     "min_turn_end": ("--min-turn-end-s", 0.0, MAX_WINDOW_S, 1.0, "s"),
@@ -150,8 +150,10 @@ class CalibrationSetup:
             if self.inner not in NO_TABLE_METHODS or name not in inspect.signature(fn).parameters:
                 takes = [m for m in sorted(NO_TABLE_METHODS) if name in inspect.signature(METHODS[m]).parameters]
                 return f"{flag} applies to --method {' and '.join(takes)}, not {self.inner}"
-            if not (math.isfinite(v) and lo < v <= hi) and not (name in ("face_tilt", "turn_closure") and v == 0):
-                return f"{flag} must be in ({lo * scale:g}, {hi * scale:g}] {unit}, got {v * scale:g}"
+            zero = name in ("face_tilt", "turn_closure")  # 0: exact faces, exact turns
+            if not (math.isfinite(v) and (lo <= v if zero else lo < v) and v <= hi):
+                return (f"{flag} must be in {'[' if zero else '('}{lo * scale:g}, {hi * scale:g}]"
+                        f"{' ' + unit if unit else ''}, got {v * scale:g}")
         return None
 
     def problem(self, plots: bool = False) -> str | None:
