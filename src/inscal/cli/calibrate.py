@@ -550,16 +550,16 @@ def register(app: typer.Typer) -> None:
         gravity_tol: float = typer.Option(None, "--gravity-tol", help="multi-position, ferraris: the largest "
                                           "relative difference between the poses' specific force and the site's "
                                           "gravity (default 0.05; ferraris 0.1)"),
-        face_tilt: float = typer.Option(None, "--face-tilt-deg", help="ferraris: rms angle between a face and the "
-                                        "horizontal when it rests on a table (flatness, squareness, the table's level; "
-                                        "in the sigma) [deg] (default 0.3; 0: exact faces)"),
-        min_turn_end: float = typer.Option(None, "--min-turn-end-s", help="ferraris: shortest still pose at the "
-                                           "ends of a turn, after --settle-s at both ends [s] (default 0.3)"),
+        face_tilt: float = typer.Option(None, "--face-tilt-deg", help="ferraris: rms angle in deg between a face and "
+                                        "the horizontal when it rests on a table (flatness, squareness, the table's "
+                                        "level; in the sigma) (default 0.3; 0: exact faces)"),
+        min_turn_end: float = typer.Option(None, "--min-turn-end-s", help="ferraris: shortest still pose in s at "
+                                           "the ends of a turn, after --settle-s at both ends (default 0.3)"),
         turn_tol: float = typer.Option(None, "--turn-tol-deg", help="ferraris: how far from 360 deg a whole turn "
-                                       "may be [deg] (default 30)"),
-        turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference between a "
-                                           "whole turn's angle and 360 deg (a turn by hand against a stop; in the "
-                                           "sigma) [deg] (default 0.2; 0: exact turns)"),
+                                       "may be, in deg (default 30)"),
+        turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference in deg between "
+                                           "a whole turn's angle and 360 deg (a turn by hand against a stop; in the "
+                                           "sigma) (default 0.2; 0: exact turns)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
