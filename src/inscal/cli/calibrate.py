@@ -32,7 +32,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
                   accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
                   thermal_model: Path | None = None, mc: int | None = None, mc_seed: int = 0,
-                  mc_workers: int = 1) -> dict:
+                  mc_workers: int = 1, method_options: dict | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -51,7 +51,9 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
     instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
-    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too.  ``noise``: a noise.toml
+    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``method_options``: the
+    no-turntable method's keyword options given (:data:`~inscal.lab.calibration.NO_TABLE_OPTIONS`, the function's
+    units: ``face_tilt``, ``turn_closure`` in rad).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
@@ -64,7 +66,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
                              plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic,
-                             None if noise is None else str(noise))
+                             None if noise is None else str(noise),
+                             method_options=tuple(sorted((method_options or {}).items())))
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -513,6 +516,16 @@ def _fmt(v) -> str:
     return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
 
 
+def _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure) -> dict:
+    """The no-turntable options given on the command line, in the method function's units."""
+    from inscal.core import units
+
+    given = {"alpha": alpha, "gravity_tol": gravity_tol, "min_turn_end": min_turn_end, "turn_tol_deg": turn_tol,
+             "face_tilt": None if face_tilt is None else units.to_si(face_tilt, "deg"),
+             "turn_closure": None if turn_closure is None else units.to_si(turn_closure, "deg")}
+    return {k: float(v) for k, v in given.items() if v is not None}
+
+
 def register(app: typer.Typer) -> None:
     @app.command()
     def calibrate(
@@ -531,6 +544,22 @@ def register(app: typer.Typer) -> None:
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
                                        "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
                                        "accelerometer degrees of freedom)"),
+        # the no-turntable methods' options (None: the method's own default)
+        alpha: float = typer.Option(None, "--alpha", help="multi-position, ferraris: false-alarm probability of "
+                                    "the still-pose tests (default 1e-3; ferraris 1e-4)"),
+        gravity_tol: float = typer.Option(None, "--gravity-tol", help="multi-position, ferraris: the largest "
+                                          "relative difference between the poses' specific force and the site's "
+                                          "gravity (default 0.05; ferraris 0.1)"),
+        face_tilt: float = typer.Option(None, "--face-tilt-deg", help="ferraris: rms angle in deg between a face and "
+                                        "the horizontal when it rests on a table (flatness, squareness, the table's "
+                                        "level; in the sigma) (default 0.3; 0: exact faces)"),
+        min_turn_end: float = typer.Option(None, "--min-turn-end-s", help="ferraris: shortest still pose in s at "
+                                           "the ends of a turn, after --settle-s at both ends (default 0.3)"),
+        turn_tol: float = typer.Option(None, "--turn-tol-deg", help="ferraris: how far from 360 deg a whole turn "
+                                       "may be, in deg (default 30)"),
+        turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference in deg between "
+                                           "a whole turn's angle and 360 deg (a turn by hand against a stop; in the "
+                                           "sigma) (default 0.2; 0: exact turns)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -606,7 +635,8 @@ def register(app: typer.Typer) -> None:
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
-                                noise, thermal_model, mc, mc_seed, mc_workers)
+                                noise, thermal_model, mc, mc_seed, mc_workers,
+                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

@@ -52,6 +52,16 @@ MAX_SCALE_FACTOR = 0.5
 MAX_MISALIGNMENT_RAD = math.radians(5.0)
 
 
+#: the options of the no-turntable methods the command line gives: name -> (flag, lower bound (excluded),
+#: upper bound, factor to the flag's unit, unit); face_tilt and turn_closure may also be 0 (exact)
+NO_TABLE_OPTIONS = {"alpha": ("--alpha", 0.0, 0.1, 1.0, ""),
+                    "gravity_tol": ("--gravity-tol", 0.0, 0.9, 1.0, ""),
+                    "face_tilt": ("--face-tilt-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg"),
+                    "min_turn_end": ("--min-turn-end-s", 0.0, MAX_WINDOW_S, 1.0, "s"),
+                    "turn_tol_deg": ("--turn-tol-deg", 0.0, 179.0, 1.0, "deg"),
+                    "turn_closure": ("--turn-closure-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg")}
+
+
 class RecordError(ValueError):
     """A calibration option refused, or a record that cannot be calibrated with the options: one line."""
 
@@ -92,6 +102,10 @@ class CalibrationSetup:
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
     quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
     noise: str | None = None  # systematic: an identified noise model (noise.toml): white noise and GM bias states
+    #: no-turntable methods: keyword options of the method's function given explicitly, ((name, value), ...) in
+    #: its units (alpha, gravity_tol; ferraris: face_tilt, turn_closure [rad], min_turn_end [s], turn_tol_deg);
+    #: NO_TABLE_OPTIONS
+    method_options: tuple[tuple[str, float], ...] = ()
 
     @property
     def systematic(self) -> bool:
@@ -124,7 +138,23 @@ class CalibrationSetup:
                                                                          ("min_static", self.min_static))}
         if self.quadratic:
             out["quadratic"] = True
+        out.update({k: float(v) for k, v in self.method_options})
         return out
+
+    def method_options_problem(self) -> str | None:
+        """The one-line refusal of a no-turntable method's option (``method_options``) the method does not take
+        or whose value is out of its range (:data:`NO_TABLE_OPTIONS`), else None."""
+        for name, v in self.method_options:
+            flag, lo, hi, scale, unit = NO_TABLE_OPTIONS[name]
+            fn = METHODS.get(self.inner)
+            if self.inner not in NO_TABLE_METHODS or name not in inspect.signature(fn).parameters:
+                takes = [m for m in sorted(NO_TABLE_METHODS) if name in inspect.signature(METHODS[m]).parameters]
+                return f"{flag} applies to --method {' and '.join(takes)}, not {self.inner}"
+            zero = name in ("face_tilt", "turn_closure")  # 0: exact faces, exact turns
+            if not (math.isfinite(v) and (lo <= v if zero else lo < v) and v <= hi):
+                return (f"{flag} must be in {'[' if zero else '('}{lo * scale:g}, {hi * scale:g}]"
+                        f"{' ' + unit if unit else ''}, got {v * scale:g}")
+        return None
 
     def problem(self, plots: bool = False) -> str | None:
         """The one-line refusal of a bad option (``plots``: convergence plots are asked for), None if
@@ -140,6 +170,8 @@ class CalibrationSetup:
         for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
             if v is not None and not (math.isfinite(v) and v >= 0):
                 return f"{name} must be a duration >= 0 s, got {v}"
+        if (msg := self.method_options_problem()) is not None:
+            return msg
         if self.accept_unconverged and not self.inner_systematic:
             return f"--accept-unconverged applies to the systematic methods, not {self.inner}"
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
@@ -270,6 +302,9 @@ class CalibrationSetup:
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
         if win.get("quadratic"):
             opts["quadratic"] = True
+        for name, v in self.method_options:  # in the flag's unit, named as the flag (face_tilt_deg, min_turn_end_s)
+            flag, _, _, scale, _ = NO_TABLE_OPTIONS[name]
+            opts[flag.lstrip("-").replace("-", "_")] = float(v) * scale
         if self.noise is not None:  # the model itself, not the file's name, decides the result
             opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
