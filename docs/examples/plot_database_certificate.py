@@ -11,7 +11,8 @@ is drawn below.
 The same with commands::
 
     inscal db add FOG-0042 --model FOG-IMU --db lab.sqlite
-    inscal calibrate jan.h5 --method n25 --out jan.toml --serial FOG-0042 --db lab.sqlite --date 2025-01-15
+    inscal calibrate jan.h5 --method n25 --out jan.toml --serial FOG-0042 \
+        --db lab.sqlite --date 2025-01-15
     ...
     inscal db history FOG-0042 --db lab.sqlite --plot history.png
     inscal db certificate FOG-0042 --db lab.sqlite --out certs
@@ -49,7 +50,8 @@ for month in range(4):
     path = folder / f"FOG-0042_2025-{month + 1:02d}-15.h5"
     write_simulation(path, scenario, np.random.default_rng(10 + month))
     result = calibrate(io.read_record(path), "n25")
-    session = lab.session_from_record(path, date=f"2025-{month + 1:02d}-15", station="T1", operator="ana")
+    date = f"2025-{month + 1:02d}-15"
+    session = lab.session_from_record(path, date=date, station="T1", operator="ana")
     rid, _ = lab.record_result(db, "FOG-0042", result, session, data_file=path.name,
                                options=lab.calibration_options("n25"))
     print(f"result {rid}: {path.name}")
@@ -62,8 +64,10 @@ for month in range(4):
 # ``inscal db history --plot`` writes.
 h = lab.unit_history(db, "FOG-0042")
 gyro_sf = next(c for c in h.components if c.label == "gyro_scale_factor[x]")
-print(f"gyro_scale_factor[x]: drift {gyro_sf.rate:+.2f} ± {gyro_sf.rate_sigma:.2f} {gyro_sf.unit}/month (true +10)")
-print("flagged:", ", ".join(f"{c.label} ({', '.join(c.flags)})" for c in h.flagged) or "none")
+print(f"gyro_scale_factor[x]: drift {gyro_sf.rate:+.2f} ± {gyro_sf.rate_sigma:.2f} "
+      f"{gyro_sf.unit}/month (true +10)")
+flagged = [f"{c.label} ({', '.join(c.flags)})" for c in h.flagged]
+print("flagged:", ", ".join(flagged) or "none")
 print(f"{h.tests} tests, {h.expected_false_alarms:.2f} flags expected by chance")
 fig = history_figure(h)
 
@@ -73,16 +77,19 @@ fig = history_figure(h)
 # :func:`inscal.report.certificate.certificate_data` builds the certificate from the database's
 # numbers; headless Chromium renders its HTML (as it prints the PDF).
 cal = lab.current_calibration(db, "FOG-0042")
-doc = certificate_data(cal, lab.get_unit(db, "FOG-0042"), issued=dt.datetime(2025, 4, 20, tzinfo=dt.timezone.utc),
-                       laboratory="North lab, 1 Example Road", authorized_by="A. Signer")
+issued = dt.datetime(2025, 4, 20, tzinfo=dt.timezone.utc)
+doc = certificate_data(cal, lab.get_unit(db, "FOG-0042"), issued=issued,
+                       laboratory="North lab, 1 Example Road",
+                       authorized_by="A. Signer")
 html = folder / "certificate.html"
 html.write_text(certificate_html(doc), encoding="utf-8")
 chromium = find_chromium()
 if chromium is not None:
     png = folder / "page1.png"
-    subprocess.run([chromium, "--headless=new", "--disable-gpu", "--no-sandbox", "--no-first-run",
-                    "--hide-scrollbars", "--disable-background-networking", f"--user-data-dir={folder / 'profile'}",
-                    "--window-size=900,1270", f"--screenshot={png}", html.as_uri()],
+    flags = ["--headless=new", "--disable-gpu", "--no-sandbox", "--no-first-run",
+             "--hide-scrollbars", "--disable-background-networking",
+             f"--user-data-dir={folder / 'profile'}", "--window-size=900,1270"]
+    subprocess.run([chromium, *flags, f"--screenshot={png}", html.as_uri()],
                    capture_output=True, timeout=120, check=True)
     fig, ax = plt.subplots(figsize=(7, 9.9), layout="constrained")
     ax.imshow(plt.imread(png))

@@ -33,7 +33,8 @@ RUNS, WITH_SIGMA = 200, 3
 errors, sigmas = {}, {}
 for seed in range(RUNS):
     record = simulate(scenario, np.random.default_rng(seed)).to_record()
-    field = calibrate(record, "n25", uncertainty=seed < WITH_SIGMA).to_field(record.truth)
+    result = calibrate(record, "n25", uncertainty=seed < WITH_SIGMA)
+    field = result.to_field(record.truth)
     for name, e in field.items():
         errors.setdefault(name, []).append(np.ravel(e["error"]))
         if seed < WITH_SIGMA:
@@ -52,21 +53,26 @@ for name in ("gimbal_nonorthogonality", "gyro_bias", "accel_bias"):
 # Four components' errors (estimate − truth) over the 200 runs, with the normal density of the
 # mean reported σ: the histograms should fill the curves. The last panel pools every component's
 # error/σ against the standard normal.
-picks = [("gimbal_nonorthogonality", 0), ("gyro_bias", 2), ("accel_scale_factor", 0), ("gyro_misalignment", 1)]
+picks = [("gimbal_nonorthogonality", 0), ("gyro_bias", 2), ("accel_scale_factor", 0),
+         ("gyro_misalignment", 1)]
 fig, axes = plt.subplots(1, 5, figsize=(14, 3.2), layout="constrained")
 for ax, (name, i) in zip(axes, picks):
     e = np.array(errors[name])[:, i]
     s = float(sigma[name][i])
     x = np.linspace(-4 * s, 4 * s, 200)
-    ax.hist(e, bins=20, range=(-4 * s, 4 * s), density=True, color="tab:blue", alpha=0.6)
+    ax.hist(e, bins=20, range=(-4 * s, 4 * s), density=True, alpha=0.6)
     ax.plot(x, np.exp(-0.5 * (x / s) ** 2) / (s * np.sqrt(2 * np.pi)), color="k")
-    ax.set_title(f"{name}[{i}]\nσ {s:.3g}, spread {np.std(e, ddof=1):.3g} {units_of[name]}", fontsize=8)
+    spread = np.std(e, ddof=1)
+    title = f"{name}[{i}]\nσ {s:.3g}, spread {spread:.3g} {units_of[name]}"
+    ax.set_title(title, fontsize=8)
     ax.set_yticks([])
-z = np.concatenate([(np.array(errors[n]) / sigma[n]).ravel() for n in errors if np.all(np.isfinite(sigma[n]))])
+z = np.concatenate([(np.array(errors[n]) / sigma[n]).ravel() for n in errors
+                    if np.all(np.isfinite(sigma[n]))])
 x = np.linspace(-4, 4, 200)
 axes[-1].hist(z, bins=40, range=(-4, 4), density=True, color="tab:green", alpha=0.6)
 axes[-1].plot(x, np.exp(-0.5 * x ** 2) / np.sqrt(2 * np.pi), color="k")
-axes[-1].set_title(f"all components: error/σ\nRMS {np.sqrt(np.mean(z ** 2)):.2f} over {z.size}", fontsize=8)
+rms = np.sqrt(np.mean(z ** 2))
+axes[-1].set_title(f"all components: error/σ\nRMS {rms:.2f} over {z.size}", fontsize=8)
 axes[-1].set_yticks([])
 print(f"pooled error/σ: RMS {np.sqrt(np.mean(z ** 2)):.3f}, "
       f"{np.mean(np.abs(z) > 2) * 100:.1f} % beyond 2 (4.6 % for a normal)")

@@ -11,7 +11,7 @@ as the path runs, and how much each move lowers each group's bound.
 The same with commands::
 
     inscal observability s16 --states 51 --crlb
-    inscal design --minutes 20 --candidates 32 --scheduler none --out path20.toml --plot path20.html
+    inscal design --minutes 20 --candidates 32 --scheduler none --out p20.toml --plot p20.html
 """
 
 # %%
@@ -27,10 +27,12 @@ from inscal.report.path import path_figure
 
 scenario, _, _ = load_source("s16")
 bound = crlb("s16", "51")
-print(f"path {scenario.path.name!r}: {scenario.path.duration / 60:.1f} min, {len(scenario.path.moves)} moves")
+path = scenario.path
+print(f"path {path.name!r}: {path.duration / 60:.1f} min, {len(path.moves)} moves")
 for row in bound.table():
     if row["group"] in ("gyro_bias", "accel_bias", "gyro_g_sensitivity"):
-        print(f"{row['label']:26s} bound {row['bound']:9.3g} {row['unit']:9s} (prior {row['prior']:.3g})")
+        print(f"{row['label']:24s} {row['bound']:9.3g} {row['unit']:8s}"
+              f" (prior {row['prior']:.3g})")
 
 # %%
 # The figure
@@ -39,4 +41,4 @@ for row in bound.table():
 # goes on; a group falls when a move makes it observable (the g-sensitivity is seen only through
 # heading drift, so its bound keeps falling slowly). Bottom: the decades each move takes off each
 # group's bound.
-fig = path_figure(bound, scenario.path)
+fig = path_figure(bound, path)

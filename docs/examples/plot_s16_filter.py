@@ -11,7 +11,8 @@ of each component as the path runs, with its 1σ envelope, and the smoothed erro
 The same with commands::
 
     inscal simulate s16 --out s16.h5 --seed 1
-    inscal calibrate s16.h5 --method systematic51 --states 51 --out s16.toml --plots plots/
+    inscal calibrate s16.h5 --method systematic51 --states 51 --out s16.toml \
+        --plots plots/
 """
 
 # %%
@@ -31,7 +32,8 @@ result = calibrate(record, "systematic51")
 field = result.to_field(record.truth)
 z = np.concatenate([np.ravel(e["error"]) / np.ravel(e["sigma"]) for e in field.values()
                     if np.all(np.isfinite(e["sigma"]))])
-print(f"{record.time.size} samples; {z.size} components, RMS error/σ {np.sqrt(np.mean(z ** 2)):.2f}, "
+rms = np.sqrt(np.mean(z ** 2))
+print(f"{record.time.size} samples; {z.size} components, RMS error/σ {rms:.2f}, "
       f"largest |error/σ| {np.abs(z).max():.2f}")
 for name in ("gyro_g_sensitivity", "accel_nonlinearity", "accel_lever_arm"):
     e = field[name]
@@ -49,10 +51,12 @@ from pathlib import Path
 from inscal.report.figures import convergence_plots
 
 folder = Path(tempfile.mkdtemp())
-files = {f.stem.removeprefix("convergence-"): f for f in convergence_plots(folder, result, record.truth)}
+written = convergence_plots(folder, result, record.truth)
+files = {f.stem.removeprefix("convergence-"): f for f in written}
 print("groups drawn:", ", ".join(files))
 fig, axes = plt.subplots(2, 2, figsize=(12, 5.8), layout="constrained")
-for ax, name in zip(axes.flat, ("gyro_bias", "gyro_g_sensitivity", "accel_nonlinearity", "accel_lever_arm")):
+groups = ("gyro_bias", "gyro_g_sensitivity", "accel_nonlinearity", "accel_lever_arm")
+for ax, name in zip(axes.flat, groups):
     ax.imshow(plt.imread(files[name]))
     ax.set_axis_off()
 

@@ -12,7 +12,7 @@ The same with commands (a parameter file ``p.toml`` with a ``[thermal]`` table):
 
     inscal simulate thermal-warmup --out warm.h5 --seed 1
     inscal navigate warm.h5 --params p.toml --json           # with the thermal model
-    inscal navigate warm.h5 --params p.toml --temperature 20 # as if it stayed at 20 degC
+    inscal navigate warm.h5 --params p.toml --temperature 20  # stays at 20 degC
 """
 
 # %%
@@ -34,8 +34,9 @@ scenario = replace(build("thermal-warmup", duration_s=1800.0), noise=ImuNoise())
 sim = simulate(scenario, np.random.default_rng(1))
 record = sim.to_record()
 temp = record.temperature
-print(f"{record.time.size} samples, {record.time[-1] / 60:.0f} min, "
-      f"temperature {temp.values.min():.1f} -> {temp.values.max():.1f} degC (T_ref {scenario.thermal.t_ref:g} degC)")
+t_ref = scenario.thermal.t_ref
+print(f"{record.time.size} samples, {record.time[-1] / 60:.0f} min, temperature "
+      f"{temp.values.min():.1f} -> {temp.values.max():.1f} degC (T_ref {t_ref:g} degC)")
 
 # %%
 # Navigate twice
@@ -44,13 +45,15 @@ print(f"{record.time.size} samples, {record.time[-1] / 60:.0f} min, "
 # model at the record's temperature.
 def run(thermal):
     chunks = [(record.time, record.dtheta, record.dvel, record.gimbal)]
-    return navigate(chunks, record.rate_hz, record.site, init="truth", scenario=scenario, params=scenario.imu,
-                    thermal=thermal, temperature=temp if thermal is not None else None)
+    return navigate(chunks, record.rate_hz, record.site, init="truth",
+                    scenario=scenario, params=scenario.imu, thermal=thermal,
+                    temperature=temp if thermal is not None else None)
 
 
-without, with_model = run(None), run(scenario.thermal)
-for label, res in (("errors at 20 degC only", without), ("with the thermal model", with_model)):
-    print(f"{label:24s} max horizontal position error {res.errors.horizontal.max():10.1f} m")
+runs = {"errors at 20 °C only": run(None),
+        "with the thermal model": run(scenario.thermal)}
+for label, res in runs.items():
+    print(f"{label:24s} max horizontal error {res.errors.horizontal.max():.1f} m")
 
 # %%
 # The figure
@@ -58,8 +61,9 @@ for label, res in (("errors at 20 degC only", without), ("with the thermal model
 # The horizontal position error of both runs, and the IMU temperature that drives the difference.
 fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="constrained",
                                gridspec_kw={"height_ratios": [2, 1]})
-for label, res in (("errors at 20 °C only", without), ("with the thermal model", with_model)):
-    ax0.semilogy(res.errors.time / 60, np.maximum(res.errors.horizontal, 1e-3), label=label)
+for label, res in runs.items():
+    err = np.maximum(res.errors.horizontal, 1e-3)
+    ax0.semilogy(res.errors.time / 60, err, label=label)
 ax0.set_ylabel("horizontal position error [m]")
 ax0.legend()
 ax0.grid(alpha=0.3, which="both")

@@ -18,7 +18,10 @@ The same with commands (``station.toml``: the station file of the guide's budget
 # %%
 # The station and the calibration
 # -------------------------------
-# :func:`inscal.lab.station.station_from_dict` reads the same tables as a ``station.toml``.
+# The station file of the guide's budget page; :func:`inscal.lab.station.station_from_dict` reads
+# its tables as ``inscal calibrate --station station.toml`` does.
+import tomllib
+
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -28,34 +31,85 @@ from inscal.lab.station import station_from_dict
 from inscal.sim.scenarios import build
 from inscal.sim.simulate import simulate
 
-station = station_from_dict({
-    "station": {"name": "T-2, lab 3"},
-    "inputs": {
-        "table_angle": {"unit": "arcsec", "distribution": "normal", "uncertainty": 2.0, "source": "certificate"},
-        "table_rate": {"unit": "ppm", "distribution": "rectangular", "half_width": 17.32, "source": "data sheet"},
-        "axis_wobble": {"unit": "arcsec", "distribution": "normal", "uncertainty": 1.0, "source": "certificate"},
-        "axis_nonorthogonality": {"unit": "arcsec", "distribution": "normal", "uncertainty": 2.0,
-                                  "source": "certificate"},
-        "encoder_resolution": {"unit": "arcsec", "distribution": "rectangular", "half_width": 0.18,
-                               "source": "encoder data sheet"},
-        "gravity": {"value": 9.793788, "unit": "m/s^2", "uncertainty_unit": "mGal", "distribution": "normal",
-                    "uncertainty": 1.0, "source": "gravimeter survey"},
-        "latitude": {"value": 30.686, "unit": "deg", "uncertainty_unit": "arcsec", "distribution": "normal",
-                     "uncertainty": 1.0, "source": "GNSS survey"},
-        "height": {"value": 50.0, "unit": "m", "distribution": "normal", "uncertainty": 1.0, "source": "GNSS"},
-        "time_base": {"unit": "ppm", "distribution": "rectangular", "half_width": 1.0, "source": "oscillator"},
-        "temperature_stability": {"unit": "K", "distribution": "arcsine", "half_width": 0.1,
-                                  "source": "chamber controller"},
-    },
-})
+STATION = """
+[station]
+name = "T-2, lab 3"
+
+[inputs.table_angle]
+unit = "arcsec"
+distribution = "normal"
+uncertainty = 2.0
+source = "table certificate"
+
+[inputs.table_rate]
+unit = "ppm"
+distribution = "rectangular"
+half_width = 17.32
+source = "table data sheet"
+
+[inputs.axis_wobble]
+unit = "arcsec"
+distribution = "normal"
+uncertainty = 1.0
+source = "table certificate"
+
+[inputs.axis_nonorthogonality]
+unit = "arcsec"
+distribution = "normal"
+uncertainty = 2.0
+source = "table certificate"
+
+[inputs.encoder_resolution]
+unit = "arcsec"
+distribution = "rectangular"
+half_width = 0.18
+source = "encoder data sheet"
+
+[inputs.gravity]
+value = 9.793788
+unit = "m/s^2"
+uncertainty_unit = "mGal"
+distribution = "normal"
+uncertainty = 1.0
+source = "relative gravimeter survey tied to the national network"
+
+[inputs.latitude]
+value = 30.686
+unit = "deg"
+uncertainty_unit = "arcsec"
+distribution = "normal"
+uncertainty = 1.0
+source = "GNSS survey of the pier"
+
+[inputs.height]
+value = 50.0
+unit = "m"
+distribution = "normal"
+uncertainty = 1.0
+source = "GNSS survey of the pier"
+
+[inputs.time_base]
+unit = "ppm"
+distribution = "rectangular"
+half_width = 1.0
+source = "acquisition oscillator data sheet"
+
+[inputs.temperature_stability]
+unit = "K"
+distribution = "arcsine"
+half_width = 0.1
+source = "chamber controller"
+"""
+station = station_from_dict(tomllib.loads(STATION))
 record = simulate(build("n25"), np.random.default_rng(1)).to_record()
 result = calibrate(record, "n25")
 budget = calibration_budget(result, station)
 for c in budget.components[:6]:
     top = max(c.contributions, key=lambda x: x.contribution)
-    print(f"{c.label:24s} u_c {c.u_c:8.3g} {c.unit:7s} k {c.k:.2f}  U {c.U:8.3g}   largest: {top.input}")
+    print(f"{c.label:22s} u_c {c.u_c:.3g} {c.unit}, k {c.k:.2f}, U {c.U:.3g}; "
+          f"largest: {top.input}")
 for note in budget.notes:
-    print("note:", note)
+    print("note:", note.split(":")[0], "-", note.split(":")[1].strip())
 
 # %%
 # The contributions
@@ -66,8 +120,8 @@ for note in budget.notes:
 # the table's angles the misalignments and the accelerometer biases, and the record's own noise
 # (the estimator's Type A σ) the gyro biases.
 inputs = sorted({x.input for c in budget.components for x in c.contributions})
-shares = np.array([[sum(x.share for x in c.contributions if x.input == name) for name in inputs]
-                   for c in budget.components])
+shares = np.array([[sum(x.share for x in c.contributions if x.input == name)
+                    for name in inputs] for c in budget.components])
 keep = shares.max(axis=0) > 0.01  # inputs that reach 1 % of some component
 fig, ax = plt.subplots(figsize=(9, 7), layout="constrained")
 left = np.zeros(len(budget.components))
@@ -76,7 +130,7 @@ for j, name in enumerate(n for n, k in zip(inputs, keep) if k):
     col = shares[:, inputs.index(name)]
     ax.barh(range(len(col)), col, left=left, color=colors(j), label=name)
     left += col
-ax.barh(range(len(left)), 1 - left, left=left, color="0.85", label="others (< 1 % everywhere)")
+ax.barh(range(len(left)), 1 - left, left=left, color="0.85", label="others (< 1 %)")
 ax.set_yticks(range(len(left)), [c.label for c in budget.components], fontsize=7)
 ax.invert_yaxis()
 ax.set_xlim(0, 1)
