@@ -20,6 +20,7 @@ The same with commands (``station.toml``: the station file of the guide's budget
 # -------------------------------
 # The station file of the guide's budget page; :func:`inscal.lab.station.station_from_dict` reads
 # its tables as ``inscal calibrate --station station.toml`` does.
+import textwrap
 import tomllib
 
 import matplotlib.pyplot as plt
@@ -109,7 +110,7 @@ for c in budget.components[:6]:
     print(f"{c.label:22s} u_c {c.u_c:.3g} {c.unit}, k {c.k:.2f}, U {c.U:.3g}; "
           f"largest: {top.input}")
 for note in budget.notes:
-    print("note:", note.split(":")[0], "-", note.split(":")[1].strip())
+    print(textwrap.fill("note: " + note, 80, subsequent_indent="  "))
 
 # %%
 # The contributions
