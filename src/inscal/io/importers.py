@@ -465,10 +465,13 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     integ = None
     if raw.integration is not None:
         ri = raw.integration
-        integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
+        integ = {"rule": "each rate held over the times nearer its stamp than any other's (midpoint rule; one "
+                         "sample per increment when the stamps sit at the centres of the grid's intervals)",
                  "grid_rate_hz": ri.rate_hz,
                  "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max, "gaps_bridged": ri.gaps,
-                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
+                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()},
+                 "noise": {"white": ri.noise.white, "variance_ratio": list(ri.noise.variance),
+                           "neighbour_correlation": ri.noise.correlation}}
     attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
