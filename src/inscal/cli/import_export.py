@@ -222,6 +222,8 @@ def register(app: typer.Typer) -> None:
                              topic, stamps, config, temperature_topic)
         except CliError as exc:
             raise fail(str(exc)) from None
+        for w in res["warnings"]:
+            typer.echo(f"inscal: warning: {w}", err=True)
         if json_:
             print_json(res)
             return

@@ -23,7 +23,7 @@ Sources
     must start with the header line that :func:`export_record` writes.  ``txt``
     defaults to whitespace-separated columns.
 ``rosbag``
-    a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
+    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file with ``sensor_msgs/Imu``
     messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
     rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
     error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
@@ -224,14 +224,16 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
                  path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
                  skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
                  gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0,
-                 temperature: RawTemperature | None = None) -> tuple[Record, dict]:
+                 temperature: RawTemperature | None = None, declared: str | None = None) -> tuple[Record, dict]:
     """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
     ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
     ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
     (:func:`~inscal.io.encoders.apply_latency`) before the checks.  ``temperature``: readings at their
     own times from a separate file (:func:`~inscal.io.formats.read_temperature_file`), on the source's
     clock as the samples' (shifted with them to the path start); temperature columns of the source
-    itself come with ``raw``."""
+    itself come with ``raw``.  ``declared``: the gyro unit as declared (by a mapping, or by a format whose
+    messages fix it; None: assumed), so a gyro magnitude that contradicts it is a warning (``info["warnings"]``), not a
+    refusal (:func:`~inscal.io.checks.check_magnitudes`)."""
     unknown = set(skip) - set(SKIPPABLE)
     if unknown:
         raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(SKIPPABLE)}")
@@ -251,8 +253,10 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         dth, dv = raw.gyro * dt, raw.accel * dt
     else:
         dth, dv = raw.gyro, raw.accel
+    info["warnings"] = []
     if "magnitudes" not in skip:
-        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw)
+        info["warnings"] += check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw,
+                                             declared=declared)
     gim = raw.gimbal
     if gimbal is not None:
         if gim is not None:
@@ -454,14 +458,20 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         site = Site(lat * DEG, lon * DEG, h)
     if gravity is not None:
         site = site.with_gravity(gravity)
-    if raw.integration is not None:  # rates integrated to increments in SI by the reader
-        ud = ("rad", "m/s")
-    elif mapping is not None:
+    if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
+    elif fmt == "rosbag":  # sensor_msgs/Imu: rad/s and m/s^2 (REP 145)
+        ud = ("rad/s", "m/s^2")
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
+    if raw.integration is not None:  # rates integrated to increments in SI by the reader
+        ud = (f"rad (rates in {ud[0]} integrated)", f"m/s (rates in {ud[1]} integrated)")
+    # the gyro unit is declared by a csv/txt mapping, and by a bag's message type; psins, mat and kf-gins files
+    # carry none (their format's unit is assumed)
+    declared = ("rad/s (sensor_msgs/Imu, REP 145)" if fmt == "rosbag" else
+                mapping.gyro_unit if mapping is not None and fmt in ("csv", "txt") else None)
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
-                             encoder_latency, tfile)
+                             encoder_latency, tfile, declared)
     integ = None
     if raw.integration is not None:
         ri = raw.integration
@@ -478,7 +488,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
              "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"],
-             "temperature_file": None if temperature_file is None else str(temperature_file)}
+             "temperature_file": None if temperature_file is None else str(temperature_file),
+             "warnings": info["warnings"]}
     if raw.source_info is not None:
         attrs.update(raw.source_info)
     if temperature_topic is not None:
@@ -500,7 +511,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
-            "encoders": info["encoders"], "temperature": info["temperature"],
+            "encoders": info["encoders"], "temperature": info["temperature"], "warnings": info["warnings"],
             **({k: attrs[k] for k in ("bag", "integration", "imunoise") if k in attrs})}
 
 
