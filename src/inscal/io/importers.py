@@ -158,7 +158,7 @@ from inscal.io.checks import (
     check_values,
     time_base,
 )
-from inscal.io.encoders import apply_latency
+from inscal.io.encoders import apply_latency, small_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
 from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
@@ -287,6 +287,11 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     info["encoders"] = None
     if gim is not None and "encoders" not in skip:
         info["encoders"] = check_encoders(dth, gim, rate, time).summary()
+        e = info["encoders"]
+        if (words := small_latency(e["latency_s"], e["latency_sigma_s"], rate)) is not None:
+            info["warnings"].append(f"{gimbal_name if gimbal is not None else where}: {words}: a calibration misfits "
+                                    f"through the turns unless the angles are shifted (--encoder-latency "
+                                    f"{e['latency_s']:.6g})")
     if path is not None:
         start = time[0] - dt if path_start is None else float(path_start)
         if not math.isfinite(start):
