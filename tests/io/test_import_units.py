@@ -167,3 +167,19 @@ def test_other_files_are_refused_in_one_line(tmp_path, name, needle):
     code, _, se = invoke("import", p, "--format", "rosbag", "--out", tmp_path / "o.h5", *SITE)
     assert code == 2 and len(se.strip().splitlines()) == 1 and needle in se, se
     assert not (tmp_path / "o.h5").exists()
+
+
+def test_encoder_file_in_unix_time_beside_a_bag_gets_the_bag_clock_hint(tmp_path):
+    """A bag's record counts from its first stamp; an encoder file in Unix time misses it by 1.7e9 s: refused
+    in one line that says so and gives the shift."""
+    rng = np.random.default_rng(6)
+    w, f = still_rates(rng)
+    folder = write_mcap_bag(tmp_path / "bag", np.radians(w), f)
+    tg = EPOCH * 1e-9 + np.arange(-5, N + 5) / RATE
+    gim = tmp_path / "enc.csv"
+    np.savetxt(gim, np.column_stack([tg, np.zeros((tg.size, 2))]), delimiter=",", fmt="%.17g",
+               header="time [s],outer [deg],inner [deg]", comments="")
+    code, _, se = invoke("import", folder, "--format", "rosbag", "--gimbal", gim, "--out", tmp_path / "o.h5", *SITE)
+    assert code == 2 and len(se.strip().splitlines()) == 1, se
+    assert "they look like Unix times in seconds, while a bag's time counts from its first stamp" in se, se
+    assert "(1700000000.000000000 s, Unix): subtract it" in se and not (tmp_path / "o.h5").exists()

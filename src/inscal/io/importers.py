@@ -263,7 +263,7 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
             raise ImportFileError(f"{where} has gimbal angle columns; --gimbal would give them twice")
         tg, ag = gimbal
         if tg[0] > time[0] + 1e-9 * dt or tg[-1] < time[-1] - 1e-9 * dt:
-            hint = _gimbal_time_hint(tg, time, dt)
+            hint = _bag_epoch_hint(tg, time, dt, raw) or _gimbal_time_hint(tg, time, dt)
             raise ImportFileError(f"{gimbal_name}: the angles cover t = {tg[0]:.9g} .. {tg[-1]:.9g} s; the record needs "
                                   f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)"
                                   + (f": {hint}" if hint else ""))
@@ -366,6 +366,22 @@ def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: fl
                               f".. {b:.9g} s leave {max(head, tail):.6g} s of the record (t = {start:.9g} .. {end:.9g} s) "
                               f"{where_} reading (at most {tol:.3g} s is held): a temperature file must cover the record")
     return temp
+
+
+def _bag_epoch_hint(tg: np.ndarray, time: np.ndarray, dt: float, raw: Raw) -> str:
+    """Why encoder times miss a bag's record: they are Unix times (in s, ms, us or ns) while the bag's time counts
+    from its first stamp; "" when the source is no bag or that does not explain them."""
+    bag = (raw.source_info or {}).get("bag")
+    if not bag or "epoch_ns" not in bag:
+        return ""
+    epoch = bag["epoch_ns"] * 1e-9
+    span = time[-1] - time[0] + dt
+    for f, unit in ((1.0, "seconds"), (1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds")):
+        a, b = tg[0] * f - epoch, tg[-1] * f - epoch
+        if a <= time[0] + 0.1 * span and b >= time[-1] - 0.1 * span and b - a < 2.0 * span:
+            return (f"they look like Unix times in {unit}, while a bag's time counts from its first stamp ({epoch:.9f} "
+                    f"s, Unix): subtract it from the encoder file's times (they then run {a:.6g} .. {b:.6g} s)")
+    return ""
 
 
 def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool = False) -> str:
