@@ -5,9 +5,10 @@ The bag (MCAP, written with the ``rosbags`` library) holds the record's rates, e
 sample interval, stamped at the interval's centre (the instant an averaging sensor's rate represents, REP
 145); the encoder angles go beside it as a gimbal file on the bag's clock (seconds from its first stamp).
 ``--end-stamps`` stamps each rate at the end of its interval instead (a driver that stamps when it
-publishes: a half-sample offset between the bag's and the encoders' times).
+publishes: a half-sample offset between the bag's and the encoders' times); ``--jitter J`` moves each
+stamp by a uniform draw within +-J samples (a driver's clock; imported with --rate-hz).
 
-    python bench/bag_n25.py [--seeds 3] [--end-stamps]
+    python bench/bag_n25.py [--seeds 3] [--end-stamps] [--jitter 0.1]
 """
 
 from __future__ import annotations
@@ -50,13 +51,16 @@ def write_bag(folder: Path, ns: np.ndarray, w: np.ndarray, f: np.ndarray) -> Non
             wr.write(c, s, TS.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
 
 
-def one(seed: int, d: Path, end_stamps: bool) -> dict:
+def one(seed: int, d: Path, end_stamps: bool, jitter: float = 0.0) -> dict:
     sc = scenarios.build("n25")
     h5 = d / f"n25_{seed}.h5"
     write_simulation(h5, sc, np.random.default_rng(seed), overwrite=True)
     rec = io.read_record(h5)
     dt = 1.0 / rec.rate_hz
     t_stamp = rec.time - (0.0 if end_stamps else 0.5 * dt)
+    if jitter:
+        t_stamp = t_stamp + np.concatenate([[0.0], np.random.default_rng(100 + seed).uniform(-jitter, jitter,
+                                                                                            t_stamp.size - 1) * dt])
     ns = EPOCH + np.round((t_stamp - t_stamp[0]) * 1e9).astype(np.int64)
     bag = d / f"bag_{seed}"
     if bag.exists():
@@ -74,7 +78,7 @@ def one(seed: int, d: Path, end_stamps: bool) -> dict:
     out = d / f"bag_{seed}.h5"
     cmd = [sys.executable, "-c", "from inscal.cli.app import main; main()", "import", str(bag), "--format", "rosbag", "--out", str(out),
            "--gimbal", str(gim), "--lat", repr(math.degrees(s.latitude)), "--lon", repr(math.degrees(s.longitude)),
-           "--height", repr(s.height), "--force"]
+           "--height", repr(s.height), "--force"] + (["--rate-hz", repr(rec.rate_hz)] if jitter else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(r.stderr)
@@ -95,11 +99,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--end-stamps", action="store_true")
+    ap.add_argument("--jitter", type=float, default=0.0)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, args.seeds + 1):
             t0 = time.perf_counter()
-            r = one(seed, Path(tmp), args.end_stamps)
+            r = one(seed, Path(tmp), args.end_stamps, args.jitter)
             band = [stats.chi2.ppf(q, r["bag"]["dof"]) for q in (0.005, 0.995)]
             print(f"seed {seed}: {r['import']}")
             for key in ("hdf5", "bag"):
