@@ -76,7 +76,8 @@ def one(seed: int, d: Path, end_stamps: bool, jitter: float = 0.0) -> dict:
         np.savetxt(fh, np.column_stack([tg, ag]), delimiter=",", fmt="%.17g")
     s = rec.site
     out = d / f"bag_{seed}.h5"
-    cmd = [sys.executable, "-c", "from inscal.cli.app import main; main()", "import", str(bag), "--format", "rosbag", "--out", str(out),
+    cmd = [sys.executable, "-c", "from inscal.cli.app import main; main()", "import", str(bag), "--format", "rosbag",
+           "--out", str(out),
            "--gimbal", str(gim), "--lat", repr(math.degrees(s.latitude)), "--lon", repr(math.degrees(s.longitude)),
            "--height", repr(s.height), "--force"] + (["--rate-hz", repr(rec.rate_hz)] if jitter else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
@@ -109,7 +110,8 @@ def main() -> None:
             print(f"seed {seed}: {r['import']}")
             for key in ("hdf5", "bag"):
                 fit = r[key]
-                print(f"  {key:5s} chi2 {fit['chi2']:.1f} on {fit['dof']} dof (99 % band {band[0]:.1f} .. {band[1]:.1f}), "
+                print(f"  {key:5s} chi2 {fit['chi2']:.1f} on {fit['dof']} dof (99 % band {band[0]:.1f} .. "
+                      f"{band[1]:.1f}), "
                       f"consistent {fit['consistent']}, cause {fit['cause']}")
             worst = max(r["sigma_ratio_dev"], key=r["sigma_ratio_dev"].get)
             print(f"  sigma bag / hdf5: largest deviation {100 * r['sigma_ratio_dev'][worst]:.2f} % ({worst}); "

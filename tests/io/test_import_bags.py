@@ -166,7 +166,8 @@ def test_bag_increments_within_the_rules_bound(smooth, kind):
     rec = io.read_record(out)
     h = 1.0 / RATE
     assert rec.n_samples == N + 1 and rec.rate_hz == RATE
-    np.testing.assert_allclose(rec.time, np.arange(N + 1) * h + h / 2, rtol=0, atol=1e-12)  # stamp k: interval k's centre
+    # stamp k at the centre of interval k
+    np.testing.assert_allclose(rec.time, np.arange(N + 1) * h + h / 2, rtol=0, atol=1e-12)
     bound = h ** 3 / 24 * max_second_derivative()
     reported = np.array(ig["error_bound"]["dtheta_rad"] + ig["error_bound"]["dvel_m_s"])
     assert np.all(reported >= bound) and np.all(reported <= 1.5 * bound), reported / bound

@@ -337,7 +337,8 @@ MAX_DECLARED_BIAS = 10.0 * DEG
 
 
 def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site, where: str, kind: str,
-                      gyro_unit: str, accel_unit: str, raw: Raw | None = None, declared: str | None = None) -> list[str]:
+                      gyro_unit: str, accel_unit: str, raw: Raw | None = None,
+                      declared: str | None = None) -> list[str]:
     """Gravity and Earth rate judged from magnitudes (unit mix-ups give factors far from 1).  With the
     ``raw`` source of increments over a time column, gravity 1e3 (1e6, 1e9) times too small or large
     is named as the time column's unit (:func:`time_unit_message`).

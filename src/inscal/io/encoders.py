@@ -529,15 +529,17 @@ SMALL_LATENCY_SAMPLES = 0.1
 def small_latency(delta: float | None, sigma: float | None, rate_hz: float) -> str | None:
     """The words for a latency ``delta`` +- ``sigma`` [s] that the check let pass (under a sample) but
     measured (:data:`SMALL_LATENCY_SAMPLES` and 3 sigma), or None: who leads, by how much, in samples; half a
-    sample is named as rates stamped at the end of their averaging interval (a ROS driver's, where REP 145
-    asks for the instant they represent, the interval's centre)."""
+    sample is named as rates stamped at the end (encoders that lead) or the start (that lag) of their
+    averaging interval (a ROS driver's, where REP 145 asks for the instant they represent, its centre)."""
     if delta is None or sigma is None or not _significant(delta, sigma, rate_hz, SMALL_LATENCY_SAMPLES):
         return None
     n = abs(delta) * rate_hz
-    half = (", half a sample: rates stamped at the end of their averaging interval, not at its centre, the instant "
-            "they represent (REP 145)" if abs(n - 0.5) < 0.1 else "")
+    edge = "end" if delta < 0 else "start"  # the increments late (the encoders lead) or early
+    half = (f", half a sample: rates stamped at the {edge} of their averaging interval, not at its centre, the "
+            "instant they represent (REP 145)" if abs(n - 0.5) < 0.1 else "")
     pm = f" +- {sigma * 1e3:.2g} ms" if math.isfinite(sigma) else ""
-    return f"the encoders {'lag' if delta > 0 else 'lead'} the IMU by {abs(delta) * 1e3:.3g} ms{pm} ({n:.3g} samples{half})"
+    who = "lag" if delta > 0 else "lead"
+    return f"the encoders {who} the IMU by {abs(delta) * 1e3:.3g} ms{pm} ({n:.3g} samples{half})"
 
 
 def check_record_encoders(record, strict: bool = False) -> EncoderCheck | None:

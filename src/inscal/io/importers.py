@@ -23,10 +23,11 @@ Sources
     must start with the header line that :func:`export_record` writes.  ``txt``
     defaults to whitespace-separated columns.
 ``rosbag``
-    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file with ``sensor_msgs/Imu``
-    messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
-    rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
-    error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file
+    with ``sensor_msgs/Imu`` messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps``
+    header | receive): the rates at the stamps integrated onto a uniform grid by the midpoint
+    rule, with a stated error bound and the increments' noise white when the stamps lie on a
+    grid (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
 ``kf-gins``
     KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
     block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).

@@ -13,8 +13,9 @@ without its uniform grid): each sample held over its cell, the times nearer its 
 one increment per sample, ending at ``m_k``, so the increments' noise is independent from one to the next
 (the trapezoid rule's neighbours would correlate by 1/2, and the estimators take it as white), a
 jittered clock costs nothing to second order in a still pose, and a gap stays a long interval (which
-:mod:`inscal.calibrate.static_detect` names and keeps out of the still poses).  A gyro at its clip level (``gyro_range`` in the gyro's unit) is
-reported as the samples it holds; the calibration drops the rotation it falls in (with a note).
+:mod:`inscal.calibrate.static_detect` names and keeps out of the still poses).  A gyro at its clip level
+(``gyro_range`` in the gyro's unit) is reported as the samples it holds; the calibration drops the rotation
+it falls in (with a note).
 """
 
 from __future__ import annotations

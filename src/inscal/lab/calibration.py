@@ -370,7 +370,8 @@ def implausible(res, setup: CalibrationSetup) -> str | None:
 def latency_cause(res, rec: Record, again, enc: dict | None) -> None:
     """Name an encoder latency as the cause of ``res``'s misfit where it is: when the fit is inconsistent and
     the encoder check (``enc``, its summary) measured a latency under a sample
-    (:func:`~inscal.io.encoders.small_latency`), ``again`` (the same calibration of a record) runs on the angles shifted by it;
+    (:func:`~inscal.io.encoders.small_latency`), ``again`` (the same calibration of a record) runs on the
+    angles shifted by it;
     if its chi^2 falls below half (or the fit becomes consistent), the fit's cause, share and note in
     ``res`` say so, with both chi^2 and the ``--encoder-latency`` that removes it.  The estimates and sigma
     are left as they are."""
