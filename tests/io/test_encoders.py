@@ -329,3 +329,23 @@ def test_calibrate_checks_the_encoders_and_applies_a_latency(exported, tmp_path)
     code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", tmp_path / "r.toml",
                       "--encoder-latency", "nan")
     assert code == 2 and "--encoder-latency must be" in se
+
+
+def test_a_half_sample_offset_is_named_at_import_and_as_the_cause_of_the_misfit(exported, tmp_path):
+    """Encoders half a sample ahead of the increments (a driver that stamps each rate at the end of its
+    averaging interval): the import passes it (under a sample) with a warning naming it, and the n25 fit,
+    inconsistent by it, names it as the cause with the chi2 it leaves once shifted (within the 99 % band)."""
+    x = exported["n25"]
+    lead = tmp_path / "lead.csv"
+    _write_gimbal(lead, x.rec.time, apply_latency(x.rec.time, x.rec.gimbal, 0.005))
+    code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", lead, "--out", tmp_path / "o.h5")
+    assert code == 0 and "inscal: warning: " in se and "the encoders lead the IMU by 5" in se, se
+    assert "samples, half a sample: rates stamped at the end of their averaging interval" in se, se
+    assert abs(float(re.search(r"--encoder-latency (\S+)\)", se).group(1)) + 0.005) < 0.3 * MS, se
+    code, so, se = run("calibrate", tmp_path / "o.h5", "--method", "n25", "--out", tmp_path / "p.toml", "--json")
+    assert code == 0, se
+    fit = json.loads(so)["fit"]
+    assert not fit["consistent"] and fit["chi2"] > 1e4, fit["chi2"]
+    assert fit["cause"].startswith("the encoders lead the IMU by 5") and "half a sample" in fit["cause"], fit["cause"]
+    after = float(fit["cause"].split(" the chi2 falls from ")[1].split(" to ")[1].split(" on ")[0])
+    assert 173.2 < after < 282.3 and fit["cause"].endswith("on 224 dof (consistent)"), fit["cause"]

@@ -302,10 +302,15 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
             tc = (time[i0:i1] - 0.5 * d) - float((time[i0:i1] - 0.5 * d) @ d / T)
             sxx = float(np.sum(d * tc * tc))
             slope = (f[i0:i1].T @ (d * tc)) / sxx
-            chi = float(np.sum(slope**2 * sxx / na**2))
+            # a trend is a long-window statistic: its noise is the batch-means density (a short correlation of the
+            # increments, as jittered stamps leave, does not inflate it)
+            chi = float(np.sum(slope**2 * sxx / ma_**2))
             if chi > zg**2:
+                # the threshold on the trend's size along its own direction u: chi = |slope|^2 sxx sum(u^2 / na^2)
+                # passes zg^2 exactly where |slope| passes it, so the value printed is above the one printed beside
+                u = slope / float(np.linalg.norm(slope))
                 tilt = float(np.linalg.norm(slope)) / max(g_word, 1e-300)
-                thr = zg * float(np.max(na)) / math.sqrt(sxx) / max(g_word, 1e-300)
+                thr = zg / math.sqrt(sxx * float(np.sum(u**2 / ma_**2))) / max(g_word, 1e-300)
                 reason = (f"tilted, {units.from_si(tilt, 'deg/s'):.3g} deg/s (accelerometer trend) above the "
                           f"{units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
         if reason is None:  # turning: mean rate against the other poses

@@ -222,6 +222,8 @@ def register(app: typer.Typer) -> None:
                              topic, stamps, config, temperature_topic)
         except CliError as exc:
             raise fail(str(exc)) from None
+        for w in res["warnings"]:
+            typer.echo(f"inscal: warning: {w}", err=True)
         if json_:
             print_json(res)
             return
@@ -247,7 +249,11 @@ def register(app: typer.Typer) -> None:
             extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
                          f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
                          + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
-                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else ""))
+                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else "")
+                         + (", white noise (one sample per increment)" if ig["noise"]["white"] else
+                            f", noise variance {ig['noise']['variance_ratio'][0]:.2g}-"
+                            f"{ig['noise']['variance_ratio'][1]:.2g} of white, neighbour correlation up to "
+                            f"{ig['noise']['neighbour_correlation']:.2g} (jittered stamps)"))
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")

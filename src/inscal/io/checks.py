@@ -329,11 +329,26 @@ def _blocks(x: np.ndarray, m: int) -> np.ndarray:
     return x[: nb * m].reshape(nb, m, -1).sum(axis=1)
 
 
+#: the largest gyro reading at rest a unit declared by the user (a mapping's ``[units] gyro``, the rad/s of
+#: a ROS ``sensor_msgs/Imu``) is trusted with [rad/s]: 10 deg/s, above the turn-on bias of any consumer MEMS
+#: gyro (a few deg/s); a declared unit that reads more at rest (arcsec declared as rad: 15 rad/s) cannot be
+#: right and is refused
+MAX_DECLARED_BIAS = 10.0 * DEG
+
+
 def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site, where: str, kind: str,
-                      gyro_unit: str, accel_unit: str, raw: Raw | None = None) -> None:
+                      gyro_unit: str, accel_unit: str, raw: Raw | None = None,
+                      declared: str | None = None) -> list[str]:
     """Gravity and Earth rate judged from magnitudes (unit mix-ups give factors far from 1).  With the
     ``raw`` source of increments over a time column, gravity 1e3 (1e6, 1e9) times too small or large
-    is named as the time column's unit (:func:`time_unit_message`)."""
+    is named as the time column's unit (:func:`time_unit_message`).
+
+    The gyros: the 5th percentile of their 1-s mean rates, against the Earth rate.  Read 57 times the
+    Earth rate, it looks like degrees read as radians, but a MEMS gyro's bias (0.1 .. a few deg/s) reads
+    the same; read 1/57 of it, radians read as degrees.  With a ``declared`` gyro unit (its name: the
+    user's mapping's, or that of a format whose messages fix it) such a reading is trusted: the finding is returned as a
+    warning line with the figure, not raised, up to :data:`MAX_DECLARED_BIAS`; without one (a format's
+    default unit, assumed) it is refused.  Returns the warnings."""
     dt = 1.0 / rate_hz
     m = max(1, min(dth.shape[0], int(round(rate_hz))))
     T = m * dt
@@ -342,8 +357,8 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
     g = site.gravity
     ratio = float(np.median(f)) / g
     if raw is not None and raw.time is not None and kind == "increments" and not 0.8 < ratio < 1.2:
-        declared = float(units.to_si(1.0, raw.time_unit, "time"))
-        for rho in _time_candidates(declared):
+        declared_t = float(units.to_si(1.0, raw.time_unit, "time"))
+        for rho in _time_candidates(declared_t):
             if 0.8 < ratio * rho < 1.2:  # increments divided by an interval rho times too long
                 raise ImportFileError(time_unit_message(
                     raw, where, rho, f"the accelerometers read {ratio * g:.4g} m/s^2 over its {dt:.6g} s interval, "
@@ -360,18 +375,29 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
             f"not gravity {g:.4g} m/s^2{hint} (--skip-check magnitudes to import anyway)")
     p5 = float(np.percentile(w, 5))
     om = earth.OMEGA_IE
-    if om * 57.29577951 / 3 < p5 < om * 57.29577951 * 3:
+    rad = 180.0 / math.pi
+    if om * rad / 3 < p5 < om * rad * 3:
         look = "degrees, not radians"
-    elif om / 57.29577951 / 3 < p5 < om / 57.29577951 * 3:
+    elif om / rad / 3 < p5 < om / rad * 3:
         look = "radians, not degrees"
     elif om * 206264.8 / 3 < p5 < om * 206264.8 * 3:
         look = "arcsec, not radians"
     else:
-        return
+        return []
+    figure = (f"gyros read at least {p5:.4g} rad/s ({p5 / DEG:.4g} deg/s = {p5 / DEG * 3600:.4g} deg/h, 5th "
+              f"percentile of 1-s means, as {kind} in {gyro_unit}) where the Earth rate is {om / DEG * 3600:.4g} deg/h")
+    if declared is not None and p5 <= MAX_DECLARED_BIAS:
+        why = ("a MEMS gyro's bias reads so; were the values degrees read as radians, every rate would be 57.3 "
+               "times too large" if look == "degrees, not radians" else
+               "a gyro whose bias cancels the Earth rate reads so; were the values radians read as degrees, every "
+               "rate would be 57.3 times too small")
+        return [f"{where}: {figure}: kept in the declared unit {declared} ({why}: check the unit if the sensor is "
+                "not one that reads so)"]
     raise ImportFileError(
-        f"{where}: gyros read at least {p5:.4g} rad/s ({p5 / DEG * 3600:.4g} deg/h, 5th percentile of 1-s means, "
-        f"as {kind} in {gyro_unit}) where the Earth rate is {om / DEG * 3600:.4g} deg/h: the values look like {look} "
-        + ("or a gyro bias far above the Earth rate (a MEMS gyro's) " if look == "degrees, not radians" else "")
+        f"{where}: {figure}: the values look like {look} "
+        + ("or a gyro bias far above the Earth rate (a MEMS gyro's; a csv/txt mapping that declares the unit, "
+           "[units] gyro, imports it with a warning) " if look == "degrees, not radians" else "")
+        + ("beyond any gyro's bias at rest, whatever unit is declared " if declared is not None else "")
         + "(--skip-check magnitudes to import anyway)")
 
 

@@ -521,6 +521,27 @@ def _latency_message(delta: float, sigma: float, rate_hz: float) -> str:
             f"{rate_hz:g} Hz; --encoder-latency {round(delta, 4):g} to correct)")
 
 
+#: a latency under a sample that the check measured (at least this many samples, and 3 sigma) is named
+#: (:func:`small_latency`): a calibration misfits by it through the turns
+SMALL_LATENCY_SAMPLES = 0.1
+
+
+def small_latency(delta: float | None, sigma: float | None, rate_hz: float) -> str | None:
+    """The words for a latency ``delta`` +- ``sigma`` [s] that the check let pass (under a sample) but
+    measured (:data:`SMALL_LATENCY_SAMPLES` and 3 sigma), or None: who leads, by how much, in samples; half a
+    sample is named as rates stamped at the end (encoders that lead) or the start (that lag) of their
+    averaging interval (a ROS driver's, where REP 145 asks for the instant they represent, its centre)."""
+    if delta is None or sigma is None or not _significant(delta, sigma, rate_hz, SMALL_LATENCY_SAMPLES):
+        return None
+    n = abs(delta) * rate_hz
+    edge = "end" if delta < 0 else "start"  # the increments late (the encoders lead) or early
+    half = (f", half a sample: rates stamped at the {edge} of their averaging interval, not at its centre, the "
+            "instant they represent (REP 145)" if abs(n - 0.5) < 0.1 else "")
+    pm = f" +- {sigma * 1e3:.2g} ms" if math.isfinite(sigma) else ""
+    who = "lag" if delta > 0 else "lead"
+    return f"the encoders {who} the IMU by {abs(delta) * 1e3:.3g} ms{pm} ({n:.3g} samples{half})"
+
+
 def check_record_encoders(record, strict: bool = False) -> EncoderCheck | None:
     """:func:`compare_encoders` on a record (or any object with ``dtheta``, ``gimbal``, ``rate_hz``
     and ``time``); None when it has no encoder angles.  ``strict``: raise :class:`EncoderError`

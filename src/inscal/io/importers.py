@@ -23,10 +23,11 @@ Sources
     must start with the header line that :func:`export_record` writes.  ``txt``
     defaults to whitespace-separated columns.
 ``rosbag``
-    a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
-    messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
-    rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
-    error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file
+    with ``sensor_msgs/Imu`` messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps``
+    header | receive): the rates at the stamps integrated onto a uniform grid by the midpoint
+    rule, with a stated error bound and the increments' noise white when the stamps lie on a
+    grid (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
 ``kf-gins``
     KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
     block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
@@ -158,7 +159,7 @@ from inscal.io.checks import (
     check_values,
     time_base,
 )
-from inscal.io.encoders import apply_latency
+from inscal.io.encoders import apply_latency, small_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
 from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
@@ -224,14 +225,16 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
                  path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
                  skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
                  gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0,
-                 temperature: RawTemperature | None = None) -> tuple[Record, dict]:
+                 temperature: RawTemperature | None = None, declared: str | None = None) -> tuple[Record, dict]:
     """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
     ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
     ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
     (:func:`~inscal.io.encoders.apply_latency`) before the checks.  ``temperature``: readings at their
     own times from a separate file (:func:`~inscal.io.formats.read_temperature_file`), on the source's
     clock as the samples' (shifted with them to the path start); temperature columns of the source
-    itself come with ``raw``."""
+    itself come with ``raw``.  ``declared``: the gyro unit as declared (by a mapping, or by a format whose
+    messages fix it; None: assumed), so a gyro magnitude that contradicts it is a warning (``info["warnings"]``), not a
+    refusal (:func:`~inscal.io.checks.check_magnitudes`)."""
     unknown = set(skip) - set(SKIPPABLE)
     if unknown:
         raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(SKIPPABLE)}")
@@ -251,15 +254,17 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         dth, dv = raw.gyro * dt, raw.accel * dt
     else:
         dth, dv = raw.gyro, raw.accel
+    info["warnings"] = []
     if "magnitudes" not in skip:
-        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw)
+        info["warnings"] += check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw,
+                                             declared=declared)
     gim = raw.gimbal
     if gimbal is not None:
         if gim is not None:
             raise ImportFileError(f"{where} has gimbal angle columns; --gimbal would give them twice")
         tg, ag = gimbal
         if tg[0] > time[0] + 1e-9 * dt or tg[-1] < time[-1] - 1e-9 * dt:
-            hint = _gimbal_time_hint(tg, time, dt)
+            hint = _bag_epoch_hint(tg, time, dt, raw) or _gimbal_time_hint(tg, time, dt)
             raise ImportFileError(f"{gimbal_name}: the angles cover t = {tg[0]:.9g} .. {tg[-1]:.9g} s; the record needs "
                                   f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)"
                                   + (f": {hint}" if hint else ""))
@@ -283,6 +288,11 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     info["encoders"] = None
     if gim is not None and "encoders" not in skip:
         info["encoders"] = check_encoders(dth, gim, rate, time).summary()
+        e = info["encoders"]
+        if (words := small_latency(e["latency_s"], e["latency_sigma_s"], rate)) is not None:
+            info["warnings"].append(f"{gimbal_name if gimbal is not None else where}: {words}: a calibration misfits "
+                                    f"through the turns unless the angles are shifted (--encoder-latency "
+                                    f"{e['latency_s']:.6g})")
     if path is not None:
         start = time[0] - dt if path_start is None else float(path_start)
         if not math.isfinite(start):
@@ -357,6 +367,22 @@ def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: fl
                               f".. {b:.9g} s leave {max(head, tail):.6g} s of the record (t = {start:.9g} .. {end:.9g} s) "
                               f"{where_} reading (at most {tol:.3g} s is held): a temperature file must cover the record")
     return temp
+
+
+def _bag_epoch_hint(tg: np.ndarray, time: np.ndarray, dt: float, raw: Raw) -> str:
+    """Why encoder times miss a bag's record: they are Unix times (in s, ms, us or ns) while the bag's time counts
+    from its first stamp; "" when the source is no bag or that does not explain them."""
+    bag = (raw.source_info or {}).get("bag")
+    if not bag or "epoch_ns" not in bag:
+        return ""
+    epoch = bag["epoch_ns"] * 1e-9
+    span = time[-1] - time[0] + dt
+    for f, unit in ((1.0, "seconds"), (1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds")):
+        a, b = tg[0] * f - epoch, tg[-1] * f - epoch
+        if a <= time[0] + 0.1 * span and b >= time[-1] - 0.1 * span and b - a < 2.0 * span:
+            return (f"they look like Unix times in {unit}, while a bag's time counts from its first stamp ({epoch:.9f} "
+                    f"s, Unix): subtract it from the encoder file's times (they then run {a:.6g} .. {b:.6g} s)")
+    return ""
 
 
 def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool = False) -> str:
@@ -454,28 +480,38 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         site = Site(lat * DEG, lon * DEG, h)
     if gravity is not None:
         site = site.with_gravity(gravity)
-    if raw.integration is not None:  # rates integrated to increments in SI by the reader
-        ud = ("rad", "m/s")
-    elif mapping is not None:
+    if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
+    elif fmt == "rosbag":  # sensor_msgs/Imu: rad/s and m/s^2 (REP 145)
+        ud = ("rad/s", "m/s^2")
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
+    if raw.integration is not None:  # rates integrated to increments in SI by the reader
+        ud = (f"rad (rates in {ud[0]} integrated)", f"m/s (rates in {ud[1]} integrated)")
+    # the gyro unit is declared by a csv/txt mapping, and by a bag's message type; psins, mat and kf-gins files
+    # carry none (their format's unit is assumed)
+    declared = ("rad/s (sensor_msgs/Imu, REP 145)" if fmt == "rosbag" else
+                mapping.gyro_unit if mapping is not None and fmt in ("csv", "txt") else None)
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
-                             encoder_latency, tfile)
+                             encoder_latency, tfile, declared)
     integ = None
     if raw.integration is not None:
         ri = raw.integration
-        integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
+        integ = {"rule": "each rate held over the times nearer its stamp than any other's (midpoint rule; one "
+                         "sample per increment when the stamps sit at the centres of the grid's intervals)",
                  "grid_rate_hz": ri.rate_hz,
                  "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max, "gaps_bridged": ri.gaps,
-                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
+                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()},
+                 "noise": {"white": ri.noise.white, "variance_ratio": list(ri.noise.variance),
+                           "neighbour_correlation": ri.noise.correlation}}
     attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
              "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"],
-             "temperature_file": None if temperature_file is None else str(temperature_file)}
+             "temperature_file": None if temperature_file is None else str(temperature_file),
+             "warnings": info["warnings"]}
     if raw.source_info is not None:
         attrs.update(raw.source_info)
     if temperature_topic is not None:
@@ -497,7 +533,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
-            "encoders": info["encoders"], "temperature": info["temperature"],
+            "encoders": info["encoders"], "temperature": info["temperature"], "warnings": info["warnings"],
             **({k: attrs[k] for k in ("bag", "integration", "imunoise") if k in attrs})}
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
+from inscal.calibrate.fit import fit_note
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.gm_states import gm_states, noise_setup
 from inscal.calibrate.systematic.states import StateSet
@@ -28,7 +29,7 @@ from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
-from inscal.io.encoders import apply_latency, check_record_encoders
+from inscal.io.encoders import apply_latency, check_record_encoders, small_latency
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
 from inscal.io.records import (
     DataFileError,
@@ -401,6 +402,37 @@ def implausible(res, setup: CalibrationSetup) -> str | None:
             f"factor and {math.degrees(MAX_MISALIGNMENT_RAD):g} deg in misalignment): not calibrated; {cause}")
 
 
+def latency_cause(res, rec: Record, again, enc: dict | None) -> None:
+    """Name an encoder latency as the cause of ``res``'s misfit where it is: when the fit is inconsistent and
+    the encoder check (``enc``, its summary) measured a latency under a sample
+    (:func:`~inscal.io.encoders.small_latency`), ``again`` (the same calibration of a record) runs on the
+    angles shifted by it;
+    if its chi^2 falls below half (or the fit becomes consistent), the fit's cause, share and note in
+    ``res`` say so, with both chi^2 and the ``--encoder-latency`` that removes it.  The estimates and sigma
+    are left as they are."""
+    fit = res.fit
+    if fit is None or fit.get("consistent", True) or enc is None or "channels" not in fit or rec.gimbal is None:
+        return
+    lat, sig = enc.get("latency_s"), enc.get("latency_sigma_s")
+    words = small_latency(lat, sig, float(rec.rate_hz))
+    if words is None:
+        return
+    shifted = dataclasses.replace(rec, gimbal=apply_latency(np.asarray(rec.time), np.asarray(rec.gimbal), lat))
+    try:
+        f2 = again(shifted).fit
+    except CalibrationError:
+        return
+    if f2 is None or "chi2" not in f2 or not (f2["consistent"] or f2["chi2"] < 0.5 * fit["chi2"]):
+        return
+    old = fit.get("note")
+    fit["cause"] = (f"{words}, as the encoder check measured: with --encoder-latency {lat:.6g} the chi2 falls "
+                    f"from {fit['chi2']:.4g} to {f2['chi2']:.4g} on {f2['dof']} dof "
+                    f"({'consistent' if f2['consistent'] else 'still inconsistent'})")
+    fit["cause_share"] = float(1.0 - f2["chi2"] / fit["chi2"])
+    fit_note(fit)
+    res.notes = [fit["note"] if x == old else x for x in res.notes]
+
+
 def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibrated:
     """Calibrate record ``rec`` (read from file ``data``) with ``setup`` (checked with
     :meth:`CalibrationSetup.problem`): the encoder latency and check, the gravity model, the estimator
@@ -452,6 +484,8 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
         raise RecordError(f"{data}: {exc}") from None
     if (msg := implausible(res, setup)) is not None:
         raise RecordError(f"{data}: {msg}")
+    if not setup.inner_systematic:
+        latency_cause(res, rec, lambda r: calibrate(r, setup.method, **opts, **setup.thermal_options()), enc_report)
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
             "windows": len(res.windows.windows) if res.windows else None}
     if setup.plateaus:

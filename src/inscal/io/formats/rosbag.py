@@ -1,6 +1,7 @@
-"""ROS bags: ROS 1 ``.bag`` files and ROS 2 bags (a folder with ``metadata.yaml`` and SQLite3 ``.db3`` or
-MCAP ``.mcap`` storage) holding ``sensor_msgs/Imu`` messages, read with the pure-Python ``rosbags``
-library (no ROS installation).
+"""ROS bags: ROS 1 ``.bag`` files, ROS 2 bags (a folder with ``metadata.yaml`` and SQLite3 ``.db3`` or
+MCAP ``.mcap`` storage) and plain ``.mcap`` files (an MCAP recording without its folder, as ``ros2 bag
+record -s mcap`` and Foxglove write them; the channels' schemas name the message types) holding
+``sensor_msgs/Imu`` messages, read with the pure-Python ``rosbags`` library (no ROS installation).
 
 A ``sensor_msgs/Imu`` message (REP 145) gives ``angular_velocity`` [rad/s] and
 ``linear_acceleration`` [m/s^2, the specific force: +g up at rest] in the frame ``header.frame_id``
@@ -57,8 +58,8 @@ class BagSamples:
 
 
 def _storage(p: Path) -> str:
-    if p.is_file() and p.suffix == ".bag":
-        return "ros1"
+    if p.is_file():
+        return "ros1" if p.suffix == ".bag" else "mcap"
     files = [f.suffix for f in p.iterdir()] if p.is_dir() else []
     return "mcap" if ".mcap" in files else "sqlite3"
 
@@ -68,9 +69,9 @@ def _reader(p: Path):
 
     if not p.exists():
         raise ImportFileError(f"{p}: no such file or folder")
-    if p.is_file() and p.suffix != ".bag":
-        raise ImportFileError(f"{p}: a ROS 1 bag ends in .bag; a ROS 2 bag is the folder holding metadata.yaml "
-                              f"(give {p.parent})")
+    if p.is_file() and p.suffix not in (".bag", ".mcap"):
+        raise ImportFileError(f"{p}: a ROS 1 bag ends in .bag, a plain MCAP file in .mcap; a ROS 2 bag is the folder "
+                              f"holding metadata.yaml (give {p.parent})")
     if p.is_dir() and not (p / "metadata.yaml").is_file():
         raise ImportFileError(f"{p}: a ROS 2 bag folder holds metadata.yaml, and this one has none")
     return AnyReader([p])
