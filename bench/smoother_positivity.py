@@ -130,8 +130,8 @@ def study(name: str, passes: int | None, seed: int) -> None:
     j = np.unravel_index(np.argmax(rel[:, :nd]), rel[:, :nd].shape)
     print(f"  where the MBF form is sound ({sound.size} of {hist_P_old.shape[0]} stored steps): sigma relative difference "
           f"navigation max {np.max(rel[:, :nd]):.3g} (stored step {sound[j[0]]}, state {j[1]}), median "
-          f"{np.median(rel[:, :nd]):.3g}; constants max {np.max(rel[:, nd:]):.3g}; from stored step 10 on: navigation "
-          f"max {np.max(rel[sound >= 10, :nd]):.3g}")
+          f"{np.median(rel[:, :nd]):.3g}; constants max {np.max(rel[:, nd:]):.3g}; navigation max from stored step 1 "
+          f"on {np.max(rel[sound >= 1, :nd]):.3g}, from step 10 on {np.max(rel[sound >= 10, :nd]):.3g}")
     pf = np.diag(out.Pf)[nd:]
     print(f"  constants' smoothed variance vs the final filtered: max relative difference "
           f"{np.max(np.abs(np.diagonal(out.hist_P, axis1=1, axis2=2)[:, nd:] / pf - 1.0)):.3g}")

@@ -598,12 +598,12 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
     """Memory [bytes] one pass (:func:`run_pass`, then :func:`smooth_pass`) keeps over ``M`` filter steps
     (``M`` may be a float: an estimate before the record is read).  Per step: the NIS, the innovation and
     the factor on R (8 floats) and, for the smoother (``stores``; :meth:`PassOutput.without_stores` drops
-    them), the gains, ``S^-1``, ``S^-1 nu``, ``Phi_nn`` and ``Phi_np`` (15 N + 42 floats: 15 N + 50 in all,
-    6.5 kB with 51 states).  With gimbal states the encoder angles, rows' NIS and residual (6 floats and a
+    them), the gains, ``S^-1``, ``S^-1 nu``, ``Phi_nn``, ``Phi_np`` and ``Q_d`` (15 N + 123 floats: 15 N + 131 in
+    all, 7.1 kB with 51 states).  With gimbal states the encoder angles, rows' NIS and residual (6 floats and a
     flag) and their gains, ``S^-1``, ``S^-1 nu``, H and R (``stores``: 6 N + 21 floats).  Per stored step
     (every ``hist_every``-th and the last): the predicted and smoothed covariances, the filtered variances,
-    the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats).  The stores also hold each
-    step's process noise ``Q_d`` (n_dyn^2 floats: 81) for the square-root information smoother."""
+    the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats).  ``Q_d`` (n_dyn^2 floats) is
+    what the square-root information smoother needs besides ``Phi``."""
     N = states.n_states
     nd = states.n_dyn
     per_step = 8.0 * (8 + ((6 + nd) * N + 42 + nd * nd if stores else 0))  # 15 N + 123 without GM states
