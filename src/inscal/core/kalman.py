@@ -649,7 +649,13 @@ def sr_smoothed(Pm, Rb, n, Upp):
     Returns ``P``."""
     N = Pm.shape[0]
     U = upper_factor(Pm)
-    F = Rb @ U
+    F = np.zeros((N, N))  # Rb U, both upper triangular (compiled loops: BLAS threads spin on a busy machine)
+    for i in range(N):
+        for k in range(i, N):
+            a = Rb[i, k]
+            if a != 0.0:
+                for j in range(k, N):
+                    F[i, j] += a * U[k, j]
     Rs = np.eye(N)
     v = np.empty(N)
     for i in range(N):
@@ -664,5 +670,12 @@ def sr_smoothed(Pm, Rb, n, Upp):
         for i in range(n, N):
             for j in range(n, N):
                 W[i, j] = Upp[i - n, j - n]
-    P = W @ W.T
-    return 0.5 * (P + P.T)
+    P = np.empty((N, N))  # W W^T of the upper-triangular W
+    for i in range(N):
+        for j in range(i, N):
+            t = 0.0
+            for k in range(j, N):
+                t += W[i, k] * W[j, k]
+            P[i, j] = t
+            P[j, i] = t
+    return P
