@@ -600,7 +600,8 @@ def register(app: typer.Typer) -> None:
         thermal_order: list[str] = typer.Option(None, "--thermal-order", help="thermal-plateaus: NAME=ORDER, the "
                                                 "polynomial order of a thermal term in T - T_ref (repeatable; default "
                                                 "gyro_bias, gyro_scale_factor, accel_bias, accel_scale_factor = 2, "
-                                                "misalignments 0 = constant, at most 1)"),
+                                                "misalignments 0 = constant, at most 1; an order not named is "
+                                                "raised while its fit misfits the plateaus)"),
         t_ref: float = typer.Option(None, "--t-ref", help="thermal-plateaus: reference temperature of the model "
                                     "[deg C] (default 20; inside the plateaus' range)"),
         plateau_tol: float = typer.Option(0.5, "--plateau-tol", help="thermal-plateaus: a plateau's readings stay "
