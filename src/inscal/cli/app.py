@@ -45,6 +45,13 @@ def _root(
 ) -> None:
     """inscal: calibrate high-accuracy IMUs and dual-axis rotational INS (S16, N25)."""
     ctx.call_on_close(_release_outputs)  # the locks of the command's outputs (inscal.io.files.claim_output)
+    files = importlib.import_module("inscal.io.files")
+    if _stale_lock_note not in files.NOTES:  # a dead writer's lock taken over: said
+        files.NOTES.append(_stale_lock_note)
+
+
+def _stale_lock_note(line: str) -> None:
+    typer.echo(f"inscal: note: {line}", err=True)
 
 
 #: modules contributing subcommands (each has ``register(app)``)

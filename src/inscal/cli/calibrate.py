@@ -275,9 +275,9 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
     it used."""
     from inscal.lab.budget import repeatability_of
     from inscal.core import units
-    from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
+    from inscal.lab.sensitivity import FILTER_METHODS, NO_TABLE_METHODS, calibration_budget
 
-    opts = {}
+    opts = setup.window_options if res.method in NO_TABLE_METHODS else {}
     if res.method in FILTER_METHODS:
         d = res.diagnostics
         # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
@@ -556,7 +556,7 @@ def register(app: typer.Typer) -> None:
                                "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
         station: str = typer.Option(None, "--station", help="the turntable / station of the run: its name (with "
                                     "--serial), or a station description FILE.toml (n25, six-position, twelve-position, "
-                                    "joint, systematic51, systematic30): the GUM "
+                                    "joint, systematic51, systematic30, multi-position, ferraris): the GUM "
                                     "uncertainty budget is computed, printed and, with --serial, stored with the result"),
         operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "

@@ -364,12 +364,23 @@ def record_lock(db: Database, key: str) -> Iterator[None]:
                 conn.commit()
         return
     file = Path(db.url.database)
-    with open(file.with_name(side_name(file.name, ".batch.lock")), "a") as fh:
+    lock = file.with_name(side_name(file.name, ".batch.lock"))
+    while True:
+        fh = open(lock, "a")
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+        try:  # its releasing holder removed the file between our open and flock: retry on a fresh one
+            same = os.stat(lock).st_ino == os.fstat(fh.fileno()).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        fh.close()
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)  # while still locked: nothing left beside the database, a waiter retries
+        fh.close()
 
 
 def failure_text(exc: BaseException, path: Path | None = None) -> str:
