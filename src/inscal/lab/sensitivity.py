@@ -39,7 +39,7 @@ from inscal.core.attitude import skew
 from inscal.core.earth import Site, earth_rate_n
 from inscal.core.turntable import C_b_n, C_s_b, outer_axis
 from inscal.lab import budget as gum
-from inscal.lab.station import INPUTS
+from inscal.lab.station import INPUTS, site_check
 
 #: finite-difference steps of the inputs (SI): well above rounding, well inside the linear range
 STEPS = {"angle": 2e-5, "dimensionless": 2e-5, "accel": 2e-4, "length": 10.0}
@@ -293,9 +293,6 @@ def calibration_budget(result: CalibrationResult, station, rep=None, coverage: f
     sigma = np.concatenate([np.atleast_1d(np.asarray(result.sigma.get(n, np.nan), float)).ravel() for n in names])
     fit = result.fit or {}
     dof = float(fit.get("dof") or math.inf) if result.method in WINDOW_METHODS + NO_TABLE_METHODS else math.inf
-    g_used, g_station = site.gravity, station["gravity"].value
-    if abs(g_used - g_station) > 3 * max(station["gravity"].u, 1e-12):
-        notes.append(f"gravity: the calibration used {g_used:.6f} m/s^2, the station states {g_station:.6f} m/s^2 "
-                     f"(more than 3 u apart)")
+    notes += site_check(station, site.latitude, site.height, site.gravity)  # StationError: another site
     return gum.budget(result.method, names, values, sigma, dof, station, sens.glob, sens.per_stop, rep,
                       coverage, notes, temperature)
