@@ -178,7 +178,8 @@ def read_bag(path, topic: str | None = None, stamps: str = "header",
     if np.any(bad):
         i = int(np.argmax(bad))
         raise ImportFileError(f"{where}: message {i + 1} (t = {s.time[i]:.9f} s) has a NaN or infinite rate")
-    check_stamps(s.time, where, "message")
+    check_stamps(s.time, where, "message", remedy="the rosbag import bridges no gap (it takes no mapping): "
+                 "record the bag again, or with --stamps receive if only the header stamps jump")
     integ = integrate_rates(s.time, s.gyro, s.accel, rate_hz)
     labels = tuple(f"{n} (angular_velocity.{c})" for n, c in zip(("dthx", "dthy", "dthz"), "xyz")) + tuple(
         f"{n} (linear_acceleration.{c})" for n, c in zip(("dvx", "dvy", "dvz"), "xyz"))
