@@ -240,6 +240,13 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         rec = read_record(data)
     except OSError as exc:
         raise CliError(str(exc)) from None
+    if budget_opts is not None:  # a station of another site: refused before the calibration runs
+        from inscal.lab.station import StationError, site_check
+
+        try:
+            site_check(budget_opts["station"], rec.site.latitude, rec.site.height, None)
+        except StationError as exc:
+            raise CliError(f"--station: {exc}") from None
     try:
         cal = calibrate_record(rec, data, setup)
     except RecordError as exc:

@@ -269,12 +269,15 @@ SITE_K = 3.0
 SITE_GROSS = {"latitude": math.radians(0.1), "height": 100.0, "gravity": 1e-3}
 
 
-def site_check(station: Station, latitude: float, height: float, gravity: float) -> list[str]:
-    """The record's site (SI: latitude [rad], height [m], gravity used [m/s^2]) against the station's:
-    a note per value more than :data:`SITE_K` of its own standard uncertainty away; a value farther than
-    both that and :data:`SITE_GROSS` raises :class:`StationError` (the station file is of another site)."""
+def site_check(station: Station, latitude: float, height: float, gravity: float | None) -> list[str]:
+    """The record's site (SI: latitude [rad], height [m], gravity used [m/s^2], None: not checked) against
+    the station's: a note per value more than :data:`SITE_K` of its own standard uncertainty away; a value
+    farther than both that and :data:`SITE_GROSS` raises :class:`StationError` (the station file is of
+    another site)."""
     notes = []
     for key, have in (("latitude", latitude), ("height", height), ("gravity", gravity)):
+        if have is None:
+            continue
         inp = station[key]
         diff = abs(have - inp.value)
         if not diff > SITE_K * max(inp.u, 1e-15):
@@ -283,8 +286,9 @@ def site_check(station: Station, latitude: float, height: float, gravity: float)
                 f"{inp.field(inp.value, inp.unit):.10g} {inp.unit} +- {inp.field(inp.u):.3g} {inp.uncertainty_unit} "
                 f"({diff / inp.u:.3g} u apart)")
         if diff > SITE_GROSS[key]:
-            raise StationError(f"{line}: the station file describes another site; give this site's, or calibrate "
-                               "with --gravity for a measured gravity")
+            raise StationError(f"{line}: the station file describes another site; give this site's {key}"
+                               + (", or calibrate with --gravity VALUE (the measured gravity)" if key == "gravity"
+                                  else ""))
         notes.append(line)
     return notes
 
