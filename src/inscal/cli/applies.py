@@ -79,6 +79,13 @@ OTHER_FORMATS = (".h5", ".hdf5", ".he5", ".toml", ".txt", ".csv", ".json", ".bin
                  ".pdf", ".png", ".svg", ".sqlite", ".db", ".bag", ".mcap", ".npz", ".npy")
 
 
+def _exists(path) -> bool:
+    try:
+        return Path(str(path)).exists()
+    except (OSError, ValueError):  # a name too long, a NUL: the command's own checks name it
+        return True
+
+
 def flag(name: str, opts: dict[str, str]) -> str:
     """The long option of parameter ``name`` (``--mc-seed``), from the command's own declarations."""
     return opts.get(name, "--" + name.replace("_", "-"))
@@ -106,7 +113,8 @@ def check_command(command: str, params: dict, given: set[str], opts: dict[str, s
         out = params.get(name)
         same = [v for k, v in params.items() if k != name and isinstance(v, Path) and out is not None
                 and Path(v).absolute() == Path(out).absolute()]
-        if out is not None and not same:  # an output that is an input: the command says so
+        # an output that is an input or exists already (the database, a record): the command's own check says so
+        if out is not None and not same and not _exists(out):
             sfx = Path(str(out)).suffix.lower()
             if sfx in OTHER_FORMATS and sfx not in suffixes:
                 raise CliError(f"{flag(name, opts)} {out}: the command writes {what}, and the name says {sfx}: "
