@@ -123,6 +123,23 @@ def test_odd_curves_are_one_line(tmp_path, case, needle):
     refused(tmp_path, "noise", "--from-curve", tmp_path / "c.csv", needle=needle)
 
 
+def test_monte_carlo_trials_and_station_files_are_bounded_up_front(lab, tmp_path, monkeypatch):
+    from inscal.cli import limits
+
+    monkeypatch.setattr(limits, "available_memory", lambda: 2e9)
+    refused(lab, "calibrate", lab / "h.h5", "--method", "n25", "--out", lab / "p.toml", "--station", lab / "st.toml",
+            "--mc", "5000000", needle=("--mc 5000000 (the budget's Monte Carlo keeps every trial) needs about 5.76 GB",
+                                       "lower --mc"))
+    big = tmp_path / "big.toml"  # found here: a station file of 5 MB (tomllib would read it all)
+    big.write_text((lab / "st.toml").read_text() + "# " + "x" * 5_000_000 + "\n")
+    refused(tmp_path, "calibrate", lab / "h.h5", "--method", "multi-position", "--station", big, "--out",
+            tmp_path / "p.toml", needle="bytes, more than a station file holds")
+    deep = tmp_path / "deep.toml"  # found here: nesting that would exhaust tomllib's recursion
+    deep.write_text("[station]\nname = 'x'\n[inputs.gravity]\nvalue = " + "[" * 5000 + "]" * 5000 + "\n")
+    refused(tmp_path, "calibrate", lab / "h.h5", "--method", "multi-position", "--station", deep, "--out",
+            tmp_path / "p.toml", needle="nested more than 64 deep")
+
+
 def test_a_negative_seed_is_named_by_its_option(lab):
     refused(lab, "noise", "--from-curve", lab / "c.csv", "--seed", "-1", needle="--seed must be a seed >= 0, got -1")
     line = refused(lab, "calibrate", lab / "h.h5", "--method", "n25", "--out", lab / "p.toml", "--station",

@@ -19,6 +19,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     read_record,
 )
 from inscal.cli.guards import check_outputs, database_notes
+from inscal.cli.limits import check_mc_trials
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float | None = None,
@@ -78,8 +79,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     thermal = budget_thermal_model(thermal_model, desc, temperature_c if serial is None else None)
     if mc is not None and desc is None:
         raise CliError("--mc is the Monte Carlo of the uncertainty budget: give --station FILE.toml")
-    if mc is not None and not 100 <= mc <= 10**7:
-        raise CliError(f"--mc {mc}: between 100 and 10^7 trials")
+    check_mc_trials(mc)
     if mc is not None:
         from inscal.lab.sensitivity import WINDOW_METHODS
 
