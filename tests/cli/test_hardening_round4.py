@@ -13,6 +13,7 @@ import json
 import math
 import os
 import re
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -159,15 +160,25 @@ def test_a_curve_within_the_limits_is_identified(lab):
     assert n["value"] == pytest.approx(1e-5 * 180 / math.pi * 60, rel=1e-3)
 
 
+@pytest.fixture(scope="module")
+def recorded(lab, tmp_path_factory):
+    """A database with unit U1 and its multi-position calibration of the hand-held record (result 1, p.toml)."""
+    d = tmp_path_factory.mktemp("recorded")
+    db = d / "lab.sqlite"
+    assert run("db", "init", "--db", db)[0] == 0
+    assert run("db", "add", "U1", "--model", "M", "--db", db)[0] == 0
+    code, _, err = run("calibrate", lab / "h.h5", "--method", "multi-position", "--serial", "U1", "--db", db,
+                       "--out", d / "p.toml")
+    assert code == 0, err
+    return d
+
+
 # ------------------------------------------------------------------ db budget of a stored budget that is not one
 @pytest.mark.parametrize("stored", ["{}", "null", '{"station": "x", "method": "n25", "coverage": 0.95, '
                                                   '"components": [{"parameter": "gyro_bias"}]}'])
-def test_a_stored_budget_that_is_not_one_is_one_line(lab, tmp_path, stored):
+def test_a_stored_budget_that_is_not_one_is_one_line(recorded, tmp_path, stored):
     db = tmp_path / "lab.sqlite"
-    assert run("db", "init", "--db", db)[0] == 0
-    assert run("db", "add", "U1", "--model", "M", "--db", db)[0] == 0
-    assert run("calibrate", lab / "h.h5", "--method", "multi-position", "--serial", "U1", "--db", db,
-               "--out", tmp_path / "p.toml")[0] == 0
+    shutil.copy(recorded / "lab.sqlite", db)
     con = sqlite3.connect(db)  # an edited database: a budget row for the result, written by hand
     con.execute("INSERT INTO stations (name, document, document_sha256, recorded_at) VALUES ('x', '{}', 'h', "
                 "'2026-01-01 00:00:00')")
@@ -220,15 +231,11 @@ def test_a_manifest_row_with_more_cells_than_its_header(lab, tmp_path):
             tmp_path / "x.sqlite", "--scheduler", "none", needle="names a column twice")
 
 
-def test_db_add_of_a_second_result_of_the_same_record_and_method(lab, tmp_path):
+def test_db_add_of_a_second_result_of_the_same_record_and_method(lab, recorded, tmp_path):
     db = tmp_path / "lab.sqlite"
-    assert run("db", "init", "--db", db)[0] == 0
-    assert run("db", "add", "U1", "--model", "M", "--db", db)[0] == 0
-    assert run("calibrate", lab / "h.h5", "--method", "multi-position", "--serial", "U1", "--db", db,
-               "--out", tmp_path / "p.toml")[0] == 0
-    code, _, err = run("calibrate", lab / "h.h5", "--method", "multi-position", "--settle-s", "0.3", "--out",
-                       tmp_path / "q.toml")
-    assert code == 0, err
+    shutil.copy(recorded / "lab.sqlite", db)
+    # another parameter file of the same record and method (a later run: its text differs)
+    (tmp_path / "q.toml").write_text((recorded / "p.toml").read_text() + "# calibrated again\n")
     refused(tmp_path, "db", "add", "U1", tmp_path / "q.toml", "--data", lab / "h.h5", "--db", db,
             needle=("multi-position calibration of the same record already (result 1)", "--supersedes 1"))
     refused(tmp_path, "db", "add", "U1", tmp_path / "q.toml", "--db", db,  # without --data: found here
@@ -376,17 +383,17 @@ def test_every_option_a_message_suggests_is_one_a_command_accepts():
 
 
 # ------------------------------------------------------------------ a dead writer's lock
-def test_a_sigkilled_writers_lock_is_taken_over_and_said(lab, tmp_path):
-    out = tmp_path / "p.toml"
+def test_a_sigkilled_writers_lock_is_taken_over_and_said(tmp_path):
+    out = tmp_path / "s.h5"
     code = ("import os, signal, sys; from inscal.io.files import claim_output; claim_output(sys.argv[1]); "
             "os.kill(os.getpid(), signal.SIGKILL)")
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     p = subprocess.run([sys.executable, "-c", code, str(out)], env=env, timeout=60)
     assert p.returncode == -signal.SIGKILL
-    lock = tmp_path / ".p.toml.lock"
+    lock = tmp_path / ".s.h5.lock"
     assert lock.exists()
     pid = lock.read_text().strip()
-    code_, stdout, err = run("calibrate", lab / "h.h5", "--method", "multi-position", "--out", out)
+    code_, stdout, err = run("simulate", "static", "--duration-h", "0.01", "--rate-hz", "10", "--out", out)
     assert code_ == 0, err
-    assert f".p.toml.lock: the lock of process {pid}, which has ended, taken over" in err
+    assert f".s.h5.lock: the lock of process {pid}, which has ended, taken over" in err
     assert out.exists() and not lock.exists()
