@@ -60,8 +60,8 @@ RULES: dict[str, tuple[Rule, ...]] = {
              "--channels)"),
     ),
     "import": (
-        Rule("rates", _fmt("psins", "mat"), "--format psins or mat (csv/txt: kind = \"rates\" in the mapping; "
-             "kf-gins and rosbag files say it themselves)"),
+        Rule("rates", _fmt("psins", "mat"), "--format psins or mat (for csv/txt set kind = \"rates\" in the mapping; "
+             "kf-gins and rosbag files say what they hold)"),
         Rule("dtype", _fmt("psins"), "--format psins (.bin)"),
     ),
 }
