@@ -330,6 +330,25 @@ def test_a_bags_gap_does_not_recommend_a_mapping(tmp_path):
     assert "max_gap_s" not in line and "mapping bridges" not in line
 
 
+def test_the_same_bag_imported_twice_gives_the_same_record(tmp_path):
+    sys.path.insert(0, str(ROOT / "tests/io"))
+    try:
+        from test_import_bags import EPOCH, H_NS, RATE, rates, write_bag
+    finally:
+        sys.path.remove(str(ROOT / "tests/io"))
+    from inscal.io.files import file_hash
+    from inscal.io.records import record_attrs
+
+    bag = write_bag(tmp_path / "b", "mcap", EPOCH + np.arange(200) * H_NS, *rates(np.arange(200) / RATE))
+    before = snapshot(bag)
+    for name in ("one.h5", "two.h5"):
+        code, _, err = run("import", bag, "--format", "rosbag", "--out", tmp_path / name, *SITE)
+        assert code == 0, err
+    assert file_hash(tmp_path / "one.h5") == file_hash(tmp_path / "two.h5")
+    assert record_attrs(tmp_path / "one.h5", ("created",))["created"] == "2023-11-14T22:13:20+00:00"  # EPOCH
+    assert snapshot(bag) == before
+
+
 TOKEN = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 #: strings that name other programs' options (a browser's command line; the warm-up script's argparse)
 OTHER_PROGRAMS = {"src/inscal/report/certificate.py", "src/inscal/cli/warmup.py"}
