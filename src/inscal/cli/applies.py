@@ -33,7 +33,12 @@ class Rule:
 
 
 def _method(*methods: str) -> Callable[[dict], bool]:
-    return lambda p: str(p.get("method") or "").strip().lower() in methods
+    """The method, or the one thermal-plateaus runs on each plateau (``--per-plateau``), is one of ``methods``."""
+    def applies(p: dict) -> bool:
+        m = str(p.get("method") or "").strip().lower()
+        inner = str(p.get("per_plateau") or "").strip().lower() if m in PLATEAUS else ""
+        return m in methods or inner in methods
+    return applies
 
 
 def _fmt(*formats: str) -> Callable[[dict], bool]:
