@@ -308,6 +308,11 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     gyr = _gyro_problem(time, dth, si, poses, u, site, notes)
     xg, covg, covg_formal, Jg, fitg = gyr.solve()
     weak_g = [lab for lab in _weak(Jg, gyr.typical, gyr.labels, sv_tol) if not lab.startswith("earth_rate")]
+    dead = [f"gyro {AXES[j]}" for j in range(3) if np.ptp(dth[:, j]) == 0.0]
+    if weak_g and dead:  # a channel that never changes: the motion is not the cause
+        raise CalibrationError(f"{', '.join(dead)} reads the same increment throughout the record (a dead or stuck "
+                               f"channel): it leaves {', '.join(weak_g[:6])} undetermined whatever the moves; check "
+                               "the sensor and its column in the import")
     if weak_g:
         raise CalibrationError(f"the {sum(gyr.used)} moves between the poses leave {', '.join(weak_g[:6])} undetermined "
                                "(the rotations do not turn about all three axes): move about the axes named too")

@@ -19,6 +19,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     read_record,
 )
 from inscal.cli.guards import check_outputs, database_notes
+from inscal.cli.limits import check_mc_trials
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float | None = None,
@@ -81,8 +82,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     thermal = budget_thermal_model(thermal_model, desc, temperature_c if serial is None else None)
     if mc is not None and desc is None:
         raise CliError("--mc is the Monte Carlo of the uncertainty budget: give --station FILE.toml")
-    if mc is not None and not 100 <= mc <= 10**7:
-        raise CliError(f"--mc {mc}: between 100 and 10^7 trials")
+    check_mc_trials(mc)
     if mc is not None:
         from inscal.lab.sensitivity import WINDOW_METHODS
 
@@ -243,6 +243,13 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         rec = read_record(data)
     except OSError as exc:
         raise CliError(str(exc)) from None
+    if budget_opts is not None:  # a station of another site: refused before the calibration runs
+        from inscal.lab.station import StationError, site_check
+
+        try:
+            site_check(budget_opts["station"], rec.site.latitude, rec.site.height, None)
+        except StationError as exc:
+            raise CliError(f"--station: {exc}") from None
     try:
         cal = calibrate_record(rec, data, setup)
     except RecordError as exc:
@@ -278,9 +285,9 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
     it used."""
     from inscal.lab.budget import repeatability_of
     from inscal.core import units
-    from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
+    from inscal.lab.sensitivity import FILTER_METHODS, NO_TABLE_METHODS, calibration_budget
 
-    opts = {}
+    opts = setup.window_options if res.method in NO_TABLE_METHODS else {}
     if res.method in FILTER_METHODS:
         d = res.diagnostics
         # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
@@ -585,7 +592,7 @@ def register(app: typer.Typer) -> None:
                                "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
         station: str = typer.Option(None, "--station", help="the turntable / station of the run: its name (with "
                                     "--serial), or a station description FILE.toml (n25, six-position, twelve-position, "
-                                    "joint, systematic51, systematic30): the GUM "
+                                    "joint, systematic51, systematic30, multi-position, ferraris): the GUM "
                                     "uncertainty budget is computed, printed and, with --serial, stored with the result"),
         operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "

@@ -10,11 +10,12 @@ the csv's columns, and with ``--temperature-out`` to a file that ``import --temp
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json
+from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
 
 
 def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
@@ -87,7 +88,11 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                            gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
                            config_file=config, temperature_topic=temperature_topic)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
-        raise CliError(str(exc)) from None
+        msg = str(exc)
+        if config is not None and rate_hz is None:  # the rate came from the configuration, not from an option
+            msg = re.sub(r"--rate-hz ([0-9][0-9.eE+-]*)", lambda m: f"the rate {m.group(1)} Hz (imudatarate of --config "
+                         f"{short(config)}; --rate-hz overrides it)", msg, count=1)
+        raise CliError(msg) from None
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
 

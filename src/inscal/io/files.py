@@ -13,6 +13,7 @@ import signal
 import tempfile
 import threading
 from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path as FsPath
 
 try:  # POSIX advisory locks: released by the kernel when the holder dies, even by SIGKILL
@@ -57,6 +58,13 @@ _CLAIMS: dict[str, tuple[str, int]] = {}
 _UNITS: list["_Unit"] = []
 #: outputs published by the last output unit (an interrupt after that point says they are complete)
 PUBLISHED: list[FsPath] = []
+#: where the lines saying that a dead writer's lock was taken over go (the CLI prints them as notes)
+NOTES: list[Callable[[str], None]] = []
+
+
+def _note(line: str) -> None:
+    for sink in NOTES:
+        sink(line)
 
 
 #: the longest file name (bytes) of the usual file systems (ext4, XFS, btrfs, APFS, NTFS)
@@ -113,9 +121,13 @@ def claim_output(path) -> bool:
             if same:
                 break
             os.close(fd)
+        previous = os.read(fd, 64).decode(errors="replace").strip()
+        os.lseek(fd, 0, os.SEEK_SET)
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
         _CLAIMS[key] = (str(lock), fd)
+    if previous and previous != str(os.getpid()):  # the file of a writer that died holding it (SIGKILL)
+        _note(f"{lock.name}: the lock of process {previous}, which has ended, taken over")
     return True
 
 

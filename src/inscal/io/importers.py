@@ -133,6 +133,8 @@ time was regridded and the time offset subtracted (the path start).
 
 from __future__ import annotations
 
+import datetime as _dt
+
 import json
 import math
 import os
@@ -405,12 +407,25 @@ def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool =
     return ""
 
 
-def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False) -> int:
-    """Write an imported record atomically (the source is kept as a JSON attribute ``source``)."""
+def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False, created: str | None = None) -> int:
+    """Write an imported record atomically (the source is kept as a JSON attribute ``source``); ``created``:
+    the record's ``created`` time (ISO, UTC) in place of the time of writing (:func:`source_time`), so that
+    the same unchanged source imported twice gives the same file, byte for byte, and the same hash."""
     info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None,
                       rec.temperature)
-    return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite,
-                        extra_attrs={"source": json.dumps(source_attrs)})
+    extra = {"source": json.dumps(source_attrs)} | ({} if created is None else {"created": created})
+    return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite, extra_attrs=extra)
+
+
+def source_time(src: Path, epoch_ns: int | None = None) -> str:
+    """When an imported source was taken (ISO, UTC, seconds): a bag's first stamp (``epoch_ns``, when it is a
+    Unix time), else the source's modification time (a folder's newest file)."""
+    if epoch_ns is not None and 946684800 <= epoch_ns / 1e9 <= 4102444800:  # 2000 .. 2100
+        ts = epoch_ns / 1e9
+    else:
+        files = [src] if src.is_file() else [f for f in src.iterdir() if f.is_file()] or [src]
+        ts = max(f.stat().st_mtime for f in files)
+    return _dt.datetime.fromtimestamp(int(ts), _dt.timezone.utc).isoformat(timespec="seconds")
 
 
 def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
@@ -526,7 +541,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                              "gyro_scale_sigma": noise.scale_sigma[0].tolist(),
                              "accel_scale_sigma": noise.scale_sigma[1].tolist(),
                              "correlation_time_s": noise.noise.gyro_bias_tau}
-    n = write_imported(out, rec, attrs, overwrite)
+    n = write_imported(out, rec, attrs, overwrite, created=source_time(src, (attrs.get("bag") or {}).get("epoch_ns")))
     return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
             "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
             "path": None if path is None else path.name, "time_regridded": info["regridded"],

@@ -514,7 +514,7 @@ def build(name: str, duration_s: float | None = None, rate_hz: float | None = No
         sc = load_toml(name, duration_s)
     elif name in BUILTIN:
         if duration_s is not None and name not in DURATION_SCENARIOS:
-            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration applies to {sorted(DURATION_SCENARIOS)}")
+            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration-h applies to {sorted(DURATION_SCENARIOS)}")
         sc = BUILTIN[name](duration_s)
     else:
         raise ScenarioError(f"unknown scenario {name!r}; built-in: {', '.join(BUILTIN)}, or a .toml file")

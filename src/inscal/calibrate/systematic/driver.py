@@ -227,7 +227,8 @@ def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.n
     worst = int(np.argmax(np.abs(prior_z))) if prior_z.size else 0
     if prior_z.size and abs(prior_z[worst]) > PRIOR_EXCESS:
         return (f"the estimate of {labels[worst]} lies {abs(prior_z[worst]):.3g} prior sigma from its nominal (limit "
-                f"{PRIOR_EXCESS:g}): the unit is far outside the prior (widen it with --prior) or the run diverged")
+                f"{PRIOR_EXCESS:g}): the unit is far outside the prior or the run diverged (a record that does not turn "
+                "the unit leaves such states free; --accept-unconverged keeps the last iterate with a note)")
     if not converged:
         changes = [p["change_max_sigma"] for p in passes if p["change_max_sigma"] is not None]
         tail = ", ".join(f"{c:.3g}" for c in changes[-4:])

@@ -101,12 +101,18 @@ class RateIntegration:
     gaps: int = 0  # steps of over GAP_FACTOR median steps bridged by the interpolant (``max_gap``)
 
 
-def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None, max_gap: float | None = None) -> float:
+#: what a gap's refusal suggests by default (the mapping of a CSV / text import of sampled rates)
+BRIDGE_REMEDY = "max_gap_s in the mapping bridges them"
+
+
+def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None, max_gap: float | None = None,
+                 remedy: str = BRIDGE_REMEDY) -> float:
     """The median step [s] of the stamps ``t`` (N,), after refusing a duplicated stamp, one going
     backwards (out-of-order messages) and a gap of over :data:`GAP_FACTOR` median steps (dropped
     messages), each with one line naming the ``what`` (``at(i)``: how to name sample i; default
     "message i + 1").  ``max_gap`` [s]: a longer step up to it is accepted (a logger's gaps, bridged by
-    the samples on either side, each held over half of it; the error bound takes the longest step)."""
+    the samples on either side, each held over half of it; the error bound takes the longest step); ``remedy``: what the
+    refusal of a gap suggests (an import without a mapping has no ``max_gap_s``)."""
     t = np.asarray(t, dtype=float)
     name = at if at is not None else (lambda i: f"{what} {i + 1}")
     if t.shape[0] < 3:
@@ -130,8 +136,7 @@ def check_stamps(t: np.ndarray, where: str, what: str = "message", at=None, max_
         raise ImportFileError(f"{where}: {max(lost, 1)} {what}(s) dropped before {name(i)}: a gap of {d[i - 1]:.6g} s "
                               f"from t = {t[i - 1]:.9f} s to {t[i]:.9f} s, the median step being {step:.6g} s "
                               f"({int(np.count_nonzero(big))} gap(s) in all"
-                              + (f" over max_gap_s = {max_gap:g}" if max_gap else "; max_gap_s in the mapping bridges "
-                                 "them") + ")")
+                              + (f" over max_gap_s = {max_gap:g}" if max_gap else f"; {remedy}") + ")")
     return step
 
 

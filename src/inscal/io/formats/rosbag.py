@@ -136,6 +136,10 @@ def read_bag_samples(path, topic: str | None = None, stamps: str = "header") -> 
             elif topics[topic][0] != IMU_TYPE:
                 raise ImportFileError(f"{p}: topic {topic!r} holds {topics[topic][0]}, not {IMU_TYPE}; its topics: "
                                       f"{_describe(topics)}")
+            if topics[topic][1] > MAX_BAG_MESSAGES:
+                raise ImportFileError(f"{p}: topic {topic} holds {topics[topic][1]} messages, more than the "
+                                      f"{MAX_BAG_MESSAGES} one import reads (a 1 kHz IMU for 5.5 h; about 250 bytes "
+                                      "each in memory): split the bag by time and import each part")
             conns = [c for c in r.connections if c.topic == topic]
             ros1 = _storage(p) == "ros1"
             ns, g, a, absent = [], [], [], [0, 0]
@@ -179,7 +183,8 @@ def read_bag(path, topic: str | None = None, stamps: str = "header",
     if np.any(bad):
         i = int(np.argmax(bad))
         raise ImportFileError(f"{where}: message {i + 1} (t = {s.time[i]:.9f} s) has a NaN or infinite rate")
-    check_stamps(s.time, where, "message")
+    check_stamps(s.time, where, "message", remedy="the rosbag import bridges no gap (it takes no mapping): "
+                 "record the bag again, or with --stamps receive if only the header stamps jump")
     integ = integrate_rates(s.time, s.gyro, s.accel, rate_hz)
     labels = tuple(f"{n} (angular_velocity.{c})" for n, c in zip(("dthx", "dthy", "dthz"), "xyz")) + tuple(
         f"{n} (linear_acceleration.{c})" for n, c in zip(("dvx", "dvy", "dvz"), "xyz"))
@@ -189,6 +194,10 @@ def read_bag(path, topic: str | None = None, stamps: str = "header",
               source_info={"bag": {"topic": s.topic, "storage": s.storage, "stamps": s.stamps,
                                    "epoch_ns": s.epoch_ns, "messages": int(s.time.shape[0])}})
     return raw, s
+
+
+#: the most IMU messages one import reads (they are held as Python objects until the grid is built)
+MAX_BAG_MESSAGES = 20_000_000
 
 
 def bag_hash(path) -> str:
