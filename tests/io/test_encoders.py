@@ -199,7 +199,8 @@ def _write_gimbal(path, t, g, unit="rad"):
     """The rows of ``np.savetxt(fmt="%.17g", delimiter=",")`` under a header, formatted in one go (the same
     bytes, in half the time: these files have 100 000 - 250 000 rows)."""
     rows = np.column_stack([t, g])
-    path.write_text(f"time [s],outer [{unit}],inner [{unit}]\n" + ("%.17g,%.17g,%.17g\n" * len(rows)) % tuple(rows.ravel()))
+    body = ("%.17g,%.17g,%.17g\n" * len(rows)) % tuple(rows.ravel())
+    path.write_text(f"time [s],outer [{unit}],inner [{unit}]\n" + body)
 
 
 @pytest.fixture(scope="module")
