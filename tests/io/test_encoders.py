@@ -188,9 +188,9 @@ def test_one_hour_record_in_well_under_a_second():
     for gimbal, cause in ((g, "ok"), (g * [-1, 1], "outer-sign"), (apply_latency(t, g, -0.02), "latency")):
         best = math.inf
         for _ in range(2):
-            t0 = time.perf_counter()
+            t0 = time.process_time()  # CPU seconds: the limit holds on a loaded machine too
             res = compare_encoders(dth, gimbal, 100.0, t)
-            best = min(best, time.perf_counter() - t0)
+            best = min(best, time.process_time() - t0)
         assert res.cause == cause and best < 0.5, (cause, best)
 
 
