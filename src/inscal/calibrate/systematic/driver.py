@@ -27,7 +27,7 @@ from inscal.calibrate.systematic.model_error import (
     TERM_SHIFT_LIMIT,
     WEIGHT_PASSES,
     ModelError,
-    moving_steps,
+    motion_states,
     term_shift,
     update_factors,
 )
@@ -384,7 +384,8 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if not cap > 0:
         raise CalibrationError(f"nis_cap must be > 0 (or None for plain updates), got {nis_cap}")
     Msteps = dth.shape[0] // n_per
-    moving = moving_steps(dth, dt, n_per, Msteps)
+    motion = motion_states(dth, dt, n_per, Msteps, float(np.max(est_arw if arw is None else arw)))
+    moving = motion > 0
     if weights is not None:  # a caller's frozen factors (the nested fits of --states auto share the full model's)
         me = weights if isinstance(weights, ModelError) else ModelError(
             np.asarray(weights, float), np.ones(Msteps), {}, 0, True)
@@ -465,7 +466,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             D = sig_pass[3:N_NAV]
             S_raw = np.linalg.inv(Si) * np.outer(D, D)[None]
             expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
-            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor,
+            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, motion, qam, T, r, out.r_factor,
                                  out.q_used, cap)
             if new.settled:
                 frozen = True  # the factors this pass ran with stand
@@ -581,9 +582,18 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     }
     diag["fit"] = fit
     diag["inputs_assumed"] = assumed
-    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
+    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)),
+                                          "accelerating_steps": int(np.sum(motion == 2)), "robust": bool(robust),
                                           "outlier_cap": None if not math.isfinite(cap) else cap,
                                           "shared": weights is not None}
+    if st.lever_timing:  # a nuisance (states levtime): the canonical parameters do not depend on it
+        off = 0
+        for g in st.groups:
+            if g.name == "accel_lever_timing":
+                break
+            off += g.size
+        diag["lever_timing"] = {"value_ms": (est.levt * 1e3).tolist(),
+                                "sigma_ms": (np.sqrt(np.maximum(np.diag(P_post)[off:off + 3], 0.0)) * 1e3).tolist()}
     diag["convergence"] = {"converged": converged, "verdict": verdict or None,
                            "accepted_unconverged": bool(verdict) and accept_unconverged, "term_check": term_check}
     diag["formal_sigma"] = formal

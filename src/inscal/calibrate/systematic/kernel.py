@@ -42,6 +42,7 @@ from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
     K_GIM,
+    K_LEVT,
     StateSet,
 )
 from inscal.calibrate.windows import CalibrationError
@@ -113,6 +114,7 @@ class PassParams(NamedTuple):
     gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
     th: np.ndarray  # (13, 3) thermal coefficients (params.CompParams.th)
     gmx: np.ndarray  # (n_gm,) the Gauss-Markov bias estimates [rad/s or m/s^2] (gm_states)
+    levt: np.ndarray  # (3,) the lever-arm timing [s] (dynamics.lever_timing_rate; zero without levtime)
 
 
 class PassStore(NamedTuple):
@@ -176,7 +178,9 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     """
     dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate, \
         gm_sensor, gm_axis, gm_col, gm_phi, gm_scale, gm_q, sigp = inp
-    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx = par
+    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx, levt = par
+    lt = bool(np.any(levt != 0.0) or np.any(kinds == K_LEVT))  # the lever-arm timing's rates are needed
+    sd = np.zeros(3)
     ngm = gmx.shape[0]
     nd = 9 + ngm  # the dynamic states: navigation and Gauss-Markov biases (gm_states); the parameters follow
     bg = bg_const.copy()  # the biases the compensation subtracts: the constants plus the GM estimates
@@ -310,7 +314,8 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             else:
                 f0n[:] = f0c
                 wln[:] = wlc
-            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd)
+            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd,
+                              levt, lt, sd)
             if ngm > 0:  # the AR(1) mean of each GM estimate, sample by sample (gm_states)
                 for g in range(ngm):
                     gmx[g] *= gphis[g]
@@ -357,7 +362,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             fn[0] += (Cb[0, jj] * f[0] + Cb[1, jj] * f[1] + Cb[2, jj] * f[2]) * dt
             fn[1] += (Cb[3, jj] * f[0] + Cb[4, jj] * f[1] + Cb[5, jj] * f[2]) * dt
             fn[2] += (Cb[6, jj] * f[0] + Cb[7, jj] * f[1] + Cb[8, jj] * f[2]) * dt
-            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9)
+            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9, sd, lt)
             if thermal:
                 thermal_basis(ug, ua, bg, ba, tdT[s], trate[s], Bb, jj)
             ug[:] = ugn
@@ -500,7 +505,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, nd)
+        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, levt, nd)
         for g in range(ngm):
             gmx[g] -= xs[9 + g]
         effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
@@ -662,7 +667,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
                      qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate,
                      *_gm_inputs(states, sig, n_per * dt))
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)),
+                     p.levt)
     rw = np.ones(M)
     qw = np.ones(M)
     st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw, qw)
@@ -757,7 +763,7 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
                      np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate,
                      *_gm_inputs(states, np.ones(N), n * dt))
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th,
-                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float))
+                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float), p.levt)
     nd = states.n_dyn
     st = PassStore(one(N, 6), one(6, 6), one(6), one(nd, nd), one(nd, N - nd), np.empty(1), one(6), one(N, N),
                    one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1))

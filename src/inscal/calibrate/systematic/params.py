@@ -46,6 +46,9 @@ class CompParams:
     #: thermal coefficients by sensor axis (states module docstring): rows 3 t + k - 1 = order k of term t
     #: (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor), row 12 the dT/dt term
     th: np.ndarray = field(default_factory=lambda: np.zeros((N_TH_ROWS, 3)))
+    #: the lever-arm timing nuisance [s] per accelerometer (states ``levtime``; not an ImuErrors term: the
+    #: canonical parameters do not depend on it)
+    levt: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> "CompParams":
         return CompParams(*(np.array(getattr(self, f), dtype=float) for f in self.__dataclass_fields__))
@@ -56,7 +59,7 @@ class CompParams:
     @classmethod
     def from_flat(cls, v) -> "CompParams":
         v = np.asarray(v, float)
-        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,), (N_TH_ROWS, 3)]
+        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,), (N_TH_ROWS, 3), (3,)]
         out, k = [], 0
         for s in shapes:
             n = int(np.prod(s))
@@ -135,6 +138,8 @@ class CompParams:
                     p.lever = p.lever - v.reshape(3, 3)
             elif g.name == "time_asynchrony":
                 p.tau = p.tau - v
+            elif g.name == "accel_lever_timing":
+                p.levt = p.levt - v
             elif g.name == "gimbal_nonorthogonality":
                 p.gim = p.gim - np.array([v[0], 0.0, 0.0, 0.0])
             elif g.name == "mount_attitude":
@@ -166,6 +171,8 @@ class CompParams:
                 out += list(np.diag(d)) if g.size == 3 else list(d.ravel())
             elif g.name == "time_asynchrony":
                 out += list(self.tau - truth.tau)
+            elif g.name == "accel_lever_timing":
+                out += list(self.levt - truth.levt)
             elif g.name == "gimbal_nonorthogonality":
                 out += [self.gim[0] - truth.gim[0]]
             elif g.name == "mount_attitude":
@@ -292,6 +299,8 @@ def ref_error_states(rows: np.ndarray, states: StateSet, truth: CompParams) -> n
             out.append(d[:, [0, 1, 2], [0, 1, 2]] if g.size == 3 else d.reshape(nh, 9))
         elif g.name == "time_asynchrony":
             out.append(field("tau") - truth.tau)
+        elif g.name == "accel_lever_timing":  # a nuisance the history rows do not keep
+            out.append(np.full((nh, 3), np.nan))
         elif g.name == "gimbal_nonorthogonality":
             out.append(field("gim")[:, :1] - truth.gim[0])
         elif g.name == "mount_attitude":
