@@ -27,7 +27,7 @@ from inscal.calibrate.systematic.model_error import (
     TERM_SHIFT_LIMIT,
     WEIGHT_PASSES,
     ModelError,
-    motion_states,
+    moving_steps,
     term_shift,
     update_factors,
 )
@@ -384,8 +384,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     if not cap > 0:
         raise CalibrationError(f"nis_cap must be > 0 (or None for plain updates), got {nis_cap}")
     Msteps = dth.shape[0] // n_per
-    motion = motion_states(dth, dt, n_per, Msteps, float(np.max(est_arw if arw is None else arw)))
-    moving = motion > 0
+    moving = moving_steps(dth, dt, n_per, Msteps)
     if weights is not None:  # a caller's frozen factors (the nested fits of --states auto share the full model's)
         me = weights if isinstance(weights, ModelError) else ModelError(
             np.asarray(weights, float), np.ones(Msteps), {}, 0, True)
@@ -466,7 +465,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             D = sig_pass[3:N_NAV]
             S_raw = np.linalg.inv(Si) * np.outer(D, D)[None]
             expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
-            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, motion, qam, T, r, out.r_factor,
+            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor,
                                  out.q_used, cap)
             if new.settled:
                 frozen = True  # the factors this pass ran with stand
@@ -546,7 +545,14 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     per_step[last.q_used[:last.steps] > me.q_factor[:last.steps]] = 6.0  # bounded steps (a jump): their own
     # NIS is that of the nominal model
     expected = float(np.sum(per_step))
-    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
+    floor_words = None
+    if floored and arw is None and vrw is None:  # the record's own noise, estimated, is below the floors
+        floor_words = (f"ARW {units.from_si(ARW_FLOOR, 'deg/sqrt(h)'):.2g} deg/sqrt(h), VRW "
+                       f"{units.from_si(VRW_FLOOR, 'ug/sqrt(Hz)'):.2g} ug/sqrt(Hz)"
+                       + ("; the record is float32" if np.any(f32 > 0) else "")
+                       + ("; the record is quantized" if np.any(q_res > 0) else ""))
+    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected,
+                         floor_words)
     if any(f > 1.0 for f in me.group_factor.values()):
         # the chi2 is of the model with its velocity model-error term, estimated to fit: the model as given
         # misfits the record beyond its noise (model_error), which the fit says; the sigma of the weighted
@@ -582,8 +588,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     }
     diag["fit"] = fit
     diag["inputs_assumed"] = assumed
-    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)),
-                                          "accelerating_steps": int(np.sum(motion == 2)), "robust": bool(robust),
+    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
                                           "outlier_cap": None if not math.isfinite(cap) else cap,
                                           "shared": weights is not None}
     if st.lever_timing:  # a nuisance (states levtime): the canonical parameters do not depend on it

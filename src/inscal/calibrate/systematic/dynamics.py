@@ -221,7 +221,8 @@ def column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
             else:
                 cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
             vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + cr)
-        else:
+        else:  # the asynchrony (the caller's C f-dot) and the lever-arm timing: its column is the lever-arm terms'
+            # rate (lever_timing_rate), zero at lever arms of zero, the nominal unit the bound linearises about
             vals[c] = 0.0
 
 

@@ -55,8 +55,8 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
 
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
 (_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
-    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever",
-                                                                          "tau", "gim", "th")]
+    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1), (_LT0, _LT1) = [REF_SLICES[k][:2] for k in (
+        "Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim", "th", "levt")]
 
 # what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
 # a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
@@ -410,6 +410,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
             hist_ref[ih, _TH0:_TH1] = th.ravel()
+            hist_ref[ih, _LT0:_LT1] = levt
         for a in range(6):
             rsk[a] = rs[a] * rf[k]  # a frozen outlier weight of the driver's robust scheme (1: none)
         jump = 1.0

@@ -15,37 +15,34 @@ velocity rows *and* in the position rows and their correlation (``int Phi Q_c Ph
 misfit up in its velocity state at that step instead of dragging the constants, and the next step starts
 clean.  The factors are
 
-* per motion state (``static`` steps; ``moving`` steps that turn at a steady rate; ``accelerating`` steps, whose
-  rate changes: the largest sample-to-sample angular acceleration of the step above :data:`ACCEL_RATE`; the mean
-  body rate of the step against :data:`MOVING_RATE`), ``lambda_g = lambda_g,prev * s_g`` with ``s_g`` the median NIS of the group's
+* per motion state (``static`` / ``moving`` steps, the mean body rate of the step against
+  :data:`MOVING_RATE`), ``lambda_g = lambda_g,prev * s_g`` with ``s_g`` the median NIS of the group's
   regular steps over its expectation's median (the noise the record shows, a method-of-moments step towards
   ``E[NIS] = expected``: the NIS of a step whose ``S`` is dominated by its own ``Q_d`` scales as
   ``1 / lambda``); a group stays at 1 until its scale is significant (:data:`GROUP_THRESHOLD`, and four
   standard errors of a median of its size), and never goes below 1: the noise estimated from the record
   (or given) is the least the filter assumes;
-* per step for isolated outliers (the NIS above ``cap`` at the group's factor):
-  ``lambda_k`` that brings the step's NIS to that threshold (a Huber weight in the form of a velocity jump).
+* per step for isolated outliers (the NIS above ``cap`` times the group's level, its median NIS over the
+  chi2(6) median when below 1: a noise-free record's floors make every NIS small, and a step that misfits by
+  a fraction of a floor sigma is as much an outlier as one at 6 sigma on noisy data): a factor on its ``R``
+  that brings the step's NIS to that threshold.  The misfit of a step is weighted by its own size, step by
+  step, and the other steps of its turn keep their information.
 
-The yardstick is the noise assumed (estimated from the record, or its floors), not the level the dwells show.
-On a noise-free float32 record the dwells' increments are constant, so their rounding is a constant per attitude
+The group factors' yardstick is the noise assumed (estimated from the record, or its floors), not the level
+the dwells show.  On a noise-free float32 record the dwells' increments are constant, so their rounding is a constant per attitude
 that the bias and attitude states absorb, and the dwells' NIS falls far below the floors'; the turns' rounding
 and the integration scheme's error (1e-8 to 1e-6 m/s a step at 100 Hz, against 2e-6 m/s of the VRW floor over
 1 s) are white-like and stay.  Holding the moves to the dwells' level called that a misfit (a factor of 138 on
-every moving step of the independent oracle's record, 8e5 on its accelerating ones with the lever-arm timing
-left out), and the turns, which observe the lever arms, the asynchrony and the cross-coupling, lost 10-800x of
+every moving step of the independent oracle's record), and the turns, which observe the lever arms, the asynchrony and the cross-coupling, lost 10-800x of
 their information for a residual a fraction of the assumed sigma: a residual below the noise assumed does not
-contradict the information the sigma claim.
+contradict the information the sigma claim.  A step whose own misfit stands out of its group's level is
+still an outlier (above).
 
 The outer iteration.  The factors are estimated after a pass from its innovations and used by the next pass,
 for at most :data:`WEIGHT_PASSES` passes or until they settle (no factor changes by more than
 :data:`SETTLE_RATIO`); then they are frozen, and the remaining passes are a Gauss-Newton iteration of one
 fixed weighted least-squares problem (the iterated smoother), which converges on a record the model can
-follow.  Why the accelerating steps are a state of their own: a misfit that follows the motion's timing (a
-lever-arm term sampled at another time than the model's, an angular-acceleration coupling) scales with the change
-of the rotational terms, ``tau d/dt (w_dot x p + w x (w x p))``, which is largest where the rate changes and zero
-where it is steady.  One factor for every moving step spread the ramps' misfit over the steady part of each turn,
-which observes the diagonal lever arms (``w x (w x p)``), the asynchrony (``f-dot = -w x f``) and the scale factors,
-and took its information away with the ramps'.  A pass that ran with other factors than the one before it is never called converged.  Nested fits
+follow.  A pass that ran with other factors than the one before it is never called converged.  Nested fits
 (``--states auto``) share the full model's frozen factors, so their chi-square values compare.
 """
 
@@ -61,10 +58,6 @@ from inscal.calibrate.systematic.record_stats import step_rates
 #: mean body rate of a step [rad/s] above which it is a moving step (0.1 deg/s, the misfit signature's
 #: turning rate; Earth rate is 0.004 deg/s)
 MOVING_RATE = 0.1 * math.pi / 180.0
-#: largest angular acceleration of a step [rad/s^2] above which a moving step is an accelerating one (1 deg/s^2:
-#: the ramps of a turn reach tens of deg/s^2; the white noise of a navigation-grade gyro at 100 Hz, sample to
-#: sample, a few 1e-3 rad/s^2)
-ACCEL_RATE = 1.0 * math.pi / 180.0
 #: the least significant scale of a group's NIS (median over its expectation's median) that turns its
 #: model-error term on
 GROUP_THRESHOLD = 1.5
@@ -76,7 +69,7 @@ SETTLE_RATIO = 1.25
 CHI2_6_MEDIAN_RATIO = 5.348121 / 6.0
 #: standard error of the median of chi2(6)/6 from one value (1.2533 sd, sd = sqrt(12)/6)
 MEDIAN_SE_1 = 1.2533 * math.sqrt(12.0) / 6.0
-GROUPS = ("static", "moving", "accelerating")
+GROUPS = ("static", "moving")
 #: the largest factor (a step with it carries no velocity information: its NIS is then not brought to the cap)
 MAX_FACTOR = 1e12
 
@@ -97,21 +90,10 @@ class ModelError:
                 "settled": bool(self.settled)}
 
 
-def motion_states(dtheta: np.ndarray, dt: float, n_per: int, M: int, arw: float = 0.0) -> np.ndarray:
-    """``(M,)`` int: the motion state of each filter step, the index in :data:`GROUPS` (0 static, 1 moving at a
-    steady rate, 2 accelerating): moving when the step's mean body rate exceeds :data:`MOVING_RATE`, accelerating
-    when its largest sample-to-sample angular acceleration exceeds :data:`ACCEL_RATE`, or eight times the
-    sample-to-sample spread the white gyro noise ``arw`` [rad/sqrt(s)] gives it (``sqrt(2) arw / dt^1.5``), where
-    that is larger (a step that starts or ends a turn, whatever its mean rate)."""
-    mean_rate, dw_max, _ = step_rates(np.ascontiguousarray(dtheta, dtype=float), dt, dt ** 2, n_per, M)
-    out = np.where(mean_rate > MOVING_RATE, 1, 0)
-    out[dw_max > max(ACCEL_RATE, 8.0 * math.sqrt(2.0) * float(arw) / dt ** 1.5)] = 2
-    return out
-
-
 def moving_steps(dtheta: np.ndarray, dt: float, n_per: int, M: int) -> np.ndarray:
-    """``(M,)`` bool: the filter steps that move (:func:`motion_states` not static)."""
-    return motion_states(dtheta, dt, n_per, M) > 0
+    """``(M,)`` bool: the filter steps whose mean body rate exceeds :data:`MOVING_RATE`."""
+    mean_rate, _, _ = step_rates(np.ascontiguousarray(dtheta, dtype=float), dt, dt ** 2, n_per, M)
+    return mean_rate > MOVING_RATE
 
 
 def initial(M: int) -> ModelError:
@@ -151,25 +133,23 @@ def _solve_log(fun, target: float, lo: float = 0.0, hi: float = math.log(MAX_FAC
     return math.exp(0.5 * (lo + hi))
 
 
-def update_factors(prev: ModelError, S: np.ndarray, z: np.ndarray, expected: np.ndarray, motion: np.ndarray,
+def update_factors(prev: ModelError, S: np.ndarray, z: np.ndarray, expected: np.ndarray, moving: np.ndarray,
                    qam: float, T: float, r: np.ndarray, r_used: np.ndarray, q_used: np.ndarray,
                    cap: float) -> ModelError:
     """The factors after a pass: its per-step innovation covariances ``S`` (M, 6, 6) and innovations ``z`` (M, 6)
-    (raw units), the NIS expectations (``6 - tr(S^-1 R)``), the motion states (:func:`motion_states`; a bool mask
-    of the moving steps is taken as moving at a steady rate), the mean accelerometer PSD
+    (raw units), the NIS expectations (``6 - tr(S^-1 R)``), the moving-step mask, the mean accelerometer PSD
     ``qam``, the step ``T`` [s], the measurement variances ``r`` (6,), the factors on R and on the accelerometer
     noise each step ran with (``r_used``, ``q_used``: the bounded passes' jumps included) and the outlier cap (module docstring).  The unit-factor covariance of each step is its ``S``
     less its model-error and outlier parts; the group factor solves ``median(NIS / expected) = median(chi2_6) / 6``
-    over the group, an outlier's factor on R brings its NIS to ``cap``."""
+    over the group, an outlier's factor on R brings its NIS to ``cap`` times the group's level."""
     M = z.shape[0]
     Qv = step_noise(qam, T)
     Rm = np.diag(np.asarray(r, float))
     S1 = S - (q_used[:M] - 1.0)[:, None, None] * Qv[None] - (r_used[:M] - 1.0)[:, None, None] * Rm[None]
     gf = {}
     q = np.ones(M)
-    state = np.asarray(motion[:M]).astype(np.int64)
-    for code, name in enumerate(GROUPS):
-        mask = state == code
+    level = np.ones(M)  # each step's group scale at its new factor, at most 1: the outliers' NIS is relative to it
+    for name, mask in (("static", ~moving[:M]), ("moving", moving[:M])):
         lam_prev = float(prev.group_factor.get(name, 1.0))
         idx = np.flatnonzero(mask)
         if idx.size == 0:
@@ -184,12 +164,12 @@ def update_factors(prev: ModelError, S: np.ndarray, z: np.ndarray, expected: np.
             lam = max(_solve_log(med, 1.0), 1.0)
         gf[name] = lam
         q[idx] = lam
-    # isolated outliers: NIS beyond the cap (at their group's factor, against the noise assumed); a factor on their
-    # R brings them to it
+        level[idx] = min(max(med(lam), 1e-12), 1.0)
+    # isolated outliers: NIS beyond the cap at their group's level; a factor on their R brings them to it
     rf = np.ones(M)
     if math.isfinite(cap):
         Sq = S1 + (q - 1.0)[:, None, None] * Qv[None]
-        target = np.full(M, cap)
+        target = cap * level
         out = np.flatnonzero(nis_at(Sq, Rm, z, 1.0) > target)
         if out.size:
             lo, hi = np.zeros(out.size), np.full(out.size, math.log(MAX_FACTOR))
