@@ -92,7 +92,7 @@ def thermal_values(kinds, axes, js, wl, fl, dT, rate, vals):
             vals[c] = -fl[axes[c]] * p
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def lever_timing_rate(lev, w, wd, wdd, sd):
     """Per accelerometer ``i`` (lever arm ``p = lev[i]``), the rate in navigation axes of the lever-arm terms it
     senses, ``sd_i = e_i . (L-dot + w x L)``, ``L = w-dot x p + w x (w x p)`` (body axes), ``L-dot = w-ddot x p
@@ -123,6 +123,19 @@ def lever_timing_rate(lev, w, wd, wdd, sd):
             sd[2] = D2 + w[0] * L1 - w[1] * L0
 
 
+@njit(cache=True)
+def lever_timing_step(ug, bg, wlm, wlp, wdot, lev, idt, sd):
+    """:func:`lever_timing_rate` of one sample from its linearly compensated rate ``ug - bg``, the centred
+    ``wdot`` and the second difference of the neighbours' rates ``wlm``, ``wlp`` (``w-ddot``)."""
+    i2 = idt * idt
+    wl = np.empty(3)
+    wdd = np.empty(3)
+    for i in range(3):
+        wl[i] = ug[i] - bg[i]
+        wdd[i] = (wlp[i] - 2.0 * wl[i] + wlm[i]) * i2
+    lever_timing_rate(lev, wl, wdot, wdd, sd)
+
+
 @njit(cache=True, inline="always")
 def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wlm, wlp, w, f, fdot, wdot, levt, lt,
                       sd):
@@ -151,12 +164,8 @@ def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wl
         f0x += tau * fdot[0] + c2 * (f0p[0] - 2.0 * f0x + f0m[0])
         f0y += tau * fdot[1] + c2 * (f0p[1] - 2.0 * f0y + f0m[1])
         f0z += tau * fdot[2] + c2 * (f0p[2] - 2.0 * f0z + f0m[2])
-    if lt:
-        wl = (ug[0] - bg[0], ug[1] - bg[1], ug[2] - bg[2])
-        i2 = idt * idt
-        wdd = ((wlp[0] - 2.0 * wl[0] + wlm[0]) * i2, (wlp[1] - 2.0 * wl[1] + wlm[1]) * i2,
-               (wlp[2] - 2.0 * wl[2] + wlm[2]) * i2)
-        lever_timing_rate(lev, wl, wdot, wdd, sd)
+    if lt:  # a call, not inlined: the hot loop of a pass without the lever-arm timing stays as small as it was
+        lever_timing_step(ug, bg, wlm, wlp, wdot, lev, idt, sd)
         f0x += levt[0] * sd[0]
         f0y += levt[1] * sd[1]
         f0z += levt[2] * sd[2]
