@@ -526,6 +526,24 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
     fixed = fixed_mask(st, names)
     sflat[fixed] = np.nan
+    # what the model-error term costs (its last resort): each group's sigma against the bound without it, the same
+    # record and linearisation with every factor 1 (the filter's posterior of the record at the noise assumed)
+    cost = None
+    if robust and weights is None and (any(f > 1.0 for f in me.group_factor.values()) or me.outliers):
+        try:
+            plain = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_used, qg, qa, r, hist_every,
+                             smooth=False, enc=enc, enc_sigma=enc_sig,
+                             temperature=None if tin is None else (tin["dT"], tin["rate"]))
+            spu = sig_used[nd:]
+            Uiu = solve_triangular(plain.Uf[nd:, nd:], np.eye(spu.shape[0]))
+            Pfu = (Uiu.T @ Uiu) / np.outer(spu, spu)
+            P_bound = np.linalg.inv(0.5 * (Pfu + Pfu.T) - np.diag(1.0 / spu**2) + np.diag(inv_prior))
+            s_bound = unflatten(np.sqrt(np.maximum(np.diag(J @ P_bound @ J.T), 0.0)), names)
+            s_now = unflatten(sflat, names)
+            cost = {n: float(np.nanmax(np.asarray(s_now[n], float) / np.asarray(s_bound[n], float)))
+                    for n in names if np.any(np.isfinite(np.asarray(s_now[n], float)))}
+        except (np.linalg.LinAlgError, CalibrationError):
+            cost = None
     # the prior in the same canonical components: the yardstick of what the record observed
     prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
     unobs, unobs_note = unobservable(names, sflat, prior_flat)
@@ -561,6 +579,11 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         fit["cause"] = fit["cause"] or "model error: the record misfits the model beyond its noise"
         fit["model_error"] = me.as_dict()
         fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(moving)))
+    if cost:
+        top = sorted(cost.items(), key=lambda kv: -kv[1])[:3]
+        fit["model_error_cost"] = cost
+        fit["note"] = ((fit["note"] + "; " if fit["note"] else "") + "the model-error term costs the sigma (against the "
+                       "bound without it): " + ", ".join(f"{n} x{v:.3g}" for n, v in top))
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
     assumed = None if st.gimbal else inputs_assumed(last, site, sig_used, P_post @ Pf_inv, J, sflat * fit["scale"],
