@@ -128,12 +128,9 @@ def lever_timing_step(ug, bg, wlm, wlp, wdot, lev, idt, sd):
     """:func:`lever_timing_rate` of one sample from its linearly compensated rate ``ug - bg``, the centred
     ``wdot`` and the second difference of the neighbours' rates ``wlm``, ``wlp`` (``w-ddot``)."""
     i2 = idt * idt
-    wl = np.empty(3)
-    wdd = np.empty(3)
-    for i in range(3):
-        wl[i] = ug[i] - bg[i]
-        wdd[i] = (wlp[i] - 2.0 * wl[i] + wlm[i]) * i2
-    lever_timing_rate(lev, wl, wdot, wdd, sd)
+    w0, w1, w2 = ug[0] - bg[0], ug[1] - bg[1], ug[2] - bg[2]
+    lever_timing_rate(lev, (w0, w1, w2), wdot, ((wlp[0] - 2.0 * w0 + wlm[0]) * i2, (wlp[1] - 2.0 * w1 + wlm[1]) * i2,
+                                               (wlp[2] - 2.0 * w2 + wlm[2]) * i2), sd)
 
 
 @njit(cache=True, inline="always")
