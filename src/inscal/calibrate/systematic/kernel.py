@@ -42,6 +42,7 @@ from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
     K_GIM,
+    K_LEVT,
     StateSet,
 )
 from inscal.calibrate.windows import CalibrationError
@@ -54,8 +55,8 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
 
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
 (_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
-    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever",
-                                                                          "tau", "gim", "th")]
+    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1), (_LT0, _LT1) = [REF_SLICES[k][:2] for k in (
+        "Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim", "th", "levt")]
 
 # what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
 # a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
@@ -113,6 +114,7 @@ class PassParams(NamedTuple):
     gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
     th: np.ndarray  # (13, 3) thermal coefficients (params.CompParams.th)
     gmx: np.ndarray  # (n_gm,) the Gauss-Markov bias estimates [rad/s or m/s^2] (gm_states)
+    levt: np.ndarray  # (3,) the lever-arm timing [s] (dynamics.lever_timing_rate; zero without levtime)
 
 
 class PassStore(NamedTuple):
@@ -177,7 +179,9 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     """
     dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate, \
         gm_sensor, gm_axis, gm_col, gm_phi, gm_scale, gm_q, sigp = inp
-    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx = par
+    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx, levt = par
+    lt = bool(np.any(levt != 0.0) or np.any(kinds == K_LEVT))  # the lever-arm timing's rates are needed
+    sd = np.zeros(3)
     ngm = gmx.shape[0]
     nd = 9 + ngm  # the dynamic states: navigation and Gauss-Markov biases (gm_states); the parameters follow
     bg = bg_const.copy()  # the biases the compensation subtracts: the constants plus the GM estimates
@@ -311,7 +315,8 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             else:
                 f0n[:] = f0c
                 wln[:] = wlc
-            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd)
+            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd,
+                              levt, lt, sd)
             if ngm > 0:  # the AR(1) mean of each GM estimate, sample by sample (gm_states)
                 for g in range(ngm):
                     gmx[g] *= gphis[g]
@@ -358,7 +363,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             fn[0] += (Cb[0, jj] * f[0] + Cb[1, jj] * f[1] + Cb[2, jj] * f[2]) * dt
             fn[1] += (Cb[3, jj] * f[0] + Cb[4, jj] * f[1] + Cb[5, jj] * f[2]) * dt
             fn[2] += (Cb[6, jj] * f[0] + Cb[7, jj] * f[1] + Cb[8, jj] * f[2]) * dt
-            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9)
+            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9, sd, lt)
             if thermal:
                 thermal_basis(ug, ua, bg, ba, tdT[s], trate[s], Bb, jj)
             ug[:] = ugn
@@ -408,6 +413,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
             hist_ref[ih, _TH0:_TH1] = th.ravel()
+            hist_ref[ih, _LT0:_LT1] = levt
         for a in range(6):
             rsk[a] = rs[a] * rf[k]  # a frozen outlier weight of the driver's robust scheme (1: none)
         jump = 1.0
@@ -504,7 +510,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, nd)
+        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, levt, nd)
         for g in range(ngm):
             gmx[g] -= xs[9 + g]
         effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
@@ -668,7 +674,8 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
                      qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate,
                      *_gm_inputs(states, sig, n_per * dt))
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)),
+                     p.levt)
     rw = np.ones(M)
     qw = np.ones(M)
     qd_st = np.empty((M, nd, nd))
@@ -763,7 +770,7 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
                      np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate,
                      *_gm_inputs(states, np.ones(N), n * dt))
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th,
-                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float))
+                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float), p.levt)
     nd = states.n_dyn
     st = PassStore(one(N, 6), one(6, 6), one(6), one(nd, nd), one(nd, N - nd), np.empty(1), one(6), one(N, N),
                    one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1), one(nd, nd))
