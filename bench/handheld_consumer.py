@@ -1,0 +1,130 @@
+"""Consumer-MEMS hand-held multi-position sessions (inscal.sim.consumer) through import and
+``calibrate --method multi-position`` with its defaults: how many calibrate, RMS(error / sigma) per
+parameter group, poses found; a tremor sweep.
+
+    PYTHONPATH=src python bench/handheld_consumer.py make DIR --n 50 --seed 0 [--tremor 0.3]
+    PYTHONPATH=<tree>/src python bench/handheld_consumer.py run DIR --tag new [--skip magnitudes]
+    python bench/handheld_consumer.py summary DIR --tag new
+
+``make`` writes each session as a logger's CSV of int16 counts with its import mapping and the truth in
+the accelerometer frame of the method (SI, JSON); ``run`` imports and calibrates every session in this
+process with the inscal on the path (so the same sessions measure any tree: main's behaviour beside this
+one's) and writes ``results-TAG.json``; ``summary`` prints the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+GROUPS = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
+          "accel_bias")
+
+
+def make(folder: Path, n: int, seed: int, tremor: float | None) -> None:
+    from inscal.calibrate.multiposition import frame_of
+    from inscal.core.error_model import GimbalErrors
+    from inscal.sim.consumer import ConsumerSetup, consumer_session
+    from inscal.sim.scenarios import N25_SITE
+
+    folder.mkdir(parents=True, exist_ok=True)
+    setup = ConsumerSetup() if tremor is None else ConsumerSetup(tremor_dps=tremor)
+    for k in range(n):
+        s = consumer_session(np.random.default_rng([seed, k]), N25_SITE, setup)
+        imu, _ = frame_of((s.truth, GimbalErrors()))
+        (folder / f"s{k:03d}.csv").write_text(s.csv_text())
+        (folder / f"s{k:03d}.toml").write_text(s.mapping_text(N25_SITE))
+        truth = {g: np.asarray(getattr(imu, g), float).tolist() for g in GROUPS}
+        (folder / f"s{k:03d}.json").write_text(json.dumps({"truth": truth, "still": s.still, "tremor_dps": s.tremor_dps,
+                                                         "saturated": s.saturated}))
+
+
+def run(folder: Path, tag: str, skip: list[str]) -> None:
+    from inscal.cli.common import CliError
+    from inscal.core import units
+    from inscal.io.importers import import_file
+    from inscal.io.mapping import ImportFileError
+
+    from inscal.cli.calibrate import run_calibrate
+
+    out = {}
+    for csv in sorted(folder.glob("s*.csv")):
+        name = csv.stem
+        rec, par = folder / f"{name}-{tag}.h5", folder / f"{name}-{tag}.toml.out"
+        for p in (rec, par):
+            p.unlink(missing_ok=True)
+        t0 = time.perf_counter()
+        row = {}
+        try:
+            import_file(csv, rec, "csv", mapping_file=folder / f"{name}.toml", skip=tuple(skip))
+        except ImportFileError as exc:
+            out[name] = {"stage": "import", "error": str(exc)}
+            print(name, "import:", exc, flush=True)
+            continue
+        try:
+            rep = run_calibrate(rec, "multi-position", par)
+        except (CliError, Exception) as exc:  # every refusal counts as a failure of the defaults
+            out[name] = {"stage": "calibrate", "error": f"{type(exc).__name__}: {exc}"}
+            print(name, "calibrate:", exc, flush=True)
+            continue
+        row["seconds"] = time.perf_counter() - t0
+        row["poses"] = sum(1 for c in rep.get("still", rep.get("diagnostics", {}).get("still", [])) if c.get("kept"))
+        row["values"] = {g: np.asarray(units.to_si(np.asarray(rep["parameters"][g]["value"], float),
+                                                   rep["parameters"][g]["unit"]), float).tolist() for g in GROUPS}
+        row["sigma"] = {g: np.asarray(units.to_si(np.asarray(rep["parameters"][g]["sigma"], float),
+                                                  rep["parameters"][g]["unit"]), float).tolist() for g in GROUPS}
+        row["notes"] = rep["notes"]
+        out[name] = row
+        print(name, "ok", f"{row['seconds']:.1f} s", flush=True)
+    (folder / f"results-{tag}.json").write_text(json.dumps(out))
+
+
+def summary(folder: Path, tag: str) -> dict:
+    res = json.loads((folder / f"results-{tag}.json").read_text())
+    z = {g: [] for g in GROUPS}
+    ok, fails, poses = 0, {}, []
+    for name, r in sorted(res.items()):
+        if "error" in r:
+            key = r["stage"] + ": " + r["error"].split(":")[0][:60]
+            fails[key] = fails.get(key, 0) + 1
+            continue
+        ok += 1
+        poses.append(r["poses"])
+        truth = json.loads((folder / f"{name}.json").read_text())["truth"]
+        for g in GROUPS:
+            v, s, t = (np.asarray(x, float) for x in (r["values"][g], r["sigma"][g], truth[g]))
+            m = np.isfinite(s) & (s > 0)
+            z[g] += list(((v - t)[m] / s[m]))
+    out = {"sessions": len(res), "calibrated": ok, "failures": fails,
+           "poses_median": float(np.median(poses)) if poses else None,
+           "rms_error_over_sigma": {g: (float(np.sqrt(np.mean(np.square(z[g])))) if z[g] else None) for g in GROUPS}}
+    print(json.dumps(out, indent=1))
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("what", choices=("make", "run", "summary"))
+    ap.add_argument("folder", type=Path)
+    ap.add_argument("--n", type=int, default=50)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--tremor", type=float, default=None, help="one tremor level for every pose [deg/s rms]")
+    ap.add_argument("--tag", default="new")
+    ap.add_argument("--skip", action="append", default=[])
+    a = ap.parse_args(argv)
+    if a.what == "make":
+        make(a.folder, a.n, a.seed, a.tremor)
+    elif a.what == "run":
+        run(a.folder, a.tag, a.skip)
+    else:
+        summary(a.folder, a.tag)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
