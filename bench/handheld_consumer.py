@@ -74,7 +74,8 @@ def run(folder: Path, tag: str, skip: list[str]) -> None:
             print(name, "calibrate:", exc, flush=True)
             continue
         row["seconds"] = time.perf_counter() - t0
-        row["poses"] = sum(1 for c in rep.get("still", rep.get("diagnostics", {}).get("still", [])) if c.get("kept"))
+        rows = (rep.get("fit") or {}).get("residuals") or []
+        row["poses"] = sum(1 for r in rows if str(r.get("label", "")).startswith("pose "))
         row["values"] = {g: np.asarray(units.to_si(np.asarray(rep["parameters"][g]["value"], float),
                                                    rep["parameters"][g]["unit"]), float).tolist() for g in GROUPS}
         row["sigma"] = {g: np.asarray(units.to_si(np.asarray(rep["parameters"][g]["sigma"], float),

@@ -49,7 +49,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from inscal.calibrate.result import CalibrationResult
-from inscal.calibrate.static_detect import StillIntervals, detect_still
+from inscal.calibrate.static_detect import TREMOR, StillIntervals, detect_still
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
@@ -267,21 +267,23 @@ class _Accel:
 
 def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, quadratic: bool = False,
                    alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
-                   gravity_tol: float = 0.05, sv_tol: float = 1e-7, still: StillIntervals | None = None
-                   ) -> CalibrationResult:
+                   gravity_tol: float = 0.05, sv_tol: float = 1e-7, still: StillIntervals | None = None,
+                   tremor: float = TREMOR, clipped: np.ndarray | None = None) -> CalibrationResult:
     """Calibrate the accelerometers and gyros from still poses at unknown orientations and the moves
     between them (module docstring).  ``settle``, ``min_static`` [s] and ``alpha`` go to
     :func:`.static_detect.detect_still` (``still``: its result, computed once by the caller);
     ``gravity_tol``: the largest relative difference between the poses' median specific force and the
     site's gravity accepted (a larger one is a wrong unit or a wrong site); ``gyro_range`` [rad/s],
-    ``accel_range`` [m/s^2]: the clip levels, when known."""
+    ``accel_range`` [m/s^2]: the clip levels, when known; ``tremor`` [rad/s rms]: the hand tremor a pose may
+    hold; ``clipped``: bool per sample, a sensor marked saturated at import (its moves are not used)."""
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
     dv = np.asarray(record_like.dvel, float)
     site = record_like.site
     g = float(site.gravity)
     si = still if still is not None else detect_still(time, dth, dv, min_still=min_static, settle=settle,
-                                                      alpha=alpha, gyro_range=gyro_range, accel_range=accel_range)
+                                                      alpha=alpha, gyro_range=gyro_range, accel_range=accel_range,
+                                                      tremor=tremor, clipped=clipped)
     need = 12 if quadratic else 9
     poses = si.require(need, f"the {'quadratic ' if quadratic else ''}accelerometer model")
     notes = list(si.notes)

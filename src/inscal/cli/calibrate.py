@@ -32,7 +32,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
                   accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
                   thermal_model: Path | None = None, mc: int | None = None, mc_seed: int = 0,
-                  mc_workers: int = 1) -> dict:
+                  mc_workers: int = 1, tremor_dps: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -51,7 +51,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
     instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
-    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too.  ``noise``: a noise.toml
+    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``tremor_dps``: the hand
+    tremor a still pose may hold [deg/s rms] (multi-position; None: its default).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
@@ -64,7 +65,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
                              plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic,
-                             None if noise is None else str(noise))
+                             None if noise is None else str(noise), tremor=tremor_dps)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -531,6 +532,9 @@ def register(app: typer.Typer) -> None:
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
                                        "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
                                        "accelerometer degrees of freedom)"),
+        tremor_dps: float = typer.Option(None, "--tremor-dps", help="multi-position: the hand tremor a still pose "
+                                         "may hold [deg/s rms] (default 3; the accelerometers judge a pose, the gyros "
+                                         "may tremble up to this)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -606,7 +610,7 @@ def register(app: typer.Typer) -> None:
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
-                                noise, thermal_model, mc, mc_seed, mc_workers)
+                                noise, thermal_model, mc, mc_seed, mc_workers, tremor_dps)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:

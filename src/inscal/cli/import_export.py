@@ -248,6 +248,10 @@ def register(app: typer.Typer) -> None:
                          f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
                          + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
                             f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else ""))
+        if sat := res.get("saturated"):
+            extra.append(f"{len(sat)} run(s) of a sensor at its range marked saturated (first: {sat[0]['channel']} "
+                         f"at {sat[0]['level']:g} for {sat[0]['samples']} samples from t = {sat[0]['t0']:.3f} s; the "
+                         "calibrations leave them out)")
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")

@@ -28,6 +28,7 @@ from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
+from inscal.io.checks import saturated_samples
 from inscal.io.encoders import apply_latency, check_record_encoders
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
 from inscal.io.records import (
@@ -46,6 +47,7 @@ MAX_ENCODER_SIGMA = 3600.0  # white noise of an encoder angle [arcsec] (1 deg)
 MAX_ARW = 100.0  # [deg/sqrt(h)]
 MAX_VRW = 1e5  # [ug/sqrt(Hz)]
 MAX_WINDOW_S = 86400.0  # --settle-s, --min-static-s [s]
+MAX_TREMOR_DPS = 100.0  # --tremor-dps [deg/s rms]: beyond it a "pose" is a move
 #: the plausible estimates of a working inertial sensor, whatever the method: scale factors within +-50 %,
 #: misalignments (installation angles) within 5 deg; beyond them the data, not the sensor, is at fault
 MAX_SCALE_FACTOR = 0.5
@@ -92,6 +94,7 @@ class CalibrationSetup:
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
     quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
     noise: str | None = None  # systematic: an identified noise model (noise.toml): white noise and GM bias states
+    tremor: float | None = None  # multi-position: the hand tremor a still pose may hold [deg/s rms] (None: the default)
 
     @property
     def systematic(self) -> bool:
@@ -124,6 +127,8 @@ class CalibrationSetup:
                                                                          ("min_static", self.min_static))}
         if self.quadratic:
             out["quadratic"] = True
+        if self.tremor is not None:
+            out["tremor"] = units.to_si(float(self.tremor), "deg/s")
         return out
 
     def problem(self, plots: bool = False) -> str | None:
@@ -137,6 +142,10 @@ class CalibrationSetup:
             return f"--plots applies to the systematic methods, not {self.method}"
         if self.quadratic and self.inner != "multi-position":
             return f"--quadratic applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and self.inner != "multi-position":
+            return f"--tremor-dps applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and not (math.isfinite(self.tremor) and 0 <= self.tremor <= MAX_TREMOR_DPS):
+            return f"--tremor-dps must be a tremor rate of 0 .. {MAX_TREMOR_DPS:g} deg/s rms, got {self.tremor}"
         for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
             if v is not None and not (math.isfinite(v) and v >= 0):
                 return f"{name} must be a duration >= 0 s, got {v}"
@@ -270,6 +279,8 @@ class CalibrationSetup:
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
         if win.get("quadratic"):
             opts["quadratic"] = True
+        if self.tremor is not None:
+            opts["tremor_dps"] = float(self.tremor)
         if self.noise is not None:  # the model itself, not the file's name, decides the result
             opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
@@ -410,6 +421,10 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                 opts["noise"] = setup.noise_model()
         else:
             opts = dict(setup.window_options)
+            marked = (saturated_samples(rec.time, record_attrs(data, ("source",))["source"])
+                      if setup.inner == "multi-position" else None)
+            if marked is not None:
+                opts["clipped"] = marked  # a sensor at its range, marked at import: its moves are not used
             if setup.noise is not None:
                 opts["noise"] = setup.noise_model()
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
