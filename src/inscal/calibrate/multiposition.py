@@ -34,8 +34,9 @@ horizontal part ``(p, q)`` is below a third of ``W cos L``: then the bias is sep
 
 Uncertainty: the covariance of each fit from its Jacobian (central differences) and the noise of the
 window means (:mod:`.static_detect`), scaled by chi^2/dof when the fit rejects the model (p < 0.001);
-the accelerometer model's covariance is propagated into the gyro parameters through the gravity
-directions it gives the poses (``dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr_g/dxa``).
+the accelerometer model's covariance moves the gravity directions it gives the poses, all together: the gyro
+residuals' covariance is ``I + D P_a D^T`` (``D = dr_g/dxa``) and the gyro fit is generalised least squares
+with it (whitened by its Cholesky factor), so the gyro chi^2 and covariance hold it once.
 Observability: the singular values of the normalised Jacobian; a direction below ``sv_tol`` makes
 the named parameters undetermined (an error, not a small sigma) and names the extra pose that helps
 most among the 26 faces, edges and corners of a cube.
@@ -46,7 +47,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import linalg, optimize, stats
 
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.static_detect import TREMOR, StillIntervals, detect_still
@@ -265,7 +266,7 @@ class _Accel:
         return (n - self.g) / s
 
 
-def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, quadratic: bool = False,
+def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, quadratic: bool = False,
                    alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
                    gravity_tol: float = 0.05, sv_tol: float = 1e-7, still: StillIntervals | None = None,
                    tremor: float = TREMOR, clipped: np.ndarray | None = None) -> CalibrationResult:
@@ -313,14 +314,15 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     if weak_g:
         raise CalibrationError(f"the {sum(gyr.used)} moves between the poses leave {', '.join(weak_g[:6])} undetermined "
                                "(the rotations do not turn about all three axes): move about the axes named too")
-    # the accelerometer model's uncertainty moves the measured gravity directions: propagated into the gyro
-    # parameters through the gyro fit, dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr/dxa (central differences in xa)
+    # the accelerometer model's uncertainty moves the measured gravity directions of all poses together: the gyro
+    # residuals' covariance is I + D P_a D^T (D = dr/dxa by central differences in xa), and the gyro fit is redone
+    # whitened by it (generalised least squares): its chi^2 and covariance then hold that uncertainty once
     steps = 1e-7 * acc.typical
     dr = np.column_stack([(gyr.residuals(xg, _unit(acc, xa, j, h)) - gyr.residuals(xg, _unit(acc, xa, j, -h))) / (2 * h)
                           for j, h in enumerate(steps)])
-    G = -np.linalg.lstsq(Jg, dr, rcond=None)[0]
-    covg = covg + G @ cova @ G.T
-    covg_formal = covg_formal + G @ cova_formal @ G.T
+    Lc = np.linalg.cholesky(np.eye(dr.shape[0]) + dr @ cova @ dr.T)
+    xg, covg, covg_formal, Jg, fitg = _solve(lambda x: linalg.solve_triangular(Lc, gyr.residuals(x), lower=True), xg,
+                                             1e-7 * gyr.typical, gyr.labels)
     # ---------------------------------------------------------------------- result
     Mav, ba, k2, Ea = acc.unpack(xa)
     values = {"accel_scale_factor": xa[:3], "accel_misalignment": Ea, "accel_bias": ba,
@@ -430,7 +432,7 @@ class _Gyro:
               parameter_components("gyro_misalignment")] + [f"gyro_bias.{c}" for c in AXES]
               + ["earth_rate.p", "earth_rate.q"])
 
-    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes):
+    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes, ends=None):
         Ainv = rate_poly_matrix(five[:, :, 3])
         self.coef_raw = Ainv @ five[:, :, :3]
         self.coef_h = np.einsum("nij,nj->ni", Ainv, five[:, :, 3])
@@ -438,6 +440,8 @@ class _Gyro:
         self.gmean, self.gsig, self.u, self.tsig = gmean, gsig, u, tsig
         self.wv, self.h1, self.h2, self.omega_h, self.notes = wv, h1, h2, omega_h, notes
         self.nseg = len(pairs)
+        # per move: C_{b(end of pose i)}^{b(mean of pose i)} and C_{b(start of pose j)}^{b(mean of pose j)} (the tremor)
+        self.ends = ends if ends is not None else [(np.eye(3), np.eye(3))] * self.nseg
         scale = max(omega_h, 1e-9)
         self.typical = np.array([1.0] * 9 + [scale] * 5)
 
@@ -452,6 +456,7 @@ class _Gyro:
         Mi = np.linalg.inv(M)
         coef = (self.coef_raw - self.coef_h[:, :, None] * b[None, None, :]) @ Mi.T  # compensated, linear
         R = rotations(coef, self.seg, self.nseg)
+        R = np.array([a @ r @ b.T for r, (a, b) in zip(R, self.ends)])  # between the poses' mean attitudes
         w = self.wv * uu[0] + p * self.h1 + q * self.h2  # w_ie in body at pose 0
         out_still, out_turn = [], []
         ws = [w]
@@ -499,7 +504,7 @@ class _Gyro:
 def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro:
     """The moves between consecutive kept poses (a move with a gap or a clipped gyro is dropped, named)."""
     dt = si.dt
-    rows, segs, span, pairs, tsig = [], [], [], [], []
+    rows, segs, span, pairs, tsig, ends = [], [], [], [], [], []
     inc = np.column_stack([dth, dt])
     ng2 = float(np.max(si.gyro_density)) ** 2
     used = []
@@ -516,6 +521,7 @@ def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro
         T = float(time[b - 1] - time[a - 1])
         span.append(T)
         pairs.append((k, k + 1))
+        ends.append((_rot(c0.wobble), _rot(c1.wobble)))
         su = np.hypot(np.max(c0.accel_sigma), np.max(c1.accel_sigma)) / np.linalg.norm(c1.accel)
         tsig.append(math.sqrt(su**2 + ng2 * T))
     if sum(used) < 5:
@@ -526,4 +532,4 @@ def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro
     h2 = np.cross(u[0], h1)
     return _Gyro(np.concatenate(rows), np.concatenate(segs), np.array(span), pairs, used,
                  np.array([c.gyro for c in poses]), np.array([c.gyro_sigma for c in poses]), u, np.array(tsig),
-                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [])
+                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [], ends)

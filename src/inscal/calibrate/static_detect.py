@@ -38,7 +38,7 @@ above the 0.05 deg/s threshold``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -76,6 +76,8 @@ class Candidate:
     accel: np.ndarray  # time-weighted mean specific force [m/s^2]
     gyro_sigma: np.ndarray  # 1 sigma of ``gyro`` from the noise at the pose's scale (tremor included) [rad/s]
     accel_sigma: np.ndarray  # 1 sigma of ``accel`` [m/s^2]
+    wobble: np.ndarray = field(default_factory=lambda: np.zeros(3))  # the attitude at both ends relative to the
+    # pose's mean attitude (small rotation vector from the gyros through the pose's tremor) [rad]
     score: float = 0.0  # a rejection's figure over its threshold (how far from usable; 0 when kept)
     fix: str = ""  # what would make a rejected candidate usable (an option), when an option would
 
@@ -160,19 +162,25 @@ def _density(x: np.ndarray, dt: np.ndarray, ok: np.ndarray) -> np.ndarray:
 
 
 def _flat_tops(x: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """Samples where a sensor sits at its record-wide extreme for at least 3 samples in a row (a clipped
-    output reads one value; a real signal does not repeat its extreme to round-off)."""
+    """Samples where a noisy sensor sits at its record-wide maximum or minimum for at least 3 samples in a row
+    (a clipped output reads one value; a real signal does not repeat its extreme to round-off), far (10 sample
+    scatters) from the axis's median: in a move.  An axis that repeats values on more than half of its samples
+    is not judged (noise-free data repeat values normally)."""
     out = np.zeros(x.shape[0], bool)
     for ax in range(x.shape[1]):
-        a = np.abs(x[:, ax])
-        top = a.max()
-        if top == 0.0:
+        a = x[:, ax]
+        d = np.diff(a)
+        if np.ptp(a) == 0.0 or np.mean(d == 0.0) > 0.5:
             continue
-        at = a >= top * (1.0 - 1e-12)
-        edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
-        for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
-            if i1 - i0 >= 3:
-                out[i0:i1] = True
+        mid, scat = float(np.median(a)), 1.4826 * float(np.median(np.abs(d))) / math.sqrt(2.0)
+        for top in (a.max(), a.min()):
+            if abs(top - mid) <= 10.0 * scat:
+                continue
+            at = np.abs(a - top) <= 1e-9 * abs(top)  # a jittered time base divides one count by steps that differ
+            edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
+            for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+                if i1 - i0 >= 3:
+                    out[i0:i1] = True
     return out
 
 
@@ -354,7 +362,14 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         T = float(d.sum())
         pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
         pa, _ = _pose_density(f, dt, i0, i1, batch_s)
-        means.append((T, w[i0:i1].T @ d / T, f[i0:i1].T @ d / T, np.maximum(pg, mg_), np.maximum(pa, ma_), nbg))
+        gm = w[i0:i1].T @ d / T
+        # the tremor: the attitude about the pose's mean attitude, the gyros integrated through the pose; a mean
+        # rate over T holds (tau(t1) - tau(t0)) / T of a tremor angle tau (variance 2 var(tau) / T^2)
+        cum = np.cumsum(dth[i0:i1] - np.outer(d, gm), axis=0)
+        wob = -(cum.T @ d) / T
+        var_tau = ((cum + wob) ** 2).T @ d / T
+        sg = np.sqrt(mg_**2 / T + 2.0 * var_tau / T**2) * math.sqrt(T)
+        means.append((T, gm, f[i0:i1].T @ d / T, sg, np.maximum(pa, ma_), nbg, wob))
     long_ = [k for k, (T, *_r) in enumerate(means) if T >= min_still and raw[k][2]]
     zg = math.sqrt(stats.chi2.ppf(1.0 - alpha, 3))
     if long_:
@@ -366,7 +381,7 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         gbase, between, gnorm = np.zeros(3), 0.0, 0.0
     g_word = gravity if gravity is not None else gnorm
     cands = []
-    for num, ((i0, i1, ok), (T, gmean, fmean, pg, pa, nb)) in enumerate(zip(raw, means), start=1):
+    for num, ((i0, i1, ok), (T, gmean, fmean, pg, pa, nb, wob)) in enumerate(zip(raw, means), start=1):
         d = dt[i0:i1]
         reason, score, fix = None, 0.0, ""
         rms = math.sqrt(float(np.sum(dt[i0:i1, None] * (w[i0:i1] - gmean) ** 2)) / T)
@@ -424,7 +439,7 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         if kept:
             reason = f"still for {T:.3g} s ({tilt_txt}; {turn_txt}; gyro scatter {_tremor_word(rms)} rms)"
         cands.append(Candidate(num, i0, i1, float(t_start[i0]), float(time[i1 - 1]), kept, reason, gmean, fmean,
-                               pg / math.sqrt(T), pa / math.sqrt(T), score, fix))
+                               pg / math.sqrt(T), pa / math.sqrt(T), wob, score, fix))
     return StillIntervals(tuple(cands), mg_, ma_, dt, gap, clip_g, tuple(notes), tremor, min_still, settle)
 
 

@@ -528,7 +528,7 @@ def register(app: typer.Typer) -> None:
         settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
                                      "(default 1; multi-position, ferraris: 0.25)"),
         min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
-                                         "multi-position, ferraris: 2)"),
+                                         "multi-position: 1; ferraris: 2)"),
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
                                        "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
                                        "accelerometer degrees of freedom)"),

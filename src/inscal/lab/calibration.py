@@ -64,8 +64,8 @@ class CalibrationSetup:
     deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec; times in s): ``states``, ``arw``,
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
     ``min_static`` to the window-mean and the no-turntable ones (None: the method's own default, that of
-    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 2 s for the still poses
-    of ``multi-position`` and ``ferraris``; :attr:`window_options`), ``quadratic`` (the quadratic
+    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 1 s (``multi-position``: hand-held
+    poses of 2 s keep about 1.5 s once settled) or 2 s (``ferraris``) for the still poses; :attr:`window_options`), ``quadratic`` (the quadratic
     accelerometer terms) to ``multi-position``; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs

@@ -68,7 +68,7 @@ class ConsumerSetup:
     accel_range_g: float = 2.0
     gyro_bias_dps: float = 3.0  # 1 sigma per axis, turn-on
     accel_bias_mg: float = 40.0
-    scale_factor: float = 0.02  # 1 sigma, both triads
+    scale_factor: float = 0.01  # 1 sigma, both triads (consumer parts: +-3 % at most)
     misalignment_deg: float = 0.5  # 1 sigma, both triads
     arw_dps_rthz: float = 0.005  # gyro white noise [deg/s/sqrt(Hz)]
     vrw_ug_rthz: float = 300.0  # accelerometer white noise [ug/sqrt(Hz)]
