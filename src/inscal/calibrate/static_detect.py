@@ -193,21 +193,6 @@ def _block_scatter(x, dt, starts):
     return np.add.reduceat(dt[:, None] * dev * dev, starts, axis=0)
 
 
-def _batch_density(x, dt, starts, m, sel, length: int = BATCH):
-    """Noise density per axis from the scatter of batch means (``length`` samples) about their block's mean,
-    pooled over the blocks ``sel`` (batch means, Law & Carson 1979); None without two batches anywhere."""
-    num, dof = np.zeros(x.shape[1]), 0
-    for b in np.flatnonzero(sel & (m >= 2 * length)):
-        i0, nb = starts[b], m[b] // length
-        xs, ds = x[i0:i0 + nb * length].reshape(nb, length, -1), dt[i0:i0 + nb * length].reshape(nb, length)
-        T = ds.sum(axis=1)
-        means = np.einsum("bk,bki->bi", ds, xs) / T[:, None]
-        mean = (T @ means) / T.sum()
-        num += T @ ((means - mean) ** 2)
-        dof += nb - 1
-    return None if dof < 5 else np.sqrt(num / dof)
-
-
 def _pooled(scatter, m, sel, floor):
     """The noise density per axis pooled over the blocks ``sel`` (scatter / dof); ``floor`` below."""
     dof = np.maximum(m[sel] - 1, 0).sum()
@@ -299,6 +284,7 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
             else _density(x, dt, ~gap) for s_, x in ((scat_g, w), (scat_a, f))]
     floor_g, floor_a = (NOISE_FLOOR * max(float(np.sqrt(np.mean(x * x))), 1e-300) * math.sqrt(med) for x in (w, f))
     ng, na = np.maximum(dens[0], floor_g), np.maximum(dens[1], floor_a)
+    na_diff = _density(f, dt, ~gap)  # the noise a clipped accelerometer would lack (successive differences)
     base = np.median((np.add.reduceat(w * dt[:, None], starts, axis=0) / Tb[:, None])[usable], axis=0) if usable.any() \
         else np.zeros(3)
     dev_g = np.add.reduceat(dt[:, None] * (w - base) ** 2, starts, axis=0).sum(axis=1)  # about the baseline rate
@@ -351,11 +337,17 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         notes.append(f"noise from the still start ({t_start[start[0]]:.1f}-{time[start[1] - 1]:.1f} s, {nbg} batches of "
                      f"{batch_s:g} s): gyro {units.from_si(float(np.max(mg_)), 'deg/h') / 60.0:.3g} deg/sqrt(h), "
                      f"accelerometer {float(np.max(ma_)) / 9.80665e-6:.3g} ug/sqrt(Hz)")
-    else:
-        q = qa & qg
-        mg_, ma_ = _batch_density(w, dt, starts, m, q), _batch_density(f, dt, starts, m, q)
-        mg_ = ng if mg_ is None else np.maximum(mg_, floor_g)
-        ma_ = na if ma_ is None else np.maximum(ma_, floor_a)
+    else:  # pooled over the candidates long enough (settled: no move's tail in them)
+        mg_, ma_ = ng, na
+        dens_g, dens_a, dof = np.zeros(3), np.zeros(3), 0
+        for i0, i1, ok in raw:
+            if ok and time[i1 - 1] - t_start[i0] >= min_still:
+                pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
+                pa, _ = _pose_density(f, dt, i0, i1, batch_s)
+                if nbg:
+                    dens_g, dens_a, dof = dens_g + (nbg - 2) * pg**2, dens_a + (nbg - 2) * pa**2, dof + nbg - 2
+        if dof >= 5:
+            mg_, ma_ = np.maximum(np.sqrt(dens_g / dof), floor_g), np.maximum(np.sqrt(dens_a / dof), floor_a)
     means = []
     for i0, i1, _ in raw:
         d = dt[i0:i1]
@@ -407,11 +399,11 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
             reason = f"gyro saturated ({int(clip_g[i0:i1].sum())} samples at the clip level)"
             score = 100.0
         else:  # a clipped sensor reads one value while its noise says it should scatter
-            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na > 1e3 * floor_a)
+            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na_diff > 1e3 * floor_a)
             if flat.any():
                 ax = int(np.argmax(flat))
                 reason = (f"accelerometer {'xyz'[ax]} saturated (flat at {fmean[ax]:.5g} m/s^2 while its noise is "
-                          f"{na[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
+                          f"{na_diff[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
                 score = 100.0
         tilt_txt = turn_txt = ""
         if reason is None:  # tilt: slope of the specific force (weighted least squares per axis) against the
