@@ -57,6 +57,8 @@ TREMOR = math.radians(3.0)
 #: the lowest tremor frequency [Hz] (physiological tremor 4-12 Hz, Elble & Koller 1990): a tremor of rate
 #: rms r wobbles the specific force by at most g r / (2 pi TREMOR_HZ)
 TREMOR_HZ = 4.0
+#: the end batches of a stretch that differ from the rest by more than this many of their scatters are trimmed
+TRIM_Z = 4.0
 #: the shortest still start [s] whose batch means give the noise at a pose's scale
 START_S = 10.0
 
@@ -194,11 +196,12 @@ def _block_scatter(x, dt, starts):
 
 
 def _pooled(scatter, m, sel, floor):
-    """The noise density per axis pooled over the blocks ``sel`` (scatter / dof); ``floor`` below."""
-    dof = np.maximum(m[sel] - 1, 0).sum()
-    if dof <= 0:
+    """The noise density per axis over the blocks ``sel``: the median of their scatter / dof (robust to the
+    slow end of a move that a tremor allowance lets into a quiet block); ``floor`` below."""
+    sel = sel & (m > 1)
+    if not sel.any():
         return None
-    return np.maximum(np.sqrt(scatter[sel].sum(axis=0) / dof), floor)
+    return np.maximum(np.sqrt(np.median(scatter[sel] / (m[sel] - 1)[:, None], axis=0)), floor)
 
 
 def _pose_density(x, dt, i0, i1, batch_s):
@@ -218,6 +221,29 @@ def _pose_density(x, dt, i0, i1, batch_s):
     A = np.column_stack([np.ones(nb), tc])
     res = means - A @ np.linalg.lstsq(A, means, rcond=None)[0]
     return np.sqrt(np.sum(T[:, None] * res**2, axis=0) / (nb - 2)), nb
+
+
+def _trim(w, f, dt, i0, i1, batch_s, ng, na, z: float = TRIM_Z) -> tuple[int, int]:
+    """``[i0, i1)`` without its end batches (``batch_s`` long) whose mean rate or specific force differs from the
+    rest's by more than ``z`` of the rest's batch scatter (floored by the densities ``ng``, ``na``): the slow
+    start or end of a move that the blocks let through.  At least 4 batches are kept."""
+    L = max(BATCH, int(round(batch_s / float(np.median(dt[i0:i1])))))
+    floor = np.concatenate([ng, na]) / math.sqrt(L * float(np.median(dt[i0:i1])))
+    x = np.column_stack([w, f])
+    while (i1 - i0) // L > 4:
+        nb = (i1 - i0) // L
+        core = x[i0 + L:i0 + (nb - 1) * L].reshape(nb - 2, L, 6).mean(axis=1)
+        c, sd = core.mean(axis=0), np.maximum(core.std(axis=0, ddof=1), floor)
+        lim = z * sd * math.sqrt(1.0 + 1.0 / (nb - 2))
+        head, tail = x[i0:i0 + L].mean(axis=0), x[i1 - L:i1].mean(axis=0)
+        dh, dtl = float(np.max(np.abs(head - c) / lim)), float(np.max(np.abs(tail - c) / lim))
+        if max(dh, dtl) <= 1.0:
+            break
+        if dh >= dtl:
+            i0 += L
+        else:
+            i1 -= L
+    return i0, i1
 
 
 def _tremor_word(tremor: float) -> str:
@@ -327,6 +353,9 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         i0, i1 = max(i0, int(a)), min(i1, int(b))
         if i1 - i0 >= 2 and (ok or time[b - 1] - t_start[a] >= min_still):
             raw.append((i0, i1, ok))
+    # the ends of a stretch where a move starts or stops slowly (within the tremor allowed) are trimmed
+    raw = [(*_trim(w, f, dt, i0, i1, batch_s, ng, na), ok) if ok else (i0, i1, ok) for i0, i1, ok in raw]
+    raw = [r for r in raw if r[1] - r[0] >= 2]
     # the still start: the first stretch, from the record's start, long enough for the noise at a pose's scale
     start = next(((i0, i1) for i0, i1, ok in raw[:1] if ok and t_start[i0] - t_start[0] <= 2 * bs + settle
                   and time[i1 - 1] - t_start[i0] >= START_S), None)

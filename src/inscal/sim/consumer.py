@@ -97,6 +97,8 @@ class ConsumerSession:
     tremor_dps: tuple[float, ...]  # the tremor rate rms of each of ``still`` (0 for the still start)
     saturated: int  # samples with a gyro or accelerometer count at its limit
     setup: ConsumerSetup = field(default_factory=ConsumerSetup)
+    attitudes: tuple[np.ndarray, ...] = ()  # C_b^n of every still stretch (the tremor's mean attitude)
+    temperature: np.ndarray | None = None  # T - T_mean at every sample [degC]
 
     @property
     def rates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -243,4 +245,4 @@ def consumer_session(rng: np.random.Generator, site: Site, setup: ConsumerSetup 
     counts = np.clip(raw, -FULL, FULL - 1).astype(np.int64)
     time = ti[step - 1::step] + 1.0 / s.internal_hz
     return ConsumerSession(time, counts, gscale, ascale, truth, tuple((float(a0), float(a1)) for a0, a1 in still),
-                           (0.0,) + tuple(float(x) for x in tremor), sat, s)
+                           (0.0,) + tuple(float(x) for x in tremor), sat, s, tuple(att), temp[step - 1::step])
