@@ -91,6 +91,8 @@ def summary(folder: Path, tag: str) -> dict:
     z = {g: [] for g in GROUPS}
     ok, fails, poses = 0, {}, []
     for name, r in sorted(res.items()):
+        if "error" in r and "found " in r["error"] and " still poses" in r["error"]:
+            poses.append(int(r["error"].split("found ")[1].split(" ")[0]))
         if "error" in r:
             key = r["stage"] + ": " + r["error"].split(":")[0][:60]
             fails[key] = fails.get(key, 0) + 1
@@ -102,8 +104,10 @@ def summary(folder: Path, tag: str) -> dict:
             v, s, t = (np.asarray(x, float) for x in (r["values"][g], r["sigma"][g], truth[g]))
             m = np.isfinite(s) & (s > 0)
             z[g] += list(((v - t)[m] / s[m]))
+    true = [len(json.loads((folder / f"{name}.json").read_text())["still"]) for name in sorted(res)]
     out = {"sessions": len(res), "calibrated": ok, "failures": fails,
-           "poses_median": float(np.median(poses)) if poses else None,
+           "poses_found_median": float(np.median(poses)) if poses else None,
+           "poses_true_median": float(np.median(true)),
            "rms_error_over_sigma": {g: (float(np.sqrt(np.mean(np.square(z[g])))) if z[g] else None) for g in GROUPS}}
     print(json.dumps(out, indent=1))
     return out

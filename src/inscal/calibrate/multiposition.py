@@ -268,13 +268,14 @@ class _Accel:
 
 def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, quadratic: bool = False,
                    alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
-                   gravity_tol: float = 0.05, sv_tol: float = 1e-7, still: StillIntervals | None = None,
+                   gravity_tol: float = 0.15, sv_tol: float = 1e-7, still: StillIntervals | None = None,
                    tremor: float = TREMOR, clipped: np.ndarray | None = None) -> CalibrationResult:
     """Calibrate the accelerometers and gyros from still poses at unknown orientations and the moves
     between them (module docstring).  ``settle``, ``min_static`` [s] and ``alpha`` go to
     :func:`.static_detect.detect_still` (``still``: its result, computed once by the caller);
     ``gravity_tol``: the largest relative difference between the poses' median specific force and the
-    site's gravity accepted (a larger one is a wrong unit or a wrong site); ``gyro_range`` [rad/s],
+    site's gravity accepted (a larger one is a wrong unit; 0.15: a consumer accelerometer's biases of
+    tens of mg move the median by several per cent); ``gyro_range`` [rad/s],
     ``accel_range`` [m/s^2]: the clip levels, when known; ``tremor`` [rad/s rms]: the hand tremor a pose may
     hold; ``clipped``: bool per sample, a sensor marked saturated at import (its moves are not used)."""
     time = np.asarray(record_like.time, float)

@@ -5,34 +5,51 @@ The record is ``time`` (end of each sample interval, s; any time base: jittered,
 ``dtheta`` and ``dvel`` (the increments of each interval).  The rates of sample k are
 ``x_k = increment_k / dt_k`` with ``dt_k = t_k - t_{k-1}`` (the first sample: the median step).
 
-Noise (from the record itself).  For white noise of density ``N`` the rate ``x_k`` has the variance
-``N^2 / dt_k``, so on any still stretch ``(x_k - x_{k-1}) / sqrt(1/dt_k + 1/dt_{k-1})`` has the
-standard deviation ``N``, whatever the jitter; ``N`` per axis is the robust (MAD) scale of that
-quantity over the record (moves are a minority of the samples and smooth at the sample rate, so the
-median ignores them), then pooled over the quiet blocks.  The sigma of a window mean uses the density
-of batch means of 8 samples over the quiet blocks (the same for white noise; right also for increments
-that a trapezoidal rule made from samples, whose neighbours correlate).  A noise-free record gets the
-round-off floor ``1e-12`` of the signal.
+A still pose is what the models need (Tedaldi et al., ICRA 2014; imu_tk judges a pose by the accelerometers
+alone): for the accelerometer model a stretch whose specific force is constant within its noise, whatever the
+gyros' zero-mean hand tremor; the gyro model integrates the rotation between the poses through the tremor.
+
+Noise (from the record itself), at two scales.  At the sample rate, the per-sample scatter of the blocks
+below (``sum_k dt_k (x_k - xbar)^2 / (m - 1)`` is the density ``N^2`` for white noise, whatever the jitter):
+the median block first (most of a session is poses), then the median over the quiet blocks.  At the scale of a
+pose -- where an on-chip low-pass filter's correlation, the tremor and a slow drift live, unseen by neighbouring
+samples -- the scatter of batch means of ``batch_s`` (0.25 s, at least 8 samples) about their straight line:
+from the still start when the record has one (the first stretch, from the record's start, of at least
+``START_S`` = 10 s: a note gives its figures), else pooled over the settled candidates.  A noise-free record gets
+the round-off floor ``1e-12`` of the signal.
 
 Detection, every threshold a quantile at the false-alarm probability ``alpha``:
 
-1. blocks of ``block_s`` seconds (by time, not by sample count); a block is *quiet* when the
-   weighted scatter ``sum_k dt_k (x_k - xbar)^2 / N^2`` of the gyros and of the accelerometers each
-   stay under the chi-square quantile (at ``alpha`` over the number of blocks) of their ``3 (m - 1)``
-   degrees of freedom, and no step in it is
-   a gap (``dt_k`` above ``1.5`` median steps plus the chi-square bound of the step jitter);
-2. runs of quiet blocks are the *candidates*; ``settle`` seconds are dropped at both ends;
-3. a candidate is kept unless it is too short (``min_still``), it tilts (the slope of the specific
-   force over the window, a chi-square test on 3 dof, reported as a tilt rate), it turns (its mean
-   gyro rate differs from the median of the candidates by more than the chi-square bound of its own
-   noise plus the scatter between poses, which holds the Earth rate and g-sensitivity), or it is
-   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given, a gyro that holds
-   its record-wide extreme for 3 samples or more (a clipped output), or an accelerometer
-   that reads one value to round-off while the record's noise says it should scatter).
+1. blocks of ``block_s`` seconds (by time; default ``min_still / 4``) without a time gap (a step above 1.5
+   median steps plus the chi-square bound of the step jitter).  A block is *still to the accelerometers*
+   when their scatter stays under the chi-square quantile (``alpha`` over the blocks) of ``3 (m - 1)`` dof
+   times ``N_a^2`` plus the wobble ``(g tremor / (2 pi 4 Hz))^2 T_b`` that a tremor of the stated rate
+   ``tremor`` (rms, default 3 deg/s; physiological tremor is 4-12 Hz) gives the specific force; its *gyros
+   are within the tremor* when ``sum_k dt_k |w_k - w_0|^2`` about the record's still rate ``w_0`` stays under
+   the quantile of ``3 m`` dof times ``N_g^2`` plus ``tremor^2 T_b``;
+2. runs of blocks still to the accelerometers are split into the runs whose gyros are within the tremor
+   (*candidates*) and the others (rejected, with their gyro scatter against the stated tremor, or named as a
+   turn about gravity when their mean rate carries it); ``settle`` seconds are dropped at both ends, and the end
+   batches whose mean rate or specific force differs from the rest's by more than 4 of their scatters (the slow
+   start or end of a move) are trimmed;
+3. a candidate is kept unless it is too short (``min_still``), saturated (samples at the clip level
+   ``accel_range`` / ``gyro_range`` when given, samples ``clipped`` at import, a gyro that holds its
+   record-wide maximum or minimum for 3 samples or more in a move, or an accelerometer that reads one value to
+   round-off while the record's noise says it should scatter), it tilts (the slope of the specific force over
+   the window against the pose-scale noise: an F test on 3 and ``nb - 2`` dof, reported as a tilt rate), or
+   it turns (its mean gyro rate differs from the median of the candidates by more than the chi-square bound of
+   its own noise plus the scatter between poses, which holds the Earth rate, g-sensitivity and drift).
+
+Every candidate's reason carries its figures and thresholds (a kept one: its tilt rate, its rate against the
+other poses, its gyro scatter).  The sigma of a pose's mean: the pose-scale density (its own batch means, the
+still start's as a floor) over ``sqrt(T)``; for the gyros also the tremor's share ``2 var(tau) / T^2`` (a mean
+rate over T holds ``(tau(t1) - tau(t0)) / T`` of a tremor angle tau, whose variance is that of the gyros
+integrated through the pose less the white noise's ``N_g^2 T / 12``), and the tremor's attitude at the pose's
+ends relative to its mean attitude (``wobble``) joins the rotations between the poses' mean attitudes.
 
 :meth:`StillIntervals.require` raises one line naming the first rejection when fewer poses than a
-model needs remain (e.g. ``found 7 still poses, the model needs 9: pose 3 turned, gyro 0.8 deg/s
-above the 0.05 deg/s threshold``).
+model needs remain: the (up to) three rejected candidates closest to usable, with their figures, and the
+options that would make them usable (``--min-static-s``, ``--settle-s``, ``--tremor-dps``).
 """
 
 from __future__ import annotations
@@ -388,7 +405,7 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         # rate over T holds (tau(t1) - tau(t0)) / T of a tremor angle tau (variance 2 var(tau) / T^2)
         cum = np.cumsum(dth[i0:i1] - np.outer(d, gm), axis=0)
         wob = -(cum.T @ d) / T
-        var_tau = ((cum + wob) ** 2).T @ d / T
+        var_tau = np.maximum(((cum + wob) ** 2).T @ d / T - mg_**2 * T / 12.0, 0.0)  # less the noise's bridge
         sg = np.sqrt(mg_**2 / T + 2.0 * var_tau / T**2) * math.sqrt(T)
         means.append((T, gm, f[i0:i1].T @ d / T, sg, np.maximum(pa, ma_), nbg, wob))
     long_ = [k for k, (T, *_r) in enumerate(means) if T >= min_still and raw[k][2]]

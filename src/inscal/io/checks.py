@@ -337,19 +337,23 @@ def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, 
                 others = np.delete(x6[a:b], k, axis=1)
                 if not np.any(np.ptp(others, axis=0) > rel * np.delete(span, k)):
                     continue
-                long_ = rate_hz is not None and (b - a) / rate_hz > MAX_PINNED_S
-                if long_:
-                    raise ImportFileError(
-                        f"{where}: {raw.labels[k]} looks stuck: pinned at its {word} {lim:g} for {b - a} samples "
-                        f"({(b - a) / rate_hz:.3g} s, more than the {MAX_PINNED_S:g} s of a fast turn) from {raw.at(a)} "
-                        "while the other channels change (--skip-check saturation to import anyway)")
                 pinned += b - a
                 marks.append({"channel": raw.labels[k].split(" ")[0], "level": float(lim), "word": word,
                               "first": int(a), "samples": int(b - a)})
-        if pinned > MAX_PINNED_SHARE * x.size:
+        mine = [m_ for m_ in marks if m_["channel"] == raw.labels[k].split(" ")[0]]
+        if not mine:
+            continue
+        top = max(mine, key=lambda m_: m_["samples"])
+        why = None
+        if rate_hz is not None and top["samples"] / rate_hz > MAX_PINNED_S:
+            why = f"{top['samples'] / rate_hz:.3g} s, longer than the {MAX_PINNED_S:g} s of a fast turn"
+        elif pinned > MAX_PINNED_SHARE * x.size:
+            why = f"{pinned} of its {x.size} samples pinned in all, more than {MAX_PINNED_SHARE:.0%}"
+        if why is not None:
             raise ImportFileError(
-                f"{where}: {raw.labels[k]} looks stuck: pinned at its extremes on {pinned} of {x.size} samples (more "
-                f"than {MAX_PINNED_SHARE:.0%}) while the other channels change (--skip-check saturation to import anyway)")
+                f"{where}: {raw.labels[k]} looks saturated: pinned at its {top['word']} {top['level']:g} for "
+                f"{top['samples']} samples from {raw.at(top['first'])} while the other channels change ({why}: a stuck "
+                "channel or a sensor beyond its range; --skip-check saturation to import anyway)")
     return marks
 
 
