@@ -5,6 +5,7 @@ parameter group, poses found; a tremor sweep.
     PYTHONPATH=src python bench/handheld_consumer.py make DIR --n 50 --seed 0 [--tremor 0.3]
     PYTHONPATH=<tree>/src python bench/handheld_consumer.py run DIR --tag new [--skip magnitudes]
     python bench/handheld_consumer.py summary DIR --tag new
+    python bench/handheld_consumer.py table DIR1 DIR2 ... --tag new
 
 ``make`` writes each session as a logger's CSV of int16 counts with its import mapping and the truth in
 the accelerometer frame of the method (SI, JSON); ``run`` imports and calibrates every session in this
@@ -23,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+FIELD = {"gyro_scale_factor": "ppm", "gyro_misalignment": "arcsec", "gyro_bias": "deg/h", "accel_scale_factor": "ppm",
+         "accel_misalignment": "arcsec", "accel_bias": "ug"}
 GROUPS = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",
           "accel_bias")
 
@@ -86,9 +89,12 @@ def run(folder: Path, tag: str, skip: list[str]) -> None:
     (folder / f"results-{tag}.json").write_text(json.dumps(out))
 
 
-def summary(folder: Path, tag: str) -> dict:
+def summary(folder: Path, tag: str, quiet: bool = False) -> dict:
     res = json.loads((folder / f"results-{tag}.json").read_text())
+    from inscal.core import units
+
     z = {g: [] for g in GROUPS}
+    err = {g: [] for g in GROUPS}
     ok, fails, poses = 0, {}, []
     for name, r in sorted(res.items()):
         if "error" in r and "found " in r["error"] and " still poses" in r["error"]:
@@ -104,19 +110,35 @@ def summary(folder: Path, tag: str) -> dict:
             v, s, t = (np.asarray(x, float) for x in (r["values"][g], r["sigma"][g], truth[g]))
             m = np.isfinite(s) & (s > 0)
             z[g] += list(((v - t)[m] / s[m]))
+            err[g] += list(np.asarray(units.from_si((v - t)[m], FIELD[g]), float))
     true = [len(json.loads((folder / f"{name}.json").read_text())["still"]) for name in sorted(res)]
     out = {"sessions": len(res), "calibrated": ok, "failures": fails,
            "poses_found_median": float(np.median(poses)) if poses else None,
            "poses_true_median": float(np.median(true)),
-           "rms_error_over_sigma": {g: (float(np.sqrt(np.mean(np.square(z[g])))) if z[g] else None) for g in GROUPS}}
-    print(json.dumps(out, indent=1))
+           "rms_error_over_sigma": {g: (float(np.sqrt(np.mean(np.square(z[g])))) if z[g] else None) for g in GROUPS},
+           "rms_error": {f"{g} [{FIELD[g]}]": (float(np.sqrt(np.mean(np.square(err[g])))) if err[g] else None)
+                         for g in GROUPS}}
+    if not quiet:
+        print(json.dumps(out, indent=1))
     return out
+
+
+def table(folders: list[Path], tag: str) -> None:
+    """One markdown row per folder: calibrated, poses found / true, RMS(error / sigma) and RMS error per group."""
+    print("| set | calibrated | poses found / true (median) | RMS err/sigma: " + ", ".join(GROUPS) + " | RMS error |")
+    print("|---" * 5 + "|")
+    for f in folders:
+        o = summary(f, tag, quiet=True)
+        zs = ", ".join("-" if v is None else f"{v:.2f}" for v in o["rms_error_over_sigma"].values())
+        es = ", ".join("-" if v is None else f"{v:.3g}" for v in o["rms_error"].values())
+        print(f"| {f.name} | {o['calibrated']}/{o['sessions']} | {o['poses_found_median']} / {o['poses_true_median']} | "
+              f"{zs} | {es} |")
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("make", "run", "summary"))
-    ap.add_argument("folder", type=Path)
+    ap.add_argument("what", choices=("make", "run", "summary", "table"))
+    ap.add_argument("folder", type=Path, nargs="+")
     ap.add_argument("--n", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tremor", type=float, default=None, help="one tremor level for every pose [deg/s rms]")
@@ -124,12 +146,16 @@ def main(argv=None) -> None:
     ap.add_argument("--tag", default="new")
     ap.add_argument("--skip", action="append", default=[])
     a = ap.parse_args(argv)
+    if a.what == "table":
+        table(a.folder, a.tag)
+        return
+    folder = a.folder[0]
     if a.what == "make":
-        make(a.folder, a.n, a.seed, a.tremor, **({} if a.lpf_hz is None else {"lpf_hz": a.lpf_hz}))
+        make(folder, a.n, a.seed, a.tremor, **({} if a.lpf_hz is None else {"lpf_hz": a.lpf_hz}))
     elif a.what == "run":
-        run(a.folder, a.tag, a.skip)
+        run(folder, a.tag, a.skip)
     else:
-        summary(a.folder, a.tag)
+        summary(folder, a.tag)
 
 
 if __name__ == "__main__":

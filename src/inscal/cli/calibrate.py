@@ -388,6 +388,8 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
             report["thermal_states"] = res.diagnostics["thermal"]
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
+    if "still" in res.diagnostics:  # no turntable: every candidate pose, kept or rejected, with its reason
+        report["still"] = res.diagnostics["still"]
     if systematic:
         d = res.diagnostics
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
@@ -634,6 +636,9 @@ def register(app: typer.Typer) -> None:
         if "fit" in rep:
             for line in fit_lines(rep["fit"]):
                 typer.echo(line)
+        for c in rep.get("still", []):
+            if not c["kept"]:
+                typer.echo(f"  pose {c['pose']} ({c['t0_s']:.1f}-{c['t1_s']:.1f} s): rejected, {c['reason']}")
         if "selection" in rep:
             sel = rep["selection"]
             typer.echo(f"  states: {sel['chosen']} (chosen from the data, {sel['fits']} fits; full model {sel['full']})")
