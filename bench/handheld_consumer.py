@@ -100,7 +100,9 @@ def summary(folder: Path, tag: str, quiet: bool = False) -> dict:
         if "error" in r and "found " in r["error"] and " still poses" in r["error"]:
             poses.append(int(r["error"].split("found ")[1].split(" ")[0]))
         if "error" in r:
-            key = r["stage"] + ": " + r["error"].split(":")[0][:60]
+            msg = r["error"].split(": ", 1)[-1] if r["error"].startswith("/") else r["error"]
+            msg = msg.split(": ", 1)[-1] if msg.startswith("/") else msg  # the file names out
+            key = r["stage"] + ": " + "".join("N" if ch.isdigit() else ch for ch in msg)[:48]
             fails[key] = fails.get(key, 0) + 1
             continue
         ok += 1
