@@ -24,6 +24,10 @@ The gravity direction predicted at pose k+1 is::
 
     u_{k+1} = R_k^T Rot(w_ie^{b_k}, dt_k) u_k,     w_ie^{b_{k+1}} = R_k^T w_ie^{b_k}
 
+with ``R_k`` taken between the poses' mean attitudes (the attitude the accelerometers' mean gives): a hand
+trembles, so the body at the end of pose k differs from its mean by the tremor's angle there, the mean over both
+ends from the gyros through the pose (:attr:`.static_detect.Candidate.wobble`) plus or minus ``T_k / 2`` times the
+tremor's mean rate (the pose's mean rate less the model's still rate ``M_g w_ie + b_g``)
 (the Earth frame turns by ``w_ie dt_k`` during the move; ``w_ie^{b_0} = W sin L u_0 + p h1 + q h2`` with
 ``h1, h2`` horizontal at pose 0 and ``p, q`` estimated: the heading is unknown).  Still pose k also
 gives ``g_k = M_g w_ie^{b_k} + b_g`` (3 equations).  Parameters ``K_g, E_g, b_g, p, q`` (14) by
@@ -433,7 +437,8 @@ class _Gyro:
               parameter_components("gyro_misalignment")] + [f"gyro_bias.{c}" for c in AXES]
               + ["earth_rate.p", "earth_rate.q"])
 
-    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes, ends=None):
+    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes, wobble=None,
+                 length=None):
         Ainv = rate_poly_matrix(five[:, :, 3])
         self.coef_raw = Ainv @ five[:, :, :3]
         self.coef_h = np.einsum("nij,nj->ni", Ainv, five[:, :, 3])
@@ -441,8 +446,10 @@ class _Gyro:
         self.gmean, self.gsig, self.u, self.tsig = gmean, gsig, u, tsig
         self.wv, self.h1, self.h2, self.omega_h, self.notes = wv, h1, h2, omega_h, notes
         self.nseg = len(pairs)
-        # per move: C_{b(end of pose i)}^{b(mean of pose i)} and C_{b(start of pose j)}^{b(mean of pose j)} (the tremor)
-        self.ends = ends if ends is not None else [(np.eye(3), np.eye(3))] * self.nseg
+        # per pose: the tremor's attitude at both ends about the mean (their mean, from the gyros through the
+        # pose) and the pose's length; its ends differ by T times the tremor's mean rate, which the model gives
+        self.wobble = np.zeros((len(gmean), 3)) if wobble is None else wobble
+        self.length = np.zeros(len(gmean)) if length is None else length
         scale = max(omega_h, 1e-9)
         self.typical = np.array([1.0] * 9 + [scale] * 5)
 
@@ -457,19 +464,26 @@ class _Gyro:
         Mi = np.linalg.inv(M)
         coef = (self.coef_raw - self.coef_h[:, :, None] * b[None, None, :]) @ Mi.T  # compensated, linear
         R = rotations(coef, self.seg, self.nseg)
-        R = np.array([a @ r @ b.T for r, (a, b) in zip(R, self.ends)])  # between the poses' mean attitudes
         w = self.wv * uu[0] + p * self.h1 + q * self.h2  # w_ie in body at pose 0
         out_still, out_turn = [], []
         ws = [w]
         for k, (i, j) in enumerate(self.pairs):  # every move turns the Earth rate seen in the body
+            # between the poses' mean attitudes: C_{b(end i)}^{b(mean i)} R_k C_{b(mean j)}^{b(start j)}, the
+            # tremor's attitude at an end = the mean of both ends -+ T/2 times its mean rate (the mean measured
+            # rate less the model's still rate; the Earth rate at pose j from R_k alone: the tremor's share of it
+            # is far below the noise)
+            mi = Mi @ (self.gmean[i] - (M @ ws[i] + b))
+            mj = Mi @ (self.gmean[j] - (M @ (R[k].T @ ws[i]) + b))
+            Rk = (_rot(self.wobble[i] + 0.5 * self.length[i] * mi) @ R[k]
+                  @ _rot(self.wobble[j] - 0.5 * self.length[j] * mj).T)
             if self.used[k]:
-                upred = R[k].T @ (_rot(ws[i] * self.span[k]) @ uu[i])
+                upred = Rk.T @ (_rot(ws[i] * self.span[k]) @ uu[i])
                 n = uu[j]
                 e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
                 e1 /= np.linalg.norm(e1)
                 e2 = np.cross(n, e1)
                 out_turn.append(np.array([e1 @ upred, e2 @ upred]) / self.tsig[k])
-            ws.append(R[k].T @ ws[i])
+            ws.append(Rk.T @ ws[i])
         for k in range(len(self.gmean)):
             out_still.append((self.gmean[k] - (M @ ws[k] + b)) / self.gsig[k])
         return np.concatenate([np.ravel(out_still), np.ravel(out_turn)])
@@ -505,7 +519,7 @@ class _Gyro:
 def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro:
     """The moves between consecutive kept poses (a move with a gap or a clipped gyro is dropped, named)."""
     dt = si.dt
-    rows, segs, span, pairs, tsig, ends = [], [], [], [], [], []
+    rows, segs, span, pairs, tsig = [], [], [], [], []
     inc = np.column_stack([dth, dt])
     ng2 = float(np.max(si.gyro_density)) ** 2
     used = []
@@ -522,7 +536,6 @@ def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro
         T = float(time[b - 1] - time[a - 1])
         span.append(T)
         pairs.append((k, k + 1))
-        ends.append((_rot(c0.wobble), _rot(c1.wobble)))
         su = np.hypot(np.max(c0.accel_sigma), np.max(c1.accel_sigma)) / np.linalg.norm(c1.accel)
         tsig.append(math.sqrt(su**2 + ng2 * T))
     if sum(used) < 5:
@@ -533,4 +546,5 @@ def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro
     h2 = np.cross(u[0], h1)
     return _Gyro(np.concatenate(rows), np.concatenate(segs), np.array(span), pairs, used,
                  np.array([c.gyro for c in poses]), np.array([c.gyro_sigma for c in poses]), u, np.array(tsig),
-                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [], ends)
+                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [],
+                 np.array([c.wobble for c in poses]), np.array([c.duration for c in poses]))
