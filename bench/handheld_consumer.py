@@ -11,6 +11,18 @@ parameter group, poses found; a tremor sweep.
 the accelerometer frame of the method (SI, JSON); ``run`` imports and calibrates every session in this
 process with the inscal on the path (so the same sessions measure any tree: main's behaviour beside this
 one's) and writes ``results-TAG.json``; ``summary`` prints the table.
+
+Figures (this branch against main's tree, the same sessions; ``make --n 50 --seed 100`` with the default
+setup, tremor 0.1-2 deg/s rms log-uniform per pose; the sweep ``make --n 10 --seed 200 --tremor T``):
+
+* 50 realistic sessions, defaults: main calibrates 0/50 (16 refused at import as saturated, 34 find 1-2 still
+  poses; with ``--skip saturation`` 0/50, median 1 pose found); this branch 50/50, 12 of 12 poses (median),
+  RMS(error / sigma) gyro scale factor 0.85, misalignment 0.95, bias 1.05, accelerometer scale factor 0.94,
+  misalignment 1.01, bias 0.91.
+* tremor 0 / 0.1 / 0.3 / 1 / 2 deg/s rms in every pose: main calibrates 8 / 0 / 0 / 0 / 0 of 10 (1 pose found
+  at any tremor); this branch 10/10 at every level, every pose found; RMS(error / sigma) 0.74-1.20 per group
+  and level (10 sessions each, the same draws at every level), gyro scale factor RMS error 139 / 138 / 136 /
+  138 / 150 ppm, gyro bias 2.5 / 2.6 / 2.7 / 3.0 / 3.6 deg/h.
 """
 
 from __future__ import annotations
