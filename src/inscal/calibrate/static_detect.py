@@ -148,7 +148,10 @@ class StillIntervals:
             return kept
         best = sorted(self.rejected, key=lambda c: (c.score, -c.duration))[:3]
         why = "; ".join(f"pose {c.number} ({c.t0:.1f}-{c.t1:.1f} s) {c.reason}" for c in best)
-        fixes = list(dict.fromkeys(c.fix for c in best if c.fix))
+        by_option: dict[str, str] = {}  # one fix per option, the one that uses them all: the farthest pose's
+        for c in sorted((c for c in best if c.fix), key=lambda c: c.score):  # (the largest tremor, the shortest)
+            by_option[c.fix.split(" ")[0]] = c.fix
+        fixes = list(by_option.values())
         if fixes:
             why += f"; to use them: {'; '.join(fixes)}"
         if not self.candidates:
