@@ -312,3 +312,87 @@ def imucal_estimates(lg, fs, g=9.80, trim=0.25):
     sum6 = np.mean([np.mean(acc[k], axis=0) for k in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")], axis=0)
     return {"accel_bias": b_a, "accel_scale_factor": ka, "accel_misalignment": ea, "gyro_bias": np.radians(b_g),
             "gyro_scale_factor": kg, "gyro_misalignment": eg, "accel_bias_sum6": sum6}
+
+
+def consumer_log(rng, tremor_dps=1.0, n_poses=10, start_s=35.0, rate_hz=100.0, lpf_hz=20.0, fast_turn=True,
+                 lat=0.8, g=9.80):
+    """A consumer 6-axis MEMS logged by hand, written from its datasheet-level description (NumPy only):
+    int16 counts of +-250 deg/s and +-2 g, turn-on gyro biases of several deg/s, scale factors and
+    misalignments of about 1 %, white noise 0.005 deg/s/sqrt(Hz) and 300 ug/sqrt(Hz), a first-order
+    low-pass filter at ``lpf_hz`` run at 1 kHz before the chip keeps every tenth value, a gyro bias that
+    drifts linearly by 0.002 deg/s over the session (temperature), a still start of ``start_s`` s on a
+    table, then poses of 2-7 s held by hand with a tremor of ``tremor_dps`` rms (a sum of three sines of
+    4-11 Hz about one axis per pose, faded in and out over 0.2 s), joined by moves of 1.5-2.5 s with the
+    ``s - sin(2 pi s) / 2 pi`` profile; with ``fast_turn`` the middle move lasts 0.6 s, so its rate peaks
+    near 2 Theta / 0.6 s and the gyro pins at its range.  Returns a dict: ``csv`` (text: time, gx..az
+    counts), ``scales`` (rad/s and m/s^2 per count), ``truth`` (canonical_truth at the mean bias),
+    ``still`` [(t0, t1)] and ``pinned`` (samples at a count limit)."""
+    fs = 1000.0
+    poses = [np.eye(3)] + random_poses(rng, n_poses)  # the still start: body axes along E, N, U
+    dur = [start_s] + list(rng.uniform(2.0, 7.0, n_poses))
+    mv = rng.uniform(1.5, 2.5, n_poses)
+    if fast_turn:
+        mv[n_poses // 2] = 0.6
+    wie = EARTH_RATE * np.array([0.0, math.cos(lat), math.sin(lat)])
+    spans, t = [], 0.0
+    for j in range(n_poses + 1):
+        spans.append((t, t + dur[j]))
+        t += dur[j] + (mv[j] if j < n_poses else 0.0)
+    tt = np.arange(int(t * fs)) / fs
+    Cbn = np.zeros((tt.size, 3, 3))
+    wnb = np.zeros((tt.size, 3))
+    for j, (a, b) in enumerate(spans):
+        m = (tt >= a) & (tt < b)
+        Cbn[m] = poses[j]
+        if j == 0 or tremor_dps == 0:
+            continue
+        ax = rng.normal(size=3)
+        ax /= np.linalg.norm(ax)
+        fr, amp, ph = rng.uniform(4.0, 11.0, 3), rng.uniform(0.5, 1.0, 3), rng.uniform(0, 2 * np.pi, 3)
+        amp *= math.radians(tremor_dps) / math.sqrt(0.5 * np.sum((2 * np.pi * fr * amp) ** 2))
+        x = tt[m]
+        sines = np.sin(2 * np.pi * fr[None] * x[:, None] + ph[None]) @ amp
+        dsines = (np.cos(2 * np.pi * fr[None] * x[:, None] + ph[None]) * 2 * np.pi * fr[None]) @ amp
+        r = min(0.2, 0.5 * (b - a))
+        fade = np.clip(np.minimum(x - a, b - x) / r, 0.0, 1.0)
+        win = 0.5 - 0.5 * np.cos(np.pi * fade)
+        dwin = np.where((fade > 0) & (fade < 1), 0.5 * np.pi / r * np.sin(np.pi * fade) * np.where(x - a < b - x, 1, -1), 0)
+        tau = win * sines
+        Cbn[m] = np.einsum("ij,njk->nik", poses[j], _rot_many(ax, tau))
+        wnb[m] = ax[None] * (dwin * sines + win * dsines)[:, None]
+    for j in range(n_poses):
+        t0, T = spans[j][1], mv[j]
+        m = (tt >= t0) & (tt < t0 + T)
+        R = poses[j].T @ poses[j + 1]
+        ang = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
+        e = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / (2 * math.sin(ang))
+        assert np.allclose(rot(e, ang), R, atol=1e-9), "a half turn between poses: draw again"
+        s = (tt[m] - t0) / T
+        Cbn[m] = np.einsum("ij,njk->nik", poses[j], _rot_many(e, ang * (s - np.sin(2 * np.pi * s) / (2 * np.pi))))
+        wnb[m] = e[None] * (ang / T * (1.0 - np.cos(2 * np.pi * s)))[:, None]
+    deg = math.pi / 180
+    Mg = np.eye(3) + np.diag(rng.normal(0, 0.01, 3)) + (np.ones((3, 3)) - np.eye(3)) * rng.normal(0, 0.005, (3, 3))
+    Ma = np.eye(3) + np.diag(rng.normal(0, 0.01, 3)) + np.tril(rng.normal(0, 0.005, (3, 3)), -1)
+    bg, ba = rng.normal(0, 3 * deg, 3), rng.normal(0, 0.4, 3)
+    drift = (tt / tt[-1] - 0.5)[:, None] * (rng.choice([-1.0, 1.0], 3) * 0.002 * deg)[None]  # linear, mean zero
+    Cnb = np.transpose(Cbn, (0, 2, 1))
+    gyro = (wnb + Cnb @ wie) @ Mg.T + bg + drift
+    acc = (Cnb @ np.array([0.0, 0.0, g])) @ Ma.T + ba
+    gyro += 0.005 * deg * math.sqrt(fs) * rng.normal(size=gyro.shape)
+    acc += 300e-6 * 9.80665 * math.sqrt(fs) * rng.normal(size=acc.shape)
+    x = np.column_stack([gyro, acc])
+    alpha = 1.0 - math.exp(-2 * math.pi * lpf_hz / fs)
+    y = np.empty_like(x)
+    y[0] = x[0]
+    for k in range(1, x.shape[0]):  # the chip's first-order filter (RC), at 1 kHz
+        y[k] = y[k - 1] + alpha * (x[k] - y[k - 1])
+    step = int(fs / rate_hz)
+    y = y[step - 1::step]
+    sc = np.array([250 * deg / 32768] * 3 + [2 * 9.80665 / 32768] * 3)
+    c = np.rint(y / sc)
+    pinned = int(np.sum(np.any((c > 32766) | (c < -32767), axis=1)))
+    c = np.clip(c, -32768, 32767).astype(int)
+    times = (np.arange(c.shape[0]) + 1) * step / fs
+    text = "time,gx,gy,gz,ax,ay,az\n" + "".join(f"{ti:.3f}," + ",".join(map(str, row)) + "\n" for ti, row in zip(times, c))
+    return {"csv": text, "scales": (sc[0], sc[3]), "truth": canonical_truth(Mg, bg, Ma, ba), "still": spans,
+            "pinned": pinned, "Mg": Mg, "Ma": Ma, "lat": lat, "g": g}

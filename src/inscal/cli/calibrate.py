@@ -33,7 +33,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
                   accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
                   thermal_model: Path | None = None, mc: int | None = None, mc_seed: int = 0,
-                  mc_workers: int = 1, method_options: dict | None = None) -> dict:
+                  mc_workers: int = 1, method_options: dict | None = None, tremor_dps: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -54,7 +54,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
     ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``method_options``: the
     no-turntable method's keyword options given (:data:`~inscal.lab.calibration.NO_TABLE_OPTIONS`, the function's
-    units: ``face_tilt``, ``turn_closure`` in rad).  ``noise``: a noise.toml
+    units: ``face_tilt``, ``turn_closure`` in rad); ``tremor_dps``: the hand tremor a still pose may hold
+    [deg/s rms] (multi-position; None: its default).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
@@ -68,7 +69,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
                              plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic,
                              None if noise is None else str(noise),
-                             method_options=tuple(sorted((method_options or {}).items())))
+                             method_options=tuple(sorted((method_options or {}).items())), tremor=tremor_dps)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -397,6 +398,8 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
             report["thermal_states"] = res.diagnostics["thermal"]
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
+    if "still" in res.diagnostics:  # no turntable: every candidate pose, kept or rejected, with its reason
+        report["still"] = res.diagnostics["still"]
     if systematic:
         d = res.diagnostics
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
@@ -547,7 +550,7 @@ def register(app: typer.Typer) -> None:
         settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
                                      "(default 1; multi-position, ferraris: 0.25)"),
         min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
-                                         "multi-position, ferraris: 2)"),
+                                         "multi-position: 1; ferraris: 2)"),
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
                                        "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
                                        "accelerometer degrees of freedom)"),
@@ -567,6 +570,9 @@ def register(app: typer.Typer) -> None:
         turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference in deg between "
                                            "a whole turn's angle and 360 deg (a turn by hand against a stop; in the "
                                            "sigma) (default 0.2; 0: exact turns)"),
+        tremor_dps: float = typer.Option(None, "--tremor-dps", help="multi-position: the hand tremor a still pose "
+                                         "may hold [deg/s rms] (default 3; the accelerometers judge a pose, the gyros "
+                                         "may tremble up to this)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -644,7 +650,8 @@ def register(app: typer.Typer) -> None:
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
                                 noise, thermal_model, mc, mc_seed, mc_workers,
-                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure))
+                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure),
+                                tremor_dps)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -668,6 +675,9 @@ def register(app: typer.Typer) -> None:
         if "fit" in rep:
             for line in fit_lines(rep["fit"]):
                 typer.echo(line)
+        for c in rep.get("still", []):
+            if not c["kept"]:
+                typer.echo(f"  pose {c['pose']} ({c['t0_s']:.1f}-{c['t1_s']:.1f} s): rejected, {c['reason']}")
         if "selection" in rep:
             sel = rep["selection"]
             typer.echo(f"  states: {sel['chosen']} (chosen from the data, {sel['fits']} fits; full model {sel['full']})")

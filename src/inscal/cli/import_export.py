@@ -259,6 +259,10 @@ def register(app: typer.Typer) -> None:
                             f", noise variance {ig['noise']['variance_ratio'][0]:.2g}-"
                             f"{ig['noise']['variance_ratio'][1]:.2g} of white, neighbour correlation up to "
                             f"{ig['noise']['neighbour_correlation']:.2g} (jittered stamps)"))
+        if sat := res.get("saturated"):
+            extra.append(f"{len(sat)} run(s) of a sensor at its range marked saturated (first: {sat[0]['channel']} "
+                         f"at {sat[0]['level']:g} for {sat[0]['samples']} samples from t = {sat[0]['t0']:.3f} s; the "
+                         "calibrations leave them out)")
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")

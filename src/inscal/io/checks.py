@@ -26,6 +26,7 @@ column plausible, K, degC or degF, and how to declare it).
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -295,18 +296,34 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, noisy: float = 0.9) -> None:
-    """A noisy channel pinned at its maximum or minimum for ``min_run`` samples while another channel moves.
+#: the longest run of one channel pinned at its extreme that is marked rather than refused [s]: a fast hand
+#: turn holds a consumer gyro at its range for a fraction of a second; a channel stuck longer is not a turn
+MAX_PINNED_S = 2.0
+#: the largest share of a channel's samples that may be pinned at its extreme and marked
+MAX_PINNED_SHARE = 0.05
+
+
+def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, noisy: float = 0.9,
+                     rate_hz: float | None = None) -> list[dict]:
+    """The runs of a noisy channel pinned at its maximum or minimum for ``min_run`` samples while another
+    channel moves: a sensor at its range (a gyro in a fast hand turn).  Returned as marks, one per run
+    (``channel``, ``level`` in the file's values, ``word`` maximum | minimum, ``first`` row index and
+    ``samples``), which the record keeps (:func:`saturated_samples`) so the calibrations leave those samples
+    out; refused (:class:`~inscal.io.mapping.ImportFileError`) when a channel is pinned longer than
+    :data:`MAX_PINNED_S` (at ``rate_hz``) or on more than :data:`MAX_PINNED_SHARE` of its samples: a stuck
+    channel, not a turn.
 
     Only channels that change on at least ``noisy`` of their other samples are judged: in
     noise-free or coarsely quantised data repeated values are normal (a constant-rate turn
     reads the same on every sample)."""
     x6 = raw.raw_channels
     span = np.ptp(x6, axis=0)
+    marks = []
     for k in range(6):
         x = x6[:, k]
         if span[k] == 0:  # constant: the constant check's business
             continue
+        pinned = 0
         for lim, word in ((x.max(), "maximum"), (x.min(), "minimum")):
             at = x == lim
             if at.sum() < min_run:
@@ -318,10 +335,54 @@ def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, 
                 if same.size == 0 or np.mean(same) > 1 - noisy:
                     continue
                 others = np.delete(x6[a:b], k, axis=1)
-                if np.any(np.ptp(others, axis=0) > rel * np.delete(span, k)):
-                    raise ImportFileError(
-                        f"{where}: {raw.labels[k]} looks saturated: pinned at its {word} {lim:g} for {b - a} samples from "
-                        f"{raw.at(a)} while the other channels change (--skip-check saturation to import anyway)")
+                if not np.any(np.ptp(others, axis=0) > rel * np.delete(span, k)):
+                    continue
+                pinned += b - a
+                marks.append({"channel": raw.labels[k].split(" ")[0], "level": float(lim), "word": word,
+                              "first": int(a), "samples": int(b - a)})
+        mine = [m_ for m_ in marks if m_["channel"] == raw.labels[k].split(" ")[0]]
+        if not mine:
+            continue
+        top = max(mine, key=lambda m_: m_["samples"])
+        why = None
+        if rate_hz is not None and top["samples"] / rate_hz > MAX_PINNED_S:
+            why = f"{top['samples'] / rate_hz:.3g} s, longer than the {MAX_PINNED_S:g} s of a fast turn"
+        elif pinned > MAX_PINNED_SHARE * x.size:
+            why = f"{pinned} of its {x.size} samples pinned in all, more than {MAX_PINNED_SHARE:.0%}"
+        if why is not None:
+            raise ImportFileError(
+                f"{where}: {raw.labels[k]} looks saturated: pinned at its {top['word']} {top['level']:g} for "
+                f"{top['samples']} samples from {raw.at(top['first'])} while the other channels change ({why}: a stuck "
+                "channel or a sensor beyond its range; --skip-check saturation to import anyway)")
+    return marks
+
+
+def saturated_spans(marks: list[dict], time: np.ndarray, dt: float) -> list[dict]:
+    """The marks of :func:`check_saturation` on the record's time: ``channel``, ``t0`` (start of the first
+    pinned sample's interval), ``t1`` (end of the last) [s], ``samples``, ``level``."""
+    return [{"channel": m["channel"], "t0": float(time[m["first"]] - dt),
+             "t1": float(time[m["first"] + m["samples"] - 1]), "samples": m["samples"], "level": m["level"]}
+            for m in marks]
+
+
+def saturated_samples(time: np.ndarray, source: str | dict | None) -> np.ndarray | None:
+    """Bool per sample of a record: its interval overlaps a span its import marked saturated (the record's
+    ``source`` attribute, key ``saturated``); None when nothing was marked."""
+    if not source:
+        return None
+    try:
+        src = json.loads(source) if isinstance(source, str) else dict(source)
+    except (ValueError, TypeError):
+        return None
+    spans = src.get("saturated") if isinstance(src, dict) else None
+    if not spans:
+        return None
+    t = np.asarray(time, float)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    out = np.zeros(t.size, bool)
+    for sp in spans:
+        out |= (t > float(sp["t0"]) + 1e-9 * dt) & (t - dt < float(sp["t1"]) - 1e-9 * dt)
+    return out if out.any() else None
 
 
 def _blocks(x: np.ndarray, m: int) -> np.ndarray:

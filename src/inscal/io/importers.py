@@ -109,7 +109,9 @@ rate inconsistent with the timestamps), values beyond the physical limits (a rat
 1,000 g, a gimbal angle or encoder jump no turntable makes; :mod:`inscal.io.checks`, with the
 file, column, line and value), and the plausibility checks that ``skip`` may name:
 ``constant`` (a channel that never changes), ``saturation`` (a channel pinned at its extreme
-while the others move), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
+while the others move: a run of up to 2 s, a sensor at its range in a fast turn, is marked in the record's
+``source`` attribute, key ``saturated``, and the calibrations leave those samples out; a channel pinned
+longer is refused as stuck), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
 m/s^2, degrees vs radians, rates vs increments), ``motion`` (the gyros must turn when the
 gimbal angles / path say so, and only then) and ``encoders`` (the encoder angles must give the
 gyros' rotation through every move, and no latency over a sample:
@@ -159,6 +161,7 @@ from inscal.io.checks import (
     check_motion,
     check_saturation,
     check_values,
+    saturated_spans,
     time_base,
 )
 from inscal.io.encoders import apply_latency, small_latency
@@ -250,8 +253,7 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     dt = 1.0 / rate
     if "constant" not in skip:
         check_constant(raw, where)
-    if "saturation" not in skip:
-        check_saturation(raw, where)
+    marks = check_saturation(raw, where, rate_hz=rate) if "saturation" not in skip else []
     if raw.kind == "rates":
         dth, dv = raw.gyro * dt, raw.accel * dt
     else:
@@ -316,6 +318,7 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         "grid": "record" if np.array_equal(temp.time, time) else "own",
         "source": "columns" if raw.temperature is not None else "file",
         "span_s": [float(temp.time[0]), float(temp.time[-1])]}
+    info["saturated"] = saturated_spans(marks, time, dt)
     rec = Record(np.ascontiguousarray(time, float), np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float),
                  None if gim is None else np.ascontiguousarray(gim, float), rate, site, path, None, "", where,
                  temp)
@@ -533,6 +536,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         attrs["bag"] = {**attrs["bag"], "temperature_topic": temperature_topic}
     if integ is not None:
         attrs["integration"] = integ
+    if info["saturated"]:  # a sensor at its range: the calibrations leave these samples out
+        attrs["saturated"] = info["saturated"]
     if noise is not None:
         attrs["imunoise"] = {"config": str(config_file), "arw_rad_sqrt_s": noise.noise.arw.tolist(),
                              "vrw_m_s_sqrt_s": noise.noise.vrw.tolist(),
@@ -549,7 +554,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
             "encoders": info["encoders"], "temperature": info["temperature"], "warnings": info["warnings"],
-            **({k: attrs[k] for k in ("bag", "integration", "imunoise") if k in attrs})}
+            **({k: attrs[k] for k in ("bag", "integration", "imunoise", "saturated") if k in attrs})}
 
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,

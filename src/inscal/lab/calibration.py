@@ -29,6 +29,7 @@ from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
+from inscal.io.checks import saturated_samples
 from inscal.io.encoders import apply_latency, check_record_encoders, small_latency
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
 from inscal.io.records import (
@@ -47,6 +48,7 @@ MAX_ENCODER_SIGMA = 3600.0  # white noise of an encoder angle [arcsec] (1 deg)
 MAX_ARW = 100.0  # [deg/sqrt(h)]
 MAX_VRW = 1e5  # [ug/sqrt(Hz)]
 MAX_WINDOW_S = 86400.0  # --settle-s, --min-static-s [s]
+MAX_TREMOR_DPS = 100.0  # --tremor-dps [deg/s rms]: beyond it a "pose" is a move
 #: the plausible estimates of a working inertial sensor, whatever the method: scale factors within +-50 %,
 #: misalignments (installation angles) within 5 deg; beyond them the data, not the sensor, is at fault
 MAX_SCALE_FACTOR = 0.5
@@ -73,8 +75,8 @@ class CalibrationSetup:
     deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec; times in s): ``states``, ``arw``,
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
     ``min_static`` to the window-mean and the no-turntable ones (None: the method's own default, that of
-    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 2 s for the still poses
-    of ``multi-position`` and ``ferraris``; :attr:`window_options`), ``quadratic`` (the quadratic
+    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 1 s (``multi-position``: hand-held
+    poses of 2 s keep about 1.5 s once settled) or 2 s (``ferraris``) for the still poses; :attr:`window_options`), ``quadratic`` (the quadratic
     accelerometer terms) to ``multi-position``; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
@@ -107,6 +109,7 @@ class CalibrationSetup:
     #: its units (alpha, gravity_tol; ferraris: face_tilt, turn_closure [rad], min_turn_end [s], turn_tol_deg);
     #: NO_TABLE_OPTIONS
     method_options: tuple[tuple[str, float], ...] = ()
+    tremor: float | None = None  # multi-position: the hand tremor a still pose may hold [deg/s rms] (None: the default)
 
     @property
     def systematic(self) -> bool:
@@ -140,6 +143,8 @@ class CalibrationSetup:
         if self.quadratic:
             out["quadratic"] = True
         out.update({k: float(v) for k, v in self.method_options})
+        if self.tremor is not None:
+            out["tremor"] = units.to_si(float(self.tremor), "deg/s")
         return out
 
     def method_options_problem(self) -> str | None:
@@ -168,6 +173,10 @@ class CalibrationSetup:
             return f"--plots applies to the systematic methods, not {self.method}"
         if self.quadratic and self.inner != "multi-position":
             return f"--quadratic applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and self.inner != "multi-position":
+            return f"--tremor-dps applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and not (math.isfinite(self.tremor) and 0 <= self.tremor <= MAX_TREMOR_DPS):
+            return f"--tremor-dps must be a tremor rate of 0 .. {MAX_TREMOR_DPS:g} deg/s rms, got {self.tremor}"
         for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
             if v is not None and not (math.isfinite(v) and v >= 0):
                 return f"{name} must be a duration >= 0 s, got {v}"
@@ -306,6 +315,8 @@ class CalibrationSetup:
         for name, v in self.method_options:  # in the flag's unit, named as the flag (face_tilt_deg, min_turn_end_s)
             flag, _, _, scale, _ = NO_TABLE_OPTIONS[name]
             opts[flag.lstrip("-").replace("-", "_")] = float(v) * scale
+        if self.tremor is not None:
+            opts["tremor_dps"] = float(self.tremor)
         if self.noise is not None:  # the model itself, not the file's name, decides the result
             opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
@@ -477,6 +488,10 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                 opts["noise"] = setup.noise_model()
         else:
             opts = dict(setup.window_options)
+            marked = (saturated_samples(rec.time, record_attrs(data, ("source",))["source"])
+                      if setup.inner == "multi-position" else None)
+            if marked is not None:
+                opts["clipped"] = marked  # a sensor at its range, marked at import: its moves are not used
             if setup.noise is not None:
                 opts["noise"] = setup.noise_model()
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
