@@ -1,11 +1,13 @@
 """Pages of the site whose console blocks run here as written, with their printed output compared: the landing
-page's tour (``docs/index.md``) and "Calibrate your own record" (``docs/getting-started/own-record.md``).
+page's tour (``docs/index.md``), "Calibrate your own record" (``docs/getting-started/own-record.md``) and the
+worked sessions of "Table-free calibration" (``docs/guide/table-free.md``).
 
 A page's block marked ``% run: tests/cli/test_site_pages.py`` runs in one empty folder, in page order, each
 ``inscal`` line in this process (the Typer app: what the installed ``inscal`` runs).  A comment line after a
 command, ``#   TEXT``, is its printed output: some line of what the command printed (standard output and error)
 must read TEXT, its words equal and each number within one unit of the last digit the page shows (the
-tolerance, for BLAS and platform rounding); a TEXT ending in ``...`` is the start of that line.  The log of
+tolerance, for BLAS and platform rounding); a TEXT ending in ``...`` is the start of that line.  A command
+whose comment reads ``# exits N`` must exit with status N (a refusal the page shows); the others with 0.  The log of
 the own-record page is the simulated record ``lab.h5`` written in the page's lab units (see
 :func:`write_fog_log`), and the two rows the page shows must be its first two."""
 
@@ -26,6 +28,7 @@ from inscal.core.units import ARCSEC, DEG
 ROOT = Path(__file__).resolve().parents[2]
 OWN = ROOT / "docs" / "getting-started" / "own-record.md"
 INDEX = ROOT / "docs" / "index.md"
+TABLE_FREE = ROOT / "docs" / "guide" / "table-free.md"
 MARK = "% run: tests/cli/test_site_pages.py"
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
@@ -42,14 +45,15 @@ def fenced(page: Path, lang: str, first: str) -> str:
     return next(b for b in re.findall(rf"```{lang}\n(.*?)```", text, re.S) if b.startswith(first))
 
 
-def steps(lines: list[str]) -> list[tuple[str, list[str]]]:
-    """``(command, [expected output lines])`` of a block."""
-    out: list[tuple[str, list[str]]] = []
+def steps(lines: list[str]) -> list[tuple[str, list[str], int]]:
+    """``(command, [expected output lines], exit status)`` of a block."""
+    out: list[tuple[str, list[str], int]] = []
     for ln in lines:
         if ln.startswith("#"):
             out[-1][1].append(ln.lstrip("#").strip())
         elif ln.strip():
-            out.append((ln.split(" #")[0].strip(), []))
+            status = re.search(r" #\s*exits (\d+)", ln)
+            out.append((ln.split(" #")[0].strip(), [], int(status.group(1)) if status else 0))
     return out
 
 
@@ -81,11 +85,11 @@ def matches(expected: str, line: str) -> bool:
 def run_block(lines: list[str], folder: Path, monkeypatch) -> None:
     """Each command of the block in ``folder``; its printed lines compared with the block's."""
     monkeypatch.chdir(folder)
-    for command, expected in steps(lines):
+    for command, expected, status in steps(lines):
         words = shlex.split(command)
         assert words[0] == "inscal", command
         r = CliRunner().invoke(app, words[1:])
-        assert r.exit_code == 0, f"{command}\n{r.output[-2000:]}"
+        assert r.exit_code == status, f"{command}\n{r.output[-2000:]}"
         printed = (r.stdout + "\n" + r.stderr).splitlines()
         for want in expected:
             assert any(matches(want, ln) for ln in printed), f"{command}: no line reads {want!r} in\n{r.output[-3000:]}"
@@ -135,3 +139,17 @@ def test_the_landing_tour_and_the_own_record_page_run_as_written(tmp_path, monke
         run_block(block, lab, monkeypatch)
     for f in ("run.h5", "run-check.html", "fog.toml", "run-comp.h5", "nav.png", "fog-report.html"):
         assert (lab / f).is_file(), f
+
+
+@pytest.mark.slow
+def test_the_table_free_sessions_run_as_written(tmp_path, monkeypatch):
+    """The table-free guide's hand-held session, the detector's refusal of it with longer poses (exit 2, nothing
+    written) and its Ferraris session print what the page shows."""
+    blocks = marked_blocks(TABLE_FREE)
+    assert len(blocks) == 3 and all(any(ln.startswith("#") for ln in b) for b in blocks)
+    assert steps(blocks[1])[0][2] == 2
+    for block in blocks:
+        run_block(block, tmp_path, monkeypatch)
+    assert not (tmp_path / "strict.toml").exists()
+    for f in ("mp.toml", "fe.toml"):
+        assert (tmp_path / f).is_file(), f

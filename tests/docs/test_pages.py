@@ -18,7 +18,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 GENERATED = {"theory/equation-index.md"}
-FENCE = re.compile(r"(?:^(%[^\n]*)\n)?^```(\w*)\n(.*?)^```", re.S | re.M)
+FENCE = re.compile(r"(?:^(%[^\n]*)\n)?^```(\{?[\w-]*\}?)[^\n]*\n(.*?)^```", re.S | re.M)  # a directive ({image}) too
 COMMAND = re.compile(r"^\s*(?:\$ )?(inscal|make|cmp|export|source|\.venv/bin/inscal)\b")
 
 
