@@ -559,7 +559,7 @@ def register(app: typer.Typer) -> None:
                                     "the still-pose tests (default 1e-3; ferraris 1e-4)"),
         gravity_tol: float = typer.Option(None, "--gravity-tol", help="multi-position, ferraris: the largest "
                                           "relative difference between the poses' specific force and the site's "
-                                          "gravity (default 0.05; ferraris 0.1)"),
+                                          "gravity (default 0.15; ferraris 0.1)"),
         face_tilt: float = typer.Option(None, "--face-tilt-deg", help="ferraris: rms angle in deg between a face and "
                                         "the horizontal when it rests on a table (flatness, squareness, the table's "
                                         "level; in the sigma) (default 0.3; 0: exact faces)"),
