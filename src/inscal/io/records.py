@@ -47,7 +47,8 @@ if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (second
 
 import bisect
 
-from inscal.io.files import atomic_path, check_cancel, check_input
+from inscal.core.cancel import check_cancel
+from inscal.io.files import atomic_path, check_input
 
 #: names this module re-exports from the domain modules, imported on first use (PEP 562)
 KIND = "inscal-record"
