@@ -19,7 +19,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.params import CompParams, truth_in_frame
 from inscal.calibrate.systematic.states import DEFAULT_SIGMA0, FRAME_GIMBAL, StateSet
-from inscal.core.kalman import smoother_step_dense, update_dense
+from inscal.core.kalman import update_dense
 from inscal.calibrate.unified import measurement, predicted_attitude, residual, state_set
 from inscal.core.error_model import ImuNoise
 from inscal.sim.simulate import simulate
@@ -35,6 +35,35 @@ def _rotvec(v):
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_rotvec(v).as_matrix()
+
+
+def smoother_step_dense(lam, Lam, H, K, Sinv, sz):
+    """The MBF step of :func:`inscal.core.kalman.smoother_step` for a dense ``H`` (the reference the
+    square-root smoother replaced; kept here as the textbook form): ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
+    ``Lam <- H^T S^-1 H + (I - K H)^T Lam (I - K H)``, in place."""
+    N = lam.shape[0]
+    m = H.shape[0]
+    d = np.empty(m)
+    for a in range(m):
+        s = sz[a]
+        for i in range(N):
+            s -= K[i, a] * lam[i]
+        d[a] = s
+    for i in range(N):
+        s = 0.0
+        for a in range(m):
+            s += H[a, i] * d[a]
+        lam[i] += s
+    LK = Lam @ K  # (N, m)
+    C = K.T @ LK + Sinv  # (m, m)
+    B = LK @ H  # Lam K H (N, N)
+    HtC = H.T @ C  # (N, m)
+    add = HtC @ H
+    for i in range(N):
+        for j in range(i, N):
+            v = 0.5 * (Lam[i, j] + Lam[j, i]) - B[i, j] - B[j, i] + 0.5 * (add[i, j] + add[j, i])
+            Lam[i, j] = v
+            Lam[j, i] = v
 
 
 # ----------------------------------------------------------------------------- H and R

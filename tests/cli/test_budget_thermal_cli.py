@@ -162,6 +162,11 @@ base = "psins19"
 [scenario]
 name = "psins19-thermal"
 rate_hz = 20
+[site]  # the station's site (tests/data/station.toml): the budget refuses another site's station file
+latitude_deg = 30.686
+longitude_deg = 120.66
+height_m = 50.0
+gravity = {value = 9.793788, unit = "m/s^2"}
 [thermal]
 t_ref = 20.0
 t_min = -40.0

@@ -35,7 +35,7 @@ pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals, 
 #: the child's CPU time by which it is surely inside the first filter pass (start, imports, reading the record,
 #: the encoder check and the noise estimate take ~2.5 s of CPU; the pass ~7 s more)
 IN_FILTER_CPU_S = 5.0
-#: the filter rate of the interrupted calibration: 193,050 steps of 58 states (~1.4 GB of per-step stores)
+#: the filter rate of the interrupted calibration: 193,050 steps of 61 states (~1.5 GB of per-step stores)
 LONG_FILTER_HZ = 50
 
 
@@ -94,7 +94,7 @@ def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(server, tmp_pat
     unwritten_record(folder / "long.h5", n, 100.0)
     line = refuse(server, folder, tmp_path / "logs", ["calibrate", "long.h5", "--method", "systematic51",
                                                       "--filter-rate-hz", "100", "--out", "p.toml"])
-    assert f"the 58-state filter's {n} steps at --filter-rate-hz 100 over long.h5 ({n} samples" in line, line
+    assert f"the 61-state filter's {n} steps at --filter-rate-hz 100 over long.h5 ({n} samples" in line, line
     assert "lower --filter-rate-hz" in line, line
 
 

@@ -490,35 +490,6 @@ def update_dense(P, H, R, nu, K, Sinv, x):
     return gain_and_joseph(P, PHt, S, nu, K, Sinv, x)
 
 
-@njit(cache=True)
-def smoother_step_dense(lam, Lam, H, K, Sinv, sz):
-    """:func:`inscal.core.kalman.smoother_step` for a dense ``H``: ``lam <- H^T S^-1 nu + (I - K H)^T lam``,
-    ``Lam <- H^T S^-1 H + (I - K H)^T Lam (I - K H)``, in place."""
-    N = lam.shape[0]
-    m = H.shape[0]
-    d = np.empty(m)
-    for a in range(m):
-        s = sz[a]
-        for i in range(N):
-            s -= K[i, a] * lam[i]
-        d[a] = s
-    for i in range(N):
-        s = 0.0
-        for a in range(m):
-            s += H[a, i] * d[a]
-        lam[i] += s
-    LK = Lam @ K  # (N, m)
-    C = K.T @ LK + Sinv  # (m, m)
-    B = LK @ H  # Lam K H (N, N)
-    HtC = H.T @ C  # (N, m)
-    add = HtC @ H
-    for i in range(N):
-        for j in range(i, N):
-            v = 0.5 * (Lam[i, j] + Lam[j, i]) - B[i, j] - B[j, i] + 0.5 * (add[i, j] + add[j, i])
-            Lam[i, j] = v
-            Lam[j, i] = v
-
-
 # ----------------------------------------------------------------------------- square-root information smoother
 @njit(cache=True)
 def givens_row(R, v, j0):
