@@ -216,7 +216,7 @@ def _bounds(codes, curve: Curve, th0, tc_max: float | None = None):
         lo.append(th0[i] - 25)
         hi.append(th0[i] + 25)
         if c == "GM":
-            lo.append(math.log(2 * curve.dt))  # shorter, a GM is white noise at every scale: not identifiable
+            lo.append(math.log(projection.TC_MIN_SHARE * curve.dt))  # phi = exp(-8): white at every scale below
             hi.append(math.log(100 * T if tc_max is None else tc_max))
     return np.array(lo), np.array(hi)
 
@@ -237,7 +237,7 @@ def _canonical(codes, theta) -> np.ndarray:
 
 def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
           theta0=None, whiten=None, grid: bool = True, tc_max: float | None = None):
-    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``.
+    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it, starts run)``.
     The starts: the best point of the correlation-time grid with the amplitudes solved exactly
     (:func:`inscal.analysis.noise.projection.profile`, ``grid=True``), ``theta0`` (default: the
     read-offs) and ``n_starts`` random ones around it.  ``whiten``: a (J, J) matrix W for the objective
@@ -273,7 +273,7 @@ def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.G
             best, fbest, hits = r.x, f, 1
         elif f <= fbest * (1 + 1e-6):
             hits += 1
-    return _canonical(codes, best), fbest, hits
+    return _canonical(codes, best), fbest, hits, len(starts)
 
 
 def jacobian(codes, theta, m, dt: float) -> np.ndarray:
@@ -346,7 +346,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
         raise ValueError(f"model {nm.model_string(codes)} has {p} parameters but the curve only {curve.m.size} "
                          "octave scales")
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
-    theta, obj, hits = solve(curve, codes, w, n_starts, rng, theta0)
+    theta, obj, hits, n_run = solve(curve, codes, w, n_starts, rng, theta0)
     terms = terms_of(codes, theta, curve.dt)
     D = jacobian(codes, theta, curve.m, curve.dt)
     vt = terms if v_terms is None else v_terms
@@ -381,7 +381,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
         i += n_params(c)
     return NoiseFit(nm.model_string(codes), codes, terms, tuple(param_names(codes)), np.exp(theta),
                     lower, upper, theta, cov, obj, w, gof, dof,
-                    chi2_sf(gof, dof) if dof else math.nan, penalty, n_starts + 1, hits, curve, nu, negligible)
+                    chi2_sf(gof, dof) if dof else math.nan, penalty, n_run, hits, curve, nu, negligible)
 
 
 def bootstrap(fit: NoiseFit, n: int, n_boot: int, rng: np.random.Generator, level: float = 0.95):
@@ -395,7 +395,7 @@ def bootstrap(fit: NoiseFit, n: int, n_boot: int, rng: np.random.Generator, leve
         y = ch.simulate(n, fit.curve.dt, rng)
         sv = scale_variance(y, 1.0 / fit.curve.dt, m[m <= octave_scales(n).max()])
         c = Curve.from_scale_variance(sv)
-        th, _, _ = solve(c, fit.codes, None, 2, rng, fit.theta)
+        th = solve(c, fit.codes, None, 2, rng, fit.theta)[0]
         draws.append(np.exp(th))
     d = np.array(draws)
     a = (1 - level) / 2

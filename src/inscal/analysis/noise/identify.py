@@ -20,7 +20,7 @@ from inscal.analysis.allan import MotionStats
 from inscal.analysis.noise.estimators import ScaleVariance, StreamingScaleVariance, log_scales, octave_scales
 from inscal.analysis.noise.fit import Curve, fit_curve, n_params
 from inscal.analysis.noise.intervals import chi2_bounds, wv_interval
-from inscal.analysis.noise.selection import AUTO_MODEL, Selection, readoffs, select
+from inscal.analysis.noise.selection import AUTO_MIN_MODEL, AUTO_MODEL, Selection, readoffs, select
 from inscal.core import noise_models as nm
 from inscal.core import units
 from inscal.io.records import iter_window
@@ -36,8 +36,10 @@ class NoiseInputError(ValueError):
 
 
 def required_scales(model: str) -> int:
-    """Octave scales a fit of ``model`` (``auto``: the largest model) needs: its p parameters + 2."""
-    codes = nm.parse_model(AUTO_MODEL if model == "auto" else model)
+    """Octave scales a fit of ``model`` needs: its p parameters + 2 (``auto``: those of
+    :data:`~inscal.analysis.noise.selection.AUTO_MIN_MODEL`; its richer candidates are tried where the
+    record has the scales)."""
+    codes = nm.parse_model(AUTO_MIN_MODEL if model == "auto" else model)
     return sum(n_params(c) for c in codes) + EXTRA_SCALES
 
 

@@ -1,6 +1,7 @@
 """The choice of a noise model among nested sums of processes, and the classic IEEE read-offs.
 
-Every sub-sum of a largest model (the terms of ``QN+WN+BI+RW+DR+2GM`` by default) is a candidate.
+Every sub-sum of a largest model (the terms of ``QN+WN+BI+RW+DR+4GM`` by default, a candidate only where the curve has more scales than
+parameters) is a candidate.
 Each is fitted with the efficient weights (two-step GMM: ``V`` the covariance of the wavelet
 variances at the largest model's GMWM fit, :func:`inscal.analysis.noise.fit.curve_covariance`), so that
 its objective is Hansen's J statistic
@@ -25,10 +26,16 @@ the reason is listed), so that "the right model" is the smallest one that descri
 can show:
 
 * a term whose amplitude is zero at the candidate's best fit, or below 5 % of the interval
-  half-width at every scale: the candidate without it fits the same curve;
-* a Gauss-Markov term at the shortest correlation time allowed (2 dt): white noise at every scale.
+  half-width at every scale: the candidate without it fits the same curve -- a reason that holds
+  only where that smaller candidate's criterion is no worse (a reason its J contradicts is none).
 
-and a Gauss-Markov term's correlation time is kept at most an eighth of the longest scale tau_max:
+A Gauss-Markov term's correlation time runs down to dt / 8 (AR(1) phi = exp(-dt / T_c) down to
+3e-4, as GMWM parametrises phi in (0, 1)): a GM of T_c below dt is what a non-white start of a real
+curve shows (tau nu rising over the first octaves: an anti-aliasing filter, a sensor's own
+bandwidth), a term of the model like any other.  The chosen model is refitted with the GMWM weights;
+a term that fit does not show (below 5 % of the interval at every scale) is dropped and the model
+refitted, so no unseen term is returned as part of a model.  A Gauss-Markov term's correlation time
+is kept at most an eighth of the longest scale tau_max:
 its Allan variance peaks at 1.89 T_c, and a GM whose peak does not lie two octaves inside the record
 is, over the record, a rate random walk (AVAR -> (2 sigma^2 / T_c) tau / 3, K^2 = 2 sigma^2 / T_c),
 which the candidates with RW describe with one parameter fewer; so a record's random walk is not
@@ -36,9 +43,14 @@ taken for a long GM, nor the other way round.  A GM of the sensor longer than th
 the random walk it looks like over the record (a longer record resolves it).
 
 The amplitudes of every candidate are solved exactly on a grid of correlation times
-(:mod:`inscal.analysis.noise.projection`), the best candidates polished; the chosen model is then
+(:mod:`inscal.analysis.noise.projection`), the best candidates polished (at most :data:`MAX_POLISH` of them and the :data:`PER_GM_COUNT` best
+of each GM count: the choice's time budget); the chosen model is then
 refitted with the default GMWM weights (its reported values, intervals and objective).  The result
 names the runner-up and the criterion gap, the J-test p-value of the choice and what was set aside.
+
+Where the record is too short to tell the structure apart, the reason names the richer candidates
+within two penalties of the choice, their criterion gap and the record length that would separate
+them (:func:`_richer`): the choice is the parsimonious one, not a claim that the richer is wrong.
 
 The IEEE read-offs (IEEE 952-2020 Annex C, El-Sheimy et al. 2008) are the lines of slope -1, -1/2,
 0, +1/2, +1 tangent to the Allan deviation from below, read at tau = sqrt(3), 1, (minimum),
@@ -60,12 +72,22 @@ from inscal.analysis.noise.fit import (Curve, NoiseFit, contributions, curve_cov
 from inscal.core import noise_models as nm
 from inscal.core.stats import chi2_sf
 
-#: the largest model of ``--model auto``
-AUTO_MODEL = "QN+WN+BI+RW+DR+2GM"
-#: candidates polished after the grid (the lowest criterion on the grid; the others are far above)
+#: the largest model of ``--model auto``: up to four GMs, as published GMWM fits of precise real
+#: curves use; a candidate takes part only where the curve has more scales than parameters
+AUTO_MODEL = "QN+WN+BI+RW+DR+4GM"
+#: the model whose size fixes the shortest record ``auto`` accepts (the candidates of more GMs are
+#: tried only where the record's scales allow them)
+AUTO_MIN_MODEL = "QN+WN+BI+RW+DR+2GM"
+#: candidates polished after the grid: those within this criterion margin of the best grid point
 POLISH_MARGIN = 20.0
+#: and at most this many of them (the time budget of the choice: the grid is exact, the polish costs)
+MAX_POLISH = 8
+#: besides, the best candidates on the grid of each GM count (the grid is coarser with more GMs)
+PER_GM_COUNT = 2
 #: the longest GM correlation time of a candidate, as a share of the longest scale tau_max
 GM_TC_MAX_SHARE = 0.125
+#: a richer candidate within this many penalty units of the choice "fits nearly as well"
+NEAR_PENALTIES = 2.0
 
 
 def tc_limit(curve: Curve) -> float:
@@ -98,32 +120,45 @@ def record_samples(curve: Curve) -> float:
     return float(curve.n_terms[0] + 2 * curve.m[0] - 1)
 
 
-def set_aside(codes, theta, zero, curve: Curve, whiten) -> str:
-    """Why the record cannot tell the candidate ``codes`` (at ``theta``) from a smaller one, or ''."""
+def unseen_terms(codes, theta, zero, curve: Curve) -> list[int]:
+    """The indices of the terms of ``codes`` (at ``theta``) the curve does not show: a zero amplitude,
+    or below 5 % of the interval half-width at every scale."""
     terms = terms_of(codes, theta, curve.dt)
-    for t, z in zip(terms, zero):
-        if z:
-            return f"{t.code} not seen (zero amplitude)"
     half = 0.5 * (curve.upper - curve.lower)
     seen = np.max(contributions(terms, curve.m, curve.dt) / half[:, None], axis=0)
-    for t, x in zip(terms, seen):
-        if x < 0.05:
-            return f"{t.code} below 5 % of the interval at every scale"
-    for t in terms:
-        if t.code == "GM" and t.tc < 2.05 * curve.dt:
-            return f"GM of T_c = {t.tc:.3g} s at 2 dt: white noise at every scale"
+    return [i for i, (z, x) in enumerate(zip(zero, seen)) if z or x < 0.05]
+
+
+def set_aside(codes, theta, zero, curve: Curve, whiten=None) -> str:
+    """Why the record cannot tell the candidate ``codes`` (at ``theta``) from a smaller one, or ''."""
+    terms = terms_of(codes, theta, curve.dt)
+    for i in unseen_terms(codes, theta, zero, curve):
+        return (f"{terms[i].code} not seen (zero amplitude)" if zero[i]
+                else f"{terms[i].code} below 5 % of the interval at every scale")
     return ""
+
+
+def _without(codes, i) -> tuple:
+    return tuple(c for k, c in enumerate(codes) if k != i)
+
+
+def _contains(big, small) -> bool:
+    return all(list(big).count(c) >= list(small).count(c) for c in set(small)) and len(big) > len(small)
 
 
 @dataclass(frozen=True)
 class Selection:
     """The chosen fit, every candidate's row (model, criterion, J, J-test p, parameters, set-aside
-    reason or '') sorted by criterion, the criterion's name and why the choice was made."""
+    reason or '') sorted by criterion, the criterion's name and why the choice was made; ``richer``:
+    the larger candidates that fit nearly as well (model, criterion gap, J drop, record length
+    factor that would separate them or None); ``removed``: the terms dropped from the choice as unseen."""
 
     chosen: NoiseFit
     candidates: tuple
     reason: str
     criterion: str = "hqic"
+    richer: tuple = ()
+    removed: tuple = ()
 
 
 def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | None = None,
@@ -149,12 +184,26 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
             continue
         th, jg, zero = projection.profile(cand, curve.m, curve.dt, curve.wv, W, cols)
         rows.append([cand, p, th, jg, zero])
-    best_grid = min(r[3] + pen * r[1] for r in rows)
-    table, thetas = [], {}
+    rows.sort(key=lambda r: r[3] + pen * r[1])
+    best_grid = rows[0][3] + pen * rows[0][1]
+    live = [r for r in rows if not any(r[4])]
+    polish = [r[0] for r in live if r[3] + pen * r[1] <= best_grid + POLISH_MARGIN][:MAX_POLISH]
+    for k in range(codes.count("GM") + 1):  # the grid is coarser with more GMs: the best of each count too
+        polish += [r[0] for r in live if r[0].count("GM") == k and r[0] not in polish][:PER_GM_COUNT]
+    fitted = {}
     for cand, p, th, jg, zero in rows:
-        if jg + pen * p <= best_grid + POLISH_MARGIN and not any(zero):
-            th, jg, _ = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm)
+        if cand in polish:
+            th, jg = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm)[:2]
+        fitted[cand] = (p, th, jg, zero)
+    table, thetas = [], {}
+    for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
+        if why:
+            # the reason holds only where the candidate without the term does as well by the criterion
+            i = unseen_terms(cand, th, zero, curve)[0]
+            smaller = fitted.get(_without(cand, i))
+            if smaller is not None and smaller[2] + pen * smaller[0] > jg + pen * p:
+                why = ""
         name = nm.model_string(cand)
         thetas[name] = (cand, th)
         table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p, why))
@@ -163,16 +212,53 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     best = ok[0]
     cand, th = thetas[best[0]]
     chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th)
-    why = (f"{best[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {best[1]:.4g} among {len(ok)} of "
+    removed = []
+    while any(chosen.negligible) and len(chosen.codes) > 1:
+        # a term the chosen fit does not show is no part of the model: drop it and refit
+        i = chosen.negligible.index(True)
+        removed.append(chosen.codes[i])
+        cand = _without(chosen.codes, i)
+        key = nm.model_string(cand)
+        th0 = thetas[key][1] if key in thetas else np.delete(chosen.theta, slice(
+            sum(n_params(c) for c in chosen.codes[:i]), sum(n_params(c) for c in chosen.codes[:i + 1])))
+        chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0)
+    row = {r[0]: r for r in table}.get(chosen.model, best)
+    why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
            f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
+    if removed:
+        why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
     if len(ok) > 1:
-        ru = ok[1]
-        why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - best[1]:.3g})"
-    why += f"; J = {best[2]:.3g} on {J - best[4]} dof, p = {best[3]:.2g}"
-    aside = [r for r in table if r[5] and r[1] < best[1]]
+        ru = next(r for r in ok if r[0] != row[0])
+        why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
+    why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
+    aside = [r for r in table if r[5] and r[1] < row[1]]
     if aside:
         why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
-    return Selection(chosen, tuple(table), why, criterion)
+    richer = _richer(row, table, thetas, pen)
+    if richer:
+        why += "; richer models fit nearly as well: " + "; ".join(
+            f"{m} (gap {g:.3g}" + (f", a record about {s:.3g}x longer would separate them)" if s
+                                   else ", no sign of it in this record)") for m, g, _, s in richer)
+    return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+
+
+def _richer(row, table, thetas, pen) -> tuple:
+    """The candidates containing the choice ``row`` within :data:`NEAR_PENALTIES` penalties of it:
+    ``(model, criterion gap, J drop, length factor)``.  The J drop of a term grows about in proportion
+    to the record's length (its noncentrality lambda is ~ n), so a record ``s`` times longer shows it
+    where ``s lambda`` passes the penalty of its ``dp`` parameters with a margin of 3:
+    ``s = (pen dp + 3) / lambda``, ``lambda`` estimated as the J drop less its dp (None where <= 0)."""
+    codes = thetas[row[0]][0]
+    out = []
+    for r in table:
+        if r[5] or r[1] - row[1] > NEAR_PENALTIES * pen or not _contains(thetas[r[0]][0], codes):
+            continue
+        dp = r[4] - row[4]
+        drop = row[2] - r[2]
+        lam = drop - dp
+        s = (pen * dp + 3.0) / lam if lam > 0 else None
+        out.append((r[0], float(r[1] - row[1]), float(drop), None if s is None else float(max(s, 1.0))))
+    return tuple(sorted(out, key=lambda x: x[1])[:2])
 
 
 # ----------------------------------------------------------------------------- IEEE read-offs
