@@ -38,6 +38,10 @@ TC_MIN_SHARE = 0.125
 MAX_NNLS = 64
 #: grid points whose residual is recomputed from the columns (the Gram form loses digits near zero)
 EXACT_TOP = 256
+#: models of three or four GMs: the grid's every COARSE-th point first, then the neighbours of the
+#: REFINE best coarse points on the full grid
+COARSE = 3
+REFINE = 4
 
 
 def unit_column(code: str, m, dt: float, tc: float | None = None) -> np.ndarray:
@@ -77,7 +81,7 @@ def profile(codes, m, dt: float, wv, whiten, cols: dict | None = None):
     None).  Every grid point is first solved without the constraint, all at once; NNLS runs only
     where that solution has a negative amplitude and could still beat the best feasible point (at most
     :data:`MAX_NNLS` of them).
-    Models of four GMs take every other grid point."""
+    Models of three or four GMs are searched coarse to fine (:data:`COARSE`, :data:`REFINE`)."""
     codes = tuple(codes)
     m = np.asarray(m, dtype=float)
     wv = np.asarray(wv, dtype=float)
@@ -88,8 +92,6 @@ def profile(codes, m, dt: float, wv, whiten, cols: dict | None = None):
     F = np.stack([cols[c] for c in fixed], axis=1) if fixed else np.zeros((m.size, 0))
     grid = cols["tc"] if k_gm else np.zeros(1)
     C = cols["GM"] if k_gm else np.zeros((m.size, 1))
-    if k_gm > 3:
-        grid, C = grid[::2], C[:, ::2]
     # scale every column to unit weighted norm (amplitudes span decades)
     WF, WC, y = W @ F, W @ C, W @ wv
     sF = np.linalg.norm(WF, axis=0)
@@ -97,17 +99,34 @@ def profile(codes, m, dt: float, wv, whiten, cols: dict | None = None):
     sC = np.linalg.norm(WC, axis=0)
     sC[sC == 0] = 1.0
     WF, WC = WF / sF, WC / sC
-    combos = (np.array(list(itertools.combinations(range(grid.size), k_gm)), dtype=np.int64) if k_gm
-              else np.zeros((1, 0), dtype=np.int64))
-    # the normal equations of every grid point from the Gram matrix of all the columns (no (P, J, p) array)
     A = np.concatenate([WF, WC], axis=1)
     gram, rhs, nf = A.T @ A, A.T @ y, WF.shape[1]
-    idx = np.concatenate([np.broadcast_to(np.arange(nf), (combos.shape[0], nf)), nf + combos], axis=1)  # (P, p)
-    G = gram[idx[:, :, None], idx[:, None, :]]
-    G += 1e-12 * np.eye(G.shape[1]) * np.trace(G, axis1=1, axis2=2)[:, None, None]
-    b = rhs[idx]
-    a = np.linalg.solve(G, b[..., None])[..., 0]
-    res = np.maximum(float(y @ y) - np.sum(a * b, axis=1), 0.0)  # |y - X a|^2 at the solution
+
+    def solve_at(combos):
+        # the normal equations of every grid point from the Gram matrix of all the columns
+        idx = np.concatenate([np.broadcast_to(np.arange(nf), (combos.shape[0], nf)), nf + combos], axis=1)  # (P, p)
+        G = gram[idx[:, :, None], idx[:, None, :]]
+        G += 1e-12 * np.eye(G.shape[1]) * np.trace(G, axis1=1, axis2=2)[:, None, None]
+        b = rhs[idx]
+        a = np.linalg.solve(G, b[..., None])[..., 0]
+        return idx, a, np.maximum(float(y @ y) - np.sum(a * b, axis=1), 0.0)  # |y - X a|^2 at the solution
+
+    if k_gm <= 2:
+        combos = (np.array(list(itertools.combinations(range(grid.size), k_gm)), dtype=np.int64) if k_gm
+                  else np.zeros((1, 0), dtype=np.int64))
+    else:
+        # coarse to fine: every combination of every COARSE-th point, then around the best ones every
+        # combination of their neighbours on the full grid
+        coarse = np.array(list(itertools.combinations(range(0, grid.size, COARSE), k_gm)), dtype=np.int64)
+        _, _, r0 = solve_at(coarse)
+        near = itertools.product(range(-(COARSE - 1), COARSE), repeat=k_gm)
+        steps = np.array(list(near), dtype=np.int64)
+        fine = (coarse[np.argsort(r0)[:REFINE]][:, None, :] + steps[None]).reshape(-1, k_gm)
+        ok = np.all((fine >= 0) & (fine < grid.size), axis=1) & np.all(np.diff(fine, axis=1) > 0, axis=1)
+        allc = np.concatenate([coarse, fine[ok]])
+        key = allc @ (grid.size ** np.arange(k_gm, dtype=np.int64))
+        combos = allc[np.unique(key, return_index=True)[1]]
+    idx, a, res = solve_at(combos)
     top = np.argsort(res)[:EXACT_TOP]  # the best recomputed from the columns (no cancellation)
     res[top] = np.sum((y[None, :] - np.einsum("jpi,pi->pj", A[:, idx[top]], a[top])) ** 2, axis=1)
     feas = np.all(a >= 0, axis=1)

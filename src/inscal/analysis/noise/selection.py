@@ -44,7 +44,8 @@ the random walk it looks like over the record (a longer record resolves it).
 
 The amplitudes of every candidate are solved exactly on a grid of correlation times
 (:mod:`inscal.analysis.noise.projection`), the best candidates polished (at most :data:`MAX_POLISH` of them and the :data:`PER_GM_COUNT` best
-of each GM count: the choice's time budget); the chosen model is then
+of each GM count: the choice's time budget), then a backward elimination from the best (each
+candidate with one term fewer polished from its estimate); the chosen model is then
 refitted with the default GMWM weights (its reported values, intervals and objective).  The result
 names the runner-up and the criterion gap, the J-test p-value of the choice and what was set aside.
 
@@ -86,6 +87,8 @@ MAX_POLISH = 8
 PER_GM_COUNT = 2
 #: the longest GM correlation time of a candidate, as a share of the longest scale tau_max
 GM_TC_MAX_SHARE = 0.125
+#: steps of the backward elimination from the best polished candidate
+MAX_ELIMINATE = 3
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
 NEAR_PENALTIES = 2.0
 
@@ -195,6 +198,7 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
         if cand in polish:
             th, jg = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm)[:2]
         fitted[cand] = (p, th, jg, zero)
+    _eliminate(curve, fitted, set(polish), pen, W, tcm, rng)
     table, thetas = [], {}
     for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
@@ -240,6 +244,34 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
             f"{m} (gap {g:.3g}" + (f", a record about {s:.3g}x longer would separate them)" if s
                                    else ", no sign of it in this record)") for m, g, _, s in richer)
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+
+
+def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tcm: float, rng) -> None:
+    """Backward elimination from the best polished candidate: each candidate with one term fewer is
+    polished from its parent's estimate less that term (the grid, coarser than a precise curve's
+    scatter, may rank a term's stand-in above the smaller model), and the best moves on while that
+    lowers the criterion (at most :data:`MAX_ELIMINATE` steps).  ``fitted`` is updated in place."""
+    def crit(c):
+        return fitted[c][2] + pen * fitted[c][0]
+
+    best = min(polished, key=crit)
+    for _ in range(MAX_ELIMINATE):
+        codes, (_, th, _, _) = best, fitted[best]
+        starts = np.cumsum([0] + [n_params(c) for c in codes])
+        for i in range(len(codes)):
+            child = _without(codes, i)
+            if not child or child not in fitted:
+                continue
+            th0 = np.delete(th, slice(starts[i], starts[i + 1]))
+            thc, jc = solve(curve, child, n_starts=0, rng=rng, theta0=th0, whiten=W, grid=False, tc_max=tcm)[:2]
+            p, _, jold, _ = fitted[child]
+            if child not in polished or jc < jold:
+                fitted[child] = (p, thc, jc, (False,) * len(child))
+            polished.add(child)
+        nxt = min(polished, key=crit)
+        if nxt == best:
+            return
+        best = nxt
 
 
 def _richer(row, table, thetas, pen) -> tuple:
