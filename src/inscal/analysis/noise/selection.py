@@ -302,20 +302,23 @@ READOFFS = (("QN", -1.0, math.sqrt(3.0)), ("WN", -0.5, 1.0), ("BI", 0.0, math.na
 def readoffs(taus, adev, edf=None, min_edf: float = 30.0) -> dict:
     """The IEEE read-offs of one Allan deviation curve (SI): each term's tangent of its slope from
     below, read at its tau (module docstring); B = sigma_min / 0.664 with the tau of the minimum.
+    Each says at which tau it was read (``tau_s``) and the equivalent degrees of freedom there (``edf``,
+    NaN without ``edf``).
     With ``edf``, only the points of at least ``min_edf`` degrees of freedom are used (a tangent
     from below otherwise catches the scatter of the longest taus)."""
     taus, adev = np.asarray(taus, float), np.asarray(adev, float)
-    if edf is not None and np.sum(np.asarray(edf) >= min_edf) >= 3:
-        keep = np.asarray(edf) >= min_edf
-        taus, adev = taus[keep], adev[keep]
+    e = np.full(taus.size, np.nan) if edf is None else np.asarray(edf, float)
+    if edf is not None and np.sum(e >= min_edf) >= 3:
+        keep = e >= min_edf
+        taus, adev, e = taus[keep], adev[keep], e[keep]
     out = {}
     for code, slope, at in READOFFS:
         if code == "BI":
             i = int(np.argmin(adev))
             out["BI"] = {"value": float(adev[i] / math.sqrt(nm.BI_PLATEAU)), "tau_s": float(taus[i]),
-                         "flat_bottom": bool(0 < i < taus.size - 1)}
+                         "edf": float(e[i]), "flat_bottom": bool(0 < i < taus.size - 1)}
             continue
         c = adev * taus ** (-slope)
         i = int(np.argmin(c))
-        out[code] = {"value": float(c[i] * at**slope), "tau_s": float(taus[i])}
+        out[code] = {"value": float(c[i] * at**slope), "tau_s": float(taus[i]), "edf": float(e[i])}
     return out
