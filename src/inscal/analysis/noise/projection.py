@@ -53,10 +53,11 @@ def unit_column(code: str, m, dt: float, tc: float | None = None) -> np.ndarray:
     return 0.5 * term.avar(m, dt)
 
 
-def tc_grid(m, dt: float, per_octave: int = PER_OCTAVE, tc_max: float | None = None) -> np.ndarray:
-    """Correlation times from :data:`TC_MIN_SHARE` dt to ``tc_max`` (default 4 tau_max, tau_max = the
-    longest scale), ``per_octave`` per octave [s]."""
-    lo = math.log2(TC_MIN_SHARE * dt)
+def tc_grid(m, dt: float, per_octave: int = PER_OCTAVE, tc_max: float | None = None,
+            tc_min: float | None = None) -> np.ndarray:
+    """Correlation times from ``tc_min`` (default :data:`TC_MIN_SHARE` dt) to ``tc_max`` (default
+    4 tau_max, tau_max = the longest scale), ``per_octave`` per octave [s]."""
+    lo = math.log2(TC_MIN_SHARE * dt if tc_min is None else tc_min)
     hi = math.log2(4 * float(np.max(m)) * dt if tc_max is None else tc_max)
     return 2.0 ** np.linspace(lo, hi, int(math.ceil((hi - lo) * per_octave)) + 1)
 

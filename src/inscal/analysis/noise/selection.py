@@ -87,6 +87,8 @@ MAX_POLISH = 8
 PER_GM_COUNT = 2
 #: the longest GM correlation time of a candidate, as a share of the longest scale tau_max
 GM_TC_MAX_SHARE = 0.125
+#: the J-test level below which the simple family's choice opens the extended one
+EXTEND_ALPHA = 0.01
 #: steps of the backward elimination from the best polished candidate
 MAX_ELIMINATE = 3
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
@@ -167,19 +169,44 @@ class Selection:
 def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | None = None,
            n_starts: int = 2, criterion: str = "hqic") -> Selection:
     """Choose among the sub-sums of ``largest`` by ``criterion`` (module docstring) and refit the
-    choice with the GMWM weights."""
+    choice with the GMWM weights.  In two stages: the simple family first (the sub-sums of
+    :data:`AUTO_MIN_MODEL`'s terms within ``largest``, GM correlation times from 2 dt); the extended
+    one (every sub-sum of ``largest``, GM correlation times from dt / 8) where the simple choice fails
+    its J test at :data:`EXTEND_ALPHA` or holds a GM at 2 dt: where the record shows more than the
+    simple family can say."""
     rng = np.random.default_rng(0) if rng is None else rng
     codes = nm.parse_model(largest)
+    simple = tuple(c for c in nm.parse_model(AUTO_MIN_MODEL) if c in codes)
+    simple = simple[:len(simple) - max(0, simple.count("GM") - codes.count("GM"))]
+    first = _stage(curve, simple, 2.0 * curve.dt, rng, n_starts, criterion)
+    at_bound = [t for t in first.chosen.terms if t.code == "GM" and t.tc < 2.05 * curve.dt]
+    row = {r[0]: r for r in first.candidates}.get(first.chosen.model)
+    p_j = row[3] if row else math.nan
+    if simple == codes or not (p_j < EXTEND_ALPHA or at_bound):
+        note = "" if simple == codes else (f"; the extended family ({nm.model_string(codes)}, GM T_c from dt / 8) "
+                                           f"not tried: the choice passes its J test (p = {p_j:.2g} >= "
+                                           f"{EXTEND_ALPHA:g}) with no GM at 2 dt")
+        return Selection(first.chosen, first.candidates, first.reason + note, criterion, first.richer, first.removed)
+    second = _stage(curve, codes, None, rng, n_starts, criterion)
+    why = ("the simple family's choice " + first.chosen.model + (f" fails its J test (p = {p_j:.2g})" if p_j < EXTEND_ALPHA
+                                                                 else " holds a GM at 2 dt"))
+    return Selection(second.chosen, second.candidates, second.reason + f"; extended family tried: {why}", criterion,
+                     second.richer, second.removed)
+
+
+def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> Selection:
+    """One stage of :func:`select`: every sub-sum of ``codes`` with GM correlation times from ``tc_min``
+    [s] (None: dt / 8)."""
     J = curve.m.size
     fits_full = [c for c in [codes] if sum(n_params(x) for x in c) <= J - 1]
     big = codes if fits_full else max((c for c in sub_models(codes) if sum(n_params(x) for x in c) <= J - 1),
                                       key=lambda c: sum(n_params(x) for x in c))
-    full = fit_curve(curve, big, n_starts=0, rng=rng)
+    full = fit_curve(curve, big, n_starts=0, rng=rng, tc_min=tc_min)
     V = curve_covariance(full.terms, curve)
     W = np.linalg.inv(np.linalg.cholesky(V))  # ||W r||^2 = r' V^-1 r
     pen = penalty(criterion, record_samples(curve))
     tcm = tc_limit(curve)
-    cols = projection.basis(codes, curve.m, curve.dt, projection.tc_grid(curve.m, curve.dt, tc_max=tcm))
+    cols = projection.basis(codes, curve.m, curve.dt, projection.tc_grid(curve.m, curve.dt, tc_max=tcm, tc_min=tc_min))
     rows = []
     for cand in sub_models(codes):
         p = sum(n_params(c) for c in cand)
@@ -196,9 +223,10 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     fitted = {}
     for cand, p, th, jg, zero in rows:
         if cand in polish:
-            th, jg = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm)[:2]
+            th, jg = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm,
+                           tc_min=tc_min)[:2]
         fitted[cand] = (p, th, jg, zero)
-    _eliminate(curve, fitted, set(polish), pen, W, tcm, rng)
+    _eliminate(curve, fitted, set(polish), pen, W, (tcm, tc_min), rng)
     table, thetas = [], {}
     for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
@@ -215,7 +243,7 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     ok = [r for r in table if not r[5]] or table
     best = ok[0]
     cand, th = thetas[best[0]]
-    chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th)
+    chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th, tc_min=tc_min)
     removed = []
     while any(chosen.negligible) and len(chosen.codes) > 1:
         # a term the chosen fit does not show is no part of the model: drop it and refit
@@ -225,7 +253,7 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
         key = nm.model_string(cand)
         th0 = thetas[key][1] if key in thetas else np.delete(chosen.theta, slice(
             sum(n_params(c) for c in chosen.codes[:i]), sum(n_params(c) for c in chosen.codes[:i + 1])))
-        chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0)
+        chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0, tc_min=tc_min)
     row = {r[0]: r for r in table}.get(chosen.model, best)
     why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
            f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
@@ -246,11 +274,12 @@ def select(curve: Curve, largest: str = AUTO_MODEL, rng: np.random.Generator | N
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
 
 
-def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tcm: float, rng) -> None:
+def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng) -> None:
     """Backward elimination from the best polished candidate: each candidate with one term fewer is
     polished from its parent's estimate less that term (the grid, coarser than a precise curve's
     scatter, may rank a term's stand-in above the smaller model), and the best moves on while that
-    lowers the criterion (at most :data:`MAX_ELIMINATE` steps).  ``fitted`` is updated in place."""
+    lowers the criterion (at most :data:`MAX_ELIMINATE` steps).  ``fitted`` is updated in place;
+    ``tc_range``: the (longest, shortest) GM correlation time [s]."""
     def crit(c):
         return fitted[c][2] + pen * fitted[c][0]
 
@@ -263,7 +292,8 @@ def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tcm: fl
             if not child or child not in fitted:
                 continue
             th0 = np.delete(th, slice(starts[i], starts[i + 1]))
-            thc, jc = solve(curve, child, n_starts=0, rng=rng, theta0=th0, whiten=W, grid=False, tc_max=tcm)[:2]
+            thc, jc = solve(curve, child, n_starts=0, rng=rng, theta0=th0, whiten=W, grid=False, tc_max=tc_range[0],
+                            tc_min=tc_range[1])[:2]
             p, _, jold, _ = fitted[child]
             if child not in polished or jc < jold:
                 fitted[child] = (p, thc, jc, (False,) * len(child))
