@@ -186,7 +186,8 @@ def register(app: typer.Typer) -> None:
             for pn, p in ch["parameters"].items():
                 tab.add_row(pn, f"{p['value']:.4g}", f"[{p['lower_95']:.3g}, {p['upper_95']:.3g}]", escape(p["unit"]))
             for code, r in ch["ieee_readoffs"].items():
-                tab.add_row(f"IEEE read-off {code}", f"{r['value']:.4g}", f"at tau = {r['read_at_tau_s']:.3g} s",
+                dof = f", {r['edf']:.3g} dof" if r.get("edf") is not None else ""
+                tab.add_row(f"IEEE read-off {code}", f"{r['value']:.4g}", f"at tau = {r['read_at_tau_s']:.3g} s{dof}",
                             escape(r["unit"]))
             con.print(tab)
             typer.echo(f"  why: {ch['why']}; objective {ch['objective']:.4g}, J = {ch['j_statistic']:.3g} "

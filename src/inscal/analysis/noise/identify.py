@@ -268,10 +268,21 @@ def allan_view(scan: Scan, model: str, rng: np.random.Generator) -> dict:
     oct_ = np.isin(sv.m, octave_scales(sv.n)) & (sv.n_terms > 1)
     out = {"taus_s": sv.taus[oct_], "adev": sv.adev[oct_], "edf": sv.edf[oct_], "channels": []}
     for c, name in enumerate(CHANNELS):
-        sel = identify_curve(octave_curve(sv, c), model, rng)
-        f = sel.chosen
         kind = KINDS[name]
         read = ieee_readoffs(sv, c, kind)
+        curve = octave_curve(sv, c)
+        f = None
+        if np.all(curve.wv > 0) and np.all(np.isfinite(curve.wv)):
+            try:
+                f = identify_curve(curve, model, rng).chosen
+            except (ValueError, np.linalg.LinAlgError):
+                f = None  # a curve the engine cannot fit: the read-off, said so
+        if f is None:
+            v = float(units.to_si(read["WN"]["value"], read["WN"]["unit"]))
+            out["channels"].append({"name": name, "kind": kind, "model": "none", "white": (v, math.nan, math.nan),
+                                    "white_source": "IEEE read-off (no model fits this channel: constant or "
+                                                    "noise-free?)", "readoffs": read})
+            continue
         if "WN.n" in f.names:
             i = f.names.index("WN.n")
             n = (f.values[i], f.lower[i], f.upper[i])

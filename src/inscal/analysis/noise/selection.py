@@ -269,8 +269,8 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
     richer = _richer(row, table, thetas, pen)
     if richer:
         why += "; richer models fit nearly as well: " + "; ".join(
-            f"{m} (gap {g:.3g}" + (f", a record about {s:.3g}x longer would separate them)" if s
-                                   else ", no sign of it in this record)") for m, g, _, s in richer)
+            f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
+                                   else "; no sign of it in this record)") for m, g, _, s in richer)
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
 
 
