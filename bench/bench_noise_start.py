@@ -31,7 +31,7 @@ from inscal.core import noise_models as nm
 from inscal.core import units
 
 DT = 0.1
-START = nm.ChannelNoise("g", "gyro", (nm.GaussMarkov(1e-3, 0.4 * DT), nm.RandomWalk(6e-6),
+START = nm.ChannelNoise("g", "gyro", (nm.GaussMarkov(1e-3, 0.4 * DT), nm.RandomWalk(1.2e-5),
                                       nm.GaussMarkov(4e-4, 0.5), nm.GaussMarkov(2e-4, 8.0)))
 FIXED = ("RW+3GM", "WN+RW+3GM")
 G = nm.FIELD_UNITS["gyro"]
@@ -85,7 +85,7 @@ def main():
         with Pool(a.procs) as pool:
             for o in pool.imap(one_start, [a.seed + 10 * r for r in range(a.runs)], chunksize=1):
                 out.append(o)
-                if len(out) % 25 == 0:  # progress
+                if len(out) % 20 == 0:  # progress
                     print(f"  {len(out)} runs: right {100 * np.mean([x[0] == START.model for x in out]):.1f} %, "
                           f"largest ratio {max(x[1] / x[2] for x in out):.3g}", flush=True)
         wall = time.perf_counter() - t0

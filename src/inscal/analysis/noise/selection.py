@@ -91,6 +91,8 @@ GM_TC_MAX_SHARE = 0.125
 EXTEND_ALPHA = 0.01
 #: steps of the backward elimination from the best polished candidate
 MAX_ELIMINATE = 3
+#: the extended family's elimination starts from this many of its best polished candidates
+ELIMINATE_FROM_EXTENDED = 4
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
 NEAR_PENALTIES = 2.0
 
@@ -226,7 +228,8 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
             th, jg = solve(curve, cand, n_starts=0, rng=rng, theta0=th, whiten=W, grid=False, tc_max=tcm,
                            tc_min=tc_min)[:2]
         fitted[cand] = (p, th, jg, zero)
-    _eliminate(curve, fitted, set(polish), pen, W, (tcm, tc_min), rng)
+    # the extended family's grid is coarse (three or four GMs): eliminate from its best few
+    _eliminate(curve, fitted, set(polish), pen, W, (tcm, tc_min), rng, 1 if tc_min else ELIMINATE_FROM_EXTENDED)
     table, thetas = [], {}
     for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
@@ -274,23 +277,30 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
 
 
-def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng) -> None:
+def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng, n_from: int = 1) -> None:
     """Backward elimination from the best polished candidate: each candidate with one term fewer is
     polished from its parent's estimate less that term (the grid, coarser than a precise curve's
     scatter, may rank a term's stand-in above the smaller model), and the best moves on while that
-    lowers the criterion (at most :data:`MAX_ELIMINATE` steps).  ``fitted`` is updated in place;
-    ``tc_range``: the (longest, shortest) GM correlation time [s]."""
+    lowers the criterion (at most :data:`MAX_ELIMINATE` steps); from each of the ``n_from`` best polished
+    candidates.  ``fitted`` is updated in place; ``tc_range``: the (longest, shortest) GM correlation time [s]."""
     def crit(c):
         return fitted[c][2] + pen * fitted[c][0]
 
-    best = min(polished, key=crit)
+    for start in sorted(polished, key=crit)[:n_from]:
+        _eliminate_from(start, curve, fitted, polished, crit, W, tc_range, rng)
+
+
+def _eliminate_from(best, curve, fitted, polished, crit, W, tc_range, rng) -> None:
+    """The elimination chain of :func:`_eliminate` from the candidate ``best``."""
     for _ in range(MAX_ELIMINATE):
         codes, (_, th, _, _) = best, fitted[best]
         starts = np.cumsum([0] + [n_params(c) for c in codes])
+        family = [best]
         for i in range(len(codes)):
             child = _without(codes, i)
             if not child or child not in fitted:
                 continue
+            family.append(child)
             th0 = np.delete(th, slice(starts[i], starts[i + 1]))
             thc, jc = solve(curve, child, n_starts=0, rng=rng, theta0=th0, whiten=W, grid=False, tc_max=tc_range[0],
                             tc_min=tc_range[1])[:2]
@@ -298,7 +308,7 @@ def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_rang
             if child not in polished or jc < jold:
                 fitted[child] = (p, thc, jc, (False,) * len(child))
             polished.add(child)
-        nxt = min(polished, key=crit)
+        nxt = min(family, key=crit)
         if nxt == best:
             return
         best = nxt
