@@ -12,7 +12,7 @@ Every channel's increments are summed over blocks of about 1 s.  Two checks run 
   noise z_i ~ chi^2_1 whatever the noise's spectrum, since the median adapts per channel and width).
   A ``z`` beyond :data:`Z_EVENT` (7 sigma: a false alarm below 1e-11 per test, under 1e-4 over a
   day's 10^6 tests) and the largest within w of it marks the block after the boundary of its two
-  halves (an edge, to a block); a turn, a tilt, a bias step or a shock shows so, however
+  halves (an edge, to a block) unless a narrower width found an edge within 2w; a turn, a tilt, a bias step or a shock shows so, however
   short against the record (a 9-s turn in 10^4 s: z ~ 10^8).
 
 Channels stuck in a stretch (the same increment repeated far longer than the channel's share of
@@ -99,8 +99,11 @@ class MotionStats:
             zz = z.max(axis=1) if z.size else np.zeros(0)
             # an edge e makes |D_i| a triangle over i peaking at i + w = e: the local maxima are the edges
             hit = (zz > Z_EVENT**2) & (zz >= maximum_filter1d(zz, 2 * w + 1, mode="nearest"))
-            if hit.any():  # each marks the block after the boundary of its halves (the edge, to a block)
-                mask[np.minimum(np.flatnonzero(hit) + w, nb - 1)] = True
+            if hit.any():  # each marks the block after the boundary of its halves (the edge, to a block),
+                e = np.minimum(np.flatnonzero(hit) + w, nb - 1)  # unless a narrower width found one within 2w
+                cum = np.concatenate([[0], np.cumsum(mask)])
+                near = cum[np.minimum(e + 2 * w + 1, nb)] - cum[np.maximum(e - 2 * w, 0)]
+                mask[e[near == 0]] = True
             w *= 2
         return mask, zmax
 
@@ -151,7 +154,9 @@ class MotionStats:
         frac = float(np.mean(mask)) if self.k else 0.0
         why = None
         if frac > 0.01:
-            why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
+            ev = self.events(t0, names)
+            why = (f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
+                   + (f"; edges at {', '.join(ev)}" if ev else ""))
         if why is None:
             ev = self.events(t0, names)
             if ev:
