@@ -108,9 +108,16 @@ def main():
     if a.only != "start":
         for hours in [float(h) for h in a.hours.split(",")]:
             t0 = time.perf_counter()
-            with Pool(a.procs) as pool:
-                out = pool.map(one_rw, [(hours, a.seed + 7 * r) for r in range(a.runs)], chunksize=1)
             k = RW.terms[1].k
+            out = []
+            with Pool(a.procs) as pool:
+                for o in pool.imap(one_rw, [(hours, a.seed + 7 * r) for r in range(a.runs)], chunksize=1):
+                    out.append(o)
+                    if len(out) % 25 == 0:  # progress
+                        kf = np.array([x[0] for x in out]) / k - 1
+                        print(f"  {hours:g} h, {len(out)} runs: K from the true model's fit mean {100 * kf.mean():+.1f} %, "
+                              f"median {100 * np.median(kf):+.1f} %; auto right "
+                              f"{100 * np.mean([x[2] == RW.model for x in out]):.1f} %", flush=True)
             kf = np.array([o[0] for o in out]) / k - 1
             ka = np.array([o[1] for o in out]) / k - 1
             right = np.mean([o[2] == RW.model for o in out])
