@@ -192,3 +192,5 @@ def register(app: typer.Typer) -> None:
             con.print(tab)
             typer.echo(f"  why: {ch['why']}; objective {ch['objective']:.4g}, J = {ch['j_statistic']:.3g} "
                        f"on {ch['j_dof']} dof")
+            if ch["unresolved"]["parameters"]:
+                typer.echo(f"  unresolved ({ch['unresolved']['rule']}): {', '.join(ch['unresolved']['parameters'])}")
