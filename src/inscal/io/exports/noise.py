@@ -185,6 +185,10 @@ def matlab_script(model: nm.NoiseModel) -> str:
     """A MATLAB snippet that builds the two parameter objects."""
     p = matlab_params(model)
     lines = [f"% inscal noise model at {model.rate_hz:g} Hz (SI)"] + [f"% dropped: {d}" for d in dropped(model, "matlab")]
+    mapped = [c.name for c in model.channels if _term(c, "BI") and not _term(c, "GM")]
+    if mapped:
+        lines.append(f"% mapped: BI of {', '.join(mapped)} as BiasInstability = B (the IEEE figure) with MATLAB's "
+                     "default filter [1 -0.5] where the sensor has no GM: not the flicker spectrum")
     for key, d in p.items():
         c = d["BiasInstabilityCoefficients"]
         args = ", ".join(f"'{k}', [{' '.join(f'{v:.10g}' for v in d[k])}]" for k in ("NoiseDensity", "RandomWalk", "BiasInstability"))
