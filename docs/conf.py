@@ -12,6 +12,9 @@ import sys
 from pathlib import Path
 
 import inscal
+from inscal import SCHEMA_VERSION
+from inscal.io.paramfile import PARAM_SCHEMA_VERSION
+from inscal.lab.database import head_revision, revision_number
 
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS / "_ext"))
@@ -31,6 +34,7 @@ extensions = [
     "sphinx.ext.mathjax",
     "sphinx_gallery.gen_gallery",
     "inscal_docs",  # docs/_ext: the equation index, the API and CLI coverage checks
+    "inscal_site",  # docs/_ext: MathJax served from the site (typeset offline) and checked in Chromium
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
@@ -40,7 +44,10 @@ exclude_patterns = ["_build", "**/README.rst", "sg_execution_times.rst", "exampl
 templates_path: list[str] = []
 
 # --- MyST: Markdown pages with math, fenced directives and definition lists
-myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist", "substitution"]
+# version numbers the pages state, read from the code ({{ db_schema }} in a page)
+myst_substitutions = {"db_schema": revision_number(head_revision()), "record_schema": SCHEMA_VERSION,
+                      "param_schema": PARAM_SCHEMA_VERSION}
 myst_heading_anchors = 3
 
 # --- strict cross-references: everything of inscal must resolve; other projects' names are not checked

@@ -42,18 +42,18 @@ LONGEST = (
     "oracles/test_robust_sweep.py",  # 36 s
     "cli/test_signals_under_load.py",  # 23 s
     "cli/test_concurrent_writers.py",  # 20 s
-    "io/test_encoders.py",  # 20 s
     "cli/test_db_cli.py",  # 19 s
+    "io/test_encoders.py",  # 18 s (the n25 imports made once for the module)
     "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
     "analysis/test_montecarlo.py",  # 18 s
     "cli/test_readme_block_0.py",  # 18 s
     "calibrate/test_noise_matrix.py",  # 18 s
-    "lab/test_batch.py",  # 17 s
     "calibrate/test_selection.py",  # 16 s
     "cli/test_readme_block_2.py",  # 16 s
+    "lab/test_batch.py",  # 14 s (the run after the kill in the process)
     "cli/test_memory_caps.py",  # 13 s
     "oracles/test_oracle_calibration.py",  # 12 s
-    "cli/test_calibrate_caps.py",  # 10 s
+    "cli/test_calibrate_caps.py",  # 9 s
     "cli/test_demo_html.py",  # 9 s
     "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)

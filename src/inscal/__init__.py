@@ -12,7 +12,11 @@ Conventions, used by every module without re-explaining them:
 - Errors are reported as estimate minus truth.
 
 Layers (each imports only from those below it; ``lint-imports`` checks it): ``core`` < ``io`` <
-``sim`` | ``nav`` < ``calibrate`` < ``plan`` | ``analysis`` < ``report`` < ``cli``.
+``sim`` | ``nav`` < ``calibrate`` < ``plan`` | ``analysis`` | ``lab`` < ``report`` < ``cli``.
+``lab`` (the calibration database and the runs into it) imports neither ``sim`` nor ``nav``, and
+``calibrate`` neither ``io`` nor ``sim``.  One home per idea: attitude (quaternions, DCMs, rotation
+vectors; NumPy and scalar/array numba faces) in :mod:`inscal.core.attitude`, the Kalman steps in
+:mod:`inscal.core.kalman`, units in :mod:`inscal.core.units`.
 """
 
 __version__ = "0.1.0"

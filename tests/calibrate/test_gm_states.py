@@ -211,7 +211,9 @@ def test_smoother_with_gm_states(psins19_gm):
     pf = np.diag(out.Pf)[n:]
     d = np.diagonal(out.hist_P, axis1=1, axis2=2)
     np.testing.assert_allclose(d[:, n:], np.broadcast_to(pf, d[:, n:].shape), rtol=1e-10)
-    assert np.all(d[1:, 9:n] > 0) and np.all(d[:, 9:n] < 1.0 + 1e-9)
+    assert np.all(d[:, 9:n] > 0) and np.all(d[:, 9:n] < 1.0 + 1e-9)
+    for P in np.concatenate([out.P0s[None], out.hist_P]):  # positive definite at every stored step
+        np.linalg.cholesky(P)
     sm = out.smoother
     fb = np.array([sm.K_st[k] @ np.linalg.solve(sm.Si_st[k], sm.sz_st[k]) for k in range(out.steps)])[:, n:]
     rem = np.cumsum(fb[::-1], axis=0)[::-1]

@@ -56,9 +56,10 @@ def test_noise_free_record_with_unmodelled_terms_runs_and_flags_the_misfit():
     """Without bounded influence the 51-state filter on a noise-free record with an unmodelled 1 ms
     asynchrony trusted every innovation of the moves (NIS ~1e10 against a floor noise) and diverged
     (a LinAlgError inside the pass).  Now the moves are down-weighted, the fit says it is inconsistent,
-    and the estimates stay finite."""
+    and the estimates stay finite (the asynchrony drives them beyond what the model-error term explains: the
+    run would end with that line, kept here on request)."""
     rec = _record(async_s=1e-3, noise=False)
-    res = systematic(rec, "51,lever9")
+    res = systematic(rec, "51,lever9", accept_unconverged=True)
     assert all(np.all(np.isfinite(np.ravel(v))) for v in res.imu.__dict__.values())
     assert res.diagnostics["passes"][0]["downweighted_steps"] > 0
     assert not res.diagnostics["fit"]["consistent"]

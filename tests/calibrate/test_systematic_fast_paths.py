@@ -36,11 +36,11 @@ from inscal.calibrate.systematic.params import (
     params_from_ref,
     ref_error_states,
 )
-from inscal.calibrate.systematic.states import K_GIM, K_TAU, StateSet, estimated_names
+from inscal.calibrate.systematic.states import K_GIM, K_LEVT, K_TAU, StateSet, estimated_names
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 
-SPECS = ("51", "30", "51,lever9,async", "psins", "unified", "51,gdiag,nocross")
+SPECS = ("51", "30", "51,lever9,async", "psins", "unified", "51,gdiag,nocross", "51,lever9,async,levtime")
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,7 @@ def test_pairwise_sum_is_numpy_reduce():
         assert R.pairwise_sum(a, 0, n) == np.add.reduce(a), n
 
 
-def _direct_columns(C, vals, wd, fdot, kinds, axes, F, T, dt):
+def _direct_columns(C, vals, wd, fdot, kinds, axes, F, T, dt, sd):
     """Phi_np column by column: sum_j (I + F s + F^2 s^2/2) G_j dt, s = T - t_j at the sample's middle (the
     expansion of the package docstring), G_j from dynamics.column_values."""
     n = C.shape[0]
@@ -145,7 +145,8 @@ def _direct_columns(C, vals, wd, fdot, kinds, axes, F, T, dt):
             rb = 0 if kinds[c] <= 2 else 3
             if kinds[c] == K_GIM:
                 continue
-            G[rb:rb + 3, c] = C[j] @ fdot[j] if kinds[c] == K_TAU else C[j][:, axes[c]] * vals[j, c]
+            v = sd[j, axes[c]] if kinds[c] == K_LEVT else vals[j, c]  # the lever-arm timing: the basis' rate
+            G[rb:rb + 3, c] = C[j] @ fdot[j] if kinds[c] == K_TAU else C[j][:, axes[c]] * v
         out += E[:, :6] @ G[:6] * dt
     return out
 
@@ -163,13 +164,13 @@ def test_parameter_columns_equal_the_sample_sum(spec):
     C = np.array([[[1 - 2 * (c * c + d * d), 2 * (b * c - a * d), 2 * (b * d + a * c)],
                    [2 * (b * c + a * d), 1 - 2 * (b * b + d * d), 2 * (c * d - a * b)],
                    [2 * (b * d - a * c), 2 * (c * d + a * b), 1 - 2 * (b * b + c * c)]] for a, b, c, d in q])
-    ug, ua, w, f, wd, fdot = (rng.standard_normal((n, 3)) for _ in range(6))
+    ug, ua, w, f, wd, fdot, sd = (rng.standard_normal((n, 3)) for _ in range(7))
     vals = np.empty((n, npar))
     Bb = np.empty((N_BASIS, n))
     Cb = np.ascontiguousarray(C.reshape(n, 9).T)
     for j in range(n):
         column_values(kinds, axes, js, ug[j], ua[j], w[j], f[j], wd[j], fdot[j], vals[j])
-        basis_values(ug[j], ua[j], w[j], f[j], wd[j], fdot[j], Bb, j, True)
+        basis_values(ug[j], ua[j], w[j], f[j], wd[j], fdot[j], Bb, j, True, sd[j], True)
     start, src, col_sum, col_row, tau_pairs, _ = column_layout(kinds, axes, js, True)
     assert src.shape[0] < npar  # the biases of both triads share their pairs
     R_ = np.empty((src.shape[0], 3, 3))
@@ -180,7 +181,7 @@ def test_parameter_columns_equal_the_sample_sum(spec):
     sig = np.ones(9 + npar)
     discretise(F, T, 1e-12, 1e-10, sig, F2, phinn, Qd)
     parameter_columns(R_, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
-    ref = _direct_columns(C, vals, wd, fdot, kinds, axes, F, T, dt)
+    ref = _direct_columns(C, vals, wd, fdot, kinds, axes, F, T, dt, sd)
     np.testing.assert_allclose(phinp, ref, rtol=1e-12, atol=1e-13 * np.max(np.abs(ref)))
     F3 = F @ F @ F
     np.testing.assert_allclose(phinn, np.eye(9) + F * T + F @ F * T * T / 2 + F3 * T ** 3 / 6, rtol=1e-14, atol=1e-16)
@@ -239,3 +240,36 @@ def test_adjoint_recursion_alone_gives_the_smoothed_states(spec):
     for key in ("filtered", "filtered_sigma", "mbf"):
         assert np.array_equal(r1.history[key], r2.history[key])
     assert r2.pass_output.hist_P is not None and r2.pass_output.P0s is not None
+
+
+def test_lever_timing_rate_is_the_derivative_of_a_delayed_lever_arm_acceleration():
+    """``lever_timing_rate`` against finite differences of its definition on a rotation about a fixed axis with a
+    varying rate (angle ``0.3 sin(1.3 t)``, all three time derivatives known in closed form): the lever-arm
+    acceleration of each accelerometer taken ``delta`` earlier in navigation axes and sensed along the body axis
+    now, ``e_i . C_b^n(t)^T C_b^n(t - delta) L_i(t - delta)``, has the slope ``-sd_i`` in ``delta``."""
+    from scipy.spatial.transform import Rotation
+
+    from inscal.calibrate.systematic.dynamics import lever_timing_rate
+
+    e = np.array([0.48, -0.6, 0.64])
+    e /= np.linalg.norm(e)
+    lev = np.array([[0.03, -0.04, 0.02], [0.041, -0.014, 0.009], [-0.043, 0.044, 0.044]])
+
+    def th(t, k):  # k-th derivative of the angle
+        return 0.3 * 1.3 ** k * (np.sin, np.cos, lambda x: -np.sin(x), lambda x: -np.cos(x))[k](1.3 * t)
+
+    def C(t):
+        return Rotation.from_rotvec(th(t, 0) * e).as_matrix()
+
+    def L(t, i):
+        w, wd = th(t, 1) * e, th(t, 2) * e
+        return np.cross(wd, lev[i]) + np.cross(w, np.cross(w, lev[i]))
+
+    t, h = 0.7, 1e-4
+    sd = np.empty(3)
+    lever_timing_rate(lev, th(t, 1) * e, th(t, 2) * e, th(t, 3) * e, sd)
+    for i in range(3):
+        g = [C(t).T @ C(t - d) @ L(t - d, i) for d in (h, -h)]
+        slope = (g[0][i] - g[1][i]) / (2 * h)
+        assert slope == pytest.approx(-sd[i], rel=1e-6, abs=1e-12)
+    assert np.max(np.abs(sd)) > 1e-3  # a real rate: the check can fail

@@ -17,8 +17,10 @@ from inscal.calibrate import calibrate
 from inscal.calibrate.result import param_value
 from inscal.calibrate.thermal import (
     check_orders,
+    combine,
     cut_path,
     find_plateaus,
+    fit_raising_order,
     fit_term,
     plateau_records,
     stable_intervals,
@@ -185,11 +187,30 @@ def test_inconsistent_fit_treats_the_misfit_as_systematic():
 
 # ----------------------------------------------------------------------------- noise-free recovery
 def test_noise_free_recovery_n25(clean):
+    """With the default orders (quadratic): the cubic accelerometer bias of the truth leaves noise-free plateau
+    estimates off the quadratic by 17 ug rms, so its order is raised to 3 and every coefficient comes back to 1e-6
+    (order 2 gave the linear term 18 % off at 3.5 sigma, the fit called consistent); a named order is kept and its
+    fit flagged inconsistent, its sigma scaled."""
     sc, rec = clean
-    res = calibrate(rec, "thermal-plateaus", per_plateau="n25", orders=ORDERS)
+    res = calibrate(rec, "thermal-plateaus", per_plateau="n25")
     rel = rel_errors(res, sc.thermal)
     assert set(rel) == {"gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor"}
     assert max(rel.values()) < REL, rel
+    assert res.thermal.order("accel_bias") == 3 and res.thermal.order("gyro_bias") == 2
+    assert any(n.startswith("accel_bias: order 2 misfits the plateaus") and "raised to order 3" in n for n in res.notes)
+    # the per-plateau estimates themselves are exact: the scatter was the quadratic's misfit
+    for p in res.diagnostics["plateaus"]:
+        tru = sc.thermal.errors_at(sc.imu, p["temperature_c"]).accel_bias
+        assert np.max(np.abs(np.array(p["values"]["accel_bias"]) - tru)) < REL * np.max(np.abs(tru))
+    # the order named: kept, the fit flagged inconsistent and its systematic sigma covers the error it leaves
+    plats = find_plateaus(rec)
+    two = combine(res.diagnostics["plateau_results"], plats, check_orders({"accel_bias": 2}), 20.0, "", "n25",
+                  frozenset({"accel_bias"}))
+    assert two.thermal.order("accel_bias") == 2 and not two.thermal_fit["terms"]["accel_bias"]["consistent"]
+    assert any(n.startswith("accel_bias: the order-2 fit over 5 plateaus is inconsistent") for n in two.notes)
+    err = two.thermal.accel_bias - sc.thermal.accel_bias[:2]
+    assert np.max(np.abs(err[0]) / np.abs(sc.thermal.accel_bias[0])) > 0.1  # the linear term 12-18 % off
+    assert np.all(np.array(two.thermal_fit["terms"]["accel_bias"]["scale"]) > 10)  # sigma scaled, not formal
     th = res.thermal
     assert (th.t_ref, th.t_min, th.t_max) == (20.0, LEVELS[0], LEVELS[-1])
     assert not np.any(th.gyro_bias_rate) and np.all(np.isnan(res.thermal_sigma["gyro_bias_rate"]))
@@ -230,8 +251,14 @@ def test_misalignment_terms_and_a_cubic_bias():
     assert set(rel) == {"gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor", "gyro_misalignment",
                         "accel_misalignment"}
     assert max(rel.values()) < REL, rel
-    # left constant, the misalignments misfit the plateaus and their sigma are scaled, with a note
-    const = calibrate(rec, "thermal-plateaus", per_plateau="joint", orders={"accel_bias": 3})
+    # with the default orders (constant misalignments, quadratic biases) every misfitting order is raised
+    auto = calibrate(rec, "thermal-plateaus", per_plateau="joint")
+    assert max(rel_errors(auto, model).values()) < REL
+    assert {n.split(":")[0] for n in auto.notes if "raised to order" in n} == {"accel_bias", "gyro_misalignment",
+                                                                              "accel_misalignment"}
+    # kept constant by name, the misalignments misfit the plateaus and their sigma are scaled, with a note
+    const = combine(auto.diagnostics["plateau_results"], find_plateaus(rec), check_orders({"accel_bias": 3}), 20.0,
+                    "", "joint", frozenset({"accel_bias", "gyro_misalignment", "accel_misalignment"}))
     assert not const.thermal_fit["constant"]["accel_misalignment"]["consistent"]
     assert any(n.startswith("accel_misalignment: the weighted mean") for n in const.notes)
 
@@ -317,8 +344,23 @@ def test_noise_free_plateaus_give_the_coefficients_back():
     f = fit_term("accel_bias", dT, y, [np.zeros((3, 3)) for _ in dT], 2)
     assert np.allclose(f.coef, coef, rtol=1e-9, atol=1e-18)
     assert np.all(f.sigma < 1e-12 * np.abs(coef) + 1e-20) and "noise-free" in f.note and math.isnan(f.p_value)
-    # with a misfit (a plateau off by 1e-6) the residual scatter sets the sigma
+    # with a misfit (a plateau off by 1e-6, 1e-2 of the values: far above their round-off) the fit is
+    # inconsistent and its systematic sigma (sum over plateaus of |gain| x residual rms) covers the error
     y2 = y.copy()
     y2[2] += 1e-6
     f2 = fit_term("accel_bias", dT, y2, [np.zeros((3, 3)) for _ in dT], 2)
-    assert np.all(f2.sigma[0] > 1e-7) and np.all(np.abs(f2.coef - coef) < 5 * f2.sigma + 1e-12)
+    assert not f2.consistent and "noise-free plateau estimates (zero sigma) off the polynomial" in f2.note
+    assert np.all(f2.sigma[0] > 1e-7) and np.all(np.abs(f2.coef - coef) < f2.sigma + 1e-12)
+    # the residual rms per component is the one independent least squares leaves (each column alike)
+    X = np.vander(dT, 3, increasing=True)
+    r = y2 - X @ np.linalg.lstsq(X, y2, rcond=None)[0]
+    assert np.allclose(f2.chi2_components, np.sum(r ** 2, axis=0), rtol=1e-9)
+    # a misfit at the round-off (1e-7 of the values) is none: the fit stays consistent
+    y3 = y.copy()
+    y3[2] += 0.5e-7 * np.abs(y).max(axis=0)
+    f3 = fit_term("accel_bias", dT, y3, [np.zeros((3, 3)) for _ in dT], 2)
+    assert f3.consistent and "noise-free" in f3.note
+    # raising the order: a quadratic seen from order 1 is raised to 2 and fits exactly
+    f4, note = fit_raising_order("accel_bias", dT, y, [np.zeros((3, 3)) for _ in dT], 1, 3)
+    assert f4.order == 2 and f4.consistent and "raised to order 2" in note
+    assert np.allclose(f4.coef, coef, rtol=1e-9, atol=1e-18)

@@ -1,4 +1,5 @@
-"""The README's command block, run as written in parts that share no file, so that the parts run beside
+"""The command block of the site's "Every command in one session" page (``docs/guide/command-line.md``,
+which the README's tour quotes), run as written in parts that share no file, so that the parts run beside
 each other (``make test`` gives each test file to one worker): ``tests/cli/test_readme_block_<k>.py`` runs
 part ``k``.
 
@@ -19,7 +20,8 @@ from pathlib import Path
 from forkserver import ForkServer, Shell
 
 ROOT = Path(__file__).resolve().parents[2]
-README = (ROOT / "README.md").read_text()
+PAGE = ROOT / "docs" / "guide" / "command-line.md"
+TEXT = PAGE.read_text(encoding="utf-8")
 #: how many test files run the block
 PARTS = 3
 #: a word of a command line that names a file or folder the line reads or writes
@@ -27,8 +29,8 @@ FILE_WORD = re.compile(r"^[\w.-]+(\.(h5|toml|csv|html|png|json|sqlite|pdf|bin|ma
 
 
 def command_block() -> list[str]:
-    """The first fenced block after '## Command line': one inscal command per line."""
-    sec = README[README.index("## Command line"):]
+    """The first fenced block after '## The session': one inscal command per line."""
+    sec = TEXT[TEXT.index("## The session"):]
     m = re.search(r"```\n(.*?)```", sec, re.DOTALL)
     lines = [ln.strip() for ln in m.group(1).splitlines() if ln.strip()]
     assert lines and all(ln.startswith("inscal ") for ln in lines), lines

@@ -21,8 +21,6 @@ from forkserver import ForkServer
 from test_memory_caps import (
     MAX_REFUSE_S,
     MAX_RSS,
-    launch,
-    reap,
     sigterm_when_busy,
     small_record,
     snapshot,
@@ -30,6 +28,7 @@ from test_memory_caps import (
 
 from inscal.cli.calibrate import run_calibrate
 from inscal.cli.limits import available_memory
+from inscal.cli.simulate import run_simulate
 
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals, os.wait4, /proc")
 
@@ -101,12 +100,11 @@ def test_a_filter_rate_that_fills_the_memory_is_refused_up_front(server, tmp_pat
 
 @pytest.fixture(scope="module")
 def s16(tmp_path_factory):
-    """The 1-h s16 record (``inscal simulate s16``), and the systematic kernels loaded (or compiled and cached)
-    here by one calibration, so that the child loads them from numba's cache: a compilation, unlike the
-    kernels, cannot be interrupted."""
+    """The 1-h s16 record (``inscal simulate s16``'s, written here: the record, not its command, is the input),
+    and the systematic kernels loaded (or compiled and cached) here by one calibration, so that the child loads
+    them from numba's cache: a compilation, unlike the kernels, cannot be interrupted."""
     folder = tmp_path_factory.mktemp("s16")
-    rc, _, _ = reap(launch(["simulate", "s16", "--out", "s16.h5"], folder, folder / "logs"), timeout=300)
-    assert rc == 0, (folder / "logs" / "stderr").read_text()[-2000:]
+    run_simulate("s16", folder / "s16.h5")
     run_calibrate(folder / "s16.h5", "systematic51", folder / "warm.toml", states="51")
     return folder / "s16.h5"
 

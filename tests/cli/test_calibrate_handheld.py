@@ -6,6 +6,7 @@ its refusal for the other methods (one line, exit 2, nothing written); the resul
 inscal's compensated increments back to 1e-12."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -114,7 +115,12 @@ def test_quadratic_refused_for_other_methods(record, tmp_path, method):
 def test_defaults_are_the_methods_own():
     # a turntable method keeps its 1-s / 20-s windows (and the database's options, so its hashes)
     assert CalibrationSetup("n25").options() == calibration_options("n25", settle=1.0, min_static=20.0)
-    assert CalibrationSetup("multi-position").window_options == {"settle": 0.25, "min_static": 2.0}
+    assert CalibrationSetup("multi-position").window_options == {"settle": 0.25, "min_static": 1.0}
     assert CalibrationSetup("ferraris", settle=0.5).window_options == {"settle": 0.5, "min_static": 2.0}
     assert CalibrationSetup("multi-position", quadratic=True).options()["quadratic"] is True
     assert "--min-static-s must be" in CalibrationSetup("ferraris", min_static=float("nan")).problem()
+    # the stated hand tremor: multi-position only, in deg/s rms, SI for the method, in the database's options
+    assert CalibrationSetup("multi-position", tremor=2.0).window_options["tremor"] == pytest.approx(math.radians(2.0))
+    assert CalibrationSetup("multi-position", tremor=2.0).options()["tremor_dps"] == 2.0
+    assert "--tremor-dps applies to --method multi-position" in CalibrationSetup("ferraris", tremor=1.0).problem()
+    assert "--tremor-dps must be" in CalibrationSetup("multi-position", tremor=-1.0).problem()

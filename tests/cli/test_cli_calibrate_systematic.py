@@ -38,10 +38,10 @@ def test_systematic51_json_parameter_file_and_plots(psins19):
     # the default state set is chosen from the data: psins19 has no asynchrony, a diagonal lever arm and
     # off-diagonal g-sensitivities (1e-4 deg/h/g) far below this record's noise
     sel = rep["selection"]
-    assert rep["method"] == "systematic51" and sel["base"] == "51" and sel["full"] == "51,lever9,async"
+    assert rep["method"] == "systematic51" and sel["base"] == "51" and sel["full"] == "51,lever9,async,levtime"
     assert sel["chosen"] == rep["state_options"] == "51,gdiag" and rep["states"] == 45 and "gyro-defined" in rep["frame"]
-    assert {t["term"]: t["accepted"] for t in sel["tests"]} == {"async": False, "lever9": False, "gdiag": True,
-                                                                "nocross": False}
+    assert {t["term"]: t["accepted"] for t in sel["tests"]} == {"async": False, "lever9": False, "levtime": False,
+                                                                "gdiag": True, "nocross": False}
     inn = rep["innovations"]
     assert {"nis_mean", "chi2", "dof", "p_value"} <= set(inn) and 4.0 < inn["nis_mean"] < 8.0
     par = rep["parameters"]

@@ -20,6 +20,7 @@ from test_cli_guards import make_record, one_line_error, params_file, run
 from test_signals_under_load import started
 
 from inscal import io
+from inscal.core import cancel as core_cancel
 from inscal.cli.interrupts import Interrupted, catch_interrupts, release_interrupts
 from inscal.io.files import OutputBusyError, atomic_path, claim_output, lock_path, output_unit, release_output
 from inscal.io.files import part_prefix as files_prefix
@@ -343,7 +344,7 @@ def test_an_interrupt_as_a_file_or_folder_is_made_leaves_nothing(tmp_path, monke
         monkeypatch.setattr(io.files.os, "open", _signalling(os.open, lambda p, *a: str(p).endswith(".lock")))
     else:
         monkeypatch.setattr(io.files.FsPath, "mkdir", _signalling(io.files.FsPath.mkdir))
-    monkeypatch.setattr(io.files, "_CANCEL", [])  # the handler's cancellation, for this test only
+    monkeypatch.setattr(core_cancel, "_CANCEL", [])  # the handler's cancellation, for this test only
     old = catch_interrupts()
     try:
         with pytest.raises(Interrupted), output_unit():

@@ -1,4 +1,4 @@
-"""``inscal db`` and ``inscal calibrate --serial``: the README's lab workflow runs as written (real simulated
+"""``inscal db`` and ``inscal calibrate --serial``: the lab workflow of the guide's database page runs as written (real simulated
 records calibrated into the database; the exported parameter file is byte for byte calibrate's), a systematic
 calibration keeps the filter's covariance, a record recalibrated is refused unless it supersedes, and every
 bad input is one line, exit 2, nothing written."""
@@ -28,10 +28,10 @@ runner = CliRunner()
 
 
 def lab_block() -> str:
-    """The first fenced block of the README's '## Calibration database' section."""
-    text = (ROOT / "README.md").read_text()
-    sec = text[text.index("## Calibration database"):]
-    return re.search(r"```\n(.*?)```", sec, re.DOTALL).group(1)
+    """The first fenced block of docs/guide/database.md's "A lab's month" section."""
+    text = (ROOT / "docs" / "guide" / "database.md").read_text(encoding="utf-8")
+    sec = text[text.index("## A lab's month"):]
+    return re.search(r"```bash\n(.*?)```", sec, re.DOTALL).group(1)
 
 
 def run(*args, env=None):
@@ -49,7 +49,7 @@ def one_line(r, *phrases):
 
 
 @pytest.mark.slow
-def test_the_readme_lab_workflow_runs_as_written(tmp_path):
+def test_the_guides_lab_workflow_runs_as_written(tmp_path):
     """The block as one shell runs it (it exports INSCAL_DB), then what it left: two results with their sessions, the
     exports identical to calibrate's files, the history of two calibrations."""
     bindir = Path(sys.executable).parent

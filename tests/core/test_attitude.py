@@ -64,3 +64,30 @@ def test_skew_and_small_angle_error():
     phi = np.array([1e-5, -2e-5, 3e-5])
     Ce = Rotation.from_rotvec(phi).as_matrix() @ C
     assert at.small_angle_error(Ce, C) == pytest.approx(phi, abs=1e-16)
+
+
+def test_numpy_and_scalar_faces_agree_with_the_array_kernels_and_scipy():
+    rng = np.random.default_rng(11)
+    # angles from the Earth rate per sample to a half turn: every branch of the series
+    scale = np.repeat([1e-7, 1e-3, 0.05, 1.0, 3.0], 8)[:, None]
+    v = rng.normal(size=(40, 3)) * scale
+    w = rng.normal(size=(40, 3))
+    qa = at.quat_from_rotvec_array(v)
+    qs = np.roll(Rotation.from_rotvec(v).as_quat(), 1, axis=-1)  # independent: SciPy, scalar last
+    assert qa == pytest.approx(qs, rel=1e-14, abs=1e-16)
+    qb = at.quat_from_rotvec_array(w)
+    prod = at.quat_mul_array(qa, qb)
+    for k in range(40):
+        assert np.array_equal(prod[k], at.quat_mul(qa[k], qb[k]))  # the same products in the same order
+        assert np.array_equal(at.quat_mul_xyz(*qa[k], *qb[k]), prod[k])
+        assert at.quat_from_rotvec(v[k]) == pytest.approx(qa[k], rel=1e-14, abs=1e-16)
+        assert at.quat_from_rotvec_poly_xyz(*v[k]) == pytest.approx(qa[k], rel=2e-16 * 8, abs=1e-17)
+        x = np.array(at.quat_rotate_xyz(*qa[k], *w[k]))
+        assert x == pytest.approx(at.quat_to_dcm(qa[k]) @ w[k], rel=1e-13, abs=1e-15)
+        assert at.quat_rotate_inv(qa[k], x) == pytest.approx(w[k], rel=1e-13, abs=1e-15)
+    # composition as SciPy's (R(p) R(q) = R(p q)); angle and conjugate
+    ref = np.roll((Rotation.from_rotvec(v) * Rotation.from_rotvec(w)).as_quat(), 1, axis=-1)
+    assert prod == pytest.approx(ref * np.sign(np.sum(prod * ref, axis=-1))[:, None], abs=1e-14)  # q and -q alike
+    ang = np.linalg.norm(v, axis=-1)
+    assert at.quat_angle(qa)[ang < math.pi] == pytest.approx(ang[ang < math.pi], rel=1e-12, abs=1e-18)
+    assert at.quat_mul_array(qa, at.quat_conj(qa)) == pytest.approx(np.tile([1.0, 0, 0, 0], (40, 1)), abs=1e-15)

@@ -155,11 +155,11 @@ def test_an_encoder_glitch_is_a_disagreement_named_with_its_move_and_time(sims):
     assert "no unit, sign, column or latency error explains it" in res.message
 
 
-def test_encoders_interpolated_from_5_hz_agree_with_no_latency():
+def test_encoders_interpolated_from_5_hz_agree_with_no_latency(sims):
     """Encoder readings at 5 Hz interpolated to 100 Hz: the chords cut the accelerations, but the
     rotations agree and no latency appears (the chord errors cancel between speeding up and
     slowing down)."""
-    d = simulate(dataclasses.replace(scenarios.build("psins19"), noise=ImuNoise()))
+    d = sims["psins19", "noise-free"]
     k = np.append(np.arange(0, d.time.size, 20), d.time.size - 1)
     g = np.column_stack([np.interp(d.time, d.time[k], d.gimbal[k, j]) for j in range(2)])
     res = compare_encoders(d.dtheta, g, 100.0, d.time)
@@ -188,16 +188,19 @@ def test_one_hour_record_in_well_under_a_second():
     for gimbal, cause in ((g, "ok"), (g * [-1, 1], "outer-sign"), (apply_latency(t, g, -0.02), "latency")):
         best = math.inf
         for _ in range(2):
-            t0 = time.perf_counter()
+            t0 = time.process_time()  # CPU seconds: the limit holds on a loaded machine too
             res = compare_encoders(dth, gimbal, 100.0, t)
-            best = min(best, time.perf_counter() - t0)
+            best = min(best, time.process_time() - t0)
         assert res.cause == cause and best < 0.5, (cause, best)
 
 
 # ----------------------------------------------------------------------------- inscal import
 def _write_gimbal(path, t, g, unit="rad"):
-    np.savetxt(path, np.column_stack([t, g]), fmt="%.17g", delimiter=",",
-               header=f"time [s],outer [{unit}],inner [{unit}]", comments="")
+    """The rows of ``np.savetxt(fmt="%.17g", delimiter=",")`` under a header, formatted in one go (the same
+    bytes, in half the time: these files have 100 000 - 250 000 rows)."""
+    rows = np.column_stack([t, g])
+    body = ("%.17g,%.17g,%.17g\n" * len(rows)) % tuple(rows.ravel())
+    path.write_text(f"time [s],outer [{unit}],inner [{unit}]\n" + body)
 
 
 @pytest.fixture(scope="module")
@@ -216,15 +219,13 @@ def exported(tmp_path_factory):
     return out
 
 
-def test_export_import_round_trip_agrees_with_no_latency(exported):
+def test_export_import_round_trip_agrees_with_no_latency(exported, n25_imports):
     x = exported["n25"]
     assert x.gimbal.read_text().split("\n", 1)[0] == "time [s],outer [rad],inner [rad]"
-    code, so, se = run("import", x.bin, "--format", "psins", "--gimbal", x.gimbal, *x.site, "--out", x.dir / "a.h5",
-                       "--json")
-    assert code == 0, se
-    enc = json.loads(so)["encoders"]
+    s = n25_imports.plain_json  # import --gimbal (the exported file) --json
+    enc = s["encoders"]
     assert enc["ok"] and enc["moves"] == 27 and abs(enc["latency_s"]) < 0.5 * MS and enc["latency_sigma_s"] < 0.2 * MS
-    assert json.loads(so)["encoder_latency_s"] == 0.0
+    assert s["encoder_latency_s"] == 0.0
     code, so, _ = run("import", x.bin, "--format", "psins", "--gimbal", x.gimbal, *x.site, "--out", x.dir / "b.h5")
     assert code == 0 and "encoders agree with the gyros on 27 moves" in so
 
@@ -259,24 +260,35 @@ def test_import_names_each_corruption_in_one_line(exported, corruption, tmp_path
         assert code == 0, se  # the motion check (magnitudes only) passes them
 
 
-def test_encoder_latency_option_corrects_a_20_ms_shift_for_calibration(exported):
-    """A 20-ms late encoder file is refused, imports clean with --encoder-latency 0.02, and the
-    joint calibration of that import recovers the truth as well as the unshifted one (while the
-    shifted angles imported as they are spoil it)."""
+@pytest.fixture(scope="module")
+def n25_imports(exported):
+    """The n25 export imported with its own encoder file (``plain``, ``plain_json``: what ``--json`` said) and
+    with that file 20 ms late (``late``) past the encoder check (``raw``); both imports exit 0."""
     x = exported["n25"]
     late = x.dir / "late.csv"
     _write_gimbal(late, x.rec.time, apply_latency(x.rec.time, x.rec.gimbal, -0.020))
     base = ("import", x.bin, "--format", "psins", *x.site, "--json")
+    code, _, se = run(*base, "--gimbal", late, "--out", x.dir / "raw.h5", "--skip-check", "encoders")
+    assert code == 0, se
+    code, so, se = run(*base, "--gimbal", x.gimbal, "--out", x.dir / "plain.h5")
+    assert code == 0, se
+    return SimpleNamespace(late=late, raw=x.dir / "raw.h5", plain=x.dir / "plain.h5", plain_json=json.loads(so))
+
+
+def test_encoder_latency_option_corrects_a_20_ms_shift_for_calibration(exported, n25_imports):
+    """A 20-ms late encoder file is refused, imports clean with --encoder-latency 0.02, and the
+    joint calibration of that import recovers the truth as well as the unshifted one (while the
+    shifted angles imported as they are spoil it)."""
+    x = exported["n25"]
+    late = n25_imports.late
+    base = ("import", x.bin, "--format", "psins", *x.site, "--json")
     code, _, se = run(*base, "--gimbal", late, "--out", x.dir / "late.h5")
     assert code == 2 and abs(suggested_latency(se) - 0.02) < 0.5 * MS, se
+    assert not (x.dir / "late.h5").exists()
     code, so, se = run(*base, "--gimbal", late, "--out", x.dir / "fixed.h5", "--encoder-latency", 0.02)
     assert code == 0, se
     s = json.loads(so)
     assert s["encoder_latency_s"] == 0.02 and abs(s["encoders"]["latency_s"]) < 0.5 * MS
-    code, _, se = run(*base, "--gimbal", late, "--out", x.dir / "raw.h5", "--skip-check", "encoders")
-    assert code == 0, se
-    code, _, se = run(*base, "--gimbal", x.gimbal, "--out", x.dir / "plain.h5")
-    assert code == 0, se
     err = {}
     for tag in ("plain", "fixed", "raw"):
         res = calibrate(io.read_record(x.dir / f"{tag}.h5"), "joint")
@@ -302,30 +314,45 @@ def test_encoder_latency_needs_encoder_angles_and_a_finite_value(exported, tmp_p
     assert code == 2 and "known checks: constant, saturation, magnitudes, motion, encoders" in se, se
 
 
-def test_calibrate_checks_the_encoders_and_applies_a_latency(exported, tmp_path):
+def test_calibrate_checks_the_encoders_and_applies_a_latency(n25_imports, tmp_path):
     """``inscal calibrate`` compares the record's encoders with the gyros too: a record imported past the
     check with 20-ms late encoders is refused in one line naming the fix; ``--encoder-latency 0.02``
     calibrates it as the clean one; ``--skip-encoder-check`` calibrates it as it is."""
-    x = exported["n25"]
-    late = tmp_path / "late.csv"
-    _write_gimbal(late, x.rec.time, apply_latency(x.rec.time, x.rec.gimbal, -0.020))
-    code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", late, "--out", tmp_path / "raw.h5",
-                      "--skip-check", "encoders")
-    assert code == 0, se
+    raw = n25_imports.raw
     out = tmp_path / "p.toml"
-    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", out)
+    code, _, se = run("calibrate", raw, "--method", "joint", "--out", out)
     assert code == 2 and se.count("\n") == 1 and "the encoders lag the IMU by" in se and "--skip-encoder-check" in se, se
     assert abs(suggested_latency(se) - 0.02) < 0.5 * MS, se
     assert not out.exists()
-    code, so, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", out, "--encoder-latency", 0.02,
+    code, so, se = run("calibrate", raw, "--method", "joint", "--out", out, "--encoder-latency", 0.02,
                        "--json")
     assert code == 0, se
     rep = json.loads(so)
     assert rep["encoders"]["ok"] and abs(rep["encoders"]["latency_s"]) < 0.5 * MS
     assert rep["encoders"]["latency_applied_s"] == 0.02
-    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", tmp_path / "q.toml",
+    code, _, se = run("calibrate", raw, "--method", "joint", "--out", tmp_path / "q.toml",
                       "--skip-encoder-check")
     assert code == 0, se
-    code, _, se = run("calibrate", tmp_path / "raw.h5", "--method", "joint", "--out", tmp_path / "r.toml",
+    code, _, se = run("calibrate", raw, "--method", "joint", "--out", tmp_path / "r.toml",
                       "--encoder-latency", "nan")
     assert code == 2 and "--encoder-latency must be" in se
+
+
+def test_a_half_sample_offset_is_named_at_import_and_as_the_cause_of_the_misfit(exported, tmp_path):
+    """Encoders half a sample ahead of the increments (a driver that stamps each rate at the end of its
+    averaging interval): the import passes it (under a sample) with a warning naming it, and the n25 fit,
+    inconsistent by it, names it as the cause with the chi2 it leaves once shifted (within the 99 % band)."""
+    x = exported["n25"]
+    lead = tmp_path / "lead.csv"
+    _write_gimbal(lead, x.rec.time, apply_latency(x.rec.time, x.rec.gimbal, 0.005))
+    code, _, se = run("import", x.bin, "--format", "psins", *x.site, "--gimbal", lead, "--out", tmp_path / "o.h5")
+    assert code == 0 and "inscal: warning: " in se and "the encoders lead the IMU by 5" in se, se
+    assert "samples, half a sample: rates stamped at the end of their averaging interval" in se, se
+    assert abs(float(re.search(r"--encoder-latency (\S+)\)", se).group(1)) + 0.005) < 0.3 * MS, se
+    code, so, se = run("calibrate", tmp_path / "o.h5", "--method", "n25", "--out", tmp_path / "p.toml", "--json")
+    assert code == 0, se
+    fit = json.loads(so)["fit"]
+    assert not fit["consistent"] and fit["chi2"] > 1e4, fit["chi2"]
+    assert fit["cause"].startswith("the encoders lead the IMU by 5") and "half a sample" in fit["cause"], fit["cause"]
+    after = float(fit["cause"].split(" the chi2 falls from ")[1].split(" to ")[1].split(" on ")[0])
+    assert 173.2 < after < 282.3 and fit["cause"].endswith("on 224 dof (consistent)"), fit["cause"]

@@ -1,5 +1,5 @@
 """Hand-held logger samples (rates in deg/s, accelerations as integer counts with a scale and an offset,
-time in ms with jitter) turned into increments by the trapezoidal rule (inscal.io.logger), then calibrated
+time in ms with jitter) turned into increments by the midpoint rule (inscal.io.logger), then calibrated
 without a turntable: within 3.5 sigma of the independent generator's truth."""
 
 from types import SimpleNamespace

@@ -26,8 +26,9 @@ def log():
 def test_noise_densities_are_the_record_s_own_despite_jitter_and_moves(log):
     lg, arw, vrw = log
     si = detect_still(lg.time, lg.dtheta, lg.dvel)
-    assert np.allclose(si.gyro_density, arw, rtol=0.1)
-    assert np.allclose(si.accel_density, vrw, rtol=0.1)
+    # at the scale of a pose: batch means of 0.25 s over the poses, about 130 dof per axis (6 % standard error)
+    assert np.allclose(si.gyro_density, arw, rtol=0.2)
+    assert np.allclose(si.accel_density, vrw, rtol=0.2)
 
 
 def test_the_right_windows_and_each_rejection_named(log):

@@ -19,9 +19,10 @@ from inscal.core.error_model import GimbalErrors
 
 SITE = R.Site(34.0 * R.DEG, 108.0 * R.DEG, 380.0, "psins")
 #: five times better than PSINS's own 43-state residuals on such data (0.3 ppm, 0.15", 0.005 deg/h,
-#: 0.33 ug, 0.43 ug/g^2, 0.04 cm); the asynchrony and g-sensitivity have no PSINS figure: 1 us, 1e-3 deg/h/g
+#: 0.33 ug, 0.43 ug/g^2, 0.04 cm); the asynchrony and g-sensitivity have no PSINS figure: 1 us, and 3e-3 deg/h/g
+#: (the Cramer-Rao bound of the g-sensitivity on these records is 0.0028 deg/h/g: a target below it is luck)
 TARGETS = {"ppm": 0.06, "arcsec": 0.03, "deg/h": 0.001, "ug": 0.07, "ug/g^2": 0.09, "cm": 0.008, "ms": 0.001,
-           "deg/h/g": 0.001}
+           "deg/h/g": 0.003}
 
 
 def _psins_bin(gen, path):

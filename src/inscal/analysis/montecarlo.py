@@ -44,13 +44,11 @@ import csv
 import datetime as _dt
 import fcntl
 import json
-import logging
 import math
 import os
 import shutil
 import sys
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -66,6 +64,7 @@ from rich.progress import (
 )
 
 from inscal import __version__ as inscal_version
+from inscal.core.parallel import LOCAL_WORKER_ENVIRON, start_client
 from inscal.core.stats import chi2_ppf
 from inscal.io.jsonfile import to_jsonable
 
@@ -79,12 +78,6 @@ CONNECT_TIMEOUT = "15s"
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
 SUMMARY_PNG = "summary.png"
-#: the environment of the workers of a local cluster.  Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_``
-#: (64 kB) to hand freed memory back to the OS at once; that also pins glibc's mmap threshold, so
-#: every array of a run (MB each) is mapped, page-faulted and unmapped again, which made a run of
-#: ``n25-fig5`` 1.6x slower on a worker than in the driver.  A run's memory is freed and reused by
-#: the next run of the same size, so the default allocator is kept.
-LOCAL_WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
 class StudyError(ValueError):
@@ -476,23 +469,10 @@ def _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, f
 
 def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=None) -> None:
 
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
 
-    cluster = None
-    if scheduler in (None, "", "local"):
-        n = workers or os.cpu_count() or 1
-        with warnings.catch_warnings(), dask.config.set(LOCAL_WORKER_ENVIRON):
-            # no dashboard; the scheduler's health-check HTTP server moves off a busy port by itself
-            warnings.filterwarnings("ignore", message=r"(?s)Port \d+ is already in use")
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
-        client = Client(cluster)
-    else:
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    client, cluster = start_client(scheduler, workers or os.cpu_count() or 1, CONNECT_TIMEOUT, StudyError,
+                                   LOCAL_WORKER_ENVIRON)
     try:
         n_workers = max(1, sum(client.nthreads().values()))
         if bar is not None:

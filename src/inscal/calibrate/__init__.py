@@ -39,7 +39,8 @@ Methods (N25 = NAVIGATION 72(4) 2025, navi.726):
     the gyro model from the rotations between poses (:mod:`.multiposition`,
     Tedaldi 2014); options ``min_static``, ``settle``, ``quadratic``, ...
 ``ferraris``
-    no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995).
+    no turntable: six faces and three whole turns (:mod:`.ferraris`, Ferraris 1995), the faces' tilt
+    (``face_tilt``, stated) in the sigma; options ``min_static``, ``min_turn_end``, ``face_tilt``, ...
 ``joint``
     one nonlinear least-squares fit of all IMU errors, dth and the mounting
     attitude to every window, 1 sigma from the Jacobian and the measured

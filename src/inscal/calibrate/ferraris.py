@@ -1,28 +1,51 @@
 """The Ferraris method: six faces and three whole turns, without a rate table (Ferraris, Grimaldi &
-Parvis, Sensors and Materials 7(5), 1995, 311-330).
+Parvis, Sensors and Materials 7(5), 1995, 311-330), on faces as real faces are: tilted by a stated amount.
 
 The IMU (in a cube, or a box with square faces) rests on each of its six faces (``+x, -x, +y, -y, +z, -z``
-up, in any order), and turns through one whole turn (360 deg) about each of its three axes, starting and
-ending still on a face.  The still poses are found by :mod:`.static_detect`; each is assigned to a face
-by the sign of its largest specific-force component; a *whole turn* is a move between two still poses on
-the same face whose integrated rotation is near 360 deg.
+up, in any order), and turns through one whole turn (360 deg) about the vertical on a face whose axis j is
+vertical, for each of j = x, y, z, starting and ending still on that face.  The still poses are found by
+:mod:`.static_detect` (down to ``min_turn_end`` s, the short poses at the ends of a turn); a face is the
+longest pose of at least ``min_static`` s whose largest specific-force component is that axis with that
+sign; a *whole turn* is the motion between two still poses on the same face (any still pauses between them
+on that face included) whose integrated rotation is within ``turn_tol_deg`` of 360 deg about the vertical.
 
-Accelerometers (Ferraris 1995 eq. 6-8), ``a(+i)`` the mean output with ``+i`` up (``f = +g e_i``)::
+Faces (the cube frame c: its axes the faces' normals).  Face ``+-i`` holds the unit vector ``u = +-e_i + d``
+vertical (``d`` the face's tilt, orthogonal to ``e_i``: the face's flatness, the table's level and how it
+was put down), and the accelerometers read ``a(+-i) = g M u + b``.  With ``D`` the columns
+``(a(+i) - a(-i)) / g`` and ``U`` the columns ``u(+i) - u(-i)`` (Ferraris 1995 eq. 7-8)::
 
-    b_a = sum_i (a(+i) + a(-i)) / 6,      M_a[:, i] = (a(+i) - a(-i)) / (2 g)
+    M = D U^-1
 
-Gyros (Ferraris 1995 eq. 9-11): ``b_g`` the mean of the six faces after the vertical Earth rate
-``W sin L`` along each face's measured gravity direction is removed (the horizontal Earth rate, at most
-``W cos L``, is not: a note gives it), and for the whole turn about axis j::
+and the bias from the axis each face holds vertical (imucal's form of eq. 6, ``b_i = (a_i(+i) + a_i(-i)) / 2``,
+here in the calibrated frame: row i of ``M^-1 (a(+i) + a(-i) - 2 b) = g (u(+i) + u(-i))``)::
 
-    M_g[:, j] = (int (dtheta - b_g dt) - W sin L u T) / (2 pi s_j)     (s_j = +-1, the sense of the turn)
+    (M^-1 b)_i = (M^-1 (a(+i) + a(-i)))_i / 2 - g (u_i(+i) + u_i(-i)) / 2
 
-with ``u`` the vertical in the body and ``T`` the duration of the turn.  The results are expressed in
-the accelerometer frame of :mod:`.multiposition` (``M_a = L Q``, L lower triangular; ``M_g Q^T``), so both
-methods report the same parameters.  1 sigma: the noise of the window means and of the turn integrals
-propagated through these equations (central differences); the horizontal Earth rate the method leaves in is a Type B input (sigma
-``W cos L / 2`` in the face means, ``W cos L T / 2`` in a turn); the method's other assumptions (exact
-faces, turns about the body axes) are not in the sigma and are named in the notes.
+The estimate takes ``d = 0``; it is exact for exact faces and its error is second order in the tilt
+for the biases and scale factors (``b = sum faces / 6`` is first order: the horizontal axes read ``g d``),
+first order for the misalignments, which six faces cannot tell from a tilt.  The accelerometer frame p
+(``M = L Q``, L lower triangular: :mod:`.multiposition`) carries the results.
+
+Gyros (Ferraris 1995 eq. 9-11).  ``b_g`` is the mean of the six faces after the vertical Earth rate
+``W sin L`` along each face's measured vertical is removed.  A whole turn about the vertical on a face
+integrates ``int w dt = 2 pi s M_g v + b_g T + W sin L T v + h`` with ``v`` the vertical that face holds in
+the frame c (measured: ``M^-1 (a - b)`` of the turn's end poses, normalised), ``s = +-1`` the sense and
+``h`` the horizontal Earth rate integrated as the body turns; with ``W`` the columns
+``s (int w - b_g T - W sin L T v - h) / (2 pi)`` (the angle ``2 pi`` of a turn that closes) and ``V`` the
+columns ``v``::
+
+    M_g = W V^-1,      reported as  M_g Q^T  (in the frame p)
+
+so the turn's own tilt cancels: the gyro misalignments are known to within the accelerometer frame's.
+
+1 sigma.  The noise of the face means, of the turns' end poses and of the turn integrals (the gyro's
+white noise over T); the horizontal Earth rate at the faces' unknown headings (``(W cos L)^2 / 2`` per
+horizontal axis of each face, averaged over the six) and in each turn (``|int exp(i theta) dt|^2 (W cos
+L)^2 / 2`` per horizontal axis, ``theta`` the measured angle turned); the closure of each turn (its angle
+``2 pi`` within ``turn_closure`` rms: a turn by hand against a stop); and the face tilt ``d``, two
+components of variance ``face_tilt^2 / 2`` per face, propagated to first order (central differences) and
+to second order (the Hessian: its mean and variance, ``tr(H S) / 2`` and ``tr((H S)^2) / 2``, enter the
+covariance as the mean square error: the estimate stays that of exact faces).
 """
 
 from __future__ import annotations
@@ -40,6 +63,17 @@ from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors, split_scale_misalignment
 
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
+#: the default face tilt: the rms angle between a face's normal and the vertical of a hand-placed box on a
+#: table (its flatness and squareness, the table's level, what lies under it) [rad]
+FACE_TILT = math.radians(0.3)
+#: the default closure of a whole turn made by hand against a stop (a box's edge): the rms difference
+#: between the angle turned and 360 deg [rad]
+TURN_CLOSURE = math.radians(0.2)
+#: the input vector of :func:`_estimate`: (name, size) in order
+_LAYOUT = (("a", 18), ("w", 18), ("turn", 9), ("T", 3), ("at", 9), ("hb", 3), ("ht", 9), ("tilt", 12), ("ang", 3))
+_ENDS = np.cumsum([size for _, size in _LAYOUT])
+_SL = {name: slice(int(end) - size, int(end)) for (name, size), end in zip(_LAYOUT, _ENDS)}
+N_INPUTS = int(_ENDS[-1])
 
 
 def _face(f: np.ndarray) -> str:
@@ -47,106 +81,219 @@ def _face(f: np.ndarray) -> str:
     return ("+" if f[i] > 0 else "-") + "xyz"[i]
 
 
-def _estimate(inp: np.ndarray, g: float, wv: float, sense: np.ndarray, earth: np.ndarray) -> np.ndarray:
-    """Parameters (K_a 3, E_a 6, b_a 3, K_g 3, E_g 6, b_g 3) from the input vector: the six faces' mean
-    accel (18) and gyro (18) in FACES order, then the three turns' integrals (9) and durations (3);
-    ``sense``: +-1 per turn, ``earth``: the Earth rate integrated over each turn (3, 3) [rad]."""
-    a = inp[:18].reshape(6, 3)
-    w = inp[18:36].reshape(6, 3)
-    turn = inp[36:45].reshape(3, 3)
-    T = inp[45:48]
-    ba = a.sum(axis=0) / 6.0  # Ferraris 1995 eq. 6
-    Ma = np.column_stack([(a[2 * i] - a[2 * i + 1]) / (2.0 * g) for i in range(3)])  # eq. 7-8
-    u = np.linalg.solve(Ma, (a - ba).T).T
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    hb, ht = inp[48:51], inp[51:60].reshape(3, 3)  # the horizontal Earth rate left in (zero; a Type B input)
-    bg = np.mean(w - wv * u, axis=0) - hb  # eq. 9, the vertical Earth rate removed (to first order in M_g - I)
-    cols = []
-    for j in range(3):
-        cols.append(sense[j] * (turn[j] - bg * T[j] - earth[j] - ht[j]) / (2.0 * math.pi))  # eq. 10-11
-    Mg = np.column_stack(cols)
-    L, Q = lower_frame(Ma)
+def _ups(tilt: np.ndarray) -> np.ndarray:
+    """The unit verticals (6, 3) of the faces in FACES order, in the frame c, tilted by ``tilt`` (6, 2): the
+    components along the two horizontal axes ``i + 1``, ``i + 2`` (mod 3) of face ``+-i``."""
+    u = np.zeros((6, 3))
+    for k in range(6):
+        i = k // 2
+        u[k, i] = 1.0 if k % 2 == 0 else -1.0
+        u[k, (i + 1) % 3] += tilt[k, 0]
+        u[k, (i + 2) % 3] += tilt[k, 1]
+    return u / np.linalg.norm(u, axis=1)[:, None]
+
+
+def _estimate(inp: np.ndarray, g: float, wv: float, sense: np.ndarray) -> np.ndarray:
+    """Parameters (K_a 3, E_a 6, b_a 3, K_g 3, E_g 6, b_g 3) from the input vector (:data:`_LAYOUT`): the six
+    faces' mean accel and gyro in FACES order, the three turns' integrals and durations, the mean accel of
+    each turn's end poses, the horizontal Earth rate left in the gyro bias and in each turn, the faces' tilts,
+    the angle of each whole turn (2 pi when it closes); ``sense``: +-1 per turn (module docstring)."""
+    a = inp[_SL["a"]].reshape(6, 3)
+    w = inp[_SL["w"]].reshape(6, 3)
+    turn = inp[_SL["turn"]].reshape(3, 3)
+    T = inp[_SL["T"]]
+    at = inp[_SL["at"]].reshape(3, 3)
+    u = _ups(inp[_SL["tilt"]].reshape(6, 2))
+    D = np.column_stack([(a[2 * i] - a[2 * i + 1]) / g for i in range(3)])
+    U = np.column_stack([u[2 * i] - u[2 * i + 1] for i in range(3)])
+    M = D @ np.linalg.inv(U)  # Ferraris 1995 eq. 7-8 on tilted faces
+    N = np.linalg.inv(M)
+    # the bias from the axis each face holds vertical (imucal's form of eq. 6, in the calibrated frame)
+    rhs = np.array([0.5 * N[i] @ (a[2 * i] + a[2 * i + 1]) - 0.5 * g * (u[2 * i, i] + u[2 * i + 1, i])
+                    for i in range(3)])
+    ba = M @ rhs
+    uf = (a - ba) @ N.T
+    uf /= np.linalg.norm(uf, axis=1)[:, None]
+    bg = np.mean(w - wv * uf, axis=0) - inp[_SL["hb"]]  # eq. 9, the vertical Earth rate removed
+    v = (at - ba) @ N.T
+    v /= np.linalg.norm(v, axis=1)[:, None]  # the vertical each turn is about, frame c
+    ht = inp[_SL["ht"]].reshape(3, 3)
+    ang = inp[_SL["ang"]]
+    W = np.column_stack([sense[j] * (turn[j] - bg * T[j] - wv * T[j] * v[j] - ht[j]) / ang[j]
+                         for j in range(3)])  # eq. 10-11
+    Mg = W @ np.linalg.inv(v.T)
+    L, Q = lower_frame(M)
     ka, ea = split_scale_misalignment(L)
     kg, eg = split_scale_misalignment(Mg @ Q.T)
     return np.concatenate([ka, ea, ba, kg, eg, bg])
 
 
-def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: float = 1e-3,
-             turn_tol_deg: float = 30.0) -> CalibrationResult:
-    """Calibrate from six faces and three whole turns (module docstring).  ``settle``, ``min_static`` [s],
-    ``alpha``: :func:`.static_detect.detect_still`; ``turn_tol_deg``: how far from 360 deg a move between
-    two poses on the same face may be and still count as a whole turn."""
+def _tilt_moments(fn, x: np.ndarray, var_c: float) -> np.ndarray:
+    """The second-order part of the face tilt's effect on the parameters: ``E[y y^T]`` of ``y = d^T H d / 2``
+    over the tilts ``d`` (12, independent, variance ``var_c``), H the Hessian of ``fn`` at ``x``."""
+    sl = _SL["tilt"]
+    idx = np.arange(sl.start, sl.stop)
+    m = idx.size
+    h = 1e-3
+    f0 = fn(x)
+
+    def shifted(p, q, dp, dq):
+        e = x.copy()
+        e[idx[p]] += dp
+        e[idx[q]] += dq
+        return fn(e)
+
+    H = np.zeros((f0.size, m, m))
+    for p in range(m):
+        H[:, p, p] = (shifted(p, p, h, 0.0) - 2.0 * f0 + shifted(p, p, -h, 0.0)) / h**2
+        for q in range(p + 1, m):
+            H[:, p, q] = H[:, q, p] = (shifted(p, q, h, h) - shifted(p, q, h, -h) - shifted(p, q, -h, h)
+                                       + shifted(p, q, -h, -h)) / (4.0 * h * h)
+    mean = 0.5 * var_c * np.trace(H, axis1=1, axis2=2)
+    cov = 0.5 * var_c**2 * np.einsum("kpq,lqp->kl", H, H)
+    return cov + np.outer(mean, mean)
+
+
+def _turns(poses, dth: np.ndarray, time: np.ndarray, turn_tol_deg: float):
+    """The first whole turn about each axis: {axis: (integral, T, i0, i1, first pose, last pose)}, and the
+    notes on the turns found but not used."""
+    turns: dict[int, tuple] = {}
+    notes = []
+    for k, c0 in enumerate(poses):
+        face = _face(c0.accel)
+        a = c0.i1
+        for c1 in poses[k + 1:]:
+            if _face(c1.accel) != face:
+                break
+            b = c1.i0
+            d = dth[a:b].sum(axis=0)
+            ang = math.degrees(float(np.linalg.norm(d)))
+            if abs(ang - 360.0) <= turn_tol_deg:
+                j = int(np.argmax(np.abs(d)))
+                if face[1] != "xyz"[j]:
+                    notes.append(f"a whole turn about {'xyz'[j]} on face {face} (poses {c0.number}-{c1.number}) is "
+                                 "not about the vertical: not used")
+                elif j in turns:
+                    notes.append(f"a second whole turn about {'xyz'[j]} (poses {c0.number}-{c1.number}): not used")
+                else:
+                    turns[j] = (d, float(time[b - 1] - time[a - 1]), a, b, c0, c1)
+                break
+    return turns, notes
+
+
+def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: float = 1e-4,
+             turn_tol_deg: float = 30.0, min_turn_end: float = 0.3, gravity_tol: float = 0.1,
+             face_tilt: float = FACE_TILT, turn_closure: float = TURN_CLOSURE) -> CalibrationResult:
+    """Calibrate from six faces and three whole turns (module docstring).  ``settle`` [s] and ``alpha`` go
+    to :func:`.static_detect.detect_still`; ``min_static`` [s]: the shortest face pose; ``min_turn_end`` [s]:
+    the shortest still pose at the end of a turn (after ``settle`` at both ends; at most ``min_static``);
+    ``turn_tol_deg``: how far
+    from 360 deg a turn may be; ``gravity_tol``: the largest relative difference between the faces' median
+    specific force and the site's gravity (more is a wrong unit or site); ``face_tilt`` [rad]: the rms angle
+    between a face's normal and the vertical, an input of the sigma (0: exact faces); ``turn_closure`` [rad]:
+    the rms difference between a whole turn's angle and 360 deg (made by hand against a stop; 0: exact), an
+    input of the sigma."""
+    for name, v, ok in (("settle", settle, settle >= 0), ("min_static", min_static, min_static > 0),
+                        ("min_turn_end", min_turn_end, min_turn_end > 0),
+                        ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),
+                        ("gravity_tol", gravity_tol, 0 < gravity_tol < 1),
+                        ("face_tilt", face_tilt, 0 <= face_tilt <= math.radians(10.0)),
+                        ("turn_closure", turn_closure, 0 <= turn_closure <= math.radians(10.0))):
+        if not (math.isfinite(v) and ok):
+            raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, min_static > 0, "
+                                   "min_turn_end > 0, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, "
+                                   "0 <= face_tilt, turn_closure <= 10 deg)")
+    min_turn_end = min(min_turn_end, min_static)
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
     dv = np.asarray(record_like.dvel, float)
     site = record_like.site
     g = float(site.gravity)
-    si = detect_still(time, dth, dv, min_still=min_static, settle=settle, alpha=alpha)
+    si = detect_still(time, dth, dv, min_still=min_turn_end, settle=settle, alpha=alpha)
     poses = si.require(6, "the Ferraris method (six faces)")
-    faces: dict[str, list] = {}
+    med = float(np.median([np.linalg.norm(c.accel) for c in poses]))
+    if abs(med / g - 1.0) > gravity_tol:
+        raise CalibrationError(f"the still poses read {med:.5g} m/s^2 (median), far from the site's gravity "
+                               f"{g:.5g} m/s^2 (more than {gravity_tol:.0%}): wrong units, or the wrong site or "
+                               "--gravity")
+    faces: dict[str, object] = {}
     for c in poses:
-        faces.setdefault(_face(c.accel), []).append(c)
+        f = _face(c.accel)
+        if c.duration >= min_static and (f not in faces or c.duration > faces[f].duration):
+            faces[f] = c
     missing = [f for f in FACES if f not in faces]
     if missing:
-        raise CalibrationError(f"the still poses rest on {len(faces)} of the six faces: no pose with "
-                               f"{', '.join(missing)} up (Ferraris needs all six)")
-    turns: dict[int, tuple] = {}
-    for c0, c1 in zip(poses[:-1], poses[1:]):
-        if _face(c0.accel) != _face(c1.accel):
-            continue
-        a, b = c0.i1, c1.i0
-        d = dth[a:b].sum(axis=0)
-        ang = float(np.linalg.norm(d))
-        j = int(np.argmax(np.abs(d)))
-        if abs(math.degrees(ang) - 360.0) <= turn_tol_deg and j not in turns:
-            T = float(time[b - 1] - time[a - 1])
-            turns[j] = (d, T, b - a, c0, c1)
+        short = [c for c in poses if _face(c.accel) in missing]
+        rej = [c for c in si.rejected if _face(c.accel) in missing and c.duration > 0]
+        why = ""
+        if short:
+            c = max(short, key=lambda c: c.duration)
+            why = (f"; on {_face(c.accel)} the longest still pose lasts {c.duration:.3g} s, below --min-static-s "
+                   f"{min_static:g}")
+        elif rej:
+            why = f"; {rej[0].describe()}"
+        raise CalibrationError(f"the face poses (still >= {min_static:g} s) rest on {len(faces)} of the six faces: no "
+                               f"pose with {', '.join(missing)} up (Ferraris needs all six){why}")
+    turns, tnotes = _turns(poses, dth, time, turn_tol_deg)
     if len(turns) < 3:
         raise CalibrationError(f"found whole turns about {''.join('xyz'[j] for j in sorted(turns)) or 'no axis'}: "
-                               "Ferraris needs one 360 deg turn about each of x, y, z, from and back to a still face")
-    inp, var = [], []
-    for f in FACES:
-        c = faces[f][0]
-        inp.append(c.accel)
-        var.append(c.accel_sigma**2)
-    for f in FACES:
-        c = faces[f][0]
-        inp.append(c.gyro)
-        var.append(c.gyro_sigma**2)
-    dens = si.gyro_density
-    for j in range(3):
-        d, T, n, _, _ = turns[j]
-        inp.append(d)
-        var.append(dens**2 * T)
-    for j in range(3):
-        inp.append([turns[j][1]])
-        var.append([0.0])
-    # Type B: the horizontal Earth rate the method leaves in the face means (at most W cos L, sigma half that)
-    # and in each turn (its integral over a turn, at most W cos L T)
-    wh_si = OMEGA_IE * math.cos(site.latitude)
-    inp.append(np.zeros(3))
-    var.append(np.full(3, (wh_si / 2.0) ** 2))
-    for j in range(3):
-        inp.append(np.zeros(3))
-        var.append(np.full(3, (wh_si * turns[j][1] / 2.0) ** 2))
-    x = np.concatenate([np.ravel(v) for v in inp])
-    vx = np.concatenate([np.ravel(v) for v in var])
+                               "Ferraris needs one 360 deg turn about the vertical on a face with each of x, y, z "
+                               f"vertical, from a still pose of at least {min_turn_end:g} s (--min-turn-end-s, after "
+                               f"--settle-s {settle:g} at both ends) and back to one")
     wv = OMEGA_IE * math.sin(site.latitude)
-    # the sense of each turn (the sign of its integral along its axis) and the vertical Earth rate it
-    # integrates: the part along the turn axis stays, the rest turns with the body and averages out
-    sgn = np.array([np.sign(turns[j][0][j]) for j in range(3)])
-    earth = np.zeros((3, 3))
+    wh = OMEGA_IE * math.cos(site.latitude)
+    x = np.zeros(N_INPUTS)
+    vx = np.zeros(N_INPUTS)
+    x[_SL["a"]] = np.concatenate([faces[f].accel for f in FACES])
+    vx[_SL["a"]] = np.concatenate([faces[f].accel_sigma ** 2 for f in FACES])
+    x[_SL["w"]] = np.concatenate([faces[f].gyro for f in FACES])
+    vx[_SL["w"]] = np.concatenate([faces[f].gyro_sigma ** 2 for f in FACES])
+    dens = si.gyro_density
+    at, vat, reach = [], [], []
     for j in range(3):
-        u0 = turns[j][3].accel / np.linalg.norm(turns[j][3].accel)
-        earth[j, j] = wv * turns[j][1] * u0[j]
-    p = _estimate(x, g, wv, sgn, earth)
+        d, T, a, b, c0, c1 = turns[j]
+        w0, w1 = c0.duration, c1.duration  # the end poses' mean, weighted by duration (same attitude)
+        at.append((w0 * c0.accel + w1 * c1.accel) / (w0 + w1))
+        vat.append((w0**2 * c0.accel_sigma**2 + w1**2 * c1.accel_sigma**2) / (w0 + w1) ** 2)
+        # the horizontal Earth rate as the body turns: |int exp(i theta) dt| (theta the angle turned so far)
+        ax = d / np.linalg.norm(d)
+        theta = np.cumsum(dth[a:b] @ ax)
+        reach.append(abs(complex(np.sum(si.dt[a:b] * np.exp(1j * theta)))))
+    x[_SL["turn"]] = np.concatenate([turns[j][0] for j in range(3)])
+    vx[_SL["turn"]] = np.concatenate([dens**2 * turns[j][1] for j in range(3)])
+    x[_SL["T"]] = [turns[j][1] for j in range(3)]
+    x[_SL["at"]] = np.concatenate(at)
+    vx[_SL["at"]] = np.concatenate(vat)
+    # Type B: the horizontal Earth rate at the faces' unknown headings, (W cos L)^2 / 2 per horizontal axis
+    # of a face (4 of the 6 faces per axis), averaged over the six; in a turn along its two horizontal axes
+    vx[_SL["hb"]] = 4.0 * 0.5 * wh**2 / 36.0
+    vht = np.zeros((3, 3))
+    for j in range(3):
+        vht[j] = 0.5 * (wh * reach[j]) ** 2
+        vht[j, j] = 0.0
+    vx[_SL["ht"]] = vht.ravel()
+    var_c = 0.5 * face_tilt**2  # two components per face
+    vx[_SL["tilt"]] = var_c
+    x[_SL["ang"]] = 2.0 * math.pi
+    vx[_SL["ang"]] = turn_closure**2
+    # the sense of each turn: + when it turns counterclockwise about the vertical it is about
+    sgn = np.array([math.copysign(1.0, turns[j][0][j] * at[j][j]) for j in range(3)])
+
+    def fn(z):
+        return _estimate(z, g, wv, sgn)
+
+    p = fn(x)
     J = np.zeros((p.size, x.size))
     for k in range(x.size):
-        h = 1e-6 * max(abs(x[k]), 1e-3)
+        h = 1e-6 * max(abs(x[k]), 1e-3) if vx[k] > 0 else 0.0
+        if h == 0.0:
+            continue
         e = np.zeros_like(x)
         e[k] = h
-        J[:, k] = (_estimate(x + e, g, wv, sgn, earth) - _estimate(x - e, g, wv, sgn, earth)) / (2 * h)
+        J[:, k] = (fn(x + e) - fn(x - e)) / (2 * h)
     cov = (J * vx[None, :]) @ J.T
+    if face_tilt > 0:
+        cov = cov + _tilt_moments(fn, x, var_c)
     sd = np.sqrt(np.diag(cov))
     ea = p[3:9].copy()
     held = np.ones(6, bool)
@@ -158,17 +305,22 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
               "gyro_scale_factor": p[12:15], "gyro_misalignment": p[15:21], "gyro_bias": p[21:24]}
     sigma = {"accel_scale_factor": sd[0:3], "accel_misalignment": sea, "accel_bias": sd[9:12],
              "gyro_scale_factor": sd[12:15], "gyro_misalignment": sd[15:21], "gyro_bias": sd[21:24]}
-    wh = units.from_si(OMEGA_IE * math.cos(site.latitude), "deg/h")
-    notes = list(si.notes) + [
-        f"Ferraris assumes exact cube faces and turns about the body axes (not in the sigma); the horizontal Earth "
-        f"rate ({wh:.3g} deg/h) is not removed from the gyro bias nor from the turns: the sigma holds it (Type B)"]
+    tilt_deg = math.degrees(face_tilt)
+    notes = list(si.notes) + tnotes + [
+        f"faces tilted by {tilt_deg:.3g} deg rms (stated, --face-tilt-deg) are in the sigma: the misalignments are "
+        "known to within the faces' tilt, the biases and scale factors to second order in it; the turns are assumed "
+        f"about the vertical and to close within {math.degrees(turn_closure):.3g} deg rms (stated, --turn-closure-deg; "
+        "in the sigma of the gyro scale factors); the horizontal Earth rate "
+        f"({units.from_si(wh, 'deg/h'):.3g} deg/h) at the faces' unknown headings is not removed: the sigma holds it"]
     labels = [f"{n}.{c}" for n, cs in (("accel_scale_factor", "xyz"), ("accel_misalignment", ("xy", "xz", "yx", "yz",
               "zx", "zy")), ("accel_bias", "xyz"), ("gyro_scale_factor", "xyz"), ("gyro_misalignment", ("xy", "xz",
               "yx", "yz", "zx", "zy")), ("gyro_bias", "xyz")) for c in cs]
     keep = [i for i in range(p.size) if not (3 <= i < 9 and held[i - 3])]
-    diagnostics = {"still": si.report(), "faces": {f: [c.number for c in faces[f]] for f in FACES},
+    diagnostics = {"still": si.report(), "faces": {f: faces[f].number for f in FACES},
                    "turns": {"xyz"[j]: {"degrees": math.degrees(float(np.linalg.norm(turns[j][0]))),
-                                        "seconds": turns[j][1]} for j in range(3)},
+                                        "seconds": turns[j][1], "poses": [turns[j][4].number, turns[j][5].number]}
+                             for j in range(3)},
+                   "face_tilt_deg": tilt_deg, "turn_closure_deg": math.degrees(turn_closure),
                    "covariance": {"labels": [labels[i] for i in keep], "P": cov[np.ix_(keep, keep)]},
                    "frame": "accelerometer frame (x: accel x, y in the accel xy plane)"}
     return CalibrationResult("ferraris", ImuErrors(**values), GimbalErrors(), sigma, tuple(values), None,

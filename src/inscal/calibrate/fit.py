@@ -83,7 +83,7 @@ SIGMA_RULE = ("consistent fit: sigma = formal (measured window noise); inconsist
 
 def normalised_residuals(imu: ImuErrors, gimbal: GimbalErrors, ws: WindowSet) -> tuple[np.ndarray, np.ndarray]:
     """``(predicted - measured) / sigma`` of every window mean, gyro and accelerometer (n, 3)
-    each, with the exact forward model (:func:`.model.predict`) and the floored sigma."""
+    each, with the exact forward model (:func:`.window_model.predict`) and the floored sigma."""
 
     Ng, Na = predict(imu, gimbal, ws)
     G = np.array([w.gyro for w in ws.windows])

@@ -1,7 +1,7 @@
 """Joint calibration (beyond N25): one nonlinear least-squares fit of every IMU error of the
 linear N25 model (eq. 1-4), the gimbal non-orthogonality dth and the mounting attitude
 [alpha0, beta0, gamma0] to the means of every static and constant-rate window at once,
-with the exact forward model of :mod:`.model` (no small-angle approximation).
+with the exact forward model of :mod:`.window_model` (no small-angle approximation).
 
 * Residuals: (predicted - measured) window means divided by their measured 1-sigma noise
   (floored at 1e-6 deg/h and 1e-6 ug so noise-free data stay well conditioned).

@@ -24,6 +24,10 @@ The gravity direction predicted at pose k+1 is::
 
     u_{k+1} = R_k^T Rot(w_ie^{b_k}, dt_k) u_k,     w_ie^{b_{k+1}} = R_k^T w_ie^{b_k}
 
+with ``R_k`` taken between the poses' mean attitudes (the attitude the accelerometers' mean gives): a hand
+trembles, so the body at the end of pose k differs from its mean by the tremor's angle there, the mean over both
+ends from the gyros through the pose (:attr:`.static_detect.Candidate.wobble`) plus or minus ``T_k / 2`` times the
+tremor's mean rate (the pose's mean rate less the model's still rate ``M_g w_ie + b_g``)
 (the Earth frame turns by ``w_ie dt_k`` during the move; ``w_ie^{b_0} = W sin L u_0 + p h1 + q h2`` with
 ``h1, h2`` horizontal at pose 0 and ``p, q`` estimated: the heading is unknown).  Still pose k also
 gives ``g_k = M_g w_ie^{b_k} + b_g`` (3 equations).  Parameters ``K_g, E_g, b_g, p, q`` (14) by
@@ -34,8 +38,9 @@ horizontal part ``(p, q)`` is below a third of ``W cos L``: then the bias is sep
 
 Uncertainty: the covariance of each fit from its Jacobian (central differences) and the noise of the
 window means (:mod:`.static_detect`), scaled by chi^2/dof when the fit rejects the model (p < 0.001);
-the accelerometer model's covariance is propagated into the gyro parameters through the gravity
-directions it gives the poses (``dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr_g/dxa``).
+the accelerometer model's covariance moves the gravity directions it gives the poses, all together: the gyro
+residuals' covariance is ``I + D P_a D^T`` (``D = dr_g/dxa``) and the gyro fit is generalised least squares
+with it (whitened by its Cholesky factor), so the gyro chi^2 and covariance hold it once.
 Observability: the singular values of the normalised Jacobian; a direction below ``sv_tol`` makes
 the named parameters undetermined (an error, not a small sigma) and names the extra pose that helps
 most among the 26 faces, edges and corners of a cube.
@@ -46,10 +51,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import linalg, optimize, stats
 
 from inscal.calibrate.result import CalibrationResult
-from inscal.calibrate.static_detect import StillIntervals, detect_still
+from inscal.calibrate.static_detect import TREMOR, StillIntervals, detect_still
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import OMEGA_IE
@@ -265,23 +270,26 @@ class _Accel:
         return (n - self.g) / s
 
 
-def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, quadratic: bool = False,
+def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, quadratic: bool = False,
                    alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
-                   gravity_tol: float = 0.05, sv_tol: float = 1e-7, still: StillIntervals | None = None
-                   ) -> CalibrationResult:
+                   gravity_tol: float = 0.15, sv_tol: float = 1e-7, still: StillIntervals | None = None,
+                   tremor: float = TREMOR, clipped: np.ndarray | None = None) -> CalibrationResult:
     """Calibrate the accelerometers and gyros from still poses at unknown orientations and the moves
     between them (module docstring).  ``settle``, ``min_static`` [s] and ``alpha`` go to
     :func:`.static_detect.detect_still` (``still``: its result, computed once by the caller);
     ``gravity_tol``: the largest relative difference between the poses' median specific force and the
-    site's gravity accepted (a larger one is a wrong unit or a wrong site); ``gyro_range`` [rad/s],
-    ``accel_range`` [m/s^2]: the clip levels, when known."""
+    site's gravity accepted (a larger one is a wrong unit; 0.15: a consumer accelerometer's biases of
+    tens of mg move the median by several per cent); ``gyro_range`` [rad/s],
+    ``accel_range`` [m/s^2]: the clip levels, when known; ``tremor`` [rad/s rms]: the hand tremor a pose may
+    hold; ``clipped``: bool per sample, a sensor marked saturated at import (its moves are not used)."""
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
     dv = np.asarray(record_like.dvel, float)
     site = record_like.site
     g = float(site.gravity)
     si = still if still is not None else detect_still(time, dth, dv, min_still=min_static, settle=settle,
-                                                      alpha=alpha, gyro_range=gyro_range, accel_range=accel_range)
+                                                      alpha=alpha, gyro_range=gyro_range, accel_range=accel_range,
+                                                      tremor=tremor, clipped=clipped)
     need = 12 if quadratic else 9
     poses = si.require(need, f"the {'quadratic ' if quadratic else ''}accelerometer model")
     notes = list(si.notes)
@@ -308,17 +316,23 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 2.0, q
     gyr = _gyro_problem(time, dth, si, poses, u, site, notes)
     xg, covg, covg_formal, Jg, fitg = gyr.solve()
     weak_g = [lab for lab in _weak(Jg, gyr.typical, gyr.labels, sv_tol) if not lab.startswith("earth_rate")]
+    dead = [f"gyro {AXES[j]}" for j in range(3) if np.ptp(dth[:, j]) == 0.0]
+    if weak_g and dead:  # a channel that never changes: the motion is not the cause
+        raise CalibrationError(f"{', '.join(dead)} reads the same increment throughout the record (a dead or stuck "
+                               f"channel): it leaves {', '.join(weak_g[:6])} undetermined whatever the moves; check "
+                               "the sensor and its column in the import")
     if weak_g:
         raise CalibrationError(f"the {sum(gyr.used)} moves between the poses leave {', '.join(weak_g[:6])} undetermined "
                                "(the rotations do not turn about all three axes): move about the axes named too")
-    # the accelerometer model's uncertainty moves the measured gravity directions: propagated into the gyro
-    # parameters through the gyro fit, dxg/dxa = -(Jg^T Jg)^-1 Jg^T dr/dxa (central differences in xa)
+    # the accelerometer model's uncertainty moves the measured gravity directions of all poses together: the gyro
+    # residuals' covariance is I + D P_a D^T (D = dr/dxa by central differences in xa), and the gyro fit is redone
+    # whitened by it (generalised least squares): its chi^2 and covariance then hold that uncertainty once
     steps = 1e-7 * acc.typical
     dr = np.column_stack([(gyr.residuals(xg, _unit(acc, xa, j, h)) - gyr.residuals(xg, _unit(acc, xa, j, -h))) / (2 * h)
                           for j, h in enumerate(steps)])
-    G = -np.linalg.lstsq(Jg, dr, rcond=None)[0]
-    covg = covg + G @ cova @ G.T
-    covg_formal = covg_formal + G @ cova_formal @ G.T
+    Lc = np.linalg.cholesky(np.eye(dr.shape[0]) + dr @ cova @ dr.T)
+    xg, covg, covg_formal, Jg, fitg = _solve(lambda x: linalg.solve_triangular(Lc, gyr.residuals(x), lower=True), xg,
+                                             1e-7 * gyr.typical, gyr.labels)
     # ---------------------------------------------------------------------- result
     Mav, ba, k2, Ea = acc.unpack(xa)
     values = {"accel_scale_factor": xa[:3], "accel_misalignment": Ea, "accel_bias": ba,
@@ -428,7 +442,8 @@ class _Gyro:
               parameter_components("gyro_misalignment")] + [f"gyro_bias.{c}" for c in AXES]
               + ["earth_rate.p", "earth_rate.q"])
 
-    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes):
+    def __init__(self, five, seg, span, pairs, used, gmean, gsig, u, tsig, wv, h1, h2, omega_h, notes, wobble=None,
+                 length=None):
         Ainv = rate_poly_matrix(five[:, :, 3])
         self.coef_raw = Ainv @ five[:, :, :3]
         self.coef_h = np.einsum("nij,nj->ni", Ainv, five[:, :, 3])
@@ -436,6 +451,10 @@ class _Gyro:
         self.gmean, self.gsig, self.u, self.tsig = gmean, gsig, u, tsig
         self.wv, self.h1, self.h2, self.omega_h, self.notes = wv, h1, h2, omega_h, notes
         self.nseg = len(pairs)
+        # per pose: the tremor's attitude at both ends about the mean (their mean, from the gyros through the
+        # pose) and the pose's length; its ends differ by T times the tremor's mean rate, which the model gives
+        self.wobble = np.zeros((len(gmean), 3)) if wobble is None else wobble
+        self.length = np.zeros(len(gmean)) if length is None else length
         scale = max(omega_h, 1e-9)
         self.typical = np.array([1.0] * 9 + [scale] * 5)
 
@@ -454,14 +473,22 @@ class _Gyro:
         out_still, out_turn = [], []
         ws = [w]
         for k, (i, j) in enumerate(self.pairs):  # every move turns the Earth rate seen in the body
+            # between the poses' mean attitudes: C_{b(end i)}^{b(mean i)} R_k C_{b(mean j)}^{b(start j)}, the
+            # tremor's attitude at an end = the mean of both ends -+ T/2 times its mean rate (the mean measured
+            # rate less the model's still rate; the Earth rate at pose j from R_k alone: the tremor's share of it
+            # is far below the noise)
+            mi = Mi @ (self.gmean[i] - (M @ ws[i] + b))
+            mj = Mi @ (self.gmean[j] - (M @ (R[k].T @ ws[i]) + b))
+            Rk = (_rot(self.wobble[i] + 0.5 * self.length[i] * mi) @ R[k]
+                  @ _rot(self.wobble[j] - 0.5 * self.length[j] * mj).T)
             if self.used[k]:
-                upred = R[k].T @ (_rot(ws[i] * self.span[k]) @ uu[i])
+                upred = Rk.T @ (_rot(ws[i] * self.span[k]) @ uu[i])
                 n = uu[j]
                 e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
                 e1 /= np.linalg.norm(e1)
                 e2 = np.cross(n, e1)
                 out_turn.append(np.array([e1 @ upred, e2 @ upred]) / self.tsig[k])
-            ws.append(R[k].T @ ws[i])
+            ws.append(Rk.T @ ws[i])
         for k in range(len(self.gmean)):
             out_still.append((self.gmean[k] - (M @ ws[k] + b)) / self.gsig[k])
         return np.concatenate([np.ravel(out_still), np.ravel(out_turn)])
@@ -524,4 +551,5 @@ def _gyro_problem(time, dth, si: StillIntervals, poses, u, site, notes) -> _Gyro
     h2 = np.cross(u[0], h1)
     return _Gyro(np.concatenate(rows), np.concatenate(segs), np.array(span), pairs, used,
                  np.array([c.gyro for c in poses]), np.array([c.gyro_sigma for c in poses]), u, np.array(tsig),
-                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [])
+                 OMEGA_IE * math.sin(lat), h1, h2, OMEGA_IE * math.cos(lat), [],
+                 np.array([c.wobble for c in poses]), np.array([c.duration for c in poses]))

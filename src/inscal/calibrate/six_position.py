@@ -9,7 +9,7 @@ solution, the fit of an ideal-input scheme) are shared with the twelve-position 
 methods.
 
 Fit: the estimated IMU errors predict every window mean through the exact model
-(:func:`.model.predict`) for the turntable the scheme assumes (level, orthogonal), with the
+(:func:`.window_model.predict`) for the turntable the scheme assumes (level, orthogonal), with the
 heading ``gamma0`` (which the scheme does not need) fitted as a nuisance; chi^2, dof
 (window-mean components minus 24 IMU errors minus the heading) and p are in
 ``diagnostics["fit"]``.  When the fit is inconsistent the note names the likely cause and

@@ -5,40 +5,57 @@ The record is ``time`` (end of each sample interval, s; any time base: jittered,
 ``dtheta`` and ``dvel`` (the increments of each interval).  The rates of sample k are
 ``x_k = increment_k / dt_k`` with ``dt_k = t_k - t_{k-1}`` (the first sample: the median step).
 
-Noise (from the record itself).  For white noise of density ``N`` the rate ``x_k`` has the variance
-``N^2 / dt_k``, so on any still stretch ``(x_k - x_{k-1}) / sqrt(1/dt_k + 1/dt_{k-1})`` has the
-standard deviation ``N``, whatever the jitter; ``N`` per axis is the robust (MAD) scale of that
-quantity over the record (moves are a minority of the samples and smooth at the sample rate, so the
-median ignores them), then pooled over the quiet blocks.  The sigma of a window mean uses the density
-of batch means of 8 samples over the quiet blocks (the same for white noise; right also for increments
-that a trapezoidal rule made from samples, whose neighbours correlate).  A noise-free record gets the
-round-off floor ``1e-12`` of the signal.
+A still pose is what the models need (Tedaldi et al., ICRA 2014; imu_tk judges a pose by the accelerometers
+alone): for the accelerometer model a stretch whose specific force is constant within its noise, whatever the
+gyros' zero-mean hand tremor; the gyro model integrates the rotation between the poses through the tremor.
+
+Noise (from the record itself), at two scales.  At the sample rate, the per-sample scatter of the blocks
+below (``sum_k dt_k (x_k - xbar)^2 / (m - 1)`` is the density ``N^2`` for white noise, whatever the jitter):
+the median block first (most of a session is poses), then the median over the quiet blocks.  At the scale of a
+pose -- where an on-chip low-pass filter's correlation, the tremor and a slow drift live, unseen by neighbouring
+samples -- the scatter of batch means of ``batch_s`` (0.25 s, at least 8 samples) about their straight line:
+from the still start when the record has one (the first stretch, from the record's start, of at least
+``START_S`` = 10 s: a note gives its figures), else pooled over the settled candidates.  A noise-free record gets
+the round-off floor ``1e-12`` of the signal.
 
 Detection, every threshold a quantile at the false-alarm probability ``alpha``:
 
-1. blocks of ``block_s`` seconds (by time, not by sample count); a block is *quiet* when the
-   weighted scatter ``sum_k dt_k (x_k - xbar)^2 / N^2`` of the gyros and of the accelerometers each
-   stay under the chi-square quantile (at ``alpha`` over the number of blocks) of their ``3 (m - 1)``
-   degrees of freedom, and no step in it is
-   a gap (``dt_k`` above ``1.5`` median steps plus the chi-square bound of the step jitter);
-2. runs of quiet blocks are the *candidates*; ``settle`` seconds are dropped at both ends;
-3. a candidate is kept unless it is too short (``min_still``), it tilts (the slope of the specific
-   force over the window, a chi-square test on 3 dof, reported as a tilt rate), it turns (its mean
-   gyro rate differs from the median of the candidates by more than the chi-square bound of its own
-   noise plus the scatter between poses, which holds the Earth rate and g-sensitivity), or it is
-   saturated (samples at the clip level ``accel_range`` / ``gyro_range`` when given, a gyro that holds
-   its record-wide extreme for 3 samples or more (a clipped output), or an accelerometer
-   that reads one value to round-off while the record's noise says it should scatter).
+1. blocks of ``block_s`` seconds (by time; default ``min_still / 4``) without a time gap (a step above 1.5
+   median steps plus the chi-square bound of the step jitter).  A block is *still to the accelerometers*
+   when their scatter stays under the chi-square quantile (``alpha`` over the blocks) of ``3 (m - 1)`` dof
+   times ``N_a^2`` plus the wobble ``(g tremor / (2 pi 4 Hz))^2 T_b`` that a tremor of the stated rate
+   ``tremor`` (rms, default 3 deg/s; physiological tremor is 4-12 Hz) gives the specific force; its *gyros
+   are within the tremor* when ``sum_k dt_k |w_k - w_0|^2`` about the record's still rate ``w_0`` stays under
+   the quantile of ``3 m`` dof times ``N_g^2`` plus ``tremor^2 T_b``;
+2. runs of blocks still to the accelerometers are split into the runs whose gyros are within the tremor
+   (*candidates*) and the others (rejected, with their gyro scatter against the stated tremor, or named as a
+   turn about gravity when their mean rate carries it); ``settle`` seconds are dropped at both ends, and the end
+   batches whose mean rate or specific force differs from the rest's by more than 4 of their scatters (the slow
+   start or end of a move) are trimmed;
+3. a candidate is kept unless it is too short (``min_still``), saturated (samples at the clip level
+   ``accel_range`` / ``gyro_range`` when given, samples ``clipped`` at import, a gyro that holds its
+   record-wide maximum or minimum for 3 samples or more in a move, or an accelerometer that reads one value to
+   round-off while the record's noise says it should scatter), it tilts (the slope of the specific force over
+   the window against the pose-scale noise: an F test on 3 and ``nb - 2`` dof, reported as a tilt rate), or
+   it turns (its mean gyro rate differs from the median of the candidates by more than the chi-square bound of
+   its own noise plus the scatter between poses, which holds the Earth rate, g-sensitivity and drift).
+
+Every candidate's reason carries its figures and thresholds (a kept one: its tilt rate, its rate against the
+other poses, its gyro scatter).  The sigma of a pose's mean: the pose-scale density (its own batch means, the
+still start's as a floor) over ``sqrt(T)``; for the gyros also the tremor's share ``2 var(tau) / T^2`` (a mean
+rate over T holds ``(tau(t1) - tau(t0)) / T`` of a tremor angle tau, whose variance is that of the gyros
+integrated through the pose less the white noise's ``N_g^2 T / 12``), and the tremor's attitude at the pose's
+ends relative to its mean attitude (``wobble``) joins the rotations between the poses' mean attitudes.
 
 :meth:`StillIntervals.require` raises one line naming the first rejection when fewer poses than a
-model needs remain (e.g. ``found 7 still poses, the model needs 9: pose 3 turned, gyro 0.8 deg/s
-above the 0.05 deg/s threshold``).
+model needs remain: the (up to) three rejected candidates closest to usable, with their figures, and the
+options that would make them usable (``--min-static-s``, ``--settle-s``, ``--tremor-dps``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -48,8 +65,19 @@ from inscal.core import units
 
 #: the round-off floor of the noise density of a noise-free record, relative to the signal
 NOISE_FLOOR = 1e-12
-#: samples per batch of the batch-means density (longer than any correlation a conversion leaves)
+#: samples per batch of the batch-means density (longer than any correlation a conversion leaves), at least
 BATCH = 8
+#: the length of a batch at the scale of a pose [s] (longer than an on-chip filter's memory and a tremor's period)
+BATCH_S = 0.25
+#: the stated hand tremor a pose may hold by default [rad/s rms] (hand-held poses: 0.1-2 deg/s)
+TREMOR = math.radians(3.0)
+#: the lowest tremor frequency [Hz] (physiological tremor 4-12 Hz, Elble & Koller 1990): a tremor of rate
+#: rms r wobbles the specific force by at most g r / (2 pi TREMOR_HZ)
+TREMOR_HZ = 4.0
+#: the end batches of a stretch that differ from the rest by more than this many of their scatters are trimmed
+TRIM_Z = 4.0
+#: the shortest still start [s] whose batch means give the noise at a pose's scale
+START_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -65,8 +93,12 @@ class Candidate:
     reason: str  # why it was kept or rejected, in field units
     gyro: np.ndarray  # time-weighted mean rate [rad/s]
     accel: np.ndarray  # time-weighted mean specific force [m/s^2]
-    gyro_sigma: np.ndarray  # 1 sigma of ``gyro`` from the noise density [rad/s]
+    gyro_sigma: np.ndarray  # 1 sigma of ``gyro`` from the noise at the pose's scale (tremor included) [rad/s]
     accel_sigma: np.ndarray  # 1 sigma of ``accel`` [m/s^2]
+    wobble: np.ndarray = field(default_factory=lambda: np.zeros(3))  # the attitude at both ends relative to the
+    # pose's mean attitude (small rotation vector from the gyros through the pose's tremor) [rad]
+    score: float = 0.0  # a rejection's figure over its threshold (how far from usable; 0 when kept)
+    fix: str = ""  # what would make a rejected candidate usable (an option), when an option would
 
     @property
     def duration(self) -> float:
@@ -87,8 +119,11 @@ class StillIntervals:
     accel_density: np.ndarray  # [m/s^2/sqrt(s)]
     dt: np.ndarray  # the step of every sample [s]
     gap: np.ndarray  # bool per sample: its step is a gap
-    gyro_clipped: np.ndarray  # bool per sample: a gyro at its clip level
+    gyro_clipped: np.ndarray  # bool per sample: a gyro at its clip level (or marked saturated at import)
     notes: tuple[str, ...] = ()
+    tremor: float = TREMOR  # the stated tremor level [rad/s rms]
+    min_still: float = 2.0  # [s]
+    settle: float = 0.25  # [s]
 
     @property
     def kept(self) -> list[Candidate]:
@@ -106,11 +141,19 @@ class StillIntervals:
                 for c in self.candidates]
 
     def require(self, needed: int, what: str = "the model") -> list[Candidate]:
-        """The kept poses, or :class:`CalibrationError` in one line when fewer than ``needed``."""
+        """The kept poses, or :class:`CalibrationError` in one line when fewer than ``needed``: the best
+        rejected poses (closest to usable) with their figures and what would make them usable."""
         kept = self.kept
         if len(kept) >= needed:
             return kept
-        why = "; ".join(f"pose {c.number} {c.reason}" for c in self.rejected[:2])
+        best = sorted(self.rejected, key=lambda c: (c.score, -c.duration))[:3]
+        why = "; ".join(f"pose {c.number} ({c.t0:.1f}-{c.t1:.1f} s) {c.reason}" for c in best)
+        by_option: dict[str, str] = {}  # one fix per option, the one that uses them all: the farthest pose's
+        for c in sorted((c for c in best if c.fix), key=lambda c: c.score):  # (the largest tremor, the shortest)
+            by_option[c.fix.split(" ")[0]] = c.fix
+        fixes = list(by_option.values())
+        if fixes:
+            why += f"; to use them: {'; '.join(fixes)}"
         if not self.candidates:
             why = "no quiet interval in the record (it moves throughout)"
         elif not why:
@@ -141,19 +184,25 @@ def _density(x: np.ndarray, dt: np.ndarray, ok: np.ndarray) -> np.ndarray:
 
 
 def _flat_tops(x: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """Samples where a sensor sits at its record-wide extreme for at least 3 samples in a row (a clipped
-    output reads one value; a real signal does not repeat its extreme to round-off)."""
+    """Samples where a noisy sensor sits at its record-wide maximum or minimum for at least 3 samples in a row
+    (a clipped output reads one value; a real signal does not repeat its extreme to round-off), far (10 sample
+    scatters) from the axis's median: in a move.  An axis that repeats values on more than half of its samples
+    is not judged (noise-free data repeat values normally)."""
     out = np.zeros(x.shape[0], bool)
     for ax in range(x.shape[1]):
-        a = np.abs(x[:, ax])
-        top = a.max()
-        if top == 0.0:
+        a = x[:, ax]
+        d = np.diff(a)
+        if np.ptp(a) == 0.0 or np.mean(d == 0.0) > 0.5:
             continue
-        at = a >= top * (1.0 - 1e-12)
-        edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
-        for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
-            if i1 - i0 >= 3:
-                out[i0:i1] = True
+        mid, scat = float(np.median(a)), 1.4826 * float(np.median(np.abs(d))) / math.sqrt(2.0)
+        for top in (a.max(), a.min()):
+            if abs(top - mid) <= 10.0 * scat:
+                continue
+            at = np.abs(a - top) <= 1e-9 * abs(top)  # a jittered time base divides one count by steps that differ
+            edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
+            for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+                if i1 - i0 >= 3:
+                    out[i0:i1] = True
     return out
 
 
@@ -166,36 +215,70 @@ def _block_scatter(x, dt, starts):
     return np.add.reduceat(dt[:, None] * dev * dev, starts, axis=0)
 
 
-def _batch_density(x, dt, starts, m, sel, length: int = BATCH):
-    """Noise density per axis from the scatter of batch means (``length`` samples) about their block's mean,
-    pooled over the blocks ``sel`` (batch means, Law & Carson 1979); None without two batches anywhere."""
-    num, dof = np.zeros(x.shape[1]), 0
-    for b in np.flatnonzero(sel & (m >= 2 * length)):
-        i0, nb = starts[b], m[b] // length
-        xs, ds = x[i0:i0 + nb * length].reshape(nb, length, -1), dt[i0:i0 + nb * length].reshape(nb, length)
-        T = ds.sum(axis=1)
-        means = np.einsum("bk,bki->bi", ds, xs) / T[:, None]
-        mean = (T @ means) / T.sum()
-        num += T @ ((means - mean) ** 2)
-        dof += nb - 1
-    return None if dof < 5 else np.sqrt(num / dof)
-
-
 def _pooled(scatter, m, sel, floor):
-    """The noise density per axis pooled over the blocks ``sel`` (scatter / dof); ``floor`` below."""
-    dof = np.maximum(m[sel] - 1, 0).sum()
-    if dof <= 0:
+    """The noise density per axis over the blocks ``sel``: the median of their scatter / dof (robust to the
+    slow end of a move that a tremor allowance lets into a quiet block); ``floor`` below."""
+    sel = sel & (m > 1)
+    if not sel.any():
         return None
-    return np.maximum(np.sqrt(scatter[sel].sum(axis=0) / dof), floor)
+    return np.maximum(np.sqrt(np.median(scatter[sel] / (m[sel] - 1)[:, None], axis=0)), floor)
+
+
+def _pose_density(x, dt, i0, i1, batch_s):
+    """The noise density per axis at the scale of a pose: the scatter of the window's batch means (``batch_s``
+    long, at least :data:`BATCH` samples) about their straight line (so a slow drift is not noise), and the
+    number of batches (0: too few for an estimate)."""
+    d = dt[i0:i1]
+    L = max(BATCH, int(round(batch_s / float(np.median(d)))))
+    nb = (i1 - i0) // L
+    if nb < 4:
+        return np.zeros(x.shape[1]), 0
+    xs, ds = x[i0:i0 + nb * L].reshape(nb, L, -1), d[:nb * L].reshape(nb, L)
+    T = ds.sum(axis=1)
+    means = np.einsum("bk,bki->bi", ds, xs) / T[:, None]
+    tc = np.cumsum(T) - 0.5 * T
+    tc = tc - tc.mean()
+    A = np.column_stack([np.ones(nb), tc])
+    res = means - A @ np.linalg.lstsq(A, means, rcond=None)[0]
+    return np.sqrt(np.sum(T[:, None] * res**2, axis=0) / (nb - 2)), nb
+
+
+def _trim(w, f, dt, i0, i1, batch_s, ng, na, z: float = TRIM_Z) -> tuple[int, int]:
+    """``[i0, i1)`` without its end batches (``batch_s`` long) whose mean rate or specific force differs from the
+    rest's by more than ``z`` of the rest's batch scatter (floored by the densities ``ng``, ``na``): the slow
+    start or end of a move that the blocks let through.  At least 4 batches are kept."""
+    L = max(BATCH, int(round(batch_s / float(np.median(dt[i0:i1])))))
+    floor = np.concatenate([ng, na]) / math.sqrt(L * float(np.median(dt[i0:i1])))
+    x = np.column_stack([w, f])
+    while (i1 - i0) // L > 4:
+        nb = (i1 - i0) // L
+        core = x[i0 + L:i0 + (nb - 1) * L].reshape(nb - 2, L, 6).mean(axis=1)
+        c, sd = core.mean(axis=0), np.maximum(core.std(axis=0, ddof=1), floor)
+        lim = z * sd * math.sqrt(1.0 + 1.0 / (nb - 2))
+        head, tail = x[i0:i0 + L].mean(axis=0), x[i1 - L:i1].mean(axis=0)
+        dh, dtl = float(np.max(np.abs(head - c) / lim)), float(np.max(np.abs(tail - c) / lim))
+        if max(dh, dtl) <= 1.0:
+            break
+        if dh >= dtl:
+            i0 += L
+        else:
+            i1 -= L
+    return i0, i1
+
+
+def _tremor_word(tremor: float) -> str:
+    return f"{units.from_si(tremor, 'deg/s'):.3g} deg/s"
 
 
 def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 0.25, block_s: float | None = None,
                  alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
-                 gravity: float | None = None) -> StillIntervals:
+                 gravity: float | None = None, tremor: float = TREMOR, clipped: np.ndarray | None = None,
+                 batch_s: float = BATCH_S) -> StillIntervals:
     """The still intervals of a record (see the module docstring).  SI: ``min_still``, ``settle``,
-    ``block_s`` (default ``min_still / 4``) in s, ``gyro_range`` [rad/s], ``accel_range`` [m/s^2] (the
-    sensors' clip levels, when known); ``gravity`` [m/s^2] only words the tilt rate (default: the
-    median specific force of the candidates)."""
+    ``block_s`` (default ``min_still / 4``), ``batch_s`` in s, ``gyro_range`` [rad/s], ``accel_range`` [m/s^2]
+    (the sensors' clip levels, when known); ``tremor`` [rad/s rms]: the hand tremor a pose may hold (the stated
+    level); ``clipped``: bool per sample, a sensor marked saturated at import; ``gravity`` [m/s^2] only words the
+    tilt rate (default: the median specific force of the candidates)."""
     time = np.asarray(time, float)
     dth = np.asarray(dtheta, float)
     dv = np.asarray(dvel, float)
@@ -207,8 +290,11 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         raise CalibrationError(f"record too short ({n} samples) to hold a still pose")
     if not (np.all(np.isfinite(dth)) and np.all(np.isfinite(dv))):
         raise CalibrationError("the increments hold NaN or infinite values")
-    if not (alpha > 0 and alpha < 0.5 and min_still > 0 and settle >= 0):
-        raise CalibrationError(f"alpha in (0, 0.5), min_still > 0, settle >= 0; got {alpha}, {min_still}, {settle}")
+    if not (alpha > 0 and alpha < 0.5 and min_still > 0 and settle >= 0 and tremor >= 0 and batch_s > 0):
+        raise CalibrationError(f"alpha in (0, 0.5), min_still > 0, settle >= 0, tremor >= 0, batch_s > 0; got {alpha}, "
+                               f"{min_still}, {settle}, {tremor}, {batch_s}")
+    if clipped is not None and np.shape(clipped) != (n,):
+        raise CalibrationError(f"clipped must be one flag per sample ({n}), got shape {np.shape(clipped)}")
     dt = _steps(time)
     w = dth / dt[:, None]
     f = dv / dt[:, None]
@@ -218,7 +304,6 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
     gap_tol = max(1.5 * med, med + math.sqrt(stats.chi2.ppf(1.0 - alpha / n, 1)) * jit)
     gap = dt > gap_tol
     gap[0] = False
-    ok = ~gap
     notes = []
     if gap.any():
         k = np.flatnonzero(gap)
@@ -226,97 +311,182 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
                      f"t = {time[k[np.argmax(dt[k])]]:.3f} s): the samples after them are not used in still poses")
     clip_g = _flat_tops(w, dt) if gyro_range is None else np.any(np.abs(w) >= gyro_range, axis=1)
     clip_a = np.zeros(n, bool) if accel_range is None else np.any(np.abs(f) >= accel_range, axis=1)
-    # 1. quiet blocks
+    marked = np.zeros(n, bool) if clipped is None else np.asarray(clipped, bool)
+    clip_g = clip_g | marked
+    # 1. blocks
     bs = block_s if block_s is not None else min_still / 4.0
     t_start = time - dt
     blk = np.floor((t_start - t_start[0]) / bs).astype(np.int64)
     starts = np.flatnonzero(np.concatenate([[True], blk[1:] != blk[:-1]]))
     m = np.diff(np.append(starts, n))
+    Tb = np.add.reduceat(dt, starts)
     scat_g, scat_a = _block_scatter(w, dt, starts), _block_scatter(f, dt, starts)
-    dof = 3 * np.maximum(m - 1, 1)
-    crit = stats.chi2.ppf(1.0 - alpha / starts.size, dof)  # alpha for the whole record (Bonferroni)
     unknown = gap.copy()
     unknown[0] = True  # the first sample's interval starts at an unknown time: not used in a still pose
-    has_gap = np.add.reduceat(unknown.astype(np.int64), starts) > 0
-    usable = ~has_gap & (m > 1)
-    # the noise densities: successive differences (moves inflate them a little), then pooled over the
-    # quiet blocks twice (the blocks that pass with the densities found so far)
-    ng, na = _density(w, dt, ok), _density(f, dt, ok)
+    usable = (np.add.reduceat(unknown.astype(np.int64), starts) == 0) & (m > 1)
+    # sample-scale densities: the median block first (most of a session is poses), then pooled over the quiet
+    # blocks (a low-pass filter correlates neighbours: successive differences would read it too low)
+    dens = [np.sqrt(np.median(s_[usable] / np.maximum(m[usable] - 1, 1)[:, None], axis=0)) if usable.any()
+            else _density(x, dt, ~gap) for s_, x in ((scat_g, w), (scat_a, f))]
     floor_g, floor_a = (NOISE_FLOOR * max(float(np.sqrt(np.mean(x * x))), 1e-300) * math.sqrt(med) for x in (w, f))
+    ng, na = np.maximum(dens[0], floor_g), np.maximum(dens[1], floor_a)
+    na_diff = _density(f, dt, ~gap)  # the noise a clipped accelerometer would lack (successive differences)
+    base = np.median((np.add.reduceat(w * dt[:, None], starts, axis=0) / Tb[:, None])[usable], axis=0) if usable.any() \
+        else np.zeros(3)
+    dev_g = np.add.reduceat(dt[:, None] * (w - base) ** 2, starts, axis=0).sum(axis=1)  # about the baseline rate
+    crit_a = stats.chi2.ppf(1.0 - alpha / starts.size, 3 * np.maximum(m - 1, 1))  # alpha for the whole record
+    crit_g = stats.chi2.ppf(1.0 - alpha / starts.size, 3 * m)
+    g_est = float(np.median(np.linalg.norm(np.add.reduceat(f * dt[:, None], starts, axis=0) / Tb[:, None], axis=1)))
+    tilt_allow = (g_est * tremor / (2 * math.pi * TREMOR_HZ)) ** 2  # the specific force's wobble from that tremor
+
+    def quiet_tests(ng_, na_):
+        qa = (scat_a.sum(axis=1) <= float(np.max(na_)) ** 2 * crit_a + Tb * tilt_allow) & usable
+        qg = dev_g <= float(np.max(ng_)) ** 2 * crit_g + Tb * tremor**2
+        return qa, qg
+
     for _ in range(3):
-        quiet_blk = (np.sum(scat_g / ng**2, axis=1) <= crit) & (np.sum(scat_a / na**2, axis=1) <= crit) & usable
-        new_g, new_a = _pooled(scat_g, m, quiet_blk, floor_g), _pooled(scat_a, m, quiet_blk, floor_a)
+        qa, qg = quiet_tests(ng, na)
+        q = qa & qg
+        new_g, new_a = _pooled(scat_g, m, q, floor_g), _pooled(scat_a, m, q, floor_a)
         if new_g is None:
             break
+        base = np.add.reduceat(w * dt[:, None], starts, axis=0)[q].sum(axis=0) / Tb[q].sum()
+        dev_g = np.add.reduceat(dt[:, None] * (w - base) ** 2, starts, axis=0).sum(axis=1)
         ng, na = new_g, new_a
-    quiet_blk = (np.sum(scat_g / ng**2, axis=1) <= crit) & (np.sum(scat_a / na**2, axis=1) <= crit) & usable
-    quiet = np.repeat(quiet_blk, m)
-    # the density that sets the sigma of a window mean: from batch means (immune to the short correlation
-    # of increments made from samples by a trapezoidal rule); the sample-level ng, na judge the blocks
-    mg_, ma_ = _batch_density(w, dt, starts, m, quiet_blk), _batch_density(f, dt, starts, m, quiet_blk)
-    mg_ = ng if mg_ is None else np.maximum(mg_, floor_g)
-    ma_ = na if ma_ is None else np.maximum(ma_, floor_a)
-    # 2. candidates: runs of quiet blocks, settled
-    edges = np.diff(np.concatenate([[0], quiet.astype(np.int8), [0]]))
-    runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+    qa, qg = quiet_tests(ng, na)
+    # 2. stretches: runs of blocks still to the accelerometers; within them, the blocks whose gyros stay within the
+    # stated tremor are the candidates, the others a stretch rejected for its gyros
+    pieces = []  # (a, b, gyro_ok)
+    qa_s = np.repeat(qa, m)
+    qg_s = np.repeat(qg, m)
+    for a, b in _runs_of(qa_s):
+        for c, d in _runs_of(qg_s[a:b]):
+            pieces.append((a + c, a + d, True))
+        for c, d in _runs_of(~qg_s[a:b]):
+            pieces.append((a + c, a + d, False))
+    pieces.sort()
     raw = []
-    for a, b in runs:
+    for a, b, ok in pieces:
         ta, tb = t_start[a] + settle, time[b - 1] - settle
         i0 = int(np.searchsorted(t_start, ta - 1e-12 * max(1.0, abs(ta)), "left")) if settle else int(a)
         i1 = int(np.searchsorted(time, tb + 1e-12 * max(1.0, abs(tb)), "right")) if settle else int(b)
         i0, i1 = max(i0, int(a)), min(i1, int(b))
-        if i1 - i0 >= 2:
-            raw.append((i0, i1))
+        if i1 - i0 >= 2 and (ok or time[b - 1] - t_start[a] >= min_still):
+            raw.append((i0, i1, ok))
+    # the ends of a stretch where a move starts or stops slowly (within the tremor allowed) are trimmed
+    raw = [(*_trim(w, f, dt, i0, i1, batch_s, ng, na), ok) if ok else (i0, i1, ok) for i0, i1, ok in raw]
+    raw = [r for r in raw if r[1] - r[0] >= 2]
+    # the still start: the first stretch, from the record's start, long enough for the noise at a pose's scale
+    start = next(((i0, i1) for i0, i1, ok in raw[:1] if ok and t_start[i0] - t_start[0] <= 2 * bs + settle
+                  and time[i1 - 1] - t_start[i0] >= START_S), None)
+    if start is not None:
+        pg, nbg = _pose_density(w, dt, *start, batch_s)
+        pa, _ = _pose_density(f, dt, *start, batch_s)
+        mg_, ma_ = np.maximum(pg, floor_g), np.maximum(pa, floor_a)
+        notes.append(f"noise from the still start ({t_start[start[0]]:.1f}-{time[start[1] - 1]:.1f} s, {nbg} batches of "
+                     f"{batch_s:g} s): gyro {units.from_si(float(np.max(mg_)), 'deg/h') / 60.0:.3g} deg/sqrt(h), "
+                     f"accelerometer {float(np.max(ma_)) / 9.80665e-6:.3g} ug/sqrt(Hz)")
+    else:  # pooled over the candidates long enough (settled: no move's tail in them)
+        mg_, ma_ = ng, na
+        dens_g, dens_a, dof = np.zeros(3), np.zeros(3), 0
+        for i0, i1, ok in raw:
+            if ok and time[i1 - 1] - t_start[i0] >= min_still:
+                pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
+                pa, _ = _pose_density(f, dt, i0, i1, batch_s)
+                if nbg:
+                    dens_g, dens_a, dof = dens_g + (nbg - 2) * pg**2, dens_a + (nbg - 2) * pa**2, dof + nbg - 2
+        if dof >= 5:
+            mg_, ma_ = np.maximum(np.sqrt(dens_g / dof), floor_g), np.maximum(np.sqrt(dens_a / dof), floor_a)
     means = []
-    for i0, i1 in raw:
+    for i0, i1, _ in raw:
         d = dt[i0:i1]
         T = float(d.sum())
-        means.append((T, w[i0:i1].T @ d / T, f[i0:i1].T @ d / T))
-    long_ = [k for k, (T, _, _) in enumerate(means) if T >= min_still]
+        pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
+        pa, _ = _pose_density(f, dt, i0, i1, batch_s)
+        gm = w[i0:i1].T @ d / T
+        # the tremor: the attitude about the pose's mean attitude, the gyros integrated through the pose; a mean
+        # rate over T holds (tau(t1) - tau(t0)) / T of a tremor angle tau (variance 2 var(tau) / T^2)
+        cum = np.cumsum(dth[i0:i1] - np.outer(d, gm), axis=0)
+        wob = -(cum.T @ d) / T
+        var_tau = np.maximum(((cum + wob) ** 2).T @ d / T - mg_**2 * T / 12.0, 0.0)  # less the noise's bridge
+        sg = np.sqrt(mg_**2 / T + 2.0 * var_tau / T**2) * math.sqrt(T)
+        means.append((T, gm, f[i0:i1].T @ d / T, sg, np.maximum(pa, ma_), nbg, wob))
+    long_ = [k for k, (T, *_r) in enumerate(means) if T >= min_still and raw[k][2]]
     zg = math.sqrt(stats.chi2.ppf(1.0 - alpha, 3))
     if long_:
         gm = np.array([means[k][1] for k in long_])
-        base = np.median(gm, axis=0)
-        between = 1.4826 * float(np.median(np.linalg.norm(gm - base, axis=1))) / math.sqrt(3.0) if len(long_) > 2 else 0.0
+        gbase = np.median(gm, axis=0)
+        between = 1.4826 * float(np.median(np.linalg.norm(gm - gbase, axis=1))) / math.sqrt(3.0) if len(long_) > 2 else 0.0
         gnorm = float(np.median([np.linalg.norm(means[k][2]) for k in long_]))
     else:
-        base, between, gnorm = np.zeros(3), 0.0, 0.0
+        gbase, between, gnorm = np.zeros(3), 0.0, 0.0
     g_word = gravity if gravity is not None else gnorm
     cands = []
-    for num, ((i0, i1), (T, gmean, fmean)) in enumerate(zip(raw, means), start=1):
+    for num, ((i0, i1, ok), (T, gmean, fmean, pg, pa, nb, wob)) in enumerate(zip(raw, means), start=1):
         d = dt[i0:i1]
-        reason = None
-        if T < min_still:
+        reason, score, fix = None, 0.0, ""
+        rms = math.sqrt(float(np.sum(dt[i0:i1, None] * (w[i0:i1] - gmean) ** 2)) / T)
+        if not ok:
+            steady = float(np.linalg.norm(gmean - base))
+            if steady > 0.5 * rms:
+                reason = (f"turned, gyro {units.from_si(steady, 'deg/s'):.3g} deg/s from the still rate while the "
+                          "accelerometers were steady (a turn about gravity)")
+                score = 10.0
+            else:
+                reason = (f"gyro tremor {_tremor_word(rms)} rms above the stated tremor level {_tremor_word(tremor)} "
+                          "(--tremor-dps)")
+                score, fix = rms / max(tremor, 1e-300), f"--tremor-dps {units.from_si(1.2 * rms, 'deg/s'):.2g}"
+        elif T < min_still:
             reason = f"too short, {T:.3g} s below the {min_still:.3g} s minimum"
+            score, fix = min_still / T, f"--min-static-s {max(0.1, math.floor(T * 10) / 10):.2g}"
+            if settle > 0:
+                fix += f" (or --settle-s {0.5 * settle:.2g}: {2 * settle:.2g} s of it are dropped as settling)"
         elif clip_a[i0:i1].any():
             reason = f"accelerometer saturated ({int(clip_a[i0:i1].sum())} samples at the {accel_range:.4g} m/s^2 clip level)"
+            score = 100.0
         elif clip_g[i0:i1].any():
             reason = f"gyro saturated ({int(clip_g[i0:i1].sum())} samples at the clip level)"
+            score = 100.0
         else:  # a clipped sensor reads one value while its noise says it should scatter
-            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na > 1e3 * floor_a)
+            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na_diff > 1e3 * floor_a)
             if flat.any():
                 ax = int(np.argmax(flat))
                 reason = (f"accelerometer {'xyz'[ax]} saturated (flat at {fmean[ax]:.5g} m/s^2 while its noise is "
-                          f"{na[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
-        if reason is None:  # tilt: slope of the specific force, weighted least squares per axis
+                          f"{na_diff[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
+                score = 100.0
+        tilt_txt = turn_txt = ""
+        if reason is None:  # tilt: slope of the specific force (weighted least squares per axis) against the
+            # noise at the scale of the pose (its batch means, the still start's floor): an F test on 3 and nb-2 dof
             tc = (time[i0:i1] - 0.5 * d) - float((time[i0:i1] - 0.5 * d) @ d / T)
             sxx = float(np.sum(d * tc * tc))
             slope = (f[i0:i1].T @ (d * tc)) / sxx
-            chi = float(np.sum(slope**2 * sxx / na**2))
-            if chi > zg**2:
-                tilt = float(np.linalg.norm(slope)) / max(g_word, 1e-300)
-                thr = zg * float(np.max(na)) / math.sqrt(sxx) / max(g_word, 1e-300)
-                reason = (f"tilted, {units.from_si(tilt, 'deg/s'):.3g} deg/s (accelerometer trend) above the "
-                          f"{units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
-        if reason is None:  # turning: mean rate against the other poses
-            dev = float(np.linalg.norm(gmean - base))
-            thr = zg * math.sqrt(float(np.max(ng)) ** 2 / T + between**2)
+            chi = float(np.sum(slope**2 * sxx / pa**2))
+            q = 3.0 * stats.f.ppf(1.0 - alpha, 3, max(nb - 2, 1)) if nb and np.any(pa > ma_) else zg**2
+            tilt = float(np.linalg.norm(slope)) / max(g_word, 1e-300)
+            # the threshold on the trend's size along its own direction u: chi = |slope|^2 sxx sum(u^2 / pa^2)
+            # passes q exactly where |slope| passes it, so the word printed follows the two values printed
+            u = slope / max(float(np.linalg.norm(slope)), 1e-300)
+            thr = math.sqrt(q / (sxx * float(np.sum(u**2 / pa**2)))) / max(g_word, 1e-300)
+            tilt_txt = (f"tilt {units.from_si(tilt, 'deg/s'):.3g} deg/s (accelerometer trend) "
+                        f"{'above' if chi > q else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
+            if chi > q:
+                reason, score = "tilted, " + tilt_txt, chi / q
+        if reason is None:  # turning: mean rate against the other poses (their scatter holds the Earth rate,
+            # g-sensitivity and the drift of the bias), with the pose's own noise (tremor included)
+            dev = float(np.linalg.norm(gmean - gbase))
+            thr = zg * math.sqrt(float(np.max(pg)) ** 2 / T + between**2)
+            turn_txt = (f"gyro {units.from_si(dev, 'deg/s'):.3g} deg/s from the other poses "
+                        f"{'above' if dev > thr else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
             if dev > thr:
-                reason = (f"turned, gyro {units.from_si(dev, 'deg/s'):.3g} deg/s above the "
-                          f"{units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
+                reason, score = "turned, " + turn_txt, dev / thr
         kept = reason is None
         if kept:
-            reason = f"still for {T:.3g} s"
+            reason = f"still for {T:.3g} s ({tilt_txt}; {turn_txt}; gyro scatter {_tremor_word(rms)} rms)"
         cands.append(Candidate(num, i0, i1, float(t_start[i0]), float(time[i1 - 1]), kept, reason, gmean, fmean,
-                               mg_ / math.sqrt(T), ma_ / math.sqrt(T)))
-    return StillIntervals(tuple(cands), mg_, ma_, dt, gap, clip_g, tuple(notes))
+                               pg / math.sqrt(T), pa / math.sqrt(T), wob, score, fix))
+    return StillIntervals(tuple(cands), mg_, ma_, dt, gap, clip_g, tuple(notes), tremor, min_still, settle)
+
+
+def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))

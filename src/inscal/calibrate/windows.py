@@ -18,13 +18,13 @@ no angle channel):
 * static windows shorter than ``min_static`` seconds are ignored;
 * a constant-rate window is cut to the largest whole number of turns that fits inside
   the constant-rate part (centred), so the rotating Earth-rate and gravity components
-  average out; the exact model (:mod:`.model`) uses the window's start and end angles,
+  average out; the exact model (:mod:`.window_model`) uses the window's start and end angles,
   so a residual fraction of a turn is modelled, not neglected;
 * a move of less than one turn (e.g. the +-90 deg moves of an S16 or PSINS path) gives a
   *turn* window (``kind == "turn"``): its whole constant-rate part, with the angles turned
   known from the encoders or the path (``partial_turns``; at least ``min_turn_s`` seconds
   and ``min_turn_deg`` degrees).  The same exact constant-rate model holds (the mean of a
-  rotation over a partial turn, :func:`.model.mean_rot_T`), so these windows carry the
+  rotation over a partial turn, :func:`.window_model.mean_rot_T`), so these windows carry the
   gyro scale factors and installation angles for :mod:`.joint` on paths without full-turn
   rate tests.  The classical CW/CCW rate tests (N25 eq. 28) use whole-turn ``rate``
   windows only.

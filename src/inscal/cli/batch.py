@@ -232,7 +232,7 @@ def register(app: typer.Typer) -> None:
                                             "patterns (quoted: 'runs/FOG-*.h5'); or --manifest"),
         method: str = typer.Option(..., "--method", "-m",
                                    help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
-                                        "unified"),
+                                        "unified | multi-position | ferraris"),
         db: str = typer.Option(None, "--db", help=DB_HELP),
         scheduler: str = typer.Option(None, "--scheduler", help="local (the default: a Dask LocalCluster), none (in "
                                       "this process, one record after another) or a Dask scheduler's address "

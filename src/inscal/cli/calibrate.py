@@ -19,6 +19,7 @@ from inscal.cli.common import (  # np: lazy (fast start)
     read_record,
 )
 from inscal.cli.guards import check_outputs, database_notes
+from inscal.cli.limits import check_mc_trials
 
 
 def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settle: float | None = None,
@@ -32,7 +33,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
                   temperature_sensor: str = "", chamber_label: str = "chamber", wait: float | None = None,
                   accept_unconverged: bool = False, quadratic: bool = False, noise: Path | None = None,
                   thermal_model: Path | None = None, mc: int | None = None, mc_seed: int = 0,
-                  mc_workers: int = 1) -> dict:
+                  mc_workers: int = 1, method_options: dict | None = None, tremor_dps: float | None = None) -> dict:
     """Calibrate ``data`` with ``method`` and write ``out``; returns the JSON report.
     Nothing is written unless the calibration succeeds.  ``states``/``plots``/``filter_rate_hz``/
     ``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic methods.  ``gravity``
@@ -51,7 +52,10 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
     instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
     ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
-    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too.  ``noise``: a noise.toml
+    ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``method_options``: the
+    no-turntable method's keyword options given (:data:`~inscal.lab.calibration.NO_TABLE_OPTIONS`, the function's
+    units: ``face_tilt``, ``turn_closure`` in rad); ``tremor_dps``: the hand tremor a still pose may hold
+    [deg/s rms] (multi-position; None: its default).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
     bias states (:mod:`inscal.calibrate.systematic.gm_states`).  ``station`` a description FILE.toml: the GUM
     budget (:func:`_budget`); its chamber temperature stability goes through ``thermal_model`` (a parameter file
@@ -64,7 +68,8 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
                              plateau_tol, temperature_sensor, chamber_label, accept_unconverged, quadratic,
-                             None if noise is None else str(noise))
+                             None if noise is None else str(noise),
+                             method_options=tuple(sorted((method_options or {}).items())), tremor=tremor_dps)
     if (msg := setup.problem(plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(data, "data file")) is not None:
@@ -78,8 +83,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     thermal = budget_thermal_model(thermal_model, desc, temperature_c if serial is None else None)
     if mc is not None and desc is None:
         raise CliError("--mc is the Monte Carlo of the uncertainty budget: give --station FILE.toml")
-    if mc is not None and not 100 <= mc <= 10**7:
-        raise CliError(f"--mc {mc}: between 100 and 10^7 trials")
+    check_mc_trials(mc)
     if mc is not None:
         from inscal.lab.sensitivity import WINDOW_METHODS
 
@@ -240,6 +244,13 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
         rec = read_record(data)
     except OSError as exc:
         raise CliError(str(exc)) from None
+    if budget_opts is not None:  # a station of another site: refused before the calibration runs
+        from inscal.lab.station import StationError, site_check
+
+        try:
+            site_check(budget_opts["station"], rec.site.latitude, rec.site.height, None)
+        except StationError as exc:
+            raise CliError(f"--station: {exc}") from None
     try:
         cal = calibrate_record(rec, data, setup)
     except RecordError as exc:
@@ -275,9 +286,9 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
     it used."""
     from inscal.lab.budget import repeatability_of
     from inscal.core import units
-    from inscal.lab.sensitivity import FILTER_METHODS, calibration_budget
+    from inscal.lab.sensitivity import FILTER_METHODS, NO_TABLE_METHODS, calibration_budget
 
-    opts = {}
+    opts = setup.window_options if res.method in NO_TABLE_METHODS else {}
     if res.method in FILTER_METHODS:
         d = res.diagnostics
         # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
@@ -387,6 +398,8 @@ def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, 
             report["thermal_states"] = res.diagnostics["thermal"]
     if res.fit is not None:
         report["fit"] = res.fit  # chi2, dof, p, per-window (per-block) residuals, cause and note
+    if "still" in res.diagnostics:  # no turntable: every candidate pose, kept or rejected, with its reason
+        report["still"] = res.diagnostics["still"]
     if systematic:
         d = res.diagnostics
         report.update({"frame": d["frame"], "states": d["states"], "state_options": d["state_options"],
@@ -513,6 +526,16 @@ def _fmt(v) -> str:
     return "[" + ", ".join("nan" if not np.isfinite(x) else f"{x:.4g}" for x in a) + "]"
 
 
+def _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure) -> dict:
+    """The no-turntable options given on the command line, in the method function's units."""
+    from inscal.core import units
+
+    given = {"alpha": alpha, "gravity_tol": gravity_tol, "min_turn_end": min_turn_end, "turn_tol_deg": turn_tol,
+             "face_tilt": None if face_tilt is None else units.to_si(face_tilt, "deg"),
+             "turn_closure": None if turn_closure is None else units.to_si(turn_closure, "deg")}
+    return {k: float(v) for k, v in given.items() if v is not None}
+
+
 def register(app: typer.Typer) -> None:
     @app.command()
     def calibrate(
@@ -527,10 +550,29 @@ def register(app: typer.Typer) -> None:
         settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
                                      "(default 1; multi-position, ferraris: 0.25)"),
         min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
-                                         "multi-position, ferraris: 2)"),
+                                         "multi-position: 1; ferraris: 2)"),
         quadratic: bool = typer.Option(False, "--quadratic", help="multi-position: estimate the quadratic "
                                        "accelerometer terms too (12 parameters: at least 12 poses, and more for the fit to have "
                                        "accelerometer degrees of freedom)"),
+        # the no-turntable methods' options (None: the method's own default)
+        alpha: float = typer.Option(None, "--alpha", help="multi-position, ferraris: false-alarm probability of "
+                                    "the still-pose tests (default 1e-3; ferraris 1e-4)"),
+        gravity_tol: float = typer.Option(None, "--gravity-tol", help="multi-position, ferraris: the largest "
+                                          "relative difference between the poses' specific force and the site's "
+                                          "gravity (default 0.15; ferraris 0.1)"),
+        face_tilt: float = typer.Option(None, "--face-tilt-deg", help="ferraris: rms angle in deg between a face and "
+                                        "the horizontal when it rests on a table (flatness, squareness, the table's "
+                                        "level; in the sigma) (default 0.3; 0: exact faces)"),
+        min_turn_end: float = typer.Option(None, "--min-turn-end-s", help="ferraris: shortest still pose in s at "
+                                           "the ends of a turn, after --settle-s at both ends (default 0.3)"),
+        turn_tol: float = typer.Option(None, "--turn-tol-deg", help="ferraris: how far from 360 deg a whole turn "
+                                       "may be, in deg (default 30)"),
+        turn_closure: float = typer.Option(None, "--turn-closure-deg", help="ferraris: rms difference in deg between "
+                                           "a whole turn's angle and 360 deg (a turn by hand against a stop; in the "
+                                           "sigma) (default 0.2; 0: exact turns)"),
+        tremor_dps: float = typer.Option(None, "--tremor-dps", help="multi-position: the hand tremor a still pose "
+                                         "may hold [deg/s rms] (default 3; the accelerometers judge a pose, the gyros "
+                                         "may tremble up to this)"),
         states: str = typer.Option(None, "--states", help="systematic: auto (the default: async, lever9, g-sensitivity "
                                    "off-diagonals and cross-coupling chosen by F-tests on the innovations) | 51 | 30, "
                                    "plus options lever9, async, psins, gimbal, gdiag, nocross, auto (e.g. 51,lever9 or "
@@ -556,7 +598,7 @@ def register(app: typer.Typer) -> None:
                                "postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"),
         station: str = typer.Option(None, "--station", help="the turntable / station of the run: its name (with "
                                     "--serial), or a station description FILE.toml (n25, six-position, twelve-position, "
-                                    "joint, systematic51, systematic30): the GUM "
+                                    "joint, systematic51, systematic30, multi-position, ferraris): the GUM "
                                     "uncertainty budget is computed, printed and, with --serial, stored with the result"),
         operator: str = typer.Option(None, "--operator", help="with --serial: who ran it"),
         date: str = typer.Option(None, "--date", help="with --serial: when the record was taken, YYYY-MM-DD or ISO "
@@ -571,7 +613,8 @@ def register(app: typer.Typer) -> None:
         thermal_order: list[str] = typer.Option(None, "--thermal-order", help="thermal-plateaus: NAME=ORDER, the "
                                                 "polynomial order of a thermal term in T - T_ref (repeatable; default "
                                                 "gyro_bias, gyro_scale_factor, accel_bias, accel_scale_factor = 2, "
-                                                "misalignments 0 = constant, at most 1)"),
+                                                "misalignments 0 = constant, at most 1; an order not named is "
+                                                "raised while its fit misfits the plateaus)"),
         t_ref: float = typer.Option(None, "--t-ref", help="thermal-plateaus: reference temperature of the model "
                                     "[deg C] (default 20; inside the plateaus' range)"),
         plateau_tol: float = typer.Option(0.5, "--plateau-tol", help="thermal-plateaus: a plateau's readings stay "
@@ -606,7 +649,9 @@ def register(app: typer.Typer) -> None:
                                 gravity, encoder_sigma, encoder_latency, not skip_encoder_check, db, serial, station,
                                 operator, date, temperature_c, supersedes, per_plateau, thermal_order, t_ref,
                                 plateau_tol, temperature_sensor, chamber_label, wait, accept_unconverged, quadratic,
-                                noise, thermal_model, mc, mc_seed, mc_workers)
+                                noise, thermal_model, mc, mc_seed, mc_workers,
+                                _method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol, turn_closure),
+                                tremor_dps)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -630,6 +675,9 @@ def register(app: typer.Typer) -> None:
         if "fit" in rep:
             for line in fit_lines(rep["fit"]):
                 typer.echo(line)
+        for c in rep.get("still", []):
+            if not c["kept"]:
+                typer.echo(f"  pose {c['pose']} ({c['t0_s']:.1f}-{c['t1_s']:.1f} s): rejected, {c['reason']}")
         if "selection" in rep:
             sel = rep["selection"]
             typer.echo(f"  states: {sel['chosen']} (chosen from the data, {sel['fits']} fits; full model {sel['full']})")

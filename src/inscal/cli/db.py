@@ -138,6 +138,11 @@ def run_add(serial: str, params: Path | None, db: str | None, model: str | None,
         dup = lab.find_param_file(d, serial, lab.text_hash(text))
         if dup is not None:
             raise CliError(f"{short(params)} is recorded already for {serial} as result {dup}")
+        same = [c.id for c in lab.calibrations(d, serial, method=meta["method"])
+                if c.session.record_sha256 == session.record_sha256]
+        if same and supersedes is None:  # as calibrate --serial refuses the same record calibrated again
+            raise CliError(f"{serial} has a {meta['method']} calibration of the same record already (result "
+                           f"{same[-1]}): --supersedes {same[-1]} records {short(params)} in its place")
         rid = lab.record_calibration(d, serial, text, session, options=options, supersedes=supersedes,
                                      date_given=date is not None, new_file=True)
         cal = lab.get_calibration(d, rid)

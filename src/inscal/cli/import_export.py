@@ -10,11 +10,12 @@ the csv's columns, and with ``--temperature-out`` to a file that ``import --temp
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json
+from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
 
 
 def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
@@ -87,7 +88,11 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
                            gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
                            config_file=config, temperature_topic=temperature_topic)
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
-        raise CliError(str(exc)) from None
+        msg = str(exc)
+        if config is not None and rate_hz is None:  # the rate came from the configuration, not from an option
+            msg = re.sub(r"--rate-hz ([0-9][0-9.eE+-]*)", lambda m: f"the rate {m.group(1)} Hz (imudatarate of --config "
+                         f"{short(config)}; --rate-hz overrides it)", msg, count=1)
+        raise CliError(msg) from None
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
 
@@ -222,6 +227,8 @@ def register(app: typer.Typer) -> None:
                              topic, stamps, config, temperature_topic)
         except CliError as exc:
             raise fail(str(exc)) from None
+        for w in res["warnings"]:
+            typer.echo(f"inscal: warning: {w}", err=True)
         if json_:
             print_json(res)
             return
@@ -247,7 +254,15 @@ def register(app: typer.Typer) -> None:
             extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
                          f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
                          + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
-                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else ""))
+                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else "")
+                         + (", white noise (one sample per increment)" if ig["noise"]["white"] else
+                            f", noise variance {ig['noise']['variance_ratio'][0]:.2g}-"
+                            f"{ig['noise']['variance_ratio'][1]:.2g} of white, neighbour correlation up to "
+                            f"{ig['noise']['neighbour_correlation']:.2g} (jittered stamps)"))
+        if sat := res.get("saturated"):
+            extra.append(f"{len(sat)} run(s) of a sensor at its range marked saturated (first: {sat[0]['channel']} "
+                         f"at {sat[0]['level']:g} for {sat[0]['samples']} samples from t = {sat[0]['t0']:.3f} s; the "
+                         "calibrations leave them out)")
         if (temp := res["temperature"]) is not None:
             on = "on the sample times" if temp["grid"] == "record" else "at their own times"
             extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")

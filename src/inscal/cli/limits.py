@@ -78,3 +78,18 @@ def check_count(value: float, cap: float, what: str, hint: str) -> None:
     """Refuse (:class:`CliError`) a count (steps, samples, runs) above an absolute cap."""
     if not value <= cap:
         raise CliError(f"{what} (at most {cap:.0e}); {hint}")
+
+
+#: memory per trial of the budget's Monte Carlo (JCGM 101): every trial's estimate is kept (at most 48
+#: parameter components, 8 bytes) and each component's column is copied, drawn into and sorted once more
+MC_TRIAL_BYTES = 48 * 8 * 3
+
+
+def check_mc_trials(mc: int | None) -> None:
+    """Refuse (:class:`CliError`) a ``--mc`` outside 100 .. 10^7 trials or beyond the available memory."""
+    if mc is None:
+        return
+    if not 100 <= mc <= 10**7:
+        raise CliError(f"--mc {mc}: between 100 and 10^7 trials")
+    check_memory(mc * MC_TRIAL_BYTES, f"--mc {mc} (the budget's Monte Carlo keeps every trial)",
+                 "lower --mc (the adaptive run stops once every component is decided)")

@@ -71,6 +71,9 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
             raise CliError(f"--kind must be gyro or accel, got {kind!r}")
         if not from_curve.is_file():
             raise CliError(f"{short(from_curve)}: no such file")
+        if from_curve.stat().st_size > idf.MAX_CURVE_BYTES:
+            raise CliError(f"{short(from_curve)}: {from_curve.stat().st_size} bytes, more than a curve's "
+                           f"{idf.MAX_CURVE_BYTES} (at most {idf.MAX_CURVE_POINTS} points)")
         try:
             quantity, curve = idf.parse_curve_csv(from_curve.read_text(encoding="utf-8"), short(from_curve))
         except (idf.NoiseInputError, UnicodeDecodeError) as exc:

@@ -10,7 +10,7 @@ from pathlib import Path
 import typer
 
 from inscal.cli.common import CliError, fail, print_json, short
-from inscal.cli.limits import check_count, check_memory, human_seconds
+from inscal.cli.limits import check_count, check_mc_trials, check_memory, human_seconds
 
 #: width of the observability table when the output is no terminal (thermal group names and units are long)
 WIDE = 120
@@ -204,8 +204,10 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool,
     if method not in WINDOW_METHODS:
         raise fail(f"--method must be a window-mean method ({', '.join(WINDOW_METHODS)}); the systematic filter's "
                    "budget is the bound's (leave --method out)")
-    if mc is not None and not 100 <= mc <= 10**7:
-        raise fail(f"--mc {mc}: between 100 and 10^7 trials")
+    try:
+        check_mc_trials(mc)
+    except CliError as exc:
+        raise fail(str(exc)) from None
     try:
         sc, _, _ = load_source(source)
         bud, res = simulated_budget(sc, st, method, seed)

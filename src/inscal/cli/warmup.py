@@ -156,6 +156,11 @@ def _library(tmp: Path) -> None:
     kalman.adjoint_back(lam, Lam, n, np.eye(n), np.zeros((n, N - n)))
     kalman.smoothed_constant(np.eye(N), lam, Lam, n, np.zeros(N - n), np.eye(N - n))
     kalman.smoothed(np.eye(N), lam, Lam)  # the plain form (the benchmark's replay and the tests use it)
+    Rb = np.zeros((N, N))  # the square-root information smoother's steps (tests and bench/smoother_positivity.py)
+    kalman.info_rows(Rb, idx, np.ones(3))
+    kalman.info_rows_dense(Rb, np.eye(N)[:3].copy(), np.eye(3))
+    kalman.info_back(Rb, n, np.eye(n), np.zeros((n, N - n)), kalman.noise_factor(np.eye(n) * 1e-6))
+    kalman.sr_smoothed(np.eye(N), Rb, n, np.eye(N - n))
 
 
 STEP_FUNCTIONS = {"records": _records, "systematic": _systematic, "observability": _observability,

@@ -110,6 +110,45 @@ def dcm_from_quat(q) -> np.ndarray:
     return Rotation.from_quat(np.roll(q, -1, axis=-1)).as_matrix()
 
 
+def quat_mul_array(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton products of quaternion arrays (..., 4), scalar first, broadcasting: the NumPy face of
+    :func:`quat_mul` (the same products in the same order)."""
+    p0, p1, p2, p3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3
+    out[..., 1] = p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2
+    out[..., 2] = p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1
+    out[..., 3] = p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0
+    return out
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    """Conjugates (inverses of unit quaternions) of quaternions (..., 4), scalar first."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def quat_from_rotvec_array(rotvec: np.ndarray) -> np.ndarray:
+    """Exact quaternions (..., 4) of rotation vectors (..., 3): the NumPy face of :func:`quat_from_rotvec`,
+    with ``sin(a/2)/a`` from ``np.sinc`` (1/2 at 0; equal to the kernels' series to round-off)."""
+    a = np.linalg.norm(rotvec, axis=-1)
+    s = 0.5 * np.sinc(a / (2.0 * math.pi))  # sin(a/2)/a, 1/2 at 0
+    return np.concatenate([np.cos(0.5 * a)[..., None], s[..., None] * rotvec], axis=-1)
+
+
+def quat_angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle [rad] of quaternions (..., 4), in [0, pi]."""
+    return 2.0 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
+
+
+def quat_rotate_inv(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``C(q)^T v`` for quaternions (n, 4) and vectors (n, 3) or (3,): the inverse of :func:`quat_rotate_xyz`."""
+    w, u = q[..., :1], -q[..., 1:]
+    v = np.broadcast_to(v, u.shape)
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
 # ---------------------------------------------------------------- numba kernels
 @njit(cache=True)
 def quat_mul(p, q):
@@ -159,3 +198,52 @@ def quat_to_dcm(q):
             [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
         ]
     )
+
+
+@njit(cache=True, inline="always")
+def quat_mul_xyz(a0, a1, a2, a3, b0, b1, b2, b3):
+    """Hamilton product, scalar-first, on scalars (no allocation): :func:`quat_mul` for the
+    allocation-free kernels."""
+    return (
+        a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+        a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+        a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+        a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0,
+    )
+
+
+@njit(cache=True, inline="always")
+def quat_rotate_xyz(q0, q1, q2, q3, x, y, z):
+    """Rotate (x, y, z) by the unit quaternion, on scalars: ``C(q) v``."""
+    # t = 2 q_v x v ; v' = v + q0 t + q_v x t
+    tx = 2.0 * (q2 * z - q3 * y)
+    ty = 2.0 * (q3 * x - q1 * z)
+    tz = 2.0 * (q1 * y - q2 * x)
+    return (
+        x + q0 * tx + (q2 * tz - q3 * ty),
+        y + q0 * ty + (q3 * tx - q1 * tz),
+        z + q0 * tz + (q1 * ty - q2 * tx),
+    )
+
+
+@njit(cache=True, inline="always")
+def quat_from_rotvec_poly_xyz(x, y, z):
+    """Exact quaternion ``(w, x, y, z)`` of the rotation vector (x, y, z) without trigonometry for
+    the angles of a sample: with ``u = a^2 / 4``, ``cos(a/2) = sum (-u)^k / (2k)!`` and
+    ``sin(a/2)/a = sum (-u)^k / (2 (2k+1)!)`` to ``u^4``; the first term left out,
+    ``u^5 / 10! < 6.5e-18``, is below the round-off of 1 for ``a^2 < 0.03`` (a < 10 deg per sample).
+    Larger angles take the trigonometric form (the value of :func:`quat_from_rotvec_xyz`).
+    The strapdown kernel's form; the filters keep :func:`quat_from_rotvec_xyz` and its rounding."""
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-8:  # Earth and transport rotation per sample: the terms past u fall below 1e-19
+        c = 1.0 - a2 * 0.125
+        s = 0.5 - a2 * (1.0 / 48.0)
+    elif a2 < 0.03:
+        u = 0.25 * a2
+        c = 1.0 + u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0))))
+        s = 0.5 + u * (-1.0 / 12.0 + u * (1.0 / 240.0 + u * (-1.0 / 10080.0 + u * (1.0 / 725760.0))))
+    else:
+        a = math.sqrt(a2)
+        c = math.cos(0.5 * a)
+        s = math.sin(0.5 * a) / a
+    return c, s * x, s * y, s * z

@@ -7,13 +7,13 @@ observability factor of :mod:`inscal.plan.observability`) therefore process a ra
 ``[k0, k1)`` and keep what one step hands to the next in arrays their caller owns.
 :func:`run_in_slices` calls such a kernel over consecutive ranges, each sized to last about
 :data:`SLICE_S`.  Between two calls the interpreter runs any pending signal handler (the command
-line's raises its interrupt there), and ``check``, when given, runs too: a layer that may use the
-cancellation of :mod:`inscal.io.files` passes its ``check_cancel`` (a SIGINT or SIGTERM whose
+line's raises its interrupt there), and ``check``, when given, runs too: a caller that honours the
+cancellation of :mod:`inscal.core.cancel` passes its ``check_cancel`` (a SIGINT or SIGTERM whose
 exception Python had to drop; :mod:`inscal.plan.slices` does so).  Every step does the same
 arithmetic whatever the slicing, so the results are bit-identical to one call over all steps
 (``tests/plan/test_slices.py``, ``tests/calibrate/test_kernel_slices.py``).
 
-Core knows no files: the cancellation is handed in, never imported.
+The check is handed in, never imported: a pure computation runs without one.
 """
 
 from __future__ import annotations

@@ -4,11 +4,10 @@ files, JSON and TOML helpers, the importers and exporters of other tools' format
 This face re-exports the record and file helpers, so ``from inscal import io; io.read_record(path)``
 works; parameter files are :mod:`inscal.io.paramfile`, the importers :mod:`inscal.io.importers`."""
 
+from inscal.core.cancel import cancel, check_cancel
 from inscal.io.files import (
     REMOVED_PARTS,
     atomic_path,
-    cancel,
-    check_cancel,
     file_hash,
     remove_live_parts,
     remove_part,

@@ -26,6 +26,7 @@ column plausible, K, degC or degF, and how to declare it).
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -295,18 +296,34 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, noisy: float = 0.9) -> None:
-    """A noisy channel pinned at its maximum or minimum for ``min_run`` samples while another channel moves.
+#: the longest run of one channel pinned at its extreme that is marked rather than refused [s]: a fast hand
+#: turn holds a consumer gyro at its range for a fraction of a second; a channel stuck longer is not a turn
+MAX_PINNED_S = 2.0
+#: the largest share of a channel's samples that may be pinned at its extreme and marked
+MAX_PINNED_SHARE = 0.05
+
+
+def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, noisy: float = 0.9,
+                     rate_hz: float | None = None) -> list[dict]:
+    """The runs of a noisy channel pinned at its maximum or minimum for ``min_run`` samples while another
+    channel moves: a sensor at its range (a gyro in a fast hand turn).  Returned as marks, one per run
+    (``channel``, ``level`` in the file's values, ``word`` maximum | minimum, ``first`` row index and
+    ``samples``), which the record keeps (:func:`saturated_samples`) so the calibrations leave those samples
+    out; refused (:class:`~inscal.io.mapping.ImportFileError`) when a channel is pinned longer than
+    :data:`MAX_PINNED_S` (at ``rate_hz``) or on more than :data:`MAX_PINNED_SHARE` of its samples: a stuck
+    channel, not a turn.
 
     Only channels that change on at least ``noisy`` of their other samples are judged: in
     noise-free or coarsely quantised data repeated values are normal (a constant-rate turn
     reads the same on every sample)."""
     x6 = raw.raw_channels
     span = np.ptp(x6, axis=0)
+    marks = []
     for k in range(6):
         x = x6[:, k]
         if span[k] == 0:  # constant: the constant check's business
             continue
+        pinned = 0
         for lim, word in ((x.max(), "maximum"), (x.min(), "minimum")):
             at = x == lim
             if at.sum() < min_run:
@@ -318,10 +335,54 @@ def check_saturation(raw: Raw, where: str, min_run: int = 5, rel: float = 1e-7, 
                 if same.size == 0 or np.mean(same) > 1 - noisy:
                     continue
                 others = np.delete(x6[a:b], k, axis=1)
-                if np.any(np.ptp(others, axis=0) > rel * np.delete(span, k)):
-                    raise ImportFileError(
-                        f"{where}: {raw.labels[k]} looks saturated: pinned at its {word} {lim:g} for {b - a} samples from "
-                        f"{raw.at(a)} while the other channels change (--skip-check saturation to import anyway)")
+                if not np.any(np.ptp(others, axis=0) > rel * np.delete(span, k)):
+                    continue
+                pinned += b - a
+                marks.append({"channel": raw.labels[k].split(" ")[0], "level": float(lim), "word": word,
+                              "first": int(a), "samples": int(b - a)})
+        mine = [m_ for m_ in marks if m_["channel"] == raw.labels[k].split(" ")[0]]
+        if not mine:
+            continue
+        top = max(mine, key=lambda m_: m_["samples"])
+        why = None
+        if rate_hz is not None and top["samples"] / rate_hz > MAX_PINNED_S:
+            why = f"{top['samples'] / rate_hz:.3g} s, longer than the {MAX_PINNED_S:g} s of a fast turn"
+        elif pinned > MAX_PINNED_SHARE * x.size:
+            why = f"{pinned} of its {x.size} samples pinned in all, more than {MAX_PINNED_SHARE:.0%}"
+        if why is not None:
+            raise ImportFileError(
+                f"{where}: {raw.labels[k]} looks saturated: pinned at its {top['word']} {top['level']:g} for "
+                f"{top['samples']} samples from {raw.at(top['first'])} while the other channels change ({why}: a stuck "
+                "channel or a sensor beyond its range; --skip-check saturation to import anyway)")
+    return marks
+
+
+def saturated_spans(marks: list[dict], time: np.ndarray, dt: float) -> list[dict]:
+    """The marks of :func:`check_saturation` on the record's time: ``channel``, ``t0`` (start of the first
+    pinned sample's interval), ``t1`` (end of the last) [s], ``samples``, ``level``."""
+    return [{"channel": m["channel"], "t0": float(time[m["first"]] - dt),
+             "t1": float(time[m["first"] + m["samples"] - 1]), "samples": m["samples"], "level": m["level"]}
+            for m in marks]
+
+
+def saturated_samples(time: np.ndarray, source: str | dict | None) -> np.ndarray | None:
+    """Bool per sample of a record: its interval overlaps a span its import marked saturated (the record's
+    ``source`` attribute, key ``saturated``); None when nothing was marked."""
+    if not source:
+        return None
+    try:
+        src = json.loads(source) if isinstance(source, str) else dict(source)
+    except (ValueError, TypeError):
+        return None
+    spans = src.get("saturated") if isinstance(src, dict) else None
+    if not spans:
+        return None
+    t = np.asarray(time, float)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    out = np.zeros(t.size, bool)
+    for sp in spans:
+        out |= (t > float(sp["t0"]) + 1e-9 * dt) & (t - dt < float(sp["t1"]) - 1e-9 * dt)
+    return out if out.any() else None
 
 
 def _blocks(x: np.ndarray, m: int) -> np.ndarray:
@@ -329,11 +390,26 @@ def _blocks(x: np.ndarray, m: int) -> np.ndarray:
     return x[: nb * m].reshape(nb, m, -1).sum(axis=1)
 
 
+#: the largest gyro reading at rest a unit declared by the user (a mapping's ``[units] gyro``, the rad/s of
+#: a ROS ``sensor_msgs/Imu``) is trusted with [rad/s]: 10 deg/s, above the turn-on bias of any consumer MEMS
+#: gyro (a few deg/s); a declared unit that reads more at rest (arcsec declared as rad: 15 rad/s) cannot be
+#: right and is refused
+MAX_DECLARED_BIAS = 10.0 * DEG
+
+
 def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site, where: str, kind: str,
-                      gyro_unit: str, accel_unit: str, raw: Raw | None = None) -> None:
+                      gyro_unit: str, accel_unit: str, raw: Raw | None = None,
+                      declared: str | None = None) -> list[str]:
     """Gravity and Earth rate judged from magnitudes (unit mix-ups give factors far from 1).  With the
     ``raw`` source of increments over a time column, gravity 1e3 (1e6, 1e9) times too small or large
-    is named as the time column's unit (:func:`time_unit_message`)."""
+    is named as the time column's unit (:func:`time_unit_message`).
+
+    The gyros: the 5th percentile of their 1-s mean rates, against the Earth rate.  Read 57 times the
+    Earth rate, it looks like degrees read as radians, but a MEMS gyro's bias (0.1 .. a few deg/s) reads
+    the same; read 1/57 of it, radians read as degrees.  With a ``declared`` gyro unit (its name: the
+    user's mapping's, or that of a format whose messages fix it) such a reading is trusted: the finding is returned as a
+    warning line with the figure, not raised, up to :data:`MAX_DECLARED_BIAS`; without one (a format's
+    default unit, assumed) it is refused.  Returns the warnings."""
     dt = 1.0 / rate_hz
     m = max(1, min(dth.shape[0], int(round(rate_hz))))
     T = m * dt
@@ -342,8 +418,8 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
     g = site.gravity
     ratio = float(np.median(f)) / g
     if raw is not None and raw.time is not None and kind == "increments" and not 0.8 < ratio < 1.2:
-        declared = float(units.to_si(1.0, raw.time_unit, "time"))
-        for rho in _time_candidates(declared):
+        declared_t = float(units.to_si(1.0, raw.time_unit, "time"))
+        for rho in _time_candidates(declared_t):
             if 0.8 < ratio * rho < 1.2:  # increments divided by an interval rho times too long
                 raise ImportFileError(time_unit_message(
                     raw, where, rho, f"the accelerometers read {ratio * g:.4g} m/s^2 over its {dt:.6g} s interval, "
@@ -360,18 +436,29 @@ def check_magnitudes(dth: np.ndarray, dv: np.ndarray, rate_hz: float, site: Site
             f"not gravity {g:.4g} m/s^2{hint} (--skip-check magnitudes to import anyway)")
     p5 = float(np.percentile(w, 5))
     om = earth.OMEGA_IE
-    if om * 57.29577951 / 3 < p5 < om * 57.29577951 * 3:
+    rad = 180.0 / math.pi
+    if om * rad / 3 < p5 < om * rad * 3:
         look = "degrees, not radians"
-    elif om / 57.29577951 / 3 < p5 < om / 57.29577951 * 3:
+    elif om / rad / 3 < p5 < om / rad * 3:
         look = "radians, not degrees"
     elif om * 206264.8 / 3 < p5 < om * 206264.8 * 3:
         look = "arcsec, not radians"
     else:
-        return
+        return []
+    figure = (f"gyros read at least {p5:.4g} rad/s ({p5 / DEG:.4g} deg/s = {p5 / DEG * 3600:.4g} deg/h, 5th "
+              f"percentile of 1-s means, as {kind} in {gyro_unit}) where the Earth rate is {om / DEG * 3600:.4g} deg/h")
+    if declared is not None and p5 <= MAX_DECLARED_BIAS:
+        why = ("a MEMS gyro's bias reads so; were the values degrees read as radians, every rate would be 57.3 "
+               "times too large" if look == "degrees, not radians" else
+               "a gyro whose bias cancels the Earth rate reads so; were the values radians read as degrees, every "
+               "rate would be 57.3 times too small")
+        return [f"{where}: {figure}: kept in the declared unit {declared} ({why}: check the unit if the sensor is "
+                "not one that reads so)"]
     raise ImportFileError(
-        f"{where}: gyros read at least {p5:.4g} rad/s ({p5 / DEG * 3600:.4g} deg/h, 5th percentile of 1-s means, "
-        f"as {kind} in {gyro_unit}) where the Earth rate is {om / DEG * 3600:.4g} deg/h: the values look like {look} "
-        + ("or a gyro bias far above the Earth rate (a MEMS gyro's) " if look == "degrees, not radians" else "")
+        f"{where}: {figure}: the values look like {look} "
+        + ("or a gyro bias far above the Earth rate (a MEMS gyro's; a csv/txt mapping that declares the unit, "
+           "[units] gyro, imports it with a warning) " if look == "degrees, not radians" else "")
+        + ("beyond any gyro's bias at rest, whatever unit is declared " if declared is not None else "")
         + "(--skip-check magnitudes to import anyway)")
 
 

@@ -43,6 +43,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from inscal.core.attitude import quat_angle, quat_conj, quat_from_rotvec_array, quat_mul_array, quat_rotate_inv
 from inscal.core.earth import OMEGA_IE
 from inscal.core.units import DEG
 from inscal.io.records import DataFileError
@@ -138,42 +139,6 @@ def _num(x: float):
 
 
 # ----------------------------------------------------------------------------- geometry
-def _qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternion arrays (..., 4), scalar first (broadcasting)."""
-    p0, p1, p2, p3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[..., 0] = p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3
-    out[..., 1] = p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2
-    out[..., 2] = p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1
-    out[..., 3] = p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0
-    return out
-
-
-def _qconj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _quats(rotvec: np.ndarray) -> np.ndarray:
-    """Exact quaternions of rotation vectors (n, 3)."""
-    a = np.linalg.norm(rotvec, axis=-1)
-    s = 0.5 * np.sinc(a / (2.0 * math.pi))  # sin(a/2)/a, 1/2 at 0
-    return np.concatenate([np.cos(0.5 * a)[..., None], s[..., None] * rotvec], axis=-1)
-
-
-def _qangle(q: np.ndarray) -> np.ndarray:
-    """Rotation angle [rad] of quaternions (..., 4), in [0, pi]."""
-    return 2.0 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
-
-
-def _qrotate_inv(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``C(q)^T v`` for quaternions (n, 4) and vectors (n, 3) or (3,)."""
-    w, u = q[..., :1], -q[..., 1:]
-    v = np.broadcast_to(v, u.shape)
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
 def gimbal_quaternion(gimbal: np.ndarray) -> np.ndarray:
     """Quaternions (..., 4) of ``C_s^b = R_x(outer) R_z(inner)`` for angles (..., 2)."""
     hx, hz = 0.5 * gimbal[..., 0], 0.5 * gimbal[..., 1]
@@ -190,7 +155,7 @@ def _prefix(q: np.ndarray) -> np.ndarray:
         q = q.copy()
         k = 1
         while k < n:
-            q[k:] = _qmul(q[:-k], q[k:])
+            q[k:] = quat_mul_array(q[:-k], q[k:])
             k *= 2
         return q
     m = int(math.sqrt(n))
@@ -200,9 +165,9 @@ def _prefix(q: np.ndarray) -> np.ndarray:
     blk[:n] = q
     blk = blk.reshape(nb, m, 4)
     for j in range(1, m):
-        blk[:, j] = _qmul(blk[:, j - 1], blk[:, j])
+        blk[:, j] = quat_mul_array(blk[:, j - 1], blk[:, j])
     carry = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], _prefix(blk[:-1, -1])])
-    return _qmul(carry[:, None, :], blk).reshape(-1, 4)[:n]
+    return quat_mul_array(carry[:, None, :], blk).reshape(-1, 4)[:n]
 
 
 def body_rates(gimbal: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -304,10 +269,10 @@ def _gyro_runs(dtheta: np.ndarray, rate_hz: float, a_all: np.ndarray, b_all: np.
             continue
         inc = dtheta[a + 1:b + 1]
         if np.linalg.norm(r) <= 2.0 * OMEGA_IE:
-            rest = _qrotate_inv(np.concatenate([ident, _prefix(_quats(inc))[:-1]]), r)  # at each increment's start
+            rest = quat_rotate_inv(np.concatenate([ident, _prefix(quat_from_rotvec_array(inc))[:-1]]), r)  # at each increment's start
         else:
             rest = np.broadcast_to(r, inc.shape)
-        att = np.concatenate([ident, _prefix(_quats(inc - rest * dt))])
+        att = np.concatenate([ident, _prefix(quat_from_rotvec_array(inc - rest * dt))])
         turned = np.concatenate([[0.0], np.cumsum(np.linalg.norm(inc, axis=1))])
         out.append(_Run(a, b, att, np.asarray(rest), turned))
     return out
@@ -336,8 +301,8 @@ def _latency_fit(gimbal: np.ndarray, rate_hz: float, pieces: list[tuple[_Run, in
             continue
         g = gimbal[s - 1:e + 2]
         qe = gimbal_quaternion(g[1:-1])
-        qg = _qmul(_qconj(run.att[s - run.a]), run.att[s - run.a:e - run.a + 1])
-        d = _qmul(_qconj(_qmul(_qconj(qe[:1]), qe)), qg)
+        qg = quat_mul_array(quat_conj(run.att[s - run.a]), run.att[s - run.a:e - run.a + 1])
+        d = quat_mul_array(quat_conj(quat_mul_array(quat_conj(qe[:1]), qe)), qg)
         eps = 2.0 * d[:, 1:] * np.where(d[:, :1] < 0, -1.0, 1.0)
         rate = (g[2:] - g[:-2]) * (0.5 * rate_hz)
         thz = g[1:-1, 1]
@@ -406,8 +371,8 @@ def _points(pieces: list[tuple[_Run, int, int]], wg: np.ndarray, rate_hz: float,
     s_all, e_all, turn_all = [], [], []
     for run, s, e in pieces:
         j = np.unique(np.append(np.arange(s + dec, e, dec), e))
-        q0 = _qconj(run.att[s - run.a])
-        qg.append(_qmul(np.broadcast_to(q0, (j.size, 4)), run.att[j - run.a]))
+        q0 = quat_conj(run.att[s - run.a])
+        qg.append(quat_mul_array(np.broadcast_to(q0, (j.size, 4)), run.att[j - run.a]))
         turned.append(run.turned[j - run.a] - run.turned[s - run.a])
         j0.append(np.full(j.size, s))
         jj.append(j)
@@ -451,7 +416,7 @@ def compare_encoders(dtheta, gimbal, rate_hz: float, time=None, *, tol_deg: floa
         swap, so, si, sc = h[:4]
         g = (ends[..., ::-1] if swap else ends) * (np.array([so, si]) * sc)
         qs = gimbal_quaternion(g)
-        r = _qangle(_qmul(_qconj(_qmul(_qconj(qs[:, 0]), qs[:, 1])), pts.qg))
+        r = quat_angle(quat_mul_array(quat_conj(quat_mul_array(quat_conj(qs[:, 0]), qs[:, 1])), pts.qg))
         worst = np.full(m, -np.inf)
         np.maximum.at(worst, pts.piece, r)
         bad = np.zeros(m, dtype=bool)
@@ -461,7 +426,7 @@ def compare_encoders(dtheta, gimbal, rate_hz: float, time=None, *, tol_deg: floa
     r0, worst0, bad0 = residuals(HYPOTHESES[0])
     last = np.flatnonzero(np.append(pts.piece[1:] != pts.piece[:-1], True))  # each piece's last point
     moves = tuple(MoveCheck(k + 1, int(s), int(e), float(time[s]), float(time[e]), float(turned[k] / DEG),
-                            float(_qangle(pts.qg[last[k]]) / DEG), float(worst0[k] / DEG), float(pts.tol[last[k]] / DEG))
+                            float(quat_angle(pts.qg[last[k]]) / DEG), float(worst0[k] / DEG), float(pts.tol[last[k]] / DEG))
                   for k, (s, e) in enumerate(zip(i0, i1)))
     worst = float(worst0.max() / DEG)
     if not bad0.any():
@@ -519,6 +484,27 @@ def _latency_message(delta: float, sigma: float, rate_hz: float) -> str:
     sig = f" +- {sigma * 1e3:.2g} ms" if math.isfinite(sigma) else ""
     return (f"the encoders {word} the IMU by {abs(delta) * 1e3:.1f} ms{sig} ({abs(delta) * rate_hz:.3g} samples at "
             f"{rate_hz:g} Hz; --encoder-latency {round(delta, 4):g} to correct)")
+
+
+#: a latency under a sample that the check measured (at least this many samples, and 3 sigma) is named
+#: (:func:`small_latency`): a calibration misfits by it through the turns
+SMALL_LATENCY_SAMPLES = 0.1
+
+
+def small_latency(delta: float | None, sigma: float | None, rate_hz: float) -> str | None:
+    """The words for a latency ``delta`` +- ``sigma`` [s] that the check let pass (under a sample) but
+    measured (:data:`SMALL_LATENCY_SAMPLES` and 3 sigma), or None: who leads, by how much, in samples; half a
+    sample is named as rates stamped at the end (encoders that lead) or the start (that lag) of their
+    averaging interval (a ROS driver's, where REP 145 asks for the instant they represent, its centre)."""
+    if delta is None or sigma is None or not _significant(delta, sigma, rate_hz, SMALL_LATENCY_SAMPLES):
+        return None
+    n = abs(delta) * rate_hz
+    edge = "end" if delta < 0 else "start"  # the increments late (the encoders lead) or early
+    half = (f", half a sample: rates stamped at the {edge} of their averaging interval, not at its centre, the "
+            "instant they represent (REP 145)" if abs(n - 0.5) < 0.1 else "")
+    pm = f" +- {sigma * 1e3:.2g} ms" if math.isfinite(sigma) else ""
+    who = "lag" if delta > 0 else "lead"
+    return f"the encoders {who} the IMU by {abs(delta) * 1e3:.3g} ms{pm} ({n:.3g} samples{half})"
 
 
 def check_record_encoders(record, strict: bool = False) -> EncoderCheck | None:

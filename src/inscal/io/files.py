@@ -9,10 +9,9 @@ import ctypes
 import errno
 import hashlib
 import os
-import signal
 import tempfile
-import threading
 from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path as FsPath
 
 try:  # POSIX advisory locks: released by the kernel when the holder dies, even by SIGKILL
@@ -20,31 +19,18 @@ try:  # POSIX advisory locks: released by the kernel when the holder dies, even 
 except ImportError:  # pragma: no cover - not POSIX: outputs are not locked
     fcntl = None
 
+from inscal.core.cancel import cancel as cancel  # the command line's signal handler reaches it from here
+from inscal.core.cancel import check_cancel, signals_held
+from inscal.core.cancel import holding as holding  # likewise
+
+#: the writers' block held against SIGINT/SIGTERM (:func:`inscal.core.cancel.signals_held`)
+_signals_held = signals_held
 
 #: temporaries of :func:`atomic_path` now being written (temporary -> final path), so that an
 #: interrupt (SIGINT/SIGTERM, see :func:`inscal.cli.main`) can say what it removed
 _LIVE_PARTS: dict[str, FsPath] = {}
 #: ``(temporary, final path)`` of the temporaries removed after a failure, newest last
 REMOVED_PARTS: list[tuple[str, FsPath]] = []
-#: a pending cancellation (the exception to raise), set by :func:`cancel`
-_CANCEL: list[BaseException] = []
-#: one entry per :func:`_signals_held` block running in the main thread
-_HOLDS: list[bool] = []
-
-
-def cancel(exc: BaseException) -> None:
-    """Ask the writers and readers of this module to stop: :func:`check_cancel` (called per
-    chunk and before an output is renamed into place) raises ``exc`` from now on.  Used by the
-    SIGINT/SIGTERM handler of :func:`inscal.cli.main`, whose own exception may be swallowed
-    where Python cannot propagate it (a weakref or ``__del__`` callback)."""
-    if not _CANCEL:
-        _CANCEL.append(exc)
-
-
-def check_cancel() -> None:
-    """Raise the pending cancellation, if any (see :func:`cancel`)."""
-    if _CANCEL:
-        raise _CANCEL[0]
 
 
 class OutputBusyError(FileExistsError):
@@ -57,6 +43,13 @@ _CLAIMS: dict[str, tuple[str, int]] = {}
 _UNITS: list["_Unit"] = []
 #: outputs published by the last output unit (an interrupt after that point says they are complete)
 PUBLISHED: list[FsPath] = []
+#: where the lines saying that a dead writer's lock was taken over go (the CLI prints them as notes)
+NOTES: list[Callable[[str], None]] = []
+
+
+def _note(line: str) -> None:
+    for sink in NOTES:
+        sink(line)
 
 
 #: the longest file name (bytes) of the usual file systems (ext4, XFS, btrfs, APFS, NTFS)
@@ -113,9 +106,13 @@ def claim_output(path) -> bool:
             if same:
                 break
             os.close(fd)
+        previous = os.read(fd, 64).decode(errors="replace").strip()
+        os.lseek(fd, 0, os.SEEK_SET)
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
         _CLAIMS[key] = (str(lock), fd)
+    if previous and previous != str(os.getpid()):  # the file of a writer that died holding it (SIGKILL)
+        _note(f"{lock.name}: the lock of process {previous}, which has ended, taken over")
     return True
 
 
@@ -255,35 +252,6 @@ def make_output_dir(path) -> FsPath:
             if _UNITS:
                 _UNITS[-1].made_dirs.append(path)
     return path
-
-
-def holding() -> bool:
-    """Whether a step that an interrupt must not cut is running (a file made and registered, outputs
-    renamed into place): the command line's SIGINT/SIGTERM handler then records the interrupt
-    (:func:`cancel`) instead of raising it, and the step raises it when it ends."""
-    return bool(_HOLDS)
-
-
-@contextmanager
-def _signals_held():
-    """SIGINT/SIGTERM held off in the main thread until the block ends (Python runs signal handlers there
-    only; another thread's block holds nothing): blocked, and, for a signal another thread of the process
-    received, deferred by the handler (:func:`holding`); an interrupt recorded meanwhile is raised when the
-    outermost block ends (:func:`check_cancel`)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    sigs = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs) if hasattr(signal, "pthread_sigmask") else None
-    _HOLDS.append(True)
-    try:
-        yield
-    finally:
-        _HOLDS.pop()
-        if old is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
-    if not _HOLDS:  # the outermost block: an inner one ends inside a step still running
-        check_cancel()
 
 
 def publish(tmp, path, overwrite: bool) -> None:

@@ -23,10 +23,11 @@ Sources
     must start with the header line that :func:`export_record` writes.  ``txt``
     defaults to whitespace-separated columns.
 ``rosbag``
-    a ROS 1 ``.bag`` or a ROS 2 bag folder (SQLite3 or MCAP storage) with ``sensor_msgs/Imu``
-    messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps`` header | receive): the
-    rates at the stamps integrated onto a uniform grid by a second-order rule with a stated
-    error bound (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
+    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file
+    with ``sensor_msgs/Imu`` messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps``
+    header | receive): the rates at the stamps integrated onto a uniform grid by the midpoint
+    rule, with a stated error bound and the increments' noise white when the stamps lie on a
+    grid (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
 ``kf-gins``
     KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
     block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
@@ -108,7 +109,9 @@ rate inconsistent with the timestamps), values beyond the physical limits (a rat
 1,000 g, a gimbal angle or encoder jump no turntable makes; :mod:`inscal.io.checks`, with the
 file, column, line and value), and the plausibility checks that ``skip`` may name:
 ``constant`` (a channel that never changes), ``saturation`` (a channel pinned at its extreme
-while the others move), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
+while the others move: a run of up to 2 s, a sensor at its range in a fast turn, is marked in the record's
+``source`` attribute, key ``saturated``, and the calibrations leave those samples out; a channel pinned
+longer is refused as stuck), ``magnitudes`` (gravity and Earth rate judged from magnitudes: g vs
 m/s^2, degrees vs radians, rates vs increments), ``motion`` (the gyros must turn when the
 gimbal angles / path say so, and only then) and ``encoders`` (the encoder angles must give the
 gyros' rotation through every move, and no latency over a sample:
@@ -131,6 +134,8 @@ time was regridded and the time offset subtracted (the path start).
 """
 
 from __future__ import annotations
+
+import datetime as _dt
 
 import json
 import math
@@ -156,9 +161,10 @@ from inscal.io.checks import (
     check_motion,
     check_saturation,
     check_values,
+    saturated_spans,
     time_base,
 )
-from inscal.io.encoders import apply_latency
+from inscal.io.encoders import apply_latency, small_latency
 from inscal.io.files import atomic_path, file_hash
 from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
 from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
@@ -224,14 +230,16 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
                  path_start: float | None = None, gimbal: tuple[np.ndarray, np.ndarray] | None = None,
                  skip=(), units_desc: tuple[str, str] = ("rad", "m/s"),
                  gimbal_name: str = "gimbal angles", encoder_latency: float = 0.0,
-                 temperature: RawTemperature | None = None) -> tuple[Record, dict]:
+                 temperature: RawTemperature | None = None, declared: str | None = None) -> tuple[Record, dict]:
     """Check ``raw`` and turn it into a :class:`~inscal.io.Record` (SI increments).  Returns
     ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
     ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
     (:func:`~inscal.io.encoders.apply_latency`) before the checks.  ``temperature``: readings at their
     own times from a separate file (:func:`~inscal.io.formats.read_temperature_file`), on the source's
     clock as the samples' (shifted with them to the path start); temperature columns of the source
-    itself come with ``raw``."""
+    itself come with ``raw``.  ``declared``: the gyro unit as declared (by a mapping, or by a format whose
+    messages fix it; None: assumed), so a gyro magnitude that contradicts it is a warning (``info["warnings"]``), not a
+    refusal (:func:`~inscal.io.checks.check_magnitudes`)."""
     unknown = set(skip) - set(SKIPPABLE)
     if unknown:
         raise ImportFileError(f"unknown check(s) {sorted(unknown)} to skip; known: {', '.join(SKIPPABLE)}")
@@ -245,21 +253,22 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     dt = 1.0 / rate
     if "constant" not in skip:
         check_constant(raw, where)
-    if "saturation" not in skip:
-        check_saturation(raw, where)
+    marks = check_saturation(raw, where, rate_hz=rate) if "saturation" not in skip else []
     if raw.kind == "rates":
         dth, dv = raw.gyro * dt, raw.accel * dt
     else:
         dth, dv = raw.gyro, raw.accel
+    info["warnings"] = []
     if "magnitudes" not in skip:
-        check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw)
+        info["warnings"] += check_magnitudes(dth, dv, rate, site, where, raw.kind, *units_desc, raw=raw,
+                                             declared=declared)
     gim = raw.gimbal
     if gimbal is not None:
         if gim is not None:
             raise ImportFileError(f"{where} has gimbal angle columns; --gimbal would give them twice")
         tg, ag = gimbal
         if tg[0] > time[0] + 1e-9 * dt or tg[-1] < time[-1] - 1e-9 * dt:
-            hint = _gimbal_time_hint(tg, time, dt)
+            hint = _bag_epoch_hint(tg, time, dt, raw) or _gimbal_time_hint(tg, time, dt)
             raise ImportFileError(f"{gimbal_name}: the angles cover t = {tg[0]:.9g} .. {tg[-1]:.9g} s; the record needs "
                                   f"t = {time[0]:.9g} .. {time[-1]:.9g} s (the sample end times)"
                                   + (f": {hint}" if hint else ""))
@@ -283,6 +292,11 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     info["encoders"] = None
     if gim is not None and "encoders" not in skip:
         info["encoders"] = check_encoders(dth, gim, rate, time).summary()
+        e = info["encoders"]
+        if (words := small_latency(e["latency_s"], e["latency_sigma_s"], rate)) is not None:
+            info["warnings"].append(f"{gimbal_name if gimbal is not None else where}: {words}: a calibration misfits "
+                                    f"through the turns unless the angles are shifted (--encoder-latency "
+                                    f"{e['latency_s']:.6g})")
     if path is not None:
         start = time[0] - dt if path_start is None else float(path_start)
         if not math.isfinite(start):
@@ -304,6 +318,7 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
         "grid": "record" if np.array_equal(temp.time, time) else "own",
         "source": "columns" if raw.temperature is not None else "file",
         "span_s": [float(temp.time[0]), float(temp.time[-1])]}
+    info["saturated"] = saturated_spans(marks, time, dt)
     rec = Record(np.ascontiguousarray(time, float), np.ascontiguousarray(dth, float), np.ascontiguousarray(dv, float),
                  None if gim is None else np.ascontiguousarray(gim, float), rate, site, path, None, "", where,
                  temp)
@@ -359,6 +374,22 @@ def _temperature(raw: Raw, file: RawTemperature | None, time: np.ndarray, dt: fl
     return temp
 
 
+def _bag_epoch_hint(tg: np.ndarray, time: np.ndarray, dt: float, raw: Raw) -> str:
+    """Why encoder times miss a bag's record: they are Unix times (in s, ms, us or ns) while the bag's time counts
+    from its first stamp; "" when the source is no bag or that does not explain them."""
+    bag = (raw.source_info or {}).get("bag")
+    if not bag or "epoch_ns" not in bag:
+        return ""
+    epoch = bag["epoch_ns"] * 1e-9
+    span = time[-1] - time[0] + dt
+    for f, unit in ((1.0, "seconds"), (1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds")):
+        a, b = tg[0] * f - epoch, tg[-1] * f - epoch
+        if a <= time[0] + 0.1 * span and b >= time[-1] - 0.1 * span and b - a < 2.0 * span:
+            return (f"they look like Unix times in {unit}, while a bag's time counts from its first stamp ({epoch:.9f} "
+                    f"s, Unix): subtract it from the encoder file's times (they then run {a:.6g} .. {b:.6g} s)")
+    return ""
+
+
 def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool = False) -> str:
     """Why encoder times miss the record by a unit: scaled by 1e-3 (1e-6) they would cover the record
     (``close``: and start and end within a tenth of its span of its ends) -- a time column in
@@ -379,12 +410,25 @@ def _gimbal_time_hint(tg: np.ndarray, time: np.ndarray, dt: float, close: bool =
     return ""
 
 
-def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False) -> int:
-    """Write an imported record atomically (the source is kept as a JSON attribute ``source``)."""
+def write_imported(out, rec: Record, source_attrs: dict, overwrite: bool = False, created: str | None = None) -> int:
+    """Write an imported record atomically (the source is kept as a JSON attribute ``source``); ``created``:
+    the record's ``created`` time (ISO, UTC) in place of the time of writing (:func:`source_time`), so that
+    the same unchanged source imported twice gives the same file, byte for byte, and the same hash."""
     info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, None, rec.scenario, rec.gimbal is not None,
                       rec.temperature)
-    return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite,
-                        extra_attrs={"source": json.dumps(source_attrs)})
+    extra = {"source": json.dumps(source_attrs)} | ({} if created is None else {"created": created})
+    return write_stream(out, info, [(rec.time, rec.dtheta, rec.dvel, rec.gimbal)], overwrite, extra_attrs=extra)
+
+
+def source_time(src: Path, epoch_ns: int | None = None) -> str:
+    """When an imported source was taken (ISO, UTC, seconds): a bag's first stamp (``epoch_ns``, when it is a
+    Unix time), else the source's modification time (a folder's newest file)."""
+    if epoch_ns is not None and 946684800 <= epoch_ns / 1e9 <= 4102444800:  # 2000 .. 2100
+        ts = epoch_ns / 1e9
+    else:
+        files = [src] if src.is_file() else [f for f in src.iterdir() if f.is_file()] or [src]
+        ts = max(f.stat().st_mtime for f in files)
+    return _dt.datetime.fromtimestamp(int(ts), _dt.timezone.utc).isoformat(timespec="seconds")
 
 
 def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
@@ -454,34 +498,46 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         site = Site(lat * DEG, lon * DEG, h)
     if gravity is not None:
         site = site.with_gravity(gravity)
-    if raw.integration is not None:  # rates integrated to increments in SI by the reader
-        ud = ("rad", "m/s")
-    elif mapping is not None:
+    if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
+    elif fmt == "rosbag":  # sensor_msgs/Imu: rad/s and m/s^2 (REP 145)
+        ud = ("rad/s", "m/s^2")
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
+    if raw.integration is not None:  # rates integrated to increments in SI by the reader
+        ud = (f"rad (rates in {ud[0]} integrated)", f"m/s (rates in {ud[1]} integrated)")
+    # the gyro unit is declared by a csv/txt mapping, and by a bag's message type; psins, mat and kf-gins files
+    # carry none (their format's unit is assumed)
+    declared = ("rad/s (sensor_msgs/Imu, REP 145)" if fmt == "rosbag" else
+                mapping.gyro_unit if mapping is not None and fmt in ("csv", "txt") else None)
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
-                             encoder_latency, tfile)
+                             encoder_latency, tfile, declared)
     integ = None
     if raw.integration is not None:
         ri = raw.integration
-        integ = {"rule": "integral of the linear interpolant of the rates (trapezoid on the stamps)",
+        integ = {"rule": "each rate held over the times nearer its stamp than any other's (midpoint rule; one "
+                         "sample per increment when the stamps sit at the centres of the grid's intervals)",
                  "grid_rate_hz": ri.rate_hz,
                  "stamps_on_grid": ri.on_grid, "largest_step_s": ri.h_max, "gaps_bridged": ri.gaps,
-                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()}}
+                 "error_bound": {"dtheta_rad": ri.bound[:3].tolist(), "dvel_m_s": ri.bound[3:].tolist()},
+                 "noise": {"white": ri.noise.white, "variance_ratio": list(ri.noise.variance),
+                           "neighbour_correlation": ri.noise.correlation}}
     attrs = {"file": src.name, "hash": src_hash, "format": fmt,
              "mapping": None if mapping_file is None else str(mapping_file),
              "gimbal_file": None if gimbal_file is None else str(gimbal_file),
              "path_file": None if path_file is None else str(path_file),
              "skipped_checks": sorted(skip), "time_regridded": info["regridded"],
              "time_offset_s": info.get("path_start_s", 0.0), "encoder_latency_s": info["encoder_latency_s"],
-             "temperature_file": None if temperature_file is None else str(temperature_file)}
+             "temperature_file": None if temperature_file is None else str(temperature_file),
+             "warnings": info["warnings"]}
     if raw.source_info is not None:
         attrs.update(raw.source_info)
     if temperature_topic is not None:
         attrs["bag"] = {**attrs["bag"], "temperature_topic": temperature_topic}
     if integ is not None:
         attrs["integration"] = integ
+    if info["saturated"]:  # a sensor at its range: the calibrations leave these samples out
+        attrs["saturated"] = info["saturated"]
     if noise is not None:
         attrs["imunoise"] = {"config": str(config_file), "arw_rad_sqrt_s": noise.noise.arw.tolist(),
                              "vrw_m_s_sqrt_s": noise.noise.vrw.tolist(),
@@ -490,15 +546,15 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                              "gyro_scale_sigma": noise.scale_sigma[0].tolist(),
                              "accel_scale_sigma": noise.scale_sigma[1].tolist(),
                              "correlation_time_s": noise.noise.gyro_bias_tau}
-    n = write_imported(out, rec, attrs, overwrite)
+    n = write_imported(out, rec, attrs, overwrite, created=source_time(src, (attrs.get("bag") or {}).get("epoch_ns")))
     return {"source": str(src), "format": fmt, "out": str(out), "samples": n, "rate_hz": rec.rate_hz,
             "duration_s": n / rec.rate_hz, "kind": raw.kind, "gimbal": info["gimbal"],
             "path": None if path is None else path.name, "time_regridded": info["regridded"],
             "time_offset_s": info.get("path_start_s", 0.0),
             "site": {"latitude_deg": site.latitude / DEG, "longitude_deg": site.longitude / DEG, "height_m": site.height},
             "skipped_checks": sorted(skip), "encoder_latency_s": info["encoder_latency_s"],
-            "encoders": info["encoders"], "temperature": info["temperature"],
-            **({k: attrs[k] for k in ("bag", "integration", "imunoise") if k in attrs})}
+            "encoders": info["encoders"], "temperature": info["temperature"], "warnings": info["warnings"],
+            **({k: attrs[k] for k in ("bag", "integration", "imunoise", "saturated") if k in attrs})}
 
 
 def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None, path_out=None,

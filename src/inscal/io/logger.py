@@ -5,13 +5,17 @@ Units: time in ``s``, ``ms`` or ``us``; gyros in a rate unit (``rad/s``, ``deg/s
 scale (one count, in a rate unit) and an offset (counts at zero rate); accelerometers in an acceleration
 unit (``m/s^2``, ``g``) or ``counts`` likewise.  Converted in :mod:`inscal.core.units` only.
 
-Increments by the trapezoidal rule on the logger's own time base, a second-order rule::
+Increments by the midpoint rule on the logger's own time base (the rule of :mod:`inscal.io.formats.rates`
+without its uniform grid): each sample held over its cell, the times nearer its stamp than any other's::
 
-    dtheta_k = (w_{k-1} + w_k) / 2 (t_k - t_{k-1}),      dvel_k likewise                   (k >= 1)
+    dtheta_k = w_k (m_k - m_(k-1)),   m_k = (t_k + t_(k+1)) / 2 (the first and last cells symmetric),   dvel_k likewise
 
-so a jittered clock costs nothing and a gap stays a long interval (which :mod:`inscal.calibrate.static_detect`
-names and keeps out of the still poses).  A gyro at its clip level (``gyro_range`` in the gyro's unit) is
-reported as the samples it holds; the calibration drops the rotation it falls in (with a note).
+one increment per sample, ending at ``m_k``, so the increments' noise is independent from one to the next
+(the trapezoid rule's neighbours would correlate by 1/2, and the estimators take it as white), a
+jittered clock costs nothing to second order in a still pose, and a gap stays a long interval (which
+:mod:`inscal.calibrate.static_detect` names and keeps out of the still poses).  A gyro at its clip level
+(``gyro_range`` in the gyro's unit) is reported as the samples it holds; the calibration drops the rotation
+it falls in (with a note).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inscal.core import units
+from inscal.io.formats.rates import cell_edges
 from inscal.io.records import DataFileError
 
 
@@ -31,7 +36,7 @@ class LoggerIncrements:
     time: np.ndarray
     dtheta: np.ndarray
     dvel: np.ndarray
-    gyro_clipped: np.ndarray  # bool per interval: a gyro at its clip level at either end
+    gyro_clipped: np.ndarray  # bool per interval: its sample's gyro at its clip level
     notes: tuple[str, ...] = ()
 
 
@@ -80,9 +85,10 @@ def increments_from_samples(time, gyro, accel, *, time_unit: str = "s", gyro_uni
     w = _to_si(g_raw, gyro_unit, "rate", gyro_counts, "gyro")
     f = _to_si(a_raw, accel_unit, "accel", accel_counts, "accel")
     clip = np.zeros(n, bool) if gyro_range is None else np.any(np.abs(g_raw) >= gyro_range, axis=1)
-    dth = 0.5 * (w[:-1] + w[1:]) * st[:, None]  # trapezoidal rule: second order on any time base
-    dv = 0.5 * (f[:-1] + f[1:]) * st[:, None]
+    e = cell_edges(t)
+    cell = np.diff(e)[:, None]  # midpoint rule: one sample per increment, second order on any time base
+    dth, dv = w * cell, f * cell
     notes = []
     if clip.any():
         notes.append(f"{int(clip.sum())} gyro sample(s) at the clip level {gyro_range:g} {gyro_unit}")
-    return LoggerIncrements(t[1:], dth, dv, clip[:-1] | clip[1:], tuple(notes))
+    return LoggerIncrements(e[1:], dth, dv, clip, tuple(notes))

@@ -47,7 +47,8 @@ if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (second
 
 import bisect
 
-from inscal.io.files import atomic_path, check_cancel, check_input
+from inscal.core.cancel import check_cancel
+from inscal.io.files import atomic_path, check_input
 
 #: names this module re-exports from the domain modules, imported on first use (PEP 562)
 KIND = "inscal-record"
@@ -160,11 +161,11 @@ def _write_dataclass(group, obj) -> None:
         group.create_dataset(f.name, data=np.asarray(getattr(obj, f.name), dtype=float))
 
 
-def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True):
+def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True, created: str | None = None):
     h5.attrs["kind"] = KIND
     h5.attrs["schema_version"] = SCHEMA_VERSION
     h5.attrs["inscal_version"] = __version__
-    h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    h5.attrs["created"] = created or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     h5.attrs["scenario"] = scenario_name
     h5.attrs["rate_hz"] = float(rate_hz)
     h5.attrs["units"] = json.dumps(UNITS)
@@ -191,8 +192,10 @@ def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extr
     k = 0
     with atomic_path(path, overwrite) as tmp:
         with h5py.File(tmp, "w") as h5:
-            _create_layout(h5, info.scenario, info.rate_hz, info.site, info.path, info.n_samples, info.has_gimbal)
-            for key, val in (extra_attrs or {}).items():
+            extra = dict(extra_attrs or {})  # "created" written once (a value overwritten stays in the file's heap)
+            _create_layout(h5, info.scenario, info.rate_hz, info.site, info.path, info.n_samples, info.has_gimbal,
+                           extra.pop("created", None))
+            for key, val in extra.items():
                 h5.attrs[key] = val
             for t, dth, dv, g in chunks:
                 check_cancel()

@@ -269,6 +269,8 @@ def read_manifest(path: Path, station: str | None = None, operator: str | None =
         rows = list(reader)
     except csv.Error as exc:
         raise BatchError(f"--manifest {path}: not a CSV file ({exc})") from None
+    if len(set(cols)) != len(cols):
+        raise BatchError(f"--manifest {path}: the header names a column twice ({', '.join(cols)})")
     missing = [c for c in ("path", "serial") if c not in cols]
     unknown = [c for c in cols if c not in MANIFEST_COLUMNS]
     if missing or unknown:
@@ -276,8 +278,11 @@ def read_manifest(path: Path, station: str | None = None, operator: str | None =
                          f"{', '.join(MANIFEST_COLUMNS[2:])})" + (f"; unknown: {', '.join(unknown)}" if unknown else ""))
     out, seen = [], {}
     for k, raw in enumerate(rows, start=2):
-        row = {str(c).strip(): (v or "").strip() for c, v in raw.items() if c is not None}
         where = f"--manifest {path} line {k}"
+        if raw.get(None):  # cells beyond the header's (csv.DictReader's restkey)
+            raise BatchError(f"{where}: {len(cols) + len(raw[None])} cells, the header names {len(cols)}: quote a "
+                             "path or serial that holds a comma (\"a,b.h5\"), or name the column in the header")
+        row = {str(c).strip(): (v or "").strip() for c, v in raw.items() if c is not None}
         if not row.get("path") or not row.get("serial"):
             raise BatchError(f"{where}: give a path and a serial")
         p = Path(row["path"]).expanduser()
@@ -364,12 +369,23 @@ def record_lock(db: Database, key: str) -> Iterator[None]:
                 conn.commit()
         return
     file = Path(db.url.database)
-    with open(file.with_name(side_name(file.name, ".batch.lock")), "a") as fh:
+    lock = file.with_name(side_name(file.name, ".batch.lock"))
+    while True:
+        fh = open(lock, "a")
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+        try:  # its releasing holder removed the file between our open and flock: retry on a fresh one
+            same = os.stat(lock).st_ino == os.fstat(fh.fileno()).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        fh.close()
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)  # while still locked: nothing left beside the database, a waiter retries
+        fh.close()
 
 
 def failure_text(exc: BaseException, path: Path | None = None) -> str:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from inscal.calibrate import METHODS, NO_TABLE_METHODS, PLATEAU_METHODS, RECORD_METHODS, calibrate, window_means
+from inscal.calibrate.fit import fit_note
 from inscal.calibrate.systematic.driver import samples_per_step, systematic_bytes
 from inscal.calibrate.systematic.gm_states import gm_states, noise_setup
 from inscal.calibrate.systematic.states import StateSet
@@ -28,7 +29,8 @@ from inscal.calibrate.thermal import CHAMBER_LABEL, PLATEAU_TOL_C, check_orders
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import parse_gravity
-from inscal.io.encoders import apply_latency, check_record_encoders
+from inscal.io.checks import saturated_samples
+from inscal.io.encoders import apply_latency, check_record_encoders, small_latency
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
 from inscal.io.records import (
     DataFileError,
@@ -46,10 +48,21 @@ MAX_ENCODER_SIGMA = 3600.0  # white noise of an encoder angle [arcsec] (1 deg)
 MAX_ARW = 100.0  # [deg/sqrt(h)]
 MAX_VRW = 1e5  # [ug/sqrt(Hz)]
 MAX_WINDOW_S = 86400.0  # --settle-s, --min-static-s [s]
+MAX_TREMOR_DPS = 100.0  # --tremor-dps [deg/s rms]: beyond it a "pose" is a move
 #: the plausible estimates of a working inertial sensor, whatever the method: scale factors within +-50 %,
 #: misalignments (installation angles) within 5 deg; beyond them the data, not the sensor, is at fault
 MAX_SCALE_FACTOR = 0.5
 MAX_MISALIGNMENT_RAD = math.radians(5.0)
+
+
+#: the options of the no-turntable methods the command line gives: name -> (flag, lower bound (excluded),
+#: upper bound, factor to the flag's unit, unit); face_tilt and turn_closure may also be 0 (exact)
+NO_TABLE_OPTIONS = {"alpha": ("--alpha", 0.0, 0.1, 1.0, ""),
+                    "gravity_tol": ("--gravity-tol", 0.0, 0.9, 1.0, ""),
+                    "face_tilt": ("--face-tilt-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg"),
+                    "min_turn_end": ("--min-turn-end-s", 0.0, MAX_WINDOW_S, 1.0, "s"),
+                    "turn_tol_deg": ("--turn-tol-deg", 0.0, 179.0, 1.0, "deg"),
+                    "turn_closure": ("--turn-closure-deg", 0.0, math.radians(10.0), math.degrees(1.0), "deg")}
 
 
 class RecordError(ValueError):
@@ -62,8 +75,8 @@ class CalibrationSetup:
     deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec; times in s): ``states``, ``arw``,
     ``vrw``, ``encoder_sigma`` and ``filter_rate_hz`` apply to the systematic methods, ``settle`` and
     ``min_static`` to the window-mean and the no-turntable ones (None: the method's own default, that of
-    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 2 s for the still poses
-    of ``multi-position`` and ``ferraris``; :attr:`window_options`), ``quadratic`` (the quadratic
+    its function's signature: 1 s and 20 s for a turntable's windows, 0.25 s and 1 s (``multi-position``: hand-held
+    poses of 2 s keep about 1.5 s once settled) or 2 s (``ferraris``) for the still poses; :attr:`window_options`), ``quadratic`` (the quadratic
     accelerometer terms) to ``multi-position``; ``gravity`` (wgs84 | psins | m/s^2) overrides the
     record's gravity model; ``encoder_latency`` shifts the encoder angles [s]; ``check_encoders``
     compares them with the gyros before calibrating.  A plateau method (``thermal-plateaus``) runs
@@ -92,6 +105,11 @@ class CalibrationSetup:
     accept_unconverged: bool = False  # systematic: keep the last iterate of a run that did not converge (a note)
     quadratic: bool = False  # multi-position: the quadratic accelerometer terms too (12 parameters, >= 12 poses)
     noise: str | None = None  # systematic: an identified noise model (noise.toml): white noise and GM bias states
+    #: no-turntable methods: keyword options of the method's function given explicitly, ((name, value), ...) in
+    #: its units (alpha, gravity_tol; ferraris: face_tilt, turn_closure [rad], min_turn_end [s], turn_tol_deg);
+    #: NO_TABLE_OPTIONS
+    method_options: tuple[tuple[str, float], ...] = ()
+    tremor: float | None = None  # multi-position: the hand tremor a still pose may hold [deg/s rms] (None: the default)
 
     @property
     def systematic(self) -> bool:
@@ -124,7 +142,25 @@ class CalibrationSetup:
                                                                          ("min_static", self.min_static))}
         if self.quadratic:
             out["quadratic"] = True
+        out.update({k: float(v) for k, v in self.method_options})
+        if self.tremor is not None:
+            out["tremor"] = units.to_si(float(self.tremor), "deg/s")
         return out
+
+    def method_options_problem(self) -> str | None:
+        """The one-line refusal of a no-turntable method's option (``method_options``) the method does not take
+        or whose value is out of its range (:data:`NO_TABLE_OPTIONS`), else None."""
+        for name, v in self.method_options:
+            flag, lo, hi, scale, unit = NO_TABLE_OPTIONS[name]
+            fn = METHODS.get(self.inner)
+            if self.inner not in NO_TABLE_METHODS or name not in inspect.signature(fn).parameters:
+                takes = [m for m in sorted(NO_TABLE_METHODS) if name in inspect.signature(METHODS[m]).parameters]
+                return f"{flag} applies to --method {' and '.join(takes)}, not {self.inner}"
+            zero = name in ("face_tilt", "turn_closure")  # 0: exact faces, exact turns
+            if not (math.isfinite(v) and (lo <= v if zero else lo < v) and v <= hi):
+                return (f"{flag} must be in {'[' if zero else '('}{lo * scale:g}, {hi * scale:g}]"
+                        f"{' ' + unit if unit else ''}, got {v * scale:g}")
+        return None
 
     def problem(self, plots: bool = False) -> str | None:
         """The one-line refusal of a bad option (``plots``: convergence plots are asked for), None if
@@ -137,9 +173,15 @@ class CalibrationSetup:
             return f"--plots applies to the systematic methods, not {self.method}"
         if self.quadratic and self.inner != "multi-position":
             return f"--quadratic applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and self.inner != "multi-position":
+            return f"--tremor-dps applies to --method multi-position, not {self.inner}"
+        if self.tremor is not None and not (math.isfinite(self.tremor) and 0 <= self.tremor <= MAX_TREMOR_DPS):
+            return f"--tremor-dps must be a tremor rate of 0 .. {MAX_TREMOR_DPS:g} deg/s rms, got {self.tremor}"
         for name, v in (("--settle-s", self.settle), ("--min-static-s", self.min_static)):
             if v is not None and not (math.isfinite(v) and v >= 0):
                 return f"{name} must be a duration >= 0 s, got {v}"
+        if (msg := self.method_options_problem()) is not None:
+            return msg
         if self.accept_unconverged and not self.inner_systematic:
             return f"--accept-unconverged applies to the systematic methods, not {self.inner}"
         if not self.inner_systematic and (self.states or self.arw is not None or self.vrw is not None
@@ -270,6 +312,11 @@ class CalibrationSetup:
                                    check_encoders=self.check_encoders, systematic=self.inner_systematic)
         if win.get("quadratic"):
             opts["quadratic"] = True
+        for name, v in self.method_options:  # in the flag's unit, named as the flag (face_tilt_deg, min_turn_end_s)
+            flag, _, _, scale, _ = NO_TABLE_OPTIONS[name]
+            opts[flag.lstrip("-").replace("-", "_")] = float(v) * scale
+        if self.tremor is not None:
+            opts["tremor_dps"] = float(self.tremor)
         if self.noise is not None:  # the model itself, not the file's name, decides the result
             opts["noise_model"] = noise_document(self.noise_model())["channel"]
         th = self.thermal_options()
@@ -366,6 +413,37 @@ def implausible(res, setup: CalibrationSetup) -> str | None:
             f"factor and {math.degrees(MAX_MISALIGNMENT_RAD):g} deg in misalignment): not calibrated; {cause}")
 
 
+def latency_cause(res, rec: Record, again, enc: dict | None) -> None:
+    """Name an encoder latency as the cause of ``res``'s misfit where it is: when the fit is inconsistent and
+    the encoder check (``enc``, its summary) measured a latency under a sample
+    (:func:`~inscal.io.encoders.small_latency`), ``again`` (the same calibration of a record) runs on the
+    angles shifted by it;
+    if its chi^2 falls below half (or the fit becomes consistent), the fit's cause, share and note in
+    ``res`` say so, with both chi^2 and the ``--encoder-latency`` that removes it.  The estimates and sigma
+    are left as they are."""
+    fit = res.fit
+    if fit is None or fit.get("consistent", True) or enc is None or "channels" not in fit or rec.gimbal is None:
+        return
+    lat, sig = enc.get("latency_s"), enc.get("latency_sigma_s")
+    words = small_latency(lat, sig, float(rec.rate_hz))
+    if words is None:
+        return
+    shifted = dataclasses.replace(rec, gimbal=apply_latency(np.asarray(rec.time), np.asarray(rec.gimbal), lat))
+    try:
+        f2 = again(shifted).fit
+    except CalibrationError:
+        return
+    if f2 is None or "chi2" not in f2 or not (f2["consistent"] or f2["chi2"] < 0.5 * fit["chi2"]):
+        return
+    old = fit.get("note")
+    fit["cause"] = (f"{words}, as the encoder check measured: with --encoder-latency {lat:.6g} the chi2 falls "
+                    f"from {fit['chi2']:.4g} to {f2['chi2']:.4g} on {f2['dof']} dof "
+                    f"({'consistent' if f2['consistent'] else 'still inconsistent'})")
+    fit["cause_share"] = float(1.0 - f2["chi2"] / fit["chi2"])
+    fit_note(fit)
+    res.notes = [fit["note"] if x == old else x for x in res.notes]
+
+
 def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibrated:
     """Calibrate record ``rec`` (read from file ``data``) with ``setup`` (checked with
     :meth:`CalibrationSetup.problem`): the encoder latency and check, the gravity model, the estimator
@@ -410,6 +488,10 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
                 opts["noise"] = setup.noise_model()
         else:
             opts = dict(setup.window_options)
+            marked = (saturated_samples(rec.time, record_attrs(data, ("source",))["source"])
+                      if setup.inner == "multi-position" else None)
+            if marked is not None:
+                opts["clipped"] = marked  # a sensor at its range, marked at import: its moves are not used
             if setup.noise is not None:
                 opts["noise"] = setup.noise_model()
         res = calibrate(rec, setup.method, **opts, **setup.thermal_options())
@@ -417,6 +499,8 @@ def calibrate_record(rec: Record, data: Path, setup: CalibrationSetup) -> Calibr
         raise RecordError(f"{data}: {exc}") from None
     if (msg := implausible(res, setup)) is not None:
         raise RecordError(f"{data}: {msg}")
+    if not setup.inner_systematic:
+        latency_cause(res, rec, lambda r: calibrate(r, setup.method, **opts, **setup.thermal_options()), enc_report)
     meta = {"scenario": rec.scenario or None, "imu_serial": record_attrs(data, ("imu_serial",))["imu_serial"],
             "windows": len(res.windows.windows) if res.windows else None}
     if setup.plateaus:

@@ -121,14 +121,33 @@ def covariance_of(result) -> dict | None:
     if basis == "states":
         return {"basis": "states", "labels": labels, "units": "SI", "correlations": True,
                 "matrix": to_jsonable(P)}
+    labels = [parameter_label(lab) for lab in labels]
     scale = np.array([field_factor(lab) for lab in labels])
     return {"basis": "parameters", "labels": labels, "units": "field", "correlations": True,
             "matrix": to_jsonable(P * np.outer(scale, scale))}
 
 
+def parameter_label(label: str) -> str:
+    """The database's label ``name[component]`` (as :func:`parameter_rows` gives) of a parameter
+    component written ``name[component]``, ``name.component`` (the table-free estimators' covariance
+    labels) or ``name`` (a scalar); a label naming no registry parameter or component raises
+    :class:`ParamFileError`."""
+    if "[" in label:
+        name, comp = label.split("[", 1)
+        comp = comp.rstrip("]")
+    elif "." in label:
+        name, comp = label.split(".", 1)
+    else:
+        name, comp = label, ""
+    if name not in PARAMETERS or comp not in parameter_components(name):
+        raise ParamFileError(f"the covariance names {label!r}, not a component of a known parameter")
+    return f"{name}[{comp}]" if comp else name
+
+
 def field_factor(label: str) -> float:
-    """The factor from SI to the field unit of a parameter component ``name[component]``."""
-    name = label.split("[", 1)[0]
+    """The factor from SI to the field unit of a parameter component (``name[component]``,
+    ``name.component`` or ``name``)."""
+    name = parameter_label(label).split("[", 1)[0]
     kind, unit = PARAMETERS[name][2], PARAMETERS[name][3]
     return float(units.from_si(1.0, unit, kind))
 

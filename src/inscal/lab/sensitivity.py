@@ -39,7 +39,7 @@ from inscal.core.attitude import skew
 from inscal.core.earth import Site, earth_rate_n
 from inscal.core.turntable import C_b_n, C_s_b, outer_axis
 from inscal.lab import budget as gum
-from inscal.lab.station import INPUTS
+from inscal.lab.station import INPUTS, site_check
 
 #: finite-difference steps of the inputs (SI): well above rounding, well inside the linear range
 STEPS = {"angle": 2e-5, "dimensionless": 2e-5, "accel": 2e-4, "length": 10.0}
@@ -217,13 +217,18 @@ def sensitivities(ws: WindowSet, geo: Geometry, x: Callable[[WindowSet], np.ndar
 WINDOW_METHODS = ("n25", "six-position", "twelve-position", "joint")
 #: the systematic filter (S16): its budget from the record (:func:`record_sensitivities`)
 FILTER_METHODS = ("systematic51", "systematic30")
+#: the table-free methods (hand-held still poses): their budget from the record, as the filter's
+NO_TABLE_METHODS = ("multi-position", "ferraris")
 #: every method with a budget
-BUDGET_METHODS = WINDOW_METHODS + FILTER_METHODS
+BUDGET_METHODS = WINDOW_METHODS + FILTER_METHODS + NO_TABLE_METHODS
 #: what the budget of a filter method says of the table's inputs
 FILTER_TABLE_NOTE = ("table_angle, table_rate, axis_wobble, axis_nonorthogonality, encoder_resolution: the systematic "
                      "filter reads neither the table's angles nor its rates (its observations are the dwells' zero "
                      "velocity), so they enter with sensitivity 0 (bench/budget_s16.py moves every stop of a "
                      "simulated path to check it)")
+#: what the budget of a table-free method says of the table's inputs
+NO_TABLE_NOTE = ("table_angle, table_rate, axis_wobble, axis_nonorthogonality, encoder_resolution: a table-free "
+                 "method uses no turntable (its poses are estimated from the data), so they enter with sensitivity 0")
 
 
 def believe_record(record, dev: Deviation):
@@ -266,12 +271,12 @@ def calibration_budget(result: CalibrationResult, station, rep=None, coverage: f
     names = result.estimated
     kinds = {k: v.kind for k, v in INPUTS.items()}
     notes = []
-    if result.method in FILTER_METHODS and record is not None:
+    if result.method in FILTER_METHODS + NO_TABLE_METHODS and record is not None:
         def xr(rec):
             r = calibrate(rec, result.method, **options)
             return flatten(r.imu, r.gimbal, names)
         sens = record_sensitivities(record, xr, kinds)
-        notes.append(FILTER_TABLE_NOTE)
+        notes.append(FILTER_TABLE_NOTE if result.method in FILTER_METHODS else NO_TABLE_NOTE)
         site = record.site
     elif result.method in WINDOW_METHODS and result.windows is not None:
         ws = result.windows
@@ -280,16 +285,14 @@ def calibration_budget(result: CalibrationResult, station, rep=None, coverage: f
         site = ws.site
     else:
         raise ValueError(f"an uncertainty budget needs a window-mean method ({', '.join(WINDOW_METHODS)}) or the "
-                         f"record of a filter method ({', '.join(FILTER_METHODS)}), not {result.method}")
+                         f"record of a filter or table-free method ({', '.join(FILTER_METHODS + NO_TABLE_METHODS)}), "
+                         f"not {result.method}")
     if "gimbal_nonorthogonality" in names:  # the method estimates the table's dth: its error, not its value
         sens.glob["axis_nonorthogonality"][nparams(names[:names.index("gimbal_nonorthogonality")])] -= 1.0
     values = flatten(result.imu, result.gimbal, names)
     sigma = np.concatenate([np.atleast_1d(np.asarray(result.sigma.get(n, np.nan), float)).ravel() for n in names])
     fit = result.fit or {}
-    dof = float(fit.get("dof") or math.inf) if result.method in WINDOW_METHODS else math.inf
-    g_used, g_station = site.gravity, station["gravity"].value
-    if abs(g_used - g_station) > 3 * max(station["gravity"].u, 1e-12):
-        notes.append(f"gravity: the calibration used {g_used:.6f} m/s^2, the station states {g_station:.6f} m/s^2 "
-                     f"(more than 3 u apart)")
+    dof = float(fit.get("dof") or math.inf) if result.method in WINDOW_METHODS + NO_TABLE_METHODS else math.inf
+    notes += site_check(station, site.latitude, site.height, site.gravity)  # StationError: another site
     return gum.budget(result.method, names, values, sigma, dof, station, sens.glob, sens.per_stop, rep,
                       coverage, notes, temperature)

@@ -214,8 +214,9 @@ def _input(name: str, d) -> StationInput:
     except units.UnitError as exc:
         raise StationError(f"input {name}: {exc}") from None
     dof = _number(name, "dof", d.get("dof", math.inf)) if "dof" in d else math.inf
-    if not dof > 0:
-        raise StationError(f"input {name}: dof must be > 0, got {dof:g}")
+    if not dof >= MIN_DOF:
+        raise StationError(f"input {name}: dof must be >= {MIN_DOF:g}, got {dof:g} (fewer says the uncertainty "
+                           "is itself uncertain by more than +-71 %, GUM G.4.2: state a larger u instead)")
     factor = DISTRIBUTIONS[dist]
     u = x_si if factor is None else x_si / factor
     source = str(d["source"]).strip()
@@ -247,7 +248,49 @@ def station_from_dict(doc: dict) -> Station:
     lat = inputs["latitude"].value
     if abs(lat) > math.pi / 2:
         raise StationError(f"input latitude: {math.degrees(lat):g} deg is not within +-90 deg")
+    for key, (lo, hi) in SITE_RANGES.items():
+        inp = inputs[key]
+        if not lo <= inp.value <= hi:
+            raise StationError(f"input {key}: {inp.field(inp.value, inp.unit):g} {inp.unit} is not a site on the "
+                               f"Earth's surface ({inp.field(lo, inp.unit):g} .. {inp.field(hi, inp.unit):g} "
+                               f"{inp.unit})")
     return Station(str(head["name"]).strip(), inputs)
+
+
+#: the least degrees of freedom of a stated uncertainty (GUM G.4.2: nu = 1/2 (u/du)^-2; nu = 1 is du/u = 71 %;
+#: the coverage factor t_95(1) = 12.7)
+MIN_DOF = 1.0
+#: the site values a station may state (SI): gravity on the Earth's surface (9.76-9.84 m/s^2 and local
+#: anomalies), heights from the deepest mines to above the highest summits
+SITE_RANGES = {"gravity": (9.7, 9.9), "height": (-5000.0, 10000.0)}
+#: how far (in the station's own standard uncertainties) a site value may be from the record's
+SITE_K = 3.0
+#: beyond these (SI) the station is of another site: refused (latitude 0.1 deg, height 100 m, gravity 100 mGal)
+SITE_GROSS = {"latitude": math.radians(0.1), "height": 100.0, "gravity": 1e-3}
+
+
+def site_check(station: Station, latitude: float, height: float, gravity: float | None) -> list[str]:
+    """The record's site (SI: latitude [rad], height [m], gravity used [m/s^2], None: not checked) against
+    the station's: a note per value more than :data:`SITE_K` of its own standard uncertainty away; a value
+    farther than both that and :data:`SITE_GROSS` raises :class:`StationError` (the station file is of
+    another site)."""
+    notes = []
+    for key, have in (("latitude", latitude), ("height", height), ("gravity", gravity)):
+        if have is None:
+            continue
+        inp = station[key]
+        diff = abs(have - inp.value)
+        if not diff > SITE_K * max(inp.u, 1e-15):
+            continue
+        line = (f"{key}: the record's {inp.field(have, inp.unit):.10g} {inp.unit}, the station states "
+                f"{inp.field(inp.value, inp.unit):.10g} {inp.unit} +- {inp.field(inp.u):.3g} {inp.uncertainty_unit} "
+                f"({diff / inp.u:.3g} u apart)")
+        if diff > SITE_GROSS[key]:
+            raise StationError(f"{line}: the station file describes another site; give this site's {key}"
+                               + (", or calibrate with --gravity VALUE (the measured gravity)" if key == "gravity"
+                                  else ""))
+        notes.append(line)
+    return notes
 
 
 def read_station(path) -> Station:

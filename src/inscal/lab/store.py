@@ -304,7 +304,38 @@ def get_budget(db: Database, result_id: int) -> dict | None:
     with read(db) as conn:
         row = conn.execute(sa.select(t.budgets.c.budget, t.stations.c.document).join(
             t.stations, t.stations.c.id == t.budgets.c.station_id).where(t.budgets.c.result_id == int(result_id))).first()
-    return None if row is None else {"result_id": int(result_id), "station": row.document, "budget": row.budget}
+    if row is None:
+        return None
+    if not budget_well_formed(row.budget):
+        raise DatabaseError(f"the uncertainty budget stored with result {result_id} is not a budget "
+                            f"({short_json(row.budget)}): the database was edited; record the result again with "
+                            "inscal calibrate ... --station FILE.toml --serial ... --supersedes "
+                            f"{result_id}")
+    return {"result_id": int(result_id), "station": row.document, "budget": row.budget}
+
+
+#: the keys of a stored budget and of each of its components and contributions (inscal.lab.budget.Budget)
+BUDGET_KEYS = ("station", "method", "coverage", "components")
+COMPONENT_KEYS = ("parameter", "label", "unit", "value", "u_c", "k", "U", "contributions")
+CONTRIBUTION_KEYS = ("input", "value", "distribution", "u", "unit", "sensitivity", "contribution", "share", "stops")
+
+
+def budget_well_formed(b) -> bool:
+    """Whether ``b`` (a stored budget's JSON) has what the budget's readers use."""
+    if not (isinstance(b, dict) and all(k in b for k in BUDGET_KEYS) and isinstance(b["components"], list)):
+        return False
+    for c in b["components"]:
+        if not (isinstance(c, dict) and all(k in c for k in COMPONENT_KEYS) and isinstance(c["contributions"], list)):
+            return False
+        if not all(isinstance(x, dict) and all(k in x for k in CONTRIBUTION_KEYS) for x in c["contributions"]):
+            return False
+    return True
+
+
+def short_json(v, limit: int = 40) -> str:
+    """``v`` as JSON text, cut to ``limit`` characters."""
+    text = json.dumps(v, default=str)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 def set_current(db: Database, serial: str, result_id: int) -> None:

@@ -10,7 +10,7 @@ from numba import njit
 from scipy.spatial.transform import Rotation
 
 from inscal.core import earth
-from inscal.core.attitude import quat_from_rotvec_xyz, quat_to_dcm
+from inscal.core.attitude import quat_from_rotvec_xyz, quat_mul_xyz, quat_rotate_xyz, quat_to_dcm
 from inscal.core.error_model import ImuErrors
 from inscal.nav.strapdown import (
     S_Q,
@@ -18,8 +18,6 @@ from inscal.nav.strapdown import (
     NavConfig,
     NavState,
     Strapdown,
-    qmul,
-    qrot,
     two_sample,
 )
 from inscal.nav.stream import SampleStream
@@ -93,12 +91,12 @@ def _inertial_integrals(dth, dv, every, out_v):
         a0, a1, a2 = dth[j, 0], dth[j, 1], dth[j, 2]
         b0, b1, b2 = dv[j, 0], dv[j, 1], dv[j, 2]
         r0, r1, r2, c0, c1, c2 = two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, j > 0)
-        x, y, z = qrot(q0, q1, q2, q3, c0, c1, c2)  # C_s^{s0}(k-1) dv_sf
+        x, y, z = quat_rotate_xyz(q0, q1, q2, q3, c0, c1, c2)  # C_s^{s0}(k-1) dv_sf
         vx += x
         vy += y
         vz += z
         e0, e1, e2, e3 = quat_from_rotvec_xyz(r0, r1, r2)
-        q0, q1, q2, q3 = qmul(q0, q1, q2, q3, e0, e1, e2, e3)
+        q0, q1, q2, q3 = quat_mul_xyz(q0, q1, q2, q3, e0, e1, e2, e3)
         nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         q0, q1, q2, q3 = q0 * nq, q1 * nq, q2 * nq, q3 * nq
         p0, p1, p2, u0, u1, u2 = a0, a1, a2, b0, b1, b2

@@ -93,6 +93,10 @@ from inscal.core.attitude import (
     quat_from_rotvec_xyz,
     quat_mul,
 )
+# the kernels' scalar faces under their short names (the systematic filter's kernel imports them from here)
+from inscal.core.attitude import quat_from_rotvec_poly_xyz as rotvec_quat
+from inscal.core.attitude import quat_mul_xyz as qmul
+from inscal.core.attitude import quat_rotate_xyz as qrot
 from inscal.core.error_model import GimbalErrors, ImuErrors
 from inscal.core.kinematics import true_attitude
 from inscal.core.turntable import C_s_b
@@ -139,19 +143,6 @@ N_CFG = 13
 
 
 @njit(cache=True, inline="always")
-def qmul(a0, a1, a2, a3, b0, b1, b2, b3):
-    """Hamilton product, scalar-first, on scalars (no allocation)."""
-    return (
-        a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-        a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-        a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
-        a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0,
-    )
-
-
-
-
-@njit(cache=True, inline="always")
 def two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, with_prev):
     """Rotation vector and velocity increment of one sample with the rotation compensation
     (a x b / 2 + a x (a x b) / 6, the series of Savage's exact form to third order) and, from the
@@ -175,20 +166,6 @@ def two_sample(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, with_prev):
         c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) / 12.0
         c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) / 12.0
     return r0, r1, r2, c0, c1, c2
-
-
-@njit(cache=True, inline="always")
-def qrot(q0, q1, q2, q3, x, y, z):
-    """Rotate (x, y, z) by the quaternion: C(q) v."""
-    # t = 2 q_v x v ; v' = v + q0 t + q_v x t
-    tx = 2.0 * (q2 * z - q3 * y)
-    ty = 2.0 * (q3 * x - q1 * z)
-    tz = 2.0 * (q1 * y - q2 * x)
-    return (
-        x + q0 * tx + (q2 * tz - q3 * ty),
-        y + q0 * ty + (q3 * tx - q1 * tz),
-        z + q0 * tz + (q1 * ty - q2 * tx),
-    )
 
 
 @njit(cache=True, inline="always")
@@ -260,28 +237,6 @@ def two_sample_mul(a0, a1, a2, b0, b1, b2, p0, p1, p2, u0, u1, u2, with_prev):
         c1 += ((p2 * b0 - p0 * b2) + (u2 * a0 - u0 * a2)) * (1.0 / 12.0)
         c2 += ((p0 * b1 - p1 * b0) + (u0 * a1 - u1 * a0)) * (1.0 / 12.0)
     return r0, r1, r2, c0, c1, c2
-
-@njit(cache=True, inline="always")
-def rotvec_quat(x, y, z):
-    """Exact quaternion ``(w, x, y, z)`` of the rotation vector (x, y, z) without trigonometry for
-    the angles of a sample: with ``u = a^2 / 4``, ``cos(a/2) = sum (-u)^k / (2k)!`` and
-    ``sin(a/2)/a = sum (-u)^k / (2 (2k+1)!)`` to ``u^4``; the first term left out,
-    ``u^5 / 10! < 6.5e-18``, is below the round-off of 1 for ``a^2 < 0.03`` (a < 10 deg per sample).
-    Larger angles take the trigonometric form (the value of :func:`quat_from_rotvec_xyz`)."""
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-8:  # Earth and transport rotation per sample: the terms past u fall below 1e-19
-        c = 1.0 - a2 * 0.125
-        s = 0.5 - a2 * (1.0 / 48.0)
-    elif a2 < 0.03:
-        u = 0.25 * a2
-        c = 1.0 + u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0))))
-        s = 0.5 + u * (-1.0 / 12.0 + u * (1.0 / 240.0 + u * (-1.0 / 10080.0 + u * (1.0 / 725760.0))))
-    else:
-        a = math.sqrt(a2)
-        c = math.cos(0.5 * a)
-        s = math.sin(0.5 * a) / a
-    return c, s * x, s * y, s * z
-
 
 @njit(cache=True)
 def earth_update(st, lat, h, vn, ahead, gscale):

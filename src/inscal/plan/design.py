@@ -42,16 +42,15 @@ One evaluation of a 30-minute path costs ~30 ms (bench/bench_crlb.py).
 
 from __future__ import annotations
 
-import logging
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from inscal.core import units
+from inscal.core.parallel import start_client
 from inscal.core.turntable import (
     AXES,
     DEG,
@@ -406,19 +405,7 @@ class _Evaluator:
         if scheduler in ("none", "synchronous", "sync"):
             return
 
-        from distributed import Client, LocalCluster
-
-        if scheduler in (None, "", "local"):
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", message=r"(?s)Port \d+ is already in use")
-                self.cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR)
-            self.client = Client(self.cluster)
-        else:
-            try:
-                self.client = Client(scheduler, timeout=10)
-            except (OSError, TimeoutError) as exc:
-                raise DesignError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        self.client, self.cluster = start_client(scheduler, max(1, workers), 10, DesignError)
         self.n = max(1, sum(self.client.nthreads().values()))
 
     @property

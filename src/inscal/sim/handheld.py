@@ -145,3 +145,110 @@ def true_increments(motion: HandheldMotion, site: Site, rate_hz: float, quadrati
     f2 = integrate(f * f)
     fx = integrate(np.column_stack([f[:, 0] * f[:, 1], f[:, 0] * f[:, 2], f[:, 1] * f[:, 2]]))
     return edges[1:], dth, dv, f2, fx
+
+
+# ------------------------------------------------------------------------------- Ferraris sessions
+def tilted_face(axis: int, sign: float, heading: float, tilt: np.ndarray) -> np.ndarray:
+    """``C_b^n`` of the body resting on a face: body axis ``axis`` up (``sign`` +-1), its vertical
+    ``sign e_axis + t_1 e_(axis+1) + t_2 e_(axis+2)`` normalised (``tilt`` = (t_1, t_2): the tangents of the
+    small tilt angles towards the body axes ``axis + 1``, ``axis + 2`` mod 3), at ``heading`` [rad] about the
+    vertical."""
+    up = np.zeros(3)
+    up[axis] = sign
+    up[(axis + 1) % 3] += tilt[0]
+    up[(axis + 2) % 3] += tilt[1]
+    up /= np.linalg.norm(up)
+    ref = np.eye(3)[(axis + 1) % 3]
+    e = ref - up * (ref @ up)
+    e /= np.linalg.norm(e)
+    Cbn = np.vstack([e, np.cross(up, e), up])  # rows: the n-frame axes in the body, before the heading
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ Cbn
+
+
+@dataclass(frozen=True)
+class FerrarisMotion(HandheldMotion):
+    """A Ferraris session (Ferraris 1995; laid out like imucal's example): the faces ``+x, -x, +y, -y, +z, -z``
+    up for ``face_s`` s each (uniform in the range), then for x, y, z a pose on the + face for ``end_s`` s,
+    one whole turn (360 deg, either sense, plus a closure error: normal, sigma ``turn_closure_deg``, a turn
+    by hand against a stop) about the vertical and the pose it ends in for ``end_s`` s; the moves last
+    ``move_s`` s.  Every placement on a face has its own heading (uniform) and its own tilt: two
+    angles, each normal with the sigma ``face_tilt_deg / sqrt(2)`` (``face_tilt_deg`` the rms angle between
+    the face and the horizontal); a turn is about the tilted vertical, so it ends on the face it started on.  All drawn
+    from ``seed``; ``tremor_deg``/``tremor_hz`` ride on the moves (:class:`HandheldMotion`)."""
+
+    face_s: tuple[float, float] = (4.0, 7.0)
+    end_s: tuple[float, float] = (1.0, 1.5)
+    face_tilt_deg: float = 0.3
+    turn_closure_deg: float = 0.2
+    tremor_deg: float = 0.0
+
+    def __post_init__(self):
+        if not (0 < self.face_s[0] <= self.face_s[1] and 0 < self.end_s[0] <= self.end_s[1] and self.move_s > 0
+                and 0 <= self.face_tilt_deg < 10 and 0 <= self.turn_closure_deg < 10 and self.tremor_deg >= 0
+                and self.tremor_hz > 0):
+            raise ValueError(f"Ferraris motion: 0 < face_s[0] <= face_s[1], 0 < end_s[0] <= end_s[1], move_s > 0, "
+                             f"0 <= face_tilt_deg, turn_closure_deg < 10, tremor_deg >= 0, tremor_hz > 0; got {self}")
+
+    def _layout(self):
+        """(C_b^n, still duration, tilt (2,)) of the 12 poses, and the turns {move index: angle}."""
+        rng = np.random.default_rng([self.seed, 2])
+        sc = math.radians(self.face_tilt_deg) / math.sqrt(2.0)
+        out, turns = [], {}
+        for k in range(6):
+            t = rng.normal(0.0, sc, 2)
+            out.append((tilted_face(k // 2, 1.0 if k % 2 == 0 else -1.0, rng.uniform(0, 2 * math.pi), t),
+                        rng.uniform(*self.face_s), t))
+        for j in range(3):
+            t = rng.normal(0.0, sc, 2)
+            C = tilted_face(j, 1.0, rng.uniform(0, 2 * math.pi), t)
+            ang = float(rng.choice([-1.0, 1.0])) * (2.0 * math.pi + rng.normal(0.0, math.radians(self.turn_closure_deg)))
+            turns[len(out)] = ang
+            out += [(C, rng.uniform(*self.end_s), t), (C @ _rot(C[2], [ang])[0], rng.uniform(*self.end_s), t)]
+        return out, turns
+
+    @property
+    def duration(self) -> float:
+        """The session's length [s]."""
+        lay, _ = self._layout()
+        return sum(d for _, d, _ in lay) + (len(lay) - 1) * self.move_s
+
+    def attitudes(self) -> list[np.ndarray]:
+        """``C_b^n`` of every pose, in time order."""
+        return [C for C, _, _ in self._layout()[0]]
+
+    def tilts(self) -> np.ndarray:
+        """The tilt of every pose (12, 2): the tangents of the angles (:func:`tilted_face`); the tilt angle is
+        ``atan(hypot(t))``."""
+        return np.array([t for _, _, t in self._layout()[0]])
+
+    def still_intervals(self) -> list[tuple[float, float]]:
+        """``(start, end)`` [s] of every still pose, in time order."""
+        out, t = [], 0.0
+        for _, d, _ in self._layout()[0]:
+            out.append((t, t + d))
+            t += d + self.move_s
+        return out
+
+    def moves(self) -> list[tuple[float, np.ndarray, np.ndarray, float, np.ndarray]]:
+        """(start time, C_j, axis e_j, angle Theta_j, tremor axis k_j) of every move: the shortest rotation
+        between two faces, or a whole turn about the pose's vertical."""
+        lay, turns = self._layout()
+        rng = np.random.default_rng([self.seed, 3])
+        out = []
+        for j, (t0, _) in enumerate(self.still_intervals()[:-1]):
+            C0, d0, _ = lay[j]
+            if j in turns:
+                e, ang = C0[2].copy(), turns[j]  # the vertical in the body: the third row of C_b^n
+            else:
+                R = C0.T @ lay[j + 1][0]
+                v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+                ang = math.atan2(0.5 * np.linalg.norm(v), 0.5 * (np.trace(R) - 1.0))
+                e = v / max(float(np.linalg.norm(v)), 1e-300)
+                if ang > math.pi - 1e-6:  # a half turn (from a face to its opposite): R + I = 2 e e^T
+                    S = R + np.eye(3)
+                    c = S[:, int(np.argmax(np.diag(S)))]
+                    e = c / np.linalg.norm(c)
+            k = rng.normal(size=3)
+            out.append((t0 + d0, C0, e, ang, k / np.linalg.norm(k)))
+        return out

@@ -71,6 +71,12 @@ Built-in (``inscal simulate NAME``):
     :data:`HANDHELD_GRADES` (illustrative magnitudes of each grade): scale factors 3000 / 300 / 50 ppm,
     misalignments 400 / 60 / 10 arcsec, gyro bias 1000 / 5 / 0.01 deg/h, accelerometer bias
     5000 / 500 / 50 ug, ARW 0.3 / 0.1 / 0.002 deg/sqrt(h), VRW 100 / 20 / 2 ug/sqrt(Hz).
+``ferraris-mems``
+    A Ferraris session (:class:`inscal.sim.handheld.FerrarisMotion`, laid out like imucal's example):
+    the six faces held 4-7 s, then a whole turn about the vertical on the +x, +y and +z faces between
+    poses of 1.0-1.5 s (the turns closing within 0.2 deg rms), 3-s moves, every face tilted by 0.3 deg
+    rms, 102.4 Hz, N25 site, the ``mems`` errors and noise of :data:`HANDHELD_GRADES` (for ``calibrate
+    --method ferraris``).
 ``thermal-plateaus``, ``thermal-plateaus-s16``, ``thermal-ramp``, ``thermal-cycle``, ``thermal-warmup``
     Temperature (beyond both papers).  The IMU errors follow the temperature with the thermal
     model :data:`THERMAL_ERRORS` (T_ref 20 degC, valid -40 .. +60 degC).  **Its magnitudes are
@@ -187,7 +193,7 @@ from inscal.core.units import DEG
 from inscal.core.noise_models import NoiseModel
 from inscal.io.noisefile import NoiseFileError, read_noise
 from inscal.io.tomlfile import read_toml
-from inscal.sim.handheld import HandheldMotion
+from inscal.sim.handheld import FerrarisMotion, HandheldMotion
 from inscal.sim.simulate import Scenario
 from inscal.sim.thermal import PIECE_KINDS, Piece, TemperatureProfile, TemperatureSensor, plateaus
 
@@ -355,6 +361,13 @@ def _handheld(grade: str) -> Scenario:
                     rate_hz=100.0, motion=motion)
 
 
+def _ferraris() -> Scenario:
+    """The Ferraris session of :class:`FerrarisMotion` (tilted faces) with the ``mems`` hand-held errors."""
+    motion = FerrarisMotion()
+    return replace(_handheld("mems"), name="ferraris-mems", path=static(motion.duration), rate_hz=102.4,
+                   motion=motion)
+
+
 def _static(duration_s: float = 3600.0) -> Scenario:
     return Scenario("static", static(duration_s), N25_SITE, rate_hz=100.0)
 
@@ -484,6 +497,7 @@ BUILTIN = {
     "handheld-mems": lambda d: _handheld("mems"),
     "handheld-tactical": lambda d: _handheld("tactical"),
     "handheld-navigation": lambda d: _handheld("navigation"),
+    "ferraris-mems": lambda d: _ferraris(),
 }
 DURATION_SCENARIOS = {"static", "static-24h", "rotmod16", "rotmod16-6h", "n25-rotmod", "n25-static", "thermal-warmup"}
 
@@ -500,7 +514,7 @@ def build(name: str, duration_s: float | None = None, rate_hz: float | None = No
         sc = load_toml(name, duration_s)
     elif name in BUILTIN:
         if duration_s is not None and name not in DURATION_SCENARIOS:
-            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration applies to {sorted(DURATION_SCENARIOS)}")
+            raise ScenarioError(f"scenario {name!r} has a fixed path; --duration-h applies to {sorted(DURATION_SCENARIOS)}")
         sc = BUILTIN[name](duration_s)
     else:
         raise ScenarioError(f"unknown scenario {name!r}; built-in: {', '.join(BUILTIN)}, or a .toml file")

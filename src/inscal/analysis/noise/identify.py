@@ -35,6 +35,15 @@ UNRESOLVED_SPAN = 1e3
 STUCK_RUN_MIN = 20
 #: the octave scales a model of p parameters needs: p + 2 (two degrees of freedom left for the J test)
 EXTRA_SCALES = 2
+#: the most points a curve computed elsewhere may have: one per octave of a record of 2^64 samples (the
+#: fit's time grows faster than the square of the points: 100 points take tens of seconds, 300 minutes)
+MAX_CURVE_POINTS = 64
+#: the most bytes of a curve file (64 rows of four numbers and comments fit in a few kB)
+MAX_CURVE_BYTES = 1_000_000
+#: the variances (SI, after AVAR -> WV) a curve may hold: beyond, squares and weights leave float range
+CURVE_RANGE = (1e-60, 1e60)
+#: the sample intervals [s] a curve may state (m = tau / dt stays an exact integer, below 2^53)
+DT_RANGE = (1e-9, 1e6)
 
 
 class NoiseInputError(ValueError):
@@ -317,6 +326,8 @@ def parse_curve_csv(text: str, where: str) -> tuple[str, Curve]:
             continue
         if s.startswith("#"):
             if "dt_s" in s:
+                if dt is not None:
+                    raise NoiseInputError(f"{where} line {ln}: a second '# dt_s' line; give the sample interval once")
                 try:
                     dt = float(s.split("=", 1)[1])
                 except (IndexError, ValueError):
@@ -337,19 +348,36 @@ def parse_curve_csv(text: str, where: str) -> tuple[str, Curve]:
             raise NoiseInputError(f"{where} line {ln}: need four finite numbers (tau_s, value, lower, upper)")
         if not (vals[0] > 0 and 0 < vals[2] <= vals[1] <= vals[3]):
             raise NoiseInputError(f"{where} line {ln}: need tau > 0 and 0 < lower <= value <= upper")
+        if not vals[2] < vals[3]:
+            raise NoiseInputError(f"{where} line {ln}: the interval has zero width (lower = upper = {vals[3]:g}): "
+                                  "its weight 1/(upper - lower)^2 would be infinite; give its 95 % interval")
+        if len(rows) == MAX_CURVE_POINTS:
+            raise NoiseInputError(f"{where}: more than {MAX_CURVE_POINTS} points (the limit: one per octave of a "
+                                  f"2^{MAX_CURVE_POINTS}-sample record); give an octave curve, tau = dt, 2 dt, 4 dt ...")
         rows.append(vals)
     if header is None or len(rows) < 3:
         raise NoiseInputError(f"{where}: fewer than 3 points")
-    if dt is None or not dt > 0:
+    if dt is None:
         raise NoiseInputError(f"{where}: no sample interval; add a line '# dt_s = <seconds>'")
+    if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
+        raise NoiseInputError(f"{where}: the sample interval dt_s = {dt:g} s is not one of an IMU (give "
+                              f"{DT_RANGE[0]:g} .. {DT_RANGE[1]:g} s, as '# dt_s = 0.01')")
     a = np.array(rows)
     quantity = header[1]
-    if quantity == "adev":
-        a[:, 1:] = a[:, 1:] ** 2
-    if quantity in ("adev", "avar"):
-        a[:, 1:] /= 2.0  # AVAR = 2 WV
+    with np.errstate(over="ignore", under="ignore"):
+        if quantity == "adev":
+            a[:, 1:] = a[:, 1:] ** 2
+        if quantity in ("adev", "avar"):
+            a[:, 1:] /= 2.0  # AVAR = 2 WV
+    lo_v, hi_v = CURVE_RANGE
+    if not np.all((a[:, 1:] >= lo_v) & (a[:, 1:] <= hi_v)):
+        k = int(np.argmax(~np.all((a[:, 1:] >= lo_v) & (a[:, 1:] <= hi_v), axis=1)))
+        raise NoiseInputError(f"{where}: point {k + 1} (tau = {a[k, 0]:g} s) is outside the {quantity} values "
+                              f"inscal fits (wavelet variance {lo_v:g} .. {hi_v:g} in SI units): is it in SI?")
     m = a[:, 0] / dt
-    if np.any(np.abs(m - np.round(m)) > 1e-6 * m) or np.any(np.diff(m) <= 0):
+    if not np.all(m <= 2.0 ** 53):
+        raise NoiseInputError(f"{where}: tau up to {a[-1, 0]:g} s is more than 2^53 samples of dt_s = {dt:g} s")
+    if np.any(np.abs(m - np.round(m)) > 1e-6 * m) or np.any(np.diff(m) <= 0) or np.round(m[0]) < 1:
         raise NoiseInputError(f"{where}: tau must be increasing whole multiples of dt_s = {dt:g} s")
     edf = np.array([_edf_from_ratio(u / lo) for lo, u in zip(a[:, 2], a[:, 3])])
     return quantity, Curve(np.round(m), dt, a[:, 1], a[:, 2], a[:, 3], edf * 2 * np.round(m))

@@ -62,9 +62,10 @@ reference kept at that step gives the smoothed estimate, consistent with the fee
 parameters are constants (zero process noise), so their smoothed estimate and covariance at
 every step equal the final filtered ones: the result and the smoothed history use that
 identity, and the recursion supplies the smoothed navigation states (the initial attitude
-of the next pass).  Its constants' block is that identity (:func:`inscal.core.kalman.smoothed_constant`: the
-plain ``Pm - Pm Lam Pm`` cancels catastrophically there when zero-velocity updates are ~1e8 times more
-informative than the prior).
+of the next pass).  The smoothed covariances come from a square-root information filter run backwards and
+the two-filter form (:func:`inscal.core.kalman.sr_smoothed`, :mod:`~inscal.calibrate.systematic.smoother`):
+positive definite at every stored step, where the MBF ``Pm - Pm Lam Pm`` cancels catastrophically when
+zero-velocity updates are ~1e8 times more informative than the prior; their constants' block is that identity.
 
 Robust scheme (:mod:`~inscal.calibrate.systematic.model_error`).  The first passes run with bounded influence
 as a velocity jump (a step whose NIS passes a cap has its accelerometer noise raised until it meets it); then a

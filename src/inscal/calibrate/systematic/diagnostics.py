@@ -46,7 +46,7 @@ UNOBSERVABLE_RATIO = 0.5
 
 
 def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: int, st: StateSet,
-                   signature: dict | None = None, expected: float | None = None) -> dict:
+                   signature: dict | None = None, expected: float | None = None, floor: str | None = None) -> dict:
     """The fit of a systematic-filter run, in the form of the window-mean methods' fit
     (:func:`inscal.calibrate.fit.fit_statistics`): chi^2 of the normalised innovations on
     ``dof`` = 6 per filter step, p-value, and per time block (the filter has no windows) the
@@ -61,14 +61,24 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
     larger than the data's (``--arw``/``--vrw`` too large, a noise floor above a noise-free
     record's, or rounding that does not accumulate as white noise would).  It is reported as
     inconsistent with that cause, and the sigma are left as they are: conservative, never scaled
-    down by a fit that says the noise model is wrong."""
+    down by a fit that says the noise model is wrong.
+
+    ``floor``: the noise floors the record's own noise (estimated from it) fell below, in words (a noise-free,
+    quantized or float32 record).  A chi^2 far below its dof is then what such a record shows, not a misfit: the
+    fit is consistent at its floors.  The floors are not lowered to the record's white rounding: on a float32
+    record the dwells' increments are constant, their rounding a constant per attitude (up to half a unit in the
+    last place per sample, 0.04 ug for a 0.1-m/s increment) that the bias and attitude states absorb and the
+    NIS cannot see, and that the floors stand for (on the independent oracle's float32 19-position record the
+    largest error/sigma at the floors is 2.2, the accelerometer nonlinearity, 0.04 ug/g^2 against 0.009 ug/g^2
+    on the same record in double precision)."""
 
     e = float(dof) if expected is None else float(expected)  # the chi2's expectation (its dof, less the
     # part of S the data do not carry: see the driver); tested as chi2 with that many degrees of freedom
     p = chi2_sf(chisq, e) if dof > 0 else float("nan")
     p_low = chi2_cdf(chisq, e) if dof > 0 else float("nan")
     too_high, too_low = p < P_INCONSISTENT, p_low < P_INCONSISTENT
-    consistent = not (too_high or too_low)
+    below_floor = too_low and floor is not None  # a record quieter than the floors (docstring)
+    consistent = not (too_high or (too_low and not below_floor))
     scale = math.sqrt(max(chisq / e, 1.0)) if too_high else 1.0
     n = len(nis)
     nb = int(max(1, min(FIT_BLOCKS, n * T // 60.0)))
@@ -86,7 +96,12 @@ def innovation_fit(nis: np.ndarray, z: np.ndarray, T: float, chisq: float, dof: 
            "consistent": consistent,
            "scale": scale, "residuals": res, "cause": None, "note": None,
            "sigma_rule": "systematic filter: sigma x sqrt(chi2/dof) of the innovations when p < 0.001"}
-    if too_low:
+    if below_floor:
+        fit["note"] = (f"innovation chi2 = {chisq:.4g} on {dof} dof ({e:.5g} expected) is below it as on any record "
+                       f"quieter than the noise floors ({floor}): consistent at the floors; the sigma are those of "
+                       "the floors, which stand for what such a record still carries and the innovations cannot see "
+                       "(a float32 record's rounding is a constant per attitude)")
+    elif too_low:
         cause = ("the assumed noise is larger than the data's: --arw/--vrw too large, a noise floor above a noise-free "
                  "or quantized record's own, or rounding that does not accumulate as white noise would")
         fit["cause"] = cause

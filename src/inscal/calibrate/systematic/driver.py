@@ -227,7 +227,8 @@ def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.n
     worst = int(np.argmax(np.abs(prior_z))) if prior_z.size else 0
     if prior_z.size and abs(prior_z[worst]) > PRIOR_EXCESS:
         return (f"the estimate of {labels[worst]} lies {abs(prior_z[worst]):.3g} prior sigma from its nominal (limit "
-                f"{PRIOR_EXCESS:g}): the unit is far outside the prior (widen it with --prior) or the run diverged")
+                f"{PRIOR_EXCESS:g}): the unit is far outside the prior or the run diverged (a record that does not turn "
+                "the unit leaves such states free; --accept-unconverged keeps the last iterate with a note)")
     if not converged:
         changes = [p["change_max_sigma"] for p in passes if p["change_max_sigma"] is not None]
         tail = ", ".join(f"{c:.3g}" for c in changes[-4:])
@@ -526,6 +527,24 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
     fixed = fixed_mask(st, names)
     sflat[fixed] = np.nan
+    # what the model-error term costs (its last resort): each group's sigma against the bound without it, the same
+    # record and linearisation with every factor 1 (the filter's posterior of the record at the noise assumed)
+    cost = None
+    if robust and weights is None and (any(f > 1.0 for f in me.group_factor.values()) or me.outliers):
+        try:
+            plain = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_used, qg, qa, r, hist_every,
+                             smooth=False, enc=enc, enc_sigma=enc_sig,
+                             temperature=None if tin is None else (tin["dT"], tin["rate"]))
+            spu = sig_used[nd:]
+            Uiu = solve_triangular(plain.Uf[nd:, nd:], np.eye(spu.shape[0]))
+            Pfu = (Uiu.T @ Uiu) / np.outer(spu, spu)
+            P_bound = np.linalg.inv(0.5 * (Pfu + Pfu.T) - np.diag(1.0 / spu**2) + np.diag(inv_prior))
+            s_bound = unflatten(np.sqrt(np.maximum(np.diag(J @ P_bound @ J.T), 0.0)), names)
+            s_now = unflatten(sflat, names)
+            cost = {n: float(np.nanmax(np.asarray(s_now[n], float) / np.asarray(s_bound[n], float)))
+                    for n in names if np.any(np.isfinite(np.asarray(s_now[n], float)))}
+        except (np.linalg.LinAlgError, CalibrationError):
+            cost = None
     # the prior in the same canonical components: the yardstick of what the record observed
     prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
     unobs, unobs_note = unobservable(names, sflat, prior_flat)
@@ -545,7 +564,14 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     per_step[last.q_used[:last.steps] > me.q_factor[:last.steps]] = 6.0  # bounded steps (a jump): their own
     # NIS is that of the nominal model
     expected = float(np.sum(per_step))
-    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected)
+    floor_words = None
+    if floored and arw is None and vrw is None:  # the record's own noise, estimated, is below the floors
+        floor_words = (f"ARW {units.from_si(ARW_FLOOR, 'deg/sqrt(h)'):.2g} deg/sqrt(h), VRW "
+                       f"{units.from_si(VRW_FLOOR, 'ug/sqrt(Hz)'):.2g} ug/sqrt(Hz)"
+                       + ("; the record is float32" if np.any(f32 > 0) else "")
+                       + ("; the record is quantized" if np.any(q_res > 0) else ""))
+    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected,
+                         floor_words)
     if any(f > 1.0 for f in me.group_factor.values()):
         # the chi2 is of the model with its velocity model-error term, estimated to fit: the model as given
         # misfits the record beyond its noise (model_error), which the fit says; the sigma of the weighted
@@ -554,6 +580,11 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         fit["cause"] = fit["cause"] or "model error: the record misfits the model beyond its noise"
         fit["model_error"] = me.as_dict()
         fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(moving)))
+    if cost:
+        top = sorted(cost.items(), key=lambda kv: -kv[1])[:3]
+        fit["model_error_cost"] = cost
+        fit["note"] = ((fit["note"] + "; " if fit["note"] else "") + "the model-error term costs the sigma (against the "
+                       "bound without it): " + ", ".join(f"{n} x{v:.3g}" for n, v in top))
     formal = unflatten(sflat, names)
     sigma = unflatten(sflat * fit["scale"], names)
     assumed = None if st.gimbal else inputs_assumed(last, site, sig_used, P_post @ Pf_inv, J, sflat * fit["scale"],
@@ -584,6 +615,14 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
                                           "outlier_cap": None if not math.isfinite(cap) else cap,
                                           "shared": weights is not None}
+    if st.lever_timing:  # a nuisance (states levtime): the canonical parameters do not depend on it
+        off = 0
+        for g in st.groups:
+            if g.name == "accel_lever_timing":
+                break
+            off += g.size
+        diag["lever_timing"] = {"value_ms": (est.levt * 1e3).tolist(),
+                                "sigma_ms": (np.sqrt(np.maximum(np.diag(P_post)[off:off + 3], 0.0)) * 1e3).tolist()}
     diag["convergence"] = {"converged": converged, "verdict": verdict or None,
                            "accepted_unconverged": bool(verdict) and accept_unconverged, "term_check": term_check}
     diag["formal_sigma"] = formal

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from inscal.calibrate.systematic.states import K_GIM, K_TH
+from inscal.calibrate.systematic.states import K_GIM, K_LEVT, K_TH
 from inscal.core import earth
 from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
 
@@ -92,8 +92,50 @@ def thermal_values(kinds, axes, js, wl, fl, dT, rate, vals):
             vals[c] = -fl[axes[c]] * p
 
 
+@njit(cache=True)
+def lever_timing_rate(lev, w, wd, wdd, sd):
+    """Per accelerometer ``i`` (lever arm ``p = lev[i]``), the rate in navigation axes of the lever-arm terms it
+    senses, ``sd_i = e_i . (L-dot + w x L)``, ``L = w-dot x p + w x (w x p)`` (body axes), ``L-dot = w-ddot x p
+    + w-dot x (w x p) + w x (w-dot x p)``: a lever-arm acceleration evaluated ``delta`` earlier in navigation axes
+    and sensed along the accelerometer's axis now is ``e_i . L - delta sd_i`` to first order
+    (``d/dt (C_n^b a^n) = L-dot``, ``C_n^b a-dot^n = L-dot + w x L``).  The lever-arm timing state
+    (``levtime``) is the coefficient of this column: the PSINS first-order asynchrony ``f - tau w x f`` leaves the
+    lever-arm terms where an accelerometer sampled ``tau`` early has them, ``delta = tau``."""
+    for i in range(3):
+        p0, p1, p2 = lev[i, 0], lev[i, 1], lev[i, 2]
+        a0 = w[1] * p2 - w[2] * p1  # w x p
+        a1 = w[2] * p0 - w[0] * p2
+        a2 = w[0] * p1 - w[1] * p0
+        b0 = wd[1] * p2 - wd[2] * p1  # w-dot x p
+        b1 = wd[2] * p0 - wd[0] * p2
+        b2 = wd[0] * p1 - wd[1] * p0
+        L0 = b0 + w[1] * a2 - w[2] * a1
+        L1 = b1 + w[2] * a0 - w[0] * a2
+        L2 = b2 + w[0] * a1 - w[1] * a0
+        D0 = (wdd[1] * p2 - wdd[2] * p1) + (wd[1] * a2 - wd[2] * a1) + (w[1] * b2 - w[2] * b1)
+        D1 = (wdd[2] * p0 - wdd[0] * p2) + (wd[2] * a0 - wd[0] * a2) + (w[2] * b0 - w[0] * b2)
+        D2 = (wdd[0] * p1 - wdd[1] * p0) + (wd[0] * a1 - wd[1] * a0) + (w[0] * b1 - w[1] * b0)
+        if i == 0:
+            sd[0] = D0 + w[1] * L2 - w[2] * L1
+        elif i == 1:
+            sd[1] = D1 + w[2] * L0 - w[0] * L2
+        else:
+            sd[2] = D2 + w[0] * L1 - w[1] * L0
+
+
+@njit(cache=True)
+def lever_timing_step(ug, bg, wlm, wlp, wdot, lev, idt, sd):
+    """:func:`lever_timing_rate` of one sample from its linearly compensated rate ``ug - bg``, the centred
+    ``wdot`` and the second difference of the neighbours' rates ``wlm``, ``wlp`` (``w-ddot``)."""
+    i2 = idt * idt
+    w0, w1, w2 = ug[0] - bg[0], ug[1] - bg[1], ug[2] - bg[2]
+    lever_timing_rate(lev, (w0, w1, w2), wdot, ((wlp[0] - 2.0 * w0 + wlm[0]) * i2, (wlp[1] - 2.0 * w1 + wlm[1]) * i2,
+                                               (wlp[2] - 2.0 * w2 + wlm[2]) * i2), sd)
+
+
 @njit(cache=True, inline="always")
-def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wlm, wlp, w, f, fdot, wdot):
+def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wlm, wlp, w, f, fdot, wdot, levt, lt,
+                      sd):
     """S16 compensation of one sample (module docstring) from its matrix parts ``ug = A_g dtheta / dt``,
     ``ua = A_a dv / dt`` (:func:`linear`); fills w, f (rates), the centred derivatives ``fdot`` (of the
     accelerometer output) and ``wdot``; ``idt = 1 / dt``.
@@ -103,7 +145,9 @@ def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wl
     the accelerometer increment over [t_k-1 - tau, t_k - tau] is moved to [t_k-1, t_k] by a quadratic
     interpolation of the integrated output, ``fb_k += tau (fb_k+1 - fb_k-1) / (2 dt)
     + tau^2 (fb_k+1 - 2 fb_k + fb_k-1) / (2 dt^2)`` (error of order tau dt^2 times the third
-    derivative of f).  The size effect's w-dot is the centred difference ``(wb_k+1 - wb_k-1) / (2 dt)``."""
+    derivative of f).  The size effect's w-dot is the centred difference ``(wb_k+1 - wb_k-1) / (2 dt)``.
+    ``lt``: the lever-arm timing (``levt`` (3), s; :func:`lever_timing_rate` with the linearly compensated rates,
+    ``w-ddot`` their centred second difference, into ``sd``): ``f_i += levt_i sd_i``."""
     f0x = ua[0] - ba[0]
     f0y = ua[1] - ba[1]
     f0z = ua[2] - ba[2]
@@ -117,6 +161,11 @@ def compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau, nl, idt, f0m, f0p, wl
         f0x += tau * fdot[0] + c2 * (f0p[0] - 2.0 * f0x + f0m[0])
         f0y += tau * fdot[1] + c2 * (f0p[1] - 2.0 * f0y + f0m[1])
         f0z += tau * fdot[2] + c2 * (f0p[2] - 2.0 * f0z + f0m[2])
+    if lt:  # a call, not inlined: the hot loop of a pass without the lever-arm timing stays as small as it was
+        lever_timing_step(ug, bg, wlm, wlp, wdot, lev, idt, sd)
+        f0x += levt[0] * sd[0]
+        f0y += levt[1] * sd[1]
+        f0z += levt[2] * sd[2]
     fx, fy, fz = f0x, f0y, f0z
     for i in range(3):
         w[i] = ug[i] - bg[i] - (G[i, 0] * fx + G[i, 1] * fy + G[i, 2] * fz)
@@ -178,7 +227,8 @@ def column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
             else:
                 cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
             vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + cr)
-        else:
+        else:  # the asynchrony (the caller's C f-dot) and the lever-arm timing: its column is the lever-arm terms'
+            # rate (lever_timing_rate), zero at lever arms of zero, the nominal unit the bound linearises about
             vals[c] = 0.0
 
 
@@ -257,7 +307,7 @@ def gimbal_attitude(gim, tx, tz, C, a, c, Hg):
 
 
 @njit(cache=True)
-def feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th, nd=9):
+def feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gim, th, levt, nd=9):
     """Remove the parameter estimates (physical, ``xs[nd:]``, ``nd`` the dynamic states) from the compensation
     (in place)."""
     npar = kinds.shape[0]
@@ -291,6 +341,8 @@ def feedback_params(xs, kinds, axes, js, Ag, bg, G, Aa, ba, K2, Kx, lev, tau, gi
             gim[j] -= v
         elif k == K_TH:
             th[j, i] -= v
+        elif k == K_LEVT:
+            levt[i] -= v
         else:
             tau[0] -= v
     left_correct(Dg, Ag)

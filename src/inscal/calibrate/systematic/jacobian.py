@@ -30,6 +30,7 @@ from inscal.calibrate.systematic.states import (
     K_FX,
     K_LEVD,
     K_LEVF,
+    K_LEVT,
     K_M1A,
     K_M1G,
     K_MF,
@@ -43,8 +44,9 @@ from inscal.calibrate.systematic.states import (
 # the basis of one sample's column values: u_g (3), -1, -f (3), u_a (3), -f_i^2 (3), -f_x f_y, -f_x f_z, -f_y f_z,
 # |w|^2 - w_i^2 (3), the full lever arm's -(w_i w_j - delta_ij |w|^2 + (w-dot x e_j)_i) (9, at 3 i + j), f-dot (3);
 # thermal states: -dT^k (3, k = 1 .. 3), -dT/dt, -(u_g - b_g)_i dT^k (9, at 3 (k - 1) + i), -(u_a - b_a)_i dT^k (9)
+# the lever-arm timing's rate of the lever-arm terms in navigation axes (3, dynamics.lever_timing_rate)
 B_UG, B_ONE, B_MF, B_UA, B_F2, B_FX, B_LEVD, B_LEVF, B_FDOT = 0, 3, 4, 7, 10, 13, 16, 19, 28
-B_TDT, B_TRATE, B_TSG, B_TSA, N_BASIS = 31, 34, 35, 44, 53
+B_TDT, B_TRATE, B_TSG, B_TSA, B_LEVT, N_BASIS = 31, 34, 35, 44, 53, 56
 #: a column without a pair (a gimbal state: no column in Phi_np), the asynchrony (the sum of three pairs, C f-dot)
 NO_SUMS, TAU_SUMS = -1, -2
 #: 3-point Gauss-Legendre nodes and weights on [0, 1]
@@ -71,6 +73,8 @@ def _basis_index(k, i, j):
         return B_LEVD + i
     if k == K_LEVF:
         return B_LEVF + 3 * i + j
+    if k == K_LEVT:
+        return B_LEVT + i
     if k == K_TH:  # j: the row of the thermal array (states.THERMAL_ROWS)
         if j == TH_RATE_ROW:
             return B_TRATE
@@ -139,9 +143,12 @@ def column_layout(kinds, axes, js, est_tau):
 
 
 @njit(cache=True, inline="always")
-def basis_values(ug, ua, w, f, wd, fdot, B, j, lev9):
+def basis_values(ug, ua, w, f, wd, fdot, B, j, lev9, sd, lt):
     """One sample's column values into column ``j`` of the step's basis buffer ``B`` (:data:`N_BASIS`, n);
-    the expressions of dynamics.column_values."""
+    the expressions of dynamics.column_values; ``lt``: the lever-arm timing's rates ``sd`` (3) too."""
+    if lt:
+        for i in range(3):
+            B[B_LEVT + i, j] = sd[i]
     for i in range(3):
         B[B_UG + i, j] = ug[i]
         B[B_MF + i, j] = -f[i]

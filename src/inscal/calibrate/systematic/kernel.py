@@ -42,6 +42,7 @@ from inscal.calibrate.systematic.states import (
     ENCODER_SIGMA,
     IDX_MEAS,
     K_GIM,
+    K_LEVT,
     StateSet,
 )
 from inscal.calibrate.windows import CalibrationError
@@ -54,8 +55,8 @@ from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity
 
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants
 (_AG0, _AG1), (_BG0, _BG1), (_G0, _G1), (_AA0, _AA1), (_BA0, _BA1), (_K20, _K21), (_KX0, _KX1), (_LV0, _LV1), \
-    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1) = [REF_SLICES[k][:2] for k in ("Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever",
-                                                                          "tau", "gim", "th")]
+    (_TAU0, _), (_GIM0, _GIM1), (_TH0, _TH1), (_LT0, _LT1) = [REF_SLICES[k][:2] for k in (
+        "Ag", "bg", "G", "Aa", "ba", "K2", "Kx", "lever", "tau", "gim", "th", "levt")]
 
 # what one filter step hands the next besides U, the parameters and the stores, kept between two slices of
 # a pass in the caller's carry array: the navigation [q(4), v(3), lat, lon, h], the linearly compensated
@@ -113,6 +114,7 @@ class PassParams(NamedTuple):
     gim: np.ndarray  # [dth, alpha0, beta0, gamma0]
     th: np.ndarray  # (13, 3) thermal coefficients (params.CompParams.th)
     gmx: np.ndarray  # (n_gm,) the Gauss-Markov bias estimates [rad/s or m/s^2] (gm_states)
+    levt: np.ndarray  # (3,) the lever-arm timing [s] (dynamics.lever_timing_rate; zero without levtime)
 
 
 class PassStore(NamedTuple):
@@ -132,6 +134,7 @@ class PassStore(NamedTuple):
     rw_st: np.ndarray  # (M,) the factor on R of each step (1: the model fits; a frozen outlier weight)
     qw_st: np.ndarray  # (M,) the factor on the accelerometer noise of each step (q_factor, times the jump of
     # bounded influence where the NIS passed nis_cap: kalman.robust_jump)
+    qd_st: np.ndarray  # (M, nd, nd) the process noise Q_d each step's prediction added (its jump included; scaled)
 
 
 class EncoderRows(NamedTuple):
@@ -176,14 +179,16 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     """
     dth, dv, dt, n_per, nav0, site, nl, est_tau, kinds, axes, js, sig, qg, qa, r, hist_every, nis_cap, qf, rf, tdT, trate, \
         gm_sensor, gm_axis, gm_col, gm_phi, gm_scale, gm_q, sigp = inp
-    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx = par
+    Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, gmx, levt = par
+    lt = bool(np.any(levt != 0.0) or np.any(kinds == K_LEVT))  # the lever-arm timing's rates are needed
+    sd = np.zeros(3)
     ngm = gmx.shape[0]
     nd = 9 + ngm  # the dynamic states: navigation and Gauss-Markov biases (gm_states); the parameters follow
     bg = bg_const.copy()  # the biases the compensation subtracts: the constants plus the GM estimates
     ba = ba_const.copy()
     effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
     thermal = tdT.shape[0] > 0
-    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st, qw_st = st
+    K_st, Si_st, sz_st, phinn_st, phinp_st, nis_st, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw_st, qw_st, qd_st = st
     enc, enc_var, enc_floor, att_used, Ka_st, Sia_st, sza_st, Ha_st, nisa_st, za_st, Ra_st = er
     N = sig.shape[0]
     npar = N - nd
@@ -310,7 +315,8 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             else:
                 f0n[:] = f0c
                 wln[:] = wlc
-            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd)
+            compensate_sample(ug, ua, bg, G, ba, K2, Kx, lev, tau[0], nl, idt, f0m, f0n, wlm, wln, w, f, fdot, wd,
+                              levt, lt, sd)
             if ngm > 0:  # the AR(1) mean of each GM estimate, sample by sample (gm_states)
                 for g in range(ngm):
                     gmx[g] *= gphis[g]
@@ -357,7 +363,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             fn[0] += (Cb[0, jj] * f[0] + Cb[1, jj] * f[1] + Cb[2, jj] * f[2]) * dt
             fn[1] += (Cb[3, jj] * f[0] + Cb[4, jj] * f[1] + Cb[5, jj] * f[2]) * dt
             fn[2] += (Cb[6, jj] * f[0] + Cb[7, jj] * f[1] + Cb[8, jj] * f[2]) * dt
-            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9)
+            basis_values(ug, ua, w, f, wd, fdot, Bb, jj, lev9, sd, lt)
             if thermal:
                 thermal_basis(ug, ua, bg, ba, tdT[s], trate[s], Bb, jj)
             ug[:] = ugn
@@ -374,12 +380,14 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             step_moments(Cb, Bb, Wm, start, src, CW, R)
             parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sig, phinp)
             filters.sr_predict(U, 9, phinn, phinp, Qd)
+            qd_st[k] = Qd
         else:  # the GM states' rows and columns (gm_states module docstring)
             discretise(F, T, qgm, qam * qf[k], sig, F2, phn9, Qd9)
             step_moments(Cb, Bb, Wm, start, src, CW, R)
             parameter_columns(R, col_sum, col_row, tau_pairs, F, F2, sigp, php9)
             assemble(phn9, Qd9, php9, gm_col, gm_phi, gm_scale, gm_q, phinn, phinp, Qdg)
             filters.sr_predict(U, nd, phinn, phinp, Qdg)
+            qd_st[k] = Qdg
         # ---- measurement: zero velocity, known position
         rm0, rn0 = earth.radii(lat0)
         z[0], z[1], z[2] = ve, vn, vu
@@ -405,6 +413,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             hist_ref[ih, _TAU0] = tau[0]
             hist_ref[ih, _GIM0:_GIM1] = gim
             hist_ref[ih, _TH0:_TH1] = th.ravel()
+            hist_ref[ih, _LT0:_LT1] = levt
         for a in range(6):
             rsk[a] = rs[a] * rf[k]  # a frozen outlier weight of the driver's robust scheme (1: none)
         jump = 1.0
@@ -428,6 +437,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                             Qa[i, j] *= jump - 1.0
                     # with GM states the identity transition of the navigation block keeps them and the parameters
                     filters.sr_predict(U, 9, I9, Z9, Qa)
+                    qd_st[k, :9, :9] += Qa
                     if k % hist_every == 0 or k == M - 1:  # the smoother's predicted covariance has the jump
                         if thermal:
                             _upper_outer(U, hist_Pm[ih])
@@ -500,7 +510,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
         lon -= xs[6] / ((rn0 + h0) * math.cos(lat0))
         lat -= xs[7] / (rm0 + h0)
         h -= xs[8]
-        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, nd)
+        feedback_params(xs, kinds, axes, js, Ag, bg_const, G, Aa, ba_const, K2, Kx, lev, tau, gim, th, levt, nd)
         for g in range(ngm):
             gmx[g] -= xs[9 + g]
         effective_biases(bg_const, ba_const, gmx, gm_sensor, gm_axis, bg, ba)
@@ -594,13 +604,15 @@ def pass_bytes(M: float, states: StateSet, hist_every: int = 1, stores: bool = T
     """Memory [bytes] one pass (:func:`run_pass`, then :func:`smooth_pass`) keeps over ``M`` filter steps
     (``M`` may be a float: an estimate before the record is read).  Per step: the NIS, the innovation and
     the factor on R (8 floats) and, for the smoother (``stores``; :meth:`PassOutput.without_stores` drops
-    them), the gains, ``S^-1``, ``S^-1 nu``, ``Phi_nn`` and ``Phi_np`` (15 N + 42 floats: 15 N + 50 in all,
-    6.5 kB with 51 states).  With gimbal states the encoder angles, rows' NIS and residual (6 floats and a
+    them), the gains, ``S^-1``, ``S^-1 nu``, ``Phi_nn``, ``Phi_np`` and ``Q_d`` (15 N + 123 floats: 15 N + 131 in
+    all, 7.1 kB with 51 states).  With gimbal states the encoder angles, rows' NIS and residual (6 floats and a
     flag) and their gains, ``S^-1``, ``S^-1 nu``, H and R (``stores``: 6 N + 21 floats).  Per stored step
     (every ``hist_every``-th and the last): the predicted and smoothed covariances, the filtered variances,
-    the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats)."""
+    the smoothed state and the reference parameters (2 N^2 + 2 N + REF_WIDTH floats).  ``Q_d`` (n_dyn^2 floats) is
+    what the square-root information smoother needs besides ``Phi``."""
     N = states.n_states
-    per_step = 8.0 * (8 + ((6 + states.n_dyn) * N + 42 if stores else 0))  # 15 N + 42 without GM states
+    nd = states.n_dyn
+    per_step = 8.0 * (8 + ((6 + nd) * N + 42 + nd * nd if stores else 0))  # 15 N + 123 without GM states
     if states.gimbal:
         per_step += 8.0 * (6 + (6 * N + 21 if stores else 0)) + 1.0
     rows = float(M) / max(1, int(hist_every)) + 2.0
@@ -662,10 +674,12 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
                      int(n_per), nav0, np.asarray(site, float), nl, bool(states.asynchrony), kinds, axes, js, sig, qg,
                      qa, r, int(hist_every), float(nis_cap), _step_factors(q_factor, M), _step_factors(r_factor, M), tdT, trate,
                      *_gm_inputs(states, sig, n_per * dt))
-    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)))
+    par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th, np.zeros(len(states.gm)),
+                     p.levt)
     rw = np.ones(M)
     qw = np.ones(M)
-    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw, qw)
+    qd_st = np.empty((M, nd, nd))
+    st = PassStore(K_st, Si_st, sz_st, phinn_st, phinp_st, nis, z_st, hist_Pm, hist_ref, hist_Pf, nav_out, rw, qw, qd_st)
     er = EncoderRows(enc_a, float(enc_sigma) ** 2, (0.1 * float(enc_sigma)) ** 2, att_used, Ka_st, Sia_st, sza_st,
                      Ha_st, nisa_st, za_st, Ra_st)
     Mk = _pass_kernel(inp, par, U, st, er)
@@ -679,7 +693,7 @@ def run_pass(dth, dv, dt, n_per, C0, site, params: CompParams, states: StateSet,
     out.r_factor = rw
     out.q_used = qw
     out.smoother = SmootherData(K_st, Si_st, sz_st, phinn_st, phinp_st, int(hist_every), att_used, Ka_st, Sia_st,
-                                sza_st, Ha_st, er.enc_floor)
+                                sza_st, Ha_st, er.enc_floor, qd_st, np.asarray(r, float) / sig[3:9] ** 2, rw, Ra_st)
     out.att_used, out.nis_att, out.z_att = att_used, nisa_st, za_st
     if keep_phi and Ma:
         out.H_att, out.R_att = Ha_st, Ra_st
@@ -722,16 +736,15 @@ def _temperature_inputs(states: StateSet, temperature, n: int) -> tuple[np.ndarr
 def smooth_pass(out: PassOutput) -> PassOutput:
     """Run the full smoother (states and covariances at the stored steps and at the start) on a
     pass's stored data, in place."""
-    K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, att_used, Ka_st, Sia_st, sza_st, Ha_st, _ = out.smoother
-    N = K_st.shape[1]
-    nd = phinn_st.shape[1]
+    sm = out.smoother
+    N = sm.K_st.shape[1]
+    nd = sm.phinn_st.shape[1]
     nh = out.hist_Pm.shape[0]
     out.hist_x = np.empty((nh, N))
     out.hist_P = np.empty((nh, N, N))
     x0 = np.empty(N)
     out.P0s = np.empty((N, N))
-    smooth_kernel(np.eye(N), K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, out.steps, out.hist_Pm, out.hist_x,
-                   out.hist_P, x0, out.P0s, att_used, Ka_st, Sia_st, sza_st, Ha_st, out.Pf[nd:, nd:])
+    smooth_kernel(np.eye(N), sm, out.steps, out.hist_Pm, out.hist_x, out.hist_P, x0, out.P0s, out.Uf[nd:, nd:])
     out.x0s = x0
     return out
 
@@ -757,10 +770,10 @@ def one_step(dth, dv, dt, nav0, site, params: CompParams, states: StateSet, temp
                      np.ones(N), np.zeros(3), np.zeros(3), np.full(6, 1e30), 1, np.inf, np.ones(1), np.ones(1), tdT, trate,
                      *_gm_inputs(states, np.ones(N), n * dt))
     par = PassParams(p.Ag, p.bg, p.G, p.Aa, p.ba, p.K2, p.Kx, p.lever, p.tau, p.gim, p.th,
-                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float))
+                     np.zeros(len(states.gm)) if gm_start is None else np.array(gm_start, float), p.levt)
     nd = states.n_dyn
     st = PassStore(one(N, 6), one(6, 6), one(6), one(nd, nd), one(nd, N - nd), np.empty(1), one(6), one(N, N),
-                   one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1))
+                   one(REF_WIDTH), one(N), out, np.ones(1), np.ones(1), one(nd, nd))
     er = EncoderRows(np.empty((0, 2)), 0.0, 0.0, np.zeros(0, np.int8), np.empty((0, N, 3)), np.empty((0, 3, 3)),
                      np.empty((0, 3)), np.empty((0, 3, N)), np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3)))
     _pass_kernel(inp, par, P, st, er)

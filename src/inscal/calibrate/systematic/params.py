@@ -46,6 +46,9 @@ class CompParams:
     #: thermal coefficients by sensor axis (states module docstring): rows 3 t + k - 1 = order k of term t
     #: (gyro bias, gyro scale factor, accelerometer bias, accelerometer scale factor), row 12 the dT/dt term
     th: np.ndarray = field(default_factory=lambda: np.zeros((N_TH_ROWS, 3)))
+    #: the lever-arm timing nuisance [s] per accelerometer (states ``levtime``; not an ImuErrors term: the
+    #: canonical parameters do not depend on it)
+    levt: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> "CompParams":
         return CompParams(*(np.array(getattr(self, f), dtype=float) for f in self.__dataclass_fields__))
@@ -56,7 +59,7 @@ class CompParams:
     @classmethod
     def from_flat(cls, v) -> "CompParams":
         v = np.asarray(v, float)
-        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,), (N_TH_ROWS, 3)]
+        shapes = [(3, 3), (3,), (3, 3), (3, 3), (3,), (3,), (3, 3), (3, 3), (1,), (4,), (N_TH_ROWS, 3), (3,)]
         out, k = [], 0
         for s in shapes:
             n = int(np.prod(s))
@@ -135,6 +138,8 @@ class CompParams:
                     p.lever = p.lever - v.reshape(3, 3)
             elif g.name == "time_asynchrony":
                 p.tau = p.tau - v
+            elif g.name == "accel_lever_timing":
+                p.levt = p.levt - v
             elif g.name == "gimbal_nonorthogonality":
                 p.gim = p.gim - np.array([v[0], 0.0, 0.0, 0.0])
             elif g.name == "mount_attitude":
@@ -166,6 +171,8 @@ class CompParams:
                 out += list(np.diag(d)) if g.size == 3 else list(d.ravel())
             elif g.name == "time_asynchrony":
                 out += list(self.tau - truth.tau)
+            elif g.name == "accel_lever_timing":
+                out += list(self.levt - truth.levt)
             elif g.name == "gimbal_nonorthogonality":
                 out += [self.gim[0] - truth.gim[0]]
             elif g.name == "mount_attitude":
@@ -225,10 +232,11 @@ def thermal_from_rows(th: np.ndarray, orders, imu: ImuErrors, t_ref: float, t_mi
 
 
 def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None, thermal: ThermalModel | None = None) -> CompParams:
-    """The true compensation parameters expressed in the filter's frame (the quadratic terms
-    and lever arms are carried unchanged: exact when the frames coincide, as in the s16 and
-    psins19 scenarios; otherwise to first order in the rotation: the quadratic terms
-    and lever arms of a rotated frame mix their axes, a second-order change for rotations of arcseconds).  With the
+    """The true compensation parameters expressed in the filter's frame.  The lever arms are positions: each row
+    ``p_i`` is rotated with the frame (``R p_i``, a first-order change: 60 arcsec of frame rotation moves a 5-cm
+    lever arm by 15 um, five times the sigma of a noise-free 19-position fit).  The quadratic terms are carried
+    unchanged: exact when the frames coincide, as in the s16 and psins19 scenarios; otherwise they mix their axes
+    by the rotation times their own size (0.015 ug/g^2 for 50 ug/g^2 and 60 arcsec).  With the
     gimbal states the frame is the canonical s-frame (no rotation) and ``gimbal`` (GimbalErrors)
     supplies the true gimbal parameters; ``thermal`` the true thermal model (:func:`thermal_rows`: sensor axes,
     the same in every frame)."""
@@ -239,6 +247,7 @@ def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None, thermal: Therm
     p.G = R @ p.G @ R.T
     p.Aa = R @ p.Aa
     p.ba = R @ p.ba
+    p.lever = p.lever @ R.T
     if gimbal is not None:
         p.gim = np.concatenate([[gimbal.nonorthogonality], gimbal.mount_attitude])
     p.th = thermal_rows(thermal, imu)
@@ -248,7 +257,8 @@ def truth_in_frame(imu: ImuErrors, states: StateSet, gimbal=None, thermal: Therm
 # ----------------------------------------------------------------------------- driver
 REF_SLICES = {"Ag": (0, 9, (3, 3)), "bg": (9, 12, (3,)), "G": (12, 21, (3, 3)), "Aa": (21, 30, (3, 3)),
               "ba": (30, 33, (3,)), "K2": (33, 36, (3,)), "Kx": (36, 45, (3, 3)), "lever": (45, 54, (3, 3)),
-              "tau": (54, 55, (1,)), "gim": (55, 59, (4,)), "th": (59, 59 + 3 * N_TH_ROWS, (N_TH_ROWS, 3))}
+              "tau": (54, 55, (1,)), "gim": (55, 59, (4,)), "th": (59, 59 + 3 * N_TH_ROWS, (N_TH_ROWS, 3)),
+              "levt": (59 + 3 * N_TH_ROWS, 62 + 3 * N_TH_ROWS, (3,))}
 #: width of a reference-history row (the end of the last slice)
 REF_WIDTH = max(b for _, b, _ in REF_SLICES.values())
 
@@ -292,6 +302,8 @@ def ref_error_states(rows: np.ndarray, states: StateSet, truth: CompParams) -> n
             out.append(d[:, [0, 1, 2], [0, 1, 2]] if g.size == 3 else d.reshape(nh, 9))
         elif g.name == "time_asynchrony":
             out.append(field("tau") - truth.tau)
+        elif g.name == "accel_lever_timing":
+            out.append(field("levt") - truth.levt)
         elif g.name == "gimbal_nonorthogonality":
             out.append(field("gim")[:, :1] - truth.gim[0])
         elif g.name == "mount_attitude":

@@ -14,7 +14,8 @@ taken below 1: on a noise-free record the floors of the noise model make ``chi2 
 test scaled by it would accept any term that removes round-off.
 
 The search runs backwards from the full model: the base set plus every candidate term (``async``: the
-gyro-accelerometer time asynchrony; ``lever9``: the full inner lever arm) with every droppable group
+gyro-accelerometer time asynchrony; ``lever9``: the full inner lever arm; ``levtime``: the lever-arm timing
+nuisance, for a record whose generator left the lever-arm terms out of its asynchrony) with every droppable group
 (the six off-diagonal g-sensitivity terms, dropped by ``gdiag``; the six cross-coupling terms, dropped
 by ``nocross``).  Each candidate is removed alone and tested against the full model; those whose
 removal is not significant (p >= ``alpha``) are then removed cumulatively, least significant first,
@@ -46,7 +47,7 @@ from inscal.core.error_model import ImuErrors
 from inscal.core.stats import chi2_sf
 
 #: terms added when significant: option -> (StateSet field, value)
-ADD = {"async": ("asynchrony", True), "lever9": ("lever9", True)}
+ADD = {"async": ("asynchrony", True), "lever9": ("lever9", True), "levtime": ("lever_timing", True)}
 #: groups dropped when not significant
 DROP = {"gdiag": ("gsens_offdiag", False), "nocross": ("cross", False)}
 #: significance level of every test
@@ -58,7 +59,7 @@ class Decision:
     """One nested-model test: ``term`` added or dropped (``accepted``), with its statistic."""
 
     step: str  # "add" or "drop"
-    term: str  # the state option (async, lever9, gdiag, nocross)
+    term: str  # the state option (async, lever9, levtime, gdiag, nocross)
     chi2_small: float  # chi2 of the smaller model
     chi2_large: float  # chi2 of the larger model
     dk: int  # parameters the larger model has in addition
@@ -115,7 +116,8 @@ def _test(step: str, term: str, small: CalibrationResult, large: CalibrationResu
 
 def _removed(imu: ImuErrors, terms) -> ImuErrors:
     """The full model's estimate with the removed terms at zero: the start of a smaller model's fit (a
-    removed term keeps the value it starts with, so it must start at zero)."""
+    removed term keeps the value it starts with, so it must start at zero; the lever-arm timing is not an
+    ImuErrors term and starts at zero in every fit)."""
     kw = {}
     for t in terms:
         if t == "async":
@@ -132,7 +134,7 @@ def _removed(imu: ImuErrors, terms) -> ImuErrors:
 def _candidates(base_st: StateSet, add, drop) -> dict[str, tuple[str, bool]]:
     """The candidates of the search from ``base_st``: terms it lacks (added in the full model) and groups it
     has (droppable)."""
-    ext_only = ("lever9", "gsens_offdiag", "cross")
+    ext_only = ("lever9", "gsens_offdiag", "cross", "lever_timing")
     cands = {t: ADD[t] for t in add if getattr(base_st, ADD[t][0]) != ADD[t][1]
              and (base_st.extended or ADD[t][0] not in ext_only)}
     cands.update({t: DROP[t] for t in drop if getattr(base_st, DROP[t][0]) != DROP[t][1] and base_st.extended})

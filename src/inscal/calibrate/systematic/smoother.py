@@ -1,6 +1,16 @@
-"""The modified Bryson-Frazier smoother of the systematic filter (inscal.core.kalman): the backward adjoint
-recursion over the stores of a forward pass (:mod:`inscal.calibrate.systematic.kernel`), for the smoothed
-states and covariances, or the states alone, at the stored steps and the start.
+"""The smoother of the systematic filter (inscal.core.kalman): backwards over the stores of a forward pass
+(:mod:`inscal.calibrate.systematic.kernel`), the modified Bryson-Frazier adjoint recursion for the smoothed
+states, and for their covariances a square-root information filter run backwards, combined with the forward
+pass's predicted covariance in the two-filter form (:func:`inscal.core.kalman.sr_smoothed`), at the stored steps
+and the start.
+
+The MBF covariance ``P_{k|k-1} - P_{k|k-1} Lam P_{k|k-1}`` subtracts two information-sized terms: where the
+predicted covariance is still the prior's (the first steps) and the rest of the record pins a state down by many
+orders of magnitude, it cancels, and the first stored step's navigation covariance lost its positivity (an
+unmeasured attitude variance below zero on the S16 record).  The square-root information ``Rb`` (``Rb^T Rb`` the
+information of the measurements at and after a step) only ever has rows rotated into it, and the smoothed
+covariance is a product ``W W^T``: positive semi-definite at every step by construction.  It needs each step's
+``Q_d`` and ``R`` (stored by the pass) besides ``Phi``; the MBF state recursion needs only the gains.
 
 Like the forward pass, each compiled kernel processes a range of steps and its Python driver calls it in
 slices (:func:`inscal.core.slices.run_in_slices`), so an interrupt is honoured between two slices."""
@@ -15,7 +25,6 @@ from numba import njit
 
 from inscal.calibrate.systematic.states import IDX_MEAS
 from inscal.core import kalman as filters
-from inscal.core.kalman import smoother_step_dense
 from inscal.core.slices import run_in_slices
 
 
@@ -35,6 +44,10 @@ class SmootherData(NamedTuple):
     sza_st: np.ndarray
     Ha_st: np.ndarray
     enc_floor: float
+    qd_st: np.ndarray  # (M, nd, nd) the process noise of each step's prediction (scaled)
+    r_meas: np.ndarray  # (6,) the zero-velocity/position measurement variances (scaled)
+    rw_st: np.ndarray  # (M,) the factor on them each step ran with
+    Ra_st: np.ndarray  # (Ma, 3, 3) the encoder rows' R
 
 
 @njit(cache=True)
@@ -84,37 +97,54 @@ def add_feedback(rem, K, Si, sz, n):
 
 
 @njit(cache=True)
-def smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
-                  att_used, Ka_st, Sia_st, sza_st, Ha_st, lam, Lam, k0, k1, rem, Ppp):
-    """Steps ``k1 - 1`` down to ``k0`` of the backward MBF pass (inscal.core.kalman; :func:`smooth_kernel`
-    runs them all in slices): smoothed errors and covariances at the stored steps and, with ``k0 == 0``,
-    at the start (``x0``, ``Pc0``).  ``lam``/``Lam``: the adjoint variables handed from step ``k1`` (zero
-    for ``k1 == M``) to step ``k0 - 1``, in place.  Steps with encoder attitude rows (``att_used``) undo
-    that second, later update first.
+def smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, qd_st, r_meas, rw_st, hist_every, M, hist_Pm, hist_x,
+                  hist_P, x0, Pc0, att_used, Ka_st, Sia_st, sza_st, Ha_st, Ra_st, lam, Rb, k0, k1, rem, Upp):
+    """Steps ``k1 - 1`` down to ``k0`` of the backward pass (:func:`smooth_kernel` runs them all in slices):
+    smoothed errors and covariances at the stored steps and, with ``k0 == 0``, at the start (``x0``, ``Pc0``).
+    ``lam`` (the MBF adjoint vector) and ``Rb`` (the square-root information of the measurements from step ``k1``
+    on, about the state after step ``k1 - 1``) are handed from step ``k1`` to step ``k0 - 1``, in place.  Steps with
+    encoder attitude rows (``att_used``) undo that second, later update first.
 
-    The constants' smoothed estimate and covariance are the final filtered ones at every step (no process
-    noise): ``rem`` accumulates, from the last step back, the constants' part of every update's estimate (the
-    final filtered constants less the reference of the step reached), ``Ppp`` is their final filtered
-    covariance, and :func:`inscal.core.kalman.smoothed_constant` conditions the navigation states on them (the
-    plain ``Pm - Pm Lam Pm`` cancels catastrophically in the constants' directions)."""
-    nd = phinn_st.shape[1]  # the dynamic states (navigation, and Gauss-Markov biases when there are some)
+    The smoothed errors are the MBF adjoint's (inscal.core.kalman): the dynamic states ``(P_{k|k-1} lam)_n``, the
+    constants the feedback still to come (``rem``, accumulated from the last step back: with no process noise their
+    smoothed estimate is the final filtered one).  The covariances: :func:`inscal.core.kalman.sr_smoothed` of the
+    stored predicted covariance and ``Rb``, the constants' factor the final filtered ``Upp``."""
+    nd = phinn_st.shape[1]
     ih = stored_before(k1, M, hist_every) - 1
+    r = np.empty(r_meas.shape[0])
+    d = np.empty(3)
+    N = lam.shape[0]
     for k in range(k1 - 1, k0 - 1, -1):
-        if att_used.shape[0] > 0 and att_used[k]:
-            smoother_step_dense(lam, Lam, Ha_st[k], Ka_st[k], Sia_st[k], sza_st[k])
+        if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
+            for a in range(3):
+                s = sza_st[k, a]
+                for i in range(N):
+                    s -= Ka_st[k, i, a] * lam[i]
+                d[a] = s
+            for i in range(N):
+                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
+            filters.info_rows_dense(Rb, Ha_st[k], Ra_st[k])
             add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], nd)
-        filters.smoother_step(lam, Lam, IDX_MEAS, K_st[k], Si_st[k], sz_st[k])
-        add_feedback(rem, K_st[k], Si_st[k], sz_st[k], nd)
+        K = K_st[k]
+        ktl = K.T @ lam
+        for a in range(IDX_MEAS.shape[0]):
+            lam[IDX_MEAS[a]] += sz_st[k, a] - ktl[a]
+            r[a] = r_meas[a] * rw_st[k]
+        filters.info_rows(Rb, IDX_MEAS, r)
+        add_feedback(rem, K, Si_st[k], sz_st[k], nd)
         if k % hist_every == 0 or k == M - 1:
-            x, Ps = filters.smoothed_constant(hist_Pm[ih], lam, Lam, nd, rem, Ppp)
-            hist_x[ih] = x
-            hist_P[ih] = Ps
+            hist_x[ih, :nd] = hist_Pm[ih, :nd] @ lam
+            hist_x[ih, nd:] = rem
+            hist_P[ih] = filters.sr_smoothed(hist_Pm[ih], Rb, nd, Upp)
             ih -= 1
-        filters.adjoint_back(lam, Lam, nd, phinn_st[k], phinp_st[k])
+        ln = lam[:nd].copy()
+        lam[nd:] = lam[nd:] + phinp_st[k].T @ ln
+        lam[:nd] = phinn_st[k].T @ ln
+        filters.info_back(Rb, nd, phinn_st[k], phinp_st[k], filters.noise_factor(qd_st[k]))
     if k0 == 0:
-        x, Ps = filters.smoothed_constant(P0, lam, Lam, nd, rem, Ppp)
-        x0[:] = x
-        Pc0[:, :] = Ps
+        x0[:nd] = P0[:nd, :] @ lam
+        x0[nd:] = rem
+        Pc0[:, :] = filters.sr_smoothed(P0, Rb, nd, Upp)
 
 
 def backward(M: int, steps) -> None:
@@ -125,19 +155,20 @@ def backward(M: int, steps) -> None:
     run_in_slices(M, lambda j0, j1: steps(M - j1, M - j0), first=2048)
 
 
-def smooth_kernel(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
-                   att_used, Ka_st, Sia_st, sza_st, Ha_st, Ppp) -> None:
-    """The backward MBF pass over all ``M`` steps (:func:`smooth_steps`), in slices of steps so that an
-    interrupt is honoured between two; the adjoint variables live here between slices.  ``Ppp``: the
-    constants' final filtered covariance (scaled)."""
+def smooth_kernel(P0, sm: SmootherData, M, hist_Pm, hist_x, hist_P, x0, Pc0, Upp) -> None:
+    """The backward pass over all ``M`` steps of a pass's stores ``sm`` (:func:`smooth_steps`), in slices of steps so
+    that an interrupt is honoured between two; the adjoint vector and the square-root information live here between
+    slices.  ``P0``: the prior covariance (scaled); ``Upp``: the upper-triangular factor of the constants' final
+    filtered covariance (scaled)."""
     N = P0.shape[0]
     lam = np.zeros(N)
-    Lam = np.zeros((N, N))
-    rem = np.zeros(N - phinn_st.shape[1])
-    Ppp = np.ascontiguousarray(Ppp, dtype=float)
-    backward(M, lambda k0, k1: smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, hist_Pm,
-                                              hist_x, hist_P, x0, Pc0, att_used, Ka_st, Sia_st, sza_st, Ha_st, lam,
-                                              Lam, k0, k1, rem, Ppp))
+    Rb = np.zeros((N, N))
+    rem = np.zeros(N - sm.phinn_st.shape[1])
+    Upp = np.ascontiguousarray(Upp, dtype=float)
+    backward(M, lambda k0, k1: smooth_steps(P0, sm.K_st, sm.Si_st, sm.sz_st, sm.phinn_st, sm.phinp_st, sm.qd_st,
+                                              sm.r_meas, sm.rw_st, sm.hist_every, M, hist_Pm, hist_x, hist_P, x0, Pc0,
+                                              sm.att_used, sm.Ka_st, sm.Sia_st, sm.sza_st, sm.Ha_st, sm.Ra_st, lam, Rb,
+                                              k0, k1, rem, Upp))
 
 
 @njit(cache=True)

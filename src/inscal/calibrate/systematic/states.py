@@ -48,6 +48,9 @@ K_UG, K_M1G, K_MF, K_UA, K_M1A, K_F2, K_FX, K_LEVD, K_LEVF, K_TAU = range(10)
 K_GIM = 10
 # thermal coefficient states (js = the row of the thermal array, THERMAL_ROWS; axes = the sensor axis)
 K_TH = 11
+#: the lever-arm timing nuisance (``levtime``): per accelerometer, the time by which the lever-arm terms it
+#: senses lag the rest of its specific force, in navigation axes (dynamics.lever_timing_rate)
+K_LEVT = 12
 
 DIAG = ((0, 0), (1, 1), (2, 2))
 OFFD = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))  # = errors.MISALIGN_INDEX order
@@ -96,6 +99,7 @@ DEFAULT_SIGMA0 = {
     "gyro_matrix": 1e-3, "gyro_bias": units.to_si(0.1, "deg/h"), "gyro_g_sensitivity": units.to_si(0.01, "deg/h/g"),
     "accel_matrix": 1e-3, "accel_bias": 1000 * UG, "accel_nonlinearity": units.to_si(1000.0, "ug/g^2"),
     "accel_cross_coupling": units.to_si(1000.0, "ug/g^2"), "accel_lever_arm": 0.05, "time_asynchrony": 5e-3,
+    "accel_lever_timing": 20e-3,
     "gimbal_nonorthogonality": units.to_si(60.0, "arcsec"), "mount_attitude": units.to_si(1.0, "deg"),
 }
 #: prior 1 sigma of each thermal term's change over the record's temperature span (SI of the base quantity): the
@@ -137,12 +141,15 @@ STATE_OPTIONS = {
                "polynomials in T - T_ref of both triads (orders 2, 2, 3, 2) and the gyro bias per dT/dt (3): 30 states; "
                "thermal=GSABR picks the orders (gyro bias, gyro scale factor, accel bias, accel scale factor 0-3, "
                "dT/dt term 0-1), e.g. thermal=11110",
-    "auto": "chosen from the record: start from 51 and add or drop async, lever9, gdiag and nocross by an F-test "
+    "levtime": "lever-arm timing (3 nuisance states, one per accelerometer): the lever-arm terms it senses lag the "
+               "rest of its specific force by their own time, as a generator that does not advance them with the "
+               "asynchrony writes them; needs the extended model",
+    "auto": "chosen from the record: start from 51 and add or drop async, lever9, levtime, gdiag and nocross by an F-test "
             "on the innovations (see inscal.calibrate.systematic.selection)",
 }
 #: what each option sets on :class:`StateSet`
 _OPTION_FLAGS = {"51": {"extended": True}, "30": {"extended": False}, "lever9": {"lever9": True},
-                 "async": {"asynchrony": True}, "gimbal": {"gimbal": True},
+                 "async": {"asynchrony": True}, "gimbal": {"gimbal": True}, "levtime": {"lever_timing": True},
                  "unified": {"extended": True, "gimbal": True}, "psins": {"psins": True},
                  "gdiag": {"gsens_offdiag": False}, "nocross": {"cross": False}}
 
@@ -171,6 +178,7 @@ class StateSet:
     lever9: bool = False
     asynchrony: bool = False
     psins: bool = False
+    lever_timing: bool = False  # the lever-arm timing nuisance (levtime)
     gimbal: bool = False  # dth + mount attitude, encoder attitude rows; frame = the gimbal's s-frame
     gsens_offdiag: bool = True  # the six off-diagonal g-sensitivity terms (extended model)
     cross: bool = True  # the six cross-coupling terms (extended model)
@@ -200,9 +208,9 @@ class StateSet:
         if "auto" in toks:
             raise CalibrationError("'auto' is chosen by inscal.calibrate.systematic.selection.select_states, "
                                    "not a fixed state set")
-        for opt in ("lever9", "gsens_offdiag", "cross"):
+        for opt in ("lever9", "gsens_offdiag", "cross", "lever_timing"):
             if opt in kw and kw[opt] != cls.__dataclass_fields__[opt].default and not kw["extended"]:
-                raise CalibrationError(f"{ {'gsens_offdiag': 'gdiag', 'cross': 'nocross'}.get(opt, opt)} needs the "
+                raise CalibrationError(f"{ {'gsens_offdiag': 'gdiag', 'cross': 'nocross', 'lever_timing': 'levtime'}.get(opt, opt)} needs the "
                                        "extended (51-state) model")
         if kw.get("gimbal") and kw.get("psins"):
             raise CalibrationError("psins (accelerometer-defined frame) and gimbal (the gimbal's s-frame) exclude "
@@ -234,6 +242,9 @@ class StateSet:
             else:
                 out.append(Group("accel_lever_arm", tuple(AX), (K_LEVD,) * 3, (0, 1, 2), (0, 1, 2),
                                  s["accel_lever_arm"], "cm"))
+        if self.extended and self.lever_timing:
+            out.append(Group("accel_lever_timing", tuple(AX), (K_LEVT,) * 3, (0, 1, 2), (0, 1, 2),
+                             s["accel_lever_timing"], "ms"))
         if self.asynchrony:
             out.append(Group("time_asynchrony", ("",), (K_TAU,), (0,), (0,), s["time_asynchrony"], "ms"))
         if self.gimbal:  # N25 eq. 5-8; js = index into the gimbal array [dth, alpha0, beta0, gamma0]
@@ -402,7 +413,8 @@ def fixed_mask(states: StateSet, names) -> np.ndarray:
 
 def state_spec(st: StateSet) -> str:
     parts = ["51" if st.extended else "30"]
-    parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("psins", st.psins),
+    parts += [n for n, f in (("lever9", st.lever9), ("async", st.asynchrony), ("levtime", st.lever_timing),
+                             ("psins", st.psins),
                              ("gimbal", st.gimbal), ("gdiag", st.extended and not st.gsens_offdiag),
                              ("nocross", st.extended and not st.cross)) if f]
     if st.thermal:

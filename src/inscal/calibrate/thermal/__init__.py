@@ -33,7 +33,11 @@ one, and the thermal model (:mod:`inscal.core.thermal`) is fitted to the per-pla
    size, of either sign on every plateau, can cause; ``s_c = sqrt(chi2_c / dof_c)``, at least 1, the
    Birge ratio of each component), at least ``s_c`` times the formal sigma, and the note says so.  A
    polynomial of too low an order leaves a misfit of that kind: the values extrapolated to ``t_ref``
-   carry it, and the formal sigma would not cover it.  The dT/dt term of the gyro bias
+   carry it, and the formal sigma would not cover it.  So the order of a thermal term the caller did not
+   name is raised (up to the term's largest, while a degree of freedom remains to test it) until its fit is
+   consistent: on a noise-free record the plateau estimates have zero sigma and are fitted unweighted, and
+   a residual above :data:`~.polyfit.NOISE_FREE_REL` of their size is such a misfit (the built-in model's
+   cubic accelerometer bias, left quadratic, leaves 17 ug rms and puts the linear term 18 % off).  The dT/dt term of the gyro bias
    (``gyro_bias_rate``) is invisible on plateaus: it stays zero, with NaN sigma and a note.
 
 The model is the sensor's: a constant offset between the sensor and the gyros shifts every plateau
@@ -45,6 +49,7 @@ from inscal.calibrate.thermal.method import (
     METHOD,
     check_orders,
     combine,
+    fit_raising_order,
     thermal_plateaus,
     thermal_truth,
 )
@@ -77,6 +82,7 @@ __all__ = [
     "combine",
     "cut_path",
     "find_plateaus",
+    "fit_raising_order",
     "fit_term",
     "moving_mean",
     "plateau_records",

@@ -60,7 +60,8 @@ def thermal_plateaus(record_like, per_plateau: str = "n25", *, orders: dict | No
 
     ``per_plateau``: the method run on each plateau (a name of :data:`inscal.calibrate.METHODS`);
     ``method_options`` go to it.  ``orders``: polynomial order per thermal term (name -> 0 .. 3, 1 for the
-    misalignments; default :data:`DEFAULT_ORDERS`).  ``t_ref`` [degC]: the model's reference (inside the
+    misalignments; default :data:`DEFAULT_ORDERS`, raised while a fit misfits: :func:`combine`; a named order
+    is kept).  ``t_ref`` [degC]: the model's reference (inside the
     plateaus' range).  ``sensor``: the temperature sensor ("" = the mean of the record's).
     ``chamber_label``: label prefix of the chamber's transition moves (None: find the plateaus in the
     temperature alone).  ``plateau_tol`` [degC], ``min_plateau_s`` [s]: what counts as a plateau.
@@ -74,6 +75,7 @@ def thermal_plateaus(record_like, per_plateau: str = "n25", *, orders: dict | No
     if not (isinstance(t_ref, (int, float)) and math.isfinite(t_ref)):
         raise CalibrationError(f"t_ref must be a temperature in degC, got {t_ref!r}")
     ords = check_orders(orders)
+    named = frozenset(orders or {})
     need = max(ords.values()) + 1
     plats = find_plateaus(record_like, sensor, chamber_label, plateau_tol, min_plateau_s)
     where = ", ".join(f"{p.temperature_c:.3g}" for p in plats)
@@ -95,7 +97,7 @@ def thermal_plateaus(record_like, per_plateau: str = "n25", *, orders: dict | No
         except CalibrationError as exc:
             raise CalibrationError(f"plateau {p.index + 1} ({p.temperature_c:.3g} degC, {p.t0:.0f}-{p.t1:.0f} s): "
                                    f"{exc}") from None
-    return combine(results, plats, ords, t_ref, sensor, per_plateau)
+    return combine(results, plats, ords, t_ref, sensor, per_plateau, named)
 
 
 def plateau_covariances(results: list[CalibrationResult], names) -> tuple[list[np.ndarray], int]:
@@ -137,12 +139,33 @@ def inner_notes(results: list[CalibrationResult], plats: list[Plateau], per_plat
     return out
 
 
+def fit_raising_order(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarray], order: int,
+                      top: int) -> tuple[TermFit, str]:
+    """:func:`~.polyfit.fit_term` of ``name`` from ``order`` up: while the fit is inconsistent (its chi^2 test, or
+    noise-free estimates off the polynomial beyond their round-off) and a higher order up to ``top`` still leaves
+    a degree of freedom to test it, the order is raised.  Returns the fit kept and a note (empty when the first
+    order fitted)."""
+    P = values.shape[0]
+    fit = fit_term(name, dT, values, covs, order)
+    first = fit
+    while not fit.consistent and fit.order < min(top, P - 2):
+        fit = fit_term(name, dT, values, covs, fit.order + 1)
+    if fit is first:
+        return fit, ""
+    end = "fits" if fit.consistent else "still misfits (its sigma treated as systematic)"
+    why = "misfits the plateaus" + (f" (chi2 {first.chi2:.4g} on {first.dof} dof)" if math.isfinite(first.p_value)
+                                    else " (noise-free estimates off it beyond their round-off)")
+    return fit, f"{name}: order {order} {why}: raised to order {fit.order}, which {end}"
+
+
 def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict[str, int], t_ref: float,
-            sensor: str, per_plateau: str) -> CalibrationResult:
+            sensor: str, per_plateau: str, named: frozenset[str] = frozenset()) -> CalibrationResult:
     """Fit the per-plateau results ``results`` (one per plateau of ``plats``) over temperature: every
     parameter with its order (``orders``; 0 for the parameters that are no thermal term), the values at
     ``t_ref`` into ``imu``/``gimbal``/``sigma``, the coefficients into ``thermal``/``thermal_sigma``, the
-    statistics into ``thermal_fit``."""
+    statistics into ``thermal_fit``.  A thermal term not in ``named`` (the orders the caller chose) has its order
+    raised while its fit misfits the plateaus (:func:`fit_raising_order`, up to the term's largest order), so a
+    polynomial too low for the unit does not pass its misfit into the coefficients; a named order is kept."""
     names = tuple(results[0].estimated)
     for r, p in zip(results, plats):
         if tuple(r.estimated) != names:
@@ -167,7 +190,14 @@ def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict
     order = {n: orders.get(n, 0) if n in THERMAL_TERMS else 0 for n in names}
     fits: dict[str, TermFit] = {}
     for n in names:
-        fits[n] = fit_term(n, T - t_ref, Y[:, sl[n]], [C[sl[n], sl[n]] for C in full], order[n])
+        covs = [C[sl[n], sl[n]] for C in full]
+        if n in THERMAL_TERMS and n not in named:
+            fits[n], raised = fit_raising_order(n, T - t_ref, Y[:, sl[n]], covs, order[n], THERMAL_TERMS[n][4])
+            order[n] = fits[n].order
+            if raised:
+                notes.append(raised)
+        else:
+            fits[n] = fit_term(n, T - t_ref, Y[:, sl[n]], covs, order[n])
         if fits[n].note:
             notes.append(fits[n].note)
     fixed = {n: ~np.isin(np.arange(sizes[n]), fits[n].free) for n in names}
@@ -181,7 +211,7 @@ def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict
     imu, gim = errors_from_values(vals)
     th_kw, th_sig = {}, {}
     for n in THERMAL_TERMS:
-        o = orders.get(n, 0)
+        o = order.get(n, orders.get(n, 0))
         if n in fits and o > 0:
             th_kw[n] = fits[n].coef[1:]
             th_sig[n] = np.where(fixed[n][None, :], np.nan, fits[n].sigma[1:])

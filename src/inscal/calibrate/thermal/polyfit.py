@@ -15,6 +15,10 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core.error_model import PARAMETERS, parameter_components
 from inscal.core.stats import chi2_sf
 
+#: a noise-free plateau estimate is exact to this fraction of its size (the tolerance every method's noise-free
+#: test holds it to): a polynomial that leaves a larger residual misfits the plateaus
+NOISE_FREE_REL = 1e-6
+
 
 # ----------------------------------------------------------------------------- per-plateau covariance
 def result_covariance(res: CalibrationResult) -> tuple[list[str], np.ndarray] | None:
@@ -158,7 +162,11 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     chi2_c[free] = np.sum(res_n[:, free] ** 2, axis=0)
     p_value = chi2_sf(chi2, dof) if dof > 0 and not unweighted else math.nan
     consistent = not (dof > 0 and p_value < P_INCONSISTENT)
-    if unweighted:  # the residual variance per component takes the place of the plateau sigma
+    floor = NOISE_FREE_REL * np.max(np.abs(values[:, free]), axis=0)
+    rms_c = np.sqrt(chi2_c[free] / (P - (K + 1))) if dof > 0 else np.zeros(mf)  # each component's residual rms
+    if unweighted and np.any(rms_c > floor):
+        consistent = False  # noise-free estimates off the polynomial by more than their round-off: the order misfits
+    elif unweighted:  # the residual variance per component takes the place of the plateau sigma
         cov_g = cov_g * (chi2 / dof if dof > 0 else 0.0)
     # back to unscaled dT: coefficient k divided by s^k (full index k*m + c); the gains per plateau:
     # coef_free = D R^-1 Q^T blockdiag(W_p) y, the rows of Q^T taken plateau by plateau
@@ -171,7 +179,7 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     factor = np.ones(full_idx.size)
     s_c = np.ones(m)
     note = ""
-    if unweighted:
+    if unweighted and consistent:
         note = (f"{name}: the plateau estimates have a zero sigma (a noise-free record): unweighted least squares, "
                 f"sigma from the residual scatter ({'none' if dof == 0 else f'rms {math.sqrt(chi2 / dof):.3g} SI'}), "
                 "no chi2 test")
@@ -180,7 +188,7 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
     elif not consistent:
         # the misfit treated as systematic (calibrate.fit.SIGMA_RULE): the largest error a misfit of the
         # observed size, of either sign on every plateau, can cause, with each component's Birge ratio
-        s_c[free] = np.maximum(1.0, np.sqrt(chi2_c[free] / (P - (K + 1))))
+        s_c[free] = rms_c if unweighted else np.maximum(1.0, np.sqrt(chi2_c[free] / (P - (K + 1))))
         syst = sum(np.abs(blocks[p]) @ (s_c[free] * sig[p, free]) for p in range(P))
         formal = np.sqrt(np.maximum(np.diag(cov_g), 0.0))
         factor = np.maximum(syst / formal, np.tile(s_c[free], K + 1))
@@ -189,11 +197,19 @@ def fit_term(name: str, dT: np.ndarray, values: np.ndarray, covs: list[np.ndarra
         what = f"the order-{K} fit" if K else "the weighted mean"
         why = ("a higher order, a plateau not settled or hysteresis would explain it" if K else
                "it changes with temperature more than its sigma allow (a thermal term: give it an order)")
-        note = (f"{name}: {what} over {P} plateaus is inconsistent (chi2 {chi2:.4g} on {dof} dof, p = {p_value:.2g}; "
-                "sqrt(chi2/dof) " + ", ".join(f"{comps[c] or name} {s_c[c]:.3g}" for c in free)
-                + f"): the misfit is treated as systematic, sigma = sum over plateaus of |d estimate / d plateau "
-                f"value| sqrt(chi2/dof) sigma_plateau, {np.min(factor):.3g} .. {np.max(factor):.3g} x the formal "
-                f"sigma; {why}")
+        if unweighted:  # sigma_plateau = 1 above: s_c is each component's residual rms
+            stat = ("noise-free plateau estimates (zero sigma) off the polynomial by rms "
+                    + ", ".join(f"{comps[c] or name} {s_c[c]:.3g}" for c in free)
+                    + f" SI, above their round-off ({NOISE_FREE_REL:g} of their size)")
+            rule = "the residual rms"
+            size = ""
+        else:
+            stat = (f"chi2 {chi2:.4g} on {dof} dof, p = {p_value:.2g}; sqrt(chi2/dof) "
+                    + ", ".join(f"{comps[c] or name} {s_c[c]:.3g}" for c in free))
+            rule = "sqrt(chi2/dof) sigma_plateau"
+            size = f", {np.min(factor):.3g} .. {np.max(factor):.3g} x the formal sigma"
+        note = (f"{name}: {what} over {P} plateaus is inconsistent ({stat}): the misfit is treated as systematic, "
+                f"sigma = sum over plateaus of |d estimate / d plateau value| {rule}{size}; {why}")
     coef[:, free] = g.reshape(K + 1, mf)
     for c in np.flatnonzero(fixed):
         coef[0, c] = float(np.mean(values[:, c]))

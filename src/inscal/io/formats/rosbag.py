@@ -1,6 +1,7 @@
-"""ROS bags: ROS 1 ``.bag`` files and ROS 2 bags (a folder with ``metadata.yaml`` and SQLite3 ``.db3`` or
-MCAP ``.mcap`` storage) holding ``sensor_msgs/Imu`` messages, read with the pure-Python ``rosbags``
-library (no ROS installation).
+"""ROS bags: ROS 1 ``.bag`` files, ROS 2 bags (a folder with ``metadata.yaml`` and SQLite3 ``.db3`` or
+MCAP ``.mcap`` storage) and plain ``.mcap`` files (an MCAP recording without its folder, as ``ros2 bag
+record -s mcap`` and Foxglove write them; the channels' schemas name the message types) holding
+``sensor_msgs/Imu`` messages, read with the pure-Python ``rosbags`` library (no ROS installation).
 
 A ``sensor_msgs/Imu`` message (REP 145) gives ``angular_velocity`` [rad/s] and
 ``linear_acceleration`` [m/s^2, the specific force: +g up at rest] in the frame ``header.frame_id``
@@ -57,8 +58,8 @@ class BagSamples:
 
 
 def _storage(p: Path) -> str:
-    if p.is_file() and p.suffix == ".bag":
-        return "ros1"
+    if p.is_file():
+        return "ros1" if p.suffix == ".bag" else "mcap"
     files = [f.suffix for f in p.iterdir()] if p.is_dir() else []
     return "mcap" if ".mcap" in files else "sqlite3"
 
@@ -68,9 +69,9 @@ def _reader(p: Path):
 
     if not p.exists():
         raise ImportFileError(f"{p}: no such file or folder")
-    if p.is_file() and p.suffix != ".bag":
-        raise ImportFileError(f"{p}: a ROS 1 bag ends in .bag; a ROS 2 bag is the folder holding metadata.yaml "
-                              f"(give {p.parent})")
+    if p.is_file() and p.suffix not in (".bag", ".mcap"):
+        raise ImportFileError(f"{p}: a ROS 1 bag ends in .bag, a plain MCAP file in .mcap; a ROS 2 bag is the folder "
+                              f"holding metadata.yaml (give {p.parent})")
     if p.is_dir() and not (p / "metadata.yaml").is_file():
         raise ImportFileError(f"{p}: a ROS 2 bag folder holds metadata.yaml, and this one has none")
     return AnyReader([p])
@@ -135,6 +136,10 @@ def read_bag_samples(path, topic: str | None = None, stamps: str = "header") -> 
             elif topics[topic][0] != IMU_TYPE:
                 raise ImportFileError(f"{p}: topic {topic!r} holds {topics[topic][0]}, not {IMU_TYPE}; its topics: "
                                       f"{_describe(topics)}")
+            if topics[topic][1] > MAX_BAG_MESSAGES:
+                raise ImportFileError(f"{p}: topic {topic} holds {topics[topic][1]} messages, more than the "
+                                      f"{MAX_BAG_MESSAGES} one import reads (a 1 kHz IMU for 5.5 h; about 250 bytes "
+                                      "each in memory): split the bag by time and import each part")
             conns = [c for c in r.connections if c.topic == topic]
             ros1 = _storage(p) == "ros1"
             ns, g, a, absent = [], [], [], [0, 0]
@@ -178,7 +183,8 @@ def read_bag(path, topic: str | None = None, stamps: str = "header",
     if np.any(bad):
         i = int(np.argmax(bad))
         raise ImportFileError(f"{where}: message {i + 1} (t = {s.time[i]:.9f} s) has a NaN or infinite rate")
-    check_stamps(s.time, where, "message")
+    check_stamps(s.time, where, "message", remedy="the rosbag import bridges no gap (it takes no mapping): "
+                 "record the bag again, or with --stamps receive if only the header stamps jump")
     integ = integrate_rates(s.time, s.gyro, s.accel, rate_hz)
     labels = tuple(f"{n} (angular_velocity.{c})" for n, c in zip(("dthx", "dthy", "dthz"), "xyz")) + tuple(
         f"{n} (linear_acceleration.{c})" for n, c in zip(("dvx", "dvy", "dvz"), "xyz"))
@@ -188,6 +194,10 @@ def read_bag(path, topic: str | None = None, stamps: str = "header",
               source_info={"bag": {"topic": s.topic, "storage": s.storage, "stamps": s.stamps,
                                    "epoch_ns": s.epoch_ns, "messages": int(s.time.shape[0])}})
     return raw, s
+
+
+#: the most IMU messages one import reads (they are held as Python objects until the grid is built)
+MAX_BAG_MESSAGES = 20_000_000
 
 
 def bag_hash(path) -> str:

@@ -1,0 +1,120 @@
+"""Every computing command's ``--json`` on the demo records, with the code before a change and with
+the code now: byte-identical apart from timings and the output folder.
+
+``python bench/json_identical.py --base REV [--quick]`` unpacks ``REV``'s ``src/`` (``git archive``, into
+the system's temporary folder, kept so its numba cache survives between runs), then, once with those
+sources and once with this tree's, runs ``inscal demo --json`` (simulation, Allan, every calibration
+method, navigation) into a folder of its own and each command below on that folder's records.  Each
+JSON output (or a failing command's last line) is canonicalised (the folders' paths replaced by ``<OUT>``
+and ``<WORK>``, every ``elapsed_s``/``wall_s`` timing set to 0, the ``sha256:`` prefixes of record files
+masked: an HDF5 record holds its creation time, so two writes of the same data hash differently) and
+the two are compared byte for byte; the differing lines are printed.
+Exit status 0 when every output is identical, 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import re
+import os
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+TIMING_KEYS = {"elapsed_s", "wall_s", "seconds", "runtime_s", "time_s"}
+
+# (name, arguments after ``inscal``); ``{D}`` is the tree's demo folder, ``{W}`` a scratch folder
+COMMANDS = [
+    ("calibrate-n25", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/n25.toml", "--json"]),
+    ("calibrate-six", ["calibrate", "{D}/n25.h5", "--method", "six-position", "--out", "{W}/six.toml", "--json"]),
+    ("navigate", ["navigate", "{D}/n25-rotmod.h5", "--params", "{D}/params-n25.toml", "--json"]),
+    ("allan", ["allan", "{D}/n25.h5", "--json"]),
+    ("noise", ["noise", "{D}/n25.h5", "--stop", "100", "--channels", "gx,az", "--model", "WN", "--json"]),
+    ("compensate", ["compensate", "{D}/n25.h5", "--params", "{D}/params-n25.toml", "--out", "{W}/comp.h5",
+                    "--json"]),
+]
+
+
+def base_tree(rev: str) -> Path:
+    """``rev``'s ``src/`` unpacked once into the temporary folder."""
+    sha = subprocess.run(["git", "rev-parse", rev], cwd=ROOT, check=True, capture_output=True,
+                         text=True).stdout.strip()
+    dest = Path(tempfile.gettempdir()) / f"inscal-json-{sha[:12]}"
+    if not (dest / "src" / "inscal").is_dir():
+        dest.mkdir(parents=True, exist_ok=True)
+        blob = subprocess.run(["git", "archive", sha, "src"], cwd=ROOT, check=True, capture_output=True).stdout
+        tar = dest / "src.tar"
+        tar.write_bytes(blob)
+        with tarfile.open(tar) as t:
+            t.extractall(dest, filter="data")
+        tar.unlink()
+    return dest
+
+
+def canonical(text: str, folders: list[Path]) -> str:
+    """The JSON with the folders' paths as placeholders and the timings zeroed, re-dumped sorted."""
+    for f, tag in zip(folders, ("<OUT>", "<WORK>")):
+        text = text.replace(str(f), tag)
+    text = re.sub(r"sha256:[0-9a-f]+", "sha256:<HASH>", text)
+    if not text.startswith(("{", "[")):
+        return text
+
+    def zero(o):
+        if isinstance(o, dict):
+            return {k: (0 if k in TIMING_KEYS else zero(v)) for k, v in o.items()}
+        if isinstance(o, list):
+            return [zero(v) for v in o]
+        return o
+
+    return json.dumps(zero(json.loads(text)), indent=1, sort_keys=True)
+
+
+def run_tree(src: Path, out: Path, quick: bool) -> dict[str, str]:
+    """Every command's canonical JSON with the sources ``src``, writing under ``out``."""
+    env = dict(os.environ, PYTHONPATH=str(src))
+    inscal = [sys.executable, "-c", "import sys; from inscal.cli import main; sys.argv[0] = 'inscal'; sys.exit(main())"]
+    demo, work = out / "demo", out / "work"
+    work.mkdir(parents=True, exist_ok=True)
+    runs = [("demo", ["demo", "--out", str(demo), "--force", "--json"] + (["--quick"] if quick else []))]
+    runs += [(n, [a.replace("{D}", str(demo)).replace("{W}", str(work)) for a in args]) for n, args in COMMANDS]
+    res = {}
+    for name, args in runs:
+        p = subprocess.run(inscal + args, env=env, capture_output=True, text=True)
+        if p.returncode != 0:
+            res[name] = canonical(f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:]}", [demo, work])
+        else:
+            res[name] = canonical(p.stdout, [demo, work])
+        print(f"  {src}: {name} done", flush=True)
+    return res
+
+
+def main() -> int:
+    """Run both trees and compare; print one line per command."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", required=True, help="git revision to compare against (e.g. the branch point)")
+    ap.add_argument("--quick", action="store_true", help="the demo's shorter navigation run")
+    a = ap.parse_args()
+    base = base_tree(a.base)
+    with tempfile.TemporaryDirectory(prefix="inscal-json-") as tmp:
+        old = run_tree(base / "src", Path(tmp) / "base", a.quick)
+        new = run_tree(ROOT / "src", Path(tmp) / "now", a.quick)
+    bad = 0
+    for name in old:
+        same = old[name] == new[name]
+        bad += not same
+        print(f"{name:16s} {'identical' if same else 'DIFFERENT'} ({len(new[name])} bytes)")
+        if not same:
+            diff = difflib.unified_diff(old[name].splitlines(), new[name].splitlines(), "base", "now", n=0,
+                                        lineterm="")
+            print("\n".join(list(diff)[:12]))
+    print(f"{len(old) - bad} of {len(old)} outputs identical")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
