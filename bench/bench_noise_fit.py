@@ -140,8 +140,13 @@ def main():
               "(J on the exact curve): " + ", ".join(f"{k} {v:.3g}" for k, v in lam.items()))
         jobs = [(name, a.seed + 10 * r, r < a.select_runs) for r in range(a.runs)]
         t0 = time.perf_counter()
+        out = []
         with Pool(a.procs) as pool:
-            out = pool.map(one, jobs, chunksize=1)
+            for o in pool.imap(one, jobs, chunksize=1):
+                out.append(o)
+                if len(out) % 25 == 0:  # progress: the choice so far
+                    right = np.mean([x[4][0] == ch.model for x in out if x[4]])
+                    print(f"  {len(out)} runs: choice right in {100 * right:.1f} %", flush=True)
         wall = time.perf_counter() - t0
         truth = truth_vector(ch)
         est = np.array([o[0] for o in out])

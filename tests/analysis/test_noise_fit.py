@@ -121,3 +121,35 @@ def test_a_ramp_adds_its_cross_term_to_the_covariance():
     emp = np.var(est, axis=0, ddof=1)
     assert np.all(np.abs(emp / np.diag(V) - 1) < 0.3), emp / np.diag(V)
     assert emp[-1] / V0[-1, -1] > 4  # the noise alone misses most of it
+
+
+def test_a_non_white_start_is_kept_as_a_short_gauss_markov_term():
+    """A low-pass filtered white noise (an AR(1) of T_c = 0.4 dt, phi = 0.08: tau nu rises 17 % over the
+    first octaves) beside a slower GM: the simple family (T_c from 2 dt) fails its J test, the extended
+    one finds the short term (T_c below dt, as GMWM's phi down to ~0) and the structure."""
+    ch = nm.ChannelNoise("g", "gyro", (nm.GaussMarkov(1e-3, 0.4 * DT), nm.GaussMarkov(2e-4, 1.0)))
+    s = select(exact_curve(ch, 1 << 16), rng=np.random.default_rng(0))
+    assert s.chosen.model == "2GM" and "extended family tried" in s.reason
+    tcs = sorted(t.tc for t in s.chosen.terms)
+    assert tcs[0] == pytest.approx(0.4 * DT, rel=1e-3) and tcs[1] == pytest.approx(1.0, rel=1e-3)
+    assert not any(r[5].startswith("GM of T_c") for r in s.candidates)  # no set-aside for the bound any more
+    for m, gap, _, _ in s.richer:  # what fits nearly as well contains the choice
+        assert "GM" in m and 0 <= gap
+
+
+def test_fit_counts_its_starts_and_flags_unresolved_intervals():
+    """``starts`` counts every start solve ran (the grid's too), so ``starts_at_best`` never exceeds it;
+    a term the curve does not show has an interval down to 0: flagged unresolved in the summary."""
+    from inscal.analysis.noise.estimators import ScaleVariance
+    from inscal.analysis.noise.identify import channel_summary, identify_curve
+
+    c = exact_curve(nm.ChannelNoise("g", "gyro", (nm.WhiteNoise(1e-4), nm.GaussMarkov(3e-5, 5.0))), 1 << 14)
+    sel = identify_curve(c, "WN+RW+GM", np.random.default_rng(0), n_starts=3)
+    assert sel.chosen.starts == 5 and 1 <= sel.chosen.hits <= sel.chosen.starts
+    sv = ScaleVariance(c.m, c.dt, 1 << 14, c.wv[:, None], c.n_terms)
+    summ = channel_summary("gx", sel, sv, 0)
+    assert "RW.k" in summ["unresolved"]["parameters"] and summ["parameters"]["RW.k"]["unresolved"]
+    assert "WN.n" not in summ["unresolved"]["parameters"]
+    assert summ["ieee_readoffs"]["BI"]["edf"] > 1 and summ["starts"] == 5
+    with pytest.raises(ValueError, match="has no term"):
+        nm.parse_model("WN+0GM")

@@ -123,10 +123,10 @@ def test_allan_unwritable_plot(rec, tmp_path, monkeypatch):
 
 # --------------------------------------------------------------------------- allan on a turning record
 def test_allan_warns_on_a_rotating_record(rec, tmp_path):
-    code, _, err = run("allan", rec, "--json")
+    code, _, err = run("allan", rec, "--json", "--model", "WN")
     assert code == 0 and "not static" not in err
     turning = make_record(tmp_path / "t.h5", rotate=True)
-    code, out, err = run("allan", turning, "--json")
+    code, out, err = run("allan", turning, "--json", "--model", "WN")
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
     assert code == 0 and len(lines) == 1 and lines[0].startswith("inscal: warning:") and "not static" in lines[0]
     assert '"warnings"' in out

@@ -182,7 +182,7 @@ def test_allan_cli(tmp_path):
     f.write_text("[scenario]\nduration_s = 600\n[noise]\narw = 0.02\nvrw = 20\n")
     rec = tmp_path / "n.h5"
     assert run("simulate", f, "--out", rec)[0] == 0
-    code, stdout, stderr = run("allan", rec, "--json", "--plot", tmp_path / "a.png")
+    code, stdout, stderr = run("allan", rec, "--json", "--plot", tmp_path / "a.png", "--model", "WN")
     assert code == 0, stderr
     r = json.loads(stdout)
     assert r["arw_deg_rth"] == pytest.approx([0.02] * 3, rel=0.1)

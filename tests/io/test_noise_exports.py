@@ -97,3 +97,50 @@ def test_inscal_export_writes_a_noise_model_in_each_tool_convention(tmp_path):
                                  str(tmp_path / "x.json")])
     assert r.exit_code == 2 and "a noise model exports as kalibr | kf-gins | matlab" in r.output
     assert not (tmp_path / "x.json").exists()
+
+
+def test_every_export_names_what_it_drops(tmp_path):
+    """A model with BI, RW and GM in every format: the values by hand, and each term the convention
+    cannot hold named with its reason, in the file and in ``dropped`` (never ``[]`` beside a lost term)."""
+    from inscal.io.exports.calibration import export_noise
+    from inscal.io.exports.noise import dropped
+
+    g = [nm.ChannelNoise(n, "gyro", (nm.WhiteNoise(0.01 * D2R / 60), nm.BiasInstability(0.05 * D2R / 3600, 100.0),
+                                     nm.RandomWalk(0.02 * D2R / 3600 / 60), nm.GaussMarkov(0.1 * D2R / 3600, 300.0)))
+         for n in ("gx", "gy", "gz")]
+    a = [nm.ChannelNoise(n, "accel", (nm.WhiteNoise(5e-4), nm.BiasInstability(2e-5, 100.0)))
+         for n in ("ax", "ay", "az")]
+    m = nm.NoiseModel(tuple(g + a), 100.0)
+    write_noise(tmp_path / "n.toml", m)
+    m, _ = read_noise(tmp_path / "n.toml")
+    for fmt, name in (("kalibr", "k.yaml"), ("kf-gins", "f.yaml"), ("matlab", "p.m")):
+        res = export_noise(tmp_path / "n.toml", tmp_path / name, fmt)
+        text = (tmp_path / name).read_text()
+        assert res["dropped"] == dropped(m, fmt) and res["dropped"]
+        for d in res["dropped"]:
+            assert f"dropped: {d}" in text
+    kal, kfg, mat = (dropped(m, f) for f in ("kalibr", "kf-gins", "matlab"))
+    assert any(d.startswith("BI of gx, gy, gz, ax, ay, az: no bias-instability field") for d in kal)
+    assert any(d.startswith("GM of gx, gy, gz: no Gauss-Markov field") for d in kal)
+    assert any(d.startswith("RW of gx, gy, gz: no random-walk field") for d in kfg)
+    assert any(d.startswith("BI of gx, gy, gz, ax, ay, az") for d in kfg)
+    assert kfg and not any(d.startswith("GM") for d in kfg)  # the one GM per axis is kept
+    assert mat == ["BI of gx, gy, gz: one BiasInstability field, taken by the Gauss-Markov term"]
+    # the kept values, by hand
+    vals = {ln.split(":")[0]: float(ln.split(":")[1].split("#")[0]) for ln in kalibr_imu_yaml(m).splitlines()
+            if ln and not ln.startswith("#") and "rostopic" not in ln}
+    assert vals["gyroscope_noise_density"] == pytest.approx(0.01 * D2R / 60, rel=1e-9)  # 0.01 deg/sqrt(h)
+    assert vals["gyroscope_random_walk"] == pytest.approx(0.02 * D2R / 3600 / 60, rel=1e-9)  # 0.02 deg/h/sqrt(h)
+    assert vals["accelerometer_random_walk"] == 0.0  # BI only: dropped, not turned into a random walk
+    p = matlab_params(m)
+    phi = math.exp(-0.01 / 300.0)
+    assert p["gyroparams"]["BiasInstability"][0] == pytest.approx(0.1 * D2R / 3600 * math.sqrt(1 - phi**2), rel=1e-9)
+    assert p["gyroparams"]["RandomWalk"][1] == pytest.approx(0.02 * D2R / 3600 / 60, rel=1e-9)
+    # an accelerometer BI without a GM: MATLAB's BiasInstability is B itself, with its default filter
+    assert p["accelparams"]["BiasInstability"] == [pytest.approx(2e-5, rel=1e-9)] * 3
+    assert p["accelparams"]["BiasInstabilityCoefficients"]["Denominator"] == [1.0, -0.5]
+    rows = {ln.split(":")[0].strip(): ln.split(":")[1].split("#")[0].strip()
+            for ln in kfgins_imunoise(m).splitlines() if ln.startswith("    ")}
+    np.testing.assert_allclose(eval(rows["gbstd"]), [0.1] * 3)  # noqa: S307 (our own text)
+    np.testing.assert_allclose(eval(rows["abstd"]), [0.0] * 3)  # noqa: S307 (BI only: named, not mapped)
+    assert float(rows["corrtime"]) == pytest.approx(300.0 / 3600)

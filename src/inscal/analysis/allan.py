@@ -1,4 +1,5 @@
-"""Allan deviation of IMU records (allantools) and the noise coefficients read off it.
+"""Allan deviation of IMU records (a face of the noise engine, inscal.analysis.noise) and the noise
+coefficients read off it.
 
 For a white rate noise of density N (ARW for gyros, VRW for accelerometers) the
 overlapping Allan deviation is ``sigma(tau) = N / sqrt(tau)``; bias instability B is read
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from inscal.analysis.noise.estimators import StreamingScaleVariance
+from inscal.analysis.noise.motion import MotionStats
 from inscal.io.records import iter_window
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
@@ -40,13 +42,14 @@ def octave_taus(n: int, rate_hz: float, max_fraction: float = 0.1) -> np.ndarray
 
 
 def allan(increments: np.ndarray, rate_hz: float, taus=None, white_tau_max: float = 1.0) -> AllanResult:
-    """Overlapping Allan deviation of each column of ``increments`` (N, k) sampled at ``rate_hz``.
+    """Overlapping Allan deviation of each column of ``increments`` (N, k) sampled at ``rate_hz``, by the
+    noise engine (:class:`StreamingAllan`, the estimator of ``allantools.oadev``, which stays a test oracle).
 
     Increments are converted to rates (``/ dt``).  The white-noise coefficient is the
-    least-squares fit of ``sigma = N / sqrt(tau)`` over ``tau <= white_tau_max``.
+    least-squares fit of ``sigma = N / sqrt(tau)`` over ``tau <= white_tau_max`` (a quick look; the
+    identified ARW with its interval is :func:`inscal.analysis.noise.identify.allan_view`'s).
+    ``taus``: averaging times [s] (whole multiples of the sample interval; default the octaves).
     """
-    import allantools  # here: it imports scipy (slow); the streamed path does not need it
-
     x = np.asarray(increments, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
@@ -54,17 +57,9 @@ def allan(increments: np.ndarray, rate_hz: float, taus=None, white_tau_max: floa
         raise ValueError(f"need at least 16 samples of shape (N, k), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("increments contain NaN or inf")
-    rate = x * rate_hz
-    taus = octave_taus(x.shape[0], rate_hz) if taus is None else np.asarray(taus, dtype=float)
-    cols, errs, t_out = [], [], None
-    for c in range(rate.shape[1]):
-        t, ad, ade, _ = allantools.oadev(rate[:, c], rate=rate_hz, data_type="freq", taus=taus)
-        t_out = t if t_out is None else t_out
-        cols.append(ad)
-        errs.append(ade)
-    adev = np.stack(cols, axis=1)
-    err = np.stack(errs, axis=1)
-    return _result(t_out, adev, err, white_tau_max)
+    acc = StreamingAllan(x.shape[0], rate_hz, x.shape[1], taus=taus)
+    acc.update(x)
+    return acc.result(white_tau_max)
 
 
 def _result(t_out, adev, err, white_tau_max) -> AllanResult:
@@ -88,10 +83,11 @@ class StreamingAllan:
     ``n`` is the number of increments that will be fed (it fixes the tau grid, as in :func:`allan`).
     """
 
-    def __init__(self, n: int, rate_hz: float, k: int = 3, piece: int = 1 << 18):
+    def __init__(self, n: int, rate_hz: float, k: int = 3, piece: int = 1 << 18, taus=None):
         if n < 16:
             raise ValueError(f"need at least 16 samples, got {n}")
-        m = np.unique(np.round(octave_taus(int(n), float(rate_hz)) * rate_hz))
+        taus = octave_taus(int(n), float(rate_hz)) if taus is None else np.asarray(taus, dtype=float)
+        m = np.unique(np.round(taus * rate_hz))
         self.engine = StreamingScaleVariance(n, rate_hz, k, m, piece=piece, increments=True)
         self.n, self.rate_hz, self.k = self.engine.n, self.engine.rate_hz, self.engine.k
 
@@ -138,82 +134,13 @@ def allan_of(increments, stop: int, rate_hz: float, chunk: int = 1 << 18, **kw) 
     return acc.result(**kw)
 
 
-#: Earth rotation rate [rad/s] (WGS84; inscal.core.earth.OMEGA_IE, not imported: it loads numba)
-OMEGA_IE = 7.292115e-5
-
-
 def motion_warning(rec, sel) -> str | None:
-    """One line when the window ``sel`` of ``rec`` is not static: the gyro rate (block means of
-    about 1 s) departs from its median by more than 10x the Earth rate (and 6x its noise) in more
-    than 1 % of the window, or the gimbal angles change by more than 1 mrad."""
+    """One line when the window ``sel`` of ``rec`` is not static
+    (:meth:`inscal.analysis.noise.motion.MotionStats.warning`), else None."""
     mot = MotionStats(int(sel.sum()), rec.rate_hz)
     mot.update(np.asarray(rec.dtheta[sel], dtype=float),
                None if getattr(rec, "gimbal", None) is None else np.asarray(rec.gimbal[sel], dtype=float))
     return mot.warning()
-
-
-class MotionStats:
-    """What :func:`motion_warning` needs, gathered chunk by chunk: the gyro increments summed over
-    blocks of about 1 s (at least 20 blocks) and the span of the gimbal angles."""
-
-    def __init__(self, n: int, rate_hz: float):
-        self.rate_hz = rate_hz
-        self.m = max(1, min(n // 20, int(round(rate_hz))))  # ~1 s blocks (at least 20 of them)
-        self.k = n // self.m
-        self.sums = np.empty((self.k, 3))
-        self.nb = 0
-        self.rest = np.zeros((0, 3))
-        self.gmin = self.gmax = None
-
-    def update(self, dtheta, gimbal=None) -> None:
-        """Feed the next chunk of angle increments (and gimbal angles, when the record has them)."""
-        if self.nb < self.k:
-            x = np.concatenate([self.rest, dtheta]) if self.rest.shape[0] else dtheta
-            nfull = min(x.shape[0] // self.m, self.k - self.nb)
-            take = nfull * self.m
-            self.sums[self.nb: self.nb + nfull] = x[:take].reshape(nfull, self.m, 3).sum(axis=1)
-            self.nb += nfull
-            self.rest = x[take:] if self.nb < self.k else np.zeros((0, 3))
-        if gimbal is not None and gimbal.shape[0]:
-            lo, hi = gimbal.min(axis=0), gimbal.max(axis=0)
-            self.gmin = lo if self.gmin is None else np.minimum(self.gmin, lo)
-            self.gmax = hi if self.gmax is None else np.maximum(self.gmax, hi)
-
-    def _moving(self):
-        """(per-block moving mask, threshold [rad/s])."""
-        k, m = self.k, self.m
-        rates = self.sums[: self.nb] * self.rate_hz / m
-        dev = rates - np.median(rates, axis=0)  # a gyro bias is not motion
-        d = np.diff(rates, axis=0)  # noise from successive differences: robust to the turns themselves
-        sig = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2) if k > 2 else np.zeros(3)
-        thr = max(10 * OMEGA_IE, 6 * float(np.sqrt(np.sum(sig**2))))
-        return np.linalg.norm(dev, axis=1) > thr, thr
-
-    def moving_span(self) -> tuple[float, float] | None:
-        """Seconds from the window's start of the first and the end of the last block that moves
-        (None when no block does)."""
-        mask, _ = self._moving()
-        if not mask.any():
-            return None
-        idx = np.flatnonzero(mask)
-        return float(idx[0] * self.m / self.rate_hz), float((idx[-1] + 1) * self.m / self.rate_hz)
-
-    def warning(self) -> str | None:
-        """One line when the window is not static (the gyro rate departs from its median by more than the
-        threshold in over 1 % of it, or the gimbal angles move), else None.
-        """
-        mask, thr = self._moving()
-        frac = float(np.mean(mask)) if self.k else 0.0
-        moving = frac > 0.01
-        why = f"the gyro rate departs from its median by more than {thr:.2g} rad/s in {100 * frac:.0f} % of it"
-        if not moving and self.gmin is not None:
-            span = float(np.max(self.gmax - self.gmin))
-            if span > 1e-3:
-                moving, why = True, f"the gimbal turns by {np.degrees(span):.3g} deg in it"
-        if not moving:
-            return None
-        return (f"the window is not static ({why}): the Allan deviation mixes rotation into the noise; "
-                "use --start/--stop on a static part of the record")
 
 
 def stream_allan(data: Path, win, chunk_size: int = 1 << 18):

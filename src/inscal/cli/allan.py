@@ -1,4 +1,5 @@
-"""``inscal allan``: Allan deviation of the gyro and accelerometer channels of a record."""
+"""``inscal allan``: Allan deviation of the gyro and accelerometer channels of a record, a view of the
+noise engine (``inscal noise``): the same pass, curve, white-noise density and read-offs."""
 
 from __future__ import annotations
 
@@ -22,16 +23,19 @@ units = LazyModule("inscal.core.units")
 
 #: plot formats (from the --plot suffix)
 PLOT_FORMATS = ("png", "pdf", "svg")
-#: memory per sample of the window: the phase history of the streamed Allan deviation (about a quarter of
-#: the window's rows of 3 floats, inscal.analysis.allan.StreamingAllan) and the motion statistics
-BYTES_PER_SAMPLE = 8
+#: memory per sample of the window: the phase history of the six channels in the noise engine's one pass
+#: (inscal.analysis.noise.estimators, as ``inscal noise``) and the motion statistics
+BYTES_PER_SAMPLE = 16
 
 
 def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plot: Path | None = None,
-              force: bool = False, warn=None) -> dict:
-    """Allan deviation of a window of ``data``; ``warn(line)`` is called for a window that is not
-    static (the warning is also in the result's ``warnings``).  The record is streamed in chunks
-    (bounded memory, multi-day records included)."""
+              force: bool = False, warn=None, model: str = "auto", seed: int = 0) -> dict:
+    """Allan deviation of a window of ``data``, a view of the noise engine: one streamed pass
+    (:func:`inscal.analysis.noise.identify.scan_window`), the octave curve, and per axis the white-noise
+    density N (ARW, VRW) of the model ``inscal noise`` identifies (``model``, default ``auto``; the same
+    value and 95 % interval) and the IEEE bias-instability read-off with its tau and degrees of freedom.
+    ``warn(line)`` is called for a window that is not static (the warning is also in the result's
+    ``warnings``)."""
     from inscal import io
 
     if plot is not None:
@@ -44,6 +48,15 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
     for name, v in (("--start", start_s), ("--stop", stop_s)):
         if v is not None and not np.isfinite(v):
             raise CliError(f"{name} must be a finite time in s, got {v}")
+    if model.strip().lower() != "auto":
+        from inscal.core.noise_models import model_string, parse_model
+
+        try:
+            model = model_string(parse_model(model))
+        except ValueError as exc:
+            raise CliError(f"--model: {exc}") from None
+    else:
+        model = "auto"
     try:
         win = io.record_window(data, start_s, stop_s)
         if win.n < 1000:
@@ -52,40 +65,57 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
                            "of a static window")
         check_memory(win.n * BYTES_PER_SAMPLE, f"the window of {short(data)} ({win.n} samples, {win.n / win.rate_hz:.4g} s "
                      f"at {win.rate_hz:g} Hz)", "take a shorter window with --start/--stop")
-        from inscal.analysis.allan import stream_allan
+        from inscal.analysis.noise import identify as idf
 
-        g, a, mot, (t0, t1) = stream_allan(data, win)
+        scan = idf.scan_window(data, win)
     except io.DataFileError as exc:
         raise CliError(str(exc)) from None
     except (KeyError, TypeError, ValueError) as exc:
         raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
+    t0 = scan.t_first - 1 / win.rate_hz
     warnings = []
-    w = mot.warning()
-    if w:
-        warnings.append(w)
+    w = scan.motion.warning(t0, idf.CHANNELS)
+    for line in ([w] if w else []) + scan.checks.problems(idf.CHANNELS, t0, 1 / win.rate_hz):
+        warnings.append(line)
         if warn is not None:
-            warn(w)
+            warn(line)
+    try:
+        view = idf.allan_view(scan, model, np.random.default_rng(seed))
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise CliError(f"{short(data)}: the noise of this window cannot be identified ({short(exc)}); "
+                       "try --model WN") from None
+    ch = view["channels"]
     res = {
         "data": str(data),
-        "window_s": [float(t0 - 1 / win.rate_hz), float(t1)],
-        "taus_s": g.taus,
-        "gyro_adev_deg_h": units.from_si(g.adev, "deg/h").T,
-        "accel_adev_ug": units.from_si(a.adev, "ug").T,
-        "arw_deg_rth": units.from_si(g.white, "deg/sqrt(h)"),
-        "vrw_ug_rthz": units.from_si(a.white, "ug/sqrt(Hz)"),
-        "gyro_bias_instability_deg_h": units.from_si(g.bias_instability, "deg/h"),
-        "accel_bias_instability_ug": units.from_si(a.bias_instability, "ug"),
+        "window_s": [float(t0), float(scan.t_last)],
+        "taus_s": view["taus_s"],
+        "edf": view["edf"],
+        "gyro_adev_deg_h": units.from_si(view["adev"][:, :3], "deg/h").T,
+        "accel_adev_ug": units.from_si(view["adev"][:, 3:], "ug").T,
+        "model_asked": model,
     }
-    # a minimum at the longest tau is no flat bottom: the record is too short to see the bias
-    # instability, and the figure is only an upper bound
-    res["gyro_bias_instability_upper_bound"] = (np.asarray(g.tau_bi) >= g.taus[-1]).tolist()
-    res["accel_bias_instability_upper_bound"] = (np.asarray(a.tau_bi) >= a.taus[-1]).tolist()
+    for sensor, key, unit, sl in (("gyro", "arw_deg_rth", "deg/sqrt(h)", slice(0, 3)),
+                                  ("accel", "vrw_ug_rthz", "ug/sqrt(Hz)", slice(3, 6))):
+        white = np.array([c["white"] for c in ch[sl]])
+        res[key] = units.from_si(white[:, 0], unit)
+        res[key.replace("_", "_lower_95_", 1)] = units.from_si(white[:, 1], unit)
+        res[key.replace("_", "_upper_95_", 1)] = units.from_si(white[:, 2], unit)
+        res[f"{sensor}_white_source"] = [c["white_source"] for c in ch[sl]]
+        res[f"{sensor}_model"] = [c["model"] for c in ch[sl]]
+        bi = [c["readoffs"]["BI"] for c in ch[sl]]
+        bkey = "gyro_bias_instability_deg_h" if sensor == "gyro" else "accel_bias_instability_ug"
+        res[bkey] = [b["value"] for b in bi]
+        res[f"{sensor}_bias_instability_tau_s"] = [b["read_at_tau_s"] for b in bi]
+        res[f"{sensor}_bias_instability_edf"] = [b["edf"] for b in bi]
+        # a minimum at the longest tau read is no flat bottom: the record is too short to see the bias
+        # instability, and the figure is only an upper bound
+        res[f"{sensor}_bias_instability_upper_bound"] = [not b["flat_bottom"] for b in bi]
     res["warnings"] = warnings
     if plot is not None:
         from inscal.report.figures import allan_plot
 
         try:
-            allan_plot(plot, g.taus, res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
+            allan_plot(plot, res["taus_s"], res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
         except OSError as exc:
             raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
         res["plot"] = str(plot)
@@ -100,12 +130,16 @@ def register(app: typer.Typer) -> None:
         stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (.png, .pdf or .svg)"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing plot"),
+        model: str = typer.Option("auto", "--model", help="the noise model whose white-noise term gives ARW/VRW "
+                                  "(as inscal noise: 'auto' or a sum such as 'WN+RW+2GM')"),
+        seed: int = typer.Option(0, "--seed", help="seed of the multi-start solver's draws (as inscal noise)"),
         json_: bool = typer.Option(False, "--json", help="print results as JSON"),
     ):
-        """Allan deviation of a record: ARW, VRW and bias instability per axis."""
+        """Allan deviation of a record: ARW and VRW with their 95 % intervals (the noise engine's, as
+        inscal noise) and the bias-instability read-off per axis."""
         try:
             res = run_allan(data, start_s, stop_s, plot, force,
-                            warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True))
+                            warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), model=model, seed=seed)
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
@@ -118,14 +152,25 @@ def register(app: typer.Typer) -> None:
         tab = Table(title=escape(f"Allan deviation of {data}"))
         for col in ("axis", "ARW [deg/rt(h)]", "gyro BI [deg/h]", "VRW [ug/rt(Hz)]", "accel BI [ug]"):
             tab.add_column(escape(col))  # brackets are Rich markup otherwise (the units vanished)
+
         def bi(sensor, unit, k):
             ub = res[f"{sensor}_bias_instability_upper_bound"][k]
-            return ("< " if ub else "") + f"{res[f'{sensor}_bias_instability_{unit}'][k]:.4g}"
+            edf = res[f"{sensor}_bias_instability_edf"][k]
+            return (("< " if ub else "") + f"{res[f'{sensor}_bias_instability_{unit}'][k]:.4g} "
+                    f"({res[f'{sensor}_bias_instability_tau_s'][k]:.3g} s, {edf:.3g})")
+
+        def white(key, k):
+            v, lo, hi = (res[key.replace("_", x, 1)][k] for x in ("_", "_lower_95_", "_upper_95_"))
+            return f"{v:.4g}" + (f" [{lo:.3g}, {hi:.3g}]" if np.isfinite(lo) else " (read-off)")
 
         for k, ax in enumerate("xyz"):
-            tab.add_row(ax, f"{res['arw_deg_rth'][k]:.4g}", bi("gyro", "deg_h", k),
-                        f"{res['vrw_ug_rthz'][k]:.4g}", bi("accel", "ug", k))
+            tab.add_row(ax, escape(white("arw_deg_rth", k)), bi("gyro", "deg_h", k),
+                        escape(white("vrw_ug_rthz", k)), bi("accel", "ug", k))
         Console().print(tab)
+        typer.echo("ARW/VRW [95 % interval]: the white-noise term of the noise model inscal noise identifies "
+                   f"(--model {res['model_asked']}): gyro {', '.join(res['gyro_model'])}; accel "
+                   f"{', '.join(res['accel_model'])}; BI: the IEEE read-off sigma_min / 0.664 (at tau, with its "
+                   "degrees of freedom)")
         if any(res["gyro_bias_instability_upper_bound"] + res["accel_bias_instability_upper_bound"]):
             typer.echo("'<': the deviation still falls at the longest tau (no flat bottom in this window): "
                        "the bias instability is below the figure, not measured")

@@ -297,7 +297,10 @@ def register(app: typer.Typer) -> None:
             print_json(res)
         elif "params" in res:
             typer.echo(f"exported {res['params']} ({res['format']}) -> {', '.join(res['files'])}")
-            if res["dropped"]:
+            if res["dropped"] and res.get("method") == "noise model":
+                typer.echo(f"inscal: warning: {res['format']} leaves out {'; '.join(res['dropped'])} (named in the "
+                           "file's comments): a filter tuned from it lacks these terms", err=True)
+            elif res["dropped"]:
                 typer.echo(f"inscal: warning: {res['format']} cannot hold {', '.join(res['dropped'])} (non-zero in "
                            f"{res['params']}): compensating with the export differs from inscal compensate", err=True)
         else:

@@ -102,17 +102,18 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
             raise CliError(str(exc)) from None
         except (KeyError, TypeError, ValueError) as exc:
             raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
-        span = scan.motion.moving_span()
-        if scan.motion.warning() is not None:
-            where = (f"between {scan.t_first + span[0]:.4g} s and {scan.t_first + span[1]:.4g} s"
-                     if span else "(the gimbal turns)")
-            raise CliError(f"{short(data)}: the record moves {where}: noise is identified on a static window; "
-                           "choose one with --start/--stop")
+        t0 = scan.t_first - 1 / win.rate_hz
         idx = [idf.CHANNELS.index(c) for c in names]
-        probs = scan.checks.problems(idf.CHANNELS)
+        probs = scan.checks.problems(idf.CHANNELS, t0, 1 / win.rate_hz)
         probs = [p for p in probs if p.split(" ", 1)[0] in names]
         if probs:
             raise CliError(f"{short(data)}: {probs[0]}")
+        why = scan.motion.reason(t0, idf.CHANNELS)
+        if why is not None:
+            span = scan.motion.moving_span()
+            where = f"between {t0 + span[0]:.6g} s and {t0 + span[1]:.6g} s" if span else "(the gimbal turns)"
+            raise CliError(f"{short(data)}: the record moves {where} ({why}): noise is identified on a static "
+                           "window; choose one with --start/--stop")
         sels = [idf.identify_curve(idf.octave_curve(scan.sv, c), model, rng) for c in idx]
         summaries = [idf.channel_summary(nm_, s, scan.sv, c) for nm_, s, c in zip(names, sels, idx)]
         chan_names, kinds, rate_hz = names, [idf.KINDS[c] for c in names], win.rate_hz
@@ -188,8 +189,11 @@ def register(app: typer.Typer) -> None:
             for pn, p in ch["parameters"].items():
                 tab.add_row(pn, f"{p['value']:.4g}", f"[{p['lower_95']:.3g}, {p['upper_95']:.3g}]", escape(p["unit"]))
             for code, r in ch["ieee_readoffs"].items():
-                tab.add_row(f"IEEE read-off {code}", f"{r['value']:.4g}", f"at tau = {r['read_at_tau_s']:.3g} s",
+                dof = f", {r['edf']:.3g} dof" if r.get("edf") is not None else ""
+                tab.add_row(f"IEEE read-off {code}", f"{r['value']:.4g}", f"at tau = {r['read_at_tau_s']:.3g} s{dof}",
                             escape(r["unit"]))
             con.print(tab)
             typer.echo(f"  why: {ch['why']}; objective {ch['objective']:.4g}, J = {ch['j_statistic']:.3g} "
                        f"on {ch['j_dof']} dof")
+            if ch["unresolved"]["parameters"]:
+                typer.echo(f"  unresolved ({ch['unresolved']['rule']}): {', '.join(ch['unresolved']['parameters'])}")

@@ -298,7 +298,9 @@ def parse_model(text: str) -> tuple[str, ...]:
         if name is None:
             raise ValueError(f"model {text!r}: unknown term {p!r}; known: {', '.join(sorted(set(TERM_NAMES)))}")
         k = int(mt.group(1)) if mt.group(1) else 1
-        if k < 1 or (name != "GM" and (k > 1 or name in out)):
+        if k < 1:
+            raise ValueError(f"model {text!r}: {p!r} has no term (a count of at least 1, or leave {name} out)")
+        if name != "GM" and (k > 1 or name in out):
             raise ValueError(f"model {text!r}: {name} appears more than once (only GM may repeat)")
         out += [name] * k
     if out.count("GM") > MAX_GM:

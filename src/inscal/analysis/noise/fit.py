@@ -209,14 +209,14 @@ def readoff_starts(curve: Curve, codes) -> np.ndarray:
     return np.array(th, dtype=float)
 
 
-def _bounds(codes, curve: Curve, th0, tc_max: float | None = None):
+def _bounds(codes, curve: Curve, th0, tc_max: float | None = None, tc_min: float | None = None):
     lo, hi = [], []
     T = curve.n_terms[0] * curve.dt * 10
     for c, i in zip(codes, np.cumsum([0] + [n_params(c) for c in codes])[:-1]):
         lo.append(th0[i] - 25)
         hi.append(th0[i] + 25)
         if c == "GM":
-            lo.append(math.log(2 * curve.dt))  # shorter, a GM is white noise at every scale: not identifiable
+            lo.append(math.log(projection.TC_MIN_SHARE * curve.dt if tc_min is None else tc_min))  # phi to exp(-8)
             hi.append(math.log(100 * T if tc_max is None else tc_max))
     return np.array(lo), np.array(hi)
 
@@ -236,22 +236,23 @@ def _canonical(codes, theta) -> np.ndarray:
 
 
 def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
-          theta0=None, whiten=None, grid: bool = True, tc_max: float | None = None):
-    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it)``.
+          theta0=None, whiten=None, grid: bool = True, tc_max: float | None = None, tc_min: float | None = None):
+    """Multi-start weighted least squares; returns ``(theta, objective, starts that reached it, starts run)``.
     The starts: the best point of the correlation-time grid with the amplitudes solved exactly
     (:func:`inscal.analysis.noise.projection.profile`, ``grid=True``), ``theta0`` (default: the
     read-offs) and ``n_starts`` random ones around it.  ``whiten``: a (J, J) matrix W for the objective
     ``|| W (nu_hat - nu) ||^2`` in place of the diagonal ``weights`` (the efficient ``V^-1/2``);
-    ``tc_max``: the longest Gauss-Markov correlation time allowed [s] (default: far beyond the record)."""
+    ``tc_max``: the longest Gauss-Markov correlation time allowed [s] (default: far beyond the record);
+    ``tc_min`` the shortest (default dt / 8: :data:`inscal.analysis.noise.projection.TC_MIN_SHARE`)."""
     rng = np.random.default_rng(0) if rng is None else rng
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
     Wm = np.diag(np.sqrt(w)) if whiten is None else np.asarray(whiten, float)
     th0 = readoff_starts(curve, codes) if theta0 is None else np.asarray(theta0, float)
-    lo, hi = _bounds(codes, curve, th0, tc_max)
+    lo, hi = _bounds(codes, curve, th0, tc_max, tc_min)
     starts = []
     if grid:
-        cols = None if tc_max is None else projection.basis(codes, curve.m, curve.dt, projection.tc_grid(
-            curve.m, curve.dt, tc_max=tc_max))
+        cols = None if tc_max is None and tc_min is None else projection.basis(codes, curve.m, curve.dt, projection.tc_grid(
+            curve.m, curve.dt, tc_max=tc_max, tc_min=tc_min))
         thg = projection.profile(codes, curve.m, curve.dt, curve.wv, Wm, cols)[0]
         lo, hi = np.minimum(lo, thg - 25), np.maximum(hi, thg + 25)
         starts.append(np.clip(thg, lo + 1e-9, hi - 1e-9))
@@ -273,7 +274,7 @@ def solve(curve: Curve, codes, weights=None, n_starts: int = 8, rng: np.random.G
             best, fbest, hits = r.x, f, 1
         elif f <= fbest * (1 + 1e-6):
             hits += 1
-    return _canonical(codes, best), fbest, hits
+    return _canonical(codes, best), fbest, hits, len(starts)
 
 
 def jacobian(codes, theta, m, dt: float) -> np.ndarray:
@@ -336,17 +337,18 @@ class NoiseFit:
 
 
 def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.random.Generator | None = None,
-              v_terms=None, theta0=None) -> NoiseFit:
+              v_terms=None, theta0=None, tc_min: float | None = None) -> NoiseFit:
     """Fit ``model`` (a string like "WN+RW+2GM" or parsed codes) to ``curve``.  ``v_terms``: the
     processes whose spectrum gives V (default: the fitted ones; model selection passes the largest
-    model's, so that every candidate is judged with one V)."""
+    model's, so that every candidate is judged with one V); ``tc_min``: the shortest GM correlation time [s]
+(default dt / 8)."""
     codes = nm.parse_model(model) if isinstance(model, str) else tuple(model)
     p = sum(n_params(c) for c in codes)
     if p > curve.m.size:
         raise ValueError(f"model {nm.model_string(codes)} has {p} parameters but the curve only {curve.m.size} "
                          "octave scales")
     w = gmwm_weights(curve.lower, curve.upper) if weights is None else np.asarray(weights, float)
-    theta, obj, hits = solve(curve, codes, w, n_starts, rng, theta0)
+    theta, obj, hits, n_run = solve(curve, codes, w, n_starts, rng, theta0, tc_min=tc_min)
     terms = terms_of(codes, theta, curve.dt)
     D = jacobian(codes, theta, curve.m, curve.dt)
     vt = terms if v_terms is None else v_terms
@@ -371,7 +373,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
     half = 0.5 * (curve.upper - curve.lower)
     seen = np.max(contrib / half[:, None], axis=0)
     negligible = tuple(bool(x < 0.05) for x in seen)
-    blo, bhi = _bounds(codes, curve, theta)
+    blo, bhi = _bounds(codes, curve, theta, tc_min=tc_min)
     i = 0
     for c, neg, ratio in zip(codes, negligible, seen):
         if neg:
@@ -381,7 +383,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
         i += n_params(c)
     return NoiseFit(nm.model_string(codes), codes, terms, tuple(param_names(codes)), np.exp(theta),
                     lower, upper, theta, cov, obj, w, gof, dof,
-                    chi2_sf(gof, dof) if dof else math.nan, penalty, n_starts + 1, hits, curve, nu, negligible)
+                    chi2_sf(gof, dof) if dof else math.nan, penalty, n_run, hits, curve, nu, negligible)
 
 
 def bootstrap(fit: NoiseFit, n: int, n_boot: int, rng: np.random.Generator, level: float = 0.95):
@@ -395,7 +397,7 @@ def bootstrap(fit: NoiseFit, n: int, n_boot: int, rng: np.random.Generator, leve
         y = ch.simulate(n, fit.curve.dt, rng)
         sv = scale_variance(y, 1.0 / fit.curve.dt, m[m <= octave_scales(n).max()])
         c = Curve.from_scale_variance(sv)
-        th, _, _ = solve(c, fit.codes, None, 2, rng, fit.theta)
+        th = solve(c, fit.codes, None, 2, rng, fit.theta)[0]
         draws.append(np.exp(th))
     d = np.array(draws)
     a = (1 - level) / 2

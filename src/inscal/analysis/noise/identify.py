@@ -5,8 +5,10 @@ result in IEEE 952-2020 / 1293-2018 field units.
 
 Channels: ``gx gy gz`` (the gyro increments /dtheta, rad) and ``ax ay az`` (/dvel, m/s), turned into
 rates by ``/ dt``.  A channel is refused when it is stuck (more than half of its successive
-increments equal), saturated (more than 1 % of it at its extreme value), or holds raw counts
-(every increment a whole number of at least 1: not SI).
+increments equal, or a stretch of equal increments far longer than chance allows: frozen or
+saturated), saturated (more than 1 % of it at its extreme value), or holds raw counts (every
+increment a whole number of at least 1: not SI); a window that moves, tilts or steps
+(:mod:`inscal.analysis.noise.motion`) is refused with the times.
 """
 
 from __future__ import annotations
@@ -16,17 +18,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inscal.analysis.allan import MotionStats
 from inscal.analysis.noise.estimators import ScaleVariance, StreamingScaleVariance, log_scales, octave_scales
 from inscal.analysis.noise.fit import Curve, fit_curve, n_params
 from inscal.analysis.noise.intervals import chi2_bounds, wv_interval
-from inscal.analysis.noise.selection import AUTO_MODEL, Selection, readoffs, select
+from inscal.analysis.noise.motion import MotionStats
+from inscal.analysis.noise.selection import AUTO_MIN_MODEL, AUTO_MODEL, Selection, readoffs, select
 from inscal.core import noise_models as nm
 from inscal.core import units
 from inscal.io.records import iter_window
 
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 KINDS = {c: ("gyro" if c[0] == "g" else "accel") for c in CHANNELS}
+#: a parameter whose 95 % interval spans more than this factor is flagged unresolved
+UNRESOLVED_SPAN = 1e3
+#: the shortest run of equal successive increments taken for a stuck stretch
+STUCK_RUN_MIN = 20
 #: the octave scales a model of p parameters needs: p + 2 (two degrees of freedom left for the J test)
 EXTRA_SCALES = 2
 #: the most points a curve computed elsewhere may have: one per octave of a record of 2^64 samples (the
@@ -45,8 +51,10 @@ class NoiseInputError(ValueError):
 
 
 def required_scales(model: str) -> int:
-    """Octave scales a fit of ``model`` (``auto``: the largest model) needs: its p parameters + 2."""
-    codes = nm.parse_model(AUTO_MODEL if model == "auto" else model)
+    """Octave scales a fit of ``model`` needs: its p parameters + 2 (``auto``: those of
+    :data:`~inscal.analysis.noise.selection.AUTO_MIN_MODEL`; its richer candidates are tried where the
+    record has the scales)."""
+    codes = nm.parse_model(AUTO_MIN_MODEL if model == "auto" else model)
     return sum(n_params(c) for c in codes) + EXTRA_SCALES
 
 
@@ -69,12 +77,32 @@ class ChannelChecks:
         self.n_lo = np.zeros(k, dtype=np.int64)
         self.integer = np.ones(k, dtype=bool)
         self.last = None
+        self.run = np.zeros(k, dtype=np.int64)  # the current run of equal successive increments
+        self.longest = np.zeros(k, dtype=np.int64)
+        self.longest_end = np.zeros(k, dtype=np.int64)  # the sample index that ends it
 
     def update(self, x) -> None:
         """Take the next chunk of increments, (N, k): count successive equal values, track each
         channel's extremes and how often they occur, and whether every value is a whole number."""
         xx = x if self.last is None else np.concatenate([self.last, x])
-        self.equal += np.sum(np.diff(xx, axis=0) == 0, axis=0)
+        eq = np.diff(xx, axis=0) == 0  # eq[i]: sample (self.n + i + first) equals the one before
+        self.equal += np.sum(eq, axis=0)
+        first = 0 if self.last is not None else 1
+        for c in range(self.k):
+            e = np.concatenate([[False], eq[:, c], [False]])
+            d = np.flatnonzero(np.diff(e.astype(np.int8)))
+            starts, ends = d[::2], d[1::2]  # runs of True: eq[starts:ends]
+            if starts.size == 0:
+                self.run[c] = 0
+                continue
+            lens = ends - starts
+            if starts[0] == 0:
+                lens[0] += self.run[c]  # the run goes on from the last chunk
+            j = int(np.argmax(lens))
+            if lens[j] > self.longest[c]:
+                self.longest[c] = lens[j]
+                self.longest_end[c] = self.n + first + ends[j] - 1
+            self.run[c] = lens[-1] if ends[-1] == eq.shape[0] else 0
         self.last = x[-1:]
         self.n += x.shape[0]
         self.integer &= np.all((x == np.round(x)) & (np.abs(x) >= 1) | (x == 0), axis=0)
@@ -87,7 +115,21 @@ class ChannelChecks:
             cnt[same] += c[same]
             ext[new] = v[new]
 
-    def problems(self, names) -> list[str]:
+    def stuck_stretch(self, c: int) -> tuple[int, int] | None:
+        """Channel ``c``'s longest run of equal successive increments as ``(first, last)`` sample
+        indices when it is far longer than chance allows, else None: with p the channel's share of
+        equal successive increments, n p^L is the expected number of runs of length L, so a run with
+        n p^L < 1e-3 (and at least :data:`STUCK_RUN_MIN`) is a frozen or saturated stretch."""
+        L = int(self.longest[c])
+        if L < STUCK_RUN_MIN or self.n < 2:
+            return None
+        p = self.equal[c] / (self.n - 1)
+        if p > 0 and (self.n * p**L >= 1e-3):
+            return None
+        end = int(self.longest_end[c])
+        return end - L, end
+
+    def problems(self, names, t0: float = 0.0, dt: float = 1.0) -> list[str]:
         """One line per channel (named by ``names``) that looks like raw counts, stuck or saturated;
         empty when every channel looks sound."""
         out = []
@@ -102,6 +144,9 @@ class ChannelChecks:
                 side = "maximum" if self.n_hi[c] >= self.n_lo[c] else "minimum"
                 frac = 100 * max(self.n_hi[c], self.n_lo[c]) / self.n
                 out.append(f"{name} is saturated ({frac:.1f} % of its samples at its {side})")
+            elif (st := self.stuck_stretch(c)) is not None:
+                out.append(f"{name} is stuck or saturated from {t0 + st[0] * dt:.6g} s to {t0 + (st[1] + 1) * dt:.6g} s "
+                           f"({st[1] - st[0] + 1} equal increments in a row; use --start/--stop to leave it out)")
         return out
 
 
@@ -121,14 +166,14 @@ def scan_window(path, win, chunk_size: int = 1 << 18, per_octave: int = 4) -> Sc
     """One streamed pass over the window ``win`` of the record at ``path`` (bounded memory)."""
     n = win.n
     acc = StreamingScaleVariance(n, win.rate_hz, 6, log_scales(n, per_octave), increments=True)
-    mot, chk = MotionStats(n, win.rate_hz), ChannelChecks(6)
+    mot, chk = MotionStats(n, win.rate_hz, 6), ChannelChecks(6)
     t_first = t_last = None
     for t, dth, dv, g in iter_window(path, ("time", "dtheta", "dvel", "gimbal"), win.i0, win.i1, chunk_size):
         t_first = float(t[0]) if t_first is None else t_first
         t_last = float(t[-1])
         x = np.concatenate([dth, dv], axis=1)
         acc.update(x)
-        mot.update(dth, g)
+        mot.update(x, g)
         chk.update(x)
     return Scan(acc.result(), mot, chk, t_first, t_last)
 
@@ -161,27 +206,29 @@ def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: 
     kind = kind or KINDS.get(name, "gyro")
     fu = nm.FIELD_UNITS[kind]
     f = sel.chosen
-    params = {}
+    params, unresolved = {}, []
     for pn, v, lo, hi in zip(f.names, f.values, f.lower, f.upper):
         u = fu[param_key(pn)]
         params[pn] = {"value": float(units.from_si(float(v), u)), "lower_95": float(units.from_si(float(lo), u)),
                       "upper_95": float(units.from_si(float(hi), u)), "unit": u}
+        if not (lo > 0 and hi / lo <= UNRESOLVED_SPAN):
+            params[pn]["unresolved"] = True
+            unresolved.append(pn)
     dt = sv.dt
     rate_unit = "deg/h" if kind == "gyro" else "ug"
     lo, hi = wv_interval(sv)
     tau = sv.taus
-    ro = readoffs(tau, sv.adev[:, c], sv.edf)
-    read = {}
-    for code, d in ro.items():
-        key = {"QN": "q", "WN": "n", "BI": "b", "RW": "k", "DR": "r"}[code]
-        read[code] = {"value": float(units.from_si(d["value"], fu[key])), "unit": fu[key], "read_at_tau_s": d["tau_s"]}
-        if "flat_bottom" in d:
-            read[code]["flat_bottom"] = d["flat_bottom"]
+    read = ieee_readoffs(sv, c, kind)
     contrib = np.stack([t.avar(sv.m, dt) for t in f.terms], axis=1)
     return {
         "channel": name, "kind": kind, "model": f.model, "why": sel.reason,
         "parameters": params,
         "unseen_terms": [t.code for t, neg in zip(f.terms, f.negligible) if neg],
+        "dropped_unseen": list(sel.removed),
+        "unresolved": {"parameters": unresolved,
+                       "rule": f"95 % interval wider than a factor {UNRESOLVED_SPAN:g} (or reaching 0)"},
+        "richer_near_fits": [{"model": m, "criterion_gap": g, "j_drop": d, "record_length_factor": x}
+                             for m, g, d, x in sel.richer],
         "discrete_per_sample_si": [{"term": t.code, **nm.discrete(t, dt)} for t in f.terms],
         "objective": f.objective, "j_statistic": f.gof, "j_dof": f.gof_dof, "j_p_value": f.gof_p,
         "wvic": f.wvic, "starts": f.starts, "starts_at_best": f.hits,
@@ -201,6 +248,61 @@ def channel_summary(name: str, sel: Selection, sv: ScaleVariance, c: int, kind: 
                                  for i, t in enumerate(f.terms)},
                   "unit": rate_unit},
     }
+
+
+def ieee_readoffs(sv: ScaleVariance, c: int, kind: str) -> dict:
+    """Channel ``c``'s IEEE read-offs in field units, on the octave scales (one grid for ``noise`` and
+    ``allan``), each with the tau it was read at and the equivalent degrees of freedom there."""
+    fu = nm.FIELD_UNITS[kind]
+    oct_ = np.isin(sv.m, octave_scales(sv.n))
+    if oct_.sum() < 3:
+        oct_[:] = True
+    ro = readoffs(sv.taus[oct_], sv.adev[oct_, c], sv.edf[oct_])
+    read = {}
+    for code, d in ro.items():
+        key = {"QN": "q", "WN": "n", "BI": "b", "RW": "k", "DR": "r"}[code]
+        read[code] = {"value": float(units.from_si(d["value"], fu[key])), "unit": fu[key], "read_at_tau_s": d["tau_s"],
+                      "edf": d["edf"] if math.isfinite(d["edf"]) else None}
+        if "flat_bottom" in d:
+            read[code]["flat_bottom"] = d["flat_bottom"]
+    return read
+
+
+def allan_view(scan: Scan, model: str, rng: np.random.Generator) -> dict:
+    """What ``inscal allan`` shows, from the noise engine: the octave Allan deviation of the six
+    channels (SI), and per channel the white-noise density N of the identified model (``model``,
+    default ``auto``: the same value and 95 % interval ``inscal noise`` gives) with its source, and
+    the IEEE read-offs (B with its tau and degrees of freedom)."""
+    sv = scan.sv
+    oct_ = np.isin(sv.m, octave_scales(sv.n)) & (sv.n_terms > 1)
+    out = {"taus_s": sv.taus[oct_], "adev": sv.adev[oct_], "edf": sv.edf[oct_], "channels": []}
+    for c, name in enumerate(CHANNELS):
+        kind = KINDS[name]
+        read = ieee_readoffs(sv, c, kind)
+        curve = octave_curve(sv, c)
+        f = None
+        if np.all(curve.wv > 0) and np.all(np.isfinite(curve.wv)):
+            try:
+                f = identify_curve(curve, model, rng).chosen
+            except (ValueError, np.linalg.LinAlgError):
+                f = None  # a curve the engine cannot fit: the read-off, said so
+        if f is None:
+            v = float(units.to_si(read["WN"]["value"], read["WN"]["unit"]))
+            out["channels"].append({"name": name, "kind": kind, "model": "none", "white": (v, math.nan, math.nan),
+                                    "white_source": "IEEE read-off (no model fits this channel: constant or "
+                                                    "noise-free?)", "readoffs": read})
+            continue
+        if "WN.n" in f.names:
+            i = f.names.index("WN.n")
+            n = (f.values[i], f.lower[i], f.upper[i])
+            src = f"WN term of {f.model} ({'auto' if model == 'auto' else 'as asked'})"
+        else:
+            v = float(units.to_si(read["WN"]["value"], read["WN"]["unit"]))
+            n = (v, math.nan, math.nan)
+            src = f"IEEE read-off at tau = {read['WN']['read_at_tau_s']:.3g} s ({f.model} has no WN term)"
+        out["channels"].append({"name": name, "kind": kind, "model": f.model, "white": n, "white_source": src,
+                                "readoffs": read})
+    return out
 
 
 def noise_model(names, kinds, selections, rate_hz: float) -> nm.NoiseModel:

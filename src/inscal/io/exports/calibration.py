@@ -14,7 +14,7 @@ from inscal.io.exports.imucal import imucal_json
 from inscal.io.exports.imutk import ACC_SUFFIX, GYRO_SUFFIX, imutk_files
 from inscal.io.exports.kalibr import kalibr_yaml
 from inscal.io.exports.kfgins import kfgins_yaml
-from inscal.io.exports.noise import kalibr_imu_yaml, kfgins_imunoise, matlab_script
+from inscal.io.exports.noise import dropped, kalibr_imu_yaml, kfgins_imunoise, matlab_script
 from inscal.io.files import atomic_path
 from inscal.io.noisefile import FORMAT as NOISE_FORMAT
 from inscal.io.noisefile import read_noise
@@ -39,15 +39,16 @@ def is_noise_file(path) -> bool:
 
 
 def export_noise(path, out, fmt: str, overwrite: bool = False) -> dict:
-    """Write the noise model file ``path`` to ``out`` in ``fmt`` (:data:`NOISE_FORMATS`); returns a summary."""
+    """Write the noise model file ``path`` to ``out`` in ``fmt`` (:data:`NOISE_FORMATS`); returns a summary
+    (``dropped``: each kind of term the convention cannot hold, its channels and why, as in the file's comments)."""
     if fmt not in NOISE_FORMATS:
         raise ValueError(f"a noise model exports as {' | '.join(NOISE_FORMATS)}, not {fmt!r}")
     model, _meta = read_noise(path)
     text = {"kalibr": kalibr_imu_yaml, "kf-gins": kfgins_imunoise, "matlab": matlab_script}[fmt](model)
     with atomic_path(out, overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
-    return {"params": str(path), "format": fmt, "out": str(out), "method": "noise model", "dropped": [],
-            "files": [str(out)]}
+    return {"params": str(path), "format": fmt, "out": str(out), "method": "noise model",
+            "dropped": dropped(model, fmt), "files": [str(out)]}
 
 
 def export_calibration(params, out, fmt: str, overwrite: bool = False) -> dict:
