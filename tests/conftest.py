@@ -42,6 +42,7 @@ LONGEST = (
     "oracles/test_robust_sweep.py",  # 36 s
     "cli/test_signals_under_load.py",  # 23 s
     "cli/test_concurrent_writers.py",  # 20 s
+    "cli/test_site_pages.py",  # 21 s (the landing tour, the own-record page, the table-free sessions as written)
     "cli/test_db_cli.py",  # 19 s
     "io/test_encoders.py",  # 18 s (the n25 imports made once for the module)
     "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
@@ -53,6 +54,9 @@ LONGEST = (
     "lab/test_batch.py",  # 14 s (the run after the kill in the process)
     "cli/test_memory_caps.py",  # 13 s
     "oracles/test_oracle_calibration.py",  # 12 s
+    "oracles/test_methods_into_lab.py",  # 12 s (every table-free and window method through every lab path)
+    "cli/test_hardening_round4.py",  # 10 s
+    "oracles/test_handheld_consumer.py",  # 9 s (consumer-MEMS sessions: tremor, saturation)
     "cli/test_calibrate_caps.py",  # 9 s
     "cli/test_demo_html.py",  # 9 s
     "oracles/test_handheld_multiposition.py",  # 8 s
