@@ -28,7 +28,7 @@ Resuming
 
 Execution
     ``scheduler="local"``: a LocalCluster of single-threaded worker processes (one per core unless
-    ``workers`` says otherwise; the environment of :data:`LOCAL_WORKER_ENVIRON`); an address
+    ``workers`` says otherwise; the environment of :data:`inscal.core.parallel.LOCAL_WORKER_ENVIRON`); an address
     (``tcp://HOST:PORT``): that cluster, whose workers need ``inscal`` and must see the record files
     and the database at the same paths; ``"none"``: one record after another in this process.  The
     driver hashes the records and looks each up as it goes, submitting the ones to calibrate one task
@@ -59,6 +59,7 @@ from pathlib import Path
 
 import sqlalchemy as sa
 
+from inscal.core.parallel import LOCAL_WORKER_ENVIRON
 from inscal.io.files import file_hash, side_name
 from inscal.io.records import record_attrs
 from inscal.lab.calibration import (
@@ -89,9 +90,6 @@ MANIFEST_COLUMNS = ("path", "serial", "date", "station", "operator", "temperatur
 DATE_PATTERN = r"(?P<date>\d{4}-?\d{2}-?\d{2}(?:T\d{2}(?::?\d{2}){0,2}Z?)?)"
 #: how long to try to reach a Dask scheduler given by address
 CONNECT_TIMEOUT = "15s"
-#: the environment of the workers of a local cluster: glibc's default allocator kept (the setting and
-#: its reason: :data:`inscal.analysis.montecarlo.LOCAL_WORKER_ENVIRON`)
-LOCAL_WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 #: the longest failure message kept
 MAX_MESSAGE = 500
 

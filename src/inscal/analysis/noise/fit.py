@@ -341,7 +341,7 @@ def fit_curve(curve: Curve, model, weights=None, n_starts: int = 8, rng: np.rand
     """Fit ``model`` (a string like "WN+RW+2GM" or parsed codes) to ``curve``.  ``v_terms``: the
     processes whose spectrum gives V (default: the fitted ones; model selection passes the largest
     model's, so that every candidate is judged with one V); ``tc_min``: the shortest GM correlation time [s]
-(default dt / 8)."""
+    (default dt / 8)."""
     codes = nm.parse_model(model) if isinstance(model, str) else tuple(model)
     p = sum(n_params(c) for c in codes)
     if p > curve.m.size:
