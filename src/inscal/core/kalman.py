@@ -490,6 +490,19 @@ def update_dense(P, H, R, nu, K, Sinv, x):
     return gain_and_joseph(P, PHt, S, nu, K, Sinv, x)
 
 
+@njit(cache=True)
+def upper_outer(U, P):
+    """``P = U U^T`` of an upper-triangular ``U`` (``P_ij = sum_{k >= max(i, j)} U_ik U_jk``), in place."""
+    N = U.shape[0]
+    for i in range(N):
+        for j in range(i, N):
+            s = 0.0
+            for k in range(j, N):
+                s += U[i, k] * U[j, k]
+            P[i, j] = s
+            P[j, i] = s
+
+
 # ----------------------------------------------------------------------------- square-root information smoother
 @njit(cache=True)
 def givens_row(R, v, j0):
@@ -642,11 +655,5 @@ def sr_smoothed(Pm, Rb, n, Upp):
             for j in range(n, N):
                 W[i, j] = Upp[i - n, j - n]
     P = np.empty((N, N))  # W W^T of the upper-triangular W
-    for i in range(N):
-        for j in range(i, N):
-            t = 0.0
-            for k in range(j, N):
-                t += W[i, k] * W[j, k]
-            P[i, j] = t
-            P[j, i] = t
+    upper_outer(W, P)
     return P

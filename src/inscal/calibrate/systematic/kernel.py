@@ -399,7 +399,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
             z[a] /= sig[3 + a]
         if k % hist_every == 0 or k == M - 1:
             if thermal:  # a compiled loop: BLAS would thread this N^3 product from N = 65 (idle threads spin)
-                _upper_outer(U, hist_Pm[ih])
+                filters.upper_outer(U, hist_Pm[ih])
             else:
                 hist_Pm[ih] = U @ U.T
             hist_ref[ih, _AG0:_AG1] = Ag.ravel()
@@ -440,7 +440,7 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
                     qd_st[k, :9, :9] += Qa
                     if k % hist_every == 0 or k == M - 1:  # the smoother's predicted covariance has the jump
                         if thermal:
-                            _upper_outer(U, hist_Pm[ih])
+                            filters.upper_outer(U, hist_Pm[ih])
                         else:
                             hist_Pm[ih] = U @ U.T
         nis_k, _ = filters.sr_update(U, IDX_MEAS, rsk, z, K, Si, xs, np.inf)
@@ -528,19 +528,6 @@ def _pass_steps(inp, par, U, st, er, cr, k0, k1):
     cr[_C_PA], cr[_C_PA + 1], cr[_C_PA + 2] = p0, p1, p2
     cr[_C_PV], cr[_C_PV + 1], cr[_C_PV + 2] = u0, u1, u2
     cr[_C_HAVE] = 1.0 if have_prev else 0.0
-
-
-@njit(cache=True)
-def _upper_outer(U, P):
-    """``P = U U^T`` of an upper-triangular ``U`` (``P_ij = sum_{k >= max(i, j)} U_ik U_jk``)."""
-    N = U.shape[0]
-    for i in range(N):
-        for j in range(i, N):
-            s = 0.0
-            for k in range(j, N):
-                s += U[i, k] * U[j, k]
-            P[i, j] = s
-            P[j, i] = s
 
 
 def _first_slice(n_per: int) -> int:

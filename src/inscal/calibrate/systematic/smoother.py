@@ -51,6 +51,20 @@ class SmootherData(NamedTuple):
 
 
 @njit(cache=True)
+def dense_rows_adjoint(lam, K, sz, H, d):
+    """The MBF adjoint step of three dense measurement rows (the encoder attitude): ``d = sz - K^T lam``,
+    ``lam += H^T d``, in place (``d`` (3,) scratch)."""
+    N = lam.shape[0]
+    for a in range(3):
+        s = sz[a]
+        for i in range(N):
+            s -= K[i, a] * lam[i]
+        d[a] = s
+    for i in range(N):
+        lam[i] += H[0, i] * d[0] + H[1, i] * d[1] + H[2, i] * d[2]
+
+
+@njit(cache=True)
 def stored_before(k, M, hist_every):
     """How many of the steps ``0 .. k - 1`` store a history row (every ``hist_every``-th step and the
     last, ``M - 1``): the row index of the next stored step."""
@@ -116,13 +130,7 @@ def smooth_steps(P0, K_st, Si_st, sz_st, phinn_st, phinp_st, qd_st, r_meas, rw_s
     N = lam.shape[0]
     for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
-            for a in range(3):
-                s = sza_st[k, a]
-                for i in range(N):
-                    s -= Ka_st[k, i, a] * lam[i]
-                d[a] = s
-            for i in range(N):
-                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
+            dense_rows_adjoint(lam, Ka_st[k], sza_st[k], Ha_st[k], d)
             filters.info_rows_dense(Rb, Ha_st[k], Ra_st[k])
             add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], nd)
         K = K_st[k]
@@ -187,13 +195,7 @@ def smooth_vector_steps(K_st, Si_st, sz_st, phinn_st, phinp_st, hist_every, M, h
     ih = stored_before(k1, M, hist_every) - 1
     for k in range(k1 - 1, k0 - 1, -1):
         if att_used.shape[0] > 0 and att_used[k]:  # the encoder attitude rows (the later update)
-            for a in range(3):
-                s = sza_st[k, a]
-                for i in range(N):
-                    s -= Ka_st[k, i, a] * lam[i]
-                d[a] = s
-            for i in range(N):
-                lam[i] += Ha_st[k, 0, i] * d[0] + Ha_st[k, 1, i] * d[1] + Ha_st[k, 2, i] * d[2]
+            dense_rows_adjoint(lam, Ka_st[k], sza_st[k], Ha_st[k], d)
             add_feedback(rem, Ka_st[k], Sia_st[k], sza_st[k], nd)
         K = K_st[k]
         ktl = K.T @ lam
