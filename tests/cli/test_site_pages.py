@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[2]
 OWN = ROOT / "docs" / "getting-started" / "own-record.md"
 INDEX = ROOT / "docs" / "index.md"
 TABLE_FREE = ROOT / "docs" / "guide" / "table-free.md"
+NOISE = ROOT / "docs" / "guide" / "noise-identification.md"
 MARK = "% run: tests/cli/test_site_pages.py"
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
@@ -153,3 +154,34 @@ def test_the_table_free_sessions_run_as_written(tmp_path, monkeypatch):
     assert not (tmp_path / "strict.toml").exists()
     for f in ("mp.toml", "fe.toml"):
         assert (tmp_path / f).is_file(), f
+
+
+def same_file(shown: str, written: str) -> bool:
+    """Whether a file a page shows reads as the one written: the same words, each number within 1e-6 of
+    itself (the identification's last digits move with BLAS and platform rounding)."""
+    a, b = shown.strip().splitlines(), written.strip().splitlines()
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b):
+        if NUMBER.split(x) != NUMBER.split(y):
+            return False
+        if not all(abs(float(u) - float(v)) <= 1e-6 * abs(float(u)) + 1e-12
+                   for u, v in zip(NUMBER.findall(x), NUMBER.findall(y))):
+            return False
+    return True
+
+
+@pytest.mark.slow
+def test_the_noise_identification_page_runs_as_written(tmp_path, monkeypatch):
+    """The noise guide's static record, its identification (auto and a fixed model), the allan view, the
+    Kalibr export's refusal of a two-channel model (exit 2, nothing written) and the exports print what the
+    page shows; the Kalibr and KF-GINS files read as the page shows them."""
+    blocks = marked_blocks(NOISE)
+    assert len(blocks) >= 7 and all(any(ln.startswith("#") for ln in b) for b in blocks)
+    (tmp_path / "bench.toml").write_text(fenced(NOISE, "toml", "# bench.toml"))
+    for block in blocks:
+        run_block(block, tmp_path, monkeypatch)
+    assert not (tmp_path / "two.yaml").exists()
+    assert same_file(fenced(NOISE, "yaml", "# Kalibr"), (tmp_path / "imu.yaml").read_text())
+    assert same_file(fenced(NOISE, "yaml", "imunoise:"), (tmp_path / "imunoise.yaml").read_text())
+    assert (tmp_path / "noise_params.m").read_text().count("params(") == 2
