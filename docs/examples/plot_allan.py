@@ -39,7 +39,8 @@ bench = {
 }
 scenario = scenario_from_dict(bench)
 folder = Path(tempfile.mkdtemp())
-write_simulation(folder / "bench.h5", scenario, np.random.default_rng(1))
+n = write_simulation(folder / "bench.h5", scenario, np.random.default_rng(1))
+print(f"{n} samples, {n / scenario.rate_hz:g} s at {scenario.rate_hz:g} Hz")
 
 # %%
 # Identify
@@ -57,9 +58,10 @@ for c, name in enumerate(idf.CHANNELS):
     sel = idf.identify_curve(idf.octave_curve(scan.sv, c), "auto", rng)
     summaries.append(idf.channel_summary(name, sel, scan.sv, c))
 for ch in summaries:
-    terms = ", ".join(f"{k} {p['value']:.4g} [{p['lower_95']:.3g}, {p['upper_95']:.3g}]"
-                      f" {p['unit']}" for k, p in ch["parameters"].items())
-    print(f"{ch['channel']}: {ch['model']:6s} {terms}")
+    print(f"{ch['channel']} ({ch['kind']}): {ch['model']}")
+    for k, p in ch["parameters"].items():
+        interval = f"[{p['lower_95']:.3g}, {p['upper_95']:.3g}]"
+        print(f"    {k:10s} {p['value']:<8.4g} {interval:16s} {p['unit']}")
 
 # %%
 # The white noise is found on every channel to half a percent (0.02 °/√h and 20 µg/√Hz were
