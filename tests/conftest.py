@@ -42,7 +42,7 @@ LONGEST = (
     "oracles/test_robust_sweep.py",  # 36 s
     "cli/test_signals_under_load.py",  # 23 s
     "cli/test_concurrent_writers.py",  # 20 s
-    "cli/test_site_pages.py",  # 21 s (the landing tour, the own-record page, the table-free sessions as written)
+    "cli/test_site_pages.py",  # 26 s (the landing tour, the own-record page, the table-free sessions, the noise guide)
     "cli/test_db_cli.py",  # 19 s
     "io/test_encoders.py",  # 18 s (the n25 imports made once for the module)
     "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)

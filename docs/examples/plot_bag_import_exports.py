@@ -44,20 +44,23 @@ sim = io.read_record(folder / "truth.h5")
 rng = np.random.default_rng(7)
 dt = np.diff(sim.time, prepend=sim.time[0] - np.median(np.diff(sim.time)))
 w, f = sim.dtheta / dt[:, None], sim.dvel / dt[:, None]
-stamps = 1_700_000_000 * 10**9 + np.round((sim.time - dt / 2 + 5e-4 * rng.standard_normal(sim.time.size)) * 1e9)
+jitter = 5e-4 * rng.standard_normal(sim.time.size)  # 0.5 ms of stamp jitter
+stamps = 1_700_000_000 * 10**9 + np.round((sim.time - dt / 2 + jitter) * 1e9)
 ts = get_typestore(Stores.ROS2_HUMBLE)
 T = ts.types
 with Writer(folder / "hh_bag", version=9) as bag:
     conn = bag.add_connection("/imu/data", "sensor_msgs/msg/Imu", typestore=ts)
     for ns, wk, fk in zip(stamps.astype(np.int64), w, f):
-        stamp = T["builtin_interfaces/msg/Time"](sec=int(ns) // 10**9, nanosec=int(ns) % 10**9)
+        sec, nanosec = divmod(int(ns), 10**9)
+        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+        vec3 = T["geometry_msgs/msg/Vector3"]
         msg = T["sensor_msgs/msg/Imu"](
             header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu"),
             orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
             orientation_covariance=np.r_[-1.0, np.zeros(8)],
-            angular_velocity=T["geometry_msgs/msg/Vector3"](x=wk[0], y=wk[1], z=wk[2]),
+            angular_velocity=vec3(x=wk[0], y=wk[1], z=wk[2]),
             angular_velocity_covariance=np.zeros(9),
-            linear_acceleration=T["geometry_msgs/msg/Vector3"](x=fk[0], y=fk[1], z=fk[2]),
+            linear_acceleration=vec3(x=fk[0], y=fk[1], z=fk[2]),
             linear_acceleration_covariance=np.zeros(9))
         bag.write(conn, int(ns), ts.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
 
@@ -65,10 +68,13 @@ with Writer(folder / "hh_bag", version=9) as bag:
 # Import it (the site as the simulation's: a bag carries none), then calibrate and export.
 summary = import_file(folder / "hh_bag", folder / "hh.h5", "rosbag", site=sim.site)
 record = io.read_record(folder / "hh.h5")
-print(f"imported {record.time.size} samples at {record.rate_hz:.4g} Hz from {summary.get('topic', '/imu/data')}")
+topic = summary.get("topic", "/imu/data")
+print(f"imported {record.time.size} samples at {record.rate_hz:.4g} Hz from {topic}")
 result = calibrate(record, "multi-position")
 save_params(folder / "mp.toml", result)
-for fmt, name in (("kalibr", "imu.yaml"), ("imucal", "imucal.json"), ("kf-gins", "kfgins.yaml")):
+exports = (("kalibr", "imu.yaml"), ("imucal", "imucal.json"),
+           ("kf-gins", "kfgins.yaml"))
+for fmt, name in exports:
     export_calibration(folder / "mp.toml", folder / name, fmt)
     print(f"----- {name} ({fmt})")
     print((folder / name).read_text()[:700])
@@ -94,7 +100,8 @@ for ax, res, white, scale, unit, what in (
         (ax3, acc_ad, noise.vrw, 1e6 / units.G0, "µg", "accelerometer")):
     for k in range(3):
         ax.loglog(res.taus, res.adev[:, k] * scale, "o-", ms=3, label="xyz"[k])
-    ax.loglog(res.taus, np.mean(white) / np.sqrt(res.taus) * scale, "k--", lw=1, label="simulated white noise")
+    ax.loglog(res.taus, np.mean(white) / np.sqrt(res.taus) * scale, "k--", lw=1,
+              label="simulated white noise")
     ax.set_xlabel("τ [s]")
     ax.set_ylabel(f"Allan deviation [{unit}]")
     ax.set_title(f"{what}: first pose")

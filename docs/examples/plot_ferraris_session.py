@@ -36,9 +36,11 @@ result = calibrate(record, "ferraris")
 diag = result.diagnostics
 poses = {p["pose"]: p for p in diag["still"]}
 for face, number in diag["faces"].items():
-    print(f"face {face}: pose {number} ({poses[number]['t0_s']:.1f}-{poses[number]['t1_s']:.1f} s)")
+    pose = poses[number]
+    print(f"face {face}: pose {number} ({pose['t0_s']:.1f}-{pose['t1_s']:.1f} s)")
 for axis, turn in diag["turns"].items():
-    print(f"turn about {axis}: {turn['degrees']:.2f} deg in {turn['seconds']:.2f} s, between poses {turn['poses']}")
+    print(f"turn about {axis}: {turn['degrees']:.2f} deg in {turn['seconds']:.2f} s, "
+          f"between poses {turn['poses']}")
 
 # %%
 # The errors against the truth (:meth:`~inscal.calibrate.result.CalibrationResult.error`, in the frame the
@@ -52,7 +54,9 @@ for name in names:
     for c, e in zip(comps, err):
         if np.isfinite(e):
             z.append(e)
-            labels.append(f"{name.replace('_misalignment', ' mis').replace('_scale_factor', ' sf')}.{c}")
+            short = name.replace("_misalignment", " mis")
+            short = short.replace("_scale_factor", " sf")
+            labels.append(f"{short}.{c}")
 z = np.array(z)
 print(f"{z.size} estimated terms, rms error / sigma = {np.sqrt(np.mean(z ** 2)):.2f}")
 
@@ -70,8 +74,9 @@ for face, number in diag["faces"].items():
 for axis, turn in diag["turns"].items():
     a, b = poses[turn["poses"][0]]["t1_s"], poses[turn["poses"][1]]["t0_s"]
     ax2.axvspan(a, b, color="tab:orange", alpha=0.2, lw=0)
-    ax2.text((a + b) / 2, 0.04, f"{axis}: {turn['degrees']:.1f}°", ha="center", fontsize=8,
-             transform=ax2.get_xaxis_transform(), bbox={"fc": "white", "ec": "none", "alpha": 0.8})
+    ax2.text((a + b) / 2, 0.04, f"{axis}: {turn['degrees']:.1f}°", ha="center",
+             fontsize=8, transform=ax2.get_xaxis_transform(),
+             bbox={"fc": "white", "ec": "none", "alpha": 0.8})
 ax1.set_ylim(-11.5, 12.5)
 ax1.set_ylabel("specific force [m/s²]")
 ax1.set_title("the six faces the method used (green)")
@@ -79,7 +84,8 @@ ax1.legend(ncol=3, loc="lower left", fontsize=8)
 ax2.set_ylabel("rate [deg/s]")
 ax2.set_xlabel("time [s]")
 ax2.set_title("the three whole turns about the vertical (orange)")
-ax3.bar(np.arange(z.size), z, color=["tab:blue" if s.startswith("accel") else "tab:purple" for s in labels])
+colors = ["tab:blue" if s.startswith("accel") else "tab:purple" for s in labels]
+ax3.bar(np.arange(z.size), z, color=colors)
 ax3.axhline(1, color="k", ls="--", lw=0.8)
 ax3.axhline(-1, color="k", ls="--", lw=0.8)
 ax3.set_xticks(np.arange(z.size), labels, rotation=70, fontsize=7)

@@ -35,7 +35,8 @@ record = io.read_record(folder / "hh.h5")
 # The detector (:func:`inscal.calibrate.static_detect.detect_still`, with the defaults of
 # ``--method multi-position``: 2-s poses, 0.25 s settled at each end) decides on every quiet stretch
 # and says why.
-still = detect_still(record.time, record.dtheta, record.dvel, min_still=2.0, settle=0.25)
+still = detect_still(record.time, record.dtheta, record.dvel,
+                     min_still=2.0, settle=0.25)
 for c in still.candidates:
     print(c.describe())
 
@@ -64,20 +65,27 @@ ax2.set_xlabel("time [s]")
 ax2.legend(ncol=3, loc="lower right")
 for c in still.candidates:
     for ax in (ax1, ax2):
-        ax.axvspan(c.t0, c.t1, color="tab:green" if c.kept else "tab:red", alpha=0.2, lw=0)
-ax1.set_title(f"{len(still.kept)} still poses kept (green), {len(still.rejected)} rejected (red)")
+        color = "tab:green" if c.kept else "tab:red"
+        ax.axvspan(c.t0, c.t1, color=color, alpha=0.2, lw=0)
+ax1.set_title(f"{len(still.kept)} still poses kept (green), "
+              f"{len(still.rejected)} rejected (red)")
 
 rows = fit["residuals"]
 poses = [r for r in rows if r["label"].startswith("pose")]
 moves = [r for r in rows if r["label"].startswith("move")]
 x = np.arange(len(poses))
-ax3.bar(x - 0.2, [r["gyro"] for r in poses], 0.4, label="pose: gyro (Earth rate + bias)")
-ax3.bar(x + 0.2, [r["accel"] for r in poses], 0.4, label="pose: accelerometer (|f| = g)")
+ax3.bar(x - 0.2, [r["gyro"] for r in poses], 0.4,
+        label="pose: gyro (Earth rate + bias)")
+ax3.bar(x + 0.2, [r["accel"] for r in poses], 0.4,
+        label="pose: accelerometer (|f| = g)")
 xm = len(poses) + 1 + np.arange(len(moves))
-ax3.bar(xm, [r["gyro"] for r in moves], 0.6, color="tab:purple", label="move: gravity direction")
+ax3.bar(xm, [r["gyro"] for r in moves], 0.6, color="tab:purple",
+        label="move: gravity direction")
 ax3.axhline(1.0, color="k", lw=0.8, ls="--")
-ax3.set_xticks(np.r_[x, xm], [str(r["window"]) for r in poses] + [f"{k + 1}→{k + 2}" for k in range(len(moves))],
-               fontsize=7)
+ticks = [str(r["window"]) for r in poses]
+ticks += [f"{k + 1}→{k + 2}" for k in range(len(moves))]
+ax3.set_xticks(np.r_[x, xm], ticks, fontsize=7)
 ax3.set_ylabel("normalised residual (RMS)")
-ax3.set_title(f"residuals of the fit: χ² {fit['chi2']:.1f} on {fit['dof']} dof, p = {fit['p_value']:.2f}")
+ax3.set_title(f"residuals of the fit: χ² {fit['chi2']:.1f} on {fit['dof']} dof, "
+              f"p = {fit['p_value']:.2f}")
 ax3.legend(fontsize=8, loc="upper right")

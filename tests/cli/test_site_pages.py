@@ -8,8 +8,8 @@ command, ``#   TEXT``, is its printed output: some line of what the command prin
 must read TEXT, its words equal and each number within one unit of the last digit the page shows (the
 tolerance, for BLAS and platform rounding); a TEXT ending in ``...`` is the start of that line.  A command
 whose comment reads ``# exits N`` must exit with status N (a refusal the page shows); the others with 0.  The log of
-the own-record page is the simulated record ``lab.h5`` written in the page's lab units (see
-:func:`write_fog_log`), and the two rows the page shows must be its first two."""
+the own-record page is the simulated record ``lab.h5`` written in the page's lab units by the page's own Python
+block (``# fog-log.csv``), and the two rows the page shows must be its first two."""
 
 from __future__ import annotations
 
@@ -17,18 +17,16 @@ import re
 import shlex
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from inscal import io
 from inscal.cli.app import app
-from inscal.core.units import ARCSEC, DEG
 
 ROOT = Path(__file__).resolve().parents[2]
 OWN = ROOT / "docs" / "getting-started" / "own-record.md"
 INDEX = ROOT / "docs" / "index.md"
 TABLE_FREE = ROOT / "docs" / "guide" / "table-free.md"
+NOISE = ROOT / "docs" / "guide" / "noise-identification.md"
 MARK = "% run: tests/cli/test_site_pages.py"
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
@@ -95,16 +93,6 @@ def run_block(lines: list[str], folder: Path, monkeypatch) -> None:
             assert any(matches(want, ln) for ln in printed), f"{command}: no line reads {want!r} in\n{r.output[-3000:]}"
 
 
-def write_fog_log(record, path: Path) -> list[str]:
-    """The record as the page's lab log: time [ms], velocity increments [mm/s], angle increments [arcsec],
-    encoder angles [deg]; returns its lines."""
-    rows = np.column_stack([record.time * 1e3, record.dvel * 1e3, record.dtheta / ARCSEC, record.gimbal / DEG])
-    head = "t_ms,acc_x_mmps,acc_y_mmps,acc_z_mmps,gyr_x_as,gyr_y_as,gyr_z_as,outer_deg,inner_deg"
-    lines = [head] + [f"{r[0]:.3f}," + ",".join(f"{v:.9g}" for v in r[1:]) for r in rows]
-    path.write_text("\n".join(lines) + "\n")
-    return lines
-
-
 def test_matching_rule():
     assert matches("p = 0.0926: consistent", "  fit: chi2 1 on 2 dof, p = 0.0927: consistent") is False  # words differ
     assert matches("fit: p = 0.0926: consistent", "fit: p = 0.0927: consistent")  # one unit of the last digit
@@ -131,7 +119,9 @@ def test_the_landing_tour_and_the_own_record_page_run_as_written(tmp_path, monke
     first = [ln for ln in blocks[0] if not ln.startswith("inscal simulate n25 --out lab.h5 --seed 1")]
     assert len(first) == len(blocks[0]) - 1, "the page's log is no longer the tour's record"
     run_block(first, lab, monkeypatch)
-    lines = write_fog_log(io.read_record(lab / "lab.h5"), lab / "fog-log.csv")
+    monkeypatch.chdir(lab)  # the page's block writes the log from lab.h5, as a reader without a log runs it
+    exec(compile(fenced(OWN, "python", "# fog-log.csv"), str(OWN), "exec"), {})
+    lines = (lab / "fog-log.csv").read_text().splitlines()
     shown = fenced(OWN, "text", "t_ms,").splitlines()
     assert shown[:3] == lines[:3], (shown[:3], lines[:3])
     (lab / "map.toml").write_text(fenced(OWN, "toml", "# map.toml"))
@@ -153,3 +143,34 @@ def test_the_table_free_sessions_run_as_written(tmp_path, monkeypatch):
     assert not (tmp_path / "strict.toml").exists()
     for f in ("mp.toml", "fe.toml"):
         assert (tmp_path / f).is_file(), f
+
+
+def same_file(shown: str, written: str) -> bool:
+    """Whether a file a page shows reads as the one written: the same words, each number within 1e-6 of
+    itself (the identification's last digits move with BLAS and platform rounding)."""
+    a, b = shown.strip().splitlines(), written.strip().splitlines()
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b):
+        if NUMBER.split(x) != NUMBER.split(y):
+            return False
+        if not all(abs(float(u) - float(v)) <= 1e-6 * abs(float(u)) + 1e-12
+                   for u, v in zip(NUMBER.findall(x), NUMBER.findall(y))):
+            return False
+    return True
+
+
+@pytest.mark.slow
+def test_the_noise_identification_page_runs_as_written(tmp_path, monkeypatch):
+    """The noise guide's static record, its identification (auto and a fixed model), the allan view, the
+    Kalibr export's refusal of a two-channel model (exit 2, nothing written) and the exports print what the
+    page shows; the Kalibr and KF-GINS files read as the page shows them."""
+    blocks = marked_blocks(NOISE)
+    assert len(blocks) >= 7 and all(any(ln.startswith("#") for ln in b) for b in blocks)
+    (tmp_path / "bench.toml").write_text(fenced(NOISE, "toml", "# bench.toml"))
+    for block in blocks:
+        run_block(block, tmp_path, monkeypatch)
+    assert not (tmp_path / "two.yaml").exists()
+    assert same_file(fenced(NOISE, "yaml", "# Kalibr"), (tmp_path / "imu.yaml").read_text())
+    assert same_file(fenced(NOISE, "yaml", "imunoise:"), (tmp_path / "imunoise.yaml").read_text())
+    assert (tmp_path / "noise_params.m").read_text().count("params(") == 2

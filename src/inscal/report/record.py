@@ -117,9 +117,28 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
             summary.setdefault("thermal", {})[label] = tdata
         tables.append((label, meta.get("method", ""), rows, tdata))
     head = ["parameter", "unit", "value", "1σ"] + (["error (estimate − truth)"] if truth is not None else [])
-    parts = [f"<h1>inscal report: {html.escape(rec.source or rec.scenario)}</h1>",
-             "<p>" + ", ".join(f"{k}: {html.escape(str(v))}" for k, v in summary.items()
-                               if not isinstance(v, (list, dict))) + "</p>"]
+    # the record in a few sentences (the same facts as the summary's scalars, read by a person)
+    minutes = f" ({rec.duration / 60:.1f} min)" if rec.duration >= 120 else ""
+    about = [f"{rec.n_samples:,} samples over {rec.duration:.1f} s{minutes} at {rec.rate_hz:g} Hz."]
+    if rec.truth is not None:
+        about.append(f"Simulated (scenario {html.escape(rec.scenario or 'unnamed')}): the errors the simulator "
+                     "put in are known, so a parameter table (--params) also gives each estimate's error.")
+    else:
+        about.append("A measured record (not simulated): no truth to compare the estimates with.")
+    if "arw_deg_rth" in summary:
+        about.append(f"The noise figure: the Allan deviation of the first dwell ({first * dt:.0f} s at rest).")
+    else:
+        about.append(f"No noise figure: the first dwell ({first * dt:.1f} s) is shorter than the 2000 samples "
+                         "an Allan deviation takes.")
+    bound = summary.get("path_bound", "")
+    if bound == "no rotation path in the record":
+        about.append("Path: no rotation path in the record, so no Cramér-Rao bound is drawn (a log imported "
+                     "with --path path.toml, or a simulated record, carries its path).")
+    elif bound.startswith("not computed"):
+        about.append(f"Path: its Cramér-Rao bound was {html.escape(bound)}.")
+    elif bound:
+        about.append(f"Path: the section below gives the Cramér-Rao bound on it ({html.escape(bound)}).")
+    parts = [f"<h1>inscal report: {html.escape(rec.source or rec.scenario)}</h1>", "<p>" + " ".join(about) + "</p>"]
     for title, b64 in figs:
         parts.append(f"<h2>{title}</h2><img src='data:image/png;base64,{b64}'/>")
     parts += noise_parts
