@@ -1,9 +1,9 @@
 """The uncertainty budget a path promises before it runs: the Cramér-Rao bound of the systematic filter
 (:mod:`inscal.plan.bound`) with the site and clock inputs carried through it (:mod:`inscal.plan.consider`),
-combined with a station's uncertainties as the GUM budget of :mod:`inscal.lab.budget` (``observability --crlb
+combined with a station's uncertainties as the GUM budget of :mod:`inscal.uncertainty.budget` (``observability --crlb
 --station``, ``design --station``); for a window-mean method, whose budget the bound does not give, the budget of
-one simulated run (``observability --crlb --station --method n25``).  The planner, the simulator and the laboratory
-are separate layers; this is where they meet."""
+one simulated run (``observability --crlb --station --method n25``).  The planner and the simulator are layers
+below the uncertainty package; this is where they meet."""
 
 from __future__ import annotations
 
@@ -14,11 +14,10 @@ import numpy as np
 
 from inscal.calibrate import calibrate
 from inscal.calibrate.systematic.states import state_spec
-from inscal.cli.common import fail
 from inscal.core.earth import Site
-from inscal.lab import budget as gum
-from inscal.lab.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS, calibration_budget
-from inscal.lab.station import Station, StationError, read_station
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty.sensitivity import FILTER_TABLE_NOTE, STOP_INPUTS, calibration_budget
+from inscal.uncertainty.station import Station
 from inscal.plan.consider import CONSIDER_INPUTS, canonical
 from inscal.sim.simulate import simulate
 
@@ -31,17 +30,6 @@ BOUND_NOTES = (
     "height: the bound uses the station's gravity as a value (its own input), so the height moves nothing the filter "
     "uses",
 )
-
-
-def read_station_option(path) -> Station | None:
-    """The station of ``--station FILE.toml`` (None without it); a file that cannot be used ends the command with
-    one line (:class:`inscal.lab.station.StationError`)."""
-    if path is None:
-        return None
-    try:
-        return read_station(path)
-    except StationError as exc:
-        raise fail(f"--station {path}: {exc}") from None
 
 
 def consider_u(station: Station) -> dict[str, float]:
@@ -76,14 +64,47 @@ def scenario_temperature(scenario, names, duration_s: float) -> gum.TemperatureS
 
 
 def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE, scenario=None) -> gum.Budget:
-    """The budget of ``bound`` (computed with ``consider``, e.g. :func:`consider_u`) at ``station``: the bound as the
-    Type-A line (infinite dof), the consider sensitivities for the site and clock, zero for the table; the chamber's
-    temperature stability: sensitivity 0 with thermal states (the filter measures and models the temperature), else
-    through the ``scenario``'s thermal model (:func:`scenario_temperature`)."""
-    cb = canonical(bound)
-    n = cb.sigma.size
+    """The budget before the run of ``bound`` at ``station``.
+
+    The bound (computed with ``consider``, e.g. :func:`consider_u`) is the Type-A line (infinite dof), the consider
+    sensitivities enter for the site and clock, zero for the table; the chamber's temperature stability:
+    sensitivity 0 with thermal states (the filter measures and models the temperature), else through the
+    ``scenario``'s thermal model (:func:`scenario_temperature`).
+
+    Parameters
+    ----------
+    bound : inscal.plan.bound.Bound
+        The Cramér-Rao bound of a path, computed with ``consider``.
+    station : inscal.uncertainty.station.Station
+        The station.
+    coverage : float, optional
+        The coverage probability.
+    scenario : optional
+        The scenario the bound was computed on (its thermal model; None: not propagated).
+
+    Returns
+    -------
+    inscal.uncertainty.budget.Budget
+        The budget the path promises.
+
+    Raises
+    ------
+    ValueError
+        The bound carries no site and clock sensitivities.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from inscal.uncertainty.station import example_station
+    >>> bound_budget(SimpleNamespace(setup=SimpleNamespace(consider=None)), example_station())
+    Traceback (most recent call last):
+    ...
+    ValueError: the bound carries no site and clock sensitivities (crlb(..., consider=...))
+    """
     if not bound.setup.consider:
         raise ValueError("the bound carries no site and clock sensitivities (crlb(..., consider=...))")
+    cb = canonical(bound)
+    n = cb.sigma.size
     glob = {k: np.zeros(n) for k in ("table_rate", "axis_nonorthogonality")}
     glob.update(cb.sensitivity)
     per_stop = {k: np.zeros((1, 2, n)) for k in STOP_INPUTS}
@@ -97,9 +118,9 @@ def bound_budget(bound, station: Station, coverage: float = gum.COVERAGE, scenar
 
 
 def simulated_budget(scenario, station: Station, method: str, seed: int = 0):
-    """The budget a window-mean ``method`` (:data:`inscal.lab.sensitivity.WINDOW_METHODS`) promises on
+    """The budget a window-mean ``method`` (:data:`inscal.uncertainty.sensitivity.WINDOW_METHODS`) promises on
     ``scenario`` at ``station``: one run simulated at the station's site with the scenario's unit and noise
-    (``seed``), calibrated, and its budget (:func:`inscal.lab.sensitivity.calibration_budget`: the method's own
+    (``seed``), calibrated, and its budget (:func:`inscal.uncertainty.sensitivity.calibration_budget`: the method's own
     sigma and its coefficients by differences through the method).  Returns ``(budget, result)``."""
     rec = simulate(at_station(scenario, station), np.random.default_rng(seed)).to_record()
     res = calibrate(rec, method)
