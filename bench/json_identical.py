@@ -48,7 +48,7 @@ COMMANDS = [
                    "--station", "{S}", "--mc", "100", "--mc-seed", "3", "--json"]),
     ("budget-before", ["observability", "s16", "--crlb", "--station", "{S}", "--json"]),
     ("db-add", ["db", "add", "U1", "--model", "FOG", "--db", "{W}/lab.sqlite", "--json"]),
-    ("batch", ["batch", "{D}/n25.h5", "{D}/n25-rotmod.h5", "--method", "six-position", "--serial", "U1", "--db",
+    ("batch", ["batch", "{D}/n25.h5", "{D}/s16.h5", "--method", "six-position", "--serial", "U1", "--db",
                "{W}/lab.sqlite", "--scheduler", "none", "--no-progress", "--json"]),
     ("station-serial", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/serial.toml", "--station", "{S}",
                         "--serial", "U1", "--db", "{W}/lab.sqlite", "--json"]),
@@ -98,13 +98,15 @@ def canonical(text: str, folders: list[Path]) -> str:
     return json.dumps(zero(json.loads(text)), indent=1, sort_keys=True)
 
 
-def run_tree(src: Path, out: Path, quick: bool, only: set[str] | None = None) -> dict[str, str]:
-    """Every command's canonical JSON with the sources ``src``, writing under ``out``."""
+def run_tree(src: Path, out: Path, quick: bool, only: set[str] | None = None, records: Path | None = None) -> dict[str, str]:
+    """Every command's canonical JSON with the sources ``src``, writing under ``out``; ``records``: a folder of
+    records both trees read instead of each running the demo."""
     env = dict(os.environ, PYTHONPATH=str(src))
     inscal = [sys.executable, "-c", "import sys; from inscal.cli import main; sys.argv[0] = 'inscal'; sys.exit(main())"]
-    demo, work = out / "demo", out / "work"
+    demo, work = (out / "demo", out / "work") if records is None else (records, out / "work")
     work.mkdir(parents=True, exist_ok=True)
-    runs = [("demo", ["demo", "--out", str(demo), "--force", "--json"] + (["--quick"] if quick else []))]
+    runs = [] if records is not None else [
+        ("demo", ["demo", "--out", str(demo), "--force", "--json"] + (["--quick"] if quick else []))]
     runs += [(n, [a.replace("{D}", str(demo)).replace("{W}", str(work)).replace("{S}", str(STATION)) for a in args])
              for n, args in COMMANDS if only is None or n in only]
     res = {}
@@ -124,12 +126,16 @@ def main() -> int:
     ap.add_argument("--base", required=True, help="git revision to compare against (e.g. the branch point)")
     ap.add_argument("--quick", action="store_true", help="the demo's shorter navigation run")
     ap.add_argument("--only", default=None, help="comma-separated names of the commands to run (the demo always)")
+    ap.add_argument("--records", type=Path, default=None,
+                    help="a folder with n25.h5 and s16.h5 that both trees read instead of running the demo each "
+                         "(the demo's own output is then not compared; its commands need the demo's parameter files)")
     a = ap.parse_args()
     base = base_tree(a.base)
     with tempfile.TemporaryDirectory(prefix="inscal-json-") as tmp:
         only = None if a.only is None else set(a.only.split(","))
-        old = run_tree(base / "src", Path(tmp) / "base", a.quick, only)
-        new = run_tree(ROOT / "src", Path(tmp) / "now", a.quick, only)
+        rec = None if a.records is None else a.records.resolve()
+        old = run_tree(base / "src", Path(tmp) / "base", a.quick, only, rec)
+        new = run_tree(ROOT / "src", Path(tmp) / "now", a.quick, only, rec)
     bad = 0
     for name in old:
         same = old[name] == new[name]
