@@ -29,7 +29,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TIMING_KEYS = {"elapsed_s", "wall_s", "seconds", "runtime_s", "time_s"}
+TIMING_KEYS = {"elapsed_s", "wall_s", "seconds", "runtime_s", "time_s", "seconds_per_record"}
 
 # (name, arguments after ``inscal``); ``{D}`` is the tree's demo folder, ``{W}`` a scratch folder
 COMMANDS = [
@@ -112,8 +112,10 @@ def run_tree(src: Path, out: Path, quick: bool, only: set[str] | None = None, re
     res = {}
     for name, args in runs:
         p = subprocess.run(inscal + args, env=env, capture_output=True, text=True)
-        if p.returncode != 0:
+        if p.returncode != 0:  # its last line, and its JSON when it printed one (a batch with a failed record)
             res[name] = canonical(f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:]}", [demo, work])
+            if p.stdout.lstrip().startswith(("{", "[")):
+                res[name] += "\n" + canonical(p.stdout, [demo, work])
         else:
             res[name] = canonical(p.stdout, [demo, work])
         print(f"  {src}: {name} done", flush=True)

@@ -17,10 +17,14 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import math
 import sys
+import tomllib
 import tempfile
 from contextlib import redirect_stdout
 from pathlib import Path
+
+from inscal.io import read_record
 
 ROOT = Path(__file__).resolve().parent.parent
 STATION = ROOT / "tests" / "data" / "station.toml"
@@ -69,6 +73,22 @@ def trace(fn):
     return steps, climbs
 
 
+def site_station(rec: Path, out: Path) -> Path:
+    """The tests' station file moved to the site of record ``rec`` (its latitude, height and gravity), at ``out``."""
+    site = read_record(rec).site
+    doc = tomllib.loads(STATION.read_text(encoding="utf-8"))
+    doc["inputs"]["latitude"]["value"] = math.degrees(site.latitude)
+    doc["inputs"]["height"]["value"] = float(site.height)
+    doc["inputs"]["gravity"]["value"] = float(site.gravity)
+    lines = [f'[station]\nname = "{doc["station"]["name"]}"\n']
+    for name, table in doc["inputs"].items():
+        lines.append(f"[inputs.{name}]")
+        lines += [f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"' for k, v in table.items()]
+        lines.append("")
+    out.write_text("\n".join(lines), encoding="utf-8")
+    return out
+
+
 def main() -> int:
     """Prepare the record and the database, trace the command, print the walk."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -88,7 +108,8 @@ def main() -> int:
                      ["simulate", scen, "--out", rec, "--seed", 2, "--rate-hz", 20]):
             r = runner.invoke(app, [str(x) for x in args])
             assert r.exit_code == 0, r.output
-        argv = ["calibrate", rec, "--method", a.method, "--out", t / "p.toml", "--station", STATION, "--serial", "U1",
+        station = site_station(rec, t / "station.toml")
+        argv = ["calibrate", rec, "--method", a.method, "--out", t / "p.toml", "--station", station, "--serial", "U1",
                 "--db", db, "--json"] + ([] if a.mc is None else ["--mc", a.mc])
         box = {}
 
