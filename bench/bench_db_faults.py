@@ -99,7 +99,7 @@ def main() -> None:
         with lab.open_database(base / "template.sqlite", create=True) as db:
             for k in range(3):
                 lab.add_unit(db, f"U{k + 1}")
-        warm = ("from pathlib import Path\nfrom inscal.lab.calibration import CalibrationSetup, calibrate_record, "
+        warm = ("from pathlib import Path\nfrom inscal.runs.calibration import CalibrationSetup, calibrate_record, "
                 f"load_record\np = Path({str(rec)!r})\ncalibrate_record(load_record(p), p, CalibrationSetup('n25'))")
         with ForkServer(warm=warm + FAULT_HOOKS) as fs:
             def folder(name: str) -> Path:

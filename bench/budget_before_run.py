@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from inscal.calibrate import calibrate
-from inscal.cli.bound_budget import at_station, bound_budget, consider_u
+from inscal.uncertainty.before_run import at_station, bound_budget, consider_u
 from inscal.core import units
 from inscal.core.turntable import s16_table1
-from inscal.lab import sensitivity as S
-from inscal.lab.station import read_station, station_from_dict
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.station import read_station, station_from_dict
 from inscal.plan import bound as B
 from inscal.plan.design import design, make_objective
 from inscal.plan.rows import BiasNoise

@@ -5,15 +5,15 @@ Usage::
     .venv/bin/python bench/budget_mc.py [--runs 1000] [--seed 1] [--out /tmp/budget-mc] [--station FILE]
 
 The truth: the built-in ``n25`` scenario (its IMU and gimbal errors).  Every Monte Carlo run draws
-the station's errors from their distributions (:meth:`inscal.lab.station.StationInput.draw`): a
+the station's errors from their distributions (:meth:`inscal.uncertainty.station.StationInput.draw`): a
 table-angle error and an encoder rounding on both axes at every stop, a wobble tilt about east and
 north at every stop, one rate-scale error, the table's non-orthogonality, the gravity, latitude and
 height errors and the time-base error; writes them, whole (rotation matrices, not the linearisation),
-into the noise-free window means of the path (:func:`inscal.lab.sensitivity.perturb`, at the true
+into the noise-free window means of the path (:func:`inscal.uncertainty.sensitivity.perturb`, at the true
 geometry), adds the record noise as the window means' own noise (each window's measured sigma, from a
 noisy simulation of the same path: the noise the N25 estimator's sigma describes), and calibrates.
 
-Against it: the linear budget of one noisy calibration (:func:`inscal.lab.sensitivity.calibration_budget`):
+Against it: the linear budget of one noisy calibration (:func:`inscal.uncertainty.sensitivity.calibration_budget`):
 per parameter component ``u_c`` vs the Monte Carlo standard deviation of the errors (pass: within
 10 %), and the coverage of ``estimate +- U`` (95 %) over the truth (pass: 93-97 %).  The runs go
 through :mod:`inscal.analysis.montecarlo` (seeded per run, resumable; ``--scheduler local`` for Dask).
@@ -35,9 +35,9 @@ from inscal.analysis.montecarlo import summarize as mc_summarize
 from inscal.calibrate import calibrate, window_means
 from inscal.calibrate.result import flatten
 from inscal.core.error_model import ImuNoise
-from inscal.lab import sensitivity as S
-from inscal.lab.budget_mc import draw_deviation
-from inscal.lab.station import read_station
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.montecarlo import draw_deviation
+from inscal.uncertainty.station import read_station
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 

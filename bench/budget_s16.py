@@ -5,7 +5,7 @@ Usage::
 
     .venv/bin/python bench/budget_s16.py [--seed 3] [--method systematic30]
 
-1. The linear budget of one noisy ``s16`` record (:func:`inscal.lab.sensitivity.calibration_budget`:
+1. The linear budget of one noisy ``s16`` record (:func:`inscal.uncertainty.sensitivity.calibration_budget`:
    central differences of the filter through the estimator's belief of the site and clock).
 2. Closed forms: a gravity error dg/g and a time-base error eps in the accelerometer scale factors 1:1.
 3. The table's inputs enter the filter with sensitivity 0: the same record simulated along a path whose
@@ -28,8 +28,8 @@ from inscal.calibrate.result import flatten, nparams
 from inscal.core import units
 from inscal.core.turntable import Move, RotationPath
 from inscal.core.units import ARCSEC
-from inscal.lab import sensitivity as S
-from inscal.lab.station import read_station
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.station import read_station
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 

@@ -10,7 +10,7 @@ site; the filter is given the stated ones), the time base (the record simulated 
 and labelled ``rate``), an angle error of every stop of the table on the axis that moved to it (table
 angle plus encoder rounding: the path's turns moved so that each stop lands off by its own error), and
 the record's noise (its own seeded generator); then ``systematic30`` (states 30) calibrates it.  The
-linear budget (:func:`inscal.lab.sensitivity.calibration_budget`) of one such record gives u_c and U.
+linear budget (:func:`inscal.uncertainty.sensitivity.calibration_budget`) of one such record gives u_c and U.
 Per component: the Monte Carlo standard deviation of the errors against u_c, and the coverage of
 ``estimate +- U``.  One filter run costs ~2.7 s at 20 Hz, so 1000 runs (~45 min of one core) are out of
 reach on a shared two-core machine; ``--runs`` says how many were done (the ratio's own 1-sigma
@@ -35,8 +35,8 @@ from inscal.core import units
 from inscal.core.earth import Site
 from inscal.core.error_model import PARAMETERS, ImuErrors
 from inscal.core.turntable import AXES
-from inscal.lab import sensitivity as S
-from inscal.lab.station import read_station
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.station import read_station
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 

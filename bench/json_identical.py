@@ -7,8 +7,11 @@ sources and once with this tree's, runs ``inscal demo --json`` (simulation, Alla
 method, navigation) into a folder of its own and each command below on that folder's records.  Each
 JSON output (or a failing command's last line) is canonicalised (the folders' paths replaced by ``<OUT>``
 and ``<WORK>``, every ``elapsed_s``/``wall_s`` timing set to 0, the ``sha256:`` prefixes of record files
-masked: an HDF5 record holds its creation time, so two writes of the same data hash differently) and
-the two are compared byte for byte; the differing lines are printed.
+masked: an HDF5 record holds its creation time, so two writes of the same data hash differently; ISO
+times masked: when a result was recorded, a record written) and the two are compared byte for byte; the
+differing lines are printed.  Beside the computing commands, the uncertainty budget at a station (with
+its JCGM 101 Monte Carlo, and before the run) and the runs into a fresh calibration database (a batch, two
+calibrations with ``--station --serial``, the second reading the unit's history, and the stored budget).
 Exit status 0 when every output is identical, 1 otherwise.
 """
 
@@ -26,7 +29,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TIMING_KEYS = {"elapsed_s", "wall_s", "seconds", "runtime_s", "time_s"}
+TIMING_KEYS = {"elapsed_s", "wall_s", "seconds", "runtime_s", "time_s", "seconds_per_record"}
 
 # (name, arguments after ``inscal``); ``{D}`` is the tree's demo folder, ``{W}`` a scratch folder
 COMMANDS = [
@@ -37,7 +40,27 @@ COMMANDS = [
     ("noise", ["noise", "{D}/n25.h5", "--stop", "100", "--channels", "gx,az", "--model", "WN", "--json"]),
     ("compensate", ["compensate", "{D}/n25.h5", "--params", "{D}/params-n25.toml", "--out", "{W}/comp.h5",
                     "--json"]),
+    # the uncertainty budget: at a station, with its JCGM 101 Monte Carlo, before the run; the runs into the
+    # database (a batch, a calibration with --serial and a budget that reads the unit's history) and what it stores
+    ("budget", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/budget.toml", "--station", "{S}",
+                "--json"]),
+    ("budget-mc", ["calibrate", "{D}/n25.h5", "--method", "six-position", "--out", "{W}/budget-mc.toml",
+                   "--station", "{S}", "--mc", "100", "--mc-seed", "3", "--json"]),
+    ("budget-before", ["observability", "s16", "--crlb", "--station", "{S}", "--json"]),
+    ("db-add", ["db", "add", "U1", "--model", "FOG", "--db", "{W}/lab.sqlite", "--json"]),
+    ("batch", ["batch", "{D}/n25.h5", "{D}/s16.h5", "--method", "six-position", "--serial", "U1", "--db",
+               "{W}/lab.sqlite", "--scheduler", "none", "--no-progress", "--json"]),
+    ("station-serial", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/serial.toml", "--station", "{S}",
+                        "--serial", "U1", "--db", "{W}/lab.sqlite", "--json"]),
+    ("station-serial-2", ["calibrate", "{D}/n25.h5", "--method", "six-position", "--out", "{W}/serial-2.toml",
+                          "--station", "{S}", "--serial", "U1", "--db", "{W}/lab.sqlite", "--supersedes", "1",
+                          "--temperature-c", "21.5", "--json"]),
+    ("db-budget", ["db", "budget", "U1", "--db", "{W}/lab.sqlite", "--json"]),
 ]
+#: the station file of the budget's commands (the tests' typical station)
+STATION = ROOT / "tests" / "data" / "station.toml"
+#: an ISO time of the run (when a result was recorded, a record written): masked, as the timings are
+ISO_TIME = re.compile(r"\d{4}-\d\d-\d\d[T ]\d\d:\d\d:\d\d(?:\.\d+)?(?:[+-]\d\d:\d\d|Z)?")
 
 
 def base_tree(rev: str) -> Path:
@@ -61,6 +84,7 @@ def canonical(text: str, folders: list[Path]) -> str:
     for f, tag in zip(folders, ("<OUT>", "<WORK>")):
         text = text.replace(str(f), tag)
     text = re.sub(r"sha256:[0-9a-f]+", "sha256:<HASH>", text)
+    text = ISO_TIME.sub("<TIME>", text)
     if not text.startswith(("{", "[")):
         return text
 
@@ -74,19 +98,24 @@ def canonical(text: str, folders: list[Path]) -> str:
     return json.dumps(zero(json.loads(text)), indent=1, sort_keys=True)
 
 
-def run_tree(src: Path, out: Path, quick: bool) -> dict[str, str]:
-    """Every command's canonical JSON with the sources ``src``, writing under ``out``."""
+def run_tree(src: Path, out: Path, quick: bool, only: set[str] | None = None, records: Path | None = None) -> dict[str, str]:
+    """Every command's canonical JSON with the sources ``src``, writing under ``out``; ``records``: a folder of
+    records both trees read instead of each running the demo."""
     env = dict(os.environ, PYTHONPATH=str(src))
     inscal = [sys.executable, "-c", "import sys; from inscal.cli import main; sys.argv[0] = 'inscal'; sys.exit(main())"]
-    demo, work = out / "demo", out / "work"
+    demo, work = (out / "demo", out / "work") if records is None else (records, out / "work")
     work.mkdir(parents=True, exist_ok=True)
-    runs = [("demo", ["demo", "--out", str(demo), "--force", "--json"] + (["--quick"] if quick else []))]
-    runs += [(n, [a.replace("{D}", str(demo)).replace("{W}", str(work)) for a in args]) for n, args in COMMANDS]
+    runs = [] if records is not None else [
+        ("demo", ["demo", "--out", str(demo), "--force", "--json"] + (["--quick"] if quick else []))]
+    runs += [(n, [a.replace("{D}", str(demo)).replace("{W}", str(work)).replace("{S}", str(STATION)) for a in args])
+             for n, args in COMMANDS if only is None or n in only]
     res = {}
     for name, args in runs:
         p = subprocess.run(inscal + args, env=env, capture_output=True, text=True)
-        if p.returncode != 0:
+        if p.returncode != 0:  # its last line, and its JSON when it printed one (a batch with a failed record)
             res[name] = canonical(f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:]}", [demo, work])
+            if p.stdout.lstrip().startswith(("{", "[")):
+                res[name] += "\n" + canonical(p.stdout, [demo, work])
         else:
             res[name] = canonical(p.stdout, [demo, work])
         print(f"  {src}: {name} done", flush=True)
@@ -98,11 +127,17 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", required=True, help="git revision to compare against (e.g. the branch point)")
     ap.add_argument("--quick", action="store_true", help="the demo's shorter navigation run")
+    ap.add_argument("--only", default=None, help="comma-separated names of the commands to run (the demo always)")
+    ap.add_argument("--records", type=Path, default=None,
+                    help="a folder with n25.h5 and s16.h5 that both trees read instead of running the demo each "
+                         "(the demo's own output is then not compared; its commands need the demo's parameter files)")
     a = ap.parse_args()
     base = base_tree(a.base)
     with tempfile.TemporaryDirectory(prefix="inscal-json-") as tmp:
-        old = run_tree(base / "src", Path(tmp) / "base", a.quick)
-        new = run_tree(ROOT / "src", Path(tmp) / "now", a.quick)
+        only = None if a.only is None else set(a.only.split(","))
+        rec = None if a.records is None else a.records.resolve()
+        old = run_tree(base / "src", Path(tmp) / "base", a.quick, only, rec)
+        new = run_tree(ROOT / "src", Path(tmp) / "now", a.quick, only, rec)
     bad = 0
     for name in old:
         same = old[name] == new[name]

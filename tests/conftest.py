@@ -62,7 +62,7 @@ LONGEST = (
     "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)
     "lab/test_db_integrity.py",  # 7 s
-    "lab/test_budget_mc.py",  # 12 s (two JCGM 101 Monte Carlos of a six-position budget)
+    "uncertainty/test_budget_mc.py",  # 12 s (two JCGM 101 Monte Carlos of a six-position budget)
     "cli/test_budget_mc_cli.py",  # 6 s
 )
 TESTS = Path(__file__).resolve().parent

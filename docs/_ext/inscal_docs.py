@@ -229,7 +229,8 @@ def check_cli_reference(app, exception) -> None:
 
 
 #: the layers of the package, top to bottom of the API reference (each imports only from those below it)
-LAYERS = ("core", "io", "sim", "nav", "calibrate", "plan", "analysis", "lab", "report", "cli")
+LAYERS = ("core", "io", "sim", "nav", "calibrate", "plan", "analysis", "lab", "uncertainty", "report", "runs",
+          "cli")
 
 
 def public_modules() -> list[str]:

@@ -6,7 +6,7 @@ A calibration's own σ covers the record's noise; a certificate also owes the st
 contributions: the table's angle and rate accuracy, the wobble and orthogonality of its axes, the
 encoder, the site's gravity, latitude and height, the clock and the chamber. Calibrate the
 simulated ``n25`` record by the N25 method, then propagate a station's ten inputs through the
-estimator itself (:func:`inscal.lab.sensitivity.calibration_budget`, JCGM 100 GUM) and look at what
+estimator itself (:func:`inscal.uncertainty.sensitivity.calibration_budget`, JCGM 100 GUM) and look at what
 each contributes to each parameter component's combined standard uncertainty.
 
 The same with commands (``station.toml``: the station file of the guide's budget page)::
@@ -18,7 +18,7 @@ The same with commands (``station.toml``: the station file of the guide's budget
 # %%
 # The station and the calibration
 # -------------------------------
-# The station file of the guide's budget page; :func:`inscal.lab.station.station_from_dict` reads
+# The station file of the guide's budget page; :func:`inscal.uncertainty.station.station_from_dict` reads
 # its tables as ``inscal calibrate --station station.toml`` does.
 import textwrap
 import tomllib
@@ -27,8 +27,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from inscal.calibrate import calibrate
-from inscal.lab.sensitivity import calibration_budget
-from inscal.lab.station import station_from_dict
+from inscal.uncertainty.sensitivity import calibration_budget
+from inscal.uncertainty.station import station_from_dict
 from inscal.sim.scenarios import build
 from inscal.sim.simulate import simulate
 

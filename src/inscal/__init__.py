@@ -12,11 +12,14 @@ Conventions, used by every module without re-explaining them:
 - Errors are reported as estimate minus truth.
 
 Layers (each imports only from those below it; ``lint-imports`` checks it): ``core`` < ``io`` <
-``sim`` | ``nav`` < ``calibrate`` < ``plan`` | ``analysis`` | ``lab`` < ``report`` < ``cli``.
-``lab`` (the calibration database and the runs into it) imports neither ``sim`` nor ``nav``, and
-``calibrate`` neither ``io`` nor ``sim``.  One home per idea: attitude (quaternions, DCMs, rotation
-vectors; NumPy and scalar/array numba faces) in :mod:`inscal.core.attitude`, the Kalman steps in
-:mod:`inscal.core.kalman`, units in :mod:`inscal.core.units`.
+``sim`` | ``nav`` < ``calibrate`` < ``plan`` | ``analysis`` | ``lab`` < ``uncertainty`` < ``report`` <
+``runs`` < ``cli``.  ``lab`` is the calibration database (schema, store, journal, drift); ``uncertainty`` the
+GUM budget (station, sensitivities, combination, the JCGM 101 Monte Carlo on the Monte Carlo engine of
+``analysis``, the budget before the run and of a calibration run); ``runs`` runs calibrations into the
+database (one record, a batch).  ``lab`` and ``runs`` import neither ``sim`` nor ``nav``, and ``calibrate``
+neither ``io`` nor ``sim``.  One home per idea: attitude (quaternions, DCMs, rotation vectors; NumPy and
+scalar/array numba faces) in :mod:`inscal.core.attitude`, the Kalman steps in :mod:`inscal.core.kalman`, units
+in :mod:`inscal.core.units`, the budget's distributions in :mod:`inscal.uncertainty.distributions`.
 """
 
 __version__ = "0.1.0"

@@ -100,7 +100,7 @@ def test_gm_columns_match_finite_differences(noise_free_data, nav_error, t0):
 def test_calibration_setup_checks_the_noise_model_up_front(tmp_path):
     """``--noise``: read and checked before any record (one line each), and part of the options' identity."""
     from inscal.io.noisefile import write_noise
-    from inscal.lab.calibration import CalibrationSetup
+    from inscal.runs.calibration import CalibrationSetup
 
     good = tmp_path / "noise.toml"
     write_noise(good, _model())

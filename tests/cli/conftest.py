@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from inscal.lab import sensitivity as S
+from inscal.uncertainty import sensitivity as S
 
 
 @pytest.fixture()

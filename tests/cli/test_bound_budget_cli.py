@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import tomli_w
 
-from inscal.lab.station import read_station
+from inscal.uncertainty.station import read_station
 from inscal.plan import bound as B
 from inscal.core.turntable import s16_table1
 from inscal.plan.rows import BiasNoise
@@ -132,7 +132,7 @@ def test_the_chamber_through_the_scenarios_thermal_model():
     """On thermal-ramp the unit has a thermal model: without thermal states the chamber's stability enters every
     bias through its slope at the path's mean temperature (the line's u is the station's arcsine 0.1 K / sqrt 2);
     with thermal states the filter measures and models the temperature: sensitivity 0, said in a note."""
-    from inscal.lab.budget import thermal_slope
+    from inscal.uncertainty.budget import thermal_slope
     from inscal.sim.scenarios import build
 
     st = read_station(STATION)

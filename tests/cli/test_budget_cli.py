@@ -16,7 +16,7 @@ import pytest
 import tomli_w
 
 from inscal import lab
-from inscal.lab import budget as gum
+from inscal.uncertainty import budget as gum
 from inscal.report.certificate import certificate_data, certificate_html
 
 from budget_helpers import STATION, one_line, run

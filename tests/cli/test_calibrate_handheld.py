@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from inscal.cli.app import app
 from inscal.io.paramfile import load_params
-from inscal.lab.calibration import CalibrationSetup
+from inscal.runs.calibration import CalibrationSetup
 from inscal.lab.record import calibration_options
 
 runner = CliRunner()

@@ -47,7 +47,7 @@ def lab_dir(tmp_path_factory):
     write_simulation(d / "r.h5", sc, np.random.default_rng(7))
     with lab.open_database(d / "template.sqlite", create=True) as db:
         lab.add_unit(db, "U1", model="M")
-    warm = ("from pathlib import Path\nfrom inscal.lab.calibration import CalibrationSetup, calibrate_record, "
+    warm = ("from pathlib import Path\nfrom inscal.runs.calibration import CalibrationSetup, calibrate_record, "
             f"load_record\np = Path({str(d / 'r.h5')!r})\ncalibrate_record(load_record(p), p, CalibrationSetup('n25'))")
     with ForkServer(warm=warm + FAULT_HOOKS) as fs:
         yield d, fs

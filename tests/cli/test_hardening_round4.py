@@ -277,7 +277,7 @@ def test_a_station_of_another_site_or_with_absurd_dof(lab, tmp_path, edit, needl
 
 def test_a_station_a_few_sigma_off_is_noted_not_refused(lab, tmp_path, monkeypatch):
     """2 m off a height stated to 1 m (within the 100 m of another site): the budget is computed, with a note."""
-    from inscal.lab import sensitivity as S
+    from inscal.uncertainty import sensitivity as S
 
     text = (lab / "st.toml").read_text()
     h = re.search(r"\[inputs.height\]\nvalue = (\S+)", text).group(1)

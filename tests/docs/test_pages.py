@@ -159,7 +159,7 @@ def test_the_formats_reference_lists_every_mapping_key_and_format():
 def test_the_budget_pages_station_file_is_the_complete_station(tmp_path):
     import tomllib
 
-    from inscal.lab.station import INPUTS, read_station
+    from inscal.uncertainty.station import INPUTS, read_station
 
     page = (DOCS / "guide" / "uncertainty-budget.md").read_text(encoding="utf-8")
     block = re.search(r"```toml\n(# station\.toml\n.*?)```", page, re.S).group(1)

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from inscal.analysis.noise import identify as idf
 from inscal.io.formats import ImportFileError
 from inscal.io.mapping import load_mapping, parse_mapping
-from inscal.lab.station import StationError, read_station, station_from_dict
+from inscal.uncertainty.station import StationError, read_station, station_from_dict
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,

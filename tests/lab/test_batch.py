@@ -36,7 +36,7 @@ from inscal.core.turntable import n25_twelve
 from inscal.io import paramfile
 from inscal.io.files import file_hash
 from inscal.io.records import record_attrs
-from inscal.lab import batch as lb
+from inscal.runs import batch as lb
 from inscal.sim.scenarios import build
 from inscal.sim.simulate import write_simulation
 

@@ -12,8 +12,8 @@ import pytest
 import sqlalchemy as sa
 
 from inscal import lab
-from inscal.lab import budget as gum
-from inscal.lab.station import read_station
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty.station import read_station
 
 STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
 VALUES = {"accel_bias": [100.0, -80.0, 40.0]}
@@ -27,8 +27,8 @@ def session(h: str) -> lab.SessionInfo:
 
 
 def small_budget() -> gum.Budget:
-    lines = [(gum.ESTIMATOR, None, "ug", "normal", 0.5, 1.0, 30.0, 1),
-             ("gravity", 9.793788, "mGal", "normal", 1.0, 1.02, math.inf, 1)]
+    lines = [gum.Contribution.line(gum.ESTIMATOR, None, "ug", "normal", 0.5, 1.0, 30.0),
+             gum.Contribution.line("gravity", 9.793788, "mGal", "normal", 1.0, 1.02, math.inf)]
     return gum.Budget("T-2, lab 3", "n25", 0.95, tuple(gum.combine("accel_bias", i, 1e-4 * i, lines) for i in range(3)),
                       ("a note",))
 

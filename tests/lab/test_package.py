@@ -14,16 +14,20 @@ def test_every_public_name_is_its_modules():
     assert set(lab.__all__) <= set(dir(lab))
 
 
-def test_a_submodule_does_not_hide_the_function_of_the_same_name():
-    importlib.import_module("inscal.lab.fleet")
-    assert callable(lab.fleet) and lab.fleet.__module__ == "inscal.lab.fleet"
-    from inscal.lab import batch, fleet
+def test_no_public_name_is_a_submodule_so_an_import_hides_none():
+    import pkgutil
 
-    assert fleet is lab.fleet and batch.__name__ == "inscal.lab.batch"
+    subs = {m.name for m in pkgutil.iter_modules(lab.__path__)}
+    assert not subs & set(lab.EXPORTS), subs & set(lab.EXPORTS)
+    importlib.import_module("inscal.lab.fleet_status")
+    assert callable(lab.fleet) and lab.fleet.__module__ == "inscal.lab.fleet_status"
+    from inscal.lab import fleet
+
+    assert fleet is lab.fleet
 
 
 def test_calibrating_without_a_database_imports_no_database_library():
-    code = ("import sys, inscal.lab.calibration, inscal.lab.record, inscal.cli.calibrate; "
+    code = ("import sys, inscal.runs.calibration, inscal.lab.record, inscal.cli.calibrate; "
             "print(sorted(m for m in ('sqlalchemy', 'alembic') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "[]", r.stdout

@@ -23,7 +23,7 @@ from inscal.core import units
 from inscal.core.earth import Site
 from inscal.io.importers import import_file
 from inscal.io.records import read_record
-from inscal.lab.calibration import CalibrationSetup, calibrate_record
+from inscal.runs.calibration import CalibrationSetup, calibrate_record
 
 LAT = 0.8  # rad
 GROUPS = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",

@@ -21,7 +21,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.cli.app import app
 from inscal.core.earth import Site
 from inscal.io.paramfile import load_params
-from inscal.lab.calibration import CalibrationSetup
+from inscal.runs.calibration import CalibrationSetup
 
 
 def face(axis, sign, heading):

@@ -8,7 +8,7 @@ import pytest
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import flatten, nparams
 from inscal.core.error_model import ImuErrors, ImuNoise
-from inscal.lab.sensitivity import Deviation, believe_record
+from inscal.uncertainty.sensitivity import Deviation, believe_record
 from inscal.plan import bound as B
 from inscal.plan.consider import CONSIDER_INPUTS, canonical
 from inscal.plan.rows import BiasNoise, BoundError

@@ -49,6 +49,7 @@ import os
 import shutil
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -467,13 +468,42 @@ def _run_study_in(experiment, out, runs, seed, scheduler, workers, batch_size, f
     return StudyResult(out, header, records, int(runs), n_new, time.perf_counter() - t0, stopped)
 
 
+@contextmanager
+def dask_client(scheduler: str | None, workers: int | None):
+    """The study's Dask client (:func:`inscal.core.parallel.start_client`: a local cluster of ``workers``
+    single-threaded processes, default one per core, with :data:`LOCAL_WORKER_ENVIRON`, or the scheduler at an
+    address, refused with :class:`StudyError`), closed with its cluster when the block ends."""
+    client, cluster = start_client(scheduler, workers or os.cpu_count() or 1, CONNECT_TIMEOUT, StudyError,
+                                   LOCAL_WORKER_ENVIRON)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+@contextmanager
+def ordered_map(workers: int = 1, scheduler: str | None = None):
+    """A map of the engine for work whose seeds the caller lays out itself (the JCGM 101 Monte Carlo of a budget,
+    :mod:`inscal.uncertainty.montecarlo`): ``map_fn(fn, *iterables)`` yields ``fn``'s results in order, in this
+    process (the builtin :func:`map`) for one worker and no scheduler, else as tasks on :func:`dask_client`'s
+    cluster, started once for the block."""
+    if workers <= 1 and scheduler in (None, "synchronous", "sync"):
+        yield map
+        return
+    with dask_client(scheduler, workers) as client:
+        def map_fn(fn, *iterables):
+            return (f.result() for f in client.map(fn, *(list(x) for x in iterables), pure=False))
+
+        yield map_fn
+
+
 def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=None) -> None:
 
     from distributed import as_completed
 
-    client, cluster = start_client(scheduler, workers or os.cpu_count() or 1, CONNECT_TIMEOUT, StudyError,
-                                   LOCAL_WORKER_ENVIRON)
-    try:
+    with dask_client(scheduler, workers) as client:
         n_workers = max(1, sum(client.nthreads().values()))
         if bar is not None:
             bar.workers = n_workers
@@ -491,10 +521,6 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=Non
         except BaseException:
             client.cancel(futures)
             raise
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 def _duration(seconds: float) -> str:

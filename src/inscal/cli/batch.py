@@ -122,8 +122,8 @@ class BatchProgress:
 
 def batch_items(records: list[str] | None, serial: str | None, names: str | None, manifest: Path | None,
                 station: str | None, operator: str | None):
-    """The records of the batch with their units (see :mod:`inscal.lab.batch`)."""
-    from inscal.lab import batch as lb
+    """The records of the batch with their units (see :mod:`inscal.runs.batch`)."""
+    from inscal.runs import batch as lb
 
     if manifest is not None:
         if records:
@@ -179,8 +179,8 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
     import sqlalchemy
 
     from inscal.lab import DatabaseError, check_wait
-    from inscal.lab import batch as lb
-    from inscal.lab.calibration import CalibrationSetup
+    from inscal.runs import batch as lb
+    from inscal.runs.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, noise=None if noise is None else str(noise.resolve()))

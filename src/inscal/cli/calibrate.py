@@ -51,9 +51,9 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     ``plateau_tol`` [degC], ``temperature_sensor`` and ``chamber_label`` (:mod:`inscal.calibrate.thermal`).
     ``accept_unconverged``: a systematic run that does not converge keeps its last iterate, with a note,
     instead of ending with one line (:class:`inscal.calibrate.systematic.driver.NotConverged`).
-    ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.lab.calibration.CalibrationSetup`);
+    ``settle``, ``min_static`` [s]: None, the method's own default (:class:`~inscal.runs.calibration.CalibrationSetup`);
     ``quadratic``: ``multi-position`` estimates the quadratic accelerometer terms too; ``method_options``: the
-    no-turntable method's keyword options given (:data:`~inscal.lab.calibration.NO_TABLE_OPTIONS`, the function's
+    no-turntable method's keyword options given (:data:`~inscal.runs.calibration.NO_TABLE_OPTIONS`, the function's
     units: ``face_tilt``, ``turn_closure`` in rad); ``tremor_dps``: the hand tremor a still pose may hold
     [deg/s rms] (multi-position; None: its default).  ``noise``: a noise.toml
     (``inscal noise --out``) whose white terms weight the systematic filter and whose Gauss-Markov terms become
@@ -63,7 +63,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
     (allowed without ``serial`` then) or the record's mean temperature; ``mc`` trials at most of the budget's JCGM
     101 Monte Carlo (:mod:`inscal.cli.budget_mc`; seed ``mc_seed``, ``mc_workers`` Dask workers)."""
     from inscal.io.files import input_problem
-    from inscal.lab.calibration import CalibrationSetup
+    from inscal.runs.calibration import CalibrationSetup
 
     setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
                              encoder_latency, check_encoders, per_plateau, parse_orders(thermal_order), t_ref,
@@ -85,7 +85,7 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
         raise CliError("--mc is the Monte Carlo of the uncertainty budget: give --station FILE.toml")
     check_mc_trials(mc)
     if mc is not None:
-        from inscal.lab.sensitivity import WINDOW_METHODS
+        from inscal.uncertainty.sensitivity import WINDOW_METHODS
 
         if method not in WINDOW_METHODS:
             raise CliError(f"--mc: the Monte Carlo of the budget runs the window-mean methods "
@@ -111,12 +111,12 @@ def run_calibrate(data: Path, method: str, out: Path, force: bool = False, settl
 
 
 def station_description(station: str | None, method: str):
-    """The station description of ``--station FILE.toml`` (:mod:`inscal.lab.station`), None for a station's
+    """The station description of ``--station FILE.toml`` (:mod:`inscal.uncertainty.station`), None for a station's
     name; refused with one line when it cannot be read or the method has no budget."""
     if station is None or not station.lower().endswith(".toml"):
         return None
-    from inscal.lab.sensitivity import BUDGET_METHODS
-    from inscal.lab.station import StationError, read_station
+    from inscal.uncertainty.sensitivity import BUDGET_METHODS
+    from inscal.uncertainty.station import StationError, read_station
 
     if method not in BUDGET_METHODS:
         raise CliError(f"--station {station}: an uncertainty budget needs one of the methods "
@@ -224,13 +224,13 @@ def _open_lab(db, serial, station, operator, date, temperature_c, supersedes, da
 
 def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | None, budget_opts=None) -> dict:
     """The calibration of :func:`run_calibrate` once its options are checked (the record's own part:
-    :func:`inscal.lab.calibration.calibrate_record`, which a batch of calibrations runs too); ``budget_opts``:
+    :func:`inscal.runs.calibration.calibrate_record`, which a batch of calibrations runs too); ``budget_opts``:
     the station description and what :func:`_budget` takes with it (None: no budget)."""
     from inscal import io
     from inscal.cli.common import short
     from inscal.cli.limits import check_memory
     from inscal.io.files import output_unit
-    from inscal.lab.calibration import RecordError, calibrate_record
+    from inscal.runs.calibration import RecordError, calibrate_record
 
     # the size first, before the record is read: the record in memory, then the filter's per-step stores
     try:
@@ -245,7 +245,7 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
     except OSError as exc:
         raise CliError(str(exc)) from None
     if budget_opts is not None:  # a station of another site: refused before the calibration runs
-        from inscal.lab.station import StationError, site_check
+        from inscal.uncertainty.station import StationError, site_check
 
         try:
             site_check(budget_opts["station"], rec.site.latitude, rec.site.height, None)
@@ -279,89 +279,23 @@ def _calibrate(data: Path, setup, out: Path, force: bool, plots, lab_db: dict | 
 
 def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float | None = None, thermal=None,
             mc: dict | None = None) -> dict:
-    """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.lab.sensitivity.calibration_budget`),
-    with the repeatability of the unit's earlier results of the method when the database holds two or more
-    and the chamber's temperature stability through a thermal model (:func:`_temperature`); kept in ``lab_db``
-    to be stored with the result.  A filter method's differences rerun it with the state set and the noise
-    it used."""
-    from inscal.lab.budget import repeatability_of
-    from inscal.core import units
-    from inscal.lab.sensitivity import FILTER_METHODS, NO_TABLE_METHODS, calibration_budget
+    """The uncertainty budget of ``res`` at ``station`` (:func:`inscal.uncertainty.session.session_budget`: with the
+    unit's repeatability and newest thermal model when ``lab_db`` is given, the chamber's temperature through
+    ``thermal``, and the JCGM 101 Monte Carlo of ``mc``); kept in ``lab_db`` to be stored with the result."""
+    from inscal.uncertainty.session import BudgetError, session_budget
 
-    opts = setup.window_options if res.method in NO_TABLE_METHODS else {}
-    if res.method in FILTER_METHODS:
-        d = res.diagnostics
-        # the state set the run used (its option string: "51,thermal=11110", not the count of states); the
-        # Gauss-Markov states come back from the noise model
-        spec = ",".join(p for p in str(d.get("state_options", d["states"])).split(",") if not p.startswith("gm("))
-        opts = {"filter_rate_hz": setup.filter_rate_hz, "states": spec,
-                "arw": units.to_si(d["noise"]["arw_deg_sqrt_h"], "deg/sqrt(h)"),
-                "vrw": units.to_si(d["noise"]["vrw_ug_sqrt_hz"], "ug/sqrt(Hz)")}
-        if setup.noise is not None:
-            opts["noise"] = setup.noise_model()
-
-    rep = None
-    if lab_db is not None:
-        from inscal import lab
-
-        rep = repeatability_of(lab.calibrations(lab_db["db"], lab_db["serial"], method=res.method), res.estimated)
-    temperature = _temperature(res, lab_db, rec, temperature_c, thermal, station)
+    mc = mc or {}
     try:
-        bud = calibration_budget(res, station, rep, record=rec, temperature=temperature, **opts)
-    except ValueError as exc:
-        raise CliError(f"--station: no uncertainty budget: {exc}") from None
-    b = bud.to_dict()
-    if (mc or {}).get("mc"):
-        from inscal.cli.budget_mc import run_budget_mc
-
-        b["monte_carlo"] = run_budget_mc(res, station, bud, mc["mc"], mc["mc_seed"], mc["mc_workers"], opts)
+        sb = session_budget(res, station, rec, setup, db=None if lab_db is None else lab_db["db"],
+                            serial=None if lab_db is None else lab_db["serial"], temperature_c=temperature_c,
+                            thermal=thermal, mc=mc.get("mc"), mc_seed=mc.get("mc_seed", 0),
+                            mc_workers=mc.get("mc_workers", 1))
+    except BudgetError as exc:
+        raise CliError(f"--mc: {exc}" if exc.part == "monte_carlo" else f"--station: no uncertainty budget: {exc}") \
+            from None
     if lab_db is not None:
-        lab_db["budget"] = (station.to_dict(), b)
-    return b
-
-
-def _temperature(res, lab_db: dict | None, rec, temperature_c: float | None, thermal, station):
-    """How the chamber's temperature stability enters the budget (:class:`inscal.lab.budget.TemperatureSensitivity`):
-    a result with its own thermal model (thermal states) has sensitivity 0; otherwise the slope of ``thermal``
-    (``--thermal-model``: ``(path, model)``) or of the unit's newest result in the database that carries a
-    thermal model, at the session's ``--temperature-c`` or else the record's mean temperature; None (not
-    propagated, with a note) when no model is known."""
-    from dataclasses import replace
-
-    from inscal.lab import budget as gum
-
-    if res.thermal is not None:
-        t = gum.temperature_measured(res.estimated, res.thermal.t_ref)
-        return t if thermal is None else replace(t, note=t.note + f"; --thermal-model {Path(thermal[0]).name} not used")
-    if thermal is not None:
-        path, model = thermal
-        source = f"the thermal model of {Path(path).name} (--thermal-model)"
-    elif lab_db is not None:
-        import sqlalchemy
-
-        from inscal import lab
-        from inscal.lab.model import iso
-        from inscal.lab.store import newest_thermal
-
-        try:
-            found = newest_thermal(lab_db["db"], lab_db["serial"])
-        except (lab.DatabaseError, sqlalchemy.exc.SQLAlchemyError) as exc:
-            raise CliError(f"--station: no uncertainty budget: {str(getattr(exc, 'orig', None) or exc).splitlines()[0]}") \
-                from None
-        if found is None:
-            return gum.TemperatureSensitivity(None, f"no thermal model of {lab_db['serial']}: none of its results in "
-                                                    f"{lab_db['db'].where} carries one and no --thermal-model was given: "
-                                                    "not propagated")
-        cal, model = found
-        source = f"the thermal model of result {cal.id} of {cal.serial} ({cal.method}, {iso(cal.date)[:10]})"
-    else:
-        return None
-    t_c = lab_db["temperature_c"] if lab_db is not None else temperature_c
-    where = "the session's --temperature-c"
-    measured = None if rec.temperature is None else gum.mean_temperature(rec.temperature, model.sensor)
-    if t_c is None and measured is not None:
-        t_c, where = measured, "the record's mean temperature"
-    return gum.temperature_from_model(model, res.estimated, t_c, source, where, measured, station[gum.TEMPERATURE].u)
+        lab_db["budget"] = sb.stored()
+    return sb.document
 
 
 def _write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,

@@ -126,7 +126,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
                workers: int = 2, base: str = "s16", arw: float | None = None, vrw: float | None = None,
                plot: FsPath | None = None, force: bool = False, progress: bool = True, station=None):
     """Run the search and write the path; returns ``(DesignResult, document)``.  ``station``: a station
-    (:class:`inscal.lab.station.Station`): the path is designed at its site for the combined uncertainty."""
+    (:class:`inscal.uncertainty.station.Station`): the path is designed at its site for the combined uncertainty."""
     import tomli_w
 
     from inscal.core import units
@@ -169,7 +169,7 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
         sc = scenario_from_dict(probe)
         consider = None
         if station is not None:
-            from inscal.cli.bound_budget import consider_u
+            from inscal.uncertainty.before_run import consider_u
 
             consider = consider_u(station)
         setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise),
@@ -240,7 +240,7 @@ def _print(res, out, station=None) -> None:
     con.print(f"{res.evaluations} candidates in {res.generations} generations, seed {res.seed}, {res.seconds:.1f} s; "
               f"best score (objective + tie-break) per generation: {res.trace[0]:.3g} -> {res.trace[-1]:.3g}")
     if station is not None:
-        from inscal.cli.bound_budget import bound_budget, dominant_inputs
+        from inscal.uncertainty.before_run import bound_budget, dominant_inputs
         from inscal.report.budget import INPUT_TITLES
 
         rows = [r for r in dominant_inputs(bound_budget(res.bound, station)) if r["n_largest"]]
@@ -306,7 +306,7 @@ def register(app: typer.Typer) -> None:
             d.pop("bound", None)
             d["bound"] = {"parameters": res.bound.table(), "group_rms": res.bound.group_rms()}
             if st is not None:
-                from inscal.cli.bound_budget import bound_budget, dominant_inputs
+                from inscal.uncertainty.before_run import bound_budget, dominant_inputs
 
                 bud = bound_budget(res.bound, st)
                 d.update(station=st.name, budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))

@@ -67,7 +67,7 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states).  ``noise``: a
     noise.toml whose white, Gauss-Markov and random-walk terms are the bound's noise
     (:func:`inscal.plan.noise_model.bound_noise`), instead of those options.  ``station``: a station
-    (:class:`inscal.lab.station.Station`): the bound at its site, carrying the site and clock sensitivities."""
+    (:class:`inscal.uncertainty.station.Station`): the bound at its site, carrying the site and clock sensitivities."""
     from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
@@ -112,7 +112,7 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
         arw_si, vrw_si, bias, _ = model_noise
     extra = {}
     if station is not None:
-        from inscal.cli.bound_budget import consider_u, station_site
+        from inscal.uncertainty.before_run import consider_u, station_site
 
         extra = {"consider": consider_u(station), "site": station_site(sc.site, station)}
     try:
@@ -195,8 +195,8 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool,
     """``--crlb --station --method M``: the budget of a window-mean method from one simulated run (and its JCGM 101
     Monte Carlo with ``mc`` trials at most)."""
     from inscal.calibrate.windows import CalibrationError
-    from inscal.cli.bound_budget import dominant_inputs, simulated_budget
-    from inscal.lab.sensitivity import WINDOW_METHODS
+    from inscal.uncertainty.before_run import dominant_inputs, simulated_budget
+    from inscal.uncertainty.sensitivity import WINDOW_METHODS
     from inscal.plan.observability import ObservabilityError, load_source
 
     if st is None:
@@ -235,7 +235,7 @@ def _print_budget(source: str, b, bud, full: bool, what: str | None = None, doc:
     from rich.markup import escape
     from rich.table import Table
 
-    from inscal.cli.bound_budget import dominant_inputs
+    from inscal.uncertainty.before_run import dominant_inputs
     from inscal.report.budget import INPUT_TITLES, budget_lines
 
     con = Console()
@@ -393,7 +393,7 @@ def register(app: typer.Typer) -> None:
                 raise fail(str(exc)) from None
             bud = None
             if st is not None:
-                from inscal.cli.bound_budget import bound_budget, dominant_inputs
+                from inscal.uncertainty.before_run import bound_budget, dominant_inputs
                 from inscal.plan.observability import load_source
 
                 bud = bound_budget(b, st, scenario=load_source(source)[0])

@@ -22,25 +22,20 @@ Values are stored in the field units of :data:`inscal.core.error_model.PARAMETER
 parameter file); see :mod:`inscal.lab.schema` for the tables, :mod:`inscal.lab.drift` for the
 statistics and :mod:`inscal.lab.database` for migrations and concurrent writers.
 
-Calibrating records into the database (these load the estimators, so they are imported on their own):
-:mod:`inscal.lab.calibration` (one record, as ``inscal calibrate`` does it) and :mod:`inscal.lab.batch`
-(many records on Dask, resumable: ``inscal batch``).
-
-The uncertainty budget of a calibration (GUM): the station's description :mod:`inscal.lab.station`, the
-arithmetic :mod:`inscal.lab.budget` and the sensitivity coefficients by finite differences through the
-estimators :mod:`inscal.lab.sensitivity` (it loads the estimators: imported on its own); stored with the
-result (``record_calibration(..., budget=...)``, :func:`get_budget`).
+Calibrating records into the database is :mod:`inscal.runs` (one record as ``inscal calibrate`` does it, a
+batch on Dask); the uncertainty budget of a calibration (GUM) is :mod:`inscal.uncertainty`, stored with the
+result here (``record_calibration(..., budget=...)``, :func:`get_budget`).
 
 The names above load their module on first use (PEP 562): a command that imports
-:mod:`inscal.lab.calibration` or :mod:`inscal.lab.record` to calibrate without a database does not pay
-for SQLAlchemy and Alembic (0.3 s of every ``inscal calibrate``'s start).
+:mod:`inscal.runs.calibration` or :mod:`inscal.lab.record` to calibrate without a database does not pay
+for SQLAlchemy and Alembic (0.3 s of every ``inscal calibrate``'s start).  No public name is also the name of
+a submodule (``lab.fleet`` is the function; its module is :mod:`inscal.lab.fleet_status`), so importing a
+submodule never hides a name.
 """
 
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 from typing import TYPE_CHECKING
 
 #: public name -> the module that defines it
@@ -65,9 +60,9 @@ EXPORTS = {
     "component_drift": "inscal.lab.drift",
     "history": "inscal.lab.drift",
     "tail": "inscal.lab.drift",
-    "FleetEntry": "inscal.lab.fleet",
-    "fleet": "inscal.lab.fleet",
-    "unit_history": "inscal.lab.fleet",
+    "FleetEntry": "inscal.lab.fleet_status",
+    "fleet": "inscal.lab.fleet_status",
+    "unit_history": "inscal.lab.fleet_status",
     "Calibration": "inscal.lab.model",
     "Parameter": "inscal.lab.model",
     "Session": "inscal.lab.model",
@@ -189,7 +184,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         history,
         tail,
     )
-    from inscal.lab.fleet import (
+    from inscal.lab.fleet_status import (
         FleetEntry,
         fleet,
         unit_history,
@@ -248,16 +243,3 @@ def __getattr__(name: str):
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(EXPORTS))
 
-
-class _Package(types.ModuleType):
-    """The import system binds each submodule as an attribute of its package once it is imported:
-    ``inscal.lab.fleet`` (the module) would then hide ``lab.fleet`` (its function).  A submodule is not
-    bound under a public name; ``lab.fleet`` stays the function (``sys.modules`` still holds the module)."""
-
-    def __setattr__(self, name, value):
-        if name in EXPORTS and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

@@ -17,8 +17,8 @@ The schema's history is in ``inscal/lab/migrations/`` (Alembic scripts): revisio
 (v1) made every table below without ``sessions.temperature_c``; ``0002_session_temperature`` (v2)
 added it; ``0003_result_keys`` (v3) added ``result_keys``, the unique keys of the results;
 ``0004_publications`` (v4) added ``publications``, the journal of the files being published.
-``0005_budget`` (v5) added ``stations`` (a station description, :mod:`inscal.lab.station`) and
-``budgets`` (a result's uncertainty budget at a station, :mod:`inscal.lab.budget`).
+``0005_budget`` (v5) added ``stations`` (a station description, :mod:`inscal.uncertainty.station`) and
+``budgets`` (a result's uncertainty budget at a station, :mod:`inscal.uncertainty.budget`).
 """
 
 from __future__ import annotations

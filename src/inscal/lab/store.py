@@ -178,7 +178,7 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
     unique key the insert itself takes (``result_keys``); ``new_file``: a parameter file already stored
     for the unit is refused too (``inscal db add`` of a file that ``inscal calibrate --serial`` recorded),
     checked inside the same transaction.  ``budget``: ``(station document, budget)`` (:meth:`Station.to_dict
-    <inscal.lab.station.Station.to_dict>`, :meth:`Budget.to_dict <inscal.lab.budget.Budget.to_dict>`), stored
+    <inscal.uncertainty.station.Station.to_dict>`, :meth:`Budget.to_dict <inscal.uncertainty.budget.Budget.to_dict>`), stored
     with the result (:func:`write_budget`).
     Raises :class:`DatabaseError` or :class:`~inscal.io.paramfile.ParamFileError`; on any error
     nothing is recorded."""
@@ -314,7 +314,7 @@ def get_budget(db: Database, result_id: int) -> dict | None:
     return {"result_id": int(result_id), "station": row.document, "budget": row.budget}
 
 
-#: the keys of a stored budget and of each of its components and contributions (inscal.lab.budget.Budget)
+#: the keys of a stored budget and of each of its components and contributions (inscal.uncertainty.budget.Budget)
 BUDGET_KEYS = ("station", "method", "coverage", "components")
 COMPONENT_KEYS = ("parameter", "label", "unit", "value", "u_c", "k", "U", "contributions")
 CONTRIBUTION_KEYS = ("input", "value", "distribution", "u", "unit", "sensitivity", "contribution", "share", "stops")

@@ -40,7 +40,7 @@ from inscal.calibrate.systematic.params import CompParams, canonical_flat, canon
 from inscal.calibrate.systematic.states import estimated_names, fixed_mask
 from inscal.core import earth
 
-#: the inputs a bound can carry, in the station's names (:data:`inscal.lab.station.INPUTS`)
+#: the inputs a bound can carry, in the station's names (:data:`inscal.uncertainty.station.INPUTS`)
 CONSIDER_INPUTS = ("gravity", "latitude", "height", "time_base")
 
 

@@ -1,4 +1,4 @@
-"""The uncertainty budget of a calibration (:class:`inscal.lab.budget.Budget`, as stored: its
+"""The uncertainty budget of a calibration (:class:`inscal.uncertainty.budget.Budget`, as stored: its
 ``to_dict()``) as text lines (``inscal db budget``, ``inscal calibrate --station``) and as the HTML
 section of the certificate: per parameter component the table of its inputs (input, value,
 distribution, u(x), sensitivity, contribution, share) and the combined and expanded uncertainty

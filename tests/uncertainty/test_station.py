@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inscal.lab.station import INPUTS, StationError, read_station, station_from_dict
+from inscal.uncertainty.station import INPUTS, StationError, read_station, station_from_dict
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "station.toml"
 ARCSEC = math.pi / 180 / 3600

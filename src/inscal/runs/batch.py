@@ -16,7 +16,7 @@ Records and their units
 
 Resuming
     Before a record is calibrated, its sha256 and the canonical options
-    (:meth:`~inscal.lab.calibration.CalibrationSetup.options`, the same as ``inscal calibrate
+    (:meth:`~inscal.runs.calibration.CalibrationSetup.options`, the same as ``inscal calibrate
     --serial``'s) are looked up for its unit (:func:`~inscal.lab.store.find_calibration`): a record
     recorded already is skipped.  Every result is committed in one transaction, so a batch killed at
     any moment leaves whole results only, and running it again calibrates exactly the records
@@ -62,7 +62,7 @@ import sqlalchemy as sa
 from inscal.core.parallel import LOCAL_WORKER_ENVIRON
 from inscal.io.files import file_hash, side_name
 from inscal.io.records import record_attrs
-from inscal.lab.calibration import (
+from inscal.runs.calibration import (
     CalibrationSetup,
     RecordError,
     calibrate_record,
@@ -405,7 +405,7 @@ def failure_text(exc: BaseException, path: Path | None = None) -> str:
 def calibrate_item(target: str, item: BatchItem, setup: CalibrationSetup, record_sha256: str,
                    register: bool = False, model: str | None = None, wait_s: float = BATCH_WAIT_S) -> Outcome:
     """Calibrate one record and record the result (the task of a worker): the record read, calibrated
-    as ``inscal calibrate`` does (:func:`~inscal.lab.calibration.calibrate_record`) and recorded with its
+    as ``inscal calibrate`` does (:func:`~inscal.runs.calibration.calibrate_record`) and recorded with its
     session, unless a result of the same record and options is there by then; its unit registered
     first (with ``model``) when ``register`` and it is not yet.  Never raises: a failure is an
     :class:`Outcome` with one line."""

@@ -15,8 +15,8 @@ import pytest
 from inscal.core import units
 from inscal.core.thermal import ThermalModel
 from inscal.io.records import Temperature
-from inscal.lab import budget as gum
-from inscal.lab.station import read_station, station_from_dict
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty.station import read_station, station_from_dict
 
 STATION = Path(__file__).resolve().parents[1] / "data" / "station.toml"
 NAMES = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias", "accel_scale_factor", "accel_misalignment",

@@ -38,8 +38,8 @@ from inscal.calibrate.windows import Window, WindowSet
 from inscal.core.attitude import skew
 from inscal.core.earth import Site, earth_rate_n
 from inscal.core.turntable import C_b_n, C_s_b, outer_axis
-from inscal.lab import budget as gum
-from inscal.lab.station import INPUTS, site_check
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty.station import INPUTS, site_check
 
 #: finite-difference steps of the inputs (SI): well above rounding, well inside the linear range
 STEPS = {"angle": 2e-5, "dimensionless": 2e-5, "accel": 2e-4, "length": 10.0}
@@ -262,12 +262,53 @@ def record_sensitivities(record, x: Callable, kinds: dict[str, str], nwin: int =
 
 def calibration_budget(result: CalibrationResult, station, rep=None, coverage: float = 0.95, windows=None, record=None,
                        temperature: gum.TemperatureSensitivity | None = None, **options):
-    """The :class:`inscal.lab.budget.Budget` of a window-mean calibration ``result`` (it keeps its
-    windows) at ``station``: coefficients by :func:`sensitivities` at the estimated geometry, the
-    estimator's sigma as Type A with the fit's dof, ``rep`` = ``(u_rep, dof)`` (SI) or None;
-    ``windows``: as :func:`sensitivities`; ``options``: the method's options the result was computed with.
-    A filter method (:data:`FILTER_METHODS`) needs its ``record``: :func:`record_sensitivities` (the filter's
-    sigma is Type A with infinite dof: it is the propagated noise of the whole record)."""
+    """The GUM budget (:class:`inscal.uncertainty.budget.Budget`) of a calibration ``result`` at ``station``.
+
+    A window-mean method's result keeps its windows: the coefficients come from :func:`sensitivities` at the
+    estimated geometry, the estimator's sigma is Type A with the fit's dof.  A filter or table-free method
+    (:data:`FILTER_METHODS`, :data:`NO_TABLE_METHODS`) needs its ``record``: :func:`record_sensitivities` (the
+    filter's sigma is Type A with infinite dof: it is the propagated noise of the whole record).
+
+    Parameters
+    ----------
+    result : inscal.calibrate.result.CalibrationResult
+        The calibration.
+    station : inscal.uncertainty.station.Station
+        The station's inputs.
+    rep : tuple, optional
+        ``(u_rep, dof)`` (SI, flat over the estimated parameters): the repeatability between runs, or None.
+    coverage : float, optional
+        The coverage probability of the expanded uncertainties.
+    windows : list of int, optional
+        The windows whose per-stop coefficients are computed (:func:`sensitivities`).
+    record : inscal.io.records.Record, optional
+        The calibrated record (a filter or table-free method).
+    temperature : inscal.uncertainty.budget.TemperatureSensitivity, optional
+        How the chamber's temperature stability enters (None: not propagated, with a note).
+    **options
+        The method's options the result was computed with.
+
+    Returns
+    -------
+    inscal.uncertainty.budget.Budget
+        Per component ``u_c``, ``nu_eff``, ``k``, ``U`` and every input's line.
+
+    Raises
+    ------
+    ValueError
+        A method without a budget, or one whose windows or record are missing.
+    inscal.uncertainty.station.StationError
+        The station's site is another one than the record's.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> calibration_budget(SimpleNamespace(method="unified", estimated=[], windows=None), None)
+    Traceback (most recent call last):
+    ...
+    ValueError: an uncertainty budget needs a window-mean method (n25, six-position, twelve-position, joint) or \
+the record of a filter or table-free method (systematic51, systematic30, multi-position, ferraris), not unified
+    """
     names = result.estimated
     kinds = {k: v.kind for k, v in INPUTS.items()}
     notes = []

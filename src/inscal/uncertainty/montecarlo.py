@@ -1,11 +1,11 @@
 """The JCGM 101 Monte Carlo of a window-mean calibration's uncertainty budget (propagation of distributions,
-JCGM 101:2008 sections 5-8), beside the linear budget of :mod:`inscal.lab.budget`.
+JCGM 101:2008 sections 5-8), beside the linear budget of :mod:`inscal.uncertainty.budget`.
 
 The model is the calibration itself, where the linear budget may be doubtful: the station's errors
-(:mod:`inscal.lab.station`, each from its own distribution: a table-angle error and an encoder rounding at every
+(:mod:`inscal.uncertainty.station`, each from its own distribution: a table-angle error and an encoder rounding at every
 stop on both axes, a wobble tilt at every stop about east and north, one rate-scale error, the axes'
 non-orthogonality, the site's gravity, latitude and height, the time base).  Every trial draws them all, writes
-them whole into the measured window means (:func:`inscal.lab.sensitivity.perturb`: rotation matrices, not their
+them whole into the measured window means (:func:`inscal.uncertainty.sensitivity.perturb`: rotation matrices, not their
 linearisation, at the estimated geometry) and calibrates again.  The other lines of the budget enter as the
 budget states them, ``c_i x_i`` with ``x_i`` from the line's own distribution (JCGM 101 6.4; a finite dof: the
 scaled and shifted t of 6.4.9): the estimator's own Type A (the method's sigma, which for an ideal-input scheme
@@ -26,24 +26,33 @@ batches and can come out small by chance, the order statistics cannot.  A differ
 ``2 s``, or beyond it by less than ``2 s``, is "undecided" (more trials), never "validated".
 
 Trials are grouped in batches, each with its own child of one seed sequence (``SeedSequence(seed).spawn``), so the
-result does not depend on how the batches are spread over processes (``map_fn``).
+result does not depend on how the batches are spread over processes (``map_fn``).  :func:`budget_monte_carlo` runs
+them on the shared Monte Carlo engine (:func:`inscal.analysis.montecarlo.ordered_map`: this process, or a local
+Dask cluster), with its progress on stderr; the engine's resumable studies (:func:`~inscal.analysis.montecarlo.run_study`,
+one seed per run and a results folder) do not fit a budget computed inside ``inscal calibrate``: the batches' seeds
+are laid out here, and the trials of an adaptive round are known only when the previous round is summarised.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from inscal.analysis.montecarlo import ordered_map
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import CalibrationResult, flatten
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS
-from inscal.lab import budget as gum
-from inscal.lab import sensitivity as S
-from inscal.lab.station import Station
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty import distributions
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.station import Station
 
 #: inputs a trial draws through the calibration itself (the others enter as their budget line)
 SIMULATED = {"table_angle", "encoder_resolution", "axis_wobble", "table_rate", "axis_nonorthogonality", "gravity",
@@ -115,7 +124,7 @@ class MonteCarloBudget:
 
 def draw_deviation(station: Station, n_windows: int, rng: np.random.Generator) -> S.Deviation:
     """One draw of the station's errors (SI), each input from its distribution
-    (:meth:`inscal.lab.station.StationInput.draw`): per stop and axis the table angle plus the encoder's rounding,
+    (:meth:`inscal.uncertainty.station.StationInput.draw`): per stop and axis the table angle plus the encoder's rounding,
     per stop the wobble about east and north, once the rest."""
     angle = station["table_angle"].draw(rng, (n_windows, 2)) + station["encoder_resolution"].draw(rng, (n_windows, 2))
     tilt = station["axis_wobble"].draw(rng, (n_windows, 2))
@@ -129,16 +138,7 @@ def draw_deviation(station: Station, n_windows: int, rng: np.random.Generator) -
 def line_draw(distribution: str, u: float, dof: float, rng: np.random.Generator, size: int) -> np.ndarray:
     """Draws of a budget line's contribution: zero-centred, standard uncertainty ``u``, its distribution; a normal
     one with a finite ``dof`` is the scaled and shifted t of JCGM 101 6.4.9 (``u t_nu``)."""
-    if distribution == "normal":
-        if math.isfinite(dof):
-            return u * rng.standard_t(dof, size)
-        return rng.normal(0.0, u, size)
-    a = u * {"rectangular": math.sqrt(3.0), "triangular": math.sqrt(6.0), "arcsine": math.sqrt(2.0)}[distribution]
-    if distribution == "rectangular":
-        return rng.uniform(-a, a, size)
-    if distribution == "triangular":
-        return rng.triangular(-a, 0.0, a, size)
-    return a * np.sin(2.0 * np.pi * rng.uniform(0.0, 1.0, size))
+    return distributions.draw(distribution, rng, size, u=u, dof=dof)
 
 
 def _starts(names) -> dict[str, int]:
@@ -221,7 +221,7 @@ def monte_carlo(result: CalibrationResult, station: Station, budget: gum.Budget,
                 round_size: int = ROUND, map_fn: Callable = map,
                 progress: Callable[[int, int], None] | None = None) -> MonteCarloBudget:
     """The JCGM 101 Monte Carlo (module docstring) of a window-mean calibration ``result`` (it keeps its windows)
-    at ``station``, beside its linear ``budget`` (:func:`inscal.lab.sensitivity.calibration_budget`); ``options``:
+    at ``station``, beside its linear ``budget`` (:func:`inscal.uncertainty.sensitivity.calibration_budget`); ``options``:
     the method's options the result was computed with.  ``runs`` trials in ``batches`` batches; ``adaptive``
     (JCGM 101 7.9): rounds of ``round_size`` trials (each in ``batches`` batches) until every component is decided
     (validated or not) or ``runs`` trials are done.  ``map_fn(fn, seeds, sizes)``: how the batches run (the builtin
@@ -277,3 +277,92 @@ def _summary(result: CalibrationResult, budget: gum.Budget, parts: list[np.ndarr
         comps.append(ComponentMC(c.label, c.unit, value, float(y.mean()), float(y.std(ddof=1)), float(lo), float(hi),
                                  c.U, float(d_low), float(d_high), delta, s_num, verdict(d_low, d_high, delta, s_num)))
     return MonteCarloBudget(runs, seed, len(parts), budget.coverage, n_dig, tuple(comps), tuple(notes))
+
+
+class TrialProgress:
+    """Trials done on stderr: at every 10 % (a log) or a Rich bar (a terminal); ``update(done, total)`` is the
+    ``progress`` of :func:`monte_carlo`, ``close()`` ends the bar."""
+
+    def __init__(self, total: int):
+        self.total, self.next_pct, self.bar = total, 10, None
+        con = Console(stderr=True)
+        if con.is_terminal:
+            self.bar = Progress(TextColumn("JCGM 101 Monte Carlo"), BarColumn(), MofNCompleteColumn(),
+                                TimeElapsedColumn(), console=con)
+            self.bar.start()
+            self.task = self.bar.add_task("mc", total=total)
+
+    def update(self, done: int, total: int) -> None:
+        """``done`` trials of at most ``total``: the bar moved, or a line at every 10 %."""
+        if self.bar is not None:
+            self.bar.update(self.task, completed=done, total=total)
+            return
+        pct = 100.0 * done / max(1, total)
+        if pct >= self.next_pct:
+            print(f"budget Monte Carlo: {done} trials (at most {total})", file=sys.stderr, flush=True)
+            while self.next_pct <= pct:
+                self.next_pct += 10
+
+    def close(self) -> None:
+        """End the bar (nothing for the plain lines)."""
+        if self.bar is not None:
+            self.bar.stop()
+
+
+def budget_monte_carlo(result: CalibrationResult, station: Station, budget: gum.Budget, runs: int, seed: int = 0,
+                       workers: int = 1, options: dict | None = None) -> MonteCarloBudget:
+    """The adaptive JCGM 101 Monte Carlo (7.9) of a calibration's linear ``budget``, as ``inscal calibrate --mc``
+    and ``inscal observability --crlb --station --mc`` run it.
+
+    At most ``runs`` trials, in rounds of :data:`ROUND`, on the shared Monte Carlo engine
+    (:func:`inscal.analysis.montecarlo.ordered_map`: this process for one worker, else a local Dask cluster of
+    ``workers`` processes), the trials done on stderr (:class:`TrialProgress`).
+
+    Parameters
+    ----------
+    result : inscal.calibrate.result.CalibrationResult
+        A window-mean calibration that keeps its windows (:data:`inscal.uncertainty.sensitivity.WINDOW_METHODS`).
+    station : inscal.uncertainty.station.Station
+        The station whose errors every trial draws.
+    budget : inscal.uncertainty.budget.Budget
+        The linear budget of ``result`` at ``station`` that the Monte Carlo validates.
+    runs : int
+        The most trials (at least 100).
+    seed : int, optional
+        The seed of the trials' seed sequence.
+    workers : int, optional
+        1: in this process; more: a local Dask cluster of that many processes.
+    options : dict, optional
+        The method's options ``result`` was computed with.
+
+    Returns
+    -------
+    MonteCarloBudget
+        Per component the trials' mean, standard deviation, coverage interval and the validation verdict.
+
+    Raises
+    ------
+    ValueError
+        ``result`` is not of a window-mean method or keeps no windows; fewer than 100 trials.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> budget_monte_carlo(SimpleNamespace(method="systematic51"), None, None, 100)
+    Traceback (most recent call last):
+    ...
+    ValueError: the Monte Carlo of the budget runs the window-mean methods (n25, six-position, twelve-position, \
+joint), not systematic51: its site and clock inputs enter the filter linearly, and a thousand filter runs would take \
+hours
+    """
+    if result.method not in S.WINDOW_METHODS:
+        raise ValueError(f"the Monte Carlo of the budget runs the window-mean methods ({', '.join(S.WINDOW_METHODS)}),"
+                         f" not {result.method}: its site and clock inputs enter the filter linearly, and a thousand "
+                         "filter runs would take hours")
+    with ordered_map(workers) as map_fn:
+        bar = TrialProgress(runs)
+        try:
+            return monte_carlo(result, station, budget, runs=runs, seed=seed, adaptive=True, options=options,
+                               map_fn=map_fn, progress=bar.update)
+        finally:
+            bar.close()

@@ -17,10 +17,10 @@ from inscal.calibrate.result import flatten
 from inscal.core.attitude import dcm_from_euler
 from inscal.core.earth import OMEGA_IE, Site
 from inscal.core.error_model import GimbalErrors, ImuNoise
-from inscal.lab import budget as gum
-from inscal.lab import sensitivity as S
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty import sensitivity as S
 from inscal.lab.model import Parameter
-from inscal.lab.station import INPUTS
+from inscal.uncertainty.station import INPUTS
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 
@@ -40,8 +40,8 @@ def test_welch_satterthwaite_and_k_by_hand():
     assert math.isinf(gum.welch_satterthwaite([1.0, 2.0], [math.inf, None]))
     assert gum.coverage_factor(20) == pytest.approx(2.085963, abs=1e-6)  # t_0.975(20), tables
     assert gum.coverage_factor(math.inf) == pytest.approx(1.959964, abs=1e-6)
-    c = gum.combine("accel_bias", 1, 9.80665e-6, [("a", None, "ug", "normal", 3.0, 1.0, math.inf, 1),
-                                                  ("b", None, "ug", "normal", 2.0, 2.0, 4.0, 1)])
+    c = gum.combine("accel_bias", 1, 9.80665e-6, [gum.Contribution.line("a", None, "ug", "normal", 3.0, 1.0, math.inf),
+                                                  gum.Contribution.line("b", None, "ug", "normal", 2.0, 2.0, 4.0)])
     assert c.value == pytest.approx(1.0) and c.u_c == pytest.approx(5.0) and c.label == "accel_bias[1]"
     assert c.dof_eff == pytest.approx(625 / 64) and c.k == pytest.approx(stats.t.ppf(0.975, 625 / 64))
     assert [x.share for x in c.contributions] == pytest.approx([9 / 25, 16 / 25])
@@ -194,8 +194,8 @@ def test_coverage_factor_of_non_normal_outputs():
     assert k([("normal", 1.0), ("normal", 2.0)]) == pytest.approx(1.959964, abs=1e-6)
     # a small rectangular beside a large normal: almost normal
     assert 1.95 < k([("normal", 1.0), ("rectangular", 0.2)]) < 1.96
-    c = gum.combine("gyro_scale_factor", 0, 0.0, [("rate", None, "ppm", "rectangular", 10.0, 1.0, math.inf, 1),
-                                                  ("est", None, "ppm", "normal", 1.0, 1.0, 10.0, 1)])
+    c = gum.combine("gyro_scale_factor", 0, 0.0, [gum.Contribution.line("rate", None, "ppm", "rectangular", 10.0, 1.0, math.inf),
+                                                  gum.Contribution.line("est", None, "ppm", "normal", 1.0, 1.0, 10.0)])
     assert c.k < 1.96 and c.U == pytest.approx(c.k * c.u_c)
 
 

@@ -1,4 +1,4 @@
-"""The JCGM 101 Monte Carlo of a calibration's budget (:mod:`inscal.lab.budget_mc`): the tolerance and verdict of
+"""The JCGM 101 Monte Carlo of a calibration's budget (:mod:`inscal.uncertainty.montecarlo`): the tolerance and verdict of
 JCGM 101 section 8 by hand; on a six-position calibration of the N25 record at the test station, the Monte Carlo
 agrees with the linear budget (no component "not validated", every standard deviation within 20 % of u_c); at a
 gross station (table angles +-3 deg) the linear budget misses the second-order response of the scale factors and the
@@ -13,10 +13,10 @@ import pytest
 
 from inscal.calibrate import calibrate, window_means
 from inscal.calibrate.windows import WindowSet
-from inscal.lab import budget as gum
-from inscal.lab import budget_mc as M
-from inscal.lab import sensitivity as S
-from inscal.lab.station import INPUTS, read_station, station_from_dict
+from inscal.uncertainty import budget as gum
+from inscal.uncertainty import montecarlo as M
+from inscal.uncertainty import sensitivity as S
+from inscal.uncertainty.station import INPUTS, read_station, station_from_dict
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 

@@ -2,10 +2,10 @@
 the result (:class:`CalibrationSetup`, checked up front), the memory the record asks for, the
 check of its encoder angles against the gyros (:mod:`inscal.io.encoders`), the gravity model, the
 estimator and the parameter file's metadata.  ``inscal calibrate`` and a batch of calibrations
-(:mod:`inscal.lab.batch`) both call :func:`calibrate_record`, so the same record with the same
+(:mod:`inscal.runs.batch`) both call :func:`calibrate_record`, so the same record with the same
 options gives the same parameter file (:func:`inscal.lab.record.param_file_text`) either way.
 
-This module loads the estimators (numba, SciPy): it is imported on its own, not by ``inscal.lab``.
+This module loads the estimators (numba, SciPy): import it where a record is calibrated (:mod:`inscal.runs`).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The measurement-uncertainty budget of a calibration (JCGM 100:2008, the GUM).
 
 For every calibrated parameter component ``y`` the budget lists its inputs ``x_i``: the estimator's
-own noise (Type A, the method's 1 sigma), the station's inputs (Type B, :mod:`inscal.lab.station`)
-with their sensitivity coefficients ``c_i = dy/dx_i`` (:mod:`inscal.lab.sensitivity`), and, when the
+own noise (Type A, the method's 1 sigma), the station's inputs (Type B, :mod:`inscal.uncertainty.station`)
+with their sensitivity coefficients ``c_i = dy/dx_i`` (:mod:`inscal.uncertainty.sensitivity`), and, when the
 unit has a history, the repeatability between runs (Type A).  The inputs are independent, so::
 
     u_i(y) = |c_i| u(x_i),    u_c(y)^2 = sum_i u_i(y)^2                    (GUM eq. 10, 5.1.3)
@@ -39,7 +39,7 @@ component holds the estimator's noise once more, so only its excess enters,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
@@ -48,7 +48,8 @@ from scipy.optimize import brentq
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS
 from inscal.core.thermal import THERMAL_TERMS, ThermalModel
-from inscal.lab.station import INPUTS, Station
+from inscal.uncertainty.distributions import cdf, half_width
+from inscal.uncertainty.station import INPUTS, Station
 
 #: the coverage probability of the expanded uncertainty
 COVERAGE = 0.95
@@ -165,6 +166,14 @@ class Contribution:
     stops: int = 1
     value_unit: str = ""
 
+    @classmethod
+    def line(cls, input: str, value: float | None, unit: str, distribution: str, u: float, sensitivity: float,
+             dof: float, stops: int = 1, value_unit: str = "") -> Contribution:
+        """An input's line before it is combined: its ``contribution`` ``|sensitivity| u`` (GUM eq. 10); its
+        ``share`` of ``u_c^2`` is set by :func:`combine`, 0 until then."""
+        c = abs(sensitivity)
+        return cls(input, value, unit, distribution, u, c, c * u, 0.0, dof, stops, value_unit)
+
     def to_dict(self) -> dict:
         """The line as JSON-able numbers (an infinite dof is ``None``)."""
         d = dict(self.__dict__)
@@ -204,7 +213,32 @@ class ComponentBudget:
 @dataclass(frozen=True)
 class Budget:
     """The budget of a calibration: per component (:class:`ComponentBudget`), with the station's
-    name, the method and notes (inputs not propagated, checks)."""
+    name, the method and notes (inputs not propagated, checks).
+
+    Parameters
+    ----------
+    station : str
+        The station's name.
+    method : str
+        The calibration method (or what the budget before a run describes).
+    coverage : float
+        The coverage probability of every ``U``.
+    components : tuple of ComponentBudget
+        One budget per parameter component (:func:`combine`).
+    notes : tuple of str, optional
+        Inputs not propagated, checks.
+
+    Examples
+    --------
+    >>> lines = [Contribution.line(ESTIMATOR, None, "ug", "normal", 3.0, 1.0, math.inf),
+    ...          Contribution.line("gravity", 9.8, "mGal", "normal", 4.0, 1.0, math.inf)]
+    >>> b = Budget("T-2", "n25", COVERAGE, (combine("accel_bias", 0, 0.0, lines),))
+    >>> c = b.component("accel_bias[0]")
+    >>> round(c.u_c, 9), [round(x.share, 2) for x in c.contributions]
+    (5.0, [0.36, 0.64])
+    >>> Budget.from_dict(b.to_dict()) == b
+    True
+    """
 
     station: str
     method: str
@@ -259,16 +293,6 @@ def coverage_factor(dof: float, p: float = COVERAGE) -> float:
 GRID = 4001
 
 
-def _cdf(dist: str, x: np.ndarray, a: float) -> np.ndarray:
-    """The CDF of a zero-centred rectangular / triangular / arcsine distribution of half-width ``a``."""
-    z = np.clip(x / a, -1.0, 1.0)
-    if dist == "rectangular":
-        return 0.5 * (z + 1.0)
-    if dist == "triangular":
-        return np.where(z < 0, 0.5 * (z + 1.0) ** 2, 1.0 - 0.5 * (1.0 - z) ** 2)
-    return 0.5 + np.arcsin(z) / np.pi  # arcsine
-
-
 def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
     """``k`` of the linear model ``y = sum c_i x_i`` from the distributions themselves (GUM G.6.5-G.6.6,
     JCGM 101 on the linear model): the normal contributions combine into one normal of sigma ``s_N``;
@@ -276,8 +300,7 @@ def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
     CDFs); ``P(|y| <= q) = p`` is solved and ``k = q / u_c``.  ``lines`` = ``(distribution, u_i(y))``."""
 
     s2 = sum(u * u for d, u in lines if d == "normal")
-    other = [(d, u * {"rectangular": math.sqrt(3.0), "triangular": math.sqrt(6.0), "arcsine": math.sqrt(2.0)}[d])
-             for d, u in lines if d != "normal" and u > 0]
+    other = [(d, half_width(d, u)) for d, u in lines if d != "normal" and u > 0]
     uc = math.sqrt(s2 + sum(u * u for d, u in lines if d != "normal"))
     if uc == 0.0:
         return coverage_factor(math.inf, p)
@@ -289,7 +312,7 @@ def linear_coverage_factor(lines, p: float = COVERAGE) -> float:
     for d, a in other:
         n = int(math.ceil(a / h))
         edges = (np.arange(-n, n + 2) - 0.5) * h
-        mass = np.convolve(mass, np.diff(_cdf(d, edges, a)))
+        mass = np.convolve(mass, np.diff(cdf(d, edges, a)))
     x = (np.arange(mass.size) - (mass.size - 1) / 2) * h
     sN = math.sqrt(s2)
 
@@ -319,18 +342,19 @@ def _factor(unit: str, kind: str) -> float:
     return float(units.temperature_step_to_si(1.0, unit)) if kind == "temperature" else float(units.to_si(1.0, unit))
 
 
-def combine(parameter: str, index: int, value_si: float, lines: list[tuple], coverage: float = COVERAGE) -> ComponentBudget:
-    """One component's budget from ``lines`` = ``(input, value, unit, distribution, u, sensitivity, dof,
-    stops[, value unit])`` in field units (sensitivity in parameter unit per input unit)."""
+def combine(parameter: str, index: int, value_si: float, lines, coverage: float = COVERAGE) -> ComponentBudget:
+    """One component's budget from its input ``lines`` (:class:`Contribution`, e.g. from :meth:`Contribution.line`;
+    field units, sensitivity in parameter unit per input unit): ``u_c``, Welch-Satterthwaite's ``nu_eff`` and the
+    coverage factor of the linear model (module docstring); each line's share of ``u_c^2`` filled in."""
     unit = PARAMETERS[parameter][3]
-    ui = [abs(c[5]) * c[4] for c in lines]
+    ui = [c.contribution for c in lines]
     uc = math.sqrt(sum(x * x for x in ui))
-    nu = welch_satterthwaite(ui, [c[6] for c in lines])
+    nu = welch_satterthwaite(ui, [c.dof for c in lines])
     # a per-stop input is a sum over its stops: normal; the others keep their distribution
-    shape = linear_coverage_factor([(c[3] if c[7] <= 1 else "normal", u) for c, u in zip(lines, ui)], coverage)
+    shape = linear_coverage_factor([(c.distribution if c.stops <= 1 else "normal", c.contribution) for c in lines],
+                                   coverage)
     k = shape * coverage_factor(nu, coverage) / coverage_factor(math.inf, coverage)
-    contribs = tuple(Contribution(c[0], c[1], c[2], c[3], c[4], abs(c[5]), u, (u * u / (uc * uc)) if uc > 0 else 0.0,
-                                  c[6], c[7], c[8] if len(c) > 8 else "") for c, u in zip(lines, ui))
+    contribs = tuple(replace(c, share=(c.contribution * c.contribution / (uc * uc)) if uc > 0 else 0.0) for c in lines)
     return ComponentBudget(parameter, index, unit, float(units.from_si(value_si, unit)), uc, nu, k, k * uc, coverage,
                            contribs)
 
@@ -340,7 +364,7 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
            coverage: float = COVERAGE, notes=(), temperature: TemperatureSensitivity | None = None) -> Budget:
     """The budget of a calibration: ``names`` the estimated parameters, ``values_si`` / ``sigma_si`` their
     flat estimate and 1 sigma (SI), ``glob`` / ``per_stop`` the coefficients of
-    :class:`inscal.lab.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI,
+    :class:`inscal.uncertainty.sensitivity.Sensitivities` (SI per SI), ``rep`` = ``(u_rep, dof)`` in SI,
     ``temperature`` the coefficients of the chamber's temperature stability (None: not propagated, with
     :data:`NOT_PROPAGATED`'s note).  A component whose sigma is NaN (held fixed by the method) has no budget."""
     if temperature is None:
@@ -358,7 +382,7 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
             if not np.isfinite(sigma_si[i]):  # held fixed (a frame convention, unobservable): no uncertainty
                 i += 1
                 continue
-            lines = [(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof, 1)]
+            lines = [Contribution.line(ESTIMATOR, None, punit, "normal", float(sigma_si[i]) / pf, 1.0, estimator_dof)]
             for key, inp in station.inputs.items():
                 if key == TEMPERATURE and temperature.c is None:  # not propagated: named in the notes
                     continue
@@ -370,10 +394,12 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
                 else:
                     c_si, used = float(glob[key][i]), 1
                 value = inp.field(inp.value, inp.unit) if INPUTS[key].needs_value else None
-                lines.append((key, value, inp.uncertainty_unit, inp.distribution, inp.u / f, c_si * f / pf, inp.dof,
-                              max(used, 1), inp.unit if value is not None else ""))
+                lines.append(Contribution.line(key, value, inp.uncertainty_unit, inp.distribution, inp.u / f,
+                                               c_si * f / pf, inp.dof, max(used, 1),
+                                               inp.unit if value is not None else ""))
             if rep is not None:
-                lines.append((REPEATABILITY, None, punit, "normal", float(rep[0][i]) / pf, 1.0, rep[1], 1))
+                lines.append(Contribution.line(REPEATABILITY, None, punit, "normal", float(rep[0][i]) / pf, 1.0,
+                                               rep[1]))
             comps.append(combine(name, j, float(values_si[i]), lines, coverage))
             i += 1
     return Budget(station.name, method, coverage, tuple(comps), tuple(notes))

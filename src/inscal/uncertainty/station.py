@@ -47,17 +47,8 @@ import numpy as np
 
 from inscal.core import units
 from inscal.io.tomlfile import read_toml
-
-#: distribution -> the factor d with ``u = a / d`` for a half-width ``a`` (None: normal, ``u`` given)
-DISTRIBUTIONS: dict[str, float | None] = {
-    "normal": None,
-    "rectangular": math.sqrt(3.0),  # GUM 4.3.7
-    "triangular": math.sqrt(6.0),  # GUM 4.3.9
-    "arcsine": math.sqrt(2.0),  # JCGM 101 6.4.6 (U-shaped)
-}
-#: other spellings of the distributions
-DISTRIBUTION_ALIASES = {"gaussian": "normal", "uniform": "rectangular", "u-shaped": "arcsine", "u": "arcsine"}
-
+from inscal.uncertainty import distributions
+from inscal.uncertainty.distributions import DISTRIBUTION_ALIASES, DISTRIBUTIONS
 
 @dataclass(frozen=True)
 class InputSpec:
@@ -93,7 +84,23 @@ _INPUT_KEYS = {"value", "unit", "uncertainty_unit", "distribution", "uncertainty
 
 
 class StationError(ValueError):
-    """A station description that cannot be used, with the reason in one line."""
+    """A station description that cannot be used, with the reason in one line.
+
+    Parameters
+    ----------
+    message : str
+        The reason (a missing input or field, a bad number, distribution or unit, another site).
+
+    Examples
+    --------
+    >>> station_from_dict({"station": {"name": "T"}, "inputs": {}})
+    Traceback (most recent call last):
+    ...
+    inscal.uncertainty.station.StationError: missing input(s) table_angle, table_rate, axis_wobble, \
+axis_nonorthogonality, encoder_resolution, gravity, latitude, height, time_base, temperature_stability \
+(a station describes all of: table_angle, table_rate, axis_wobble, axis_nonorthogonality, encoder_resolution, \
+gravity, latitude, height, time_base, temperature_stability)
+    """
 
 
 @dataclass(frozen=True)
@@ -122,16 +129,10 @@ class StationInput:
         return _from_si(si, unit or self.uncertainty_unit, self.spec.kind)
 
     def draw(self, rng: np.random.Generator, size=None) -> np.ndarray:
-        """Deviations from the value drawn from this input's distribution (SI; JCGM 101 6.4): normal
-        ``N(0, u)``, rectangular ``U(-a, a)``, triangular on ``[-a, a]``, arcsine ``a sin(2 pi U)``."""
-        a = self.half_width
-        if self.distribution == "normal":
-            return rng.normal(0.0, self.u, size)
-        if self.distribution == "rectangular":
-            return rng.uniform(-a, a, size)
-        if self.distribution == "triangular":
-            return rng.triangular(-a, 0.0, a, size)
-        return a * np.sin(2.0 * np.pi * rng.uniform(0.0, 1.0, size))  # JCGM 101 6.4.6
+        """Deviations from the value drawn from this input's distribution (SI; JCGM 101 6.4,
+        :func:`inscal.uncertainty.distributions.draw`): normal ``N(0, u)`` (a finite ``dof`` too), rectangular
+        ``U(-a, a)``, triangular on ``[-a, a]``, arcsine ``a sin(2 pi U)``."""
+        return distributions.draw(self.distribution, rng, size, u=self.u, a=self.half_width)
 
     def to_dict(self) -> dict:
         """The input as a station file's table (field units), as :func:`station_from_dict` reads it."""
@@ -148,7 +149,21 @@ class StationInput:
 
 @dataclass(frozen=True)
 class Station:
-    """A station: its name and every input of :data:`INPUTS` (:class:`StationInput`)."""
+    """A station: its name and every input of :data:`INPUTS` (:class:`StationInput`), ``station[name]`` one input.
+
+    Parameters
+    ----------
+    name : str
+        The station's name (the session's station in the database).
+    inputs : dict of str to StationInput
+        Every input of :data:`INPUTS`, in SI.
+
+    Examples
+    --------
+    >>> st = example_station()
+    >>> st.name, st["gravity"].distribution, round(st["table_angle"].field(st["table_angle"].u), 6)
+    ('T-2, lab 3', 'normal', 2.0)
+    """
 
     name: str
     inputs: dict[str, StationInput]
@@ -294,5 +309,57 @@ def site_check(station: Station, latitude: float, height: float, gravity: float 
 
 
 def read_station(path) -> Station:
-    """The station described by the TOML file at ``path`` (see the module docstring)."""
+    """The station described by the TOML file at ``path`` (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A station file (``station.toml``).
+
+    Returns
+    -------
+    Station
+        Every input in SI, with its distribution and source.
+
+    Raises
+    ------
+    StationError
+        The file cannot be read, is not TOML, or describes no usable station (one line saying why).
+
+    Examples
+    --------
+    >>> read_station("no/such/station.toml")
+    Traceback (most recent call last):
+    ...
+    inscal.uncertainty.station.StationError: no/such/station.toml: no such station file
+    """
     return station_from_dict(read_toml(path, StationError, "station file"))
+
+
+#: a station of typical figures (the budget's checks: ``tests/data/station.toml``): 2 arcsec table angle,
+#: 10 ppm rate, 1 arcsec wobble, 2 arcsec axis non-orthogonality, 0.36 arcsec encoder counts, 1 mGal gravity,
+#: 1 arcsec latitude, 1 m height, 1 ppm time base, +-0.1 K chamber cycling
+EXAMPLE = {
+    "station": {"name": "T-2, lab 3"},
+    "inputs": {
+        "table_angle": {"unit": "arcsec", "distribution": "normal", "uncertainty": 2.0, "source": "table certificate"},
+        "table_rate": {"unit": "ppm", "distribution": "rectangular", "half_width": 17.32, "source": "data sheet"},
+        "axis_wobble": {"unit": "arcsec", "distribution": "normal", "uncertainty": 1.0, "source": "table certificate"},
+        "axis_nonorthogonality": {"unit": "arcsec", "distribution": "normal", "uncertainty": 2.0,
+                                  "source": "table certificate"},
+        "encoder_resolution": {"unit": "arcsec", "distribution": "rectangular", "half_width": 0.18,
+                               "source": "encoder data sheet"},
+        "gravity": {"value": 9.793788, "unit": "m/s^2", "uncertainty_unit": "mGal", "distribution": "normal",
+                    "uncertainty": 1.0, "source": "gravimeter survey"},
+        "latitude": {"value": 30.686, "unit": "deg", "uncertainty_unit": "arcsec", "distribution": "normal",
+                     "uncertainty": 1.0, "source": "GNSS survey"},
+        "height": {"value": 50.0, "unit": "m", "distribution": "normal", "uncertainty": 1.0, "source": "GNSS survey"},
+        "time_base": {"unit": "ppm", "distribution": "rectangular", "half_width": 1.0, "source": "oscillator"},
+        "temperature_stability": {"unit": "K", "distribution": "arcsine", "half_width": 0.1, "source": "chamber"},
+    },
+}
+
+
+def example_station() -> Station:
+    """The station of :data:`EXAMPLE` (for examples and documentation)."""
+    return station_from_dict(EXAMPLE)
