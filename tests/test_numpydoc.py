@@ -203,10 +203,12 @@ def test_the_examples_run(tmp_path, monkeypatch):
         for test in _examples(name, obj):
             t0 = time.process_time()
             runner.run(test)
-            if (spent := time.process_time() - t0) > 1.0:
+            # 1 s each, and a half more for the first call of a numba kernel in the process (its
+            # machine code loaded from the cache the warm-up filled)
+            if (spent := time.process_time() - t0) > 1.5:
                 slow.append(f"{name} ({spent:.1f} s)")
     cpu = time.process_time() - start
     result = runner.summarize(verbose=False)
     assert result.failed == 0, f"{result.failed} of {result.attempted} example lines failed (printed above)"
-    assert not slow, "examples over 1 s of CPU: " + ", ".join(slow)
+    assert not slow, "examples over 1.5 s of CPU: " + ", ".join(slow)
     assert cpu < 5.0 or os.environ.get("INSCAL_SLOW_DOCTESTS"), f"the examples took {cpu:.1f} s of CPU"
