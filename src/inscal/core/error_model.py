@@ -130,7 +130,7 @@ def size_effect(lever_arm, w, wdot=None):
 class ImuErrors:
     """Deterministic IMU errors in the canonical (s-frame, measurement) form, SI units.
 
-    The measurement model (S16 eq. 1-12; N25 eq. 3-4): ``measure`` maps true rates and specific force
+    The measurement model (N25 eq. 1-4; S16 eq. 1, 4-6, 9-12): ``measure`` maps true rates and specific force
     to the sensor outputs, ``compensate`` inverts it (S16 form).  Every field defaults to zero.
 
     Parameters
