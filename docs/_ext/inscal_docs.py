@@ -356,9 +356,12 @@ def _module_page(name: str, modules: list[str]) -> str:
         target = _canonical(obj, n, mod)
         if target is None:
             continue
-        role = "mod" if inspect.ismodule(obj) else ("class" if inspect.isclass(obj) else (
-            "func" if callable(obj) else "data"))
-        summary = _summary(obj) if role != "data" else ""
+        if not (inspect.ismodule(obj) or inspect.isclass(obj) or callable(obj)):  # a value: its module
+            home = target.rsplit(".", 1)[0]
+            rows.append(f"- ``{n}``: a value of :py:mod:`{home}`")
+            continue
+        role = "mod" if inspect.ismodule(obj) else ("class" if inspect.isclass(obj) else "func")
+        summary = _summary(obj)
         rows.append(f"- :py:{role}:`{n} <{target}>`" + (f": {summary}" if summary else ""))
     if rows:
         text += (f"\n.. rubric:: Offered here, documented in their modules\n\n"
@@ -403,10 +406,10 @@ def write_api_pages(app) -> None:
             continue
         index += [title, "-" * len(title), "", what, "", ".. toctree::", "   :hidden:", ""]
         index += [f"   {m}" for m in members] + [""]
-        for m in members:
+        for m in members:  # each summary read in its module (its relative references are the module's)
             summary = _summary(importlib.import_module(m))
-            index.append(f"- :doc:`{m}`" + (f": {summary}" if summary else ""))
-        index.append("")
+            index += [f".. py:currentmodule:: {m}", "", f"- :doc:`{m}`" + (f": {summary}" if summary else ""), ""]
+        index += [".. py:currentmodule:: None", ""]
     pages["index.rst"] = "\n".join(index)
     for file, text in pages.items():
         path = out / file
@@ -430,25 +433,22 @@ def resolve_reexported(app, env, node, contnode):
     if not target.startswith("inscal."):
         return None
     parts = target.split(".")
-    for cut in range(len(parts) - 1, 0, -1):
+    for cut in range(len(parts) - 1, 0, -1):  # the longest module path, then attributes
         try:
-            obj = importlib.import_module(".".join(parts[:cut]))
+            module = importlib.import_module(".".join(parts[:cut]))
         except ImportError:
             continue
-        try:
-            for attr in parts[cut:]:
-                obj = getattr(obj, attr)
-        except AttributeError:
+        obj = getattr(module, parts[cut], None)
+        if obj is None:
             return None
-        canonical = _canonical(obj, parts[-1], importlib.import_module(".".join(parts[:cut]))) \
-            if cut == len(parts) - 1 else None
-        if canonical is None or canonical == target:
+        canonical = _canonical(obj, parts[cut], module)  # the re-exported name, then what follows it
+        if canonical is None or canonical == ".".join(parts[:cut + 1]):
             return None
-        domain = env.get_domain("py")
+        canonical = ".".join([canonical, *parts[cut + 1:]])
         new = node.deepcopy()
         new["reftarget"] = canonical
-        return domain.resolve_xref(env, node.get("refdoc"), app.builder, node.get("reftype"), canonical, new,
-                                   contnode)
+        return env.get_domain("py").resolve_xref(env, node.get("refdoc"), app.builder, node.get("reftype"),
+                                                 canonical, new, contnode)
     return None
 
 

@@ -43,7 +43,7 @@ DEFAULT_K = 3.0
 
 
 def tail(k: float) -> float:
-    """P(|z| > k) of a standard Gaussian: the false-alarm probability of one test.
+    """P(``|z|`` > k) of a standard Gaussian: the false-alarm probability of one test.
 
     Parameters
     ----------
@@ -175,7 +175,7 @@ def component_drift(name: str, label: str, unit: str, ids, months, values, sigma
     values, sigma : array_like
         The values and their 1 sigma.
     k : float
-        The flag threshold (|z| > k).
+        The flag threshold (``|z| > k``).
 
     Returns
     -------
@@ -245,7 +245,7 @@ class History:
     method : str
         The method.
     k : float
-        The flag threshold (|z| > k).
+        The flag threshold (``|z| > k``).
     ids : tuple of int
         The results, oldest first (one per session).
     dates : tuple of datetime.datetime
@@ -324,7 +324,7 @@ def history(calibrations: list[Calibration], serial: str, method: str, k: float 
     method : str
         The method.
     k : float
-        The flag threshold (|z| > k).
+        The flag threshold (``|z| > k``).
 
     Returns
     -------

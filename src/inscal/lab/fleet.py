@@ -22,7 +22,7 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
     method : str, optional
         The method (default: that of its current calibration, else of its newest).
     k : float
-        The flag threshold (|z| > k).
+        The flag threshold (``|z| > k``).
 
     Returns
     -------
@@ -134,7 +134,7 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
     db : Database
         The open database.
     k : float
-        The flag threshold (|z| > k).
+        The flag threshold (``|z| > k``).
     flagged_only : bool
         Only the units with a flag.
 
