@@ -327,8 +327,8 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
     >>> sc = build("handheld-mems")
     >>> data = simulate(sc, np.random.default_rng(0))
     >>> res = multi_position(Record(data.time, data.dtheta, data.dvel, None, sc.rate_hz, sc.site))  # doctest: +SKIP
-    >>> np.round(np.degrees(res.imu.gyro_bias) * 3600.0)  # doctest: +SKIP
-    array([ 402., -700., 999.])
+    >>> np.round(np.degrees(res.imu.gyro_bias) * 3600.0)  # deg/h; the truth: 400, -700, 1000  # doctest: +SKIP
+    array([ 402., -699.,  994.])
     """
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)

@@ -41,8 +41,10 @@ def _core(ws: WindowSet, idx: list[int]):
 def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     """The inner-symmetric twelve-position scheme of N25 (eq. 24-26) with ideal inputs.
 
-    The inner-axis symmetry cancels the inner-axis terms of the gimbal errors; the gyro scale factors
-    and misalignments come from the rate tests (eq. 29).  The gimbal errors are not estimated.
+    The six orientations of the six-position scheme, each at two inner-gimbal angles 180 deg apart,
+    which cancels the leveling error in the installation angles to first order; the gyro bias from
+    the mean over the twelve positions (eq. 27), the gyro scale factors and installation angles from
+    the CW/CCW rate tests (eq. 28).  The gimbal errors are not estimated.
 
     Parameters
     ----------
