@@ -80,7 +80,8 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
 
     Examples
     --------
-    One pass of the filter over the S16 path at 10 Hz (a real calibration iterates):
+    One pass of the filter, a step every 5 s, over the S16 path at 10 Hz (a real calibration
+    iterates, a step a second):
 
     >>> import numpy as np
     >>> from inscal.calibrate import unified
@@ -89,7 +90,8 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
     >>> from inscal.sim.simulate import simulate
     >>> sc = build("s16", rate_hz=10.0)
     >>> data = simulate(sc, np.random.default_rng(0))
-    >>> res = unified(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site), max_passes=1)
+    >>> rec = Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site)
+    >>> res = unified(rec, max_passes=1, filter_rate_hz=0.2)
     >>> res.method, "gimbal_nonorthogonality" in res.estimated, len(res.estimated) > 10
     ('unified', True, True)
     """
