@@ -55,6 +55,7 @@ nitpicky = True
 nitpick_ignore_regex = [
     (r"py:.*", r"(?!inscal\b).*"),  # numpy.ndarray, pathlib.Path, typing.Any, ... (no inventory offline)
     (r"py:.*", r"inscal\..*\._[A-Za-z].*"),  # private names in a signature's annotations
+    (r"py:.*", r"inscal\.cli\..*"),  # the command line's modules: internals, not in the API reference
 ]
 
 # --- the API reference: one page per module (docs/reference/api/, written by _ext/inscal_docs.py)

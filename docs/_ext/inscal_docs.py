@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import inspect
 import re
 from collections import defaultdict
 from pathlib import Path
@@ -228,9 +229,37 @@ def check_cli_reference(app, exception) -> None:
         raise ExtensionError("the CLI reference lacks: " + ", ".join(missing))
 
 
-#: the layers of the package, top to bottom of the API reference (each imports only from those below it)
-LAYERS = ("core", "io", "sim", "nav", "calibrate", "plan", "analysis", "lab", "uncertainty", "report", "runs",
-          "cli")
+#: the API reference by task: (title, what it is for, the modules or packages it holds).  A module goes to
+#: the group of its longest matching entry; the command line's modules are internals (its reference is
+#: reference/cli.rst), only the package with ``main`` has a page.
+GROUPS = (
+    ("Records and files", "HDF5 records (read, write, stream), imports of other loggers' formats, exports, "
+     "parameter and noise files, atomic writes.", ("inscal.io",)),
+    ("Simulate", "The turntable and IMU simulator and its scenarios (S16 Table 2, N25, hand-held sessions).",
+     ("inscal.sim",)),
+    ("Navigate", "Strapdown navigation on a static site, alignment, navigation errors and their closed forms.",
+     ("inscal.nav", "inscal.analysis.nav5d")),
+    ("Calibrate", "The estimators: ``calibrate()`` and its methods, the systematic filter, table-free calibration.",
+     ("inscal.calibrate",)),
+    ("Thermal", "Thermal models: their terms, estimation over temperature plateaus, simulation, bounds and figures.",
+     ("inscal.core.thermal", "inscal.calibrate.thermal", "inscal.sim.thermal", "inscal.plan.thermal",
+      "inscal.report.thermal")),
+    ("Noise", "Allan deviation, noise identification and noise models.",
+     ("inscal.analysis.allan", "inscal.analysis.noise", "inscal.core.noise_models", "inscal.plan.noise_model",
+      "inscal.report.noise", "inscal.report.noise_model")),
+    ("Plan a calibration", "Cramér-Rao bound of a path, observability of its states, path design.", ("inscal.plan",)),
+    ("Monte Carlo and accuracy", "Monte Carlo studies and the errors of estimates against the truth.",
+     ("inscal.analysis",)),
+    ("Lab database", "The calibration database, drift of a unit's history, the fleet's status.", ("inscal.lab",)),
+    ("Uncertainty budget", "The GUM budget of a station: station files, sensitivities, the combination, the "
+     "JCGM 101 Monte Carlo, the budget before the run and of a calibration run.", ("inscal.uncertainty",)),
+    ("Running calibrations", "A record or a batch calibrated into the database (what ``inscal calibrate --serial`` "
+     "and ``inscal batch`` run).", ("inscal.runs",)),
+    ("Reports and figures", "Figures, HTML reports, certificates.", ("inscal.report",)),
+    ("Foundations", "Units, the Earth and the site, attitude, the IMU and gimbal error model, turntable paths, "
+     "gimbal kinematics, the Kalman core.", ("inscal.core",)),
+    ("Command line", "The ``inscal`` command (every command and option: :doc:`../cli`).", ("inscal.cli",)),
+)
 
 
 def public_modules() -> list[str]:
@@ -246,6 +275,103 @@ def public_modules() -> list[str]:
     return sorted(names)
 
 
+def api_modules() -> list[str]:
+    """The modules with a page in the API reference: the public ones, less the command line's internals."""
+    return [m for m in public_modules() if not m.startswith("inscal.cli.")]
+
+
+def group_of(module: str) -> str:
+    """The title of the task group ``module`` belongs to (the longest matching entry of :data:`GROUPS`)."""
+    best, length = GROUPS[-2][0], -1
+    for title, _what, prefixes in GROUPS:
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > length:
+                best, length = title, len(prefix)
+    return best
+
+
+def _defined_in(obj, module) -> bool:
+    """Whether ``obj`` (a function, class or value) is defined in ``module`` rather than imported into it."""
+    home = getattr(obj, "__module__", None)
+    if (inspect.isfunction(obj) or inspect.isclass(obj)) and home is not None:
+        return home == module.__name__
+    return True  # a value: no record of where it was made
+
+
+def _canonical(obj, name: str, package) -> str | None:
+    """The dotted name ``obj``, re-exported by ``package`` as ``name``, is documented under: its module's
+    for a function or class, else the submodule whose namespace holds the same value and defines it."""
+    import importlib
+    import pkgutil
+
+    if inspect.isfunction(obj) or inspect.isclass(obj):
+        return f"{obj.__module__}.{obj.__qualname__}"
+    if not hasattr(package, "__path__"):
+        return None
+    for info in pkgutil.iter_modules(package.__path__, prefix=package.__name__ + "."):
+        if info.name.rsplit(".", 1)[-1].startswith("_"):
+            continue
+        sub = importlib.import_module(info.name)
+        if vars(sub).get(name) is obj and name not in _imported_names(sub):
+            return f"{info.name}.{name}"
+    return None
+
+
+@functools.cache
+def _imported_names(module) -> frozenset[str]:
+    """The names ``module``'s source imports (``from x import name``)."""
+    try:
+        tree = ast.parse(Path(module.__file__).read_text(encoding="utf-8"))
+    except (OSError, TypeError, SyntaxError):
+        return frozenset()
+    return frozenset(a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                     for a in node.names)
+
+
+def _summary(obj) -> str:
+    """The first paragraph of ``obj``'s docstring, on one line (a trailing ``::`` as ``:``)."""
+    doc = inspect.getdoc(obj) or ""
+    first = " ".join(doc.split("\n\n", 1)[0].split())
+    return first[:-1] if first.endswith("::") else first
+
+
+def _module_page(name: str, modules: list[str]) -> str:
+    """The page of one module: its docstring and members; a package's re-exported names (its face) are
+    listed with links to where they are documented, so each name is documented once."""
+    import importlib
+
+    mod = importlib.import_module(name)
+    text = f"{name}\n{'=' * len(name)}\n\n.. automodule:: {name}\n"
+    names = list(getattr(mod, "__all__", ()))
+    own, foreign = [], []
+    for n in names:
+        obj = getattr(mod, n, None)
+        (own if _defined_in(obj, mod) and n not in _imported_names(mod) else foreign).append(n)
+    shadowed = _shadowed(name, modules)
+    left_out = sorted(set(foreign) | set(shadowed))
+    if names and not set(own) - set(shadowed):
+        text += "   :no-members:\n"
+    elif left_out:  # an explicit :members: list would give way to autodoc_default_options' members
+        text += f"   :exclude-members: {', '.join(left_out)}\n"
+    rows = []
+    for n in foreign + [n for n in shadowed if n in own]:
+        obj = getattr(mod, n)
+        target = _canonical(obj, n, mod)
+        if target is None:
+            continue
+        if not (inspect.ismodule(obj) or inspect.isclass(obj) or callable(obj)):  # a value: its module
+            home = target.rsplit(".", 1)[0]
+            rows.append(f"- ``{n}``: a value of :py:mod:`{home}`")
+            continue
+        role = "mod" if inspect.ismodule(obj) else ("class" if inspect.isclass(obj) else "func")
+        summary = _summary(obj)
+        rows.append(f"- :py:{role}:`{n} <{target}>`" + (f": {summary}" if summary else ""))
+    if rows:
+        text += (f"\n.. rubric:: Offered here, documented in their modules\n\n"
+                 f"``from {name} import NAME``:\n\n" + "\n".join(rows) + "\n")
+    return text
+
+
 def _shadowed(package: str, modules: list[str]) -> list[str]:
     """The names a package re-exports from its submodule of the same name (``inscal.calibrate.n25``
     the function, from ``inscal.calibrate.n25`` the module): autodoc would take them for the
@@ -258,28 +384,35 @@ def _shadowed(package: str, modules: list[str]) -> list[str]:
 
 
 def write_api_pages(app) -> None:
-    """One page per public module under ``reference/api/`` (``.. automodule::`` with its members).
+    """One page per module under ``reference/api/`` (``.. automodule::`` with its members), and an index
+    of them by task (:data:`GROUPS`), each with the first paragraph of its docstring.
 
     Written here rather than by autosummary, which resolves a dotted name as an attribute first and
     would take the package ``inscal.calibrate.systematic`` for the function of the same name that
     ``inscal.calibrate`` re-exports."""
+    import importlib
+
     out = Path(app.srcdir) / "reference" / "api"
     out.mkdir(parents=True, exist_ok=True)
-    modules = public_modules()
-    pages = {}
-    for name in modules:
-        text = f"{name}\n{'=' * len(name)}\n\n.. automodule:: {name}\n"
-        shadowed = _shadowed(name, modules)
-        if shadowed:
-            text += f"   :exclude-members: {', '.join(shadowed)}\n"
-        pages[f"{name}.rst"] = text
-    index = ["API by layer", "============", "",
-             ".. This file is generated by docs/_ext/inscal_docs.py: do not edit.", ""]
-    index += [":mod:`inscal`: the package's conventions.", "", ".. toctree::", "   :hidden:", "", "   inscal", ""]
-    for layer in LAYERS:
-        members = [m for m in modules if m == f"inscal.{layer}" or m.startswith(f"inscal.{layer}.")]
-        index += [f"``inscal.{layer}``", "-" * (len(layer) + 11), "", ".. toctree::", "   :maxdepth: 1", ""]
+    modules = api_modules()
+    pages = {f"{name}.rst": _module_page(name, public_modules()) for name in modules}
+    index = ["API by task", "===========", "",
+             ".. This file is generated by docs/_ext/inscal_docs.py: do not edit.", "",
+             ":mod:`inscal` states the package's conventions (units, frames, layers).  Each module's page",
+             "documents its public functions and classes; the names a package offers from its modules",
+             "(``from inscal.io import read_record``) are documented once, in their module, and linked",
+             "from the package's page.", "",
+             ".. toctree::", "   :hidden:", "", "   inscal", ""]
+    for title, what, _prefixes in GROUPS:
+        members = [m for m in modules if m != "inscal" and group_of(m) == title]
+        if not members:
+            continue
+        index += [title, "-" * len(title), "", what, "", ".. toctree::", "   :hidden:", ""]
         index += [f"   {m}" for m in members] + [""]
+        for m in members:  # each summary read in its module (its relative references are the module's)
+            summary = _summary(importlib.import_module(m))
+            index += [f".. py:currentmodule:: {m}", "", f"- :doc:`{m}`" + (f": {summary}" if summary else ""), ""]
+        index += [".. py:currentmodule:: None", ""]
     pages["index.rst"] = "\n".join(index)
     for file, text in pages.items():
         path = out / file
@@ -288,6 +421,70 @@ def write_api_pages(app) -> None:
     for stale in out.glob("*.rst"):
         if stale.name not in pages:
             stale.unlink()
+
+
+def resolve_reexported(app, env, node, contnode):
+    """A reference to a name through the package that re-exports it (``inscal.io.Record``) resolves to
+    where the name is documented (``inscal.io.records.Record``): documented once, found by either path."""
+    import importlib
+
+    if node.get("refdomain") != "py":
+        return None
+    target = node.get("reftarget", "").lstrip("~.")
+    if not target.startswith("inscal.") and node.get("py:module"):  # a name relative to the page's module
+        target = f"{node['py:module']}.{target}"
+    if not target.startswith("inscal."):
+        return None
+    parts = target.split(".")
+    for cut in range(len(parts) - 1, 0, -1):  # the longest module path, then attributes
+        try:
+            module = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        obj = getattr(module, parts[cut], None)
+        if obj is None:
+            return None
+        canonical = _canonical(obj, parts[cut], module)  # the re-exported name, then what follows it
+        if canonical is None or canonical == ".".join(parts[:cut + 1]):
+            return None
+        canonical = ".".join([canonical, *parts[cut + 1:]])
+        new = node.deepcopy()
+        new["reftarget"] = canonical
+        return env.get_domain("py").resolve_xref(env, node.get("refdoc"), app.builder, node.get("reftype"),
+                                                 canonical, new, contnode)
+    return None
+
+
+def _shown_default(value) -> str:
+    """A default made by a ``default_factory``, as a Python expression a reader can take in."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        if not value.any():
+            shape = value.shape[0] if value.ndim == 1 else value.shape
+            return f"zeros({shape})"
+        text = np.array2string(value, separator=", ")
+        return text if len(text) <= 40 else f"array(shape={value.shape})"
+    text = repr(value)
+    return text if len(text) <= 40 and "<" not in text else f"{type(value).__name__}(...)"
+
+
+def factory_defaults(app, what, name, obj, options, signature, return_annotation):
+    """A dataclass's signature with the values of its ``default_factory`` fields in place of Python's
+    ``<factory>`` (which is no expression: the signature would then be shown unparsed, its type names
+    as written, ``~inscal.core...``)."""
+    import dataclasses
+
+    if not signature or "<factory>" not in signature or not dataclasses.is_dataclass(obj):
+        return None
+    for f in dataclasses.fields(obj):
+        if f.default_factory is not dataclasses.MISSING:
+            try:
+                shown = _shown_default(f.default_factory())
+            except Exception:  # noqa: BLE001  a factory that needs more than nothing: say so
+                shown = "..."
+            signature = re.sub(rf"(\b{f.name}\b[^,()]*?= )<factory>", lambda m: m.group(1) + shown, signature, count=1)
+    return signature.replace("<factory>", "..."), return_annotation
 
 
 #: what each parameter of the error model means (the unit and shape come from the registry itself)
@@ -366,4 +563,6 @@ def setup(app):
     app.connect("builder-inited", write_equation_index)
     app.connect("builder-inited", write_cli_page)
     app.connect("build-finished", check_cli_reference)
+    app.connect("missing-reference", resolve_reexported)
+    app.connect("autodoc-process-signature", factory_defaults)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

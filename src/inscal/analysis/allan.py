@@ -42,13 +42,46 @@ def octave_taus(n: int, rate_hz: float, max_fraction: float = 0.1) -> np.ndarray
 
 
 def allan(increments: np.ndarray, rate_hz: float, taus=None, white_tau_max: float = 1.0) -> AllanResult:
-    """Overlapping Allan deviation of each column of ``increments`` (N, k) sampled at ``rate_hz``, by the
-    noise engine (:class:`StreamingAllan`, the estimator of ``allantools.oadev``, which stays a test oracle).
+    """Overlapping Allan deviation of each column of ``increments``, by the noise engine.
 
-    Increments are converted to rates (``/ dt``).  The white-noise coefficient is the
+    The engine is :class:`StreamingAllan` (the estimator of ``allantools.oadev``, which stays a test
+    oracle).  Increments are converted to rates (``/ dt``).  The white-noise coefficient is the
     least-squares fit of ``sigma = N / sqrt(tau)`` over ``tau <= white_tau_max`` (a quick look; the
     identified ARW with its interval is :func:`inscal.analysis.noise.identify.allan_view`'s).
-    ``taus``: averaging times [s] (whole multiples of the sample interval; default the octaves).
+
+    Parameters
+    ----------
+    increments : numpy.ndarray
+        (N, k) angle [rad] or velocity [m/s] increments.
+    rate_hz : float
+        The sample rate [Hz].
+    taus : array_like, optional
+        Averaging times [s] (whole multiples of the sample interval; default the octaves).
+    white_tau_max : float
+        The longest averaging time of the white-noise fit [s].
+
+    Returns
+    -------
+    AllanResult
+        ``taus``, ``adev`` and ``adev_err`` per column, ``white`` (the coefficient N), the bias
+        instability and its averaging time.
+
+    Raises
+    ------
+    ValueError
+        Increments that are not (N, k), too few samples, or averaging times off the sample grid.
+
+    Examples
+    --------
+    White angle noise of ARW ``N`` has ``sigma(tau) = N / sqrt(tau)``:
+
+    >>> import numpy as np
+    >>> from inscal.analysis.allan import allan
+    >>> N, rate = 1e-5, 100.0  # rad/sqrt(s), Hz
+    >>> dtheta = np.random.default_rng(0).normal(0.0, N * np.sqrt(1.0 / rate), (20000, 1))
+    >>> res = allan(dtheta, rate)
+    >>> round(float(res.white[0]) / N, 2)
+    1.0
     """
     x = np.asarray(increments, dtype=float)
     if x.ndim == 1:

@@ -95,7 +95,56 @@ __all__ = ["calibrate", "window_means", "CalibrationResult", "CalibrationError",
 
 
 def calibrate(record_like, method: str, **options) -> CalibrationResult:
-    """Calibrate with ``method`` (one of :data:`METHODS`); see the module docstring."""
+    """Calibrate an IMU (and its gimbal) from a record with one of the methods of :data:`METHODS`.
+
+    The methods are described in the module docstring: the window-mean methods (``six-position``,
+    ``twelve-position``, ``n25``, ``joint``) average the static and constant-rate windows of a
+    turntable record first (:func:`window_means`, whose options pass through); the systematic filters
+    (``systematic51``, ``systematic30``, ``unified``) read the increments; ``multi-position`` and
+    ``ferraris`` find their own still poses in a record without a turntable; ``thermal-plateaus`` runs
+    another method on each temperature plateau.
+
+    Parameters
+    ----------
+    record_like : Record or WindowSet
+        Anything with ``time``, ``dtheta``, ``dvel``, ``gimbal``, ``rate_hz`` and ``site``
+        (:class:`inscal.io.Record`; ``gimbal`` may be None when the record has a ``path``), or the
+        :class:`WindowSet` of :func:`window_means` for the window-mean methods.
+    method : str
+        A name of :data:`METHODS`.
+    **options
+        Options of :func:`window_means` (``settle``, ``min_static``, ...) and of the method
+        (``uncertainty=False`` skips the error propagation; ``joint``: ``fix``, ``initial``,
+        ``sv_tol``; ``noise``: an identified noise model that widens the window sigma).
+
+    Returns
+    -------
+    CalibrationResult
+        The estimates (SI), their 1 sigma, the parameters estimated, the diagnostics.
+
+    Raises
+    ------
+    CalibrationError
+        An unknown method or option, window means given to a method that reads the record, or data
+        the method cannot calibrate (too few windows, jumps in the gimbal angles, ...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import calibrate, window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> res = calibrate(ws, "joint")
+    >>> res.method, len(res.estimated)
+    ('joint', 8)
+    >>> z = (res.imu.accel_bias - sc.imu.accel_bias) / res.sigma["accel_bias"]
+    >>> bool(np.all(np.abs(z) < 3))  # within 3 sigma of the truth
+    True
+    """
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     fn = METHODS[method]

@@ -184,15 +184,57 @@ def _turns(poses, dth: np.ndarray, time: np.ndarray, turn_tol_deg: float):
 def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: float = 1e-4,
              turn_tol_deg: float = 30.0, min_turn_end: float = 0.3, gravity_tol: float = 0.1,
              face_tilt: float = FACE_TILT, turn_closure: float = TURN_CLOSURE) -> CalibrationResult:
-    """Calibrate from six faces and three whole turns (module docstring).  ``settle`` [s] and ``alpha`` go
-    to :func:`.static_detect.detect_still`; ``min_static`` [s]: the shortest face pose; ``min_turn_end`` [s]:
-    the shortest still pose at the end of a turn (after ``settle`` at both ends; at most ``min_static``);
-    ``turn_tol_deg``: how far
-    from 360 deg a turn may be; ``gravity_tol``: the largest relative difference between the faces' median
-    specific force and the site's gravity (more is a wrong unit or site); ``face_tilt`` [rad]: the rms angle
-    between a face's normal and the vertical, an input of the sigma (0: exact faces); ``turn_closure`` [rad]:
-    the rms difference between a whole turn's angle and 360 deg (made by hand against a stop; 0: exact), an
-    input of the sigma."""
+    """Calibrate without a turntable from six faces and three whole turns (Ferraris 1995; module docstring).
+
+    The faces' tilt (``face_tilt``) and the turns' closure (``turn_closure``) are stated inputs of
+    the sigma.
+
+    Parameters
+    ----------
+    record_like : Record
+        A Ferraris session (``time``, ``dtheta``, ``dvel``, ``rate_hz``, ``site``).
+    settle : float
+        Seconds dropped at each end of a pose [s].
+    min_static : float
+        The shortest face pose [s].
+    alpha : float
+        The false-alarm rate of the still detector's tests.
+    turn_tol_deg : float
+        How far from 360 deg a turn may be [deg].
+    min_turn_end : float
+        The shortest still pose at the end of a turn, after ``settle`` at both ends [s].
+    gravity_tol : float
+        The largest relative difference between the faces' median specific force and the site's
+        gravity (more is a wrong unit or site).
+    face_tilt : float
+        The rms angle between a face's normal and the vertical [rad] (0: exact faces).
+    turn_closure : float
+        The rms difference between a whole turn's angle and 360 deg [rad] (0: exact).
+
+    Returns
+    -------
+    CalibrationResult
+        The IMU errors (SI) and their 1 sigma.
+
+    Raises
+    ------
+    CalibrationError
+        Faces or turns not found, or a gravity magnitude that does not match the site.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> from inscal.calibrate import ferraris
+    >>> sc = build("ferraris-mems")
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> res = ferraris(Record(data.time, data.dtheta, data.dvel, None, sc.rate_hz, sc.site))
+    >>> z = (res.imu.gyro_bias - sc.imu.gyro_bias) / res.sigma["gyro_bias"]
+    >>> bool(np.all(np.abs(z) < 3))
+    True
+    """
     for name, v, ok in (("settle", settle, settle >= 0), ("min_static", min_static, min_static > 0),
                         ("min_turn_end", min_turn_end, min_turn_end > 0),
                         ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),

@@ -274,14 +274,62 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
                    alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
                    gravity_tol: float = 0.15, sv_tol: float = 1e-7, still: StillIntervals | None = None,
                    tremor: float = TREMOR, clipped: np.ndarray | None = None) -> CalibrationResult:
-    """Calibrate the accelerometers and gyros from still poses at unknown orientations and the moves
-    between them (module docstring).  ``settle``, ``min_static`` [s] and ``alpha`` go to
-    :func:`.static_detect.detect_still` (``still``: its result, computed once by the caller);
-    ``gravity_tol``: the largest relative difference between the poses' median specific force and the
-    site's gravity accepted (a larger one is a wrong unit; 0.15: a consumer accelerometer's biases of
-    tens of mg move the median by several per cent); ``gyro_range`` [rad/s],
-    ``accel_range`` [m/s^2]: the clip levels, when known; ``tremor`` [rad/s rms]: the hand tremor a pose may
-    hold; ``clipped``: bool per sample, a sensor marked saturated at import (its moves are not used)."""
+    """Calibrate without a turntable: still poses at unknown orientations and the moves between them.
+
+    The accelerometer model from the gravity magnitude of each pose, the gyro model from the rotations
+    between poses (Tedaldi 2014; module docstring).
+
+    Parameters
+    ----------
+    record_like : Record
+        A hand-held session (``time``, ``dtheta``, ``dvel``, ``rate_hz``, ``site``).
+    settle, min_static : float
+        Seconds dropped at each end of a pose, and the shortest pose [s]
+        (:func:`~inscal.calibrate.static_detect.detect_still`).
+    quadratic : bool
+        Fit the accelerometers' quadratic terms too.
+    alpha : float
+        The false-alarm rate of the still detector's tests.
+    gyro_range, accel_range : float, optional
+        The clip levels [rad/s], [m/s^2], when known.
+    gravity_tol : float
+        The largest relative difference between the poses' median specific force and the site's
+        gravity (a larger one is a wrong unit).
+    sv_tol : float
+        The relative singular value below which a direction is unobservable.
+    still : StillIntervals, optional
+        The still detector's result, computed once by the caller.
+    tremor : float
+        The hand tremor a pose may hold [rad/s rms].
+    clipped : numpy.ndarray, optional
+        Bool per sample: a sensor marked saturated at import (its moves are not used).
+
+    Returns
+    -------
+    CalibrationResult
+        The IMU errors (SI) and their 1 sigma.
+
+    Raises
+    ------
+    CalibrationError
+        Too few still poses (the message says which were too short and the option that would keep
+        them), or a gravity magnitude that does not match the site.
+
+    Examples
+    --------
+    A simulated hand-held session of a MEMS IMU (the fit takes about 2 s: not run in the tests):
+
+    >>> import numpy as np
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> from inscal.calibrate import multi_position
+    >>> sc = build("handheld-mems")
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> res = multi_position(Record(data.time, data.dtheta, data.dvel, None, sc.rate_hz, sc.site))  # doctest: +SKIP
+    >>> np.round(np.degrees(res.imu.gyro_bias) * 3600.0)  # deg/h; the truth: 400, -700, 1000  # doctest: +SKIP
+    array([ 402., -699.,  994.])
+    """
     time = np.asarray(record_like.time, float)
     dth = np.asarray(record_like.dtheta, float)
     dv = np.asarray(record_like.dvel, float)

@@ -243,7 +243,46 @@ def symmetric_windows(ws: WindowSet) -> list[int]:
 
 
 def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) -> CalibrationResult:
-    """Scheme 1 of N25 (see the module docstring)."""
+    """Scheme 1 of N25: the IMU errors with the gimbal non-orthogonality and the mount attitude.
+
+    A rough alpha0 (eq. 38), the eq. 40-44 least squares for [tan beta0, alpha0, dth], then the
+    accelerometer and gyro errors refined with them (see the module docstring).
+
+    Parameters
+    ----------
+    ws : WindowSet
+        The windows of a turntable record on the N25 path (:func:`window_means`).
+    uncertainty : bool
+        Propagate the windows' noise to the sigma.
+    max_alpha0 : float
+        The largest mount angle alpha0 accepted [rad].
+
+    Returns
+    -------
+    CalibrationResult
+        The estimates (SI), their 1 sigma and the parameters estimated.
+
+    Raises
+    ------
+    CalibrationError
+        Windows that do not hold the N25 positions, or a mount angle beyond ``max_alpha0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.calibrate import n25
+    >>> from inscal.core.units import ARCSEC
+    >>> res = n25(ws, uncertainty=False)  # no sigma: faster
+    >>> round(sc.gimbal.nonorthogonality / ARCSEC, 1), round(res.gimbal.nonorthogonality / ARCSEC, 1)
+    (20.0, 20.0)
+    """
     idx = symmetric_windows(ws)
     a0 = rough_alpha0(ws)
     if a0 is not None and abs(a0) > max_alpha0:

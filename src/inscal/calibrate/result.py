@@ -51,12 +51,54 @@ def unflatten(vec, names) -> dict[str, np.ndarray]:
 class CalibrationResult:
     """Estimated IMU and gimbal errors of one calibration method (SI).
 
-    ``imu`` / ``gimbal`` hold the estimates (zeros where the method does not estimate);
-    ``sigma[name]`` is the 1-sigma uncertainty reported (SI, same shape as the parameter; NaN
-    for components held fixed): for the window-mean methods the formal sigma while the fit
-    is consistent, scaled for the misfit when it is not (``diagnostics["formal_sigma"]``
-    keeps the formal one, ``diagnostics["fit"]`` / :attr:`fit` the chi^2, dof, p-value,
-    per-window residuals and the note); ``estimated`` names the parameters the method estimates.
+    Parameters
+    ----------
+    method : str
+        The method's name.
+    imu : ImuErrors
+        The IMU error estimates (zeros where the method does not estimate).
+    gimbal : GimbalErrors
+        The gimbal error estimates (zeros where not estimated).
+    sigma : dict of str to numpy.ndarray
+        1 sigma of each parameter (SI, the parameter's shape; NaN for components held fixed): for the
+        window-mean methods the formal sigma while the fit is consistent, scaled for the misfit when
+        it is not (``diagnostics["formal_sigma"]`` keeps the formal one, ``diagnostics["fit"]`` /
+        :attr:`fit` the chi^2, dof, p-value, per-window residuals and the note).
+    estimated : tuple of str
+        The parameters the method estimates (names of :data:`~inscal.core.error_model.PARAMETERS`).
+    windows : WindowSet, optional
+        The windows it used.
+    diagnostics : dict
+        Method-specific figures.
+    notes : list of str
+        What the method assumed, in words.
+    truth_transform : callable, optional
+        Maps the truth ``(ImuErrors, GimbalErrors)`` into the frame of the estimates, for methods
+        that define their own IMU frame (the systematic filter); None = identity.
+    history : dict, optional
+        The filter's state history (the systematic methods).
+    thermal : ThermalModel, optional
+        The thermal model estimated with the errors (``imu`` = the errors at ``thermal.t_ref``).
+    thermal_sigma : dict
+        1 sigma of the thermal coefficients (SI; NaN: held fixed).
+    thermal_fit : dict, optional
+        The fit of the thermal model (per term chi^2, dof, p-value ...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.calibrate import calibrate
+    >>> res = calibrate(ws, "joint")
+    >>> bias = res.to_field((sc.imu, sc.gimbal))["accel_bias"]  # field units, the error against the truth
+    >>> bias["unit"], all(abs(e) < 3 * s for e, s in zip(bias["error"], bias["sigma"]))
+    ('ug', True)
     """
 
     method: str

@@ -70,7 +70,44 @@ def _six_core(ws: WindowSet, sel: dict[str, int]):
 
 
 def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
-    """Scheme 2 of N25: six-position accelerometer LS, Earth-rate gyro bias, rate tests."""
+    """Scheme 2 of N25: six-position accelerometer least squares, Earth-rate gyro bias, rate tests.
+
+    Accelerometers from six static positions with ideal (level, orthogonal) inputs (N25 eq. 15-19),
+    the gyro bias from the Earth rate, the gyro scale factors and misalignments from CW/CCW rate
+    tests (eq. 28).  The gimbal errors are not estimated.
+
+    Parameters
+    ----------
+    ws : WindowSet
+        The windows of a turntable record (:func:`window_means`).
+    uncertainty : bool
+        Propagate the windows' noise to the sigma.
+
+    Returns
+    -------
+    CalibrationResult
+        The estimates (SI), their 1 sigma and the parameters estimated.
+
+    Raises
+    ------
+    CalibrationError
+        A position or a rate test that the windows do not hold.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.calibrate import six_position
+    >>> res = six_position(ws, uncertainty=False)  # no sigma: faster
+    >>> "gimbal_nonorthogonality" in res.estimated
+    False
+    """
     pos = positions(ws)
     sel = _need_orientations(ws, pos)
     Ma, nabla, Mg, eps, used_rate = _six_core(ws, sel)

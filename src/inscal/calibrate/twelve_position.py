@@ -39,6 +39,40 @@ def _core(ws: WindowSet, idx: list[int]):
 
 
 def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
+    """The inner-symmetric twelve-position scheme of N25 (eq. 24-26) with ideal inputs.
+
+    The six orientations of the six-position scheme, each at two inner-gimbal angles 180 deg apart,
+    which cancels the leveling error in the installation angles to first order; the gyro bias from
+    the mean over the twelve positions (eq. 27), the gyro scale factors and installation angles from
+    the CW/CCW rate tests (eq. 28).  The gimbal errors are not estimated.
+
+    Parameters
+    ----------
+    ws : WindowSet
+        The windows of a turntable record (:func:`window_means`).
+    uncertainty : bool
+        Propagate the windows' noise to the sigma.
+
+    Returns
+    -------
+    CalibrationResult
+        The estimates (SI), their 1 sigma and the parameters estimated.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.calibrate import twelve_position
+    >>> res = twelve_position(ws, uncertainty=False)  # no sigma: faster
+    >>> len(res.diagnostics["positions"])
+    12
+    """
     idx = twelve_windows(ws)
     Ma, nabla, Mg, eps, used_rate = _core(ws, idx)
     vals = values_from_matrices(Ma, nabla, Mg, eps)

@@ -48,12 +48,58 @@ from inscal.core.units import ARCSEC, DEG
 
 
 class CalibrationError(ValueError):
-    """Data that cannot be calibrated with the requested method, with the reason."""
+    """Data that cannot be calibrated with the requested method, with the reason (a ``ValueError``).
+
+    Examples
+    --------
+    >>> from inscal.calibrate import CalibrationError, calibrate
+    >>> try:
+    ...     calibrate(None, "seven-position")
+    ... except CalibrationError as exc:
+    ...     print(str(exc)[:31])
+    unknown method 'seven-position'
+    """
 
 
 @dataclass(frozen=True)
 class Window:
-    """One static or constant-rate window (SI).  Angles are (theta_x, theta_z) [rad]."""
+    """One static or constant-rate window of a turntable record, averaged (SI).
+
+    Parameters
+    ----------
+    kind : str
+        ``"static"``, ``"rate"`` (whole turns) or ``"turn"`` (part of a turn).
+    i0, i1 : int
+        The first sample and one past the last.
+    t0, t1 : float
+        The start of the first sample interval and the end of the last [s].
+    theta0, theta1 : numpy.ndarray
+        The gimbal angles (theta_x, theta_z) at ``t0`` and ``t1`` [rad] (static: the window mean).
+    axis : str
+        The turning axis: ``"none"``, ``"outer"`` or ``"inner"``.
+    rate : float
+        The signed turntable rate of ``axis`` [rad/s] (0 for static).
+    gyro, accel : numpy.ndarray
+        (3,) mean gyro [rad/s] and accelerometer [m/s^2] outputs.
+    gyro_sigma, accel_sigma : numpy.ndarray
+        (3,) their 1 sigma.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> w = ws.static[0]
+    >>> w.describe()
+    'static (0.0, 0.0) deg, 1.5-98.5 s'
+    >>> round(float(np.linalg.norm(w.accel)), 2)  # gravity, plus the accelerometer errors
+    9.8
+    """
 
     kind: str  # "static", "rate" (whole turns) or "turn" (part of a turn)
     i0: int  # first sample
@@ -88,7 +134,32 @@ class Window:
 
 @dataclass
 class WindowSet:
-    """The windows of one record, with the site they were recorded at."""
+    """The windows of one record (:func:`window_means`), with the site and rate they were recorded at.
+
+    Parameters
+    ----------
+    windows : list of Window
+        The static and constant-rate windows, in time order.
+    site : Site
+        The site of the record.
+    rate_hz : float
+        The record's sample rate [Hz].
+    info : dict
+        What the segmentation found and used (tolerances, rejected windows).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> len(ws.windows), len(ws.static), len(ws.rate)
+    (42, 21, 6)
+    """
 
     windows: list[Window]
     site: Site
@@ -227,11 +298,60 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
                  static_tol: float = 0.01 * DEG, rate_min: float = 1.0 * DEG, rate_rel_tol: float = 1e-3,
                  min_turns: int = 1, increment_static_tol: float = 0.05 * DEG, jump_tol: float | None = None,
                  partial_turns: bool = True, min_turn_s: float = 2.0, min_turn_deg: float = 10.0) -> WindowSet:
-    """Find the static and constant-rate windows of a record and average each.
+    """Find the static and constant-rate windows of a turntable record and average each.
 
-    ``record_like`` needs ``.time, .dtheta, .dvel, .gimbal`` (``gimbal`` may be None:
-    then the windows are found from the gyro increments and the angles are taken from
-    ``record_like.path``), ``.rate_hz`` and ``.site``.  Tolerances are SI (rad/s, s).
+    Parameters
+    ----------
+    record_like : Record
+        Anything with ``time``, ``dtheta``, ``dvel``, ``gimbal``, ``rate_hz`` and ``site``;
+        ``gimbal`` may be None: the windows are then found from the gyro increments and the angles
+        are taken from ``record_like.path``.
+    settle : float
+        Seconds dropped at each end of a window (the table settling) [s].
+    min_static : float
+        The shortest static window kept [s].
+    smooth : float
+        The span of the angle-rate estimate [s].
+    static_tol : float
+        The largest angle rate of a static window [rad/s].
+    rate_min : float
+        The smallest turntable rate of a rate window [rad/s].
+    rate_rel_tol : float
+        The largest relative change of the rate within a rate window.
+    min_turns : int
+        The fewest whole turns of a rate window.
+    increment_static_tol : float
+        The largest body rate of a static window from the increments, without angles [rad/s].
+    jump_tol : float, optional
+        The largest second difference of an angle channel [rad] (default: from the encoder noise
+        and ``50 deg/s^2``).
+    partial_turns : bool
+        Keep the parts of turns (``"turn"`` windows) too.
+    min_turn_s, min_turn_deg : float
+        The shortest partial turn kept [s], [deg].
+
+    Returns
+    -------
+    WindowSet
+        The windows, in time order, with the site and rate.
+
+    Raises
+    ------
+    CalibrationError
+        A record without one of the fields, jumps in the gimbal angles, or no window found.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.calibrate import window_means
+    >>> from inscal.io import Record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> ws.rate_hz, ws.windows[0].kind, ws.rate[0].axis
+    (10.0, 'static', 'inner')
     """
     time = np.asarray(_get(record_like, "time"), float)
     dth = np.asarray(_get(record_like, "dtheta"), float)

@@ -21,17 +21,45 @@ _HOLDS: list[bool] = []
 
 
 def cancel(exc: BaseException) -> None:
-    """Ask the writers and readers of files (:mod:`inscal.io.files`, :mod:`inscal.io.records`) and the sliced
-    kernels to stop: :func:`check_cancel` (called per
-    chunk and before an output is renamed into place) raises ``exc`` from now on.  Used by the
-    SIGINT/SIGTERM handler of :func:`inscal.cli.main`, whose own exception may be swallowed
-    where Python cannot propagate it (a weakref or ``__del__`` callback)."""
+    """Ask the file writers and readers and the sliced kernels to stop.
+
+    From now on :func:`check_cancel` (called per chunk and before an output is renamed into place)
+    raises ``exc``.  Used by the SIGINT/SIGTERM handler of :func:`inscal.cli.main`, whose own exception
+    may be swallowed where Python cannot propagate it (a weakref or ``__del__`` callback).  The first
+    cancellation stays; later ones are ignored.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception to raise (``KeyboardInterrupt()`` for SIGINT).
+
+    Examples
+    --------
+    Not run here: a cancellation lasts for the rest of the process.
+
+    >>> from inscal.core.cancel import cancel, check_cancel
+    >>> cancel(KeyboardInterrupt())  # doctest: +SKIP
+    >>> check_cancel()  # doctest: +SKIP
+    Traceback (most recent call last):
+    KeyboardInterrupt
+    """
     if not _CANCEL:
         _CANCEL.append(exc)
 
 
 def check_cancel() -> None:
-    """Raise the pending cancellation, if any (see :func:`cancel`)."""
+    """Raise the pending cancellation, if any (see :func:`cancel`).
+
+    Raises
+    ------
+    BaseException
+        The exception given to :func:`cancel` (KeyboardInterrupt, the interrupt of a SIGTERM).
+
+    Examples
+    --------
+    >>> from inscal.core.cancel import check_cancel
+    >>> check_cancel()  # nothing pending: returns
+    """
     if _CANCEL:
         raise _CANCEL[0]
 

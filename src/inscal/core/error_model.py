@@ -128,7 +128,54 @@ def size_effect(lever_arm, w, wdot=None):
 
 @dataclass(frozen=True)
 class ImuErrors:
-    """Deterministic IMU errors in the canonical (s-frame, measurement) form.  SI units."""
+    """Deterministic IMU errors in the canonical (s-frame, measurement) form, SI units.
+
+    The measurement model (N25 eq. 1-4; S16 eq. 1, 4-6, 9-12): ``measure`` maps true rates and specific force
+    to the sensor outputs, ``compensate`` inverts it (S16 form).  Every field defaults to zero.
+
+    Parameters
+    ----------
+    gyro_scale_factor : array_like
+        K_g, the diagonal of (I + K_g) [-], (3,).
+    gyro_misalignment : array_like
+        E_g off-diagonals ``[xy, xz, yx, yz, zx, zy]`` [rad], (6,).
+    gyro_bias : array_like
+        epsilon [rad/s], (3,).
+    gyro_g_sensitivity : array_like
+        G [(rad/s)/(m/s^2)], (3, 3).
+    accel_scale_factor : array_like
+        K_a, the diagonal of (I + K_a) [-], (3,).
+    accel_misalignment : array_like
+        E_a off-diagonals [rad], (6,).
+    accel_bias : array_like
+        nabla [m/s^2], (3,).
+    accel_nonlinearity : array_like
+        K_a2 diagonal [1/(m/s^2)], (3,).
+    accel_cross_coupling : array_like
+        ``[xy, xz, yx, yz, zx, zy]`` [1/(m/s^2)], (6,).
+    accel_lever_arm : array_like
+        Row i = the position of accelerometer i [m], (3, 3) (S16 size effect).
+    time_asynchrony : float
+        tau [s]: the accelerometer samples lag the gyro samples by tau.
+
+    Raises
+    ------
+    ValueError
+        A field of the wrong shape, or values that are not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.error_model import ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> imu = ImuErrors(gyro_bias=np.array([0.01, 0.0, 0.0]) * DEG / HOUR, accel_scale_factor=np.full(3, 1e-4))
+    >>> ng, na = imu.measure(np.zeros((1, 3)), np.array([[0.0, 0.0, 9.8]]))
+    >>> round(float(ng[0, 0]) / (DEG / HOUR), 6), round(float(na[0, 2]), 5)
+    (0.01, 9.80098)
+    >>> w, f = imu.compensate(ng, na)
+    >>> bool(np.allclose(f, [[0.0, 0.0, 9.8]]))
+    True
+    """
 
     gyro_scale_factor: np.ndarray = field(default_factory=lambda: np.zeros(3))  # K_g diag [-]
     gyro_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(6))  # E_g [rad]
@@ -356,7 +403,42 @@ class GimbalErrors:
 
 @dataclass(frozen=True)
 class ImuNoise:
-    """Stochastic IMU errors (SI).  Scalars or per-axis (3,) arrays."""
+    """Stochastic IMU errors (SI): white noise, bias instability, quantization, encoder noise.
+
+    Parameters
+    ----------
+    arw : float or array_like
+        Angle random walk [rad/sqrt(s)] (a scalar or per axis).
+    vrw : float or array_like
+        Velocity random walk [m/s/sqrt(s)].
+    gyro_bias_instability : float or array_like
+        The sigma of a first-order Gauss-Markov gyro bias [rad/s].
+    gyro_bias_tau : float
+        Its correlation time [s].
+    accel_bias_instability : float or array_like
+        The same for the accelerometers [m/s^2].
+    accel_bias_tau : float
+        Its correlation time [s].
+    gyro_quantization : float
+        The angle quantum [rad].
+    accel_quantization : float
+        The velocity quantum [m/s].
+    encoder_noise : float
+        White noise on the recorded gimbal angles [rad].
+
+    Raises
+    ------
+    ValueError
+        A negative or non-finite value, or a correlation time that is not positive.
+
+    Examples
+    --------
+    >>> from inscal.core.error_model import ImuNoise
+    >>> from inscal.core.units import DEG
+    >>> noise = ImuNoise(arw=0.005 * DEG / 60.0)  # 0.005 deg/sqrt(h)
+    >>> noise.arw.shape, noise.is_zero, ImuNoise().is_zero
+    ((3,), False, True)
+    """
 
     arw: Any = 0.0  # angle random walk [rad/sqrt(s)]
     vrw: Any = 0.0  # velocity random walk [m/s/sqrt(s)]

@@ -327,16 +327,48 @@ def fsync_path(path) -> None:
 
 @contextmanager
 def atomic_path(path, overwrite: bool = False):
-    """Yield a temporary path next to ``path``; rename it onto ``path`` on success.
+    """A temporary path next to ``path``, renamed onto ``path`` when the block succeeds.
 
-    Refuses (FileExistsError) if ``path`` exists and not ``overwrite``, and
-    (:class:`OutputBusyError`) if another process holds the lock of ``path`` (:func:`claim_output`,
-    taken here for the write unless held already).  Without ``overwrite``, a file that appears at
-    ``path`` during the write is not replaced.  On any exception, ``BaseException`` included
-    (KeyboardInterrupt, the interrupt of a SIGTERM), the temporary file is removed and ``path`` is
-    untouched; a pending :func:`cancel` is raised before the rename, so an interrupted write is
-    never published.  Inside an :func:`output_unit` the rename waits for the end of the unit.  The
-    temporaries of ``path`` that a killed writer left are removed once its lock is taken (:func:`remove_stale_parts`).
+    Refuses if ``path`` exists and not ``overwrite``, and if another process holds the lock of
+    ``path`` (:func:`claim_output`, taken here for the write unless held already).  Without
+    ``overwrite``, a file that appears at ``path`` during the write is not replaced.  On any exception,
+    ``BaseException`` included (KeyboardInterrupt, the interrupt of a SIGTERM), the temporary file is
+    removed and ``path`` is untouched; a pending :func:`~inscal.core.cancel.cancel` is raised before the
+    rename, so an interrupted write is never published.  Inside an :func:`output_unit` the rename waits
+    for the end of the unit.  The temporaries of ``path`` that a killed writer left are removed once its
+    lock is taken (:func:`remove_stale_parts`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output file; its folder must exist.
+    overwrite : bool
+        Replace an existing file.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary file to write (same folder, ``.part`` suffix).
+
+    Raises
+    ------
+    FileNotFoundError
+        The folder of ``path`` does not exist.
+    FileExistsError
+        ``path`` exists and ``overwrite`` is false.
+    OutputBusyError
+        Another process is writing ``path``.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from inscal.io import atomic_path
+    >>> with atomic_path("out.txt") as tmp:
+    ...     _ = tmp.write_text("done")
+    ...     Path("out.txt").exists()
+    False
+    >>> Path("out.txt").read_text()
+    'done'
     """
     path = FsPath(path)
     if not path.parent.exists():
@@ -405,8 +437,25 @@ def remove_stale_parts(path) -> list[str]:
 
 
 def remove_part(tmp: str) -> bool:
-    """Remove a temporary of :func:`atomic_path` (if still there); True if it is gone and was live
-    (an earlier, interrupted removal counts)."""
+    """Remove a temporary of :func:`atomic_path`, if still there.
+
+    Parameters
+    ----------
+    tmp : str
+        The temporary's path.
+
+    Returns
+    -------
+    bool
+        True if it is gone and was live (an earlier, interrupted removal counts); a removed one is
+        listed in :data:`REMOVED_PARTS`.
+
+    Examples
+    --------
+    >>> from inscal.io import remove_part
+    >>> remove_part("never-written.part")
+    False
+    """
     live = tmp in _LIVE_PARTS
     try:
         os.unlink(tmp)
@@ -422,7 +471,20 @@ def remove_part(tmp: str) -> bool:
 
 
 def remove_live_parts() -> None:
-    """Remove every temporary still being written (last resort of an interrupt)."""
+    """Remove every temporary of :func:`atomic_path` still being written (last resort of an interrupt).
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from inscal.io import atomic_path, remove_live_parts
+    >>> try:
+    ...     with atomic_path("out.txt") as tmp:
+    ...         remove_live_parts()  # as the interrupt handler does
+    ...         raise KeyboardInterrupt
+    ... except KeyboardInterrupt:
+    ...     print(tmp.exists(), Path("out.txt").exists())
+    False False
+    """
     for tmp in list(_LIVE_PARTS):
         remove_part(tmp)
 
@@ -455,7 +517,26 @@ def check_input(path, what: str, error: type[Exception]) -> None:
 
 
 def file_hash(path) -> str:
-    """SHA-256 of a file's bytes (recorded in calibration parameter files)."""
+    """The SHA-256 of a file's bytes (recorded in calibration parameter files).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    str
+        ``"sha256:"`` and the hex digest.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from inscal.io import file_hash
+    >>> _ = Path("empty.bin").write_bytes(b"")
+    >>> file_hash("empty.bin")
+    'sha256:e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855'
+    """
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):

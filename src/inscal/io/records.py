@@ -58,13 +58,41 @@ TEMPERATURE_SPAN = (-100.0, 200.0)
 
 
 class DataFileError(ValueError):
-    """A data file that cannot be used, with the reason."""
+    """A data file that cannot be used, with the reason (a ``ValueError``: one line naming the file).
+
+    Examples
+    --------
+    >>> from inscal.io import DataFileError, read_record
+    >>> try:
+    ...     read_record("no-such-record.h5")
+    ... except DataFileError as exc:
+    ...     print("refused")
+    refused
+    """
 
 
 @dataclass(frozen=True)
 class Truth:
-    """What a simulated record was made with (SI): the IMU errors (at ``T_ref`` when there is a thermal
-    model), the gimbal errors, the noise, and the thermal model if any (``/truth`` of the record).
+    """What a simulated record was made with (SI): the ``/truth`` group of the record.
+
+    Parameters
+    ----------
+    imu : ImuErrors
+        The IMU errors (at the thermal model's reference temperature when there is one).
+    gimbal : GimbalErrors
+        The gimbal errors (non-orthogonality, mount attitude).
+    noise : ImuNoise
+        The sensor noise the samples were drawn with.
+    thermal : ThermalModel or None
+        The thermal model the IMU errors follow, if any.
+
+    Examples
+    --------
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
+    >>> from inscal.io import Truth
+    >>> truth = Truth(ImuErrors(), GimbalErrors(), ImuNoise())
+    >>> truth.thermal is None
+    True
     """
     imu: ImuErrors
     gimbal: GimbalErrors
@@ -74,8 +102,31 @@ class Truth:
 
 @dataclass(frozen=True)
 class Temperature:
-    """Temperature sensor readings of a record: ``values`` (M, S) degC at ``time`` (M,) s (the record's
-    clock), one column per sensor named in ``sensors``."""
+    """Temperature sensor readings of a record, one column per sensor.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        (M,) times of the readings [s] on the record's clock, increasing.
+    values : numpy.ndarray
+        (M, S) readings [degC] (a 1-D array is one sensor).
+    sensors : tuple of str
+        The S sensor names, distinct.
+
+    Raises
+    ------
+    DataFileError
+        Shapes that do not match, NaN/inf, time that does not increase, or readings outside
+        -100 .. 200 degC (kelvin?).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.io import Temperature
+    >>> temp = Temperature(np.array([0.0, 10.0]), np.array([[20.0, 22.0], [21.0, 23.0]]), ("a", "b"))
+    >>> temp.series("b").tolist(), temp.series().tolist()
+    ([22.0, 23.0], [21.0, 22.0])
+    """
 
     time: np.ndarray
     values: np.ndarray
@@ -98,7 +149,35 @@ class Temperature:
 
 
 def validate_temperature(time, values, sensors, where: str = "temperature") -> None:
-    """Shapes, finiteness, increasing time and a plausible Celsius range (one-line DataFileError)."""
+    """Check temperature readings: shapes, finiteness, increasing time and a plausible Celsius range.
+
+    Parameters
+    ----------
+    time : array_like
+        (M,) times of the readings [s].
+    values : array_like
+        (M, S) readings [degC].
+    sensors : sequence of str
+        The S sensor names.
+    where : str
+        What the message names as the place of a fault.
+
+    Raises
+    ------
+    DataFileError
+        One line saying what is wrong and where (the first faulty reading).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.io import DataFileError, validate_temperature
+    >>> validate_temperature(np.array([0.0, 1.0]), np.array([[20.0], [20.5]]), ["case"])
+    >>> try:
+    ...     validate_temperature(np.array([0.0, 1.0]), np.array([[293.1], [293.2]]), ["case"])
+    ... except DataFileError as exc:
+    ...     print(exc)
+    temperature: readings 293.1 .. 293.2 degC lie outside the plausible -100 .. 200 degC (kelvin? give the column's unit as K)
+    """
     t = np.asarray(time)
     v = np.asarray(values)
     if t.ndim != 1 or t.shape[0] < 1:
@@ -130,7 +209,43 @@ def validate_temperature(time, values, sensors, where: str = "temperature") -> N
 
 @dataclass
 class Record:
-    """An IMU record in memory (SI)."""
+    """An IMU record in memory (SI), as :func:`read_record` returns it and :func:`write_record` writes it.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        (N,) end time of each increment interval [s], uniform at ``rate_hz``.
+    dtheta : numpy.ndarray
+        (N, 3) angular increments in the IMU s-frame [rad].
+    dvel : numpy.ndarray
+        (N, 3) velocity increments in the IMU s-frame [m/s].
+    gimbal : numpy.ndarray or None
+        (N, 2) gimbal angles (outer, inner) [rad], None for a strapdown record.
+    rate_hz : float
+        The sample rate [Hz].
+    site : Site
+        Where the record was made (latitude, longitude, height, gravity model).
+    path : RotationPath or None
+        The turntable's rotation path, if known.
+    truth : Truth or None
+        What a simulated record was made with (None for measured data).
+    scenario : str
+        The scenario's name ("" when none).
+    source : str
+        The file it was read from ("" when built in memory).
+    temperature : Temperature or None
+        Temperature sensor readings, if any.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> rec = Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(np.radians(45.0)))
+    >>> rec.n_samples, rec.duration
+    (200, 2.0)
+    """
 
     time: np.ndarray
     dtheta: np.ndarray
@@ -185,9 +300,49 @@ def _create_layout(h5, scenario_name, rate_hz, site, path, n, has_gimbal=True, c
 
 def write_stream(path, info: "RecordInfo", chunks, overwrite: bool = False, extra_attrs: dict | None = None,
                  temperature: Temperature | None = None) -> int:
-    """Write a record chunk by chunk from an iterator of ``(time, dtheta, dvel, gimbal)``
-    (atomic; only one chunk in memory).  ``info`` gives the metadata; its truth, if any, is
-    written under /truth; ``temperature`` (or ``info.temperature``) under /temperature."""
+    """Write a record chunk by chunk, atomically, holding one chunk in memory.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The HDF5 file to write.
+    info : RecordInfo
+        The metadata: size, rate, site, path, truth (written under ``/truth``), scenario.
+    chunks : iterable of tuple
+        ``(time, dtheta, dvel, gimbal)`` slices in order, together ``info.n_samples`` long
+        (``gimbal`` None when ``info.has_gimbal`` is false).
+    overwrite : bool
+        Replace an existing file; otherwise one is refused.
+    extra_attrs : dict, optional
+        More root attributes (``created`` replaces the time of writing).
+    temperature : Temperature, optional
+        Temperature readings (default ``info.temperature``).
+
+    Returns
+    -------
+    int
+        The number of samples written.
+
+    Raises
+    ------
+    DataFileError
+        Chunks that do not add up to ``info.n_samples``, or arrays that fail :func:`validate_arrays`.
+    FileExistsError
+        ``path`` exists and ``overwrite`` is false.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import RecordInfo, read_record, write_stream
+    >>> info = RecordInfo(200, 100.0, Site(0.7), None, None, "still", has_gimbal=False)
+    >>> t = np.arange(1, 201) / 100.0
+    >>> chunks = [(t[k:k + 100], np.zeros((100, 3)), np.zeros((100, 3)), None) for k in (0, 100)]
+    >>> write_stream("streamed.h5", info, chunks)
+    200
+    >>> read_record("streamed.h5").scenario
+    'still'
+    """
     temperature = temperature if temperature is not None else info.temperature
     k = 0
     with atomic_path(path, overwrite) as tmp:
@@ -242,7 +397,34 @@ def _write_temperature(h5, temp: Temperature, time_ds) -> None:
 
 
 def write_record(path, rec: Record, overwrite: bool = False) -> None:
-    """Write an in-memory :class:`Record` (e.g. imported or edited data), atomically."""
+    """Write an in-memory :class:`Record` (imported or edited data) to an HDF5 file, atomically.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The HDF5 file to write.
+    rec : Record
+        The record; its arrays are checked first (:func:`validate_arrays`).
+    overwrite : bool
+        Replace an existing file; otherwise one is refused.
+
+    Raises
+    ------
+    DataFileError
+        Arrays of the wrong shape, NaN/inf or a time grid that is not uniform at ``rate_hz``.
+    FileExistsError
+        ``path`` exists and ``overwrite`` is false.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, read_record, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> read_record("still.h5").duration
+    2.0
+    """
     validate_arrays(rec.time, rec.dtheta, rec.dvel, rec.gimbal, rec.rate_hz)
     info = RecordInfo(rec.n_samples, rec.rate_hz, rec.site, rec.path, rec.truth, rec.scenario, rec.gimbal is not None,
                       rec.temperature)
@@ -260,7 +442,37 @@ def _rate(h5, path) -> float:
 
 
 def validate_arrays(time, dtheta, dvel, gimbal, rate_hz, where: str = "record") -> None:
-    """Shape, finiteness and time-grid checks with messages that say what is wrong."""
+    """Check a record's arrays: shapes, floating point, finiteness and a uniform time grid.
+
+    Parameters
+    ----------
+    time : array_like
+        (N,) sample times [s].
+    dtheta, dvel : array_like or None
+        (N, 3) increments (None: not checked).
+    gimbal : array_like or None
+        (N, 2) gimbal angles (None: not checked).
+    rate_hz : float
+        The nominal rate; every time step must be within 1 % of ``1 / rate_hz``.
+    where : str
+        What the message names as the place of a fault.
+
+    Raises
+    ------
+    DataFileError
+        One line saying what is wrong, with the first faulty sample and its time.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.io import DataFileError, validate_arrays
+    >>> t = np.array([0.01, 0.02, 0.04])
+    >>> try:
+    ...     validate_arrays(t, None, None, None, 100.0)
+    ... except DataFileError as exc:
+    ...     print(str(exc)[:60])
+    record: time is not uniform at 100 Hz: 1 irregular step(s),
+    """
     n = np.shape(time)[0] if np.ndim(time) == 1 else None
     if n is None:
         raise DataFileError(f"{where}: time must be a 1-D array, got shape {np.shape(time)}")
@@ -348,7 +560,19 @@ def _check_header(h5, p) -> None:
 
 #: the groups of /truth and the dataclass each holds (every field required, see :func:`_read_truth`)
 def truth_groups() -> dict:
-    """The dataclass of each ``/truth`` group: ``{"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}``."""
+    """The dataclass each group of a record's ``/truth`` holds.
+
+    Returns
+    -------
+    dict
+        ``{"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}``.
+
+    Examples
+    --------
+    >>> from inscal.io import truth_groups
+    >>> sorted(truth_groups())
+    ['gimbal', 'imu', 'noise']
+    """
     from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 
     return {"imu": ImuErrors, "gimbal": GimbalErrors, "noise": ImuNoise}
@@ -420,7 +644,40 @@ def _read_thermal(group, p) -> "ThermalModel":
 
 
 def read_temperature(h5, p) -> Temperature | None:
-    """The /temperature readings of an open record (None when it has none), validated."""
+    """The ``/temperature`` readings of an open record, validated.
+
+    Parameters
+    ----------
+    h5 : h5py.File
+        The open record.
+    p : str or pathlib.Path
+        Its path, for the messages.
+
+    Returns
+    -------
+    Temperature or None
+        The readings, None when the record has none.
+
+    Raises
+    ------
+    DataFileError
+        A dataset that is not numeric, sensor names that are not a JSON list, readings that do not
+        match their times, or readings that fail :func:`validate_temperature`.
+
+    Examples
+    --------
+    >>> import h5py
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, Temperature, read_temperature, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> temp = Temperature(t[::100], np.array([[20.0], [20.1]]), ("case",))
+    >>> write_record("warm.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7),
+    ...                                temperature=temp))
+    >>> with h5py.File("warm.h5", "r") as h5:
+    ...     read_temperature(h5, "warm.h5").sensors
+    ('case',)
+    """
     if "temperature" not in h5:
         return None
     ds = h5["temperature"]
@@ -466,7 +723,35 @@ def _meta(h5, p):
 
 
 def read_record(path) -> Record:
-    """Read a whole record, validated (shapes, NaN, uniform time, schema version)."""
+    """Read a whole record into memory, validated (schema version, shapes, NaN, uniform time).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+
+    Returns
+    -------
+    Record
+        Its samples and metadata (SI).
+
+    Raises
+    ------
+    DataFileError
+        A file that is missing, not an inscal record, of another schema version, damaged or truncated,
+        or whose samples fail :func:`validate_arrays`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, read_record, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> rec = read_record("still.h5")
+    >>> rec.n_samples, rec.rate_hz, rec.gimbal is None
+    (200, 100.0, True)
+    """
     with _open(path) as h5, _reading(path):
         try:
             time = h5["time"][()]
@@ -485,8 +770,36 @@ def read_record(path) -> Record:
 
 @dataclass
 class RecordInfo:
-    """A record's metadata without its arrays (:func:`record_info`): size, rate, site, path, truth,
-    scenario, whether it has gimbal angles, its temperature sensors and its file.
+    """A record's metadata without its arrays (what :func:`record_info` reads, :func:`write_stream` writes).
+
+    Parameters
+    ----------
+    n_samples : int
+        The number of samples N.
+    rate_hz : float
+        The sample rate [Hz].
+    site : Site
+        Where the record was made.
+    path : RotationPath or None
+        The turntable's rotation path, if known.
+    truth : Truth or None
+        What a simulated record was made with.
+    scenario : str
+        The scenario's name.
+    has_gimbal : bool
+        Whether the record has gimbal angles.
+    temperature : Temperature or None
+        Temperature readings, if any.
+    source : str
+        The file the metadata was read from ("" when built in memory).
+
+    Examples
+    --------
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import RecordInfo
+    >>> info = RecordInfo(1000, 100.0, Site(0.7), None, None, "", has_gimbal=False)
+    >>> info.n_samples / info.rate_hz
+    10.0
     """
     n_samples: int
     rate_hz: float
@@ -501,7 +814,34 @@ class RecordInfo:
 
 
 def record_info(path) -> RecordInfo:
-    """Metadata of a record without reading its samples."""
+    """A record's metadata without reading its samples.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+
+    Returns
+    -------
+    RecordInfo
+        Size, rate, site, path, truth, scenario, gimbal and temperature of the record.
+
+    Raises
+    ------
+    DataFileError
+        A file that is not a readable inscal record, or datasets of the wrong shape or type.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, record_info, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> info = record_info("still.h5")
+    >>> info.n_samples, info.has_gimbal
+    (200, False)
+    """
     with _open(path) as h5, _reading(path):
         check_datasets(h5, path)
         site, p, truth = _meta(h5, path)
@@ -510,8 +850,36 @@ def record_info(path) -> RecordInfo:
 
 
 def iter_chunks(path, chunk_size: int = 1 << 19) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """Yield ``(time, dtheta, dvel, gimbal)`` slices of a record, validated per chunk,
-    holding only one chunk in memory (for multi-day records)."""
+    """The samples of a record in chunks, each validated, one chunk in memory (multi-day records).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+    chunk_size : int
+        Samples per chunk.
+
+    Yields
+    ------
+    tuple of numpy.ndarray
+        ``(time, dtheta, dvel, gimbal)`` of each chunk (``gimbal`` None when the record has none).
+
+    Raises
+    ------
+    DataFileError
+        A file that is not a readable record, samples that cannot be read, NaN/inf, or a time grid
+        that is not uniform (across chunk boundaries too).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, iter_chunks, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> [len(time) for time, dtheta, dvel, gimbal in iter_chunks("still.h5", chunk_size=64)]
+    [64, 64, 64, 8]
+    """
     with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
         n = h5["time"].shape[0]
@@ -541,8 +909,36 @@ _COLUMNS = {"time": None, "dtheta": 3, "dvel": 3, "gimbal": 2}
 
 
 def check_datasets(h5, path) -> int:
-    """Shapes and types of a record's sample datasets, checked without reading them (floating point,
-    (N,), (N, 3), (N, 3), (N, 2)); returns N.  :class:`DataFileError` names what is wrong."""
+    """Check the shapes and types of a record's sample datasets without reading them.
+
+    Parameters
+    ----------
+    h5 : h5py.File
+        The open record.
+    path : str or pathlib.Path
+        Its path, for the messages.
+
+    Returns
+    -------
+    int
+        The number of samples N (``/time`` is (N,), ``/dtheta`` and ``/dvel`` (N, 3), ``/gimbal`` (N, 2)).
+
+    Raises
+    ------
+    DataFileError
+        A dataset that is not floating point or whose shape does not match ``/time``.
+
+    Examples
+    --------
+    >>> import h5py
+    >>> import numpy as np
+    >>> from inscal.io import check_datasets
+    >>> with h5py.File("bare.h5", "w") as h5:
+    ...     _ = h5.create_dataset("time", data=np.arange(5.0))
+    ...     _ = h5.create_dataset("dtheta", data=np.zeros((5, 3)))
+    ...     check_datasets(h5, "bare.h5")
+    5
+    """
     n = None
     for name, cols in _COLUMNS.items():
         if name not in h5:
@@ -563,7 +959,27 @@ def check_datasets(h5, path) -> int:
 
 @dataclass(frozen=True)
 class Window:
-    """The samples ``i0 .. i1 - 1`` of a record whose time lies in ``(start_s, stop_s]``."""
+    """The samples ``i0 .. i1 - 1`` of a record whose time lies in ``(start_s, stop_s]`` (:func:`record_window`).
+
+    Parameters
+    ----------
+    path : str
+        The record.
+    n_total : int
+        The record's number of samples.
+    rate_hz : float
+        Its sample rate [Hz].
+    i0, i1 : int
+        The first sample of the window and one past its last.
+    has_gimbal : bool
+        Whether the record has gimbal angles.
+
+    Examples
+    --------
+    >>> from inscal.io import Window
+    >>> Window("still.h5", 200, 100.0, 50, 150, False).n
+    100
+    """
 
     path: str
     n_total: int
@@ -579,9 +995,40 @@ class Window:
 
 
 def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Window:
-    """Locate the samples with ``start_s < time <= stop_s`` by bisection of /time (a few reads,
-    not the whole record), after the layout checks of :func:`check_datasets`.  The samples
-    themselves are validated as they are streamed (:func:`iter_window`)."""
+    """Locate the samples with ``start_s < time <= stop_s`` by bisection of ``/time`` (a few reads).
+
+    The samples themselves are validated as they are streamed (:func:`iter_window`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+    start_s : float
+        The window's start [s] (excluded).
+    stop_s : float, optional
+        The window's end [s] (included); None: the end of the record.
+
+    Returns
+    -------
+    Window
+        The indices of the window and the record's size and rate.
+
+    Raises
+    ------
+    DataFileError
+        A file that is not a readable record, datasets of the wrong shape, or a rate that is not positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, record_window, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> w = record_window("still.h5", 0.5, 1.0)
+    >>> w.i0, w.i1, w.n
+    (50, 100, 50)
+    """
 
     with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
@@ -598,9 +1045,42 @@ def record_window(path, start_s: float = 0.0, stop_s: float | None = None) -> Wi
 
 
 def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int = 1 << 18) -> Iterator[tuple]:
-    """Yield tuples of the datasets ``names`` (None for an absent gimbal) over samples ``i0 .. i1 - 1``,
-    one chunk at a time (bounded memory); each chunk is checked (finite values; /time uniform at
-    rate_hz, across chunk boundaries too, when "time" is among ``names``)."""
+    """Stream some datasets of a record over samples ``i0 .. i1 - 1``, one chunk at a time, checked.
+
+    Each chunk is checked for finite values, and ``/time`` for a uniform grid at ``rate_hz``
+    (across chunk boundaries too) when ``"time"`` is among ``names``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+    names : tuple of str
+        The datasets to read ("time", "dtheta", "dvel", "gimbal").
+    i0, i1 : int
+        The first sample and one past the last (e.g. from :func:`record_window`).
+    chunk_size : int
+        Samples per chunk.
+
+    Yields
+    ------
+    tuple of numpy.ndarray
+        One array per name (None for an absent gimbal).
+
+    Raises
+    ------
+    DataFileError
+        Samples that cannot be read, NaN/inf, or a time grid that is not uniform.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, iter_window, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> [float(time[0]) for (time,) in iter_window("still.h5", ("time",), 50, 150, chunk_size=50)]
+    [0.51, 1.01]
+    """
     with _open(path) as h5, _reading(path):
         rate = _rate(h5, path)
         check_datasets(h5, path)
@@ -627,9 +1107,33 @@ def iter_window(path, names: tuple[str, ...], i0: int, i1: int, chunk_size: int 
 
 
 class LazyArray:
-    """A record dataset read on demand (the samples stay on disk): ``a[i:j]`` reads those rows,
-    ``a[::step]`` / ``a[::step, k]`` reads the decimated rows chunk by chunk (contiguous reads,
-    cached per step) for plots; ``np.asarray(a)`` reads it all (avoid it on long records)."""
+    """A record dataset read on demand, the samples staying on disk.
+
+    ``a[i:j]`` reads those rows, ``a[::step]`` / ``a[::step, k]`` reads the decimated rows chunk by
+    chunk (contiguous reads, cached per step) for plots; ``np.asarray(a)`` reads it all (avoid it on
+    long records).
+
+    Parameters
+    ----------
+    ds : h5py.Dataset
+        The dataset of an open record.
+    chunk_size : int
+        Rows per contiguous read when decimating.
+    where : str
+        The file, for the messages of a damaged one (default: the dataset's name).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, open_record, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> with open_record("still.h5") as rec:
+    ...     lazy = rec.time
+    ...     print(type(lazy).__name__, len(lazy), lazy[::50].tolist())
+    LazyArray 200 [0.01, 0.51, 1.01, 1.51]
+    """
 
     def __init__(self, ds, chunk_size: int = 1 << 18, where=""):
         self._ds, self._chunk, self._dec, self._where = ds, chunk_size, {}, where or ds.name
@@ -665,10 +1169,42 @@ class LazyArray:
 
 @contextmanager
 def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
-    """A :class:`Record` whose samples stay on disk (:class:`LazyArray` datasets), for reports of
-    multi-day records in bounded memory; the file is open inside the ``with`` block.  With
-    ``validate`` the samples are first streamed once through the checks of :func:`read_record`
-    (finite values, uniform time), one chunk at a time."""
+    """A :class:`Record` whose samples stay on disk, for reports of multi-day records in bounded memory.
+
+    Its arrays are :class:`LazyArray`; the file is open inside the ``with`` block.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An inscal HDF5 record.
+    validate : bool
+        First stream the samples once through the checks of :func:`read_record` (finite values,
+        uniform time), one chunk at a time.
+    chunk_size : int
+        Samples per chunk of that check.
+
+    Yields
+    ------
+    Record
+        The record, with :class:`LazyArray` samples.
+
+    Raises
+    ------
+    DataFileError
+        A file that is not a readable record, a rate that is not positive, fewer than 2 samples, or
+        samples that fail the checks.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, open_record, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> with open_record("still.h5") as rec:
+    ...     print(rec.n_samples, rec.dtheta[10:12].shape)
+    200 (2, 3)
+    """
     with _open(path) as h5:
         with _reading(path):
             n = check_datasets(h5, path)
@@ -689,7 +1225,32 @@ def open_record(path, validate: bool = True, chunk_size: int = 1 << 19):
 
 
 def record_attrs(path: RotationPath, names=("scenario", "imu_serial", "compensated_with")) -> dict[str, str | None]:
-    """String attributes of a record file (None when absent or empty)."""
+    """String attributes of a record file, read without validating the record.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An HDF5 file.
+    names : tuple of str
+        The attributes to read.
+
+    Returns
+    -------
+    dict
+        ``{name: value}``, None for an attribute that is absent or empty (every name None for a
+        file that cannot be read).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, record_attrs, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7),
+    ...                                 scenario="bench"))
+    >>> record_attrs("still.h5")
+    {'scenario': 'bench', 'imu_serial': None, 'compensated_with': None}
+    """
 
     out = {}
     try:
@@ -704,7 +1265,26 @@ def record_attrs(path: RotationPath, names=("scenario", "imu_serial", "compensat
 
 
 def compensated_with(attrs: dict) -> str | None:
-    """A short description of a record's ``compensated_with`` attribute, None if not compensated."""
+    """A short description of a record's ``compensated_with`` attribute (the calibration applied to it).
+
+    Parameters
+    ----------
+    attrs : dict
+        The record's attributes (:func:`record_attrs`).
+
+    Returns
+    -------
+    str or None
+        ``"FILE (METHOD)"``, the raw text when it is not JSON, None when the record was not compensated.
+
+    Examples
+    --------
+    >>> from inscal.io import compensated_with
+    >>> compensated_with({"compensated_with": '{"file": "cal.toml", "method": "n25"}'})
+    'cal.toml (n25)'
+    >>> compensated_with({}) is None
+    True
+    """
     raw = attrs.get("compensated_with")
     if not raw:
         return None

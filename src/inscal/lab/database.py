@@ -69,14 +69,51 @@ PG_RETRY_STATES = ("40001", "40P01")
 
 
 class DatabaseError(Exception):
-    """A database that cannot be used, or a request it refuses: one line, with the reason."""
+    """A database that cannot be used, or a request it refuses: one line, with the reason.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> try:
+    ...     lab.open_database("missing.sqlite")
+    ... except lab.DatabaseError as exc:
+    ...     print("refused")
+    refused
+    """
 
 
 @dataclass
 class Database:
-    """An open calibration database: ``engine`` (SQLAlchemy), its ``url`` and ``where`` (the URL
-    to print: no password).  Close it with :meth:`close` (or use it as a context manager).  One per
-    process: a worker process opens its own (an engine's pooled connections do not cross a fork)."""
+    """An open calibration database (:func:`open_database`, :func:`init_database`).
+
+    Close it with :meth:`close` (or use it as a context manager).  One per process: a worker process
+    opens its own (an engine's pooled connections do not cross a fork).
+
+    Parameters
+    ----------
+    engine : sqlalchemy.Engine
+        The SQLAlchemy engine.
+    url : sqlalchemy.URL
+        Its URL.
+    where : str
+        The URL to print (a SQLite file as its path, no password).
+    readonly : bool
+        Opened to read only (a write raises :class:`DatabaseError`).
+    wait_s : float
+        How long a write waits for another writer's lock [s].
+    recovery : Recovery
+        What opening it for writing rolled forward of the publication journal.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> with lab.open_database("calib.sqlite", readonly=True) as ro:
+    ...     print(ro.dialect, ro.readonly)
+    sqlite True
+
+    >>> db.close()
+    """
 
     engine: sa.Engine
     url: sa.URL
@@ -104,8 +141,32 @@ class Database:
 
 
 def database_url(text: str | os.PathLike | None = None) -> sa.URL:
-    """The URL of ``--db`` (or ``INSCAL_DB``, or ``calib.sqlite``): a path becomes ``sqlite:///ABSOLUTE``,
-    ``postgresql://`` takes the psycopg (3) driver.  Raises :class:`DatabaseError` for anything else."""
+    """The URL of ``--db`` (or ``INSCAL_DB``, or ``calib.sqlite``).
+
+    Parameters
+    ----------
+    text : str or os.PathLike, optional
+        A file path (``sqlite:///ABSOLUTE``), ``sqlite:///PATH`` or ``postgresql://USER@HOST/NAME``
+        (the psycopg 3 driver); None or "": ``INSCAL_DB``, else :data:`DEFAULT_FILE`.
+
+    Returns
+    -------
+    sqlalchemy.URL
+        The database's URL.
+
+    Raises
+    ------
+    DatabaseError
+        Not a URL, an in-memory SQLite database, another backend or driver.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.database_url("postgresql://lab@db.example/calib").drivername
+    'postgresql+psycopg'
+    >>> lab.database_url("calib.sqlite").get_backend_name()
+    'sqlite'
+    """
     if text is None or str(text) == "":
         text = os.environ.get(ENV_VAR) or DEFAULT_FILE
     text = str(text)
@@ -212,12 +273,41 @@ def script() -> ScriptDirectory:
 
 
 def head_revision() -> str:
-    """The newest schema revision the shipped Alembic scripts define."""
+    """The newest schema revision the shipped Alembic scripts define.
+
+    Returns
+    -------
+    str
+        Its revision id (``NNNN_name``).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.head_revision()[:4].isdigit()
+    True
+    """
     return script().get_current_head()
 
 
 def revision_number(rev: str | None) -> int | None:
-    """The schema version of a revision id (``0002_session_temperature`` -> 2), None if unknown."""
+    """The schema version of a revision id (``0002_session_temperature`` -> 2).
+
+    Parameters
+    ----------
+    rev : str or None
+        A revision id.
+
+    Returns
+    -------
+    int or None
+        Its place among the shipped revisions, oldest first from 1; None if unknown.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.revision_number("0001_initial"), lab.revision_number("9999_future")
+    (1, None)
+    """
     if rev is None:
         return None
     known = [r.revision for r in reversed(list(script().walk_revisions()))]  # oldest first
@@ -279,14 +369,46 @@ def check_writable(url: sa.URL) -> None:
 
 def open_database(text: str | os.PathLike | None = None, create: bool = False, upgrade: bool = False,
                   readonly: bool = False, wait_s: float | None = None) -> Database:
-    """Open the calibration database of ``text`` (see :func:`database_url`) at this inscal's schema.
+    """Open the calibration database of ``text`` at this inscal's schema.
 
-    ``create``: a missing SQLite file, or a server database without tables, is created at the
-    newest revision.  ``upgrade``: a database at an older revision is upgraded (else refused with
-    the command that upgrades it).  A newer revision, or tables that are not an inscal database,
-    are refused.  ``readonly``: only read (the file is never written; a write raises
-    :class:`DatabaseError`).  ``wait_s``: how long a write waits for another writer (default
-    :data:`GRACE_S`).  Raises :class:`DatabaseError` (one line)."""
+    A newer revision, or tables that are not an inscal database, are refused.  Opening it for writing
+    rolls forward the publications a killed writer left owed (:func:`recover_publications`).
+
+    Parameters
+    ----------
+    text : str or os.PathLike, optional
+        The database (see :func:`database_url`).
+    create : bool
+        Create a missing SQLite file, or the tables of an empty server database, at the newest revision.
+    upgrade : bool
+        Upgrade a database at an older revision (else it is refused with the command that upgrades it).
+    readonly : bool
+        Only read: the file is never written; a write raises :class:`DatabaseError`.
+    wait_s : float, optional
+        How long a write waits for another writer [s] (default :data:`GRACE_S`).
+
+    Returns
+    -------
+    Database
+        The open database.
+
+    Raises
+    ------
+    ValueError
+        ``readonly`` with ``create`` or ``upgrade``.
+    DatabaseError
+        A database that is missing (without ``create``), not an inscal database, at another revision,
+        unreachable or read-only (one line).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db = lab.open_database("calib.sqlite", create=True)
+    >>> lab.revision_number(lab.revision_of(db)) == lab.revision_number(lab.head_revision())
+    True
+
+    >>> db.close()
+    """
     if readonly and (create or upgrade):
         raise ValueError("a database opened read-only is neither created nor upgraded")
     db = _open(database_url(text), create, upgrade, readonly=readonly)[0]
@@ -301,10 +423,32 @@ def open_database(text: str | os.PathLike | None = None, create: bool = False, u
 
 
 def recover_publications(db: Database, strict: bool = False) -> journal.Recovery:
-    """Roll forward the publications that a writer killed between its commit and its renames left owed
-    (:mod:`inscal.lab.journal`), in one write transaction (only when the journal has entries: a look
-    first).  A database another writer holds beyond the wait is left as it is for a later write, unless
-    ``strict`` (``inscal db recover``: refused then, :class:`DatabaseError`)."""
+    """Roll forward the publications that a writer killed between its commit and its renames left owed.
+
+    The journal (:mod:`inscal.lab.journal`) is looked at first; a write transaction runs only when it
+    has entries.  A database another writer holds beyond the wait is left as it is for a later write.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    strict : bool
+        Refuse (:class:`DatabaseError`) a database another writer holds (``inscal db recover``).
+
+    Returns
+    -------
+    Recovery
+        What was rolled forward (nothing, in a database without owed publications).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> lab.recover_publications(db) == type(lab.recover_publications(db))()
+    True
+
+    >>> db.close()
+    """
     with read(db) as conn:
         if not journal.pending_count(conn):
             return journal.Recovery()
@@ -317,21 +461,81 @@ def recover_publications(db: Database, strict: bool = False) -> journal.Recovery
 
 
 def published(db: Database, ids: list[int]) -> None:
-    """Clear the journal entries ``ids`` once their files are in place (step 4 of :mod:`inscal.lab.journal`);
-    never raises: an entry left is found in place by the next recovery."""
+    """Clear the journal entries ``ids`` once their files are in place (step 4 of :mod:`inscal.lab.journal`).
+
+    Never raises: an entry left is found in place by the next recovery.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    ids : list of int
+        The journal entries.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> lab.published(db, [])
+    >>> lab.pending_publications(db)
+    0
+
+    >>> db.close()
+    """
     with contextlib.suppress(Exception):
         write(db, lambda conn: journal.clear(conn, ids))
 
 
 def pending_publications(db: Database) -> int:
-    """How many files of committed results are not in place (a read of the journal and the files, nothing
-    written: see :func:`recover_publications`)."""
+    """How many files of committed results are not in place (a read: see :func:`recover_publications`).
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+
+    Returns
+    -------
+    int
+        The number of owed files.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> lab.pending_publications(db)
+    0
+
+    >>> db.close()
+    """
     with read(db) as conn:
         return journal.owed(conn)
 
 
 def check_wait(wait_s: float | None) -> float:
-    """``--wait SECONDS``: how long a write waits for another writer's lock (None: :data:`GRACE_S`)."""
+    """``--wait SECONDS``: how long a write waits for another writer's lock.
+
+    Parameters
+    ----------
+    wait_s : float or None
+        Seconds, 0 to a day (None: :data:`GRACE_S`).
+
+    Returns
+    -------
+    float
+        The wait [s].
+
+    Raises
+    ------
+    DatabaseError
+        A wait outside 0 .. 86400 s.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.check_wait(None), lab.check_wait(30)
+    (2.0, 30.0)
+    """
     if wait_s is None:
         return GRACE_S
     if not (math.isfinite(wait_s) and 0 <= wait_s <= MAX_WAIT_S):
@@ -340,9 +544,39 @@ def check_wait(wait_s: float | None) -> float:
 
 
 def init_database(text: str | os.PathLike | None = None, revision: str = "head") -> tuple[Database, bool]:
-    """Create the calibration database (a new SQLite file, or the tables of an empty server database)
-    at ``revision`` (the newest by default: older ones are for testing migrations); ``(database,
-    created)``, ``created`` False when it existed already (then it must be at this inscal's schema)."""
+    """Create the calibration database (a new SQLite file, or the tables of an empty server database).
+
+    Parameters
+    ----------
+    text : str or os.PathLike, optional
+        The database (see :func:`database_url`).
+    revision : str
+        The schema revision (the newest by default: older ones are for testing migrations).
+
+    Returns
+    -------
+    tuple of (Database, bool)
+        The open database, and whether it was created (False when it existed already: it must then be
+        at this inscal's schema).
+
+    Raises
+    ------
+    DatabaseError
+        A database at another revision, not an inscal database, or one that cannot be written.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> created, lab.table_counts(db)["units"]
+    (True, 0)
+    >>> db.close()
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> created
+    False
+
+    >>> db.close()
+    """
     return _open(database_url(text), True, False, revision)
 
 
@@ -402,8 +636,34 @@ def _upgrade(db: Database, revision: str) -> None:
 
 
 def upgrade_database(text: str | os.PathLike | None = None, revision: str = "head") -> tuple[str, str]:
-    """Upgrade an existing calibration database to ``revision`` (the newest); ``(from, to)`` revisions.
-    A newer revision than this inscal knows, or a database without one, is refused (:class:`DatabaseError`)."""
+    """Upgrade an existing calibration database to ``revision`` (the newest by default).
+
+    Parameters
+    ----------
+    text : str or os.PathLike, optional
+        The database (see :func:`database_url`).
+    revision : str
+        The revision to upgrade to.
+
+    Returns
+    -------
+    tuple of (str, str)
+        The revisions before and after.
+
+    Raises
+    ------
+    DatabaseError
+        A missing database, one without a revision (not an inscal database), or a newer revision than
+        this inscal knows.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, _ = lab.init_database("calib.sqlite", revision="0001_initial")
+    >>> db.close()
+    >>> lab.upgrade_database("calib.sqlite") == ("0001_initial", lab.head_revision())
+    True
+    """
     url = database_url(text)
     sqlite = url.get_backend_name() == "sqlite"
     if sqlite:
@@ -433,7 +693,27 @@ def upgrade_database(text: str | os.PathLike | None = None, revision: str = "hea
 
 
 def revision_of(db: Database) -> str | None:
-    """The schema revision stored in ``db``."""
+    """The schema revision stored in a database.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+
+    Returns
+    -------
+    str or None
+        The Alembic revision id, None for a database without one.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> lab.revision_of(db) == lab.head_revision()
+    True
+
+    >>> db.close()
+    """
     return _state(db.engine)[0]
 
 
@@ -450,9 +730,30 @@ def _locked(exc: sa.exc.DBAPIError) -> bool:
 
 
 def lock_holders(path: str | os.PathLike) -> list[tuple[int, str]]:
-    """The processes holding a write lock of SQLite database ``path`` (its file or its shared-memory
-    file): ``[(pid, command line)]``, read from Linux's ``/proc/locks`` (empty elsewhere, or when the
-    holder cannot be seen, e.g. on another machine of a network file system)."""
+    """The processes holding a write lock of a SQLite database (its file or its shared-memory file).
+
+    Read from Linux's ``/proc/locks``: empty elsewhere, or when the holder cannot be seen (another
+    machine of a network file system).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The database file.
+
+    Returns
+    -------
+    list of tuple of (int, str)
+        ``[(pid, command line)]`` (this process left out).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> lab.lock_holders("calib.sqlite")
+    []
+
+    >>> db.close()
+    """
     inodes = set()
     for p in (Path(path), Path(f"{path}-shm")):
         with contextlib.suppress(OSError):

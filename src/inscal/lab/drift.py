@@ -43,7 +43,24 @@ DEFAULT_K = 3.0
 
 
 def tail(k: float) -> float:
-    """P(``|z|`` > k) of a standard Gaussian: the false-alarm probability of one test."""
+    """P(``|z|`` > k) of a standard Gaussian: the false-alarm probability of one test.
+
+    Parameters
+    ----------
+    k : float
+        The threshold.
+
+    Returns
+    -------
+    float
+        ``erfc(k / sqrt 2)``.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> round(lab.tail(3.0), 5)
+    0.0027
+    """
     return math.erfc(k / math.sqrt(2.0))
 
 
@@ -54,7 +71,50 @@ def months_between(t0: dt.datetime, t: dt.datetime) -> float:
 
 @dataclass(frozen=True)
 class ComponentDrift:
-    """The history of one parameter component (field ``unit``; rates per month)."""
+    """The history of one parameter component: repeatability, drift and step, with their flags.
+
+    Values in the field ``unit``; rates per month (:data:`MONTH_DAYS`).
+
+    Parameters
+    ----------
+    name, label, unit : str
+        The parameter, the component's label, its field unit.
+    ids : tuple of int
+        The results, oldest first.
+    months : numpy.ndarray
+        Their records' dates, months after the first.
+    values, sigma : numpy.ndarray
+        The values and their 1 sigma.
+    n : int
+        The number of calibrations.
+    span_months : float
+        The span of the history.
+    mean, mean_sigma : float
+        The weighted mean and its sigma.
+    spread, within_sigma : float
+        The scatter of the values and their typical 1 sigma.
+    repeatability_ratio, repeatability_p : float
+        The scatter against the sigma, and the chi^2 test's p-value.
+    rate, rate_sigma, rate_z : float
+        The fitted drift per month, its sigma and z.
+    line_ratio : float
+        The misfit of the drift line against the sigma.
+    step, step_sigma, step_z : float
+        The last step, its sigma and z.
+    flags : tuple of str
+        The flags raised (``drift``, ``step``).
+    tests : int
+        The number of tests made.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
+    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
+    >>> round(c.rate, 6), round(c.change, 6), c.flags
+    (0.001667, 0.02, ('step', 'drift'))
+    """
 
     name: str
     label: str
@@ -102,7 +162,35 @@ class ComponentDrift:
 
 
 def component_drift(name: str, label: str, unit: str, ids, months, values, sigma, k: float = DEFAULT_K) -> ComponentDrift:
-    """The repeatability, drift and flags (see the module) of one component's calibrations."""
+    """The repeatability, drift and flags (see the module docstring) of one component's calibrations.
+
+    Parameters
+    ----------
+    name, label, unit : str
+        The parameter, the component's label, its field unit.
+    ids : sequence of int
+        The results, oldest first.
+    months : array_like
+        Their records' dates, months after the first.
+    values, sigma : array_like
+        The values and their 1 sigma.
+    k : float
+        The flag threshold (``|z| > k``).
+
+    Returns
+    -------
+    ComponentDrift
+        The component's history and flags.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
+    ...                         np.array([0.010, 0.0105, 0.0095]), np.full(3, 0.001))
+    >>> c.flags, round(c.repeatability_ratio, 2)
+    ((), 0.5)
+    """
     months, values, sigma = (np.asarray(a, dtype=float) for a in (months, values, sigma))
     ok = np.isfinite(months) & np.isfinite(values) & np.isfinite(sigma) & (sigma > 0)
     ids = tuple(int(i) for i, good in zip(ids, ok) if good)
@@ -148,7 +236,47 @@ def component_drift(name: str, label: str, unit: str, ids, months, values, sigma
 
 @dataclass(frozen=True)
 class History:
-    """A unit's calibrations of one method over time, with every component's :class:`ComponentDrift`."""
+    """A unit's calibrations of one method over time, with every component's :class:`ComponentDrift`.
+
+    Parameters
+    ----------
+    serial : str
+        The unit.
+    method : str
+        The method.
+    k : float
+        The flag threshold (``|z| > k``).
+    ids : tuple of int
+        The results, oldest first (one per session).
+    dates : tuple of datetime.datetime
+        Their records' dates.
+    components : tuple of ComponentDrift
+        One per parameter component.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> h = lab.unit_history(db, "IMU-1")
+    >>> h.ids == (first, second), len(h.components), h.flagged
+    (True, 3, [])
+
+    >>> db.close()
+    """
 
     serial: str
     method: str
@@ -185,8 +313,53 @@ class History:
 
 
 def history(calibrations: list[Calibration], serial: str, method: str, k: float = DEFAULT_K) -> History:
-    """The :class:`History` of ``calibrations`` (one unit, one method, oldest first): one point per session,
-    its newest result."""
+    """The :class:`History` of a unit's calibrations of one method: one point per session, its newest result.
+
+    Parameters
+    ----------
+    calibrations : list of Calibration
+        One unit's calibrations of one method, oldest first.
+    serial : str
+        The unit.
+    method : str
+        The method.
+    k : float
+        The flag threshold (``|z| > k``).
+
+    Returns
+    -------
+    History
+        The components' repeatability, drift and flags.
+
+    Raises
+    ------
+    ValueError
+        ``k`` not positive.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> h = lab.history(lab.calibrations(db, "IMU-1"), "IMU-1", "six-position")
+    >>> h.components[0].label, round(h.components[0].step, 4)
+    ('gyro_bias[x]', 0.002)
+
+    >>> db.close()
+    """
     if not (math.isfinite(k) and k > 0):
         raise ValueError(f"k must be > 0, got {k}")
     by_session: dict[int, Calibration] = {}

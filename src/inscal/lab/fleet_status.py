@@ -11,8 +11,53 @@ from inscal.lab.store import calibrations, current_calibration, list_units
 
 
 def unit_history(db: Database, serial: str, method: str | None = None, k: float = DEFAULT_K) -> History:
-    """The :class:`~inscal.lab.drift.History` of unit ``serial`` (results that no other supersedes; one per
-    session) for ``method``: by default the method of its current calibration (else of its newest)."""
+    """The :class:`~inscal.lab.drift.History` of a unit (results that no other supersedes; one per session).
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+    method : str, optional
+        The method (default: that of its current calibration, else of its newest).
+    k : float
+        The flag threshold (``|z| > k``).
+
+    Returns
+    -------
+    History
+        The unit's history.
+
+    Raises
+    ------
+    DatabaseError
+        A unit without a calibration, or an unknown unit.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> h = lab.unit_history(db, "IMU-1")
+    >>> h.method, [d.month for d in h.dates]
+    ('six-position', [1, 3])
+
+    >>> db.close()
+    """
     cals = calibrations(db, serial)
     if method is None:
         cur = current_calibration(db, serial)
@@ -28,7 +73,42 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
 
 @dataclass(frozen=True)
 class FleetEntry:
-    """One unit in the fleet view."""
+    """One unit in the fleet view (:func:`fleet`).
+
+    Parameters
+    ----------
+    unit : Unit
+        The unit.
+    results : int
+        Its number of results.
+    current : Calibration or None
+        Its current calibration.
+    history : History or None
+        The history of the current calibration's method.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> entry, = lab.fleet(db)
+    >>> row = entry.to_json()
+    >>> row["serial"], row["results"], row["current"]["method"], row["flagged"]
+    ('IMU-1', 1, 'six-position', [])
+
+    >>> db.close()
+    """
 
     unit: Unit
     results: int
@@ -47,8 +127,45 @@ class FleetEntry:
 
 
 def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> list[FleetEntry]:
-    """Every unit (by serial) with its current calibration and the flags of its history (of the current
-    calibration's method); ``flagged_only``: the units with a flag."""
+    """Every unit (by serial) with its current calibration and the flags of its history.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    k : float
+        The flag threshold (``|z| > k``).
+    flagged_only : bool
+        Only the units with a flag.
+
+    Returns
+    -------
+    list of FleetEntry
+        The units.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> [(e.unit.serial, e.results) for e in lab.fleet(db)], lab.fleet(db, flagged_only=True)
+    ([('IMU-1', 2)], [])
+
+    >>> db.close()
+    """
     out = []
     for unit, n, cur_id in list_units(db):
         cur = current_calibration(db, unit.serial) if cur_id is not None else None

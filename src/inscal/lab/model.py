@@ -33,8 +33,29 @@ CLOCK_SKEW = dt.timedelta(hours=1)
 
 
 def parse_date(text: str) -> dt.datetime:
-    """A date (``2025-01-31``) or ISO time (``2025-01-31T12:00:00Z``, ``...+01:00``; no zone: UTC)
-    as naive UTC.  Raises ValueError."""
+    """A date (``2025-01-31``) or ISO time (``2025-01-31T12:00:00Z``, ``...+01:00``; no zone: UTC) as naive UTC.
+
+    Parameters
+    ----------
+    text : str
+        The date or time.
+
+    Returns
+    -------
+    datetime.datetime
+        Naive UTC.
+
+    Raises
+    ------
+    ValueError
+        Not a date, or not one between :data:`EARLIEST` and now.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.parse_date("2025-01-31T12:00:00+01:00")
+    datetime.datetime(2025, 1, 31, 11, 0)
+    """
     s = str(text).strip()
     if s.endswith(("Z", "z")):
         s = s[:-1] + "+00:00"
@@ -49,9 +70,41 @@ def parse_date(text: str) -> dt.datetime:
 
 
 def check_date(t: dt.datetime, what: str = "the date", now: dt.datetime | None = None) -> dt.datetime:
-    """``t`` (naive UTC, or with a zone) as naive UTC if it lies between :data:`EARLIEST` and ``now`` (default: the
-    clock) plus :data:`CLOCK_SKEW`; else ValueError in one line (a date in the future would stay a unit's current
-    calibration for ever)."""
+    """A date as naive UTC if it lies between :data:`EARLIEST` and now plus :data:`CLOCK_SKEW`.
+
+    A date in the future would stay a unit's current calibration for ever.
+
+    Parameters
+    ----------
+    t : datetime.datetime
+        Naive UTC, or with a zone.
+    what : str
+        What the message calls it.
+    now : datetime.datetime, optional
+        Now (default: the clock).
+
+    Returns
+    -------
+    datetime.datetime
+        ``t`` as naive UTC.
+
+    Raises
+    ------
+    ValueError
+        A date in the future or before :data:`EARLIEST` (one line).
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> from inscal import lab
+    >>> lab.check_date(dt.datetime(2025, 1, 31, 12, tzinfo=dt.timezone(dt.timedelta(hours=2))))
+    datetime.datetime(2025, 1, 31, 10, 0)
+    >>> try:
+    ...     lab.check_date(dt.datetime(1900, 1, 1))
+    ... except ValueError as exc:
+    ...     print(exc)
+    the date 1900-01-01 lies before 1950: not the date of a record
+    """
     t = utc_naive(t)
     now = utc_naive(now) if now is not None else dt.datetime.now(dt.UTC).replace(tzinfo=None)
     if t > now + CLOCK_SKEW:
@@ -64,7 +117,31 @@ def check_date(t: dt.datetime, what: str = "the date", now: dt.datetime | None =
 
 @dataclass(frozen=True)
 class Unit:
-    """An instrument the lab calibrates (its serial is its identity)."""
+    """An instrument the lab calibrates (its serial is its identity; :func:`~inscal.lab.store.add_unit`).
+
+    Parameters
+    ----------
+    id : int
+        The unit's id.
+    serial : str
+        Its serial.
+    model : str or None
+        Its model.
+    notes : str or None
+        Free text.
+    created_at : datetime.datetime
+        When it was registered (UTC).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade", "bench 2")
+    >>> unit.to_json()["model"], unit.to_json()["notes"]
+    ('nav-grade', 'bench 2')
+
+    >>> db.close()
+    """
 
     id: int
     serial: str
@@ -79,10 +156,37 @@ class Unit:
 
 @dataclass(frozen=True, kw_only=True)
 class SessionInfo:
-    """The calibration run a result comes from: its record (sha256 of the file, as
-    :func:`inscal.io.files.file_hash` writes it, and its path), where, when and by whom.
-    ``date`` is when the record was taken (UTC); ``gravity_model`` the JSON text of the record's
-    :class:`~inscal.core.earth.GravityModel`; ``temperature_c`` the IMU's temperature when known."""
+    """The calibration run a result comes from: its record, where, when and by whom.
+
+    Parameters
+    ----------
+    record_sha256 : str
+        The record file's sha256 (as :func:`inscal.io.files.file_hash` writes it).
+    date : datetime.datetime
+        When the record was taken (UTC).
+    record_path : str, optional
+        The record's path.
+    station, operator : str, optional
+        Where and by whom.
+    latitude_deg, longitude_deg, height_m : float, optional
+        The site.
+    gravity_model : str, optional
+        The JSON text of the record's :class:`~inscal.core.earth.GravityModel`.
+    g_site_m_s2 : float, optional
+        The gravity at the site.
+    temperature_c : float, optional
+        The IMU's temperature, when known.
+    path_name : str, optional
+        The rotation path's name.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> from inscal import lab
+    >>> s = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31), station="bench-2")
+    >>> s.to_json()["date"], s.to_json()["station"]
+    ('2025-01-31T00:00:00Z', 'bench-2')
+    """
 
     record_sha256: str
     date: dt.datetime
@@ -109,7 +213,39 @@ class SessionInfo:
 
 @dataclass(frozen=True, kw_only=True)
 class Session(SessionInfo):
-    """A session as stored: its id and when it was recorded."""
+    """A session as stored: a :class:`SessionInfo` with its id and when it was recorded.
+
+    Parameters
+    ----------
+    id : int
+        The session's id.
+    recorded_at : datetime.datetime
+        When it was recorded (UTC).
+    **info
+        The fields of :class:`SessionInfo`.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> session = lab.get_calibration(db, first).session
+    >>> session.id, session.record_sha256 == jan.record_sha256
+    (1, True)
+
+    >>> db.close()
+    """
 
     id: int
     recorded_at: dt.datetime
@@ -121,9 +257,33 @@ class Session(SessionInfo):
 
 @dataclass(frozen=True)
 class Parameter:
-    """One estimated parameter: ``value``, ``sigma`` (reported 1 sigma; NaN where held fixed) and
-    ``sigma_formal`` (None unless the reported sigma was scaled), arrays of the parameter's
-    shape in its field ``unit``; ``labels`` of its components (``accel_bias[x]`` ...)."""
+    """One estimated parameter of a recorded calibration, in its field unit.
+
+    Parameters
+    ----------
+    name : str
+        The parameter (a name of :data:`~inscal.core.error_model.PARAMETERS`).
+    unit : str
+        Its field unit.
+    value : numpy.ndarray
+        The estimate, the parameter's shape.
+    sigma : numpy.ndarray
+        The reported 1 sigma (NaN where held fixed).
+    sigma_formal : numpy.ndarray or None
+        The formal 1 sigma, None unless the reported sigma was scaled.
+    labels : tuple of str
+        Its components' labels (``accel_bias[x]`` ...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> p = lab.Parameter("gyro_bias", "deg/h", np.array([0.01, 0.0, 0.0]), np.full(3, 0.001), None,
+    ...                   ("gyro_bias[x]", "gyro_bias[y]", "gyro_bias[z]"))
+    >>> value, sigma = p.si()  # rad/s
+    >>> round(float(value[0]) * 1e8, 4)
+    4.8481
+    """
 
     name: str
     unit: str
@@ -148,13 +308,74 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Calibration:
-    """One recorded calibration result with its provenance.
+    """One recorded calibration result with its provenance (:func:`~inscal.lab.store.get_calibration`).
 
-    ``parameters``: name -> :class:`Parameter` (field units, the parameter file's);
-    ``covariance``: ``{"basis": "parameters" | "states", "labels", "units": "field" | "SI",
-    "correlations": bool, "matrix"}`` (None entries: not available); ``fit``: the parameter file's
-    ``[fit]`` table, or the filter's innovation statistics (``chi2``, ``dof``, ``p_value``);
-    ``param_text``: the parameter file exactly as written (sha256 ``param_file_sha256``)."""
+    Parameters
+    ----------
+    id : int
+        The result's id.
+    serial : str
+        The unit.
+    method : str
+        The calibration method.
+    state_set : str or None
+        The systematic filter's state set.
+    options : dict
+        The calibration's options, and ``options_hash`` their hash.
+    options_hash : str
+        :func:`~inscal.lab.record.options_hash` of ``options``.
+    parameters : dict of str to Parameter
+        The estimates, in the parameter file's field units.
+    covariance : dict or None
+        ``{"basis": "parameters" | "states", "labels", "units": "field" | "SI", "correlations": bool,
+        "matrix"}``.
+    fit : dict or None
+        The parameter file's ``[fit]`` table, or the filter's innovation statistics.
+    fit_chi2, fit_dof, fit_p : float or None
+        The fit's chi^2, degrees of freedom and p-value.
+    notes : tuple of str
+        The method's notes.
+    inscal_version : str
+        The inscal that computed it.
+    param_text : str
+        The parameter file exactly as written.
+    param_file_sha256 : str
+        Its hash.
+    supersedes : int or None
+        The result it replaces.
+    superseded_by : tuple of int
+        The results that replace it.
+    current : bool
+        Whether it is the unit's current calibration.
+    recorded_at : datetime.datetime
+        When it was recorded (UTC).
+    session : Session
+        Its calibration run.
+    unit_model : str or None
+        The unit's model.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> cal = lab.get_calibration(db, first)
+    >>> cal.date, cal.current, cal.to_json()["parameters"]["gyro_bias"]["value"]
+    (datetime.datetime(2025, 1, 31, 0, 0), True, [0.01, 0.0, 0.0])
+
+    >>> db.close()
+    """
 
     id: int
     serial: str

@@ -33,9 +33,45 @@ from inscal.lab.model import SessionInfo, parse_date
 
 def param_file_text(result, data_file: str | None = None, data_hash: str | None = None,
                     metadata: dict | None = None, truth=None) -> str:
-    """The text of the parameter file of ``result``, exactly what :func:`inscal.io.paramfile.save_params`
-    writes for the same arguments (write it with :func:`inscal.io.files.atomic_path` and
-    ``Path.write_text(text, encoding="utf-8")``)."""
+    """The text of the parameter file of a result, exactly what :func:`inscal.io.paramfile.save_params`
+    writes for the same arguments.
+
+    Write it with :func:`inscal.io.files.atomic_path` and ``Path.write_text(text, encoding="utf-8")``.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration.
+    data_file : str, optional
+        The record's file name.
+    data_hash : str, optional
+        The record's hash.
+    metadata : dict, optional
+        More to write.
+    truth : object, optional
+        The truth (a simulated record's), to write the errors against it.
+
+    Returns
+    -------
+    str
+        The TOML text.
+
+    Raises
+    ------
+    ParamFileError
+        Parameters that cannot be encoded as TOML.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> text = lab.param_file_text(res)
+    >>> text.splitlines()[3], "[parameters.gyro_bias]" in text
+    ('method = "six-position"', True)
+    """
     try:
         return tomli_w.dumps(params_document(result, data_file, data_hash, metadata, truth))
     except (TypeError, ValueError) as exc:
@@ -43,8 +79,25 @@ def param_file_text(result, data_file: str | None = None, data_hash: str | None 
 
 
 def text_hash(text: str) -> str:
-    """``sha256:<hex>`` of the UTF-8 bytes of ``text`` (what :func:`inscal.io.files.file_hash` gives
-    for the file holding it)."""
+    """``sha256:<hex>`` of the UTF-8 bytes of ``text`` (what :func:`inscal.io.files.file_hash` gives for
+    the file holding it).
+
+    Parameters
+    ----------
+    text : str
+        The text.
+
+    Returns
+    -------
+    str
+        The hash.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.text_hash("")
+    'sha256:e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855'
+    """
     return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
@@ -53,11 +106,48 @@ def calibration_options(method: str, *, states: str | None = None, settle: float
                         gravity: str | None = None, encoder_sigma: float | None = None,
                         encoder_latency: float = 0.0, check_encoders: bool = True,
                         systematic: bool | None = None) -> dict:
-    """The options of a calibration that decide its result, as ``inscal calibrate`` takes them (field
-    units: ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz), ``encoder_sigma`` arcsec, times in s), in the
-    canonical form whose :func:`options_hash` identifies "the same calibration of the same record".
-    Only the options that apply to the method are kept (``systematic``: the method reads the record
-    itself, as systematic51/30 and unified do; default from the method's name)."""
+    """The options of a calibration that decide its result, in canonical form.
+
+    :func:`options_hash` of them identifies "the same calibration of the same record".  Only the
+    options that apply to the method are kept.
+
+    Parameters
+    ----------
+    method : str
+        The calibration method.
+    states : str, optional
+        The systematic filter's state set.
+    settle, min_static : float
+        The window segmentation's settling time and shortest static window [s].
+    filter_rate_hz : float
+        The systematic filter's rate [Hz].
+    arw : float, optional
+        Angle random walk [deg/sqrt(h)].
+    vrw : float, optional
+        Velocity random walk [ug/sqrt(Hz)].
+    gravity : str, optional
+        The gravity model given.
+    encoder_sigma : float, optional
+        The encoder noise [arcsec].
+    encoder_latency : float
+        The encoders' latency [s].
+    check_encoders : bool
+        Whether the encoder angles were checked against the increments.
+    systematic : bool, optional
+        The method reads the record itself, as systematic51/30 and unified do (default from the
+        method's name).
+
+    Returns
+    -------
+    dict
+        The options (field units, as ``inscal calibrate`` takes them).
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.calibration_options("n25", settle=2.0)
+    {'method': 'n25', 'settle_s': 2.0, 'min_static_s': 20.0, 'encoder_latency_s': 0.0, 'check_encoders': True}
+    """
     if systematic is None:
         systematic = method in ("systematic51", "systematic30", "unified")
     opts: dict = {"method": method}
@@ -71,18 +161,72 @@ def calibration_options(method: str, *, states: str | None = None, settle: float
 
 
 def options_hash(options: dict) -> str:
-    """``sha256:<hex>`` of the canonical JSON of ``options`` (sorted keys; floats by repr)."""
+    """``sha256:<hex>`` of the canonical JSON of ``options`` (sorted keys; floats by repr).
+
+    Parameters
+    ----------
+    options : dict
+        The options (:func:`calibration_options`).
+
+    Returns
+    -------
+    str
+        The hash.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> lab.options_hash({"a": 1, "b": 2.0}) == lab.options_hash({"b": 2.0, "a": 1})
+    True
+    """
     text = json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False)
     return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def session_from_record(path, *, record_sha256: str | None = None, date=None, station: str | None = None,
                         operator: str | None = None, temperature_c: float | None = None, site=None) -> SessionInfo:
-    """The session of record file ``path``: its sha256 (computed unless given), site, gravity model and
-    path name from the file (``site``: the :class:`~inscal.core.earth.Site` the calibration used
-    instead, e.g. with another gravity model); ``date`` (a datetime or text,
-    :func:`~inscal.lab.model.parse_date`) defaults to the record's ``created`` attribute (when the
-    file was written)."""
+    """The session of a record file: its sha256, site, gravity model and path name from the file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The record.
+    record_sha256 : str, optional
+        Its hash (computed unless given).
+    date : datetime.datetime or str, optional
+        When it was taken (text: :func:`~inscal.lab.model.parse_date`); default: the record's
+        ``created`` attribute (when the file was written).
+    station, operator : str, optional
+        Where and by whom.
+    temperature_c : float, optional
+        The IMU's temperature.
+    site : Site, optional
+        The site the calibration used instead of the record's (e.g. with another gravity model).
+
+    Returns
+    -------
+    SessionInfo
+        The session.
+
+    Raises
+    ------
+    ValueError
+        A record without a ``created`` time and no ``date``, or a date out of range.
+    DataFileError
+        A file that is not a readable record.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, file_hash, write_record
+    >>> t = np.arange(1, 201) / 100.0
+    >>> write_record("still.h5", Record(t, np.zeros((200, 3)), np.zeros((200, 3)), None, 100.0, Site(0.7)))
+    >>> s = lab.session_from_record("still.h5", date="2025-01-31", station="bench-2")
+    >>> s.record_sha256 == file_hash("still.h5"), round(s.latitude_deg, 3), s.date.year
+    (True, 40.107, 2025)
+    """
     info = record_info(path)
     if date is None:
         created = record_attrs(path, ("created",))["created"]
@@ -101,12 +245,34 @@ def session_from_record(path, *, record_sha256: str | None = None, date=None, st
 
 
 def covariance_of(result) -> dict | None:
-    """The covariance a :class:`~inscal.calibrate.CalibrationResult` reports, in the database's form
-    (see :class:`~inscal.lab.model.Calibration`): the systematic filter's full formal covariance of its
-    parameter states (``result.covariance``: labels and ``P``, SI); a full parameter covariance
-    ``diagnostics["covariance"]`` (labels of the parameter components, SI) converted to field units;
-    None when the method reports neither (the window-mean methods report 1 sigma only: the
-    database then keeps the diagonal, see :func:`parameter_covariance`)."""
+    """The covariance a :class:`~inscal.calibrate.CalibrationResult` reports, in the database's form.
+
+    The systematic filter's full formal covariance of its parameter states (``result.covariance``:
+    labels and ``P``, SI); a full parameter covariance ``diagnostics["covariance"]`` converted to field
+    units; None when the method reports neither (the window-mean methods report 1 sigma only: the
+    database then keeps the diagonal).
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration.
+
+    Returns
+    -------
+    dict or None
+        ``{"basis", "labels", "units", "correlations", "matrix"}`` (see
+        :class:`~inscal.lab.model.Calibration`), or None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> lab.covariance_of(res) is None  # 1 sigma only
+    True
+    """
     cov = getattr(result, "covariance", None)
     basis = "states"
     if not (isinstance(cov, dict) and "P" in cov):

@@ -56,8 +56,40 @@ from inscal.lab.record import (
 
 
 class AlreadyRecorded(DatabaseError):
-    """The calibration (same unit, record and options, or the same parameter file) is recorded already, as
-    result ``result_id``; nothing was written."""
+    """The calibration is recorded already (same unit, record and options, or the same parameter file);
+    nothing was written.
+
+    Parameters
+    ----------
+    message : str
+        The one line.
+    result_id : int or None
+        The result recorded already.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> try:
+    ...     lab.record_result(db, "IMU-1", result(0.010), jan)
+    ... except lab.AlreadyRecorded as exc:
+    ...     print(exc.result_id == first)
+    True
+
+    >>> db.close()
+    """
 
     def __init__(self, message: str, result_id: int | None):
         super().__init__(message)
@@ -81,15 +113,74 @@ def _unit(row) -> Unit:
 
 
 def get_unit(db: Database, serial: str) -> Unit | None:
-    """The unit registered as ``serial``, or None."""
+    """The unit registered under a serial.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The serial.
+
+    Returns
+    -------
+    Unit or None
+        The unit, None if none is registered.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> lab.get_unit(db, "IMU-1").model, lab.get_unit(db, "IMU-2")
+    ('nav-grade', None)
+
+    >>> db.close()
+    """
     with read(db) as conn:
         row = conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).first()
     return None if row is None else _unit(row)
 
 
 def add_unit(db: Database, serial: str, model: str | None = None, notes: str | None = None) -> tuple[Unit, bool]:
-    """Register unit ``serial``: ``(unit, created)``.  Units are append-only: a unit that exists with
-    the same model and notes (or without them given) is returned, one with others is refused."""
+    """Register a unit (an instrument the lab calibrates; its serial is its identity).
+
+    Units are append-only: a unit that exists with the same model and notes (or without them given)
+    is returned, one with others is refused.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The serial (1 to 200 characters).
+    model : str, optional
+        The unit's model.
+    notes : str, optional
+        Free text.
+
+    Returns
+    -------
+    tuple of (Unit, bool)
+        The unit, and whether it was created.
+
+    Raises
+    ------
+    DatabaseError
+        A serial registered with another model or notes, or a serial or text too long.
+
+    Examples
+    --------
+    >>> from inscal import lab
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, created = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> unit.serial, created
+    ('IMU-1', True)
+    >>> lab.add_unit(db, "IMU-1")[1]
+    False
+
+    >>> db.close()
+    """
     serial = check_serial(serial)
     check_text(model, "--model")
 
@@ -133,19 +224,132 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
                        options: dict | None = None, covariance: dict | None = None, supersedes: int | None = None,
                        make_current: bool | None = None, date_given: bool = False, new_file: bool = False,
                        budget: tuple[dict, dict] | None = None) -> int:
-    """Record one calibration (see :func:`calibration_writer` for the arguments) in one transaction and return
-    its id."""
+    """Record one calibration in one transaction (nothing is recorded on any error).
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit (registered with :func:`add_unit`).
+    param_text : str
+        The parameter file exactly as written (parsed for the parameters, fit and version).
+    session : SessionInfo
+        Its record (:func:`~inscal.lab.record.session_from_record`; one session per unit and record
+        sha256: the first one recorded keeps its metadata).
+    options : dict, optional
+        The calibration's options (:func:`~inscal.lab.record.calibration_options`; by default the
+        method alone).
+    covariance : dict, optional
+        :func:`~inscal.lab.record.covariance_of` (None: the diagonal of the reported 1 sigma).
+    supersedes : int, optional
+        A result of the same unit this one replaces.
+    make_current : bool, optional
+        Make it the unit's current calibration (None: if its record is not older than the current
+        calibration's).
+    date_given : bool
+        The session's date was given by the operator: a session of the record stored already with
+        another date is refused rather than kept silently.
+    new_file : bool
+        Refuse a parameter file already stored for the unit too.
+    budget : tuple of (dict, dict), optional
+        ``(station document, budget)``, stored with the result.
+
+    Returns
+    -------
+    int
+        The result's id.
+
+    Raises
+    ------
+    DatabaseError
+        An unknown unit, options of another method, a date out of range, a bad ``supersedes``.
+    AlreadyRecorded
+        The same unit, record and options (unless superseding), or the same file with ``new_file``.
+    ParamFileError
+        A parameter file that cannot be read.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> jul = lab.SessionInfo(record_sha256="sha256:" + "3" * 64, date=dt.datetime(2025, 7, 1))
+    >>> text = lab.param_file_text(result(0.011), data_hash=jul.record_sha256)
+    >>> rid = lab.record_calibration(db, "IMU-1", text, jul, supersedes=first)
+    >>> lab.get_calibration(db, first).superseded_by == (rid,)
+    True
+
+    >>> db.close()
+    """
     return write(db, calibration_writer(serial, param_text, session, options=options, covariance=covariance,
                                         supersedes=supersedes, make_current=make_current, date_given=date_given,
                                         new_file=new_file, budget=budget))
 
 
 def stage_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, **kw) -> Staged:
-    """The transaction of :func:`record_calibration` (same arguments), run but not committed:
-    ``staged.value`` is ``{"result_id", "current", "date"}`` (whether it becomes the unit's current
-    calibration, the record's date as stored); ``staged.commit()`` makes it durable (commit it as a step
-    of publishing the parameter file, with the interrupts held: ``before_publish`` of
-    :func:`inscal.io.files.output_unit`), ``staged.close()`` rolls it back unless committed."""
+    """The transaction of :func:`record_calibration`, run but not committed.
+
+    ``staged.commit()`` makes it durable (commit it as a step of publishing the parameter file, with
+    the interrupts held: ``before_publish`` of :func:`inscal.io.files.output_unit`), ``staged.close()``
+    rolls it back unless committed.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+    param_text : str
+        The parameter file exactly as written.
+    session : SessionInfo
+        Its record.
+    **kw
+        The keyword arguments of :func:`record_calibration`.
+
+    Returns
+    -------
+    Staged
+        ``staged.value`` is ``{"result_id", "current", "date"}`` (whether it becomes the unit's
+        current calibration, the record's date as stored).
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(result(0.012)), mar)
+    >>> staged.value["current"]
+    True
+    >>> staged.close()  # rolled back
+    >>> lab.table_counts(db)["results"]
+    1
+
+    >>> db.close()
+    """
     staged = begin_write(db, calibration_writer(serial, param_text, session, **kw))
     try:
         rid = staged.value
@@ -265,10 +469,58 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
 def record_result(db: Database, serial: str, result, session: SessionInfo, *, data_file: str | None = None,
                   metadata: dict | None = None, options: dict | None = None, supersedes: int | None = None,
                   make_current: bool | None = None) -> tuple[int, str]:
-    """Record a :class:`~inscal.calibrate.CalibrationResult` of unit ``serial``: its parameter file's text
-    (:func:`~inscal.lab.record.param_file_text` with ``data_file``, the session's record hash and
-    ``metadata``) and covariance (:func:`~inscal.lab.record.covariance_of`), as :func:`record_calibration`;
-    returns ``(result id, parameter file text)`` (write the text to publish the same file)."""
+    """Record a :class:`~inscal.calibrate.CalibrationResult` of a unit, as :func:`record_calibration`.
+
+    Its parameter file's text is :func:`~inscal.lab.record.param_file_text` (with ``data_file``, the
+    session's record hash and ``metadata``), its covariance :func:`~inscal.lab.record.covariance_of`.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit (registered with :func:`add_unit`).
+    result : CalibrationResult
+        The calibration.
+    session : SessionInfo
+        Its record.
+    data_file : str, optional
+        The record's file name, written in the parameter file.
+    metadata : dict, optional
+        More to write in the parameter file.
+    options : dict, optional
+        The calibration's options (by default the method alone).
+    supersedes : int, optional
+        A result of the same unit this one replaces.
+    make_current : bool, optional
+        Make it the unit's current calibration (None: if its record is not older).
+
+    Returns
+    -------
+    tuple of (int, str)
+        The result's id and the parameter file's text (write the text to publish the same file).
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> first, text.splitlines()[0]
+    (1, 'kind = "inscal-parameters"')
+
+    >>> db.close()
+    """
     text = param_file_text(result, data_file, session.record_sha256, metadata)
     rid = record_calibration(db, serial, text, session, options=options, covariance=covariance_of(result),
                              supersedes=supersedes, make_current=make_current)
@@ -299,8 +551,47 @@ def write_budget(conn, result_id: int, station: dict, budget: dict, stamp: dt.da
 
 
 def get_budget(db: Database, result_id: int) -> dict | None:
-    """``{"result_id", "station", "budget"}`` of result ``result_id`` (the station's document and the
-    budget as stored, field units), None when it was recorded without a station."""
+    """The uncertainty budget stored with a result (field units).
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    result_id : int
+        The result.
+
+    Returns
+    -------
+    dict or None
+        ``{"result_id", "station", "budget"}`` (the station's document and the budget as stored),
+        None when it was recorded without a station.
+
+    Raises
+    ------
+    DatabaseError
+        A stored budget that is not one.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> lab.get_budget(db, first) is None  # recorded without a station
+    True
+
+    >>> db.close()
+    """
     with read(db) as conn:
         row = conn.execute(sa.select(t.budgets.c.budget, t.stations.c.document).join(
             t.stations, t.stations.c.id == t.budgets.c.station_id).where(t.budgets.c.result_id == int(result_id))).first()
@@ -339,7 +630,46 @@ def short_json(v, limit: int = 40) -> str:
 
 
 def set_current(db: Database, serial: str, result_id: int) -> None:
-    """Make result ``result_id`` (of unit ``serial``) the unit's current calibration."""
+    """Make a result the unit's current calibration.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+    result_id : int
+        One of its results.
+
+    Raises
+    ------
+    DatabaseError
+        A result of another unit, or none.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> lab.set_current(db, "IMU-1", first)
+    >>> lab.current_calibration(db, "IMU-1").id == first
+    True
+
+    >>> db.close()
+    """
 
     def run(conn):
         uid = _unit_id(conn, serial)
@@ -352,8 +682,45 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
 
 
 def find_calibration(db: Database, record_sha256: str, options: dict, serial: str | None = None) -> int | None:
-    """The id of the newest result already recorded from the record with ``record_sha256`` with the
-    same ``options`` (:func:`~inscal.lab.record.options_hash`), of unit ``serial`` if given; None if none."""
+    """The newest result already recorded from a record with the same options.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    record_sha256 : str
+        The record's hash (:func:`inscal.io.file_hash`).
+    options : dict
+        The calibration's options (:func:`~inscal.lab.record.calibration_options`).
+    serial : str, optional
+        Only this unit's.
+
+    Returns
+    -------
+    int or None
+        Its id; None if none.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> lab.find_calibration(db, jan.record_sha256, {"method": "six-position"}) == first
+    True
+
+    >>> db.close()
+    """
     q = (sa.select(t.results.c.id).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
          .where(t.sessions.c.record_sha256 == record_sha256, t.results.c.options_hash == options_hash(options))
          .order_by(t.results.c.id.desc()).limit(1))
@@ -364,7 +731,43 @@ def find_calibration(db: Database, record_sha256: str, options: dict, serial: st
 
 
 def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | None:
-    """The id of a result of unit ``serial`` recorded from the very same parameter file, None if none."""
+    """The result of a unit recorded from the very same parameter file.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+    param_file_sha256 : str
+        The file's hash (:func:`~inscal.lab.record.text_hash` of its text).
+
+    Returns
+    -------
+    int or None
+        Its id; None if none.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> lab.find_param_file(db, "IMU-1", lab.text_hash(text)) == first
+    True
+
+    >>> db.close()
+    """
     with read(db) as conn:
         return conn.execute(sa.select(t.results.c.id).join(t.units, t.units.c.id == t.results.c.unit_id).where(
             t.units.c.serial == serial, t.results.c.param_file_sha256 == param_file_sha256)
@@ -430,7 +833,47 @@ def _load(conn, result_rows: list) -> list[Calibration]:
 
 
 def get_calibration(db: Database, result_id: int) -> Calibration:
-    """Result ``result_id`` with all its parameters, sigma, covariance, fit and provenance."""
+    """A result with all its parameters, sigma, covariance, fit and provenance.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    result_id : int
+        The result.
+
+    Returns
+    -------
+    Calibration
+        The result.
+
+    Raises
+    ------
+    DatabaseError
+        No such result.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> cal = lab.get_calibration(db, first)
+    >>> cal.serial, cal.method, cal.parameters["gyro_bias"].unit
+    ('IMU-1', 'six-position', 'deg/h')
+
+    >>> db.close()
+    """
     if not 0 < int(result_id) < 2**63:  # beyond any id (and SQLite's 64-bit integers)
         raise DatabaseError(f"no calibration result {result_id} in {db.where}")
     with read(db) as conn:
@@ -441,7 +884,48 @@ def get_calibration(db: Database, result_id: int) -> Calibration:
 
 
 def current_calibration(db: Database, serial: str) -> Calibration | None:
-    """The current calibration of unit ``serial`` (None if it has none); unknown unit: :class:`DatabaseError`."""
+    """The current calibration of a unit.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+
+    Returns
+    -------
+    Calibration or None
+        Its current calibration, None if it has none.
+
+    Raises
+    ------
+    DatabaseError
+        An unknown unit.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> lab.current_calibration(db, "IMU-1").id == second  # the newest record's
+    True
+
+    >>> db.close()
+    """
     with read(db) as conn:
         rid = current_id(conn, _unit_id(conn, serial))
         if rid is None:
@@ -450,8 +934,47 @@ def current_calibration(db: Database, serial: str) -> Calibration | None:
 
 
 def calibrations(db: Database, serial: str, method: str | None = None, superseded: bool = False) -> list[Calibration]:
-    """The calibrations of unit ``serial`` in the order of their records' dates (then of recording), of
-    ``method`` if given; without ``superseded``, the results another one supersedes are left out."""
+    """The calibrations of a unit, in the order of their records' dates (then of recording).
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+    serial : str
+        The unit.
+    method : str, optional
+        Only this method's.
+    superseded : bool
+        Keep the results another one supersedes too.
+
+    Returns
+    -------
+    list of Calibration
+        The calibrations.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> [c.parameters["gyro_bias"].value[0].item() for c in lab.calibrations(db, "IMU-1")]
+    [0.01, 0.012]
+
+    >>> db.close()
+    """
     with read(db) as conn:
         uid = _unit_id(conn, serial)
         q = (sa.select(t.results).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
@@ -492,7 +1015,39 @@ def newest_thermal(db: Database, serial: str) -> tuple[Calibration, ThermalModel
 
 
 def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
-    """Every unit with its number of (not superseded) results and its current result id, by serial."""
+    """Every unit with its number of (not superseded) results and its current result id, by serial.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+
+    Returns
+    -------
+    list of tuple of (Unit, int, int or None)
+        ``(unit, results, current result id)``.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> [(u.serial, n, cur == first) for u, n, cur in lab.list_units(db)]
+    [('IMU-1', 1, True)]
+
+    >>> db.close()
+    """
     with read(db) as conn:
         later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
         counts = dict(conn.execute(sa.select(t.results.c.unit_id, sa.func.count()).where(
@@ -504,7 +1059,40 @@ def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
 
 
 def table_counts(db: Database) -> dict[str, int]:
-    """Rows per table."""
+    """Rows per table.
+
+    Parameters
+    ----------
+    db : Database
+        The open database.
+
+    Returns
+    -------
+    dict of str to int
+        ``{table: rows}``.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.core.units import DEG, HOUR
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
+    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
+    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
+    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> db, created = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> counts = lab.table_counts(db)
+    >>> counts["units"], counts["results"], counts["parameters"]
+    (1, 1, 3)
+
+    >>> db.close()
+    """
     with read(db) as conn:
         return {tab.name: int(conn.execute(sa.select(sa.func.count()).select_from(tab)).scalar_one())
                 for tab in t.TABLES}

@@ -26,15 +26,37 @@ from inscal.nav.stream import SampleStream
 # ============================================================================ alignment
 @dataclass(frozen=True)
 class AlignConfig:
-    """Static alignment: analytic coarse alignment over ``coarse_time``, then a Kalman fine
-    alignment over ``fine_time`` (seconds; 0 skips it).
+    """Static alignment: analytic coarse alignment over ``coarse_time``, then a Kalman fine alignment
+    over ``fine_time``.
 
-    Noise densities (SI) tune the fine-alignment filter: ``arw`` [rad/sqrt(s)],
-    ``vrw`` [m/s/sqrt(s)], ``velocity_sigma`` [m/s] (zero-velocity measurement),
-    initial sigmas of level/heading error [rad] and gyro/accel residual biases.
-    ``apply_bias_estimates``: keep the filter's residual-bias estimates in the
-    compensation for the navigation that follows (keeps the Schuler loop in the
-    equilibrium the filter reached)."""
+    Parameters
+    ----------
+    coarse_time : float
+        The coarse window [s].
+    fine_time : float
+        The fine window [s] (0 skips it).
+    kf_interval : float
+        The fine filter's update interval [s].
+    arw : float
+        Angle random walk of the filter's model [rad/sqrt(s)].
+    vrw : float
+        Velocity random walk [m/s/sqrt(s)].
+    velocity_sigma : float
+        The zero-velocity measurement's sigma [m/s].
+    level_sigma, heading_sigma : float
+        Initial sigmas of the level and heading errors [rad].
+    gyro_bias_sigma, accel_bias_sigma : float
+        Initial sigmas of the residual biases [rad/s], [m/s^2].
+    apply_bias_estimates : bool
+        Keep the filter's residual-bias estimates in the compensation for the navigation that follows
+        (keeps the Schuler loop in the equilibrium the filter reached).
+
+    Examples
+    --------
+    >>> from inscal.nav import AlignConfig
+    >>> AlignConfig(coarse_time=10.0, fine_time=20.0).samples(0.1)
+    (100, 200)
+    """
 
     coarse_time: float = 60.0
     fine_time: float = 600.0
@@ -66,8 +88,35 @@ class AlignConfig:
 
 @dataclass
 class AlignResult:
-    """The outcome of an alignment: the navigation state at its end, the samples and time it used, the
-    coarse attitude, the residual gyro and accelerometer bias estimates and the attitude's final 1 sigma.
+    """The outcome of an alignment (:func:`align`).
+
+    Parameters
+    ----------
+    state : NavState
+        The navigation state at the end of the alignment.
+    k_end : int
+        The number of samples used.
+    time_end : float
+        The time at its end [s].
+    coarse_C_s_n : numpy.ndarray
+        (3, 3) the coarse attitude at the end of the coarse window.
+    gyro_bias, accel_bias : numpy.ndarray
+        (3,) residual bias estimates in the s-frame [rad/s], [m/s^2].
+    sigma_phi : numpy.ndarray
+        (3,) the final 1 sigma of the attitude error [rad].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.nav import AlignConfig, SampleStream, align, chunks_of
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=30.0, rate_hz=10.0)
+    >>> stream = SampleStream(chunks_of(simulate(sc, np.random.default_rng(0))))
+    >>> res = align(stream, 0.1, sc.site.latitude, sc.site.longitude, sc.site.height,
+    ...             AlignConfig(coarse_time=10.0, fine_time=20.0))
+    >>> res.k_end, res.time_end
+    (300, 30.0)
     """
     state: NavState  # at the end of the alignment
     k_end: int  # number of samples used
@@ -129,14 +178,51 @@ def coarse_align(dtheta: np.ndarray, dvel: np.ndarray, dt: float, latitude: floa
                  gravity: earth.GravityModel | None = None) -> np.ndarray:
     """Analytic coarse alignment on a static site, valid also while the turntable turns.
 
-    Inertial-frame (two-vector / Wahba) method: the gyros give ``C_s^{s0}(t)`` (s0 = the
-    IMU frame at the start, fixed in inertial space); the specific force integrated in s0
-    must equal the closed-form integral of ``f^n = [0, 0, g]`` in the inertial frame n0
-    (= n at the start), ``v^{n0} = C_{s0}^{n0} v^{s0}``.  ``C_{s0}^{n0}`` follows from an SVD
-    (Wahba) fit over one vector per second; then
-    ``C_s^n(T) = C_{n0}^{n(T)} C_{s0}^{n0} C_{s(T)}^{s0}``.  Returns ``C_s^n`` at the end of the window
-    (``at_start``: ``C_{s0}^{n0}``, the attitude at the start of the window).  ``gravity``: the
-    site's gravity model (WGS-84 normal gravity when None).
+    Inertial-frame (two-vector / Wahba) method: the gyros give ``C_s^{s0}(t)`` (s0 = the IMU frame at
+    the start, fixed in inertial space); the specific force integrated in s0 must equal the closed-form
+    integral of ``f^n = [0, 0, g]`` in the inertial frame n0 (= n at the start),
+    ``v^{n0} = C_{s0}^{n0} v^{s0}``.  ``C_{s0}^{n0}`` follows from an SVD (Wahba) fit over one vector
+    per second; then ``C_s^n(T) = C_{n0}^{n(T)} C_{s0}^{n0} C_{s(T)}^{s0}``.
+
+    Parameters
+    ----------
+    dtheta, dvel : numpy.ndarray
+        (N, 3) angular [rad] and velocity [m/s] increments, at least 5 s of them.
+    dt : float
+        The sample interval [s].
+    latitude : float
+        The site's latitude [rad].
+    height : float
+        Its height [m].
+    params : ImuErrors, optional
+        A calibration to compensate the increments with first.
+    at_start : bool
+        Return the attitude at the start of the window (``C_{s0}^{n0}``) instead of its end.
+    gravity : GravityModel, optional
+        The site's gravity model (WGS-84 normal gravity when None).
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 3) ``C_s^n`` at the end of the window (or at its start).
+
+    Raises
+    ------
+    ValueError
+        Less than 5 s of data.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.attitude import euler_from_dcm
+    >>> from inscal.nav import coarse_align
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=10.0, rate_hz=10.0)
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> C = coarse_align(data.dtheta, data.dvel, 0.1, sc.site.latitude)
+    >>> np.allclose(np.degrees(euler_from_dcm(C)), 0.0, atol=1e-9)  # the level, North-pointing IMU
+    True
     """
     if params is not None:
         dtheta, dvel = params.compensate_increments(dt, dtheta, dvel)
@@ -193,12 +279,54 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
           gravity: earth.GravityModel | None = None) -> AlignResult:
     """Coarse + Kalman fine alignment on the first ``coarse_time + fine_time`` seconds of ``stream``.
 
-    Fine alignment (zero-velocity Kalman filter, T&W ch. 10; S16 eq. 25-27 with a zero
-    reference velocity): the mechanization runs with the position clamped to the known
-    site and the vertical channel held; every ``kf_interval`` the 11-state filter
-    [attitude, horizontal velocity, gyro and accelerometer residual biases] is propagated
-    and updated with the computed horizontal velocity, and its estimates are fed back
-    (attitude and velocity into the state, biases into the compensation).
+    Fine alignment (zero-velocity Kalman filter, T&W ch. 10; S16 eq. 25-27 with a zero reference
+    velocity): the mechanization runs with the position clamped to the known site and the vertical
+    channel held; every ``kf_interval`` the 11-state filter [attitude, horizontal velocity, gyro and
+    accelerometer residual biases] is propagated and updated with the computed horizontal velocity,
+    and its estimates are fed back (attitude and velocity into the state, biases into the
+    compensation).
+
+    Parameters
+    ----------
+    stream : SampleStream
+        The record's samples; the alignment consumes its first samples.
+    dt : float
+        The sample interval [s].
+    latitude, longitude : float
+        The site [rad].
+    height : float
+        Its height [m].
+    cfg : AlignConfig, optional
+        The windows and the filter's tuning.
+    params : ImuErrors, optional
+        A calibration applied on the fly.
+    t0 : float
+        The time of the start of the first sample [s].
+    gravity : GravityModel, optional
+        The site's gravity model (WGS-84 normal gravity when None).
+
+    Returns
+    -------
+    AlignResult
+        The state at the end, the samples used, the bias estimates and the attitude's 1 sigma.
+
+    Raises
+    ------
+    ValueError
+        A record shorter than the alignment time.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.nav import AlignConfig, SampleStream, align, chunks_of
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=30.0, rate_hz=10.0)
+    >>> stream = SampleStream(chunks_of(simulate(sc, np.random.default_rng(0))))
+    >>> res = align(stream, 0.1, sc.site.latitude, sc.site.longitude, sc.site.height,
+    ...             AlignConfig(coarse_time=10.0, fine_time=20.0))
+    >>> bool(res.sigma_phi[2] > res.sigma_phi[0])  # heading is the least observable
+    True
     """
     cfg = cfg or AlignConfig()
     nc, nf = cfg.samples(dt)

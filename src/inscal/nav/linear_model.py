@@ -14,10 +14,42 @@ from inscal.core import earth
 # ============================================================================ error model / closed forms
 def linear_error_model(C_s_n: np.ndarray, lat: float, t: np.ndarray, gyro_bias=(0, 0, 0), accel_bias=(0, 0, 0),
                        height: float = 0.0, phi0=(0, 0, 0)) -> dict:
-    """Propagate the linear phi-angle error model (module docstring) for a static IMU
-    attitude ``C_s_n`` and constant biases (s-frame, SI), exactly (matrix exponential),
-    at uniformly spaced times ``t`` (t[0] = 0).  Returns phi (N, 3), dv (N, 2),
-    position East/North [m] (N, 2)."""
+    """Propagate the linear phi-angle error model of a static IMU with constant biases, exactly.
+
+    The 7-state model (attitude phi, horizontal velocity, latitude and longitude errors) of the module
+    docstring, with the biases as constant forcing, propagated by its matrix exponential.
+
+    Parameters
+    ----------
+    C_s_n : numpy.ndarray
+        (3, 3) the static IMU attitude, s-frame to n-frame.
+    lat : float
+        Latitude [rad].
+    t : numpy.ndarray
+        (N,) uniformly spaced times [s], ``t[0] = 0``.
+    gyro_bias, accel_bias : array_like
+        Constant biases in the s-frame [rad/s], [m/s^2].
+    height : float
+        Height [m].
+    phi0 : array_like
+        The initial attitude error [rad].
+
+    Returns
+    -------
+    dict
+        ``phi`` (N, 3) [rad], ``dv`` (N, 2) East/North [m/s], ``position`` (N, 2) East/North [m].
+
+    Examples
+    --------
+    An East accelerometer bias of 10 ug tilts the platform by ``b/g`` (10 urad) at the Schuler peak:
+
+    >>> import numpy as np
+    >>> from inscal.nav import linear_error_model
+    >>> t = np.arange(0.0, 2600.0, 10.0)  # half a Schuler period
+    >>> m = linear_error_model(np.eye(3), 0.0, t, accel_bias=(9.78e-5, 0.0, 0.0))
+    >>> round(float(-m["phi"][:, 1].min()) * 1e6, 1)  # urad: 2 b/g at the half period
+    20.0
+    """
     rm, rn = earth.radii(lat)
     rm, rn = rm + height, rn + height
     g = earth.normal_gravity(lat, height)
@@ -58,17 +90,43 @@ def linear_error_model(C_s_n: np.ndarray, lat: float, t: np.ndarray, gyro_bias=(
 
 
 def gyro_bias_closed_form(eps_n, lat: float, t) -> dict:
-    """Schuler-averaged (24-hour) closed-form errors for a constant gyro bias ``eps_n``
-    = [E, N, U] in the n-frame on a static base (T&W ch. 12; Britting), with the level
-    tilts in equilibrium and terms of order (W/w_s)^2 dropped::
+    """Schuler-averaged (24-hour) closed-form errors for a constant gyro bias on a static base.
+
+    T&W ch. 12; Britting.  The level tilts are in equilibrium and terms of order (W/w_s)^2 dropped::
 
         p      = eps_U cos L - eps_N sin L
         dL     = (p/W)(1 - cos Wt) - (eps_E/W) sin Wt
         dlam cos L = eps_N t + sin L [p (t - sin(Wt)/W) - (eps_E/W)(1 - cos Wt)]
         phi_U  = [p sin Wt + eps_E (1 - cos Wt)] / (W cos L)
 
-    (derived from the phi-angle model of the module docstring with phi' = 0 on the level
-    axes).  Returns position East/North [m] (R = the Gaussian mean radius) and phi_U."""
+    (derived from the phi-angle model of the module docstring with phi' = 0 on the level axes).
+
+    Parameters
+    ----------
+    eps_n : array_like
+        The gyro bias [E, N, U] in the n-frame [rad/s].
+    lat : float
+        Latitude L [rad].
+    t : array_like
+        Times [s].
+
+    Returns
+    -------
+    dict
+        ``position`` (N, 2) East/North [m] (R the Gaussian mean radius) and ``phi_up`` (N,) [rad].
+
+    Examples
+    --------
+    A North gyro bias of 0.01 deg/h at the equator turns the longitude at that rate: 0.24 deg,
+    about 26.7 km, in a day:
+
+    >>> import numpy as np
+    >>> from inscal.nav import gyro_bias_closed_form
+    >>> eps = np.radians(0.01) / 3600.0
+    >>> cf = gyro_bias_closed_form([0.0, eps, 0.0], 0.0, [86400.0])
+    >>> round(float(cf["position"][0, 0]) / 1000.0, 2)  # km East after a day
+    26.72
+    """
     eE, eN, eU = (float(v) for v in eps_n)
     W = earth.OMEGA_IE
     t = np.asarray(t, dtype=float)
@@ -82,12 +140,37 @@ def gyro_bias_closed_form(eps_n, lat: float, t) -> dict:
 
 
 def accel_bias_closed_form(b_east: float, lat: float, t) -> dict:
-    """Single-channel Schuler solution for an East accelerometer bias (T&W ch. 12): exact for
-    the phi-angle model at the equator (no Foucault or Earth-rate coupling of the channel)::
+    """Single-channel Schuler solution for an East accelerometer bias (T&W ch. 12).
+
+    Exact for the phi-angle model at the equator (no Foucault or Earth-rate coupling of the
+    channel)::
 
         phi_N = -(b/g)(1 - cos w_s t),  dv_E = (b/w_s) sin w_s t,  dx_E = (b/w_s^2)(1 - cos w_s t)
 
-    with w_s = sqrt(g/R_N) (the East channel's transport rate uses R_N)."""
+    with w_s = sqrt(g/R_N) (the East channel's transport rate uses R_N).
+
+    Parameters
+    ----------
+    b_east : float
+        The East accelerometer bias [m/s^2].
+    lat : float
+        Latitude [rad] (gravity and R_N).
+    t : array_like
+        Times [s].
+
+    Returns
+    -------
+    dict
+        ``omega`` (w_s [rad/s]), ``phi_north`` [rad], ``dv_east`` [m/s], ``position_east`` [m].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.nav import accel_bias_closed_form
+    >>> cf = accel_bias_closed_form(9.78e-5, 0.0, [0.0, np.pi / 1.2383e-3])
+    >>> round(float(cf["position_east"][1]), 2)  # 2 b / w_s^2 at the half period
+    127.56
+    """
     t = np.asarray(t, dtype=float)
     g = earth.normal_gravity(lat)
     _, rn = earth.radii(lat)

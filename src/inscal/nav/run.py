@@ -48,10 +48,33 @@ from inscal.nav.stream import (
 
 # ============================================================================ height reference
 class HeightReference:
-    """External height for the vertical channel (a barometer, a survey, a depth gauge): a
-    constant ``height_m`` or a profile ``time_s``, ``height_m`` (linearly interpolated, held at
-    its end values outside its span).  The damped vertical loop ("damped") tracks it, "hold"
-    follows it; the navigator updates the reference once per ``UPDATE_S`` seconds."""
+    """External height for the vertical channel (a barometer, a survey, a depth gauge).
+
+    A constant ``height_m``, or a profile ``time_s``, ``height_m`` (linearly interpolated, held at its
+    end values outside its span).  The damped vertical loop ("damped") tracks it, "hold" follows it;
+    the navigator reads the reference once per :attr:`UPDATE_S` seconds.
+
+    Parameters
+    ----------
+    height_m : float or array_like
+        The height [m], or the heights of the profile.
+    time_s : array_like, optional
+        The profile's times [s], increasing (None: a constant height).
+
+    Raises
+    ------
+    ValueError
+        Heights or times that are not finite, not as many of each, or times that do not increase.
+
+    Examples
+    --------
+    >>> from inscal.nav import HeightReference
+    >>> ref = HeightReference([100.0, 110.0], [0.0, 10.0])
+    >>> float(ref(5.0)), float(ref(60.0)), ref.span()
+    (105.0, 110.0, (0.0, 10.0))
+    >>> HeightReference(42.0).constant
+    True
+    """
 
     #: how often the navigator reads the reference [s] (the third-order loop's tau is ~100 s)
     UPDATE_S = 1.0
@@ -120,9 +143,36 @@ class HeightReference:
 # ============================================================================ orchestration
 @dataclass
 class NavResult:
-    """A navigation: its output, its errors against the truth or the static site (with a summary), the
-    alignment when one was run, the configuration, how it started (``truth`` or ``align``) and the
-    thermal compensation applied.
+    """A navigation (:func:`navigate`): its output, its errors and what it was run with.
+
+    Parameters
+    ----------
+    output : NavOutput
+        The decimated navigation output (attitude, velocity, position at each output time).
+    errors : NavErrors or None
+        Its errors against the truth or the static site.
+    summary : dict or None
+        The summary figures of the errors (:func:`summarize`).
+    alignment : AlignResult or None
+        The alignment, when one was run.
+    config : NavConfig
+        The mechanization options.
+    init : str
+        How it started: ``"truth"``, ``"align"`` or ``"given"``.
+    thermal : dict or None
+        The thermal compensation applied (:meth:`ThermalCompensation.summary`), None without a
+        thermal model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.nav import chunks_of, navigate
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=20.0, rate_hz=10.0)
+    >>> res = navigate(chunks_of(simulate(sc, np.random.default_rng(0))), sc.rate_hz, sc.site, scenario=sc)
+    >>> res.init, res.output.time.shape, res.alignment is None
+    ('truth', (20,), True)
     """
     output: NavOutput
     errors: NavErrors | None
@@ -136,8 +186,35 @@ class NavResult:
 
 def samples_needed(rate_hz: float, config: NavConfig | None = None, init="truth",
                    align_config: AlignConfig | None = None) -> tuple[int, str]:
-    """The fewest samples :func:`navigate` can run on, and what they are for: one output row
-    (:meth:`NavConfig.decimation` samples), after the alignment's samples with ``init="align"``."""
+    """The fewest samples :func:`navigate` can run on, and what they are for.
+
+    One output row (:meth:`NavConfig.decimation` samples), after the alignment's samples with
+    ``init="align"``.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The sample rate [Hz].
+    config : NavConfig, optional
+        The mechanization options (their output rate).
+    init : str or NavState
+        How the navigation starts (``"align"`` needs the alignment's samples first).
+    align_config : AlignConfig, optional
+        The alignment's windows.
+
+    Returns
+    -------
+    tuple of (int, str)
+        The number of samples and what they are for, in words.
+
+    Examples
+    --------
+    >>> from inscal.nav import AlignConfig, samples_needed
+    >>> samples_needed(100.0)
+    (100, 'one output at 1 Hz')
+    >>> samples_needed(100.0, init="align", align_config=AlignConfig(coarse_time=60.0, fine_time=0.0))[0]
+    6100
+    """
     config = config or NavConfig()
     dt = 1.0 / rate_hz
     dec = config.decimation(dt)
@@ -150,7 +227,32 @@ def samples_needed(rate_hz: float, config: NavConfig | None = None, init="truth"
 
 
 def too_short(n: int, rate_hz: float, needed: int, what: str, task: str = "navigate") -> str:
-    """The one line for a record of ``n`` samples that ``task`` needs ``needed`` of (for ``what``)."""
+    """The one line for a record too short for a task.
+
+    Parameters
+    ----------
+    n : int
+        The record's number of samples.
+    rate_hz : float
+        Its sample rate [Hz].
+    needed : int
+        The samples the task needs (:func:`samples_needed`).
+    what : str
+        What they are for.
+    task : str
+        The task, in words.
+
+    Returns
+    -------
+    str
+        The message.
+
+    Examples
+    --------
+    >>> from inscal.nav import too_short
+    >>> too_short(50, 100.0, 100, "one output at 1 Hz")
+    '50 samples (0.5 s at 100 Hz), too short to navigate: it needs 100 samples (1 s) for one output at 1 Hz'
+    """
     return (f"{n} sample{'s' if n != 1 else ''} ({n / rate_hz:.6g} s at {rate_hz:g} Hz), too short to {task}: it needs "
             f"{needed} samples ({needed / rate_hz:.6g} s) for {what}")
 
@@ -161,24 +263,75 @@ def navigate(chunks: Iterable, rate_hz: float, site, *, init="truth", scenario=N
              vref=None, progress: Callable[[float], None] | None = None,
              height_ref: "HeightReference | float | None" = None,
              thermal: "ThermalModel | ThermalCompensation | None" = None, temperature=None) -> NavResult:
-    """Navigate a chunked record.
+    """Navigate a chunked record on a static site (strapdown mechanization, S16 compensation form).
 
-    ``chunks``: iterable of ``(time, dtheta, dvel, gimbal)`` (e.g. :func:`inscal.io.iter_chunks`,
-    :func:`chunks_of`) or :class:`inscal.sim.simulate.Chunk` objects.  ``site``: the known static site
-    (latitude, longitude, height; its ``gravity_model``, when it has one, is used throughout).
-    ``init``: "truth" (needs ``scenario``), "align" (static coarse +
-    fine alignment, navigation continues from its end), or a :class:`NavState` at the start.
-    ``params``: calibration set applied on the fly (S16 compensation form); ``gimbal_model``: the
-    gimbal non-orthogonality used to map the IMU attitude to the vehicle.  With a ``scenario``,
-    errors against its truth and a summary are computed.  ``height_ref``: an external height
-    (:class:`HeightReference`, or a constant in metres) for the vertical channel's reference in
-    place of the initial height ("damped" tracks it, "hold" follows it; "free" refuses it).
-    ``thermal``: the thermal model that goes with ``params`` (``params`` = the errors at its ``t_ref``):
-    each sample is first mapped to ``t_ref`` at its ``temperature`` (the record's
-    :class:`~inscal.io.records.Temperature`, a constant in degC, or a function ``t -> (T, dT/dt)``; see
-    :class:`~inscal.nav.stream.ThermalCompensation`, which may also be given as ``thermal``).  Samples
-    outside the model's range follow its policy (``warn``, ``clamp``: a RuntimeWarning says how many;
-    ``error``: ThermalError); ``NavResult.thermal`` tells what was applied.
+    With a ``scenario``, the errors against its truth and a summary are computed; without one, the
+    position and velocity errors against the static ``site``.
+
+    Parameters
+    ----------
+    chunks : iterable
+        ``(time, dtheta, dvel, gimbal)`` tuples (:func:`inscal.io.iter_chunks`, :func:`chunks_of`) or
+        :class:`inscal.sim.simulate.Chunk` objects.
+    rate_hz : float
+        The sample rate [Hz].
+    site : Site
+        The known static site (latitude, longitude, height; its ``gravity_model`` is used throughout).
+    init : str or NavState
+        ``"truth"`` (needs ``scenario``), ``"align"`` (static coarse + fine alignment, the navigation
+        continues from its end), or a :class:`~inscal.nav.strapdown.NavState` at the start.
+    scenario : Scenario, optional
+        The simulated scenario (its truth).
+    params : ImuErrors, optional
+        A calibration applied on the fly.
+    gimbal_model : GimbalErrors, optional
+        The gimbal non-orthogonality used to map the IMU attitude to the vehicle.
+    config : NavConfig, optional
+        The mechanization options (free or damped, vertical channel, output rate).
+    align_config : AlignConfig, optional
+        The alignment's windows and filter tuning (``init="align"``).
+    vref : array_like or callable, optional
+        The reference velocity of the damped mode (ENU [m/s], or a function of the chunk's times).
+    progress : callable, optional
+        Called with the time [s] reached after each chunk.
+    height_ref : HeightReference or float, optional
+        An external height for the vertical channel in place of the initial height ("damped" tracks
+        it, "hold" follows it; "free" refuses it).
+    thermal : ThermalModel or ThermalCompensation, optional
+        The thermal model that goes with ``params`` (``params`` = the errors at its ``t_ref``): each
+        sample is first mapped to ``t_ref`` at its ``temperature``.  Samples outside the model's range
+        follow its policy (``warn``, ``clamp``: a RuntimeWarning says how many; ``error``: ThermalError).
+    temperature : Temperature, float or callable, optional
+        The samples' temperature (see :class:`ThermalCompensation`).
+
+    Returns
+    -------
+    NavResult
+        The output, its errors and summary, the alignment, and the thermal compensation applied.
+
+    Raises
+    ------
+    ValueError
+        No samples, too few for one output row, ``init="truth"`` without a scenario, an unknown
+        ``init``, a temperature without a thermal model, or a height reference with a free vertical
+        channel.
+    ThermalError
+        Samples outside the thermal model's range under ``out_of_range = "error"``.
+
+    Examples
+    --------
+    A noise-free static IMU, aligned for 30 s, then navigated:
+
+    >>> import numpy as np
+    >>> from inscal.nav import AlignConfig, chunks_of, navigate
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=40.0, rate_hz=10.0)
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> res = navigate(chunks_of(data), sc.rate_hz, sc.site, init="align",
+    ...                align_config=AlignConfig(coarse_time=10.0, fine_time=20.0))
+    >>> res.init, float(res.output.time[0]), round(res.summary["final_position_error_m"], 6)
+    ('align', 31.0, 0.0)
     """
     config = config or NavConfig()
     dt = 1.0 / rate_hz
@@ -260,7 +413,32 @@ def write_nav(path, res: NavResult, meta: dict | None = None, overwrite: bool = 
         /gimbal (N,2) rad (if recorded); /errors/{position,velocity[,attitude,vehicle]};
         attrs: kind="inscal-navigation", schema_version, mode, vertical, init, meta (JSON), summary (JSON).
 
-    The output is published whole or not at all, and an existing file is replaced only with ``overwrite``.
+    The output is published whole or not at all.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The HDF5 file to write.
+    res : NavResult
+        The navigation (:func:`navigate`).
+    meta : dict, optional
+        What to record of how it was run (JSON-ready).
+    overwrite : bool
+        Replace an existing file; otherwise one is refused (FileExistsError).
+
+    Examples
+    --------
+    >>> import h5py
+    >>> import numpy as np
+    >>> from inscal.nav import chunks_of, navigate, write_nav
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=5.0, rate_hz=10.0)
+    >>> res = navigate(chunks_of(simulate(sc, np.random.default_rng(0))), sc.rate_hz, sc.site, scenario=sc)
+    >>> write_nav("nav.h5", res, {"record": "memory"})
+    >>> with h5py.File("nav.h5", "r") as h5:
+    ...     print(h5.attrs["kind"], h5["position"].shape)
+    inscal-navigation (5, 3)
     """
 
 

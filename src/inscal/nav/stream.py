@@ -28,8 +28,28 @@ from inscal.core.thermal import (
 
 # =============================================================================== streams
 class SampleStream:
-    """Consumes an iterable of ``(time, dtheta, dvel, gimbal)`` chunks; ``take(n)`` returns the
-    next n samples (concatenated), ``chunks()`` the rest, chunk by chunk."""
+    """A stream of IMU samples over an iterable of ``(time, dtheta, dvel, gimbal)`` chunks.
+
+    ``take(n)`` returns the next ``n`` samples (concatenated across chunks), ``chunks()`` the rest,
+    chunk by chunk, and ``peek()`` the next chunk without consuming it.
+
+    Parameters
+    ----------
+    chunks : iterable
+        ``(time, dtheta, dvel, gimbal)`` tuples, or the simulator's chunks (with those attributes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.nav import SampleStream
+    >>> t = np.arange(1, 11) / 10.0
+    >>> stream = SampleStream([(t[:6], np.zeros((6, 3)), np.zeros((6, 3)), None),
+    ...                        (t[6:], np.zeros((4, 3)), np.zeros((4, 3)), None)])
+    >>> stream.take(8)[0].shape
+    (8,)
+    >>> [c[0].tolist() for c in stream.chunks()]
+    [[0.9, 1.0]]
+    """
 
     def __init__(self, chunks: Iterable):
         self._it = iter(chunks)
@@ -83,7 +103,31 @@ class SampleStream:
 
 
 def chunks_of(data, chunk_size: int = 1 << 19) -> Iterator:
-    """Chunk tuples from an in-memory record (SimData or io.Record: .time .dtheta .dvel .gimbal)."""
+    """Chunk tuples from an in-memory record, for the navigator's streams.
+
+    Parameters
+    ----------
+    data : Record or SimData
+        Anything with ``time``, ``dtheta``, ``dvel`` and ``gimbal`` arrays.
+    chunk_size : int
+        Samples per chunk.
+
+    Yields
+    ------
+    tuple of numpy.ndarray
+        ``(time, dtheta, dvel, gimbal)`` slices (``gimbal`` None when the record has none).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record
+    >>> from inscal.nav import chunks_of
+    >>> t = np.arange(1, 11) / 10.0
+    >>> rec = Record(t, np.zeros((10, 3)), np.zeros((10, 3)), None, 10.0, Site(0.7))
+    >>> [len(c[0]) for c in chunks_of(rec, chunk_size=4)]
+    [4, 4, 2]
+    """
     n = data.time.shape[0]
     for k in range(0, n, chunk_size):
         sl = slice(k, k + chunk_size)
@@ -91,7 +135,37 @@ def chunks_of(data, chunk_size: int = 1 << 19) -> Iterator:
 
 
 def compensated_chunks(chunks, params: ImuErrors, dt: float):
-    """``(t, dtheta, dvel, gimbal)`` chunks compensated with ``params`` (one chunk of look-ahead)."""
+    """Chunks compensated with a parameter set, one chunk of look-ahead.
+
+    The compensation of a sample uses its neighbours (time asynchrony, size effect), so each chunk is
+    compensated knowing the last sample of the one before and the first of the one after: any chunking
+    gives the same numbers.
+
+    Parameters
+    ----------
+    chunks : iterable of tuple
+        ``(time, dtheta, dvel, gimbal)`` chunks in order.
+    params : ImuErrors
+        The errors to remove (:meth:`~inscal.core.error_model.ImuErrors.compensate_increments`).
+    dt : float
+        The sample interval [s].
+
+    Yields
+    ------
+    tuple of numpy.ndarray
+        ``(time, dtheta, dvel, gimbal)`` with the increments compensated.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.error_model import ImuErrors
+    >>> from inscal.nav import compensated_chunks
+    >>> bias = ImuErrors(gyro_bias=np.array([1e-6, 0.0, 0.0]))
+    >>> chunk = (np.array([0.1, 0.2]), np.full((2, 3), 1e-7), np.zeros((2, 3)), None)
+    >>> (_, dth, _, _), = compensated_chunks([chunk], bias, 0.1)
+    >>> np.round(dth[:, 0] * 1e7, 6).tolist()  # 1e-7 rad minus 1e-6 rad/s * 0.1 s
+    [0.0, 0.0]
+    """
     prev = None
     it = iter(chunks)
     cur = next(it, None)
@@ -127,17 +201,51 @@ def out_of_range_message(model: ThermalModel, n_outside: int, n_samples: int, lo
 
 
 class ThermalCompensation:
-    """The inverse thermal model applied sample by sample: increments measured at the record's
-    temperature -> those ``base`` measures at ``model.t_ref`` (compensate them with ``base`` afterwards).
+    """The inverse thermal model, applied sample by sample.
 
-    ``temperature``: the record's readings (:class:`~inscal.io.records.Temperature`, or anything with its
-    ``time``, ``sensors`` and ``series(sensor)``: the series of ``model.sensor``, the mean of the sensors
-    when it names none), a constant in degC (dT/dt = 0), or a function ``t -> (T, dT/dt)`` [s -> degC,
-    degC/s] evaluated at the middle of each sample interval (an ideal sensor, e.g.
-    :meth:`inscal.sim.thermal.TemperatureProfile.at`).  Outside the calibrated range
-    the model's policy applies: ``warn`` extrapolates (counted, see :meth:`message`), ``clamp`` evaluates
-    at the range ends, ``error`` raises :class:`~inscal.core.thermal.ThermalError`.  ``where`` names the
-    record in messages."""
+    Increments measured at the record's temperature become those ``base`` measures at
+    ``model.t_ref``: compensate them with ``base`` afterwards.  Outside the calibrated range the
+    model's policy applies: ``warn`` extrapolates (counted, see :meth:`message`), ``clamp`` evaluates at
+    the range ends, ``error`` raises :class:`~inscal.core.thermal.ThermalError`.
+
+    Parameters
+    ----------
+    model : ThermalModel
+        The thermal coefficients, reference temperature and range.
+    base : ImuErrors or None
+        The errors at ``t_ref`` (None: none).
+    temperature : Temperature, float or callable
+        The record's readings (:class:`~inscal.io.records.Temperature`, or anything with its ``time``,
+        ``sensors`` and ``series(sensor)``: the series of ``model.sensor``, the mean of the sensors when
+        it names none), a constant in degC (dT/dt = 0), or a function ``t -> (T, dT/dt)`` [s -> degC,
+        degC/s] evaluated at the middle of each sample interval.
+    rate_hz : float
+        The sample rate [Hz].
+    where : str
+        The record's name in messages.
+
+    Raises
+    ------
+    TypeError
+        ``model`` is not a :class:`~inscal.core.thermal.ThermalModel`.
+    ValueError
+        A rate that is not positive.
+    ThermalError
+        No temperature, a sensor the readings lack, or a temperature that is not a finite number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.thermal import ThermalModel
+    >>> from inscal.nav import ThermalCompensation
+    >>> model = ThermalModel(t_ref=20.0, t_min=10.0, t_max=30.0, gyro_bias=np.array([[1e-8, 0.0, 0.0]]))
+    >>> comp = ThermalCompensation(model, None, 25.0, rate_hz=100.0)
+    >>> dth, dv = comp.apply(np.array([0.01]), np.zeros((1, 3)), np.zeros((1, 3)))
+    >>> round(float(dth[0, 0]) * 1e10, 6)  # 5 degC * 1e-8 rad/s/degC * 0.01 s = 5e-10 rad removed
+    -5.0
+    >>> comp.summary()["temperature"]
+    'constant 25 degC'
+    """
 
     def __init__(self, model: ThermalModel, base: ImuErrors | None, temperature, rate_hz: float,
                  where: str = "record"):
@@ -234,7 +342,30 @@ class ThermalCompensation:
 
 
 def thermal_chunks(chunks, comp: ThermalCompensation) -> Iterator:
-    """``(t, dtheta, dvel, gimbal)`` chunks mapped to the thermal model's reference temperature."""
+    """Chunks mapped to the thermal model's reference temperature.
+
+    Parameters
+    ----------
+    chunks : iterable
+        ``(time, dtheta, dvel, gimbal)`` chunks (or the simulator's chunks).
+    comp : ThermalCompensation
+        The inverse thermal model and the record's temperature.
+
+    Yields
+    ------
+    tuple of numpy.ndarray
+        ``(time, dtheta, dvel, gimbal)`` with the increments at ``t_ref``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.thermal import ThermalModel
+    >>> from inscal.nav import ThermalCompensation, thermal_chunks
+    >>> comp = ThermalCompensation(ThermalModel(t_ref=20.0), None, 20.0, rate_hz=10.0)
+    >>> chunk = (np.array([0.1, 0.2]), np.full((2, 3), 1e-6), np.zeros((2, 3)), None)
+    >>> [c[1].shape for c in thermal_chunks([chunk], comp)]
+    [(2, 3)]
+    """
     for c in chunks:
         if hasattr(c, "dtheta"):  # simulate.Chunk
             c = (c.time, c.dtheta, c.dvel, c.gimbal)

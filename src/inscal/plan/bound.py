@@ -482,14 +482,58 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
          filter_rate_hz: float = 1.0, sub_rate_hz: float = SUB_RATE_HZ, prior: dict | None = None,
          keep_history: bool = True, t_ref: float | None = None, rate_window_s: float | None = RATE_WINDOW_S,
          consider: dict[str, float] | None = None, site=None) -> Bound:
-    """The bound of an experiment from a Scenario, RotationPath, built-in name or TOML file (as
-    :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry
-    and noise (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given), a
-    bare path at the S16 site with the S16 noise.  Thermal states (``51,thermal``, ``thermal=GSABR``): the
-    scenario's temperature profile read as a record carries it is the known temperature of every sub-sample,
-    ``dT/dt`` its slope over ``rate_window_s`` (None: the profile's exact rate), about ``t_ref`` [degC] (default
-    the scenario's thermal model's, else 20; :mod:`inscal.plan.thermal`).  ``consider``: as :func:`make_setup`;
-    ``site``: a :class:`~inscal.core.earth.Site` instead of the scenario's (a station's)."""
+    """The Cramér-Rao bound of a calibration experiment (the systematic filter's information).
+
+    From a Scenario, RotationPath, built-in name or TOML file (as
+    :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry and noise
+    (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given); a bare path at the S16
+    site with the S16 noise.
+
+    Parameters
+    ----------
+    source : Scenario, RotationPath or str
+        The experiment.
+    states : str or StateSet
+        The state set (``"51"``, ``"30"``, ``"51,thermal"``, ...).
+    arw, vrw : float, optional
+        White noise [rad/sqrt(s)], [m/s/sqrt(s)] instead of the scenario's.
+    bias_noise : BiasNoise, optional
+        The bias instability model.
+    filter_rate_hz, sub_rate_hz : float
+        The filter's rate and the rate its steps are integrated at [Hz].
+    prior : dict, optional
+        Prior sigma by state group.
+    keep_history : bool
+        Keep the bound's history over the path (for the figures).
+    t_ref : float, optional
+        The thermal states' reference temperature [degC] (default the scenario's thermal model's,
+        else 20).
+    rate_window_s : float or None
+        The window of the temperature's slope [s] (None: the profile's exact rate).
+    consider : dict, optional
+        Consider parameters and their sigma (as :func:`make_setup`).
+    site : Site, optional
+        A site instead of the scenario's (a station's).
+
+    Returns
+    -------
+    Bound
+        The covariance bound of the parameters (``sigma``, ``table()`` in field units).
+
+    Raises
+    ------
+    BoundError
+        A source or state set that cannot be evaluated, or a thermal state set without a known
+        temperature.
+
+    Examples
+    --------
+    >>> from inscal.plan.bound import crlb
+    >>> bound = crlb("n25", "30", keep_history=False)
+    >>> row = bound.table()[0]
+    >>> row["label"], row["unit"], bool(row["bound"] < row["prior"])
+    ('gyro_matrix[xx]', 'ppm', True)
+    """
 
     try:
         sc, kind, label = load_source(source)

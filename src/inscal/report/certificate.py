@@ -354,8 +354,39 @@ def results_table(rows: list[dict]) -> str:
 
 
 def certificate_html(doc: dict) -> str:
-    """The certificate page of document ``doc`` (:func:`certificate_data`): self-contained, A4 print
-    layout with "Page x of y" in the footer of every printed page."""
+    """The certificate page of a certificate document: self-contained, A4 print layout with
+    "Page x of y" in the footer of every printed page.
+
+    Parameters
+    ----------
+    doc : dict
+        The certificate document (:func:`certificate_data`).
+
+    Returns
+    -------
+    str
+        The HTML page.
+
+    Examples
+    --------
+    >>> import datetime as dt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.calibrate import CalibrationResult
+    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
+    >>> from inscal.report.certificate import certificate_data, certificate_html
+    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)},
+    ...                         ("gyro_bias",))
+    >>> db, _ = lab.init_database("calib.sqlite")
+    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> session = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
+    >>> rid, _ = lab.record_result(db, "IMU-1", res, session)
+    >>> doc = certificate_data(lab.get_calibration(db, rid), unit, issued=dt.datetime(2025, 2, 3))
+    >>> page = certificate_html(doc)
+    >>> "<html" in page, "IMU-1" in page
+    (True, True)
+    >>> db.close()
+    """
     lab, item, cal, cond = doc["laboratory"], doc["item"], doc["calibration"], doc["conditions"]
     meth, res, fit, tr = doc["method"], doc["results"], doc["fit"], doc["traceability"]
     issued = doc["issued"][:10]

@@ -14,9 +14,35 @@ COLUMNS = 3
 
 
 def history_figure(h: History):
-    """The figure of history ``h``: one panel per parameter component (each on its own scale), the
-    calibrations with their 1 sigma bars against months since the first, the drift line and its rate;
-    flagged components in red.  Returns the matplotlib figure (the caller saves and closes it)."""
+    """The figure of a unit's calibration history.
+
+    One panel per parameter component (each on its own scale), the calibrations with their 1 sigma
+    bars against months since the first, the drift line and its rate; flagged components in red.
+
+    Parameters
+    ----------
+    h : History
+        The history (:func:`inscal.lab.unit_history`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (the caller saves and closes it).
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> import numpy as np
+    >>> from inscal import lab
+    >>> from inscal.report.history import history_figure
+    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
+    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
+    >>> h = lab.History("IMU-1", "six-position", 3.0, c.ids, (), (c,))
+    >>> fig = history_figure(h)
+    >>> fig.axes[0].get_title().startswith("gyro_bias[x]")
+    True
+    >>> plt.close(fig)
+    """
     plt = new_figure()
     comps = [c for c in h.components if c.n > 0]
     rows = max(1, -(-len(comps) // COLUMNS))

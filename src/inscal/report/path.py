@@ -76,7 +76,38 @@ def move_gains(bound, path) -> list[dict]:
 
 
 def path_figure(bound, path, targets: np.ndarray | None = None, title: str = "", target_label: str = "target"):
-    """The three-panel figure (module docstring)."""
+    """The three-panel figure of a path and its bound (module docstring).
+
+    Parameters
+    ----------
+    bound : Bound
+        The bound of the path, with its history (:func:`inscal.plan.bound.crlb`, ``keep_history``).
+    path : RotationPath
+        The path.
+    targets : numpy.ndarray, optional
+        Target sigma per parameter (SI), drawn against the bound.
+    title : str
+        The figure's title.
+    target_label : str
+        The targets' legend.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (the caller saves and closes it).
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from inscal.plan.bound import crlb
+    >>> from inscal.report.path import path_figure
+    >>> from inscal.sim.scenarios import build
+    >>> sc = build("n25")
+    >>> fig = path_figure(crlb(sc, "30"), sc.path, title="N25 path")
+    >>> len(fig.axes) >= 3
+    True
+    >>> plt.close(fig)
+    """
     import matplotlib
 
     matplotlib.use("Agg")

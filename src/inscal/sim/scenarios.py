@@ -507,7 +507,38 @@ class ScenarioError(ValueError):
 
 
 def build(name: str, duration_s: float | None = None, rate_hz: float | None = None) -> Scenario:
-    """A built-in scenario by name, or a custom one from a ``.toml`` file."""
+    """A built-in scenario by name, or a custom one from a ``.toml`` file.
+
+    Parameters
+    ----------
+    name : str
+        A built-in name (``s16``, ``n25``, ``static``, ``rotmod16``, ``handheld-mems``, ... :data:`BUILTIN`)
+        or a scenario TOML file.
+    duration_s : float, optional
+        The duration [s] of the scenarios that take one (:data:`DURATION_SCENARIOS`).
+    rate_hz : float, optional
+        Another sample rate [Hz].
+
+    Returns
+    -------
+    Scenario
+        The site, the IMU and gimbal errors, the noise, the rotation path and the rate.
+
+    Raises
+    ------
+    ScenarioError
+        An unknown name, a duration that is not positive or for a scenario with a fixed path, a bad
+        rate, or a TOML file that does not describe a scenario.
+
+    Examples
+    --------
+    >>> from inscal.sim.scenarios import build
+    >>> sc = build("static", duration_s=600.0, rate_hz=10.0)
+    >>> sc.name, sc.n_samples
+    ('static', 6000)
+    >>> round(float(build("n25").path.segments().t1[-1]), 3)  # the N25 path's length [s]
+    2489.0
+    """
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
         raise ScenarioError(f"duration must be > 0, got {duration_s} s")
     if name.endswith(".toml") or Path(name).is_file():

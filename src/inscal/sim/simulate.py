@@ -546,8 +546,37 @@ def _handheld(scenario: Scenario, rng: np.random.Generator | None, keep_truth: b
 
 def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_truth: bool = False,
              chunk_size: int = 1 << 19) -> SimData:
-    """Simulate the whole scenario in memory (see :func:`simulate_chunks` for long runs).  The chunks are
-    written into the arrays of the result: no copy, no more memory than the result."""
+    """Simulate a whole scenario in memory (:func:`simulate_chunks` for long runs).
+
+    The chunks are written into the arrays of the result: no copy, no more memory than the result.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        What to simulate (:func:`inscal.sim.scenarios.build`).
+    rng : numpy.random.Generator, optional
+        The generator of the noise (None: no noise drawn).
+    keep_truth : bool
+        Keep the true rates and specific force too.
+    chunk_size : int
+        Samples per chunk of the simulation.
+
+    Returns
+    -------
+    SimData
+        ``time``, ``dtheta``, ``dvel``, ``gimbal`` (SI), the true rates and specific force with
+        ``keep_truth``, and the temperature readings of a thermal scenario.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import simulate
+    >>> sc = build("static", duration_s=10.0, rate_hz=100.0)
+    >>> data = simulate(sc, np.random.default_rng(0))
+    >>> data.dtheta.shape, float(data.time[-1])
+    ((1000, 3), 10.0)
+    """
     if scenario.motion is not None:
         return _handheld(scenario, rng, keep_truth)
     seg = scenario.path.segments()
@@ -566,7 +595,50 @@ def simulate(scenario: Scenario, rng: np.random.Generator | None = None, keep_tr
 
 def write_simulation(path, scenario: Scenario, rng: np.random.Generator | None, overwrite: bool = False,
                      progress: Callable[[int, int], None] | None = None, chunk_size: int = 1 << 19) -> int:
-    """Simulate ``scenario`` straight into an HDF5 record (chunk by chunk, atomic).  Returns N."""
+    """Simulate a scenario straight into an HDF5 record (chunk by chunk, atomic).
+
+    The record carries the scenario's truth (``/truth``) and, for a thermal scenario, its
+    temperature readings.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The record to write.
+    scenario : Scenario
+        What to simulate.
+    rng : numpy.random.Generator or None
+        The generator of the noise.
+    overwrite : bool
+        Replace an existing file.
+    progress : callable, optional
+        Called with ``(samples done, samples)``.
+    chunk_size : int
+        Samples per chunk.
+
+    Returns
+    -------
+    int
+        The number of samples N.
+
+    Raises
+    ------
+    ValueError
+        A scenario shorter than one sample.
+    FileExistsError
+        ``path`` exists and ``overwrite`` is false.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.io import read_record
+    >>> from inscal.sim.scenarios import build
+    >>> from inscal.sim.simulate import write_simulation
+    >>> write_simulation("static.h5", build("static", duration_s=10.0, rate_hz=10.0), np.random.default_rng(0))
+    100
+    >>> rec = read_record("static.h5")
+    >>> rec.scenario, rec.truth is not None
+    ('static', True)
+    """
 
     n = scenario.n_samples
     if n < 1:
