@@ -225,7 +225,10 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     removable = sorted((t for t, d in tests.items() if d.status == "tested" and d.p_value >= alpha
                         and not (t == "levtime" and nested and not tests["lever9"].accepted)),
                        key=lambda t: -tests[t].p_value)
-    with_nested = lambda ts: ts + [n for t in ts for n in nested.get(t, []) if n not in ts]  # noqa: E731
+
+    def with_nested(ts: list) -> list:  # the terms and those nested in them
+        return ts + [n for t in ts for n in nested.get(t, []) if n not in ts]
+
     st, cur, gone = full_st, full, []
     if len(removable) > 1:
         trial_st = without(full_st, with_nested(removable))
