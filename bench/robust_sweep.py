@@ -114,7 +114,9 @@ def main():
             zmax, zk = max(zs)
             dev = ""
             if base is None and c == "base":
-                base = f
+                base, base_frame = f, d["frame"]
+            elif base is not None and d["frame"] != base_frame:  # other axes: the values do not compare
+                dev = "(other frame)"
             elif base is not None:
                 dd = [(abs(f[k][0] - base[k][0]) / math.hypot(f[k][1], base[k][1]), k) for k in f
                       if k in base and np.isfinite(f[k][1]) and np.isfinite(base[k][1]) and f[k][1] > 0

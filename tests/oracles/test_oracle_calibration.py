@@ -43,7 +43,8 @@ def _errors_within_targets(parameters: dict) -> dict:
 def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, seed):
     """Noise-free, float32: the gyro-accelerometer asynchrony (PSINS form, 1 ms), nine lever arms, Ka2
     and a lower-triangular accelerometer matrix.  ``inscal calibrate --method systematic51`` with no
-    state option picks async and lever9 and every parameter is within :data:`TARGETS`."""
+    state option picks async, lever9, the lever-arm timing and the accelerometer-defined frame, every parameter is
+    within :data:`TARGETS` and every error within 3 sigma."""
     gen = R.generate(R.psins19(), SITE, R.psins_truth(np.random.default_rng(seed)), dtype="float32")
     src, rec, out = tmp_path / "run.bin", tmp_path / "run.h5", tmp_path / "p.toml"
     _psins_bin(gen, src)
@@ -56,7 +57,8 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
     rep = json.loads(r.stdout)
     assert rep["noise"]["float32"] and rep["noise"]["float32_rounding"]["accel_ug_s"][2] > 0  # single precision seen
     chosen = set(rep["selection"]["chosen"].split(","))
-    assert {"async", "lever9"} <= chosen, rep["selection"]
+    # the generator's lever-arm timing and its size effect along the accelerometer-defined frame's axes (PSINS)
+    assert {"async", "lever9", "levtime", "psins"} <= chosen, rep["selection"]
     # the record has no truth: compare the parameter file with the generator's
     res_field = {}
     truth = to_inscal_truth(gen)
@@ -69,6 +71,10 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
                            rtol=1e-9, atol=1e-12, equal_nan=True), name
     worst = _errors_within_targets(res_field)
     assert all(err <= tol for err, tol in worst.values()), worst
+    # every sigma covers its error, the lever arms included (the gyro-defined frame's size effect: 4.6 sigma, seed 2)
+    z = {n: float(np.nanmax(np.abs(np.asarray(e["error"], float) / np.asarray(e["sigma"], float))))
+         for n, e in res_field.items() if np.any(np.isfinite(np.asarray(e["sigma"], float)))}
+    assert max(z.values()) <= 3.0, z
     assert units.from_si(res.imu.time_asynchrony, "ms") == pytest.approx(-1.0, abs=1e-3)  # PSINS form: -tau
 
 

@@ -79,7 +79,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -89,6 +89,7 @@ from inscal.calibrate.systematic.states import (
     ARW_FLOOR,
     K_M1A,
     K_M1G,
+    K_LEVT,
     K_TAU,
     N_NAV,
     NAV_SIGMA0,
@@ -170,6 +171,8 @@ class Setup:
     thermal: dict | None = None  # thermal states: t_ref, t_min, t_max, span, ... (KnownTemperature.info)
     consider: tuple[str, ...] = ()  # site and clock inputs whose sensitivity the bound carries (inscal.plan.consider)
     consider_u: np.ndarray | None = None  # their standard uncertainties (SI; zeros: sensitivities only)
+    #: nominal lever arms (rows p_i, m) of the lever-arm timing's columns (``levtime``: they scale them)
+    lever_arm: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
 
     @property
     def n_params(self) -> int:
@@ -192,7 +195,7 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
                prior: dict | None = None, velocity_sigma: float | None = None,
                position_sigma: float | None = None, encoder_sigma: float | None = None,
                temperature: KnownTemperature | None = None, t_ref: float | None = None,
-               consider: dict[str, float] | None = None) -> Setup:
+               consider: dict[str, float] | None = None, lever_arm=None) -> Setup:
     """The path-independent part of a bound (:class:`Setup`).  ``site``: a
     :class:`~inscal.core.earth.Site` (default S16's, 30 N 114 E); ``gimbal``: a
     :class:`~inscal.core.error_model.GimbalErrors` (default ideal); ``arw`` [rad/sqrt(s)] and ``vrw``
@@ -202,7 +205,9 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     the filter's known temperature over the experiment (:class:`~inscal.plan.thermal.KnownTemperature`; its
     span spreads the coefficients' prior), ``t_ref`` [degC] (default 20).  ``consider``: the site and clock inputs
     (:data:`inscal.plan.consider.CONSIDER_INPUTS`) whose sensitivity the bound carries, with their standard
-    uncertainties (SI; 0: the sensitivity alone), for :attr:`Bound.combined_sigma`."""
+    uncertainties (SI; 0: the sensitivity alone), for :attr:`Bound.combined_sigma`.  ``lever_arm`` (3, 3) [m]: the
+    nominal lever arms (rows) about which the lever-arm timing's columns (``levtime``) are linearised: the columns
+    are proportional to them, so at the ideal unit's zero lever arms those states keep their prior."""
 
     try:
         st = states if isinstance(states, StateSet) else StateSet.parse(states)
@@ -281,7 +286,10 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
         phi_p = np.concatenate([phi_p, extra_phi])
         q_p = np.concatenate([q_p, extra_q])
     sig = np.array(list(NAV_SIGMA0) + sig_p + extra_s)
-    need_rates = bool(np.any(kinds == K_TAU) or np.any(kinds == 8))
+    need_rates = bool(np.any(kinds == K_TAU) or np.any(kinds == 8) or np.any(kinds == K_LEVT))
+    lev = np.zeros((3, 3)) if lever_arm is None else np.asarray(lever_arm, float)
+    if lev.shape != (3, 3) or not np.all(np.isfinite(lev)):
+        raise BoundError(f"lever_arm must be a finite 3 x 3 array of rows p_i [m], got shape {lev.shape}")
     # constant matrices (static base: f^n = [0, 0, g])
     lat, h = site.latitude, site.height
     gsc = float(site.gravity_scale)
@@ -308,7 +316,7 @@ def make_setup(states: str | StateSet = "51", site=None, gimbal=None, arw=None, 
     return Setup(st, site, gimbal, arw_v, vrw_v, bias, T, n_sub, sig, n_gm, kinds, axes, js, phinn, F, F2, qd, rs,
                  phi_p, q_p, vsig, psig, floored, need_rates, {"encoder_sigma": encoder_sigma}, tuple(labels),
                  tuple(groups), tuple(unit_l), temperature if thermal else None, thermal, tuple(cons),
-                 np.array([float(v) for v in cons.values()]))
+                 np.array([float(v) for v in cons.values()]), np.ascontiguousarray(lev))
 
 
 @dataclass(frozen=True)
@@ -467,7 +475,7 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
                      setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
                      setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
                      np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs, *th,
-                     Vc, E)
+                     Vc, E, setup.lever_arm)
 
     run_in_slices(M, kernel, first=max(1, 4096 // setup.n_sub))
     p = setup.n_params
@@ -487,7 +495,8 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
     From a Scenario, RotationPath, built-in name or TOML file (as
     :func:`inscal.plan.observability.load_source`): the scenario's site, gimbal geometry and noise
     (ARW/VRW; its Gauss-Markov bias instability unless ``bias_noise`` is given); a bare path at the S16
-    site with the S16 noise.
+    site with the S16 noise.  With the lever-arm timing (``levtime``) its columns are linearised at the
+    scenario's lever arms (a bare path: zero, the prior).
 
     Parameters
     ----------
@@ -548,8 +557,10 @@ def crlb(source, states: str | StateSet = "51", *, arw=None, vrw=None, bias_nois
     if site is not None:
         sc = replace(sc, site=site)
     temp = known_temperature(sc, label, rate_window_s=rate_window_s, error=BoundError) if st.thermal else None
+    lev = np.asarray(sc.imu.accel_lever_arm, float) if (st.lever_timing and kind == "scenario") else None
     setup = make_setup(st, sc.site, sc.gimbal, arw_v, vrw_v, bias_noise, filter_rate_hz, sub_rate_hz, prior,
-                       temperature=temp, t_ref=default_t_ref(sc) if t_ref is None else t_ref, consider=consider)
+                       temperature=temp, t_ref=default_t_ref(sc) if t_ref is None else t_ref, consider=consider,
+                       lever_arm=lev)
     return evaluate(setup, sc.path, keep_history)
 
 

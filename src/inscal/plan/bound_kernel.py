@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from inscal.calibrate.systematic.dynamics import column_values, thermal_values
-from inscal.calibrate.systematic.states import K_TH, TH_RATE_ROW
+from inscal.calibrate.systematic.dynamics import column_values, lever_timing_rate, thermal_values
+from inscal.calibrate.systematic.states import K_LEVT, K_TH, TH_RATE_ROW
 from inscal.core.kinematics import (  # segment_at: smallest s with seg_t1[s] > t
     kinematics,
     segment_at,
@@ -49,10 +49,12 @@ def triad_row(kind, j):
 
 @njit(cache=True)
 def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes, js, C, w, f,
-                 wd, fd, vals, V, thermal, dT, rate):
+                 wd, fd, vals, V, thermal, dT, rate, lev, sd):
     """The parameter columns of ``[dphi'; dv']`` at ``t``: ``V`` (6, p) = ``C[:, axis] * value``
     (rows 0-2 gyro kinds, 3-5 accelerometer kinds; the asynchrony column is ``C fdot``); with ``thermal`` the
-    thermal columns at the temperature difference ``dT`` [degC] and rate ``rate`` [degC/s] (module docstring)."""
+    thermal columns at the temperature difference ``dT`` [degC] and rate ``rate`` [degC/s] (module docstring);
+    the lever-arm timing's column of accelerometer i is ``C[:, i] sd_i`` (``lever_timing_rate`` at the nominal
+    lever arms ``lev``, w-ddot a centred second difference; ``sd`` (3) scratch)."""
     s = segment_at(t, seg_t1)
     kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f)
     if need_rates:  # centred differences (the filter's own w-dot and f-dot are centred differences too)
@@ -69,11 +71,14 @@ def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, 
         for i in range(3):
             wd[i] = (wp[i] - wm[i]) / (2 * h)
             fd[i] = (fp[i] - fm[i]) / (2 * h)
+            wp[i] = (wp[i] - 2.0 * w[i] + wm[i]) / (h * h)  # w-ddot
     else:
+        wp = np.zeros(3)
         for i in range(3):
             wd[i] = 0.0
             fd[i] = 0.0
     column_values(kinds, axes, js, w, f, w, f, wd, fd, vals)
+    lever_timing_rate(lev, w, wd, wp, sd)
     if thermal:  # the ideal IMU: u_g - b_g = w, u_a - b_a = f
         thermal_values(kinds, axes, js, w, f, dT, rate, vals)
     p = kinds.shape[0]
@@ -89,6 +94,10 @@ def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, 
             i = axes[c]
             for r in range(3):
                 V[rb + r, c] = C[r, i] * vals[c]
+        elif k == K_LEVT:
+            i = axes[c]
+            for r in range(3):
+                V[3 + r, c] = C[r, i] * sd[i]
         # other kinds: states outside the navigation dynamics (e.g. gimbal geometry): zero columns
 
 
@@ -96,7 +105,7 @@ def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, 
 @njit(cache=True, fastmath=True)
 def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
                  kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist, last, phinp, Vs, th_dT,
-                 th_rate, Vc, E):
+                 th_rate, Vc, E, lev):
     """Covariance-only pass (module docstring) in the scaled state over the filter steps ``k0 .. k1 - 1``
     (:mod:`inscal.plan.slices`); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
     update (``(0, N)``: not kept).  ``phinn``, ``F``, ``F2``, ``qd``: physical; ``phi_p``/``q_p``: scaled
@@ -106,7 +115,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
     every step then takes the sub-sample moments).  Carried from one call to the next: ``last`` (1,) the dwell
     whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p).  Consider inputs
     (module docstring): ``Vc`` (6, m) their columns (SI), ``E`` (N, m) in/out the sensitivity of the error in the
-    scaled state; ``m = 0``: none."""
+    scaled state; ``m = 0``: none.  ``lev`` (3, 3): the nominal lever arms of the lever-arm timing's columns."""
     N = P.shape[0]
     p = N - 9
     C = np.empty((3, 3))
@@ -114,6 +123,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
     f = np.empty(3)
     wd = np.empty(3)
     fd = np.empty(3)
+    sd = np.zeros(3)
     vals = np.empty(p)
     V = np.empty((6, p))
     M0 = np.empty((6, p))
@@ -177,7 +187,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
         if static:
             if s_first != last_seg:  # a new dwell: new V (the same on every step of a dwell)
                 step_columns(a + 0.5 * T, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, False, kinds,
-                             axes, js, C, w, f, wd, fd, vals, V, False, 0.0, 0.0)
+                             axes, js, C, w, f, wd, fd, vals, V, False, 0.0, 0.0, lev, sd)
                 for r in range(6):
                     for c in range(p):
                         Vs[r, c] = V[r, c] * sig[9 + c]
@@ -225,7 +235,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                     tdT = 0.0
                     trt = 0.0
                 step_columns(tj, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes,
-                             js, C, w, f, wd, fd, vals, V, thermal, tdT, trt)
+                             js, C, w, f, wd, fd, vals, V, thermal, tdT, trt, lev, sd)
                 sw = b - tj
                 w1 = sw * h
                 w2 = 0.5 * sw * sw * h

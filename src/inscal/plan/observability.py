@@ -390,8 +390,10 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
         raise ObservabilityError(f"{label}: {sc.path.duration * rate_hz:.3g} samples ({sc.path.duration:.4g} s at "
                                  f"{rate_hz:g} Hz) is more than the {MAX_SAMPLES:.0e} of a sensible simulation")
     arw_v, vrw_v, noise_src = resolve_noise(sc, kind, arw, vrw)
-    # ideal IMU, no noise, no thermal errors; keep the site, the gimbal geometry and the temperature profile
-    sc0 = replace(sc, imu=ImuErrors(), noise=ImuNoise(), rate_hz=float(rate_hz), thermal=None)
+    # ideal IMU, no noise, no thermal errors; keep the site, the gimbal geometry and the temperature profile; with the
+    # lever-arm timing the scenario's lever arms, the point its columns are linearised about (they scale them)
+    imu0 = ImuErrors(accel_lever_arm=sc.imu.accel_lever_arm) if (st.lever_timing and kind == "scenario") else ImuErrors()
+    sc0 = replace(sc, imu=imu0, noise=ImuNoise(), rate_hz=float(rate_hz), thermal=None)
     if sc0.n_samples * filter_rate_hz / rate_hz < 10:
         raise ObservabilityError(f"path {sc.path.name!r} is too short ({sc.path.duration:g} s) for the filter")
     tinfo, known = None, None
@@ -406,7 +408,7 @@ def observability(scenario_or_path, states: str | StateSet = "51", rate_hz: floa
     opts = {"t_ref": tinfo["t_ref"], "temperature_rate_window_s": known.rate_window_s} if tinfo else {}
     try:
         res = systematic(rec, st, filter_rate_hz=filter_rate_hz, max_passes=1, arw=arw_v, vrw=vrw_v,
-                         history_s=1e12, keep_passes=True, **opts)
+                         history_s=1e12, keep_passes=True, initial=imu0, **opts)
     except CalibrationError as exc:
         raise ObservabilityError(f"{label}: {exc}") from None
     t_filt = time.perf_counter()

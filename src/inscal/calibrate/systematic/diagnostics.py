@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from inscal.calibrate.systematic.kernel import PassOutput
 from inscal.calibrate.systematic.params import (
@@ -228,11 +227,6 @@ def truth_gimbal(truth, st: StateSet):
 def truth_imu(truth, st: StateSet) -> ImuErrors:
     imu = truth[0] if isinstance(truth, tuple) else truth.imu
     return truth_in_frame(imu, st).to_imu()
-
-
-def dcm_from_rotvec(v) -> np.ndarray:
-
-    return Rotation.from_rotvec(np.asarray(v, float)).as_matrix()
 
 
 def euler_of(C) -> np.ndarray:

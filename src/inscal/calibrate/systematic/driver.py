@@ -11,7 +11,6 @@ from scipy.linalg import solve_triangular
 
 from inscal.calibrate.result import CalibrationResult, unflatten
 from inscal.calibrate.systematic.diagnostics import (
-    dcm_from_rotvec,
     encoder_angles,
     euler_of,
     gimbal_diagnostics,
@@ -60,6 +59,7 @@ from inscal.calibrate.systematic.states import (
 from inscal.calibrate.systematic.thermal_states import T_REF_C, sample_inputs, thermal_offset, thermal_result
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
+from inscal.core.attitude import dcm_from_quat, quat_from_rotvec
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors, parameter_components
 from inscal.core.stats import chi2_sf
@@ -443,7 +443,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         est = out.params.corrected(st, x_post - x_pass)
         sig_post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
         phi0 = out.x0s[:3] * sig_pass[:3]
-        C0 = dcm_from_rotvec(-phi0) @ C0
+        C0 = dcm_from_quat(quat_from_rotvec(-phi0)) @ C0
         if first is None:  # its history needs only the smoothed states at the stored rows (run_pass has them)
             first = (out.without_stores() if max_passes > 1 else out, sig_pass.copy())
         change = None if prev is None else float(np.max(np.abs(est.error_state(st, prev)) / np.maximum(sig_post, 1e-300)))

@@ -49,8 +49,10 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core import earth
 from inscal.core import kalman as filters
 from inscal.core.attitude import quat_from_dcm, quat_from_rotvec_xyz
+from inscal.core.attitude import quat_mul_xyz as qmul
+from inscal.core.attitude import quat_rotate_xyz as qrot
 from inscal.core.slices import run_in_slices
-from inscal.nav.strapdown import attitude_step, qmul, qrot, two_sample, velocity_step
+from inscal.nav.strapdown import attitude_step, two_sample, velocity_step
 
 
 # column ranges of the reference-history row (params.REF_SLICES), as compile-time constants

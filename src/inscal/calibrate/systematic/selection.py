@@ -26,8 +26,19 @@ The full model starts from the nominal parameters; each smaller model starts fro
 estimate with its removed terms at zero, so a removal that changes nothing converges in one or two
 passes (a start from the estimate of a model that misfits, as forward steps would use, crawls).
 
-Not decided from the data: the frame convention (``psins``: the accelerometer-defined frame is
-the same model in another frame, with the same likelihood) and the gimbal states (they add the
+The lever-arm timing is nested in the full lever arm: the lever-arm test removes both (``levtime`` without the
+lever arms it times is the same weak column on the three diagonal ones), and ``levtime`` alone is tested only when
+the full lever arm stays.  The removals are first tried all at once (one fit, the common case of a record that needs
+none of them), then one by one as above when the joint removal is significant.
+
+The frame convention (``psins``) is decided from the data when the chosen set has the full lever arm.  Both frames
+hold the same linear model, but the size effect (and the quadratic terms) act along the frame's axes: the gyro-defined
+frame of S16 (its ``T_g`` triangular, inscal's simulator) or the accelerometer-defined frame of PSINS (``Ka``
+triangular: a generator in PSINS's conventions takes ``e_i . (w x (w x p_i) + w-dot x p_i)`` along the accelerometer
+triad's axes).  The two frames differ by the triads' relative misalignment (1e-4 rad on a navigation-grade unit), so
+the size effects differ by 1e-4 of themselves: below the noise of a noisy record, but several sigma of the lever arms
+on a noise-free one.  The two models have the same number of parameters and are not nested: the one with the lower
+chi2 is taken (the likelihood ratio at equal dimension).  Not decided from the data: the gimbal states (they add the
 encoder observations, so the likelihoods are of different data; ``--method unified`` chooses them).
 """
 
@@ -41,6 +52,7 @@ import numpy as np
 
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.systematic.driver import systematic
+from inscal.calibrate.systematic.params import truth_in_frame
 from inscal.calibrate.systematic.states import StateSet, state_spec
 from inscal.calibrate.windows import CalibrationError
 from inscal.core.error_model import ImuErrors
@@ -155,11 +167,12 @@ def largest_states(base: str, spec: str | None) -> StateSet:
 
 
 def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, add=tuple(ADD),
-                  drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic,
+                  drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic, frames: bool = True,
                   **options) -> CalibrationResult:
     """The systematic calibration of ``record`` with its error terms chosen from the data (module
     docstring).  ``base``: the starting state set (``"51"``, ``"30"``, ``"51,psins"``, ``"unified"``...);
-    ``add``/``drop``: the candidate options; ``options`` go to ``fit`` (:func:`systematic`).  The result
+    ``add``/``drop``: the candidate options; ``frames``: decide the frame convention when the full lever arm is
+    chosen (module docstring); ``options`` go to ``fit`` (:func:`systematic`).  The result
     is the fit of the chosen set; ``diagnostics["selection"]`` lists every test and ``notes`` the
     decisions."""
     base_st = base if isinstance(base, StateSet) else StateSet.parse(base)
@@ -188,11 +201,16 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
 
     # each candidate removed from the full model alone (the full model fits the record when the truth
     # is among the candidates; a model missing two terms may misfit so badly that adding either alone
-    # shows nothing, which is why the search runs backwards)
+    # shows nothing, which is why the search runs backwards); the lever-arm timing nested in the full lever arm
+    nested = {"lever9": ["levtime"]} if "lever9" in cands and "levtime" in cands else {}
     tests: dict[str, Decision] = {}
     singles: dict[str, CalibrationResult] = {}
-    for t in cands:
-        small_st = without(full_st, [t])
+    order = [t for t in cands if t != "levtime"] + (["levtime"] if "levtime" in cands else [])
+    for t in order:
+        if t == "levtime" and nested and not tests["lever9"].accepted:  # goes with the lever arm it times
+            tests[t] = dataclasses.replace(tests["lever9"], term=t)  # the joint test decided it
+            continue
+        small_st = without(full_st, [t] + nested.get(t, []))
         fits += 1
         step = "drop" if t in DROP else "add"
         try:
@@ -202,12 +220,29 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
                                 float("nan"), float("nan"), step == "add", "not converged")
             continue
         tests[t] = _test(step, t, singles[t], full, full_st.n_params - small_st.n_params, alpha)
-    # remove the insignificant ones, least significant first, while the joint removal stays insignificant
-    removable = sorted((t for t, d in tests.items() if d.status == "tested" and d.p_value >= alpha),
+    # remove the insignificant ones: all at once when that stays insignificant, else one by one, least
+    # significant first, while the joint removal stays insignificant
+    removable = sorted((t for t, d in tests.items() if d.status == "tested" and d.p_value >= alpha
+                        and not (t == "levtime" and nested and not tests["lever9"].accepted)),
                        key=lambda t: -tests[t].p_value)
+
+    def with_nested(ts: list) -> list:  # the terms and those nested in them
+        return ts + [n for t in ts for n in nested.get(t, []) if n not in ts]
+
     st, cur, gone = full_st, full, []
+    if len(removable) > 1:
+        trial_st = without(full_st, with_nested(removable))
+        fits += 1
+        try:
+            trial = fit(record, trial_st, initial=_removed(full.imu, removable), **options)
+            joint = _test("drop", "all", trial, full, full_st.n_params - trial_st.n_params, alpha)
+        except CalibrationError:
+            joint = None
+        if joint is not None and joint.status == "tested" and joint.p_value >= alpha:
+            gone, st, cur = list(removable), trial_st, trial
+            removable = []
     for t in removable:
-        trial_st = without(full_st, gone + [t])
+        trial_st = without(full_st, with_nested(gone + [t]))
         if gone:
             fits += 1
             try:
@@ -221,16 +256,41 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
             trial = singles[t]
         gone.append(t)
         st, cur = trial_st, trial
+    gone = with_nested(gone)
+    frame = None
+    if frames and st.lever9 and not (st.psins or st.gimbal):
+        st, cur, frame = _frame_choice(record, st, cur, fit, options)
+        fits += 1
     decided = {t: dataclasses.replace(d, accepted=(t not in gone) if t in ADD else (t in gone))
                for t, d in tests.items()}
     if cur is not full:
         cur.diagnostics["model_error"]["shared"] = True
     cur.diagnostics["selection"] = {"base": state_spec(base_st), "chosen": state_spec(st), "alpha": alpha,
                                     "fits": fits, "full": state_spec(full_st),
-                                    "tests": [d.to_json() for d in decided.values()]}
+                                    "tests": [d.to_json() for d in decided.values()], "frame": frame}
     cur.notes.append(f"state set chosen from the data (--states auto): {state_spec(st)}; "
-                     + "; ".join(d.line() for d in decided.values()))
+                     + "; ".join(d.line() for d in decided.values()) + (f"; {frame['line']}" if frame else ""))
     return cur
+
+
+def _frame_choice(record, st: StateSet, cur: CalibrationResult, fit, options) -> tuple:
+    """The chosen set ``st`` (fit ``cur``, gyro-defined frame) against the same set in the accelerometer-defined
+    frame (``psins``), started from ``cur``'s estimate in that frame: ``(states, fit, record of the choice)`` of the
+    one with the lower chi2 (module docstring); a fit in the other frame that fails or does not converge loses."""
+    alt_st = dataclasses.replace(st, psins=True)
+    try:
+        alt = fit(record, alt_st, initial=truth_in_frame(cur.imu, alt_st).to_imu(), **options)
+    except CalibrationError:
+        alt = None
+    c_g = _chi2(cur)[0]
+    ok = alt is not None and alt.diagnostics.get("convergence", {}).get("converged", True)
+    c_a = _chi2(alt)[0] if ok else float("nan")
+    take = bool(ok and c_a < c_g)
+    line = (f"frame: {'accelerometer-defined (psins)' if take else 'gyro-defined'}, the size effect's axes fit better "
+            f"(chi2 {c_g:.6g} gyro-defined, {c_a:.6g} accelerometer-defined, equal parameters)" if ok else
+            "frame: gyro-defined (the fit in the accelerometer-defined frame did not converge)")
+    rec = {"chi2_gyro": c_g, "chi2_accel": c_a, "chosen": "psins" if take else "gyro", "line": line}
+    return (alt_st, alt, rec) if take else (st, cur, rec)
 
 
 def with_auto(spec: str | None, default: str) -> tuple[str, bool]:

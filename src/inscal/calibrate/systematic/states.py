@@ -145,7 +145,8 @@ STATE_OPTIONS = {
                "rest of its specific force by their own time, as a generator that does not advance them with the "
                "asynchrony writes them; needs the extended model",
     "auto": "chosen from the record: start from 51 and add or drop async, lever9, levtime, gdiag and nocross by an F-test "
-            "on the innovations (see inscal.calibrate.systematic.selection)",
+            "on the innovations, and with lever9 the frame (psins or not) by the lower chi2 (see "
+            "inscal.calibrate.systematic.selection)",
 }
 #: what each option sets on :class:`StateSet`
 _OPTION_FLAGS = {"51": {"extended": True}, "30": {"extended": False}, "lever9": {"lever9": True},
