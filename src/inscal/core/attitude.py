@@ -110,6 +110,23 @@ def dcm_from_quat(q) -> np.ndarray:
     return Rotation.from_quat(np.roll(q, -1, axis=-1)).as_matrix()
 
 
+def axis_angle_dcm_array(axis: np.ndarray, angle) -> np.ndarray:
+    """Rodrigues rotations (n, 3, 3) about one unit ``axis`` through each of ``angle`` [rad] (n,):
+    ``I + sin(a) K + (1 - cos(a)) K^2``, ``K = [axis x]``; the array face of :func:`axis_angle_dcm`."""
+    K = skew(axis)
+    a = np.asarray(angle, float)[:, None, None]
+    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)
+
+
+def dcm_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """The rotation matrix ``exp([v x])`` of one rotation vector ``v`` (3,) [rad] (Rodrigues; identity at 0)."""
+    a = float(np.linalg.norm(v))
+    if a == 0.0:
+        return np.eye(3)
+    K = skew(v / a)
+    return np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * (K @ K)
+
+
 def quat_mul_array(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton products of quaternion arrays (..., 4), scalar first, broadcasting: the NumPy face of
     :func:`quat_mul` (the same products in the same order)."""
@@ -198,6 +215,17 @@ def quat_to_dcm(q):
             [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
         ]
     )
+
+
+@njit(cache=True, inline="always")
+def quat_to_dcm_xyz(q0, q1, q2, q3):
+    """The rotation matrix (row-major 9-tuple) of the scalar-first quaternion, normalised first, on
+    scalars: :func:`quat_to_dcm` for the allocation-free kernels (the matrix of :func:`dcm_from_quat`)."""
+    n = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    w, x, y, z = q0 * n, q1 * n, q2 * n, q3 * n
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
+            2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
+            2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y))
 
 
 @njit(cache=True, inline="always")
