@@ -38,16 +38,19 @@ def axis_angle_dcm(axis, angle):
     Used for the tilted outer gimbal axis (N25 eq. 5, exact instead of first order).
     """
     n = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
-    x, y, z = axis[0] / n, axis[1] / n, axis[2] / n
-    c, s = math.cos(angle), math.sin(angle)
+    r = axis_angle_xyz(math.cos(angle), math.sin(angle), axis[0] / n, axis[1] / n, axis[2] / n)
+    return np.array([[r[0], r[1], r[2]], [r[3], r[4], r[5]], [r[6], r[7], r[8]]])
+
+
+@njit(cache=True, inline="always")
+def axis_angle_xyz(c, s, x, y, z):
+    """The Rodrigues matrix (row-major 9-tuple) of the right-handed rotation about the unit axis (x, y, z) whose
+    angle has cosine ``c`` and sine ``s``, on scalars: :func:`axis_angle_dcm` for the allocation-free kernels
+    (which reuse the trigonometry of an axis at rest)."""
     t = 1.0 - c
-    return np.array(
-        [
-            [c + x * x * t, x * y * t - z * s, x * z * t + y * s],
-            [y * x * t + z * s, c + y * y * t, y * z * t - x * s],
-            [z * x * t - y * s, z * y * t + x * s, c + z * z * t],
-        ]
-    )
+    return (c + x * x * t, x * y * t - z * s, x * z * t + y * s,
+            y * x * t + z * s, c + y * y * t, y * z * t - x * s,
+            z * x * t - y * s, z * y * t + x * s, c + z * z * t)
 
 
 @njit(cache=True)
