@@ -81,10 +81,10 @@ def internal_parts(sc, repeats: int) -> str:
         r3, r6 = np.zeros((1, 3)), np.zeros((1, 6))
 
         def one_pass():
-            sim.simulate_pass(0, n, dt, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie, g, sim._GL_X, sim._GL_W,
-                              model.opts | sim.O_RECORD | nopts, model.mg, model.bg, model.gs, model.ma, model.ba,
-                              model.k2, model.kc, model.p, r3, r3, r3, r6, r3, *nargs, np.zeros(4), np.empty(n),
-                              np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2)), r3, r3, r3, r3, r6, r3)
+            sim.simulate_pass(0, n, dt, (seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie, g), sim._GL_X,
+                              sim._GL_W, model.opts | sim.O_RECORD | nopts, model.arrays, (r3, r3, r3, r6, r3), nargs,
+                              np.zeros(4), (np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2)), r3, r3,
+                                            r3, r3, r6, r3))
 
         b_pass, m_pass = timed(one_pass, repeats)
         return (f"parts of s16 in this code, best (median): noise draws (NumPy) {ms(b_draw, m_draw)}; compiled pass "

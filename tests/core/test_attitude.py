@@ -91,3 +91,22 @@ def test_numpy_and_scalar_faces_agree_with_the_array_kernels_and_scipy():
     ang = np.linalg.norm(v, axis=-1)
     assert at.quat_angle(qa)[ang < math.pi] == pytest.approx(ang[ang < math.pi], rel=1e-12, abs=1e-18)
     assert at.quat_mul_array(qa, at.quat_conj(qa)) == pytest.approx(np.tile([1.0, 0, 0, 0], (40, 1)), abs=1e-15)
+
+
+def test_rodrigues_faces_agree_with_scipy():
+    """The array face (one axis, many angles), the rotation-vector matrix and the scalar 9-tuple against SciPy's
+    rotation vectors."""
+    rng = np.random.default_rng(5)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    ang = rng.uniform(-7, 7, 12)
+    ref = Rotation.from_rotvec(ang[:, None] * axis).as_matrix()
+    assert at.axis_angle_dcm_array(axis, ang) == pytest.approx(ref, abs=1e-14)
+    for k in range(12):
+        v = ang[k] * axis
+        assert at.dcm_from_rotvec(v) == pytest.approx(ref[k], abs=1e-14)
+        r = at.axis_angle_xyz(math.cos(ang[k]), math.sin(ang[k]), *axis)
+        assert np.reshape(r, (3, 3)) == pytest.approx(ref[k], abs=1e-14)
+        q = np.roll(Rotation.from_rotvec(v).as_quat(), 1) * 3.0  # not unit: normalised first
+        assert np.reshape(at.quat_to_dcm_xyz(*q), (3, 3)) == pytest.approx(ref[k], abs=1e-14)
+    assert np.array_equal(at.dcm_from_rotvec(np.zeros(3)), np.eye(3))

@@ -410,3 +410,45 @@ def test_information_steps_equal_their_covariance_forms():
     Q[:n, :n] = qnn
     np.testing.assert_allclose(R3.T @ R3, Phi.T @ np.linalg.inv(np.linalg.inv(Ib) + Q) @ Phi, rtol=1e-10)
     assert np.allclose(R3, np.triu(R3))
+
+
+def test_covariance_only_forms_equal_the_filter_forms():
+    """The bound's allocation-free forms against the filter's: predict_into (with Phi_np P_pp given) and
+    predict_params against the dense Phi P Phi^T + Q, update_block against the Joseph update of the same states,
+    update_row against the dense update by one row."""
+    rng = np.random.default_rng(3)
+    N, n = 14, 9
+    P = _spd(rng, N)
+    phi_nn = np.eye(n) + 0.1 * rng.normal(size=(n, n))
+    phi_nn[0, 5] = 0.0  # a zero the form skips
+    phi_np = 0.1 * rng.normal(size=(n, N - n))
+    B = rng.normal(size=(n, n))
+    q = B @ B.T
+    phi_p = rng.uniform(0.9, 1.0, N - n)
+    q_p = rng.uniform(0.0, 0.1, N - n)
+    F = _dense_phi(phi_nn, phi_np)
+    F[n:, n:] = np.diag(phi_p)
+    Q = np.zeros((N, N))
+    Q[:n, :n] = q
+    Q[n:, n:] = np.diag(q_p)
+    ref = F @ P @ F.T + Q
+    got = P.copy()
+    new_np = phi_np @ P[n:, n:]
+    filters.predict_into(got, n, phi_nn, phi_np, new_np, q, np.empty((n, n)), np.empty((n, n)))
+    filters.predict_params(got, n, phi_p, q_p)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+    r = rng.uniform(0.1, 2.0, 6)
+    joseph = ref.copy()
+    filters.update(joseph, np.arange(3, 9), r, np.zeros(6), np.empty((N, 6)), np.empty((6, 6)), np.empty(N))
+    K = np.empty((6, N))
+    filters.update_block(got, 3, r, np.empty((6, N)), np.empty((6, 6)), K)
+    np.testing.assert_allclose(got, joseph, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+    assert np.array_equal(got, got.T)
+    h = rng.normal(size=N)
+    dense = got.copy()
+    Kd = np.empty((N, 1))
+    filters.update_dense(dense, h[None, :], np.array([[0.5]]), np.zeros(1), Kd, np.empty((1, 1)), np.empty(N))
+    k = np.empty(N)
+    filters.update_row(got, h, 0.5, np.empty(N), k)
+    np.testing.assert_allclose(k, Kd[:, 0], rtol=1e-12)
+    np.testing.assert_allclose(got, dense, rtol=1e-10, atol=1e-12 * np.abs(ref).max())

@@ -57,6 +57,7 @@ from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.static_detect import TREMOR, StillIntervals, detect_still
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
+from inscal.core.attitude import dcm_from_rotvec, quat_from_rotvec_array, quat_mul_array, quat_to_dcm
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import (
     GimbalErrors,
@@ -96,35 +97,6 @@ def frame_of(truth) -> tuple[ImuErrors, GimbalErrors]:
             gim)
 
 
-def _skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _rotvec_quat(v: np.ndarray) -> np.ndarray:
-    """Exact quaternions (scalar first) of rotation vectors (n, 3); series below 1e-4 rad."""
-    a2 = np.sum(v * v, axis=1)
-    a = np.sqrt(a2)
-    small = a2 < 1e-8
-    c = np.where(small, 1.0 - a2 / 8.0 + a2 * a2 / 384.0, np.cos(0.5 * a))
-    s = np.where(small, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0, np.sin(0.5 * a) / np.where(small, 1.0, a))
-    return np.column_stack([c, s[:, None] * v])
-
-
-def _qmul(p, q):
-    """Hamilton products (scalar first) of rows."""
-    out = np.empty_like(p)
-    out[:, 0] = p[:, 0] * q[:, 0] - np.sum(p[:, 1:] * q[:, 1:], axis=1)
-    out[:, 1:] = p[:, :1] * q[:, 1:] + q[:, :1] * p[:, 1:] + np.cross(p[:, 1:], q[:, 1:])
-    return out
-
-
-def _qdcm(q):
-    w, x, y, z = q
-    return np.array([[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]])
-
-
 def rate_poly_matrix(h: np.ndarray) -> np.ndarray:
     """Per sample j, the matrix mapping the increments of samples j-2 .. j+2 to the coefficients
     ``c_0 .. c_4`` of the rate ``h_j w(tau) = sum_m c_m tau^m`` on ``tau = s / h_j`` in [0, 1]: the quartic whose
@@ -159,7 +131,7 @@ def rotations(coef: np.ndarray, seg: np.ndarray, nseg: int, substeps: int = 2) -
     for k in range(substeps):  # 4th-order Magnus step on [k d, (k + 1) d] (Iserles & Norsett 1999), exact exponential
         w1, w2 = w((k + c1) * d), w((k + c2) * d)
         phi = 0.5 * d * (w1 + w2) + math.sqrt(3.0) / 12.0 * d * d * np.cross(w1, w2)
-        q = _qmul(q, _rotvec_quat(phi))
+        q = quat_mul_array(q, quat_from_rotvec_array(phi))
     q /= np.linalg.norm(q, axis=1)[:, None]
     g = seg.copy()
     while True:  # products of disjoint neighbour pairs within a segment, order kept, until one per segment
@@ -169,22 +141,14 @@ def rotations(coef: np.ndarray, seg: np.ndarray, nseg: int, substeps: int = 2) -
         first = np.concatenate([[True], g[1:] != g[:-1]])
         pos = np.arange(g.size) - np.maximum.accumulate(np.where(first, np.arange(g.size), 0))
         j = np.flatnonzero((pos % 2 == 0) & pair)
-        q[j] = _qmul(q[j], q[j + 1])
+        q[j] = quat_mul_array(q[j], q[j + 1])
         keep = np.ones(g.size, bool)
         keep[j + 1] = False
         q, g = q[keep], g[keep]
     out = np.tile(np.eye(3), (nseg, 1, 1))
     for qq, s_ in zip(q, g):
-        out[s_] = _qdcm(qq / np.linalg.norm(qq))
+        out[s_] = quat_to_dcm(qq / np.linalg.norm(qq))
     return out
-
-
-def _rot(v: np.ndarray) -> np.ndarray:
-    a = float(np.linalg.norm(v))
-    if a == 0.0:
-        return np.eye(3)
-    K = _skew(v / a)
-    return np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * (K @ K)
 
 
 # ----------------------------------------------------------------------------------------- fitting
@@ -527,10 +491,10 @@ class _Gyro:
             # is far below the noise)
             mi = Mi @ (self.gmean[i] - (M @ ws[i] + b))
             mj = Mi @ (self.gmean[j] - (M @ (R[k].T @ ws[i]) + b))
-            Rk = (_rot(self.wobble[i] + 0.5 * self.length[i] * mi) @ R[k]
-                  @ _rot(self.wobble[j] - 0.5 * self.length[j] * mj).T)
+            Rk = (dcm_from_rotvec(self.wobble[i] + 0.5 * self.length[i] * mi) @ R[k]
+                  @ dcm_from_rotvec(self.wobble[j] - 0.5 * self.length[j] * mj).T)
             if self.used[k]:
-                upred = Rk.T @ (_rot(ws[i] * self.span[k]) @ uu[i])
+                upred = Rk.T @ (dcm_from_rotvec(ws[i] * self.span[k]) @ uu[i])
                 n = uu[j]
                 e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
                 e1 /= np.linalg.norm(e1)

@@ -270,15 +270,8 @@ def _tremor_word(tremor: float) -> str:
     return f"{units.from_si(tremor, 'deg/s'):.3g} deg/s"
 
 
-def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 0.25, block_s: float | None = None,
-                 alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
-                 gravity: float | None = None, tremor: float = TREMOR, clipped: np.ndarray | None = None,
-                 batch_s: float = BATCH_S) -> StillIntervals:
-    """The still intervals of a record (see the module docstring).  SI: ``min_still``, ``settle``,
-    ``block_s`` (default ``min_still / 4``), ``batch_s`` in s, ``gyro_range`` [rad/s], ``accel_range`` [m/s^2]
-    (the sensors' clip levels, when known); ``tremor`` [rad/s rms]: the hand tremor a pose may hold (the stated
-    level); ``clipped``: bool per sample, a sensor marked saturated at import; ``gravity`` [m/s^2] only words the
-    tilt rate (default: the median specific force of the candidates)."""
+def _checked(time, dtheta, dvel, alpha, min_still, settle, tremor, batch_s, clipped):
+    """The record as float arrays, or one clear :class:`CalibrationError` on a bad input."""
     time = np.asarray(time, float)
     dth = np.asarray(dtheta, float)
     dv = np.asarray(dvel, float)
@@ -295,6 +288,186 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
                                f"{min_still}, {settle}, {tremor}, {batch_s}")
     if clipped is not None and np.shape(clipped) != (n,):
         raise CalibrationError(f"clipped must be one flag per sample ({n}), got shape {np.shape(clipped)}")
+    return time, dth, dv
+
+
+def _stretches(qa, qg, m, t_start, time, settle, min_still):
+    """Runs of blocks still to the accelerometers; within them, the blocks whose gyros stay within the stated tremor
+    are the candidates, the others a stretch rejected for its gyros: ``(i0, i1, gyro_ok)`` with the settling cut."""
+    pieces = []  # (a, b, gyro_ok)
+    qa_s = np.repeat(qa, m)
+    qg_s = np.repeat(qg, m)
+    for a, b in _runs_of(qa_s):
+        for c, d in _runs_of(qg_s[a:b]):
+            pieces.append((a + c, a + d, True))
+        for c, d in _runs_of(~qg_s[a:b]):
+            pieces.append((a + c, a + d, False))
+    pieces.sort()
+    raw = []
+    for a, b, ok in pieces:
+        ta, tb = t_start[a] + settle, time[b - 1] - settle
+        i0 = int(np.searchsorted(t_start, ta - 1e-12 * max(1.0, abs(ta)), "left")) if settle else int(a)
+        i1 = int(np.searchsorted(time, tb + 1e-12 * max(1.0, abs(tb)), "right")) if settle else int(b)
+        i0, i1 = max(i0, int(a)), min(i1, int(b))
+        if i1 - i0 >= 2 and (ok or time[b - 1] - t_start[a] >= min_still):
+            raw.append((i0, i1, ok))
+    return raw
+
+
+def _pose_noise(raw, w, f, dt, t_start, time, start_window, min_still, batch_s, ng, na, floors, notes):
+    """The noise densities at a pose's scale: from the still start (the first stretch, from the record's start
+    within ``start_window``, long enough), else pooled over the candidates long enough (settled: no move's tail in
+    them), else the block densities ``ng``, ``na``; a note names the still start."""
+    floor_g, floor_a = floors
+    start = next(((i0, i1) for i0, i1, ok in raw[:1] if ok and t_start[i0] - t_start[0] <= start_window
+                  and time[i1 - 1] - t_start[i0] >= START_S), None)
+    if start is not None:
+        pg, nbg = _pose_density(w, dt, *start, batch_s)
+        pa, _ = _pose_density(f, dt, *start, batch_s)
+        mg_, ma_ = np.maximum(pg, floor_g), np.maximum(pa, floor_a)
+        notes.append(f"noise from the still start ({t_start[start[0]]:.1f}-{time[start[1] - 1]:.1f} s, {nbg} batches of "
+                     f"{batch_s:g} s): gyro {units.from_si(float(np.max(mg_)), 'deg/h') / 60.0:.3g} deg/sqrt(h), "
+                     f"accelerometer {float(np.max(ma_)) / 9.80665e-6:.3g} ug/sqrt(Hz)")
+        return mg_, ma_
+    mg_, ma_ = ng, na
+    dens_g, dens_a, dof = np.zeros(3), np.zeros(3), 0
+    for i0, i1, ok in raw:
+        if ok and time[i1 - 1] - t_start[i0] >= min_still:
+            pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
+            pa, _ = _pose_density(f, dt, i0, i1, batch_s)
+            if nbg:
+                dens_g, dens_a, dof = dens_g + (nbg - 2) * pg**2, dens_a + (nbg - 2) * pa**2, dof + nbg - 2
+    if dof >= 5:
+        mg_, ma_ = np.maximum(np.sqrt(dens_g / dof), floor_g), np.maximum(np.sqrt(dens_a / dof), floor_a)
+    return mg_, ma_
+
+
+def _pose_means(raw, w, f, dth, dt, batch_s, mg_, ma_):
+    """Per stretch ``(T, mean rate, mean specific force, gyro density with the tremor, accelerometer density,
+    batches, mean tremor attitude)``."""
+    means = []
+    for i0, i1, _ in raw:
+        d = dt[i0:i1]
+        T = float(d.sum())
+        pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
+        pa, _ = _pose_density(f, dt, i0, i1, batch_s)
+        gm = w[i0:i1].T @ d / T
+        # the tremor: the attitude about the pose's mean attitude, the gyros integrated through the pose; a mean
+        # rate over T holds (tau(t1) - tau(t0)) / T of a tremor angle tau (variance 2 var(tau) / T^2)
+        cum = np.cumsum(dth[i0:i1] - np.outer(d, gm), axis=0)
+        wob = -(cum.T @ d) / T
+        var_tau = np.maximum(((cum + wob) ** 2).T @ d / T - mg_**2 * T / 12.0, 0.0)  # less the noise's bridge
+        sg = np.sqrt(mg_**2 / T + 2.0 * var_tau / T**2) * math.sqrt(T)
+        means.append((T, gm, f[i0:i1].T @ d / T, sg, np.maximum(pa, ma_), nbg, wob))
+    return means
+
+
+@dataclass(frozen=True)
+class _Judge:
+    """What a stretch is judged against (:func:`_verdict`): the record's rates, the still baselines, the noise and
+    clip flags, the options."""
+
+    time: np.ndarray
+    t_start: np.ndarray
+    dt: np.ndarray
+    w: np.ndarray
+    f: np.ndarray
+    base: np.ndarray  # the quiet blocks' mean rate
+    gbase: np.ndarray  # the long poses' median rate
+    between: float  # their scatter
+    g_word: float
+    ma_: np.ndarray
+    na_diff: np.ndarray
+    floor_a: float
+    med: float
+    clip_a: np.ndarray
+    clip_g: np.ndarray
+    accel_range: float | None
+    tremor: float
+    min_still: float
+    settle: float
+    alpha: float
+
+
+def _verdict(J: _Judge, i0, i1, ok, T, gmean, fmean, pg, pa, nb):
+    """Why a stretch is not a still pose (saturated, too short, turned, tilted, tremor above the stated level), or
+    that it is: ``(kept, reason, score, fix)``."""
+    time, dt, w, f = J.time, J.dt, J.w, J.f
+    tremor, min_still, settle = J.tremor, J.min_still, J.settle
+    zg = math.sqrt(stats.chi2.ppf(1.0 - J.alpha, 3))
+    d = dt[i0:i1]
+    reason, score, fix = None, 0.0, ""
+    rms = math.sqrt(float(np.sum(dt[i0:i1, None] * (w[i0:i1] - gmean) ** 2)) / T)
+    if not ok:
+        steady = float(np.linalg.norm(gmean - J.base))
+        if steady > 0.5 * rms:
+            reason = (f"turned, gyro {units.from_si(steady, 'deg/s'):.3g} deg/s from the still rate while the "
+                      "accelerometers were steady (a turn about gravity)")
+            score = 10.0
+        else:
+            reason = (f"gyro tremor {_tremor_word(rms)} rms above the stated tremor level {_tremor_word(tremor)} "
+                      "(--tremor-dps)")
+            score, fix = rms / max(tremor, 1e-300), f"--tremor-dps {units.from_si(1.2 * rms, 'deg/s'):.2g}"
+    elif T < min_still:
+        reason = f"too short, {T:.3g} s below the {min_still:.3g} s minimum"
+        score, fix = min_still / T, f"--min-static-s {max(0.1, math.floor(T * 10) / 10):.2g}"
+        if settle > 0:
+            fix += f" (or --settle-s {0.5 * settle:.2g}: {2 * settle:.2g} s of it are dropped as settling)"
+    elif J.clip_a[i0:i1].any():
+        reason = f"accelerometer saturated ({int(J.clip_a[i0:i1].sum())} samples at the {J.accel_range:.4g} m/s^2 clip level)"
+        score = 100.0
+    elif J.clip_g[i0:i1].any():
+        reason = f"gyro saturated ({int(J.clip_g[i0:i1].sum())} samples at the clip level)"
+        score = 100.0
+    else:  # a clipped sensor reads one value while its noise says it should scatter
+        flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (J.na_diff > 1e3 * J.floor_a)
+        if flat.any():
+            ax = int(np.argmax(flat))
+            reason = (f"accelerometer {'xyz'[ax]} saturated (flat at {fmean[ax]:.5g} m/s^2 while its noise is "
+                      f"{J.na_diff[ax] / math.sqrt(J.med):.3g} m/s^2 per sample)")
+            score = 100.0
+    tilt_txt = turn_txt = ""
+    if reason is None:  # tilt: slope of the specific force (weighted least squares per axis) against the
+        # noise at the scale of the pose (its batch means, the still start's floor): an F test on 3 and nb-2 dof
+        tc = (time[i0:i1] - 0.5 * d) - float((time[i0:i1] - 0.5 * d) @ d / T)
+        sxx = float(np.sum(d * tc * tc))
+        slope = (f[i0:i1].T @ (d * tc)) / sxx
+        chi = float(np.sum(slope**2 * sxx / pa**2))
+        q = 3.0 * stats.f.ppf(1.0 - J.alpha, 3, max(nb - 2, 1)) if nb and np.any(pa > J.ma_) else zg**2
+        tilt = float(np.linalg.norm(slope)) / max(J.g_word, 1e-300)
+        # the threshold on the trend's size along its own direction u: chi = |slope|^2 sxx sum(u^2 / pa^2)
+        # passes q exactly where |slope| passes it, so the word printed follows the two values printed
+        u = slope / max(float(np.linalg.norm(slope)), 1e-300)
+        thr = math.sqrt(q / (sxx * float(np.sum(u**2 / pa**2)))) / max(J.g_word, 1e-300)
+        tilt_txt = (f"tilt {units.from_si(tilt, 'deg/s'):.3g} deg/s (accelerometer trend) "
+                    f"{'above' if chi > q else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
+        if chi > q:
+            reason, score = "tilted, " + tilt_txt, chi / q
+    if reason is None:  # turning: mean rate against the other poses (their scatter holds the Earth rate,
+        # g-sensitivity and the drift of the bias), with the pose's own noise (tremor included)
+        dev = float(np.linalg.norm(gmean - J.gbase))
+        thr = zg * math.sqrt(float(np.max(pg)) ** 2 / T + J.between**2)
+        turn_txt = (f"gyro {units.from_si(dev, 'deg/s'):.3g} deg/s from the other poses "
+                    f"{'above' if dev > thr else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
+        if dev > thr:
+            reason, score = "turned, " + turn_txt, dev / thr
+    kept = reason is None
+    if kept:
+        reason = f"still for {T:.3g} s ({tilt_txt}; {turn_txt}; gyro scatter {_tremor_word(rms)} rms)"
+    return kept, reason, score, fix
+
+
+def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 0.25, block_s: float | None = None,
+                 alpha: float = 1e-3, gyro_range: float | None = None, accel_range: float | None = None,
+                 gravity: float | None = None, tremor: float = TREMOR, clipped: np.ndarray | None = None,
+                 batch_s: float = BATCH_S) -> StillIntervals:
+    """The still intervals of a record (see the module docstring).  SI: ``min_still``, ``settle``,
+    ``block_s`` (default ``min_still / 4``), ``batch_s`` in s, ``gyro_range`` [rad/s], ``accel_range`` [m/s^2]
+    (the sensors' clip levels, when known); ``tremor`` [rad/s rms]: the hand tremor a pose may hold (the stated
+    level); ``clipped``: bool per sample, a sensor marked saturated at import; ``gravity`` [m/s^2] only words the
+    tilt rate (default: the median specific force of the candidates)."""
+    time, dth, dv = _checked(time, dtheta, dvel, alpha, min_still, settle, tremor, batch_s, clipped)
+    n = time.shape[0]
     dt = _steps(time)
     w = dth / dt[:, None]
     f = dv / dt[:, None]
@@ -354,65 +527,16 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         dev_g = np.add.reduceat(dt[:, None] * (w - base) ** 2, starts, axis=0).sum(axis=1)
         ng, na = new_g, new_a
     qa, qg = quiet_tests(ng, na)
-    # 2. stretches: runs of blocks still to the accelerometers; within them, the blocks whose gyros stay within the
-    # stated tremor are the candidates, the others a stretch rejected for its gyros
-    pieces = []  # (a, b, gyro_ok)
-    qa_s = np.repeat(qa, m)
-    qg_s = np.repeat(qg, m)
-    for a, b in _runs_of(qa_s):
-        for c, d in _runs_of(qg_s[a:b]):
-            pieces.append((a + c, a + d, True))
-        for c, d in _runs_of(~qg_s[a:b]):
-            pieces.append((a + c, a + d, False))
-    pieces.sort()
-    raw = []
-    for a, b, ok in pieces:
-        ta, tb = t_start[a] + settle, time[b - 1] - settle
-        i0 = int(np.searchsorted(t_start, ta - 1e-12 * max(1.0, abs(ta)), "left")) if settle else int(a)
-        i1 = int(np.searchsorted(time, tb + 1e-12 * max(1.0, abs(tb)), "right")) if settle else int(b)
-        i0, i1 = max(i0, int(a)), min(i1, int(b))
-        if i1 - i0 >= 2 and (ok or time[b - 1] - t_start[a] >= min_still):
-            raw.append((i0, i1, ok))
-    # the ends of a stretch where a move starts or stops slowly (within the tremor allowed) are trimmed
+    # 2. stretches: runs of blocks still to the accelerometers, split by the gyros' tremor; the ends of a stretch
+    # where a move starts or stops slowly (within the tremor allowed) are trimmed
+    raw = _stretches(qa, qg, m, t_start, time, settle, min_still)
     raw = [(*_trim(w, f, dt, i0, i1, batch_s, ng, na), ok) if ok else (i0, i1, ok) for i0, i1, ok in raw]
     raw = [r for r in raw if r[1] - r[0] >= 2]
-    # the still start: the first stretch, from the record's start, long enough for the noise at a pose's scale
-    start = next(((i0, i1) for i0, i1, ok in raw[:1] if ok and t_start[i0] - t_start[0] <= 2 * bs + settle
-                  and time[i1 - 1] - t_start[i0] >= START_S), None)
-    if start is not None:
-        pg, nbg = _pose_density(w, dt, *start, batch_s)
-        pa, _ = _pose_density(f, dt, *start, batch_s)
-        mg_, ma_ = np.maximum(pg, floor_g), np.maximum(pa, floor_a)
-        notes.append(f"noise from the still start ({t_start[start[0]]:.1f}-{time[start[1] - 1]:.1f} s, {nbg} batches of "
-                     f"{batch_s:g} s): gyro {units.from_si(float(np.max(mg_)), 'deg/h') / 60.0:.3g} deg/sqrt(h), "
-                     f"accelerometer {float(np.max(ma_)) / 9.80665e-6:.3g} ug/sqrt(Hz)")
-    else:  # pooled over the candidates long enough (settled: no move's tail in them)
-        mg_, ma_ = ng, na
-        dens_g, dens_a, dof = np.zeros(3), np.zeros(3), 0
-        for i0, i1, ok in raw:
-            if ok and time[i1 - 1] - t_start[i0] >= min_still:
-                pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
-                pa, _ = _pose_density(f, dt, i0, i1, batch_s)
-                if nbg:
-                    dens_g, dens_a, dof = dens_g + (nbg - 2) * pg**2, dens_a + (nbg - 2) * pa**2, dof + nbg - 2
-        if dof >= 5:
-            mg_, ma_ = np.maximum(np.sqrt(dens_g / dof), floor_g), np.maximum(np.sqrt(dens_a / dof), floor_a)
-    means = []
-    for i0, i1, _ in raw:
-        d = dt[i0:i1]
-        T = float(d.sum())
-        pg, nbg = _pose_density(w, dt, i0, i1, batch_s)
-        pa, _ = _pose_density(f, dt, i0, i1, batch_s)
-        gm = w[i0:i1].T @ d / T
-        # the tremor: the attitude about the pose's mean attitude, the gyros integrated through the pose; a mean
-        # rate over T holds (tau(t1) - tau(t0)) / T of a tremor angle tau (variance 2 var(tau) / T^2)
-        cum = np.cumsum(dth[i0:i1] - np.outer(d, gm), axis=0)
-        wob = -(cum.T @ d) / T
-        var_tau = np.maximum(((cum + wob) ** 2).T @ d / T - mg_**2 * T / 12.0, 0.0)  # less the noise's bridge
-        sg = np.sqrt(mg_**2 / T + 2.0 * var_tau / T**2) * math.sqrt(T)
-        means.append((T, gm, f[i0:i1].T @ d / T, sg, np.maximum(pa, ma_), nbg, wob))
+    # 3. the noise at a pose's scale, each stretch's means, and the verdicts
+    mg_, ma_ = _pose_noise(raw, w, f, dt, t_start, time, 2 * bs + settle, min_still, batch_s, ng, na,
+                           (floor_g, floor_a), notes)
+    means = _pose_means(raw, w, f, dth, dt, batch_s, mg_, ma_)
     long_ = [k for k, (T, *_r) in enumerate(means) if T >= min_still and raw[k][2]]
-    zg = math.sqrt(stats.chi2.ppf(1.0 - alpha, 3))
     if long_:
         gm = np.array([means[k][1] for k in long_])
         gbase = np.median(gm, axis=0)
@@ -420,68 +544,11 @@ def detect_still(time, dtheta, dvel, *, min_still: float = 2.0, settle: float = 
         gnorm = float(np.median([np.linalg.norm(means[k][2]) for k in long_]))
     else:
         gbase, between, gnorm = np.zeros(3), 0.0, 0.0
-    g_word = gravity if gravity is not None else gnorm
+    judge = _Judge(time, t_start, dt, w, f, base, gbase, between, gravity if gravity is not None else gnorm, ma_,
+                   na_diff, floor_a, med, clip_a, clip_g, accel_range, tremor, min_still, settle, alpha)
     cands = []
     for num, ((i0, i1, ok), (T, gmean, fmean, pg, pa, nb, wob)) in enumerate(zip(raw, means), start=1):
-        d = dt[i0:i1]
-        reason, score, fix = None, 0.0, ""
-        rms = math.sqrt(float(np.sum(dt[i0:i1, None] * (w[i0:i1] - gmean) ** 2)) / T)
-        if not ok:
-            steady = float(np.linalg.norm(gmean - base))
-            if steady > 0.5 * rms:
-                reason = (f"turned, gyro {units.from_si(steady, 'deg/s'):.3g} deg/s from the still rate while the "
-                          "accelerometers were steady (a turn about gravity)")
-                score = 10.0
-            else:
-                reason = (f"gyro tremor {_tremor_word(rms)} rms above the stated tremor level {_tremor_word(tremor)} "
-                          "(--tremor-dps)")
-                score, fix = rms / max(tremor, 1e-300), f"--tremor-dps {units.from_si(1.2 * rms, 'deg/s'):.2g}"
-        elif T < min_still:
-            reason = f"too short, {T:.3g} s below the {min_still:.3g} s minimum"
-            score, fix = min_still / T, f"--min-static-s {max(0.1, math.floor(T * 10) / 10):.2g}"
-            if settle > 0:
-                fix += f" (or --settle-s {0.5 * settle:.2g}: {2 * settle:.2g} s of it are dropped as settling)"
-        elif clip_a[i0:i1].any():
-            reason = f"accelerometer saturated ({int(clip_a[i0:i1].sum())} samples at the {accel_range:.4g} m/s^2 clip level)"
-            score = 100.0
-        elif clip_g[i0:i1].any():
-            reason = f"gyro saturated ({int(clip_g[i0:i1].sum())} samples at the clip level)"
-            score = 100.0
-        else:  # a clipped sensor reads one value while its noise says it should scatter
-            flat = (np.ptp(f[i0:i1], axis=0) <= 1e-12 * np.abs(fmean)) & (na_diff > 1e3 * floor_a)
-            if flat.any():
-                ax = int(np.argmax(flat))
-                reason = (f"accelerometer {'xyz'[ax]} saturated (flat at {fmean[ax]:.5g} m/s^2 while its noise is "
-                          f"{na_diff[ax] / math.sqrt(med):.3g} m/s^2 per sample)")
-                score = 100.0
-        tilt_txt = turn_txt = ""
-        if reason is None:  # tilt: slope of the specific force (weighted least squares per axis) against the
-            # noise at the scale of the pose (its batch means, the still start's floor): an F test on 3 and nb-2 dof
-            tc = (time[i0:i1] - 0.5 * d) - float((time[i0:i1] - 0.5 * d) @ d / T)
-            sxx = float(np.sum(d * tc * tc))
-            slope = (f[i0:i1].T @ (d * tc)) / sxx
-            chi = float(np.sum(slope**2 * sxx / pa**2))
-            q = 3.0 * stats.f.ppf(1.0 - alpha, 3, max(nb - 2, 1)) if nb and np.any(pa > ma_) else zg**2
-            tilt = float(np.linalg.norm(slope)) / max(g_word, 1e-300)
-            # the threshold on the trend's size along its own direction u: chi = |slope|^2 sxx sum(u^2 / pa^2)
-            # passes q exactly where |slope| passes it, so the word printed follows the two values printed
-            u = slope / max(float(np.linalg.norm(slope)), 1e-300)
-            thr = math.sqrt(q / (sxx * float(np.sum(u**2 / pa**2)))) / max(g_word, 1e-300)
-            tilt_txt = (f"tilt {units.from_si(tilt, 'deg/s'):.3g} deg/s (accelerometer trend) "
-                        f"{'above' if chi > q else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
-            if chi > q:
-                reason, score = "tilted, " + tilt_txt, chi / q
-        if reason is None:  # turning: mean rate against the other poses (their scatter holds the Earth rate,
-            # g-sensitivity and the drift of the bias), with the pose's own noise (tremor included)
-            dev = float(np.linalg.norm(gmean - gbase))
-            thr = zg * math.sqrt(float(np.max(pg)) ** 2 / T + between**2)
-            turn_txt = (f"gyro {units.from_si(dev, 'deg/s'):.3g} deg/s from the other poses "
-                        f"{'above' if dev > thr else 'within'} the {units.from_si(thr, 'deg/s'):.3g} deg/s threshold")
-            if dev > thr:
-                reason, score = "turned, " + turn_txt, dev / thr
-        kept = reason is None
-        if kept:
-            reason = f"still for {T:.3g} s ({tilt_txt}; {turn_txt}; gyro scatter {_tremor_word(rms)} rms)"
+        kept, reason, score, fix = _verdict(judge, i0, i1, ok, T, gmean, fmean, pg, pa, nb)
         cands.append(Candidate(num, i0, i1, float(t_start[i0]), float(time[i1 - 1]), kept, reason, gmean, fmean,
                                pg / math.sqrt(T), pa / math.sqrt(T), wob, score, fix))
     return StillIntervals(tuple(cands), mg_, ma_, dt, gap, clip_g, tuple(notes), tremor, min_still, settle)

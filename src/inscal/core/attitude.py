@@ -38,16 +38,19 @@ def axis_angle_dcm(axis, angle):
     Used for the tilted outer gimbal axis (N25 eq. 5, exact instead of first order).
     """
     n = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
-    x, y, z = axis[0] / n, axis[1] / n, axis[2] / n
-    c, s = math.cos(angle), math.sin(angle)
+    r = axis_angle_xyz(math.cos(angle), math.sin(angle), axis[0] / n, axis[1] / n, axis[2] / n)
+    return np.array([[r[0], r[1], r[2]], [r[3], r[4], r[5]], [r[6], r[7], r[8]]])
+
+
+@njit(cache=True, inline="always")
+def axis_angle_xyz(c, s, x, y, z):
+    """The Rodrigues matrix (row-major 9-tuple) of the right-handed rotation about the unit axis (x, y, z) whose
+    angle has cosine ``c`` and sine ``s``, on scalars: :func:`axis_angle_dcm` for the allocation-free kernels
+    (which reuse the trigonometry of an axis at rest)."""
     t = 1.0 - c
-    return np.array(
-        [
-            [c + x * x * t, x * y * t - z * s, x * z * t + y * s],
-            [y * x * t + z * s, c + y * y * t, y * z * t - x * s],
-            [z * x * t - y * s, z * y * t + x * s, c + z * z * t],
-        ]
-    )
+    return (c + x * x * t, x * y * t - z * s, x * z * t + y * s,
+            y * x * t + z * s, c + y * y * t, y * z * t - x * s,
+            z * x * t - y * s, z * y * t + x * s, c + z * z * t)
 
 
 @njit(cache=True)
@@ -108,6 +111,23 @@ def dcm_from_quat(q) -> np.ndarray:
     """The rotation matrix of the unit quaternion ``q = [w, x, y, z]`` (scalar first), shape (4,) or (N, 4)."""
     q = np.asarray(q, dtype=float)
     return Rotation.from_quat(np.roll(q, -1, axis=-1)).as_matrix()
+
+
+def axis_angle_dcm_array(axis: np.ndarray, angle) -> np.ndarray:
+    """Rodrigues rotations (n, 3, 3) about one unit ``axis`` through each of ``angle`` [rad] (n,):
+    ``I + sin(a) K + (1 - cos(a)) K^2``, ``K = [axis x]``; the array face of :func:`axis_angle_dcm`."""
+    K = skew(axis)
+    a = np.asarray(angle, float)[:, None, None]
+    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)
+
+
+def dcm_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """The rotation matrix ``exp([v x])`` of one rotation vector ``v`` (3,) [rad] (Rodrigues; identity at 0)."""
+    a = float(np.linalg.norm(v))
+    if a == 0.0:
+        return np.eye(3)
+    K = skew(v / a)
+    return np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * (K @ K)
 
 
 def quat_mul_array(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -198,6 +218,17 @@ def quat_to_dcm(q):
             [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
         ]
     )
+
+
+@njit(cache=True, inline="always")
+def quat_to_dcm_xyz(q0, q1, q2, q3):
+    """The rotation matrix (row-major 9-tuple) of the scalar-first quaternion, normalised first, on
+    scalars: :func:`quat_to_dcm` for the allocation-free kernels (the matrix of :func:`dcm_from_quat`)."""
+    n = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    w, x, y, z = q0 * n, q1 * n, q2 * n, q3 * n
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
+            2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
+            2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y))
 
 
 @njit(cache=True, inline="always")

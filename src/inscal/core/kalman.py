@@ -78,17 +78,24 @@ def predict(P, n, phi_nn, phi_np, q_nn, q_p):
     new_np = phi_nn @ Pnp + phi_np @ Ppp
     t1 = phi_nn @ Pnn + phi_np @ Pnp.T
     new_nn = t1 @ phi_nn.T + new_np @ phi_np.T + q_nn
+    store_predicted(P, n, new_nn, new_np)
+    for j in range(n, N):
+        P[j, j] += q_p[j - n]
+
+
+@njit(cache=True, inline="always")
+def store_predicted(P, n, new_nn, new_np):
+    """Write a prediction's new blocks into ``P``: ``P_nn`` symmetrised (the mean of ``new_nn`` and its transpose),
+    ``P_np = new_np`` and ``P_pn`` its transpose; ``P_pp`` is left alone."""
+    p = P.shape[0] - n
     for i in range(n):
         for j in range(i, n):
             v = 0.5 * (new_nn[i, j] + new_nn[j, i])
             P[i, j] = v
             P[j, i] = v
-    for i in range(n):
-        for j in range(n, N):
-            P[i, j] = new_np[i, j - n]
-            P[j, i] = new_np[i, j - n]
-    for j in range(n, N):
-        P[j, j] += q_p[j - n]
+        for c in range(p):
+            P[i, n + c] = new_np[i, c]
+            P[n + c, i] = new_np[i, c]
 
 
 @njit(cache=True)
@@ -657,3 +664,109 @@ def sr_smoothed(Pm, Rb, n, Upp):
     P = np.empty((N, N))  # W W^T of the upper-triangular W
     upper_outer(W, P)
     return P
+
+
+# ------------------------------------------------------------------ allocation-free covariance-only forms
+# For a covariance-only pass (the Cramér-Rao bound of a path, inscal.plan.bound): no estimate, no allocation per
+# step, the zeros of Phi skipped.  Compiled with fastmath (reassociated sums): the bound is a design figure, so
+# its covariance may differ from the filter's in the last bits.
+
+
+@njit(cache=True, fastmath=True)
+def predict_into(P, n, phi_nn, phi_np, new_np, q_nn, t1, new_nn):
+    """:func:`predict` with ``q_p = 0`` for a caller that has already put ``Phi_np P_pp`` into ``new_np`` (n, p)
+    (it knows the sparsity of ``Phi_np``): adds ``Phi_nn P_np`` to it (zero entries of ``Phi_nn`` skipped), then
+    ``P_nn' = (Phi_nn P_nn + Phi_np P_pn) Phi_nn^T + P_np' Phi_np^T + Q_nn``; ``t1``, ``new_nn`` (n, n) work."""
+    N = P.shape[0]
+    p = N - n
+    for i in range(n):
+        for l in range(n):
+            al = phi_nn[i, l]
+            if al != 0.0:
+                for c in range(p):
+                    new_np[i, c] += al * P[l, n + c]
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for l in range(n):
+                acc += phi_nn[i, l] * P[l, j]
+            for l in range(p):
+                acc += phi_np[i, l] * P[j, n + l]
+            t1[i, j] = acc
+    for i in range(n):
+        for j in range(n):
+            acc = q_nn[i, j]
+            for l in range(n):
+                acc += t1[i, l] * phi_nn[j, l]
+            for l in range(p):
+                acc += new_np[i, l] * phi_np[j, l]
+            new_nn[i, j] = acc
+    store_predicted(P, n, new_nn, new_np)
+
+
+@njit(cache=True, fastmath=True)
+def predict_params(P, n, phi_p, q_p):
+    """The parameters' own transition after :func:`predict_into`: first-order Gauss-Markov states
+    ``x_p <- diag(phi_p) x_p + w``, ``w ~ N(0, diag q_p)``, applied to the rows and columns of ``P`` in place."""
+    p = P.shape[0] - n
+    for c in range(p):
+        for i in range(n):
+            P[i, n + c] *= phi_p[c]
+            P[n + c, i] = P[i, n + c]
+        for d in range(p):
+            P[n + c, n + d] *= phi_p[c] * phi_p[d]
+        P[n + c, n + c] += q_p[c]
+
+
+@njit(cache=True, fastmath=True)
+def update_block(P, i0, r, PHt, S, K):
+    """Covariance-only update by a measurement of the consecutive states ``i0 .. i0 + m - 1`` with noise variances
+    ``r`` (m,), in the form ``P <- P - K^T (H P)`` (row layout: ``PHt`` (m, N) receives ``H P``, ``K`` (m, N) the
+    gain rows ``S^-1 H P``; ``S`` (m, m) work); ``P`` stays symmetric."""
+    N = P.shape[0]
+    m = r.shape[0]
+    for a in range(m):
+        for i in range(N):
+            PHt[a, i] = P[i0 + a, i]
+    for a in range(m):
+        for b in range(m):
+            S[a, b] = 0.5 * (PHt[a, i0 + b] + PHt[b, i0 + a])
+        S[a, a] += r[a]
+    Si = np.linalg.inv(S)
+    for a in range(m):
+        for i in range(N):
+            K[a, i] = 0.0
+        for b in range(m):
+            sab = Si[a, b]
+            for i in range(N):
+                K[a, i] += sab * PHt[b, i]
+    for i in range(N):
+        for a in range(m):
+            ki = K[a, i]
+            for j in range(i, N):
+                P[i, j] -= ki * PHt[a, j]
+    for i in range(N):
+        for j in range(i + 1, N):
+            P[j, i] = P[i, j]
+
+
+@njit(cache=True, fastmath=True)
+def update_row(P, h, r, ph, k):
+    """Covariance-only update by one scalar measurement ``h^T x`` (``h`` (N,), noise variance ``r``): ``ph = P h``
+    and the gain ``k = ph / (h^T P h + r)`` written, ``P <- P - k ph^T`` (symmetric)."""
+    N = P.shape[0]
+    for i in range(N):
+        acc = 0.0
+        for j in range(N):
+            acc += P[i, j] * h[j]
+        ph[i] = acc
+    sv = r
+    for i in range(N):
+        sv += h[i] * ph[i]
+    for i in range(N):
+        k[i] = ph[i] / sv
+    for i in range(N):
+        for j in range(i, N):
+            v = P[i, j] - k[i] * ph[j]
+            P[i, j] = v
+            P[j, i] = v

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from inscal.core.attitude import dcm_from_euler
+from inscal.core.attitude import axis_angle_xyz, dcm_from_euler
 from inscal.core.turntable import C_s_b, outer_axis
 
 
@@ -48,17 +48,8 @@ def rates_from_trig(c, sn, cz, sz, wx, wz, u, Cbn, wie_n, g):
     ``(c, sn) = (cos, sin) theta_x``, ``(cz, sz) = (cos, sin) theta_z`` and the gimbal rates: the
     arithmetic of :func:`rates_at`, for callers that reuse the trigonometry of an axis at rest."""
     # Rodrigues rotation about the unit outer axis u (exact N25 eq. 5)
-    t1 = 1.0 - c
     ux, uy, uz = u[0], u[1], u[2]
-    x00 = c + ux * ux * t1
-    x01 = ux * uy * t1 - uz * sn
-    x10 = uy * ux * t1 + uz * sn
-    x11 = c + uy * uy * t1
-    x20 = uz * ux * t1 - uy * sn
-    x21 = uz * uy * t1 + ux * sn
-    x02 = ux * uz * t1 + uy * sn
-    x12 = uy * uz * t1 - ux * sn
-    x22 = c + uz * uz * t1
+    x00, x01, x02, x10, x11, x12, x20, x21, x22 = axis_angle_xyz(c, sn, ux, uy, uz)
     # columns of C_s^n = Cbn Cx Rz : x_s = Cbn (cz Cx[:,0] + sz Cx[:,1]), y_s = Cbn (-sz Cx[:,0] + cz Cx[:,1]), z_s = Cbn Cx[:,2]
     ax0 = cz * x00 + sz * x01
     ax1 = cz * x10 + sz * x11
@@ -131,18 +122,10 @@ def kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f
     the formulas of :func:`inscal.core.kinematics.rates_at`."""
     thx, thz, wx, wz = gimbal_angles(t, s, seg_t0, seg_th0, seg_w0, seg_acc)
     c, sn = math.cos(thx), math.sin(thx)
-    t1 = 1.0 - c
     ux, uy, uz = u[0], u[1], u[2]
     R = np.empty((3, 3))
-    R[0, 0] = c + ux * ux * t1
-    R[0, 1] = ux * uy * t1 - uz * sn
-    R[0, 2] = ux * uz * t1 + uy * sn
-    R[1, 0] = uy * ux * t1 + uz * sn
-    R[1, 1] = c + uy * uy * t1
-    R[1, 2] = uy * uz * t1 - ux * sn
-    R[2, 0] = uz * ux * t1 - uy * sn
-    R[2, 1] = uz * uy * t1 + ux * sn
-    R[2, 2] = c + uz * uz * t1
+    (R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1],
+     R[2, 2]) = axis_angle_xyz(c, sn, ux, uy, uz)
     cz, sz = math.cos(thz), math.sin(thz)
     for i in range(3):  # C_s^b = R Rz
         a0 = cz * R[i, 0] + sz * R[i, 1]

@@ -31,7 +31,11 @@ def start_client(scheduler: str | None, workers: int, timeout, error: type[Excep
             warnings.filterwarnings("ignore", message=r"(?s)Port \d+ is already in use")
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                    silence_logs=logging.ERROR)
-        return Client(cluster), cluster
+        try:
+            return Client(cluster), cluster
+        except BaseException:  # nothing left running
+            cluster.close()
+            raise
     try:
         return Client(scheduler, timeout=timeout), None
     except (OSError, TimeoutError) as exc:

@@ -204,13 +204,18 @@ class ThermalModel:
         b = getattr(base, f"{triad}_bias") + self.delta(f"{triad}_bias", dT)
         return k, E, b
 
-    def to_temperature(self, base: ImuErrors, dt, dth, dv, T, dTdt=None) -> tuple[np.ndarray, np.ndarray]:
-        """Forward model: increments ``(dth, dv)`` (n, 3) measured by ``base`` (the IMU at ``T_ref``) ->
-        those the IMU gives at temperatures ``T`` (n,) and rates ``dTdt`` (n,) [degC/s]."""
+    def _inputs(self, dt, T, dTdt):
+        """``(T - T_ref, dT/dt or zeros, dt broadcastable against (n, 3))`` of :meth:`to_temperature` and
+        :meth:`to_reference`."""
         dT = np.asarray(T, dtype=float) - self.t_ref
         rate = np.zeros_like(dT) if dTdt is None else np.asarray(dTdt, dtype=float)
         dtc = np.asarray(dt, dtype=float)
-        dtc = dtc[..., None] if dtc.ndim else dtc
+        return dT, rate, dtc[..., None] if dtc.ndim else dtc
+
+    def to_temperature(self, base: ImuErrors, dt, dth, dv, T, dTdt=None) -> tuple[np.ndarray, np.ndarray]:
+        """Forward model: increments ``(dth, dv)`` (n, 3) measured by ``base`` (the IMU at ``T_ref``) ->
+        those the IMU gives at temperatures ``T`` (n,) and rates ``dTdt`` (n,) [degC/s]."""
+        dT, rate, dtc = self._inputs(dt, T, dTdt)
         out = []
         for triad, N, M0 in (("gyro", dth, base.M_g), ("accel", dv, base.M_a)):
             N = np.asarray(N, dtype=float)
@@ -228,10 +233,7 @@ class ThermalModel:
     def to_reference(self, base: ImuErrors, dt, dth, dv, T, dTdt=None) -> tuple[np.ndarray, np.ndarray]:
         """Inverse model: increments measured at temperatures ``T`` (n,) and rates ``dTdt`` -> those the
         IMU would give at ``T_ref`` (compensate them with ``base`` afterwards)."""
-        dT = np.asarray(T, dtype=float) - self.t_ref
-        rate = np.zeros_like(dT) if dTdt is None else np.asarray(dTdt, dtype=float)
-        dtc = np.asarray(dt, dtype=float)
-        dtc = dtc[..., None] if dtc.ndim else dtc
+        dT, rate, dtc = self._inputs(dt, T, dTdt)
         out = []
         for triad, N, M0 in (("gyro", dth, base.M_g), ("accel", dv, base.M_a)):
             N = np.asarray(N, dtype=float)

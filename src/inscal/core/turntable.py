@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from inscal.core.attitude import dcm_from_euler, euler_from_dcm
+from inscal.core.attitude import axis_angle_xyz, dcm_from_euler, euler_from_dcm
 from inscal.core.units import DEG
 
 AXES = ("outer", "inner")
@@ -252,12 +252,8 @@ def c_s_b_rows(tx, tz, x, y, z, out):
     """``out[i] = Rot(u, tx[i]) R_z(tz[i])`` for the unit axis ``u = (x, y, z)`` (Rodrigues, as
     :func:`inscal.core.attitude.axis_angle_dcm`, times ``R_z``; N25 eq. 7), over 1-D angle arrays."""
     for i in range(tx.shape[0]):
-        c, s = math.cos(tx[i]), math.sin(tx[i])
-        t = 1.0 - c
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = axis_angle_xyz(math.cos(tx[i]), math.sin(tx[i]), x, y, z)
         cz, sz = math.cos(tz[i]), math.sin(tz[i])
-        r00, r01, r02 = c + x * x * t, x * y * t - z * s, x * z * t + y * s
-        r10, r11, r12 = y * x * t + z * s, c + y * y * t, y * z * t - x * s
-        r20, r21, r22 = z * x * t - y * s, z * y * t + x * s, c + z * z * t
         out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = r00 * cz + r01 * sz, r01 * cz - r00 * sz, r02
         out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = r10 * cz + r11 * sz, r11 * cz - r10 * sz, r12
         out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = r20 * cz + r21 * sz, r21 * cz - r20 * sz, r22

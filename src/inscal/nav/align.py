@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from inscal.core import earth
 from inscal.core.attitude import quat_from_rotvec_xyz, quat_mul_xyz, quat_rotate_xyz, quat_to_dcm
 from inscal.core.error_model import ImuErrors
+from inscal.core.kalman import predict, update
 from inscal.nav.strapdown import (
     S_Q,
     S_V,
@@ -346,12 +347,14 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
     T = nblk * dt
     P = np.diag(np.r_[[cfg.level_sigma**2] * 2, cfg.heading_sigma**2, [cfg.velocity_sigma**2] * 2,
                       [cfg.gyro_bias_sigma**2] * 3, [cfg.accel_bias_sigma**2] * 3])
-    Qc = np.zeros(11)
-    Qc[0:3] = cfg.arw**2
-    Qc[3:5] = cfg.vrw**2
-    H = np.zeros((2, 11))
-    H[0, 3] = H[1, 4] = 1.0
-    R = np.eye(2) * cfg.velocity_sigma**2
+    # the filter [phi, dv_EN | b_g, b_a]: five dynamic states and six constants (core.kalman's block form)
+    Qc = np.diag(np.r_[[cfg.arw**2] * 3, [cfg.vrw**2] * 2])
+    q_p = np.zeros(6)
+    idx = np.array([3, 4])  # the measured states: the horizontal velocity
+    r = np.full(2, cfg.velocity_sigma**2)
+    K = np.empty((11, 2))
+    Sinv = np.empty((2, 2))
+    x = np.empty(11)
     done = 0
     C_prev = C0
     I11 = np.eye(11)
@@ -367,15 +370,10 @@ def align(stream: SampleStream, dt: float, latitude: float, longitude: float, he
         Tb = n * dt
         FT = _fine_F(Cm, latitude, height, gravity) * Tb
         FT2 = FT @ FT
-        Phi = I11 + FT + FT2 / 2.0 + FT2 @ FT / 6.0  # |F T| << 1 (T <= a few s)
-        P = Phi @ P @ Phi.T + np.diag(Qc) * Tb  # isotropic white noise: its rotation into n changes nothing
-        P = 0.5 * (P + P.T)
-        z = nav.st[S_V:S_V + 2]
-        S = H @ P @ H.T + R
-        K = P @ H.T @ np.linalg.inv(S)
-        x = K @ z
-        IKH = I11 - K @ H
-        P = IKH @ P @ IKH.T + K @ R @ K.T  # Joseph form
+        Phi = I11 + FT + FT2 / 2.0 + FT2 @ FT / 6.0  # |F T| << 1 (T <= a few s); the bias rows are I
+        # isotropic white noise: its rotation into n changes nothing
+        predict(P, 5, np.ascontiguousarray(Phi[:5, :5]), np.ascontiguousarray(Phi[:5, 5:]), Qc * Tb, q_p)
+        update(P, idx, r, np.ascontiguousarray(nav.st[S_V:S_V + 2]), K, Sinv, x)  # Joseph form
         # feedback (S16 eq. 27): attitude, velocity, residual biases
         nav.correct(x[0:3], np.r_[x[3:5], 0.0])
         gb = gb + x[5:8]

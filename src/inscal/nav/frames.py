@@ -11,16 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
-
-@njit(cache=True, inline="always")
-def dcm_of_quat(q0, q1, q2, q3):
-    """The rotation matrix (row-major 9-tuple) of the scalar-first quaternion, normalised first
-    (the matrix of :func:`inscal.core.attitude.dcm_from_quat`)."""
-    n = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-    w, x, y, z = q0 * n, q1 * n, q2 * n, q3 * n
-    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
-            2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
-            2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y))
+from inscal.core.attitude import quat_to_dcm_xyz
 
 
 @njit(cache=True)
@@ -32,7 +23,7 @@ def attitude_error(q, c_true):
     phi = np.empty((n, 3))
     e = np.empty((3, 3))
     for i in range(n):
-        c = dcm_of_quat(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
+        c = quat_to_dcm_xyz(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
         for r in range(3):
             for k in range(3):
                 e[r, k] = c[3 * r] * c_true[i, k, 0] + c[3 * r + 1] * c_true[i, k, 1] + c[3 * r + 2] * c_true[i, k, 2]
@@ -70,7 +61,7 @@ def euler_of_products(q, b):
     step = 0 if b.shape[0] == 1 else 1
     out = np.empty((n, 3))
     for i in range(n):
-        c = dcm_of_quat(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
+        c = quat_to_dcm_xyz(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
         ib = i * step
         # rows 0 (column 0 only), 1 (column 0) and 2 of C b^T
         m00 = c[0] * b[ib, 0, 0] + c[1] * b[ib, 0, 1] + c[2] * b[ib, 0, 2]

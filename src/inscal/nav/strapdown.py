@@ -200,6 +200,15 @@ def velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, lat, h, dt, gscale):
     we0 = -vn / rmh
     we1 = ve / rnh
     we2 = ve * sl / (cl * rnh)
+    nve, nvn, nvu = velocity_increment(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, we0, we1, we2, wie_n, wie_u, grav, dt)
+    return nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u
+
+
+@njit(cache=True, inline="always")
+def velocity_increment(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, we0, we1, we2, wie_n, wie_u, grav, dt):
+    """The ENU velocity equation of one sample (T&W ch. 11) given the transport rate ``w_en^n`` = (we0, we1, we2),
+    the Earth rate's north and up components and gravity at the start of the interval:
+    ``v + (I - [zeta x]/2) C(q) c + (g - (2 w_ie + w_en) x v) dt``, ``zeta = (w_ie^n + w_en^n) dt``."""
     z0 = we0 * dt
     z1 = (wie_n + we1) * dt
     z2 = (wie_u + we2) * dt
@@ -207,13 +216,12 @@ def velocity_step(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, lat, h, dt, gscale):
     s0 -= 0.5 * (z1 * s2 - z2 * s1)
     s1 -= 0.5 * (z2 * s0 - z0 * s2)
     s2 -= 0.5 * (z0 * s1 - z1 * s0)
-    o0 = we0
     o1 = 2.0 * wie_n + we1
     o2 = 2.0 * wie_u + we2
     nve = ve + s0 - (o1 * vu - o2 * vn) * dt
-    nvn = vn + s1 - (o2 * ve - o0 * vu) * dt
-    nvu = vu + s2 - (o0 * vn - o1 * ve) * dt - grav * dt
-    return nve, nvn, nvu, sl, cl, rmh, rnh, wie_n, wie_u
+    nvn = vn + s1 - (o2 * ve - we0 * vu) * dt
+    nvu = vu + s2 - (we0 * vn - o1 * ve) * dt - grav * dt
+    return nve, nvn, nvu
 
 
 
@@ -355,18 +363,8 @@ def mechanize(dth, dv, dt, st, cfg, cp, vref, href, k0, t0, decim, o_idx, o_t, o
         we0 = -vn * irm  # transport rate w_en^n = [-vN/(RM+h), vE/(RN+h), vE tanL/(RN+h)]
         we1 = ve * irn
         we2 = we1 * tl
-        z0 = we0 * dt
-        z1 = (wie_n + we1) * dt
-        z2 = (wie_u + we2) * dt
-        s0, s1, s2 = qrot(q0, q1, q2, q3, c0, c1, c2)
-        s0 -= 0.5 * (z1 * s2 - z2 * s1)
-        s1 -= 0.5 * (z2 * s0 - z0 * s2)
-        s2 -= 0.5 * (z0 * s1 - z1 * s0)
-        o1 = 2.0 * wie_n + we1
-        o2 = 2.0 * wie_u + we2
-        nve = ve + s0 - (o1 * vu - o2 * vn) * dt
-        nvn = vn + s1 - (o2 * ve - we0 * vu) * dt
-        nvu = vu + s2 - (we0 * vn - o1 * ve) * dt - grav * dt
+        nve, nvn, nvu = velocity_increment(q0, q1, q2, q3, c0, c1, c2, ve, vn, vu, we0, we1, we2, wie_n, wie_u, grav,
+                                           dt)
         if hdamp:
             if per_sample_ref:
                 re, rn_ = vref[j, 0], vref[j, 1]

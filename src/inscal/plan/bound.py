@@ -452,7 +452,8 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
     Cbn = dcm_from_euler(setup.gimbal.mount_attitude)
     wie = earth.earth_rate_n(setup.site.latitude)
     sc = setup.scenario(path)
-    segs = [np.ascontiguousarray(a, float) for a in (seg.t0, seg.t1, seg.th0, seg.w0, seg.acc)]
+    path_arrays = (*(np.ascontiguousarray(a, float) for a in (seg.t0, seg.t1, seg.th0, seg.w0, seg.acc)), u, Cbn, wie,
+                   float(setup.site.gravity))
     P = np.eye(N)
     hist = np.empty((M if keep_history else 0, N))
     last = np.full(1, -1, np.int64)  # the kernel's state between slices: dwell, its Phi_np, its columns
@@ -471,7 +472,7 @@ def evaluate(setup: Setup, path: RotationPath, keep_history: bool = True) -> Bou
             xH = xH * setup.sig[None, None, :]
         th = (setup.temperature.steps(setup.thermal["t_ref"], k0, k1, T, setup.n_sub) if setup.thermal
               else (no_temp, no_temp))
-        bound_kernel(k0, k1, T, setup.n_sub, *segs, u, Cbn, wie, float(setup.site.gravity), setup.need_rates,
+        bound_kernel(k0, k1, T, setup.n_sub, path_arrays, setup.need_rates,
                      setup.kinds, setup.axes, setup.js, setup.sig, setup.phinn, setup.F, setup.F2, setup.qd,
                      setup.rs, setup.phi_p[:N - N_NAV], setup.q_p, np.ascontiguousarray(xH),
                      np.ascontiguousarray(xr, float), P, hist[k0:k1] if keep_history else hist, last, phinp, Vs, *th,

@@ -1,7 +1,7 @@
 """The compiled covariance-only pass of the Cramér-Rao bound (:mod:`inscal.plan.bound`): per filter step the
 parameter columns of ``Phi_np`` from the path kinematics (one evaluation on a dwell, mid-point sub-samples
 with motion or with thermal states), the structured prediction and the zero-velocity / known-position
-update, in the scaled state.
+update (the covariance-only forms of :mod:`inscal.core.kalman`), in the scaled state.
 
 Thermal states (the systematic filter's option ``thermal``): their columns are the base columns times a
 known scalar of the sample (``-dT^k``, ``-(w or f)_i dT^k``, ``-dT/dt``;
@@ -25,6 +25,7 @@ from numba import njit
 
 from inscal.calibrate.systematic.dynamics import column_values, lever_timing_rate, thermal_values
 from inscal.calibrate.systematic.states import K_LEVT, K_TH, TH_RATE_ROW
+from inscal.core.kalman import predict_into, predict_params, update_block, update_row
 from inscal.core.kinematics import (  # segment_at: smallest s with seg_t1[s] > t
     kinematics,
     segment_at,
@@ -48,13 +49,14 @@ def triad_row(kind, j):
 
 
 @njit(cache=True)
-def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes, js, C, w, f,
-                 wd, fd, vals, V, thermal, dT, rate, lev, sd):
+def step_columns(t, path, need_rates, kinds, axes, js, C, w, f, wd, fd, vals, V, thermal, dT, rate, lev, sd):
     """The parameter columns of ``[dphi'; dv']`` at ``t``: ``V`` (6, p) = ``C[:, axis] * value``
     (rows 0-2 gyro kinds, 3-5 accelerometer kinds; the asynchrony column is ``C fdot``); with ``thermal`` the
     thermal columns at the temperature difference ``dT`` [degC] and rate ``rate`` [degC/s] (module docstring);
     the lever-arm timing's column of accelerometer i is ``C[:, i] sd_i`` (``lever_timing_rate`` at the nominal
-    lever arms ``lev``, w-ddot a centred second difference; ``sd`` (3) scratch)."""
+    lever arms ``lev``, w-ddot a centred second difference; ``sd`` (3) scratch).
+    ``path``: the tuple ``(seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g)`` of :func:`bound_kernel`."""
+    seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g = path
     s = segment_at(t, seg_t1)
     kinematics(t, s, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, C, w, f)
     if need_rates:  # centred differences (the filter's own w-dot and f-dot are centred differences too)
@@ -101,13 +103,27 @@ def step_columns(t, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, 
         # other kinds: states outside the navigation dynamics (e.g. gimbal geometry): zero columns
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def g6_times(G6, X, out):
+    """``out`` (9, p) = ``G6 X`` for the step's ``G6`` (9, 6) and ``X`` (6, p), the zeros of ``G6`` skipped."""
+    for i in range(9):
+        for c in range(X.shape[1]):
+            out[i, c] = 0.0
+        for r in range(6):
+            gi = G6[i, r]
+            if gi != 0.0:
+                for c in range(X.shape[1]):
+                    out[i, c] += gi * X[r, c]
+
+
 # ----------------------------------------------------------------------------- the kernel
 @njit(cache=True, fastmath=True)
-def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates,
-                 kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr, P, hist, last, phinp, Vs, th_dT,
-                 th_rate, Vc, E, lev):
+def bound_kernel(k0, k1, T, n_sub, path, need_rates, kinds, axes, js, sig, phinn, F, F2, qd, rs, phi_p, q_p, xH, xr,
+                 P, hist, last, phinp, Vs, th_dT, th_rate, Vc, E, lev):
     """Covariance-only pass (module docstring) in the scaled state over the filter steps ``k0 .. k1 - 1``
-    (:mod:`inscal.plan.slices`); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
+    (:mod:`inscal.plan.slices`); ``path`` the tuple ``(seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g)``
+    (the :class:`~inscal.core.turntable.Segments` arrays, the outer axis, the mount attitude, the site's Earth
+    rate and gravity); ``P`` (N, N) in/out, ``hist`` (k1 - k0, N) receives diag(P) after each
     update (``(0, N)``: not kept).  ``phinn``, ``F``, ``F2``, ``qd``: physical; ``phi_p``/``q_p``: scaled
     parameter transition (diagonal) and process noise; ``xH`` (k1 - k0, m, N) scaled extra rows, ``xr``
     (k1 - k0, m) their scaled variances.  Thermal states: ``th_dT``, ``th_rate`` (k1 - k0, n_sub) the
@@ -116,6 +132,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
     whose ``Phi_np`` is in ``phinp`` (9, p) (-1: none), and its scaled columns ``Vs`` (6, p).  Consider inputs
     (module docstring): ``Vc`` (6, m) their columns (SI), ``E`` (N, m) in/out the sensitivity of the error in the
     scaled state; ``m = 0``: none.  ``lev`` (3, 3): the nominal lever arms of the lever-arm timing's columns."""
+    seg_t1, seg_w0, seg_acc = path[1], path[3], path[4]
     N = P.shape[0]
     p = N - 9
     C = np.empty((3, 3))
@@ -186,19 +203,12 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
             s += 1
         if static:
             if s_first != last_seg:  # a new dwell: new V (the same on every step of a dwell)
-                step_columns(a + 0.5 * T, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, False, kinds,
-                             axes, js, C, w, f, wd, fd, vals, V, False, 0.0, 0.0, lev, sd)
+                step_columns(a + 0.5 * T, path, False, kinds, axes, js, C, w, f, wd, fd, vals, V, False, 0.0, 0.0, lev,
+                             sd)
                 for r in range(6):
                     for c in range(p):
                         Vs[r, c] = V[r, c] * sig[9 + c]
-                for i in range(9):
-                    for c in range(p):
-                        phinp[i, c] = 0.0
-                    for r in range(6):
-                        gi = G6[i, r]
-                        if gi != 0.0:
-                            for c in range(p):
-                                phinp[i, c] += gi * Vs[r, c]
+                g6_times(G6, Vs, phinp)
                 last_seg = s_first
             # W = Vs P_pp (three non-zero rows per column of Vs)
             for r in range(6):
@@ -211,14 +221,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                     if v != 0.0:
                         for c in range(p):
                             W[r, c] += v * P[9 + l, 9 + c]
-            for i in range(9):
-                for c in range(p):
-                    new_np[i, c] = 0.0
-                for r in range(6):
-                    gi = G6[i, r]
-                    if gi != 0.0:
-                        for c in range(p):
-                            new_np[i, c] += gi * W[r, c]
+            g6_times(G6, W, new_np)
         else:
             last_seg = -1
             for r in range(6):
@@ -234,8 +237,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                 else:
                     tdT = 0.0
                     trt = 0.0
-                step_columns(tj, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, need_rates, kinds, axes,
-                             js, C, w, f, wd, fd, vals, V, thermal, tdT, trt, lev, sd)
+                step_columns(tj, path, need_rates, kinds, axes, js, C, w, f, wd, fd, vals, V, thermal, tdT, trt, lev, sd)
                 sw = b - tj
                 w1 = sw * h
                 w2 = 0.5 * sw * sw * h
@@ -266,44 +268,9 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                         for c in range(p):
                             new_np[i, c] += al * P[9 + l, 9 + c]
         # ---- predict: P_np' = Pn P_np + Phi_np P_pp;  P_nn' = (Pn P_nn + Phi_np P_pn) Pn^T + P_np' Phi_np^T + Q
-        for i in range(9):
-            for l in range(9):
-                al = Pn[i, l]
-                if al != 0.0:
-                    for c in range(p):
-                        new_np[i, c] += al * P[l, 9 + c]
-        for i in range(9):
-            for j in range(9):
-                acc = 0.0
-                for l in range(9):
-                    acc += Pn[i, l] * P[l, j]
-                for l in range(p):
-                    acc += phinp[i, l] * P[j, 9 + l]
-                t1[i, j] = acc
-        for i in range(9):
-            for j in range(9):
-                acc = Qs[i, j]
-                for l in range(9):
-                    acc += t1[i, l] * Pn[j, l]
-                for l in range(p):
-                    acc += new_np[i, l] * phinp[j, l]
-                new_nn[i, j] = acc
-        for i in range(9):
-            for j in range(i, 9):
-                v = 0.5 * (new_nn[i, j] + new_nn[j, i])
-                P[i, j] = v
-                P[j, i] = v
-            for c in range(p):
-                P[i, 9 + c] = new_np[i, c]
-                P[9 + c, i] = new_np[i, c]
+        predict_into(P, 9, Pn, phinp, new_np, Qs, t1, new_nn)
         if dyn_p:
-            for c in range(p):
-                for i in range(9):
-                    P[i, 9 + c] *= phi_p[c]
-                    P[9 + c, i] = P[i, 9 + c]
-                for d in range(p):
-                    P[9 + c, 9 + d] *= phi_p[c] * phi_p[d]
-                P[9 + c, 9 + c] += q_p[c]
+            predict_params(P, 9, phi_p, q_p)
         # ---- the consider sensitivity: E_n <- Pn E_n + Phi_np E_p - Gamma, E_p <- phi_p E_p
         if m_c:
             for i in range(9):
@@ -322,26 +289,7 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                     for c in range(m_c):
                         E[9 + l, c] *= phi_p[l]
         # ---- update: zero velocity, known position (states 3..8); P <- P - K^T PHt (row layout)
-        for a_ in range(6):
-            for i in range(N):
-                PHt[a_, i] = P[3 + a_, i]
-        for a_ in range(6):
-            for b_ in range(6):
-                S[a_, b_] = 0.5 * (PHt[a_, 3 + b_] + PHt[b_, 3 + a_])
-            S[a_, a_] += rs[a_]
-        Si = np.linalg.inv(S)
-        for a_ in range(6):
-            for i in range(N):
-                K[a_, i] = 0.0
-            for b_ in range(6):
-                sab = Si[a_, b_]
-                for i in range(N):
-                    K[a_, i] += sab * PHt[b_, i]
-        for i in range(N):
-            for a_ in range(6):
-                ki = K[a_, i]
-                for j in range(i, N):
-                    P[i, j] -= ki * PHt[a_, j]
+        update_block(P, 3, rs, PHt, S, K)
         if m_c:  # E <- E - K^T (H E)
             for a_ in range(6):
                 for c in range(m_c):
@@ -351,22 +299,10 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
                     ki = K[a_, i]
                     for c in range(m_c):
                         E[i, c] -= ki * Eh[a_, c]
-        for i in range(N):
-            for j in range(i + 1, N):
-                P[j, i] = P[i, j]
         # ---- extra rows (scalar sequential updates)
         for m in range(mx):
             hr = xH[k - k0, m]
-            for i in range(N):
-                acc = 0.0
-                for j in range(N):
-                    acc += P[i, j] * hr[j]
-                ph[i] = acc
-            sv = xr[k - k0, m]
-            for i in range(N):
-                sv += hr[i] * ph[i]
-            for i in range(N):
-                kg[i] = ph[i] / sv
+            update_row(P, hr, xr[k - k0, m], ph, kg)
             for c in range(m_c):
                 acc = 0.0
                 for j in range(N):
@@ -375,11 +311,6 @@ def bound_kernel(k0, k1, T, n_sub, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, 
             for i in range(N):
                 for c in range(m_c):
                     E[i, c] -= kg[i] * he[c]
-            for i in range(N):
-                for j in range(i, N):
-                    v = P[i, j] - kg[i] * ph[j]
-                    P[i, j] = v
-                    P[j, i] = v
         if keep:
             for i in range(N):
                 hist[k - k0, i] = P[i, i]

@@ -73,6 +73,154 @@ def _param_rows(methods: dict[str, dict], truth: dict[str, dict] | None = None):
     return rows
 
 
+def _allan_figure(plt, allan_data: dict):
+    """The Allan deviation of the gyros and accelerometers with the fitted white-noise lines."""
+    taus = np.asarray(allan_data["taus_s"], float)
+    g = np.asarray(allan_data["gyro_adev_deg_h"], float)
+    a = np.asarray(allan_data["accel_adev_ug"], float)
+    arw, vrw = np.asarray(allan_data["arw_deg_rth"], float), np.asarray(allan_data["vrw_ug_rthz"], float)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    for k, lab in enumerate("xyz"):
+        ax[0].loglog(taus, g[k], color=f"C{k}", lw=1.2, label=f"gyro {lab}")
+        ax[0].loglog(taus, units.from_si(units.to_si(arw[k], "deg/sqrt(h)") / np.sqrt(taus), "deg/h"),
+                     color=f"C{k}", lw=0.8, ls="--", label=f"ARW fit {arw[k]:.4f} °/√h")
+        ax[1].loglog(taus, a[k], color=f"C{k}", lw=1.2, label=f"accel {lab}")
+        ax[1].loglog(taus, units.from_si(units.to_si(vrw[k], "ug/sqrt(Hz)") / np.sqrt(taus), "ug"),
+                     color=f"C{k}", lw=0.8, ls="--", label=f"VRW fit {vrw[k]:.1f} µg/√Hz")
+    win = allan_data.get("window_s")
+    ax[0].set(xlabel="τ [s]", ylabel="Allan deviation [°/h]",
+              title="Gyroscopes" + (f" (N25 first dwell, {win[1] - win[0]:.0f} s)" if win else ""))
+    ax[1].set(xlabel="τ [s]", ylabel="Allan deviation [µg]", title="Accelerometers")
+    for x in ax:
+        x.grid(True, which="both", alpha=0.3)
+        x.legend(fontsize=7, ncol=2)
+    fig.subplots_adjust(left=0.07, right=0.985, top=0.92, bottom=0.12, wspace=0.2)
+    return fig
+
+
+def _table2_figure(plt, sysc: dict):
+    """S16 Table 2's groups: each filter's mean |error| against the paper's."""
+    methods = list(sysc)
+    fig, axes = plt.subplots(1, len(S16_TABLE2), figsize=(3.1 * len(S16_TABLE2), 3.6))
+    for ax, g in zip(np.atleast_1d(axes), S16_TABLE2):
+        for i, m in enumerate(methods):
+            v = sysc[m]["groups"].get(g)
+            if v is None:
+                continue
+            ax.bar(i, v["mean_abs_error"], 0.6, color=f"C{i}", hatch=None if v["estimated"] else "//",
+                   edgecolor="k" if not v["estimated"] else None, label=m + ("" if v["estimated"] else " (not estimated)"))
+        ax.axhline(S16_TABLE2[g], color="r", ls="--", lw=1.3, label="S16 Table 2")
+        unit = next((sysc[m]["groups"][g]["unit"] for m in methods if g in sysc[m]["groups"]), "")
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(methods)), [m.replace("systematic", "") + "-state" for m in methods])
+        ax.set(title=g.replace("_", " "), ylabel=f"mean |error| [{display_unit(unit)}]")
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+    handles, labels = [], []
+    for ax in np.atleast_1d(axes):
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
+    fig.subplots_adjust(left=0.075, right=0.99, top=0.91, bottom=0.2, wspace=0.5)
+    return fig
+
+
+def _nav_comparison_figure(plt, nav_runs: dict):
+    """Every navigation run's horizontal position and heading errors in one figure."""
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
+    for i, (label, (nr, _)) in enumerate(nav_runs.items()):
+        err = nr.errors
+        t, tlab = time_axis(err.time)
+        ax[0].plot(t, units.from_si(err.horizontal, "nmi"), color=f"C{i}", lw=1.1, label=label)
+        if err.vehicle is not None:
+            ax[1].plot(t, units.from_si(err.vehicle[:, 2], "arcsec"), color=f"C{i}", lw=1.0, label=label)
+    ax[0].set(ylabel="horizontal position error [nmi]", title="Navigation with each calibration (rotation modulation)")
+    ax[1].set(ylabel="yaw (heading) error [arcsec]", xlabel=tlab)
+    for x in ax:
+        x.grid(True, alpha=0.3)
+        x.legend(fontsize=8)
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.94, bottom=0.09, hspace=0.08)
+    return fig
+
+
+def _allan_section(allan_data: dict, figs: dict) -> str:
+    """The HTML of the noise section: the Allan figure and the fitted white noise against the truth."""
+    arw, vrw = np.asarray(allan_data["arw_deg_rth"], float), np.asarray(allan_data["vrw_ug_rthz"], float)
+    ta, tv = allan_data.get("true_arw_deg_rth"), allan_data.get("true_vrw_ug_rthz")
+    rows = [[f"gyro {c}", "°/√h", fmt_num(arw[k]), fmt_num(ta[k]) if ta is not None else "—",
+             fmt_num(100 * (arw[k] / ta[k] - 1), 2) if ta is not None and ta[k] else "—"] for k, c in enumerate("xyz")]
+    rows += [[f"accel {c}", "µg/√Hz", fmt_num(vrw[k]), fmt_num(tv[k]) if tv is not None else "—",
+              fmt_num(100 * (vrw[k] / tv[k] - 1), 2) if tv is not None and tv[k] else "—"] for k, c in enumerate("xyz")]
+    return ("<h2>1. Noise: Allan deviation of the N25 record's first dwell</h2>"
+            f"<img alt='Allan deviation' src='data:image/png;base64,{figs['allan']}'/>"
+            + html_table(["sensor", "unit", "fitted (white noise)", "true", "difference [%]"], rows))
+
+
+def _table2_section(sysc: dict, figs: dict) -> list[str]:
+    """The HTML of the S16 record's section: the groups against Table 2, the filters' diagnostics, every component."""
+    parts = []
+    methods = list(sysc)
+    rows = []
+    for g in S16_TABLE2:
+        unit = next((sysc[m]["groups"][g]["unit"] for m in methods if g in sysc[m]["groups"]), "")
+        row = [g.replace("_", " "), display_unit(unit), fmt_num(S16_TABLE2[g])]
+        for m in methods:
+            v = sysc[m]["groups"].get(g)
+            if v is None:
+                row.append("—")
+            elif v["estimated"]:
+                ok = v["mean_abs_error"] <= S16_TABLE2[g]
+                row.append(("html", fmt_num(v["mean_abs_error"], 3) + (" ✓" if ok else ""), " class='good'" if ok else ""))
+            else:
+                row.append(("html", f"{fmt_num(v['mean_abs_error'], 3)} <i>(not estimated: the whole error)</i>", " class='na'"))
+        rows.append(row)
+    lin = []
+    for g in ("gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor", "accel_misalignment"):
+        if all(g in sysc[m]["groups"] for m in methods):
+            lin.append([g.replace("_", " "), display_unit(sysc[methods[0]]["groups"][g]["unit"]), "—"]
+                       + [fmt_num(sysc[m]["groups"][g]["mean_abs_error"], 3) for m in methods])
+    diag = [[m, fmt_num(sysc[m]["nis_mean"], 3), str(sysc[m]["passes"]), fmt_num(sysc[m]["elapsed_s"], 3)] for m in methods]
+    parts.append("<h2>3. S16 record: systematic calibration against S16 Table 2</h2>"
+                 "<p>Mean |error| over each group's estimated components (truth mapped into the filter's "
+                 "gyro-defined frame), against the paper's Table 2. A group the filter does not estimate "
+                 "keeps its whole error (its mean |true value|).</p>"
+                 f"<img alt='S16 Table 2 groups' src='data:image/png;base64,{figs['s16-table2']}'/>"
+                 + html_table(["group", "unit", "S16 Table 2"] + [f"{m} mean |error|" for m in methods], rows + lin)
+                 + html_table(["filter", "NIS mean (6 expected)", "passes", "time [s]"], diag))
+    comp = {m: sysc[m].get("parameters") for m in methods if sysc[m].get("parameters")}
+    if comp:
+        head = ["parameter", "unit", "true (filter frame)"]
+        for m in comp:
+            head += ["estimate", "error", "σ", "error/σ"]
+        parts.append("<details><summary>every component of the systematic estimates</summary>"
+                     + html_table(head, _param_rows(comp), "params", [("", 3)] + [(m, 4) for m in comp]) + "</details>")
+    return parts
+
+
+def _navigation_section(nav: dict, nav_runs: dict, figs: dict) -> list[str]:
+    """The HTML of the navigation section: each calibration's errors, the figures."""
+    parts = []
+    rows = []
+    for label, v in nav.items():
+        a = v.get("max_attitude_error_arcsec") or {}
+        rows.append([label, fmt_num(v.get("max_position_error_m")),
+                     fmt_num(units.from_si(v["max_position_error_m"], "nmi")) if v.get("max_position_error_m") is not None else "—",
+                     fmt_num(v.get("final_position_error_m")), fmt_num(a.get("roll")), fmt_num(a.get("pitch")), fmt_num(a.get("yaw"))])
+    hours = next((v["duration_h"] for v in nav.values() if v.get("duration_h") is not None), None)
+    parts.append(f"<h2>4. Navigation: {fmt_num(hours, 3)} h of rotation modulation with each calibration</h2>"
+                 "<p>Noise-free N25 IMU on a two-axis turntable (rotation modulation), pure inertial, vertical "
+                 "channel held; initialised from the truth.</p>"
+                 + html_table(["calibration", "max position error [m]", "[nmi]", "final [m]", "max roll error [arcsec]",
+                           "max pitch error [arcsec]", "max yaw error [arcsec]"], rows))
+    if "nav-comparison" in figs:
+        parts.append(f"<img alt='navigation comparison' src='data:image/png;base64,{figs['nav-comparison']}'/>")
+    for label in nav_runs:
+        parts.append(f"<h3>{escape(label)}</h3><img alt='navigation {escape(label)}' "
+                     f"src='data:image/png;base64,{figs['nav-' + label]}'/>")
+    return parts
+
+
 def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: dict | None = None,
                 overwrite: bool = False) -> dict[str, Path]:
     """Write the demo's report into ``out_dir``: the PNG figures and ``report.html`` (self-contained:
@@ -80,8 +228,6 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
     ``nav_runs``: ``{label: (NavResult, gimbal model)}`` of the navigation runs; ``allan_data``:
     the ``inscal allan`` result of the N25 first dwell (with ``true_arw_deg_rth``/``true_vrw_ug_rthz``).
     Returns ``{name: path}`` of the files written."""
-
-
     plt = new_figure()
     out_dir = Path(out_dir)
     steps = res.get("steps", {})
@@ -101,74 +247,18 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
 
     # ---- Allan deviation with the fitted white-noise lines
     if allan_data is not None:
-        taus = np.asarray(allan_data["taus_s"], float)
-        g = np.asarray(allan_data["gyro_adev_deg_h"], float)
-        a = np.asarray(allan_data["accel_adev_ug"], float)
-        arw, vrw = np.asarray(allan_data["arw_deg_rth"], float), np.asarray(allan_data["vrw_ug_rthz"], float)
-        fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
-        for k, lab in enumerate("xyz"):
-            ax[0].loglog(taus, g[k], color=f"C{k}", lw=1.2, label=f"gyro {lab}")
-            ax[0].loglog(taus, units.from_si(units.to_si(arw[k], "deg/sqrt(h)") / np.sqrt(taus), "deg/h"),
-                         color=f"C{k}", lw=0.8, ls="--", label=f"ARW fit {arw[k]:.4f} °/√h")
-            ax[1].loglog(taus, a[k], color=f"C{k}", lw=1.2, label=f"accel {lab}")
-            ax[1].loglog(taus, units.from_si(units.to_si(vrw[k], "ug/sqrt(Hz)") / np.sqrt(taus), "ug"),
-                         color=f"C{k}", lw=0.8, ls="--", label=f"VRW fit {vrw[k]:.1f} µg/√Hz")
-        win = allan_data.get("window_s")
-        ax[0].set(xlabel="τ [s]", ylabel="Allan deviation [°/h]",
-                  title="Gyroscopes" + (f" (N25 first dwell, {win[1] - win[0]:.0f} s)" if win else ""))
-        ax[1].set(xlabel="τ [s]", ylabel="Allan deviation [µg]", title="Accelerometers")
-        for x in ax:
-            x.grid(True, which="both", alpha=0.3)
-            x.legend(fontsize=7, ncol=2)
-        fig.subplots_adjust(left=0.07, right=0.985, top=0.92, bottom=0.12, wspace=0.2)
-        save(fig, "allan")
+        save(_allan_figure(plt, allan_data), "allan")
 
     # ---- S16 Table 2 groups against the paper
     sysc = steps.get("systematic_s16", {})
 
     if sysc:
-        methods = list(sysc)
-        fig, axes = plt.subplots(1, len(S16_TABLE2), figsize=(3.1 * len(S16_TABLE2), 3.6))
-        for ax, g in zip(np.atleast_1d(axes), S16_TABLE2):
-            for i, m in enumerate(methods):
-                v = sysc[m]["groups"].get(g)
-                if v is None:
-                    continue
-                ax.bar(i, v["mean_abs_error"], 0.6, color=f"C{i}", hatch=None if v["estimated"] else "//",
-                       edgecolor="k" if not v["estimated"] else None, label=m + ("" if v["estimated"] else " (not estimated)"))
-            ax.axhline(S16_TABLE2[g], color="r", ls="--", lw=1.3, label="S16 Table 2")
-            unit = next((sysc[m]["groups"][g]["unit"] for m in methods if g in sysc[m]["groups"]), "")
-            ax.set_yscale("log")
-            ax.set_xticks(range(len(methods)), [m.replace("systematic", "") + "-state" for m in methods])
-            ax.set(title=g.replace("_", " "), ylabel=f"mean |error| [{display_unit(unit)}]")
-            ax.grid(True, axis="y", which="both", alpha=0.3)
-        handles, labels = [], []
-        for ax in np.atleast_1d(axes):
-            for h, lab in zip(*ax.get_legend_handles_labels()):
-                if lab not in labels:
-                    handles.append(h)
-                    labels.append(lab)
-        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
-        fig.subplots_adjust(left=0.075, right=0.99, top=0.91, bottom=0.2, wspace=0.5)
-        save(fig, "s16-table2")
+        save(_table2_figure(plt, sysc), "s16-table2")
 
     # ---- navigation runs
     nav_runs = nav_runs or {}
     if nav_runs:
-        fig, ax = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
-        for i, (label, (nr, _)) in enumerate(nav_runs.items()):
-            err = nr.errors
-            t, tlab = time_axis(err.time)
-            ax[0].plot(t, units.from_si(err.horizontal, "nmi"), color=f"C{i}", lw=1.1, label=label)
-            if err.vehicle is not None:
-                ax[1].plot(t, units.from_si(err.vehicle[:, 2], "arcsec"), color=f"C{i}", lw=1.0, label=label)
-        ax[0].set(ylabel="horizontal position error [nmi]", title="Navigation with each calibration (rotation modulation)")
-        ax[1].set(ylabel="yaw (heading) error [arcsec]", xlabel=tlab)
-        for x in ax:
-            x.grid(True, alpha=0.3)
-            x.legend(fontsize=8)
-        fig.subplots_adjust(left=0.09, right=0.98, top=0.94, bottom=0.09, hspace=0.08)
-        save(fig, "nav-comparison")
+        save(_nav_comparison_figure(plt, nav_runs), "nav-comparison")
         for label, (nr, gim) in nav_runs.items():
             fig = navigation_figure(nr, f"navigation, {label}: position and attitude errors", gim)
             save(fig, f"nav-{label}")
@@ -183,14 +273,7 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
                  "run with each calibration. Errors are estimate − truth; σ is each method's own 1σ; "
                  "|error/σ| &gt; 3 is shown in red.</p>")
     if allan_data is not None:
-        ta, tv = allan_data.get("true_arw_deg_rth"), allan_data.get("true_vrw_ug_rthz")
-        rows = [[f"gyro {c}", "°/√h", fmt_num(arw[k]), fmt_num(ta[k]) if ta is not None else "—",
-                 fmt_num(100 * (arw[k] / ta[k] - 1), 2) if ta is not None and ta[k] else "—"] for k, c in enumerate("xyz")]
-        rows += [[f"accel {c}", "µg/√Hz", fmt_num(vrw[k]), fmt_num(tv[k]) if tv is not None else "—",
-                  fmt_num(100 * (vrw[k] / tv[k] - 1), 2) if tv is not None and tv[k] else "—"] for k, c in enumerate("xyz")]
-        parts.append("<h2>1. Noise: Allan deviation of the N25 record's first dwell</h2>"
-                     f"<img alt='Allan deviation' src='data:image/png;base64,{figs['allan']}'/>"
-                     + html_table(["sensor", "unit", "fitted (white noise)", "true", "difference [%]"], rows))
+        parts.append(_allan_section(allan_data, figs))
     cal = steps.get("calibrate", {})
     if cal:
         head = ["parameter", "unit", "true"]
@@ -201,60 +284,10 @@ def demo_report(out_dir, res: dict, nav_runs: dict | None = None, allan_data: di
                      "38–44); joint: one fit of every position. Gimbal non-orthogonality true value 20 arcsec.</p>"
                      + html_table(head, _param_rows(cal), "params", [("", 3)] + [(m, 4) for m in cal]))
     if sysc:
-        methods = list(sysc)
-        rows = []
-        for g in S16_TABLE2:
-            unit = next((sysc[m]["groups"][g]["unit"] for m in methods if g in sysc[m]["groups"]), "")
-            row = [g.replace("_", " "), display_unit(unit), fmt_num(S16_TABLE2[g])]
-            for m in methods:
-                v = sysc[m]["groups"].get(g)
-                if v is None:
-                    row.append("—")
-                elif v["estimated"]:
-                    ok = v["mean_abs_error"] <= S16_TABLE2[g]
-                    row.append(("html", fmt_num(v["mean_abs_error"], 3) + (" ✓" if ok else ""), " class='good'" if ok else ""))
-                else:
-                    row.append(("html", f"{fmt_num(v['mean_abs_error'], 3)} <i>(not estimated: the whole error)</i>", " class='na'"))
-            rows.append(row)
-        lin = []
-        for g in ("gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor", "accel_misalignment"):
-            if all(g in sysc[m]["groups"] for m in methods):
-                lin.append([g.replace("_", " "), display_unit(sysc[methods[0]]["groups"][g]["unit"]), "—"]
-                           + [fmt_num(sysc[m]["groups"][g]["mean_abs_error"], 3) for m in methods])
-        diag = [[m, fmt_num(sysc[m]["nis_mean"], 3), str(sysc[m]["passes"]), fmt_num(sysc[m]["elapsed_s"], 3)] for m in methods]
-        parts.append("<h2>3. S16 record: systematic calibration against S16 Table 2</h2>"
-                     "<p>Mean |error| over each group's estimated components (truth mapped into the filter's "
-                     "gyro-defined frame), against the paper's Table 2. A group the filter does not estimate "
-                     "keeps its whole error (its mean |true value|).</p>"
-                     f"<img alt='S16 Table 2 groups' src='data:image/png;base64,{figs['s16-table2']}'/>"
-                     + html_table(["group", "unit", "S16 Table 2"] + [f"{m} mean |error|" for m in methods], rows + lin)
-                     + html_table(["filter", "NIS mean (6 expected)", "passes", "time [s]"], diag))
-        comp = {m: sysc[m].get("parameters") for m in methods if sysc[m].get("parameters")}
-        if comp:
-            head = ["parameter", "unit", "true (filter frame)"]
-            for m in comp:
-                head += ["estimate", "error", "σ", "error/σ"]
-            parts.append("<details><summary>every component of the systematic estimates</summary>"
-                         + html_table(head, _param_rows(comp), "params", [("", 3)] + [(m, 4) for m in comp]) + "</details>")
+        parts += _table2_section(sysc, figs)
     nav = steps.get("navigate", {})
     if nav:
-        rows = []
-        for label, v in nav.items():
-            a = v.get("max_attitude_error_arcsec") or {}
-            rows.append([label, fmt_num(v.get("max_position_error_m")),
-                         fmt_num(units.from_si(v["max_position_error_m"], "nmi")) if v.get("max_position_error_m") is not None else "—",
-                         fmt_num(v.get("final_position_error_m")), fmt_num(a.get("roll")), fmt_num(a.get("pitch")), fmt_num(a.get("yaw"))])
-        hours = next((v["duration_h"] for v in nav.values() if v.get("duration_h") is not None), None)
-        parts.append(f"<h2>4. Navigation: {fmt_num(hours, 3)} h of rotation modulation with each calibration</h2>"
-                     "<p>Noise-free N25 IMU on a two-axis turntable (rotation modulation), pure inertial, vertical "
-                     "channel held; initialised from the truth.</p>"
-                     + html_table(["calibration", "max position error [m]", "[nmi]", "final [m]", "max roll error [arcsec]",
-                               "max pitch error [arcsec]", "max yaw error [arcsec]"], rows))
-        if "nav-comparison" in figs:
-            parts.append(f"<img alt='navigation comparison' src='data:image/png;base64,{figs['nav-comparison']}'/>")
-        for label in nav_runs:
-            parts.append(f"<h3>{escape(label)}</h3><img alt='navigation {escape(label)}' "
-                         f"src='data:image/png;base64,{figs['nav-' + label]}'/>")
+        parts += _navigation_section(nav, nav_runs, figs)
     listed = sorted(p.name for p in out_dir.iterdir() if p.is_file() and p.suffix in (".h5", ".toml", ".png", ".json"))
     listed = sorted(set(listed) | {p.name for p in files.values()} | {"summary.json", "report.html"})
     parts.append("<h2>Files</h2><ul>" + "".join(f"<li>{escape(n)}</li>" for n in listed) + "</ul>")

@@ -46,19 +46,18 @@ import datetime as dt
 import fcntl
 import glob
 import hashlib
-import logging
 import math
 import os
 import re
 import signal
 import time
-import warnings
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import sqlalchemy as sa
 
+from inscal.core import parallel
 from inscal.core.parallel import LOCAL_WORKER_ENVIRON
 from inscal.io.files import file_hash, side_name
 from inscal.io.records import record_attrs
@@ -508,25 +507,9 @@ def run_batch(db_text: str | None, items: list[BatchItem], setup: CalibrationSet
 
 def start_client(scheduler: str, workers: int):
     """``(client, cluster)``: a LocalCluster of ``workers`` single-threaded processes for "local", else a
-    client of the scheduler at that address (cluster None)."""
-    import dask
-    from distributed import Client, LocalCluster
-
-    if scheduler in ("", "local"):
-        with warnings.catch_warnings(), dask.config.set(LOCAL_WORKER_ENVIRON):
-            # no dashboard; the scheduler's health-check HTTP server moves off a busy port by itself
-            warnings.filterwarnings("ignore", message=r"(?s)Port \d+ is already in use")
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
-        try:
-            return Client(cluster), cluster
-        except BaseException:
-            cluster.close()
-            raise
-    try:
-        return Client(scheduler, timeout=CONNECT_TIMEOUT), None
-    except (OSError, TimeoutError) as exc:
-        raise BatchError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    client of the scheduler at that address (cluster None): :func:`inscal.core.parallel.start_client` with the
+    batch's connection timeout, its error and the local workers' environment."""
+    return parallel.start_client(scheduler, workers, CONNECT_TIMEOUT, BatchError, LOCAL_WORKER_ENVIRON)
 
 
 def run_dask(target: str, pending: Iterable[tuple[BatchItem, str]], setup: CalibrationSetup, scheduler: str,

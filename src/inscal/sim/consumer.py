@@ -35,20 +35,13 @@ import numpy as np
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from inscal.core.attitude import skew
+from inscal.core.attitude import axis_angle_dcm_array
 from inscal.core.earth import Site
 from inscal.core.error_model import ImuErrors
 from inscal.core.units import DEG, G0
 
 #: int16 full scale
 FULL = 32768
-
-
-def _rot(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rodrigues rotations (n, 3, 3) about one unit ``axis`` through each of ``angle``."""
-    K = skew(axis)
-    a = np.asarray(angle, float)[:, None, None]
-    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)
 
 
 @dataclass(frozen=True)
@@ -206,12 +199,12 @@ def consumer_session(rng: np.random.Generator, site: Site, setup: ConsumerSetup 
             x, xd = np.sin(arg) @ a, (np.cos(arg) * (2 * math.pi * f)[None]) @ a
             w, wd = _ramp(tt, t0, t1)
             tau, taud = w * x, wd * x + w * xd
-            C[m] = att[j] @ _rot(k, tau)
+            C[m] = att[j] @ axis_angle_dcm_array(k, tau)
             wnb[m] = k[None] * taud[:, None]
     for j, (t0, T, e, Th) in enumerate(moves):
         m = (ti >= t0) & (ti < t0 + T)
         u = (ti[m] - t0) / T
-        C[m] = att[j] @ _rot(e, Th * u**3 * (10.0 - 15.0 * u + 6.0 * u * u))
+        C[m] = att[j] @ axis_angle_dcm_array(e, Th * u**3 * (10.0 - 15.0 * u + 6.0 * u * u))
         wnb[m] = e[None] * (Th / T * 30.0 * u * u * (1.0 - u) ** 2)[:, None]
     Cnb = np.transpose(C, (0, 2, 1))
     w_ib = wnb + Cnb @ np.asarray(site.earth_rate_n, float)

@@ -25,17 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inscal.core.attitude import skew
+from inscal.core.attitude import axis_angle_dcm_array
 from inscal.core.earth import Site
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
-
-
-def _rot(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rodrigues rotations (n, 3, 3) about one unit ``axis`` through each of ``angle``."""
-    K = skew(axis)
-    a = np.asarray(angle, float)[:, None, None]
-    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)
 
 
 @dataclass(frozen=True)
@@ -112,8 +105,9 @@ class HandheldMotion:
             win = np.sin(math.pi * s) ** 2
             tau = A * win * np.sin(om * t[after])
             taud = A * (math.pi / T * np.sin(2 * math.pi * s) * np.sin(om * t[after]) + win * om * np.cos(om * t[after]))
-            C[after] = Cj @ _rot(e, th) @ _rot(k, tau)
-            wnb[after] = np.einsum("nij,j->ni", _rot(k, -tau), e) * thd[:, None] + k[None] * taud[:, None]
+            C[after] = Cj @ axis_angle_dcm_array(e, th) @ axis_angle_dcm_array(k, tau)
+            back = axis_angle_dcm_array(k, -tau)
+            wnb[after] = np.einsum("nij,j->ni", back, e) * thd[:, None] + k[None] * taud[:, None]
         Cnb = np.transpose(C, (0, 2, 1))
         w = wnb + Cnb @ np.asarray(site.earth_rate_n, float)
         f = Cnb @ np.array([0.0, 0.0, float(site.gravity)])
@@ -204,7 +198,8 @@ class FerrarisMotion(HandheldMotion):
             C = tilted_face(j, 1.0, rng.uniform(0, 2 * math.pi), t)
             ang = float(rng.choice([-1.0, 1.0])) * (2.0 * math.pi + rng.normal(0.0, math.radians(self.turn_closure_deg)))
             turns[len(out)] = ang
-            out += [(C, rng.uniform(*self.end_s), t), (C @ _rot(C[2], [ang])[0], rng.uniform(*self.end_s), t)]
+            turned = C @ axis_angle_dcm_array(C[2], [ang])[0]
+            out += [(C, rng.uniform(*self.end_s), t), (turned, rng.uniform(*self.end_s), t)]
         return out, turns
 
     @property

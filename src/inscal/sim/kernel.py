@@ -86,29 +86,37 @@ def rates_on_segment(t, s, tx, tz, cx, sx, cz, sz, seg_t0, seg_th0, seg_w0, seg_
 
 
 @njit(cache=True)
-def simulate_pass(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, glx, glw, opts,
-                  mg, bg, gs, ma, ba, k2, kc, p,
-                  iv, if2, ifx, iww, wdel,
-                  sqdt, z_arw, arw, z_vrw, vrw,
-                  z_gm_g, sig_g, drv_g, phi_g, zi_g, z_gm_a, sig_a, drv_a, phi_a, zi_a,
-                  q_g, tot_g, cnt_g, q_a, tot_a, cnt_a, z_enc, enc, carry,
-                  time, mdth, mdv, gimbal, tdth, tdv, f2, fx, ww, dw):
+def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry, out):
     """Samples ``k0 .. k0 + n - 1`` of a simulation (see the module docstring), all SI.
 
-    Path: the :class:`~inscal.core.turntable.Segments` arrays; ``u`` the outer axis, ``Cbn`` the mount
-    attitude, ``wie_n``, ``g`` the site; ``glx``, ``glw`` the Gauss-Legendre nodes and weights.
-    Error model (``O_MEASURE``): ``mg``, ``ma`` = M_g, M_a; ``bg``, ``ba`` the biases; ``gs`` = G;
-    ``k2`` the nonlinearity, ``kc`` the cross-coupling matrix, ``p`` the lever arms (rows).
-    Asynchrony (``O_ASYNC``): boundary integrals ``iv``, ``if2``, ``ifx``, ``iww`` and rates ``wdel`` at
-    ``t_j - tau`` for the boundaries ``j = 0 .. n`` of the chunk.
-    Noise: standard normal draws ``z_*`` (n rows) with their coefficients (``sqdt`` = sqrt(dt));
-    Gauss-Markov ``drv = sqrt(1 - phi^2)`` and the filter states ``zi_*`` (updated); quanta ``q_*``
-    with the running totals ``tot_*`` and emitted counts ``cnt_*`` (updated); ``enc`` the encoder sigma.
+    The arguments come in tuples (numba unpacks them at no cost):
+
+    * ``path`` = ``(seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g)``: the
+      :class:`~inscal.core.turntable.Segments` arrays; ``u`` the outer axis, ``Cbn`` the mount attitude,
+      ``wie_n``, ``g`` the site; ``glx``, ``glw`` the Gauss-Legendre nodes and weights.
+    * ``model`` = ``(mg, bg, gs, ma, ba, k2, kc, p)``, the error model (``O_MEASURE``): ``mg``, ``ma`` = M_g,
+      M_a; ``bg``, ``ba`` the biases; ``gs`` = G; ``k2`` the nonlinearity, ``kc`` the cross-coupling matrix,
+      ``p`` the lever arms (rows).
+    * ``boundary`` = ``(iv, if2, ifx, iww, wdel)``, asynchrony (``O_ASYNC``): boundary integrals and rates at
+      ``t_j - tau`` for the boundaries ``j = 0 .. n`` of the chunk.
+    * ``noise`` = ``(sqdt, z_arw, arw, z_vrw, vrw, z_gm_g, sig_g, drv_g, phi_g, zi_g, z_gm_a, sig_a, drv_a, phi_a,
+      zi_a, q_g, tot_g, cnt_g, q_a, tot_a, cnt_a, z_enc, enc)``: standard normal draws ``z_*`` (n rows) with
+      their coefficients (``sqdt`` = sqrt(dt)); Gauss-Markov ``drv = sqrt(1 - phi^2)`` and the filter states
+      ``zi_*`` (updated); quanta ``q_*`` with the running totals ``tot_*`` and emitted counts ``cnt_*``
+      (updated); ``enc`` the encoder sigma.
+    * ``out`` = ``(time, mdth, mdv, gimbal, tdth, tdv, f2, fx, ww, dw)``, the outputs (below).
+
     ``carry`` (4,): ``w`` at ``k0 dt`` left by the pass that ended there (``carry[0] != 0``: taken, so
     a chunk done in several passes gives the numbers of one pass; 0: evaluated here), and set for the
     next pass.
     Outputs (n rows): ``time``, ``mdth``, ``mdv``, ``gimbal`` (``O_RECORD``); ``tdth``, ``tdv``
     (``O_TRUTH``); ``f2``, ``fx``, ``ww``, ``dw`` (``O_RAW``)."""
+    seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g = path
+    mg, bg, gs, ma, ba, k2, kc, p = model
+    iv, if2, ifx, iww, wdel = boundary
+    (sqdt, z_arw, arw, z_vrw, vrw, z_gm_g, sig_g, drv_g, phi_g, zi_g, z_gm_a, sig_a, drv_a, phi_a, zi_a,
+     q_g, tot_g, cnt_g, q_a, tot_a, cnt_a, z_enc, enc) = noise
+    time, mdth, mdv, gimbal, tdth, tdv, f2, fx, ww, dw = out
     S = seg_t0.shape[0]
     quad = (opts & O_QUAD) != 0
     lever = (opts & O_LEVER) != 0

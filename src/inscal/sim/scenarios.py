@@ -449,11 +449,15 @@ def _thermal_plateaus(base: Scenario, name: str) -> Scenario:
     return replace(base, name=name, path=path, thermal=thermal_model(), temperature=profile)
 
 
-def _thermal_ramp() -> Scenario:
-    base = _s16()
+def _s16_table1_times(k: int) -> tuple[Scenario, RotationPath]:
+    """S16's scenario and its Table 1 path run ``k`` times in a row."""
     one = s16_table1()
-    path = RotationPath("s16-table1-x2", one.moves * 2, accel=one.accel, initial=one.initial,
-                        initial_dwell=one.initial_dwell, closed=one.closed)
+    return _s16(), RotationPath(f"s16-table1-x{k}", one.moves * k, accel=one.accel, initial=one.initial,
+                                initial_dwell=one.initial_dwell, closed=one.closed)
+
+
+def _thermal_ramp() -> Scenario:
+    base, path = _s16_table1_times(2)
     lo, hi = THERMAL_PLATEAUS_C[0], THERMAL_PLATEAUS_C[-1]
     profile = TemperatureProfile(lo, (Piece("hold", duration_s=600.0),
                                       Piece("ramp", target_c=hi, rate_c_per_min=THERMAL_RAMP_C_PER_MIN)))
@@ -461,10 +465,7 @@ def _thermal_ramp() -> Scenario:
 
 
 def _thermal_cycle() -> Scenario:
-    base = _s16()
-    one = s16_table1()
-    path = RotationPath("s16-table1-x4", one.moves * 4, accel=one.accel, initial=one.initial,
-                        initial_dwell=one.initial_dwell, closed=one.closed)
+    base, path = _s16_table1_times(4)
     lo, hi = THERMAL_PLATEAUS_C[0], THERMAL_PLATEAUS_C[-1]
     r = THERMAL_RAMP_C_PER_MIN
     profile = TemperatureProfile(lo, (Piece("hold", duration_s=600.0), Piece("ramp", target_c=hi, rate_c_per_min=r),

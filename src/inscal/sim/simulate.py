@@ -135,6 +135,11 @@ class ModelArrays:
     kc: np.ndarray
     p: np.ndarray
 
+    @property
+    def arrays(self) -> tuple:
+        """``(mg, bg, gs, ma, ba, k2, kc, p)``: the ``model`` tuple of :func:`inscal.sim.kernel.simulate_pass`."""
+        return (self.mg, self.bg, self.gs, self.ma, self.ba, self.k2, self.kc, self.p)
+
     @classmethod
     def of(cls, imu: ImuErrors | None) -> ModelArrays:
         """The arrays of ``imu`` (copies: writable and C-ordered, as numba compiles read-only arrays
@@ -160,10 +165,9 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
     the compiled pass alone."""
     model = ModelArrays.of(None)
     opts = O_TRUTH | O_RAW | ((O_QUAD | O_LEVER) if want_nl else 0)
-    simulate_pass(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, glx, glw, opts,
-                  model.mg, model.bg, model.gs, model.ma, model.ba, model.k2, model.kc, model.p,
-                  _rows(1, 3), _rows(1, 3), _rows(1, 3), _rows(1, 6), _rows(1, 3), *_no_noise(), np.zeros(4),
-                  np.zeros(1), _rows(1, 3), _rows(1, 3), _rows(1, 2), dth, dv, f2, fx, ww, dw)
+    simulate_pass(k0, n, dt, (seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g), glx, glw, opts,
+                  model.arrays, (_rows(1, 3), _rows(1, 3), _rows(1, 3), _rows(1, 6), _rows(1, 3)), _no_noise(),
+                  np.zeros(4), (np.zeros(1), _rows(1, 3), _rows(1, 3), _rows(1, 2), dth, dv, f2, fx, ww, dw))
 
 
 @njit(cache=True)
@@ -383,7 +387,7 @@ class NoiseState:
         return dth, dv, gimbal
 
     def pass_arguments(self, n: int) -> tuple[int, tuple]:
-        """Option bits and the noise arguments of :func:`inscal.sim.kernel.simulate_pass` for the next
+        """Option bits and the ``noise`` tuple of :func:`inscal.sim.kernel.simulate_pass` for the next
         n samples (draws made; the pass updates the Gauss-Markov and quantization states in place)."""
         nz, d, c, off = self.noise, self.draw(n), self._coef, self._unused
         opts = ((O_ARW if d.arw is not None else 0) | (O_VRW if d.vrw is not None else 0)
@@ -416,7 +420,7 @@ class NoiseState:
 
 
 def _no_noise() -> tuple:
-    """The noise arguments of :func:`~inscal.sim.kernel.simulate_pass` with no noise (never read)."""
+    """The ``noise`` tuple of :func:`~inscal.sim.kernel.simulate_pass` with no noise (never read)."""
     r3 = _rows(1, 3)
     return (0.0, r3, np.zeros(3), r3, np.zeros(3), r3, np.zeros(3), 0.0, 0.0, np.zeros(3), r3, np.zeros(3), 0.0, 0.0,
             np.zeros(3), 0.0, np.zeros(3), np.zeros(3), 0.0, np.zeros(3), np.zeros(3), _rows(1, 2), 0.0)
@@ -458,6 +462,7 @@ def _chunks(scenario, rng, chunk_size, keep_truth, progress, seg, whole) -> Iter
     unused_boundary = (unused3, unused3, unused3, _rows(1, 6), unused3)
     unused_noise = _no_noise()
     unused_raw = (unused3, unused3, _rows(1, 6), unused3)
+    path = (seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie_n, g)
     for k0 in range(0, N, chunk_size):
         n = min(chunk_size, N - k0)
         if whole is None:
@@ -484,10 +489,9 @@ def _chunks(scenario, rng, chunk_size, keep_truth, progress, seg, whole) -> Iter
             if noise is not None and thermal is None:
                 noise_opts, noise_args = noise.pass_arguments(m)
                 opts |= noise_opts
-            simulate_pass(k, m, dt, seg.t0, seg.t1, seg.th0, seg.w0, seg.acc, u, Cbn, wie_n, g, _GL_X, _GL_W, opts,
-                          model.mg, model.bg, model.gs, model.ma, model.ba, model.k2, model.kc, model.p,
-                          *boundary, *noise_args, carry, t[j0:j1], mdth[j0:j1], mdv[j0:j1], gimbal[j0:j1],
-                          unused3 if dth is None else dth[j0:j1], unused3 if dv is None else dv[j0:j1], *unused_raw)
+            simulate_pass(k, m, dt, path, _GL_X, _GL_W, opts, model.arrays, boundary, noise_args, carry,
+                          (t[j0:j1], mdth[j0:j1], mdv[j0:j1], gimbal[j0:j1], unused3 if dth is None else dth[j0:j1],
+                           unused3 if dv is None else dv[j0:j1], *unused_raw))
             if thermal is not None:
                 T, rate = scenario.temperature.at(t[j0:j1] - 0.5 * dt)  # the middle of each sample interval
                 a, b = thermal.to_temperature(imu, dt, mdth[j0:j1], mdv[j0:j1], T, rate)
