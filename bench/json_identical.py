@@ -37,6 +37,18 @@ COMMANDS = [
     ("noise", ["noise", "{D}/n25.h5", "--stop", "100", "--channels", "gx,az", "--model", "WN", "--json"]),
     ("compensate", ["compensate", "{D}/n25.h5", "--params", "{D}/params-n25.toml", "--out", "{W}/comp.h5",
                     "--json"]),
+    # every record format out and back in, a calibration out, and the refusals of a format
+    *[(f"export-{f}", ["export", "{D}/n25.h5", "--format", f, "--out", f"{{W}}/x.{s}", "--json"] + extra)
+      for f, s, extra in (("csv", "csv", []), ("psins", "bin", ["--gimbal-out", "{W}/g.csv", "--path-out", "{W}/p.toml"]),
+                          ("mat", "mat", []), ("kf-gins", "txt", []))],
+    *[(f"import-{f}", ["import", f"{{W}}/x.{s}", "--format", f, "--out", f"{{W}}/in-{f}.h5", "--lat", "30.5", "--lon",
+                       "120.5", "--height", "10", "--json"] + extra)
+      for f, s, extra in (("csv", "csv", []), ("psins", "bin", ["--gimbal", "{W}/g.csv"]), ("mat", "mat", []),
+                          ("kf-gins", "txt", []))],
+    ("export-kalibr", ["export", "{D}/params-n25.toml", "--format", "kalibr", "--out", "{W}/k.yaml", "--json"]),
+    ("import-unknown", ["import", "{W}/x.csv", "--format", "xls", "--out", "{W}/u.h5", "--json"]),
+    ("import-dtype", ["import", "{W}/x.csv", "--format", "mat", "--dtype", "float32", "--out", "{W}/u.h5", "--json"]),
+    ("import-no-site", ["import", "{W}/x.csv", "--format", "csv", "--lat", "30", "--out", "{W}/u.h5", "--json"]),
 ]
 
 

@@ -317,9 +317,9 @@ def write_generated_tables(app) -> None:
     if missing:
         raise ExtensionError(f"docs/_ext/inscal_docs.py: no meaning written for the parameters {missing}")
     params = ["| name | unit in files | shape | meaning |", "|---|---|---|---|"]
-    for name, (_obj, _attr, _kind, unit, shape) in PARAMETERS.items():
-        dims = "×".join(str(n) for n in shape) or "scalar"
-        params.append(f"| `{name}` | {unit} | {dims} | {PARAMETER_MEANINGS[name]} |")
+    for name, p in PARAMETERS.items():
+        dims = "×".join(str(n) for n in p.shape) or "scalar"
+        params.append(f"| `{name}` | {p.unit} | {dims} | {PARAMETER_MEANINGS[name]} |")
     params += ["", "Noise (`[noise]`):", "", "| name | unit |", "|---|---|"]
     params += [f"| `{name}` | {unit} |" for name, (_attr, _kind, unit) in NOISE_FIELDS.items()]
     tables = []
