@@ -5,7 +5,7 @@ named parameter values into error-model objects and flat vectors (names of
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -13,11 +13,6 @@ from inscal.calibrate.windows import CalibrationError, WindowSet  # noqa: F401  
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS, GimbalErrors, ImuErrors
 from inscal.core.thermal import ThermalModel
-
-if TYPE_CHECKING:  # the systematic filter's types (its package imports this module)
-    from inscal.calibrate.systematic.kernel import PassOutput
-    from inscal.calibrate.systematic.model_error import ModelError
-    from inscal.calibrate.systematic.states import StateSet
 
 #: Parameters of the linear N25 model the calibration methods work with.
 IMU_LINEAR = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias",
@@ -82,17 +77,20 @@ class CalibrationResult:
     thermal_sigma: dict[str, np.ndarray] = field(default_factory=dict)
     #: the fit of the thermal model (per term chi^2, dof, p-value ...), written to ``[thermal.fit]``
     thermal_fit: dict | None = None
-    # the systematic filter's (None for the other methods):
-    #: its states
-    states: StateSet | None = None
-    #: the frozen model-error factors of its fit (the nested fits of ``--states auto`` share them)
-    model_error: ModelError | None = None
+    # the systematic filter's (None for the other methods; its types are not imported here, its package
+    # imports this module):
+    #: its states (an :class:`inscal.calibrate.systematic.states.StateSet`)
+    states: object | None = None
+    #: the frozen model-error factors of its fit (an :class:`inscal.calibrate.systematic.model_error.ModelError`;
+    #: the nested fits of ``--states auto`` share them)
+    model_error: object | None = None
     #: the formal covariance of its parameter states: ``{"labels": [...], "P": (n, n)}`` (SI)
     covariance: dict | None = None
     #: the estimate as the filter's error state about the nominal (the states of ``covariance``)
     parameter_state: np.ndarray | None = None
-    #: its last pass over the record, kept on request (``keep_passes``: the observability analysis reads it)
-    pass_output: PassOutput | None = None
+    #: its last pass over the record (an :class:`inscal.calibrate.systematic.kernel.PassOutput`), kept on request
+    #: (``keep_passes``: the observability analysis reads it)
+    pass_output: object | None = None
 
     @property
     def fit(self) -> dict | None:

@@ -58,7 +58,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
             from inscal.cli.common import parse_gravity_option
 
             gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
-        return import_file(src, out, fmt, None, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
+        return import_file(src, out, spec, None, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
                            gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
                            config_file=config, temperature_topic=temperature_topic, site_parts=(lat, lon, height))

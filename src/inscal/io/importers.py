@@ -442,7 +442,7 @@ def source_time(src: Path, epoch_ns: int | None = None) -> str:
     return _dt.datetime.fromtimestamp(int(ts), _dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
+def import_file(src, out, fmt: str | Format, site: Site | None = None, mapping_file=None, path_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
@@ -450,6 +450,7 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
                 config_file=None, temperature_topic: str | None = None,
                 site_parts: tuple[float | None, float | None, float | None] | None = None) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
+    ``fmt``: a format's name, or its row of :data:`~inscal.io.formats.REGISTRY` (looked up once).
     ``site_parts``: ``--lat``, ``--lon``, ``--height`` [deg, deg, m] as given (None each where not), in
     place of ``site``: those not given come from the mapping's ``[site]`` (:func:`site_from_options`).
     ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
@@ -465,7 +466,8 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     for rates sampled at their stamps (a bag, ``kind = "sampled-rates"``), the grid and the rule's
     error bound (:mod:`inscal.io.formats.rates`)."""
     src = Path(src)
-    spec = known_format(fmt)
+    spec = fmt if isinstance(fmt, Format) else known_format(fmt)
+    fmt = spec.name
     if not spec.takes("topic") and (topic is not None or stamps != "header" or temperature_topic is not None):
         raise ImportFileError(f"--topic, --stamps and --temperature-topic apply to --format {' or '.join(taking('topic'))}")
     if temperature_topic is not None and temperature_file is not None:

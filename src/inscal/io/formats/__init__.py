@@ -64,9 +64,9 @@ REGISTRY: dict[str, Format] = {f.name: f for f in (
     Format("csv", "text", "csv", "as its mapping says, or the header that `inscal export` writes", mapping="columns",
            delimiter=",", exports=True),
     Format("txt", "text", "whitespace text", "as its mapping says", mapping="columns", delimiter="whitespace"),
-    Format("mat", "mat", ".mat", "the same 7 columns as psins; `--variable NAME` or the first N×7 variable",
+    Format("mat", "mat", "MATLAB .mat", "the same 7 columns as psins; `--variable NAME` or the first N×7 variable",
            options=("variable", "rates"), exports=True),
-    Format("rosbag", "rosbag", "ROS 1 .bag, ROS 2 bag folder", "`sensor_msgs/Imu` messages of `--topic`: rates at "
+    Format("rosbag", "rosbag", "ROS 1 .bag, ROS 2 bag folder or .mcap", "`sensor_msgs/Imu` messages of `--topic`: rates at "
            "their header stamps (`--stamps receive`: the bag's receive times), integrated onto a uniform grid (the "
            "import reports the error bound); `--temperature-topic` for `sensor_msgs/Temperature`",
            options=("topic", "stamps", "temperature_topic"), units=("rad/s", "m/s^2"),

@@ -106,6 +106,8 @@ def check_angles(angles: np.ndarray, dt, where: str, at, names=("outer angle", "
 
 
 def file_bytes(p: FsPath) -> bytes:
+    """The bytes of the source ``p`` after the input checks (:func:`~inscal.io.files.check_input`); an empty
+    file is refused."""
     check_input(p, "file", ImportFileError)
     b = p.read_bytes()
     if not b:

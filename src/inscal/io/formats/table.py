@@ -16,6 +16,7 @@ from inscal.io.mapping import ImportFileError, Mapping
 
 
 def split_fields(line: str, delim: str | None) -> list[str]:
+    """The fields of ``line``: split at ``delim`` and stripped, or at whitespace (``delim`` None)."""
     return line.split() if delim is None else [f.strip() for f in line.split(delim)]
 
 
