@@ -4,33 +4,18 @@
 
 Sources
 -------
-``psins``
-    raw binary (PSINS ``.bin``): little-endian float64 (default) or float32 rows of 7
-    values ``[dθx dθy dθz dvx dvy dvz t]`` (rad, m/s, s), or with ``rates=True`` the
-    rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
-    interval.  ``t`` is the END time of each sample interval (PSINS convention and the
-    record's).
-``psins-imu``
-    PSINS compact text log (``.imu``): a header with the initial attitude, the site, the
-    start time, the sampling interval, g and the scale factors (arcsec and ug*s per count),
-    then integer counts (see :func:`~inscal.io.formats.psins_imu.read_psins_imu`); the site comes from
-    the header unless one is given.
-``mat``
-    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
-    the first 2-D numeric variable with 7 columns, or the named ``variable``.
-``csv``, ``txt``
-    delimited text described by a mapping TOML (below); without a mapping, the file
-    must start with the header line that :func:`export_record` writes.  ``txt``
-    defaults to whitespace-separated columns.
-``rosbag``
-    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file
-    with ``sensor_msgs/Imu`` messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps``
-    header | receive): the rates at the stamps integrated onto a uniform grid by the midpoint
-    rule, with a stated error bound and the increments' noise white when the stamps lie on a
-    grid (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
-``kf-gins``
-    KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
-    block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
+The formats of :data:`inscal.io.formats.REGISTRY`, each read by its own module into a
+:class:`~inscal.io.formats.base.Raw` block that this module checks and writes: ``psins``
+(:mod:`~inscal.io.formats.psins`, PSINS ``.bin`` rows ``[dθ dv t]``, or rates with ``rates=True``;
+``t`` is the END time of each sample interval, the PSINS convention and the record's), ``psins-imu``
+(:mod:`~inscal.io.formats.psins_imu`, the compact ``.imu`` log; its header gives the site unless one
+is given), ``mat`` (:mod:`~inscal.io.formats.mat`), ``csv`` and ``txt`` (:mod:`~inscal.io.formats.text`:
+delimited text through a mapping, below; a csv without one must start with the header that
+:func:`export_record` writes; ``txt`` defaults to whitespace-separated columns), ``rosbag``
+(:mod:`~inscal.io.formats.rosbag`: ``sensor_msgs/Imu`` rates integrated onto a uniform grid by
+:mod:`~inscal.io.formats.rates`; time 0 is the first message's stamp) and ``kf-gins``
+(:mod:`~inscal.io.formats.kfgins`, with its configuration's ``imunoise`` block kept in the record's
+``source``).
 
 Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 
@@ -171,10 +156,9 @@ from inscal.io.formats.base import Raw, RawTemperature, ReadOptions, write_rows
 from inscal.io.formats.kfgins import read_kfgins_noise
 from inscal.io.formats.rosbag import STAMPS, read_bag_temperature
 from inscal.io.formats.sidecars import read_gimbal_file, read_temperature_file
-from inscal.io.mapping import (
+from inscal.io.mapping import (  # noqa: F401  (EXPORT_HEADER*: the export's header, named here for its readers)
     EXPORT_HEADER,
     EXPORT_HEADER_GIMBAL,
-    EXPORT_TEMPERATURE,
     GIMBAL_HEADER,
     TEMPERATURE_TIME_HEADER,
     ImportFileError,
@@ -658,62 +642,22 @@ def _reading_rows(data, temp: Temperature, rate_hz: float, n: int, chunk_size: i
     return rows if np.all(rows >= 0) else None
 
 
-def _temperature_block(temp: Temperature, rows: np.ndarray | None, k0: int, t: np.ndarray) -> np.ndarray:
-    """The csv temperature cells of the samples ``k0 ..`` at times ``t``: the readings on their rows (NaN:
-    an empty cell), or interpolated (``rows`` None)."""
-    if rows is None:
-        return np.column_stack([np.interp(t, temp.time, temp.values[:, s]) for s in range(temp.values.shape[1])])
-    block = np.full((t.shape[0], temp.values.shape[1]), np.nan)
-    a, b = np.searchsorted(rows, [k0, k0 + t.shape[0]])
-    block[rows[a:b] - k0] = temp.values[a:b]
-    return block
-
-
 def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, gtmp: Path | None,
                  rows: np.ndarray | None = None) -> None:
+    """The record ``data`` written to ``tmp`` by the writer of ``fmt``'s module (``write(tmp, chunks, info,
+    rows)``), its gimbal angles to ``gtmp`` (``time, outer, inner``) chunk by chunk as the writer reads them."""
     gfh = open(gtmp, "w") if gtmp is not None else None
     try:
         if gfh is not None:
             gfh.write(",".join(GIMBAL_HEADER) + "\n")
-        if fmt == "mat":
-            import scipy.io
 
-            parts = []
+        def chunks():
             for t, dth, dv, g in iter_chunks(data, chunk_size):
-                parts.append(np.column_stack([dth, dv, t]))
+                yield t, dth, dv, g
                 if gfh is not None:
                     write_rows(gfh, np.column_stack([t, g]))
-            with open(tmp, "wb") as fh:
-                scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
-            return
-        temp = info.temperature if fmt == "csv" else None
-        with open(tmp, "w" if fmt in ("csv", "kf-gins") else "wb") as fh:
-            if fmt == "csv":
-                head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
-                head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
-                fh.write(",".join(head) + "\n")
-                if temp is not None and rows is None:
-                    fh.write(f"# temperature: interpolated linearly onto the sample times from the {temp.time.shape[0]} "
-                             f"readings at their own times (t = {temp.time[0]:.9g} .. {temp.time[-1]:.9g} s; held "
-                             "before the first and after the last)\n")
-                elif temp is not None and temp.time.shape[0] < info.n_samples:
-                    fh.write(f"# temperature: the {temp.time.shape[0]} readings on the rows of their sample times; "
-                             "an empty cell: no reading at that sample\n")
-            blanks = temp is not None and rows is not None and temp.time.shape[0] < info.n_samples
-            k0 = 0
-            for t, dth, dv, g in iter_chunks(data, chunk_size):
-                if fmt == "csv":
-                    cols = [t, dth, dv] + ([g] if g is not None else [])
-                    if temp is not None:
-                        cols.append(_temperature_block(temp, rows, k0, t))
-                    write_rows(fh, np.column_stack(cols), blanks=blanks)
-                elif fmt == "kf-gins":  # KF-GINS IMU text: t, dtheta, dvel (s, rad, m/s)
-                    np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")
-                else:
-                    np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
-                if gfh is not None:
-                    write_rows(gfh, np.column_stack([t, g]))
-                k0 += t.shape[0]
+
+        reader(known_format(fmt, export=True)).write(tmp, chunks(), info, rows)
     finally:
         if gfh is not None:
             gfh.close()

@@ -2,8 +2,10 @@
 
 Each format is a module of this package (``inscal.io.formats.<module>``) with a reader
 ``read(src, options: ReadOptions) -> Raw`` (:mod:`inscal.io.formats.base`): the columns of the source
-converted to SI, not yet checked (the importer checks them, :mod:`inscal.io.importers`).  A module may
-also define ``source_hash(src)`` (the record's provenance hash; default the file's SHA-256).  One row of
+converted to SI, not yet checked (the importer checks them, :mod:`inscal.io.importers`).  A format that
+``inscal export`` writes has a writer ``write(tmp, chunks, info, rows)`` (the record's ``(t, dtheta, dvel,
+gimbal)`` chunks into the file ``tmp``; ``rows``: the csv's temperature rows).  A module may also define
+``source_hash(src)`` (the record's provenance hash; default the file's SHA-256).  One row of
 :data:`REGISTRY` registers it: the command line's ``--format`` choices and help, the importer's checks
 (which options a format takes, what its mapping may hold, where its site comes from) and the formats
 page of the documentation all read the table.

@@ -154,3 +154,11 @@ def read(src, opts: ReadOptions) -> Raw:
     """The reader of :data:`~inscal.io.formats.REGISTRY` (its configuration, ``--config``, is read apart:
     :func:`read_kfgins_noise`)."""
     return read_kfgins_text(Path(src))
+
+
+def write(tmp, chunks, info, rows=None) -> None:
+    """The export writer of :data:`~inscal.io.formats.REGISTRY`: KF-GINS IMU text, rows ``t dθ dv`` (s, rad,
+    m/s) of 17 digits."""
+    with open(tmp, "w") as fh:
+        for t, dth, dv, _ in chunks:
+            np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")

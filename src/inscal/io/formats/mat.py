@@ -69,3 +69,12 @@ def read_mat(path, variable: str | None = None, rates: bool = False) -> Raw:
 def read(src, opts: ReadOptions) -> Raw:
     """The reader of :data:`~inscal.io.formats.REGISTRY`."""
     return read_mat(FsPath(src), opts.variable, opts.rates)
+
+
+def write(tmp, chunks, info, rows=None) -> None:
+    """The export writer of :data:`~inscal.io.formats.REGISTRY`: the variable ``imu``, N x 7 rows ``[dθ dv t]``."""
+    import scipy.io
+
+    parts = [np.column_stack([dth, dv, t]) for t, dth, dv, _ in chunks]
+    with open(tmp, "wb") as fh:
+        scipy.io.savemat(fh, {"imu": np.concatenate(parts)})

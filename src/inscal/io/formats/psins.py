@@ -48,3 +48,10 @@ def read(src, opts: ReadOptions) -> Raw:
     """The reader of :data:`~inscal.io.formats.REGISTRY`: a ``.bin`` file, or a ``.mat`` one by its name."""
     p = FsPath(src)
     return read_mat(p, opts.variable, opts.rates) if p.suffix.lower() == ".mat" else read_psins_bin(p, opts.dtype, opts.rates)
+
+
+def write(tmp, chunks, info, rows=None) -> None:
+    """The export writer of :data:`~inscal.io.formats.REGISTRY`: little-endian float64 rows ``[dθ dv t]``."""
+    with open(tmp, "wb") as fh:
+        for t, dth, dv, _ in chunks:
+            np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)

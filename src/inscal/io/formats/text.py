@@ -11,18 +11,21 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from inscal.core import units
-from inscal.io.formats.base import Raw, RawTemperature, ReadOptions, file_bytes
+from inscal.io.formats.base import Raw, RawTemperature, ReadOptions, file_bytes, write_rows
 from inscal.io.formats.rates import GAP_FACTOR, check_stamps, integrate_rates
 from inscal.io.formats.table import column_index, parse_table
 from inscal.io.mapping import (
     CHANNELS,
     EXPORT_HEADER,
+    EXPORT_HEADER_GIMBAL,
+    EXPORT_TEMPERATURE,
     ImportFileError,
     Mapping,
     decode_counts,
     default_mapping,
     export_layout,
 )
+from inscal.io.records import RecordInfo, Temperature
 
 
 def read_text(path, mapping: Mapping | None, fmt: str = "csv", rate_hz: float | None = None) -> Raw:
@@ -120,3 +123,41 @@ def _sampled_rates(p: FsPath, t, gyro, accel, gim, temp, labels, at, rate_hz: fl
 def read(src, opts: ReadOptions) -> Raw:
     """The reader of :data:`~inscal.io.formats.REGISTRY` (csv and txt)."""
     return read_text(FsPath(src), opts.mapping, opts.fmt, opts.rate_hz)
+
+
+def temperature_block(temp: Temperature, rows: np.ndarray | None, k0: int, t: np.ndarray) -> np.ndarray:
+    """The csv temperature cells of the samples ``k0 ..`` at times ``t``: the readings on their rows (NaN:
+    an empty cell), or interpolated (``rows`` None)."""
+    if rows is None:
+        return np.column_stack([np.interp(t, temp.time, temp.values[:, s]) for s in range(temp.values.shape[1])])
+    block = np.full((t.shape[0], temp.values.shape[1]), np.nan)
+    a, b = np.searchsorted(rows, [k0, k0 + t.shape[0]])
+    block[rows[a:b] - k0] = temp.values[a:b]
+    return block
+
+
+def write(tmp, chunks, info: RecordInfo, rows: np.ndarray | None = None) -> None:
+    """The export writer of :data:`~inscal.io.formats.REGISTRY` (csv): the header with units, then per chunk
+    ``(t, dtheta, dvel, gimbal)`` the rows of 17 digits, with the gimbal columns when recorded and the
+    temperature sensors' columns (``rows``: each reading's sample, None: interpolated onto every sample,
+    said on a comment line under the header)."""
+    temp = info.temperature
+    with open(tmp, "w") as fh:
+        head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
+        head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
+        fh.write(",".join(head) + "\n")
+        if temp is not None and rows is None:
+            fh.write(f"# temperature: interpolated linearly onto the sample times from the {temp.time.shape[0]} "
+                     f"readings at their own times (t = {temp.time[0]:.9g} .. {temp.time[-1]:.9g} s; held "
+                     "before the first and after the last)\n")
+        elif temp is not None and temp.time.shape[0] < info.n_samples:
+            fh.write(f"# temperature: the {temp.time.shape[0]} readings on the rows of their sample times; "
+                     "an empty cell: no reading at that sample\n")
+        blanks = temp is not None and rows is not None and temp.time.shape[0] < info.n_samples
+        k0 = 0
+        for t, dth, dv, g in chunks:
+            cols = [t, dth, dv] + ([g] if g is not None else [])
+            if temp is not None:
+                cols.append(temperature_block(temp, rows, k0, t))
+            write_rows(fh, np.column_stack(cols), blanks=blanks)
+            k0 += t.shape[0]
