@@ -43,7 +43,7 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if spec.folder is not None and src.is_dir():  # a ROS 2 bag is a folder
+    if spec.folder is not None and src.is_dir():  # a source that is a folder (a ROS 2 bag)
         what, marker = spec.folder
         if not (src / marker).is_file():
             raise CliError(f"{src}: a {what} folder holds {marker}, and this one has none")
