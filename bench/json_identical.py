@@ -4,7 +4,8 @@ the code now: byte-identical apart from timings and the output folder.
 ``python bench/json_identical.py --base REV [--quick]`` unpacks ``REV``'s ``src/`` (``git archive``, into
 the system's temporary folder, kept so its numba cache survives between runs), then, once with those
 sources and once with this tree's, runs ``inscal demo --json`` (simulation, Allan, every calibration
-method, navigation) into a folder of its own and each command below on that folder's records.  Each
+method, navigation) into a folder of its own and each command below on that folder's records (with every
+record format exported and imported back, and the refusals of a wrong format).  Each
 JSON output (or a failing command's last line) is canonicalised (the folders' paths replaced by ``<OUT>``
 and ``<WORK>``, every ``elapsed_s``/``wall_s`` timing set to 0, the ``sha256:`` prefixes of record files
 masked: an HDF5 record holds its creation time, so two writes of the same data hash differently) and
