@@ -51,7 +51,7 @@ def nominal(rate_hz: float):
     those the 30-state filter estimates, so that its estimate has no model error) and the station."""
     st = read_station(STATION)
     sc = scenarios.build("s16", rate_hz=rate_hz)
-    imu = ImuErrors(**{PARAMETERS[n][1]: getattr(sc.imu, PARAMETERS[n][1]) for n in NAMES})  # the 30 states' terms
+    imu = ImuErrors(**{PARAMETERS[n].attribute: getattr(sc.imu, PARAMETERS[n].attribute) for n in NAMES})  # the 30 states' terms
     return replace(sc, imu=imu, site=sc.site.with_gravity(st["gravity"].value)), st
 
 

@@ -4,7 +4,8 @@ the code now: byte-identical apart from timings and the output folder.
 ``python bench/json_identical.py --base REV [--quick]`` unpacks ``REV``'s ``src/`` (``git archive``, into
 the system's temporary folder, kept so its numba cache survives between runs), then, once with those
 sources and once with this tree's, runs ``inscal demo --json`` (simulation, Allan, every calibration
-method, navigation) into a folder of its own and each command below on that folder's records.  Each
+method, navigation) into a folder of its own and each command below on that folder's records (with every
+record format exported and imported back, and the refusals of a wrong format).  Each
 JSON output (or a failing command's last line) is canonicalised (the folders' paths replaced by ``<OUT>``
 and ``<WORK>``, every ``elapsed_s``/``wall_s`` timing set to 0, the ``sha256:`` prefixes of record files
 masked: an HDF5 record holds its creation time, so two writes of the same data hash differently; ISO
@@ -56,6 +57,18 @@ COMMANDS = [
                           "--station", "{S}", "--serial", "U1", "--db", "{W}/lab.sqlite", "--supersedes", "1",
                           "--temperature-c", "21.5", "--json"]),
     ("db-budget", ["db", "budget", "U1", "--db", "{W}/lab.sqlite", "--json"]),
+    # every record format out and back in, a calibration out, and the refusals of a format
+    *[(f"export-{f}", ["export", "{D}/n25.h5", "--format", f, "--out", f"{{W}}/x.{s}", "--json"] + extra)
+      for f, s, extra in (("csv", "csv", []), ("psins", "bin", ["--gimbal-out", "{W}/g.csv", "--path-out", "{W}/p.toml"]),
+                          ("mat", "mat", []), ("kf-gins", "txt", []))],
+    *[(f"import-{f}", ["import", f"{{W}}/x.{s}", "--format", f, "--out", f"{{W}}/in-{f}.h5", "--lat", "30.5", "--lon",
+                       "120.5", "--height", "10", "--json"] + extra)
+      for f, s, extra in (("csv", "csv", []), ("psins", "bin", ["--gimbal", "{W}/g.csv"]), ("mat", "mat", []),
+                          ("kf-gins", "txt", []))],
+    ("export-kalibr", ["export", "{D}/params-n25.toml", "--format", "kalibr", "--out", "{W}/k.yaml", "--json"]),
+    ("import-unknown", ["import", "{W}/x.csv", "--format", "xls", "--out", "{W}/u.h5", "--json"]),
+    ("import-dtype", ["import", "{W}/x.csv", "--format", "mat", "--dtype", "float32", "--out", "{W}/u.h5", "--json"]),
+    ("import-no-site", ["import", "{W}/x.csv", "--format", "csv", "--lat", "30", "--out", "{W}/u.h5", "--json"]),
 ]
 #: the station file of the budget's commands (the tests' typical station)
 STATION = ROOT / "tests" / "data" / "station.toml"

@@ -75,14 +75,15 @@ def errors(res, sc) -> dict:
             if name in formal:  # the smoothed (formal) sigma, before any misfit scaling
                 from inscal.core import units
 
-                s = np.ravel(units.from_si(np.asarray(formal[name], float), PARAMETERS[name][3]))
+                s = np.ravel(units.from_si(np.asarray(formal[name], float), PARAMETERS[name].unit))
             ok = np.isfinite(s)
             out[name] = (e[ok], s[ok])
         else:
             from inscal.core import units
 
-            obj, attr, _, unit, _ = PARAMETERS[name]
-            t = np.ravel(units.from_si(np.asarray(getattr(sc.imu if obj == "imu" else sc.gimbal, attr), float), unit))
+            p = PARAMETERS[name]
+            t = np.ravel(units.from_si(np.asarray(getattr(sc.imu if p.group == "imu" else sc.gimbal, p.attribute), float),
+                                       p.unit))
             if name == "accel_lever_arm":
                 t = t[[0, 4, 8]]
             out[name] = (np.abs(t), None)
@@ -120,7 +121,7 @@ def main(argv=None) -> int:
              "|---|---|" + "---|" * (len(RUNS) + 2)]
     table = {}
     for name, label in GROUPS:
-        unit = PARAMETERS[name][3]
+        unit = PARAMETERS[name].unit
         row = [label, unit]
         table[name] = {}
         for run in RUNS:

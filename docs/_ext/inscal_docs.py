@@ -506,20 +506,27 @@ PARAMETER_MEANINGS = {
 
 
 def write_generated_tables(app) -> None:
-    """The parameter table (from :data:`inscal.core.error_model.PARAMETERS`) and the database tables
-    (from :mod:`inscal.lab.schema`), included by ``reference/formats.md``."""
+    """The parameter table (from :data:`inscal.core.error_model.PARAMETERS`), the import formats (from
+    :data:`inscal.io.formats.REGISTRY`) and the database tables (from :mod:`inscal.lab.schema`), included by
+    ``reference/formats.md``."""
     from inscal.core.error_model import NOISE_FIELDS, PARAMETERS
+    from inscal.io.formats import REGISTRY
     from inscal.lab import schema
 
     missing = sorted(set(PARAMETERS) - set(PARAMETER_MEANINGS))
     if missing:
         raise ExtensionError(f"docs/_ext/inscal_docs.py: no meaning written for the parameters {missing}")
     params = ["| name | unit in files | shape | meaning |", "|---|---|---|---|"]
-    for name, (_obj, _attr, _kind, unit, shape) in PARAMETERS.items():
-        dims = "×".join(str(n) for n in shape) or "scalar"
-        params.append(f"| `{name}` | {unit} | {dims} | {PARAMETER_MEANINGS[name]} |")
+    for name, p in PARAMETERS.items():
+        dims = "×".join(str(n) for n in p.shape) or "scalar"
+        params.append(f"| `{name}` | {p.unit} | {dims} | {PARAMETER_MEANINGS[name]} |")
     params += ["", "Noise (`[noise]`):", "", "| name | unit |", "|---|---|"]
     params += [f"| `{name}` | {unit} |" for name, (_attr, _kind, unit) in NOISE_FIELDS.items()]
+    formats = ["| `--format` | file | rows | mapping | options | export |", "|---|---|---|---|---|---|"]
+    for f in REGISTRY.values():
+        opts = ", ".join(f"`--{o.replace('_', '-')}`" for o in f.options) or "—"
+        held = "columns, units, axes, `[site]`" if f.mapping == "columns" else "`[site]` only"
+        formats.append(f"| `{f.name}` | {f.source} | {f.rows} | {held} | {opts} | {'yes' if f.exports else ''} |")
     tables = []
     for table in schema.metadata.sorted_tables:
         tables += [f"**`{table.name}`**", "", "| column | type | null | references |", "|---|---|---|---|"]
@@ -530,7 +537,7 @@ def write_generated_tables(app) -> None:
         tables.append("")
     out = Path(app.srcdir) / "reference" / "generated"
     out.mkdir(exist_ok=True)
-    for file, lines in (("parameters.md", params), ("database.md", tables)):
+    for file, lines in (("parameters.md", params), ("formats.md", formats), ("database.md", tables)):
         text = "\n".join(lines) + "\n"
         path = out / file
         if not path.is_file() or path.read_text(encoding="utf-8") != text:

@@ -24,8 +24,9 @@ def parameter_errors(imu: ImuErrors, gimbal: GimbalErrors | None, true_imu: ImuE
     parameters ``names``."""
     out = {}
     for name in names:
-        obj, attr, kind, unit, shape = PARAMETERS[name]
-        est_src, true_src = (imu, true_imu) if obj == "imu" else (gimbal, true_gimbal)
+        p = PARAMETERS[name]
+        attr, unit = p.attribute, p.unit
+        est_src, true_src = (imu, true_imu) if p.group == "imu" else (gimbal, true_gimbal)
         if est_src is None:
             continue
         err = units.from_si(np.asarray(getattr(est_src, attr), float) - np.asarray(getattr(true_src, attr), float), unit)
@@ -58,7 +59,7 @@ def result_errors(res, true_imu: ImuErrors, true_gimbal: GimbalErrors) -> tuple[
     out: they are not estimates, so their (zero) error says nothing.  Parameters a method does
     not estimate (the gimbal, for the systematic filter) are absent, never zero errors.
     Sigmas are returned where the result has them (NaN placeholders are dropped)."""
-    transform = getattr(res, "truth_transform", None)
+    transform = res.truth_transform
     ti, tg = transform((true_imu, true_gimbal)) if transform is not None else (true_imu, true_gimbal)
     names = estimated_parameter_names(res)
     err = parameter_errors(res.imu, res.gimbal, ti, tg, names)
@@ -67,7 +68,7 @@ def result_errors(res, true_imu: ImuErrors, true_gimbal: GimbalErrors) -> tuple[
     for name in names:
         if name not in sigma:
             continue
-        v = np.ravel(units.from_si(np.asarray(sigma[name], float), PARAMETERS[name][3]))
+        v = np.ravel(units.from_si(np.asarray(sigma[name], float), PARAMETERS[name].unit))
         comps = parameter_components(name)
         if v.size != len(comps):
             continue

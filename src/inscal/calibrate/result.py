@@ -22,8 +22,8 @@ GIMBAL = ("gimbal_nonorthogonality", "mount_attitude")
 
 def param_value(imu: ImuErrors, gimbal: GimbalErrors, name: str) -> np.ndarray:
     """The value of parameter ``name`` (SI, its shape in :data:`~inscal.core.error_model.PARAMETERS`) from the IMU or gimbal errors."""
-    obj, attr, _, _, _ = PARAMETERS[name]
-    return np.asarray(getattr(imu if obj == "imu" else gimbal, attr), dtype=float)
+    p = PARAMETERS[name]
+    return np.asarray(getattr(imu if p.group == "imu" else gimbal, p.attribute), dtype=float)
 
 
 def flatten(imu: ImuErrors, gimbal: GimbalErrors, names) -> np.ndarray:
@@ -33,14 +33,14 @@ def flatten(imu: ImuErrors, gimbal: GimbalErrors, names) -> np.ndarray:
 
 def nparams(names) -> int:
     """The number of scalar components of the parameters ``names``."""
-    return sum(int(np.prod(PARAMETERS[n][4])) if PARAMETERS[n][4] else 1 for n in names)
+    return sum(PARAMETERS[n].size for n in names)
 
 
 def unflatten(vec, names) -> dict[str, np.ndarray]:
     """The inverse of :func:`flatten`: ``{name: value}`` (SI, each in its shape; a scalar parameter as a float)."""
     out, k = {}, 0
     for n in names:
-        shape = PARAMETERS[n][4]
+        shape = PARAMETERS[n].shape
         size = int(np.prod(shape)) if shape else 1
         out[n] = np.asarray(vec[k:k + size], float).reshape(shape) if shape else float(vec[k])
         k += size
@@ -119,6 +119,20 @@ class CalibrationResult:
     thermal_sigma: dict[str, np.ndarray] = field(default_factory=dict)
     #: the fit of the thermal model (per term chi^2, dof, p-value ...), written to ``[thermal.fit]``
     thermal_fit: dict | None = None
+    # the systematic filter's (None for the other methods; its types are not imported here, its package
+    # imports this module):
+    #: its states (an :class:`inscal.calibrate.systematic.states.StateSet`)
+    states: object | None = None
+    #: the frozen model-error factors of its fit (an :class:`inscal.calibrate.systematic.model_error.ModelError`;
+    #: the nested fits of ``--states auto`` share them)
+    model_error: object | None = None
+    #: the formal covariance of its parameter states: ``{"labels": [...], "P": (n, n)}`` (SI)
+    covariance: dict | None = None
+    #: the estimate as the filter's error state about the nominal (the states of ``covariance``)
+    parameter_state: np.ndarray | None = None
+    #: its last pass over the record (an :class:`inscal.calibrate.systematic.kernel.PassOutput`), kept on request
+    #: (``keep_passes``: the observability analysis reads it)
+    pass_output: object | None = None
 
     @property
     def fit(self) -> dict | None:
@@ -158,7 +172,7 @@ class CalibrationResult:
         formal = self.diagnostics.get("formal_sigma") or {}
         out = {}
         for name in self.estimated:
-            unit = PARAMETERS[name][3]
+            unit = PARAMETERS[name].unit
             conv = lambda v: np.atleast_1d(units.from_si(np.asarray(v, dtype=float), unit)).tolist()  # noqa: E731
             entry = {"value": conv(self.value(name)), "sigma": conv(self.sigma.get(name, np.nan)), "unit": unit}
             if name in formal and self.sigma_scaled(name):
@@ -180,13 +194,13 @@ def make_result(method: str, values: dict, sigma: dict, estimated, ws: WindowSet
     """Assemble a result from ``values[name]`` (SI) for the estimated names."""
     imu_kw, gim_kw = {}, {}
     for name, v in values.items():
-        obj, attr, _, _, _ = PARAMETERS[name]
-        (imu_kw if obj == "imu" else gim_kw)[attr] = v
+        p = PARAMETERS[name]
+        (imu_kw if p.group == "imu" else gim_kw)[p.attribute] = v
     return CalibrationResult(method, ImuErrors(**imu_kw), GimbalErrors(**gim_kw), sigma, tuple(estimated), ws,
                              diagnostics or {}, list(notes or []))
 
 
 def errors_from_values(vals: dict):
     """``(ImuErrors, GimbalErrors)`` from ``{parameter name: value}`` (names of :data:`PARAMETERS`)."""
-    return ImuErrors(**{PARAMETERS[n][1]: v for n, v in vals.items() if PARAMETERS[n][0] == "imu"}), GimbalErrors(
-        **{PARAMETERS[n][1]: v for n, v in vals.items() if PARAMETERS[n][0] == "gimbal"})
+    return ImuErrors(**{PARAMETERS[n].attribute: v for n, v in vals.items() if PARAMETERS[n].group == "imu"}), GimbalErrors(
+        **{PARAMETERS[n].attribute: v for n, v in vals.items() if PARAMETERS[n].group == "gimbal"})

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Callable
 
 from inscal.cli.common import CliError
+from inscal.io.formats import taking
 
 SYSTEMATIC = ("systematic51", "systematic30", "unified")
 NO_TABLE = ("multi-position", "ferraris")
@@ -65,9 +66,9 @@ RULES: dict[str, tuple[Rule, ...]] = {
              "--channels)"),
     ),
     "import": (
-        Rule("rates", _fmt("psins", "mat"), "--format psins or mat (for csv/txt set kind = \"rates\" in the mapping; "
-             "kf-gins and rosbag files say what they hold)"),
-        Rule("dtype", _fmt("psins"), "--format psins (.bin)"),
+        Rule("rates", _fmt(*taking("rates")), f"--format {' or '.join(taking('rates'))} (for csv/txt set kind = "
+             "\"rates\" in the mapping; kf-gins and rosbag files say what they hold)"),
+        Rule("dtype", _fmt(*taking("dtype")), f"--format {' or '.join(taking('dtype'))} (.bin)"),
     ),
 }
 

@@ -90,21 +90,14 @@ def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: 
 
 
 def read_record(path: Path):
-    """``io.read_record`` with every failure of a malformed record (a missing attribute, a
-    non-numeric dataset) turned into a one-line :class:`CliError`."""
+    """The record of ``path`` (:func:`inscal.io.records.load_record`: a malformed record, increments that are
+    not floating point) with every failure a one-line :class:`CliError`."""
     from inscal import io
 
     try:
-        rec = io.read_record(path)
+        return io.load_record(path, short)
     except io.DataFileError as exc:
         raise CliError(str(exc)) from None
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CliError(f"{short(path)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
-    bad = [n for n in ("dtheta", "dvel") if not np.issubdtype(np.asarray(getattr(rec, n)).dtype, np.floating)]
-    if bad:
-        raise CliError(f"{short(path)}: {', '.join(bad)} must be floating point (rad, m/s), got "
-                       f"{np.asarray(getattr(rec, bad[0])).dtype}")
-    return rec
 
 
 #: echoed user strings longer than this are cut (a 100,000-character name is not echoed in full)

@@ -161,12 +161,12 @@ def _systematic_stage(out, force, seed, quick, show_progress, log, res):
             if e:
                 groups[g] = {"mean_abs_error": float(np.mean(e)), "estimated": True}
             elif g in S16_TABLE2:  # not estimated: the whole error stays (S16 form: diagonal lever arm)
-                v = np.asarray(getattr(true_m, PARAMETERS[g][1]), float)
+                v = np.asarray(getattr(true_m, PARAMETERS[g].attribute), float)
                 v = np.diag(v) if g == "accel_lever_arm" else v
-                groups[g] = {"mean_abs_error": float(np.mean(np.abs(units.from_si(v, PARAMETERS[g][3])))),
+                groups[g] = {"mean_abs_error": float(np.mean(np.abs(units.from_si(v, PARAMETERS[g].unit)))),
                              "estimated": False}
             if g in groups:
-                groups[g].update(unit=PARAMETERS[g][3], s16=S16_TABLE2.get(g))
+                groups[g].update(unit=PARAMETERS[g].unit, s16=S16_TABLE2.get(g))
         inn = r.diagnostics["innovations"]
         res["steps"]["systematic_s16"][method] = {
             "groups": groups, "out": str(dest), "nis_mean": inn["nis_mean"], "passes": len(r.diagnostics["passes"]),
@@ -205,7 +205,7 @@ def _components(r, err: dict, sig: dict) -> dict:
             continue
         out[name] = {"value": [float(x) for x in np.ravel(est[name]["value"])],
                      "sigma": [sig.get(k, math.nan) for k in keys], "error": [err.get(k, math.nan) for k in keys],
-                     "unit": PARAMETERS[name][3]}
+                     "unit": PARAMETERS[name].unit}
     return out
 
 

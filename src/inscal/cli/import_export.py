@@ -16,33 +16,7 @@ from pathlib import Path
 import typer
 
 from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
-
-
-def _site(lat: float | None, lon: float | None, height: float | None, mapping: Path | None, fmt: str):
-    """The site from --lat/--lon/--height, completed by the mapping's [site]; None: from the mapping / missing."""
-    from inscal.core.earth import Site
-    from inscal.core.units import DEG
-    from inscal.io.mapping import load_mapping
-
-    given = {"--lat": lat, "--lon": lon, "--height": height}
-    if all(v is None for v in given.values()):
-        return None
-    base = None
-    if mapping is not None:
-        base = load_mapping(mapping, fmt)[1]
-    if base is None and any(v is None for v in given.values()):
-        missing = [k for k, v in given.items() if v is None]
-        raise CliError(f"give --lat, --lon and --height together (missing {', '.join(missing)}), "
-                       "or a [site] table in the mapping")
-    for k, v in given.items():
-        if v is not None and not math.isfinite(v):
-            raise CliError(f"{k} must be finite, got {v}")
-    try:
-        return Site((lat if lat is not None else base.latitude / DEG) * DEG,
-                    (lon if lon is not None else base.longitude / DEG) * DEG,
-                    height if height is not None else base.height)
-    except ValueError as exc:
-        raise CliError(str(exc)) from None
+from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
 def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path: Path | None = None,
@@ -56,11 +30,12 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
-    from inscal.io.mapping import FORMATS, ImportFileError
+    from inscal.io.mapping import ImportFileError
     from inscal.io.records import DataFileError
 
-    if fmt not in FORMATS:
-        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+    spec = REGISTRY.get(fmt)
+    if spec is None:
+        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(REGISTRY)}")
     bad = sorted(set(skip or ()) - set(SKIPPABLE))
     if bad:
         raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(SKIPPABLE)}")
@@ -68,25 +43,25 @@ def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path
         raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
     if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
         raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if fmt == "rosbag" and src.is_dir():  # a ROS 2 bag is a folder
-        if not (src / "metadata.yaml").is_file():
-            raise CliError(f"{src}: a ROS 2 bag folder holds metadata.yaml, and this one has none")
+    if spec.folder is not None and src.is_dir():  # a source that is a folder (a ROS 2 bag)
+        what, marker = spec.folder
+        if not (src / marker).is_file():
+            raise CliError(f"{src}: a {what} folder holds {marker}, and this one has none")
     elif (msg := input_problem(src, "file")) is not None:
         raise CliError(msg)
     check_output(out, force)
     check_not_input(out, src, role="source file")
     check_not_input(out, mapping, path, gimbal, temperature, config)
     try:
-        site = _site(lat, lon, height, mapping, fmt)
         gmodel = None
         if gravity is not None:
             from inscal.cli.common import parse_gravity_option
 
             gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
-        return import_file(src, out, fmt, site, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
+        return import_file(src, out, spec, None, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
                            variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
                            gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
-                           config_file=config, temperature_topic=temperature_topic)
+                           config_file=config, temperature_topic=temperature_topic, site_parts=(lat, lon, height))
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         msg = str(exc)
         if config is not None and rate_hz is None:  # the rate came from the configuration, not from an option
@@ -143,10 +118,11 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
     from inscal.io.exports.calibration import CALIBRATION_FORMATS, NOISE_FORMATS
     from inscal.io.files import input_problem
     from inscal.io.importers import export_record
-    from inscal.io.mapping import EXPORT_FORMATS, ImportFileError
+    from inscal.io.mapping import ImportFileError
     from inscal.io.records import DataFileError
 
-    known = list(EXPORT_FORMATS) + [f for f in list(CALIBRATION_FORMATS) + list(NOISE_FORMATS) if f not in EXPORT_FORMATS]
+    record_formats = export_formats()
+    known = list(record_formats) + [f for f in list(CALIBRATION_FORMATS) + list(NOISE_FORMATS) if f not in record_formats]
     if fmt not in known:
         raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(known)}")
     if (msg := input_problem(data, "data file")) is not None:
@@ -158,9 +134,9 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
         if gimbal_out or path_out or temperature_out:
             raise CliError("--gimbal-out, --path-out and --temperature-out apply to a record")
         return run_export_calibration(data, fmt, out, force)
-    if fmt not in EXPORT_FORMATS:
+    if fmt not in record_formats:
         raise CliError(f"{data} is a record; --format {fmt} exports a parameter file (a record exports as "
-                       f"{' | '.join(EXPORT_FORMATS)})")
+                       f"{' | '.join(record_formats)})")
     named = {"the outputs": out, "--gimbal-out": gimbal_out, "--path-out": path_out, "--temperature-out": temperature_out}
     outs = [(what, p) for what, p in named.items() if p is not None]
     for _, p in outs:
@@ -180,9 +156,8 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
 def register(app: typer.Typer) -> None:
     @app.command("import")
     def import_(
-        src: Path = typer.Argument(..., help="source file (PSINS .bin / .mat, csv, whitespace text, KF-GINS text, "
-                                   "ROS 1 .bag, ROS 2 bag folder)"),
-        fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt | rosbag | kf-gins"),
+        src: Path = typer.Argument(..., help=f"source file ({source_help()})"),
+        fmt: str = typer.Option(..., "--format", "-f", help=import_help()),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
         mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
         path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
@@ -272,7 +247,7 @@ def register(app: typer.Typer) -> None:
     @app.command("export")
     def export(
         data: Path = typer.Argument(..., help="HDF5 record, or a calibration parameter file (TOML)"),
-        fmt: str = typer.Option(..., "--format", "-f", help="a record: csv | psins | mat | kf-gins; a parameter "
+        fmt: str = typer.Option(..., "--format", "-f", help=f"a record: {' | '.join(export_formats())}; a parameter "
                                 "file: kalibr | imucal | imu-tk (--out NAME_acc.calib, and NAME_gyro.calib) | "
                                 "kf-gins | c; a noise model (inscal noise --out noise.toml): kalibr (imu.yaml) | "
                                 "kf-gins (imunoise) | matlab (gyroparams/accelparams)"),

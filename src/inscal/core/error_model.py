@@ -472,9 +472,34 @@ class ImuNoise:
 
 
 # ----------------------------------------------------------------------------------
-#: Parameter registry: name -> (object, attribute, unit kind, field unit, shape).
+@dataclass(frozen=True)
+class ParameterDef:
+    """One parameter of the error model: its value is the attribute ``attribute`` of the ``group``'s errors
+    (``"imu"``: :class:`ImuErrors`, ``"gimbal"``: :class:`GimbalErrors`), of unit kind ``kind``
+    (:mod:`inscal.core.units`), written in the field unit ``unit`` (files, reports, the command line) and of
+    shape ``shape`` (``()``: a scalar).  It unpacks as the tuple ``(group, attribute, kind, unit, shape)``."""
+
+    group: str
+    attribute: str
+    kind: str
+    unit: str
+    shape: tuple
+
+    @property
+    def size(self) -> int:
+        """The number of scalar components (1 for a scalar)."""
+        return int(np.prod(self.shape)) if self.shape else 1
+
+    def __iter__(self):
+        return iter((self.group, self.attribute, self.kind, self.unit, self.shape))
+
+    def __getitem__(self, index):
+        return tuple(self)[index]
+
+
+#: Parameter registry: name -> its :class:`ParameterDef` (group, attribute, unit kind, field unit, shape).
 #: The field units are what files, reports and the CLI use; conversion is in units.py.
-PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
+PARAMETERS: dict[str, ParameterDef] = {name: ParameterDef(*spec) for name, spec in {
     "gyro_scale_factor": ("imu", "gyro_scale_factor", "dimensionless", "ppm", (3,)),
     "gyro_misalignment": ("imu", "gyro_misalignment", "angle", "arcsec", (6,)),
     "gyro_bias": ("imu", "gyro_bias", "rate", "deg/h", (3,)),
@@ -488,7 +513,7 @@ PARAMETERS: dict[str, tuple[str, str, str, str, tuple]] = {
     "time_asynchrony": ("imu", "time_asynchrony", "time", "ms", ()),
     "gimbal_nonorthogonality": ("gimbal", "nonorthogonality", "angle", "arcsec", ()),
     "mount_attitude": ("gimbal", "mount_attitude", "angle", "arcsec", (3,)),
-}
+}.items()}
 
 #: the noise parameters of a ``[noise]`` table: name -> (attribute, unit kind, field unit)
 NOISE_FIELDS: dict[str, tuple[str, str, str]] = {
@@ -532,24 +557,24 @@ def errors_from_field(d: dict) -> tuple[ImuErrors, GimbalErrors]:
         raise ValueError(f"unknown parameter(s) {sorted(unknown)}; known: {', '.join(PARAMETERS)}")
     imu, gim = {}, {}
     for name, entry in d.items():
-        obj, attr, kind, unit, shape = PARAMETERS[name]
-        val = _parse_entry(name, entry, kind, unit)
-        if obj == "imu":
-            imu[attr] = val
+        p = PARAMETERS[name]
+        val = _parse_entry(name, entry, p.kind, p.unit)
+        if p.group == "imu":
+            imu[p.attribute] = val
         else:
-            gim[attr] = val
+            gim[p.attribute] = val
     return ImuErrors(**imu), GimbalErrors(**gim)
 
 
 def errors_to_field(imu: ImuErrors | None, gimbal: GimbalErrors | None = None) -> dict:
     """Inverse of :func:`errors_from_field`: ``{name: {"value": ..., "unit": ...}}``."""
     out = {}
-    for name, (obj, attr, kind, unit, shape) in PARAMETERS.items():
-        src = imu if obj == "imu" else gimbal
+    for name, p in PARAMETERS.items():
+        src = imu if p.group == "imu" else gimbal
         if src is None:
             continue
-        v = units.from_si(np.asarray(getattr(src, attr), dtype=float), unit)
-        out[name] = {"value": v.tolist(), "unit": unit}
+        v = units.from_si(np.asarray(getattr(src, p.attribute), dtype=float), p.unit)
+        out[name] = {"value": v.tolist(), "unit": p.unit}
     return out
 
 
@@ -676,7 +701,7 @@ def split_scale_misalignment(M) -> tuple[np.ndarray, np.ndarray]:
 # --------------------------------------------------------------------------- parameters
 def parameter_components(name: str) -> list[str]:
     """Component labels of a registry parameter (``accel_bias`` -> x, y, z ...)."""
-    shape = PARAMETERS[name][4]
+    shape = PARAMETERS[name].shape
     if shape == ():
         return [""]
     if name.endswith("misalignment"):

@@ -2,7 +2,7 @@
 physically possible values, constant or saturated channels, increment magnitudes against Earth rate
 and gravity, encoder angles against the gyros.
 
-Physical limits (:func:`check_values`, :func:`~inscal.io.formats.check_angles`; constants in
+Physical limits (:func:`check_values`, :func:`~inscal.io.formats.base.check_angles`; constants in
 :mod:`inscal.io.mapping`; not skippable: a value beyond them is not IMU data, and the arithmetic
 downstream would only overflow): an angular rate of ``MAX_RATE`` (100 rev/s = 36,000 deg/s, an
 order above the widest-range MEMS gyros and 36 times a fast turntable's 1,000 deg/s), a specific
@@ -35,7 +35,7 @@ from inscal.core import earth, units
 from inscal.core.earth import Site
 from inscal.core.units import DEG
 from inscal.io.encoders import EncoderCheck, compare_encoders
-from inscal.io.formats import Raw, RawTemperature, check_angles
+from inscal.io.formats.base import Raw, RawTemperature, check_angles
 from inscal.io.mapping import (
     CHECKS,
     JITTER_TOL,

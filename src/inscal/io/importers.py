@@ -4,33 +4,18 @@
 
 Sources
 -------
-``psins``
-    raw binary (PSINS ``.bin``): little-endian float64 (default) or float32 rows of 7
-    values ``[dθx dθy dθz dvx dvy dvz t]`` (rad, m/s, s), or with ``rates=True`` the
-    rate form ``[wx wy wz fx fy fz t]`` (rad/s, m/s^2, s), multiplied by the sample
-    interval.  ``t`` is the END time of each sample interval (PSINS convention and the
-    record's).
-``psins-imu``
-    PSINS compact text log (``.imu``): a header with the initial attitude, the site, the
-    start time, the sampling interval, g and the scale factors (arcsec and ug*s per count),
-    then integer counts (see :func:`~inscal.io.formats.read_psins_imu`); the site comes from
-    the header unless one is given.
-``mat``
-    MATLAB ``.mat`` (v4-v7 via scipy.io, v7.3 via h5py) with the same 7-column rows:
-    the first 2-D numeric variable with 7 columns, or the named ``variable``.
-``csv``, ``txt``
-    delimited text described by a mapping TOML (below); without a mapping, the file
-    must start with the header line that :func:`export_record` writes.  ``txt``
-    defaults to whitespace-separated columns.
-``rosbag``
-    a ROS 1 ``.bag``, a ROS 2 bag folder (SQLite3 or MCAP storage) or a plain ``.mcap`` file
-    with ``sensor_msgs/Imu`` messages (:mod:`inscal.io.formats.rosbag`; ``topic``, ``stamps``
-    header | receive): the rates at the stamps integrated onto a uniform grid by the midpoint
-    rule, with a stated error bound and the increments' noise white when the stamps lie on a
-    grid (:mod:`inscal.io.formats.rates`); time 0 is the first message's stamp.
-``kf-gins``
-    KF-GINS IMU text, rows ``t dθ dv`` (s, rad, m/s), with its configuration's ``imunoise``
-    block kept in the record's ``source`` (:mod:`inscal.io.formats.kfgins`).
+The formats of :data:`inscal.io.formats.REGISTRY`, each read by its own module into a
+:class:`~inscal.io.formats.base.Raw` block that this module checks and writes: ``psins``
+(:mod:`~inscal.io.formats.psins`, PSINS ``.bin`` rows ``[dθ dv t]``, or rates with ``rates=True``;
+``t`` is the END time of each sample interval, the PSINS convention and the record's), ``psins-imu``
+(:mod:`~inscal.io.formats.psins_imu`, the compact ``.imu`` log; its header gives the site unless one
+is given), ``mat`` (:mod:`~inscal.io.formats.mat`), ``csv`` and ``txt`` (:mod:`~inscal.io.formats.text`:
+delimited text through a mapping, below; a csv without one must start with the header that
+:func:`export_record` writes; ``txt`` defaults to whitespace-separated columns), ``rosbag``
+(:mod:`~inscal.io.formats.rosbag`: ``sensor_msgs/Imu`` rates integrated onto a uniform grid by
+:mod:`~inscal.io.formats.rates`; time 0 is the first message's stamp) and ``kf-gins``
+(:mod:`~inscal.io.formats.kfgins`, with its configuration's ``imunoise`` block kept in the record's
+``source``).
 
 Mapping TOML (csv / txt; every key is checked, unknown keys are errors)::
 
@@ -91,7 +76,7 @@ refused with one line.  Whitespace text has no empty cells: every row needs its 
 Readings at their own times may also come from a separate file (``temperature_file``, ``inscal
 import --temperature``): a header row ``time [s],NAME [degC],...`` naming each sensor's column with its
 unit (time s | ms | min | h; degC | K | degF), then increasing times, comma or whitespace separated
-(:func:`~inscal.io.formats.read_temperature_file`); they are shifted with the samples to the path
+(:func:`~inscal.io.formats.sidecars.read_temperature_file`); they are shifted with the samples to the path
 start and must overlap the record.
 
 Gimbal angles from encoders at another rate (``gimbal_file``: columns time, outer, inner;
@@ -166,25 +151,14 @@ from inscal.io.checks import (
 )
 from inscal.io.encoders import apply_latency, small_latency
 from inscal.io.files import atomic_path, file_hash
-from inscal.io.formats.kfgins import read_kfgins_noise, read_kfgins_text
-from inscal.io.formats.rosbag import STAMPS, bag_hash, read_bag, read_bag_temperature
-from inscal.io.formats import (
-    Raw,
-    RawTemperature,
-    read_gimbal_file,
-    read_mat,
-    read_psins_bin,
-    read_psins_imu,
-    read_temperature_file,
-    read_text,
-    write_rows,
-)
-from inscal.io.mapping import (
-    EXPORT_FORMATS,
+from inscal.io.formats import Format, UnknownFormat, format_spec, reader, taking, with_mapping
+from inscal.io.formats.base import Raw, RawTemperature, ReadOptions, write_rows
+from inscal.io.formats.kfgins import read_kfgins_noise
+from inscal.io.formats.rosbag import STAMPS, read_bag_temperature
+from inscal.io.formats.sidecars import read_gimbal_file, read_temperature_file
+from inscal.io.mapping import (  # noqa: F401  (EXPORT_HEADER*: the export's header, named here for its readers)
     EXPORT_HEADER,
     EXPORT_HEADER_GIMBAL,
-    EXPORT_TEMPERATURE,
-    FORMATS,
     GIMBAL_HEADER,
     TEMPERATURE_TIME_HEADER,
     ImportFileError,
@@ -206,24 +180,45 @@ from inscal.io.records import (
 
 
 # ----------------------------------------------------------------------------- import
-def read_source(src, fmt: str, mapping: Mapping | None = None, dtype: str = "float64", variable: str | None = None,
-                rates: bool = False, topic: str | None = None, stamps: str = "header",
+def read_source(src, fmt: str | Format, mapping: Mapping | None = None, dtype: str = "float64",
+                variable: str | None = None, rates: bool = False, topic: str | None = None, stamps: str = "header",
                 rate_hz: float | None = None) -> Raw:
-    """Read ``src`` in ``fmt`` (see the module docstring) into a :class:`Raw`."""
-    if fmt not in FORMATS:
-        raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
-    p = Path(src)
-    if fmt == "rosbag":
-        return read_bag(p, topic, stamps, rate_hz)[0]
-    if fmt == "kf-gins":
-        return read_kfgins_text(p)
-    if fmt == "psins":
-        return read_mat(p, variable, rates) if p.suffix.lower() == ".mat" else read_psins_bin(p, dtype, rates)
-    if fmt == "mat":
-        return read_mat(p, variable, rates)
-    if fmt == "psins-imu":
-        return read_psins_imu(p)
-    return read_text(p, mapping, fmt, rate_hz)
+    """Read ``src`` in ``fmt`` (a name or a row of :data:`~inscal.io.formats.REGISTRY`; see the module
+    docstring) into a :class:`Raw`, by the format's own reader."""
+    spec = fmt if isinstance(fmt, Format) else known_format(fmt)
+    opts = ReadOptions(spec.name, mapping, dtype, variable, rates, topic, stamps, rate_hz)
+    return reader(spec).read(Path(src), opts)
+
+
+def known_format(fmt: str, export: bool = False) -> Format:
+    """The row of ``fmt`` in :data:`~inscal.io.formats.REGISTRY`; an unknown one is an :class:`ImportFileError`
+    that lists the choices."""
+    try:
+        return format_spec(fmt, export)
+    except UnknownFormat as exc:
+        raise ImportFileError(str(exc)) from None
+
+
+def site_from_options(lat: float | None, lon: float | None, height: float | None, base: Site | None) -> Site | None:
+    """The site of ``--lat``, ``--lon`` and ``--height`` [deg, deg, m], those not given taken from ``base`` (a
+    mapping's ``[site]``); None when none is given.  Missing parts without a base, a value that is not
+    finite, a latitude out of range: an :class:`ImportFileError` in one line."""
+    given = {"--lat": lat, "--lon": lon, "--height": height}
+    if all(v is None for v in given.values()):
+        return None
+    if base is None and any(v is None for v in given.values()):
+        missing = [k for k, v in given.items() if v is None]
+        raise ImportFileError(f"give --lat, --lon and --height together (missing {', '.join(missing)}), "
+                              "or a [site] table in the mapping")
+    for k, v in given.items():
+        if v is not None and not math.isfinite(v):
+            raise ImportFileError(f"{k} must be finite, got {v}")
+    try:
+        return Site((lat if lat is not None else base.latitude / DEG) * DEG,
+                    (lon if lon is not None else base.longitude / DEG) * DEG,
+                    height if height is not None else base.height)
+    except ValueError as exc:
+        raise ImportFileError(str(exc)) from None
 
 
 def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None, path: RotationPath | None = None,
@@ -235,7 +230,7 @@ def build_record(raw: Raw, site: Site, where: str, rate_hz: float | None = None,
     ``(record, info)``; raises :class:`ImportFileError` with one line on any problem.
     ``encoder_latency`` [s]: the encoder angles are shifted to ``theta(t + encoder_latency)``
     (:func:`~inscal.io.encoders.apply_latency`) before the checks.  ``temperature``: readings at their
-    own times from a separate file (:func:`~inscal.io.formats.read_temperature_file`), on the source's
+    own times from a separate file (:func:`~inscal.io.formats.sidecars.read_temperature_file`), on the source's
     clock as the samples' (shifted with them to the path start); temperature columns of the source
     itself come with ``raw``.  ``declared``: the gyro unit as declared (by a mapping, or by a format whose
     messages fix it; None: assumed), so a gyro magnitude that contradicts it is a warning (``info["warnings"]``), not a
@@ -431,18 +426,22 @@ def source_time(src: Path, epoch_ns: int | None = None) -> str:
     return _dt.datetime.fromtimestamp(int(ts), _dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None, path_file=None,
+def import_file(src, out, fmt: str | Format, site: Site | None = None, mapping_file=None, path_file=None,
                 path_start: float | None = None, gimbal_file=None, gimbal_unit: str | None = None,
                 rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
                 rates: bool = False, skip=(), overwrite: bool = False, encoder_latency: float = 0.0,
                 gravity=None, temperature_file=None, topic: str | None = None, stamps: str = "header",
-                config_file=None, temperature_topic: str | None = None) -> dict:
+                config_file=None, temperature_topic: str | None = None,
+                site_parts: tuple[float | None, float | None, float | None] | None = None) -> dict:
     """Convert ``src`` into the record ``out`` (see the module docstring); returns a summary.
+    ``fmt``: a format's name, or its row of :data:`~inscal.io.formats.REGISTRY` (looked up once).
+    ``site_parts``: ``--lat``, ``--lon``, ``--height`` [deg, deg, m] as given (None each where not), in
+    place of ``site``: those not given come from the mapping's ``[site]`` (:func:`site_from_options`).
     ``gravity`` (a :class:`~inscal.core.earth.GravityModel`) replaces the gravity model of the site,
     wherever the site comes from (the options, the mapping's ``[site]`` or a PSINS ``.imu`` header)
     (``encoders``: the encoder check's summary, its ``latency_s`` what remains after the applied
     ``encoder_latency_s``).  ``temperature_file``: temperature readings at their own times
-    (:func:`~inscal.io.formats.read_temperature_file`); ``temperature`` in the summary: the sensors, the
+    (:func:`~inscal.io.formats.sidecars.read_temperature_file`); ``temperature`` in the summary: the sensors, the
     number of readings, whether they are on the record's grid, their source and time span.
     ``topic``, ``stamps``: a ROS bag's IMU topic and its time (``header`` stamps or ``receive`` times);
     ``temperature_topic``: its ``sensor_msgs/Temperature`` topic, the record's temperature;
@@ -451,43 +450,46 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
     for rates sampled at their stamps (a bag, ``kind = "sampled-rates"``), the grid and the rule's
     error bound (:mod:`inscal.io.formats.rates`)."""
     src = Path(src)
-    if fmt not in FORMATS:
-        raise ImportFileError(f"unknown format {fmt!r}; choose one of: {', '.join(FORMATS)}")
-    if fmt != "rosbag" and (topic is not None or stamps != "header" or temperature_topic is not None):
-        raise ImportFileError("--topic, --stamps and --temperature-topic apply to --format rosbag")
+    spec = fmt if isinstance(fmt, Format) else known_format(fmt)
+    fmt = spec.name
+    if not spec.takes("topic") and (topic is not None or stamps != "header" or temperature_topic is not None):
+        raise ImportFileError(f"--topic, --stamps and --temperature-topic apply to --format {' or '.join(taking('topic'))}")
     if temperature_topic is not None and temperature_file is not None:
         raise ImportFileError("--temperature-topic and --temperature would give the temperature twice")
     if stamps not in STAMPS:
         raise ImportFileError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
-    if config_file is not None and fmt != "kf-gins":
-        raise ImportFileError("--config applies to --format kf-gins (its imunoise block)")
+    if config_file is not None and not spec.takes("config"):
+        raise ImportFileError(f"--config applies to --format {' or '.join(taking('config'))} (its imunoise block)")
     noise = read_kfgins_noise(config_file) if config_file is not None else None
     if noise is not None and rate_hz is None:
         rate_hz = noise.rate_hz
-    if dtype != "float64" and fmt != "psins":
-        raise ImportFileError("--dtype applies to --format psins (.bin)")
-    if variable is not None and fmt not in ("psins", "mat"):
+    if dtype != "float64" and not spec.takes("dtype"):
+        raise ImportFileError(f"--dtype applies to --format {' or '.join(taking('dtype'))} (.bin)")
+    if variable is not None and not spec.takes("variable"):
         raise ImportFileError("--variable applies to .mat files")
-    if rates and fmt in ("csv", "txt", "psins-imu"):
-        raise ImportFileError("--rates applies to psins/mat; for csv/txt set kind = \"rates\" in the mapping")
+    if rates and not spec.takes("rates"):
+        raise ImportFileError(f"--rates applies to {'/'.join(taking('rates'))}; for {'/'.join(with_mapping('columns'))} "
+                              "set kind = \"rates\" in the mapping")
     if path_start is not None and path_file is None:
         raise ImportFileError("--path-start-s applies with --path")
     mapping, msite = load_mapping(mapping_file, fmt) if mapping_file is not None else (None, None)
+    if site_parts is not None and site is None:
+        site = site_from_options(*site_parts, msite)
     site = site if site is not None else msite
-    if site is None and fmt != "psins-imu":
+    if site is None and not spec.site_in_file:
         raise ImportFileError("no site: give --lat, --lon and --height (or a [site] table in the mapping)")
     path = load_path(path_file) if path_file is not None else None
     gim = read_gimbal_file(gimbal_file, gimbal_unit) if gimbal_file is not None else None
     tfile = read_temperature_file(temperature_file) if temperature_file is not None else None
     # the hash of the bytes about to be read (a bag folder: its files)
-    before, src_hash = _identity(src), (bag_hash(src) if fmt == "rosbag" else file_hash(src))
-    raw = read_source(src, fmt, mapping, dtype, variable, rates, topic, stamps, rate_hz)
+    before, src_hash = _identity(src), getattr(reader(spec), "source_hash", file_hash)(src)
+    raw = read_source(src, spec, mapping, dtype, variable, rates, topic, stamps, rate_hz)
     if _identity(src) != before:  # replaced or written to while read: the hash is not the data's
         raise ImportFileError(f"{src} changed while it was imported (replaced or written to): nothing written; "
                               "import it again once it is complete")
     if temperature_topic is not None:
         tfile = read_bag_temperature(src, temperature_topic, raw.source_info["bag"]["epoch_ns"], stamps)
-    if mapping_file is not None and fmt in ("csv", "txt"):
+    if mapping_file is not None and spec.mapping == "columns":
         safe = str(mapping_file).replace("{", "{{").replace("}", "}}")
         raw = replace(raw, time_fix=f"set [units] time = \"{{unit}}\" in {safe}")
         if raw.temperature is not None:
@@ -500,16 +502,16 @@ def import_file(src, out, fmt: str, site: Site | None = None, mapping_file=None,
         site = site.with_gravity(gravity)
     if mapping is not None:
         ud = (mapping.gyro_unit, mapping.accel_unit)
-    elif fmt == "rosbag":  # sensor_msgs/Imu: rad/s and m/s^2 (REP 145)
-        ud = ("rad/s", "m/s^2")
+    elif spec.units is not None:  # the format's own (sensor_msgs/Imu: rad/s and m/s^2, REP 145)
+        ud = spec.units
     else:
         ud = ("rad/s", "m/s^2") if raw.kind == "rates" else ("rad", "m/s")
     if raw.integration is not None:  # rates integrated to increments in SI by the reader
         ud = (f"rad (rates in {ud[0]} integrated)", f"m/s (rates in {ud[1]} integrated)")
     # the gyro unit is declared by a csv/txt mapping, and by a bag's message type; psins, mat and kf-gins files
     # carry none (their format's unit is assumed)
-    declared = ("rad/s (sensor_msgs/Imu, REP 145)" if fmt == "rosbag" else
-                mapping.gyro_unit if mapping is not None and fmt in ("csv", "txt") else None)
+    declared = (spec.declared if spec.declared is not None else
+                mapping.gyro_unit if mapping is not None and spec.mapping == "columns" else None)
     rec, info = build_record(raw, site, str(src), rate_hz, path, path_start, gim, skip, ud, str(gimbal_file),
                              encoder_latency, tfile, declared)
     integ = None
@@ -574,8 +576,7 @@ def export_record(data, out, fmt: str, overwrite: bool = False, gimbal_out=None,
     same); otherwise the readings are interpolated linearly onto every sample time (held before the
     first and after the last), and a comment line under the header says so."""
 
-    if fmt not in EXPORT_FORMATS:
-        raise ImportFileError(f"unknown export format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+    known_format(fmt, export=True)
     info = record_info(data)
     if gimbal_out is not None:
         if fmt == "csv":
@@ -641,62 +642,22 @@ def _reading_rows(data, temp: Temperature, rate_hz: float, n: int, chunk_size: i
     return rows if np.all(rows >= 0) else None
 
 
-def _temperature_block(temp: Temperature, rows: np.ndarray | None, k0: int, t: np.ndarray) -> np.ndarray:
-    """The csv temperature cells of the samples ``k0 ..`` at times ``t``: the readings on their rows (NaN:
-    an empty cell), or interpolated (``rows`` None)."""
-    if rows is None:
-        return np.column_stack([np.interp(t, temp.time, temp.values[:, s]) for s in range(temp.values.shape[1])])
-    block = np.full((t.shape[0], temp.values.shape[1]), np.nan)
-    a, b = np.searchsorted(rows, [k0, k0 + t.shape[0]])
-    block[rows[a:b] - k0] = temp.values[a:b]
-    return block
-
-
 def _export_main(data, tmp: Path, fmt: str, info: RecordInfo, chunk_size: int, gtmp: Path | None,
                  rows: np.ndarray | None = None) -> None:
+    """The record ``data`` written to ``tmp`` by the writer of ``fmt``'s module (``write(tmp, chunks, info,
+    rows)``), its gimbal angles to ``gtmp`` (``time, outer, inner``) chunk by chunk as the writer reads them."""
     gfh = open(gtmp, "w") if gtmp is not None else None
     try:
         if gfh is not None:
             gfh.write(",".join(GIMBAL_HEADER) + "\n")
-        if fmt == "mat":
-            import scipy.io
 
-            parts = []
+        def chunks():
             for t, dth, dv, g in iter_chunks(data, chunk_size):
-                parts.append(np.column_stack([dth, dv, t]))
+                yield t, dth, dv, g
                 if gfh is not None:
                     write_rows(gfh, np.column_stack([t, g]))
-            with open(tmp, "wb") as fh:
-                scipy.io.savemat(fh, {"imu": np.concatenate(parts)})
-            return
-        temp = info.temperature if fmt == "csv" else None
-        with open(tmp, "w" if fmt in ("csv", "kf-gins") else "wb") as fh:
-            if fmt == "csv":
-                head = EXPORT_HEADER + (EXPORT_HEADER_GIMBAL if info.has_gimbal else [])
-                head += [EXPORT_TEMPERATURE.format(n) for n in (temp.sensors if temp is not None else ())]
-                fh.write(",".join(head) + "\n")
-                if temp is not None and rows is None:
-                    fh.write(f"# temperature: interpolated linearly onto the sample times from the {temp.time.shape[0]} "
-                             f"readings at their own times (t = {temp.time[0]:.9g} .. {temp.time[-1]:.9g} s; held "
-                             "before the first and after the last)\n")
-                elif temp is not None and temp.time.shape[0] < info.n_samples:
-                    fh.write(f"# temperature: the {temp.time.shape[0]} readings on the rows of their sample times; "
-                             "an empty cell: no reading at that sample\n")
-            blanks = temp is not None and rows is not None and temp.time.shape[0] < info.n_samples
-            k0 = 0
-            for t, dth, dv, g in iter_chunks(data, chunk_size):
-                if fmt == "csv":
-                    cols = [t, dth, dv] + ([g] if g is not None else [])
-                    if temp is not None:
-                        cols.append(_temperature_block(temp, rows, k0, t))
-                    write_rows(fh, np.column_stack(cols), blanks=blanks)
-                elif fmt == "kf-gins":  # KF-GINS IMU text: t, dtheta, dvel (s, rad, m/s)
-                    np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")
-                else:
-                    np.ascontiguousarray(np.column_stack([dth, dv, t]), dtype="<f8").tofile(fh)
-                if gfh is not None:
-                    write_rows(gfh, np.column_stack([t, g]))
-                k0 += t.shape[0]
+
+        reader(known_format(fmt, export=True)).write(tmp, chunks(), info, rows)
     finally:
         if gfh is not None:
             gfh.close()

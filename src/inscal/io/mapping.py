@@ -13,13 +13,13 @@ from inscal.core import units
 from inscal.core.earth import Site
 from inscal.core.turntable import BUILTIN_PATHS, PathError, RotationPath
 from inscal.core.units import DEG
+from inscal.io.formats import REGISTRY, export_formats, with_mapping
 from inscal.io.records import DataFileError
 from inscal.io.tomlfile import read_toml
 
-FORMATS = ("psins", "psins-imu", "csv", "txt", "mat", "rosbag", "kf-gins")
-#: formats whose mapping may only hold a [site] table
-SITE_ONLY = ("psins", "mat", "psins-imu", "rosbag", "kf-gins")
-EXPORT_FORMATS = ("csv", "psins", "mat", "kf-gins")
+#: the formats ``inscal import`` reads and ``inscal export`` writes (the names of :data:`inscal.io.formats.REGISTRY`)
+FORMATS = tuple(REGISTRY)
+EXPORT_FORMATS = export_formats()
 CHECKS = ("constant", "saturation", "magnitudes", "motion")
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 
@@ -168,9 +168,11 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
         except (TypeError, ValueError) as exc:
             raise ImportFileError(f"[site]: {exc}") from None
     rest = set(d) - {"site"}
-    if fmt in SITE_ONLY:  # their columns and units are fixed (a .imu header gives its scales)
+    spec = REGISTRY.get(fmt)
+    if spec is not None and spec.mapping == "site":  # their columns and units are fixed (a .imu header gives its scales)
         if rest:
-            raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format csv|txt; a {fmt} mapping may only hold [site]")
+            raise ImportFileError(f"mapping key(s) {sorted(rest)} apply to --format {'|'.join(with_mapping('columns'))}; "
+                                  f"a {fmt} mapping may only hold [site]")
         return None, site
     if "columns" not in d:
         raise ImportFileError("mapping needs a [columns] table (gx, gy, gz, ax, ay, az, and time)")
@@ -249,7 +251,7 @@ def parse_mapping(d: dict, fmt: str) -> tuple[Mapping | None, Site | None]:
     signs = d.get("signs", [1, 1, 1])
     if not (isinstance(signs, list) and len(signs) == 3 and all(s in (1, -1) and not isinstance(s, bool) for s in signs)):
         raise ImportFileError(f"signs must be three of 1 / -1, got {signs!r}")
-    delim = d.get("delimiter", "," if fmt == "csv" else "whitespace")
+    delim = d.get("delimiter", (spec.delimiter if spec is not None else None) or "whitespace")
     if not isinstance(delim, str) or not (delim == "whitespace" or len(delim) == 1):
         raise ImportFileError(f"delimiter must be one character or \"whitespace\", got {delim!r}")
     hr = d.get("header_rows", 0)

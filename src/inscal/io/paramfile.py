@@ -168,7 +168,7 @@ def params_document(result, data_file: str | None = None, data_hash: str | None 
     thermal = getattr(result, "thermal", None)
     if thermal is not None:
         doc["thermal"] = thermal_to_field(thermal, getattr(result, "thermal_sigma", None) or None)
-        tfit = getattr(result, "thermal_fit", None)
+        tfit = result.thermal_fit
         if tfit:
             doc["thermal"]["fit"] = fit_table_any(tfit)
     return doc
@@ -243,7 +243,7 @@ def load_params(path) -> tuple[ImuErrors, GimbalErrors, dict]:
             raise ParamFileError(f"{p}: unknown parameter {name!r}; known: {', '.join(PARAMETERS)}")
         if not isinstance(entry, dict) or "value" not in entry or "unit" not in entry:
             raise ParamFileError(f"{p}: parameter {name} needs 'value' and 'unit'")
-        kind, shape = PARAMETERS[name][2], PARAMETERS[name][4]
+        kind, shape = PARAMETERS[name].kind, PARAMETERS[name].shape
         try:
             val = np.squeeze(np.asarray(entry["value"], dtype=float))
         except (TypeError, ValueError):

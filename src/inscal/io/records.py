@@ -768,6 +768,24 @@ def read_record(path) -> Record:
     return Record(time, dth, dv, gim, rate, site, p, truth, scen, str(path), temp)
 
 
+def load_record(path, name=str) -> Record:
+    """:func:`read_record` for a command: every failure of a malformed record (a missing attribute, a
+    non-numeric dataset) and increments that are not floating point are a :class:`DataFileError` in one
+    line.  ``name`` writes the path and an exception's text into that line (``str``; the command line
+    cuts long ones)."""
+    try:
+        rec = read_record(path)
+    except DataFileError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{name(path)}: not a valid inscal record ({type(exc).__name__}: {name(exc)})") from None
+    bad = [n for n in ("dtheta", "dvel") if not np.issubdtype(np.asarray(getattr(rec, n)).dtype, np.floating)]
+    if bad:
+        raise DataFileError(f"{name(path)}: {', '.join(bad)} must be floating point (rad, m/s), got "
+                            f"{np.asarray(getattr(rec, bad[0])).dtype}")
+    return rec
+
+
 @dataclass
 class RecordInfo:
     """A record's metadata without its arrays (what :func:`record_info` reads, :func:`write_stream` writes).

@@ -294,7 +294,7 @@ class Parameter:
 
     def si(self) -> tuple[np.ndarray, np.ndarray]:
         """``(value, sigma)`` in SI (the estimators' units)."""
-        kind = PARAMETERS[self.name][2]
+        kind = PARAMETERS[self.name].kind
         return (np.asarray(units.to_si(self.value, self.unit, kind), dtype=float),
                 np.asarray(units.to_si(self.sigma, self.unit, kind), dtype=float))
 

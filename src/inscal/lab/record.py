@@ -314,7 +314,7 @@ def field_factor(label: str) -> float:
     """The factor from SI to the field unit of a parameter component (``name[component]``,
     ``name.component`` or ``name``)."""
     name = parameter_label(label).split("[", 1)[0]
-    kind, unit = PARAMETERS[name][2], PARAMETERS[name][3]
+    kind, unit = PARAMETERS[name].kind, PARAMETERS[name].unit
     return float(units.from_si(1.0, unit, kind))
 
 
@@ -374,7 +374,7 @@ def parameter_rows(doc: dict) -> list[dict]:
     for name, entry in doc["parameters"].items():
         comps = parameter_components(name)
         n = len(comps)
-        kind, unit = PARAMETERS[name][2], PARAMETERS[name][3]
+        kind, unit = PARAMETERS[name].kind, PARAMETERS[name].unit
         given = str(entry["unit"])
 
         def field(v, name=name, given=given, kind=kind, unit=unit):  # a file in other units (typed in by hand): converted

@@ -781,7 +781,7 @@ def current_id(conn, unit_id: int) -> int | None:
 
 
 def _arrays(name: str, rows: list) -> Parameter:
-    shape = PARAMETERS[name][4]
+    shape = PARAMETERS[name].shape
     n = len(parameter_components(name))
 
     def arr(key):

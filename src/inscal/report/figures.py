@@ -75,9 +75,9 @@ def convergence_plots(out_dir, result, truth=None, overwrite: bool = False) -> l
     plt = new_figure()
     files, k = [], 0
     for name in h["names"]:
-        shape = PARAMETERS[name][4]
+        shape = PARAMETERS[name].shape
         size = int(np.prod(shape)) if shape else 1
-        unit = PARAMETERS[name][3]
+        unit = PARAMETERS[name].unit
         sl = slice(k, k + size)
         k += size
         sig = np.ravel(result.sigma[name])

@@ -105,7 +105,7 @@ def record_report(path, rec, param_sets: list[tuple[str, object, object, dict]] 
         names = meta.get("estimated") or list(est)
         rows = []
         for name in names:
-            unit = PARAMETERS[name][3]
+            unit = PARAMETERS[name].unit
             row = [name, unit, fmt_value(est[name]["value"])]
             s = sig.get(name)
             row.append(fmt_value(units.from_si(np.asarray(s, dtype=float), unit)) if s is not None else "")

@@ -32,11 +32,10 @@ from inscal.core.earth import parse_gravity
 from inscal.io.checks import saturated_samples
 from inscal.io.encoders import apply_latency, check_record_encoders, small_latency
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
-from inscal.io.records import (
-    DataFileError,
+from inscal.io.records import (  # noqa: F401  (load_record: the batch's, re-exported)
     Record,
     RecordInfo,
-    read_record,
+    load_record,
     record_attrs,
 )
 from inscal.lab.record import calibration_options
@@ -367,22 +366,6 @@ class Calibrated:
     record: Record
     metadata: dict
     encoders: dict | None
-
-
-def load_record(path: Path) -> Record:
-    """The record of ``path`` in memory; a file that is not a valid record raises :class:`RecordError`
-    (or :class:`~inscal.io.records.DataFileError`) in one line."""
-    try:
-        rec = read_record(path)
-    except DataFileError:
-        raise
-    except (KeyError, TypeError, ValueError) as exc:
-        raise RecordError(f"{path}: not a valid inscal record ({type(exc).__name__}: {exc})") from None
-    bad = [n for n in ("dtheta", "dvel") if not np.issubdtype(np.asarray(getattr(rec, n)).dtype, np.floating)]
-    if bad:
-        raise RecordError(f"{path}: {', '.join(bad)} must be floating point (rad, m/s), got "
-                          f"{np.asarray(getattr(rec, bad[0])).dtype}")
-    return rec
 
 
 def implausible(res, setup: CalibrationSetup) -> str | None:

@@ -92,7 +92,7 @@ def temperature_coefficients(model: ThermalModel, names, t_c: float) -> np.ndarr
     the thermal model does not make depend on the temperature."""
     out = []
     for name in names:
-        shape = PARAMETERS[name][4]
+        shape = PARAMETERS[name].shape
         n = int(np.prod(shape)) if shape else 1
         out.append(thermal_slope(model, name, t_c) if name in THERMAL_TERMS else np.zeros(n))
     return np.concatenate(out) if out else np.zeros(0)
@@ -142,7 +142,7 @@ def temperature_measured(names, t_ref: float) -> TemperatureSensitivity:
     """A result that estimated its own thermal model from the record's measured temperature (thermal states)
     states its parameters at ``t_ref`` through that model: the chamber's stability moves the measured
     temperature, not the result (sensitivity 0; the sensor's own accuracy is another input)."""
-    n = sum(int(np.prod(PARAMETERS[x][4])) if PARAMETERS[x][4] else 1 for x in names)
+    n = sum(int(np.prod(PARAMETERS[x].shape)) if PARAMETERS[x].shape else 1 for x in names)
     return TemperatureSensitivity(np.zeros(n), (
         f"sensitivity 0: this result estimated its thermal model with the parameters from the record's measured "
         f"temperature and states them at T_ref {t_ref:g} degC through that model, so the chamber's temperature "
@@ -199,7 +199,7 @@ class ComponentBudget:
     @property
     def label(self) -> str:
         """``name[i]`` (a scalar parameter: its name)."""
-        return self.parameter if not PARAMETERS[self.parameter][4] else f"{self.parameter}[{self.index}]"
+        return self.parameter if not PARAMETERS[self.parameter].shape else f"{self.parameter}[{self.index}]"
 
     def to_dict(self) -> dict:
         """The component as JSON-able numbers."""
@@ -346,7 +346,7 @@ def combine(parameter: str, index: int, value_si: float, lines, coverage: float 
     """One component's budget from its input ``lines`` (:class:`Contribution`, e.g. from :meth:`Contribution.line`;
     field units, sensitivity in parameter unit per input unit): ``u_c``, Welch-Satterthwaite's ``nu_eff`` and the
     coverage factor of the linear model (module docstring); each line's share of ``u_c^2`` filled in."""
-    unit = PARAMETERS[parameter][3]
+    unit = PARAMETERS[parameter].unit
     ui = [c.contribution for c in lines]
     uc = math.sqrt(sum(x * x for x in ui))
     nu = welch_satterthwaite(ui, [c.dof for c in lines])
@@ -375,8 +375,8 @@ def budget(method: str, names, values_si: np.ndarray, sigma_si: np.ndarray, esti
     glob = {**glob, TEMPERATURE: temperature.c} if temperature.c is not None else glob
     comps, i = [], 0
     for name in names:
-        shape = PARAMETERS[name][4]
-        punit = PARAMETERS[name][3]
+        shape = PARAMETERS[name].shape
+        punit = PARAMETERS[name].unit
         pf = float(units.to_si(1.0, punit))
         for j in range(int(np.prod(shape)) if shape else 1):
             if not np.isfinite(sigma_si[i]):  # held fixed (a frame convention, unobservable): no uncertainty

@@ -146,7 +146,7 @@ def _starts(names) -> dict[str, int]:
     start, k = {}, 0
     for n in names:
         start[n] = k
-        shape = PARAMETERS[n][4]
+        shape = PARAMETERS[n].shape
         k += int(np.prod(shape)) if shape else 1
     return start
 

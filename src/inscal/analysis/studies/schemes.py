@@ -65,7 +65,7 @@ def _schemes_summarize(exp: Experiment, results: list[list[dict]]) -> Summary:
     rows = []
     for k in keys:
         name = k.split(".")[0]
-        row = {"parameter": k, "unit": PARAMETERS[name][3]}
+        row = {"parameter": k, "unit": PARAMETERS[name].unit}
         for m in methods:
             x = np.array([r[m][k] for r in res if m in r and r[m].get(k) is not None], float)
             row[f"{m}_bias"] = float(np.mean(x)) if x.size else None

@@ -71,8 +71,9 @@ def _true_magnitude(exp: Experiment) -> dict[str, float]:
 
     imu = truth_in_frame(_s16_scenario(float(exp.params["rate_hz"])).imu, StateSet.parse("51")).to_imu()
     out = {}
-    for name, (obj, attr, _, unit, _) in PARAMETERS.items():
-        if obj != "imu" or not hasattr(imu, attr):
+    for name, p in PARAMETERS.items():
+        attr, unit = p.attribute, p.unit
+        if p.group != "imu" or not hasattr(imu, attr):
             continue
         v = np.abs(np.ravel(units.from_si(np.asarray(getattr(imu, attr), float), unit)))
         if name == "accel_lever_arm":
@@ -105,7 +106,7 @@ def _table2_summarize(exp: Experiment, results: list[list[dict]]) -> Summary:
             per_run[m][g] = {"mae": np.array(mae), "crb": np.array(crb)}
     rows = []
     for g in groups:
-        row = {"group": g, "unit": PARAMETERS[g][3], "before": before.get(g), "s16_target": S16_TABLE2.get(g)}
+        row = {"group": g, "unit": PARAMETERS[g].unit, "before": before.get(g), "s16_target": S16_TABLE2.get(g)}
         for m in methods:
             x = per_run[m][g]
             row[f"{m}_mae"] = float(np.median(x["mae"])) if x["mae"].size else None  # None: not estimated
@@ -146,7 +147,7 @@ def _table2_summarize(exp: Experiment, results: list[list[dict]]) -> Summary:
             e = np.array([q["errors"][k] for q in runs_m if k in q["errors"] and k in q["sigmas"]])
             sg = np.array([q["sigmas"][k] for q in runs_m if k in q["errors"] and k in q["sigmas"]])
             zz = e / sg
-            comp.append({"parameter": k, "unit": PARAMETERS[_group_of(k)][3], "n": int(e.size),
+            comp.append({"parameter": k, "unit": PARAMETERS[_group_of(k)].unit, "n": int(e.size),
                          "bias": float(np.mean(e)), "std": float(np.std(e, ddof=1)) if e.size > 1 else None,
                          "rms_error": float(np.sqrt(np.mean(e * e))), "mean_sigma": float(np.mean(sg)),
                          "mean_z": float(np.mean(zz)), "rms_z": float(np.sqrt(np.mean(zz * zz)))})

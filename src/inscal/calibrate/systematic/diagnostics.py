@@ -276,7 +276,7 @@ def unobservable(names, sigma: np.ndarray, prior: np.ndarray,
     k = 0
     for n in names:
         comps = parameter_components(n)
-        unit = PARAMETERS[n][3]
+        unit = PARAMETERS[n].unit
         flagged = []
         for c in comps:
             s, s0 = float(sigma[k]), float(prior[k])

@@ -319,7 +319,7 @@ def canonical_flat(p: CompParams, names) -> np.ndarray:
     gim = {"nonorthogonality": float(p.gim[0]), "mount_attitude": np.array(p.gim[1:4])}
     out = []
     for n in names:
-        obj, attr = PARAMETERS[n][:2]
+        obj, attr = PARAMETERS[n].group, PARAMETERS[n].attribute
         src = kw if obj == "imu" else gim
         if attr not in src:
             return flatten(p.to_imu(), p.to_gimbal(), names)

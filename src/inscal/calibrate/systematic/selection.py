@@ -189,7 +189,7 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     fits = 1
     # the smaller fits share the full model's frozen model-error factors (model_error): their chi2 are then of
     # one noise model and compare; one that does not converge is kept as it ends and not compared (_test)
-    options["weights"] = getattr(full, "model_error", None)
+    options["weights"] = full.model_error
     options["accept_unconverged"] = True
 
     def without(st: StateSet, terms) -> StateSet:

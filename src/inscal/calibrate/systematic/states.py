@@ -396,7 +396,7 @@ def fixed_mask(states: StateSet, names) -> np.ndarray:
 
     mask = []
     for n in names:
-        shape = PARAMETERS[n][4]
+        shape = PARAMETERS[n].shape
         size = int(np.prod(shape)) if shape else 1
         m = np.zeros(size, bool)
         tri = "accel_misalignment" if states.psins else "gyro_misalignment"

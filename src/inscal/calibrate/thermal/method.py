@@ -173,7 +173,7 @@ def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict
                                    f"{', '.join(names)} as on the first plateau")
     T = np.array([p.temperature_c for p in plats])
     P = len(plats)
-    sizes = {n: int(np.prod(PARAMETERS[n][4])) if PARAMETERS[n][4] else 1 for n in names}
+    sizes = {n: PARAMETERS[n].size for n in names}
     sl, k = {}, 0
     for n in names:
         sl[n] = slice(k, k + sizes[n])
@@ -204,7 +204,7 @@ def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict
     # the values at t_ref and their sigma; the thermal coefficients and theirs
     vals, sigma = {}, {}
     for n in names:
-        shape = PARAMETERS[n][4]
+        shape = PARAMETERS[n].shape
         v, s = fits[n].coef[0], np.where(fixed[n], np.nan, fits[n].sigma[0])
         vals[n] = v.reshape(shape) if shape else float(v[0])
         sigma[n] = s.reshape(shape) if shape else float(s[0])
@@ -235,8 +235,8 @@ def combine(results: list[CalibrationResult], plats: list[Plateau], orders: dict
         "per_plateau": per_plateau, "t_ref": float(t_ref), "covariance": cov_source, "p_inconsistent": P_INCONSISTENT,
         "plateaus": [{"temperature_c": p.temperature_c, "spread_c": p.spread_c, "start_s": p.t0,
                       "duration_s": p.duration} for p in plats],
-        "terms": {n: fits[n].summary(PARAMETERS[n][3]) for n in thermal},
-        "constant": {n: fits[n].summary(PARAMETERS[n][3]) for n in names if n not in thermal},
+        "terms": {n: fits[n].summary(PARAMETERS[n].unit) for n in thermal},
+        "constant": {n: fits[n].summary(PARAMETERS[n].unit) for n in names if n not in thermal},
         "gyro_bias_rate": "not estimated: a plateau holds dT/dt = 0",
     }
     # the per-plateau estimates as the thermal report draws them (report.thermal.plateau_points), and the

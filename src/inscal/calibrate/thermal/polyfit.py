@@ -30,8 +30,8 @@ def result_covariance(res: CalibrationResult) -> tuple[list[str], np.ndarray] | 
     cov = (res.diagnostics or {}).get("covariance")
     if isinstance(cov, dict) and "P" in cov and "labels" in cov:
         return [str(x) for x in cov["labels"]], np.asarray(cov["P"], dtype=float)
-    st = getattr(res, "states", None)
-    sc = getattr(res, "covariance", None)
+    st = res.states
+    sc = res.covariance
     if st is None or not isinstance(sc, dict) or "P" not in sc or getattr(st, "gimbal", False):
         return None
     P = np.asarray(sc["P"], dtype=float)

@@ -33,7 +33,7 @@ import numpy as np
 from inscal.core import units
 from inscal.core.error_model import ImuNoise
 from inscal.io.files import check_input
-from inscal.io.formats import Raw
+from inscal.io.formats.base import Raw, ReadOptions
 from inscal.io.mapping import ImportFileError
 
 #: the imunoise keys, their inscal noise field (None: no counterpart), unit kind and KF-GINS field unit
@@ -59,7 +59,7 @@ class KfginsNoise:
 
 
 def read_kfgins_text(path) -> Raw:
-    """A KF-GINS IMU text file as a :class:`~inscal.io.formats.Raw` block of increments."""
+    """A KF-GINS IMU text file as a :class:`~inscal.io.formats.base.Raw` block of increments."""
     p = Path(path)
     check_input(p, "file", ImportFileError)
     rows, lines = [], []
@@ -148,3 +148,17 @@ def read_kfgins_noise(path) -> KfginsNoise:
             raise ImportFileError(f"{p}: imudatarate must be positive, got {rate!r}")
     noise = ImuNoise(gyro_bias_tau=tau, accel_bias_tau=tau, **si)
     return KfginsNoise(noise, tuple(scale), rate)
+
+
+def read(src, opts: ReadOptions) -> Raw:
+    """The reader of :data:`~inscal.io.formats.REGISTRY` (its configuration, ``--config``, is read apart:
+    :func:`read_kfgins_noise`)."""
+    return read_kfgins_text(Path(src))
+
+
+def write(tmp, chunks, info, rows=None) -> None:
+    """The export writer of :data:`~inscal.io.formats.REGISTRY`: KF-GINS IMU text, rows ``t dθ dv`` (s, rad,
+    m/s) of 17 digits."""
+    with open(tmp, "w") as fh:
+        for t, dth, dv, _ in chunks:
+            np.savetxt(fh, np.column_stack([t, dth, dv]), fmt="%.17g")

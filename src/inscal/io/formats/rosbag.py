@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from inscal.io.files import file_hash
-from inscal.io.formats import Raw, RawTemperature
+from inscal.io.formats.base import Raw, RawTemperature, ReadOptions
 from inscal.io.formats.rates import check_stamps, integrate_rates
 from inscal.io.mapping import ImportFileError
 
@@ -174,7 +174,7 @@ def read_bag_samples(path, topic: str | None = None, stamps: str = "header") -> 
 
 def read_bag(path, topic: str | None = None, stamps: str = "header",
              rate_hz: float | None = None) -> tuple[Raw, BagSamples]:
-    """A bag's IMU topic as a :class:`~inscal.io.formats.Raw` block of increments on a uniform grid
+    """A bag's IMU topic as a :class:`~inscal.io.formats.base.Raw` block of increments on a uniform grid
     (time from the first stamp; ``raw.integration`` holds the grid and the rule's bound), with the
     samples as read."""
     s = read_bag_samples(path, topic, stamps)
@@ -240,3 +240,13 @@ def read_bag_temperature(path, topic: str, epoch_ns: int, stamps: str = "header"
     name = topic.strip("/") or topic
     return RawTemperature(t, np.asarray(val, dtype=float)[:, None], (name,), (f"temperature {name!r}",),
                           None, ("degC",), "", where)
+
+
+def read(src, opts: ReadOptions) -> Raw:
+    """The reader of :data:`~inscal.io.formats.REGISTRY`: the bag's IMU topic (``opts.topic``, ``opts.stamps``)."""
+    return read_bag(Path(src), opts.topic, opts.stamps, opts.rate_hz)[0]
+
+
+def source_hash(src) -> str:
+    """The source's hash for the record's provenance (a bag folder: its files; :func:`bag_hash`)."""
+    return bag_hash(src)
