@@ -77,7 +77,7 @@ def test_the_table_costs_the_command_line_no_numpy():
 
 def test_one_loader_refuses_integer_increments_for_the_cli_and_the_lab(tmp_path):
     from inscal.cli.common import CliError, read_record
-    from inscal.lab.calibration import load_record
+    from inscal.runs.calibration import load_record
 
     n = 50
     t = np.arange(1, n + 1) * 0.01

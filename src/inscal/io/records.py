@@ -769,10 +769,41 @@ def read_record(path) -> Record:
 
 
 def load_record(path, name=str) -> Record:
-    """:func:`read_record` for a command: every failure of a malformed record (a missing attribute, a
-    non-numeric dataset) and increments that are not floating point are a :class:`DataFileError` in one
-    line.  ``name`` writes the path and an exception's text into that line (``str``; the command line
-    cuts long ones)."""
+    """:func:`read_record` for a command: every failure of a malformed record is one line.
+
+    Parameters
+    ----------
+    path : str or Path
+        The HDF5 record.
+    name : callable
+        Writes the path and an exception's text into the message (``str``; the command line cuts long
+        ones).
+
+    Returns
+    -------
+    Record
+        The record, its increments floating point.
+
+    Raises
+    ------
+    DataFileError
+        A malformed record (a missing attribute, a non-numeric dataset) or increments that are not
+        floating point (rad, m/s), in one line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from inscal.core.earth import Site
+    >>> from inscal.io import Record, load_record, write_record
+    >>> t = np.arange(1, 101) / 100.0
+    >>> write_record("r.h5", Record(t, np.zeros((100, 3)), np.zeros((100, 3)), None, 100.0, Site(0.7)))
+    >>> load_record("r.h5").n_samples
+    100
+    >>> load_record("missing.h5")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    inscal.io.records.DataFileError: ...missing.h5...
+    """
     try:
         rec = read_record(path)
     except DataFileError:
