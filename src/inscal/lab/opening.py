@@ -160,9 +160,9 @@ def _check_sqlite_file(url: sa.URL, create: bool) -> None:
 
 
 def check_writable(url: sa.URL) -> None:
-    """Refuse (:class:`~inscal.lab.database.DatabaseError`, saying "read-only") a SQLite database that this process cannot write:
-    the file, or its folder (where SQLite keeps its write-ahead log), read-only or on a read-only file
-    system, or an immutable file."""
+    """Refuse (:class:`~inscal.lab.database.DatabaseError`, saying "read-only") a SQLite database that this
+    process cannot write: the file, or its folder (where SQLite keeps its write-ahead log), read-only or on a
+    read-only file system, or an immutable file."""
     if url.get_backend_name() != "sqlite":
         return
     path = Path(url.database)

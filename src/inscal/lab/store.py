@@ -12,9 +12,10 @@ Write API (what ``inscal calibrate --db`` and a batch of calibrations use)::
 A record (its sha256) is one session of a unit; a session may hold results of several methods
 or options, but one result per (record, options) and per parameter file: the insert of the
 result's key (``result_keys``, unique) is the check, in the result's own transaction, so two
-writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A result that replaces an earlier one (the same record recalibrated) names it in
-``supersedes``: the earlier one then leaves the history.  Recording a result makes it the
-unit's current calibration unless ``make_current=False``.  Reading it back is :mod:`inscal.lab.queries`.
+writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A
+result that replaces an earlier one (the same record recalibrated) names it in ``supersedes``: the
+earlier one then leaves the history.  Recording a result makes it the unit's current calibration unless
+``make_current=False``.  Reading it back is :mod:`inscal.lab.queries`.
 """
 
 from __future__ import annotations
