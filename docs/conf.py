@@ -14,7 +14,7 @@ from pathlib import Path
 import inscal
 from inscal import SCHEMA_VERSION
 from inscal.io.paramfile import PARAM_SCHEMA_VERSION
-from inscal.lab.database import head_revision, revision_number
+from inscal.lab.opening import head_revision, revision_number
 
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS / "_ext"))

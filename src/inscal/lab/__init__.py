@@ -20,7 +20,8 @@ Public API (what ``inscal db``, ``inscal calibrate --db`` and batch calibrations
 
 Values are stored in the field units of :data:`inscal.core.error_model.PARAMETERS` (those of the
 parameter file); see :mod:`inscal.lab.schema` for the tables, :mod:`inscal.lab.drift` for the
-statistics and :mod:`inscal.lab.database` for migrations and concurrent writers.
+statistics, :mod:`inscal.lab.opening` for migrations, :mod:`inscal.lab.database` for concurrent writers,
+:mod:`inscal.lab.store` for the writes and :mod:`inscal.lab.queries` for the reads.
 
 Calibrating records into the database is :mod:`inscal.runs` (one record as ``inscal calibrate`` does it, a
 batch on Dask); the uncertainty budget of a calibration (GUM) is :mod:`inscal.uncertainty`, stored with the
@@ -45,12 +46,12 @@ EXPORTS = {
     "DatabaseError": "inscal.lab.database",
     "ENV_VAR": "inscal.lab.database",
     "database_url": "inscal.lab.database",
-    "head_revision": "inscal.lab.database",
-    "init_database": "inscal.lab.database",
-    "open_database": "inscal.lab.database",
-    "revision_number": "inscal.lab.database",
-    "revision_of": "inscal.lab.database",
-    "upgrade_database": "inscal.lab.database",
+    "head_revision": "inscal.lab.opening",
+    "init_database": "inscal.lab.opening",
+    "open_database": "inscal.lab.opening",
+    "revision_number": "inscal.lab.opening",
+    "revision_of": "inscal.lab.opening",
+    "upgrade_database": "inscal.lab.opening",
     "check_wait": "inscal.lab.database",
     "lock_holders": "inscal.lab.database",
     "ComponentDrift": "inscal.lab.drift",
@@ -80,14 +81,14 @@ EXPORTS = {
     "text_hash": "inscal.lab.record",
     "add_unit": "inscal.lab.store",
     "AlreadyRecorded": "inscal.lab.store",
-    "calibrations": "inscal.lab.store",
-    "current_calibration": "inscal.lab.store",
-    "find_calibration": "inscal.lab.store",
-    "find_param_file": "inscal.lab.store",
-    "get_budget": "inscal.lab.store",
-    "get_calibration": "inscal.lab.store",
-    "get_unit": "inscal.lab.store",
-    "list_units": "inscal.lab.store",
+    "calibrations": "inscal.lab.queries",
+    "current_calibration": "inscal.lab.queries",
+    "find_calibration": "inscal.lab.queries",
+    "find_param_file": "inscal.lab.queries",
+    "get_budget": "inscal.lab.queries",
+    "get_calibration": "inscal.lab.queries",
+    "get_unit": "inscal.lab.queries",
+    "list_units": "inscal.lab.queries",
     "record_calibration": "inscal.lab.store",
     "record_result": "inscal.lab.store",
     "set_current": "inscal.lab.store",
@@ -95,7 +96,7 @@ EXPORTS = {
     "pending_publications": "inscal.lab.database",
     "published": "inscal.lab.database",
     "recover_publications": "inscal.lab.database",
-    "table_counts": "inscal.lab.store",
+    "table_counts": "inscal.lab.queries",
 }
 __all__ = [
     "CLOCK_SKEW",
@@ -163,12 +164,6 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         Database,
         DatabaseError,
         database_url,
-        head_revision,
-        init_database,
-        open_database,
-        revision_number,
-        revision_of,
-        upgrade_database,
         check_wait,
         pending_publications,
         published,
@@ -200,6 +195,14 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         CLOCK_SKEW,
         EARLIEST,
     )
+    from inscal.lab.opening import (
+        head_revision,
+        init_database,
+        open_database,
+        revision_number,
+        revision_of,
+        upgrade_database,
+    )
     from inscal.lab.record import (
         calibration_options,
         covariance_of,
@@ -208,9 +211,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         session_from_record,
         text_hash,
     )
-    from inscal.lab.store import (
-        AlreadyRecorded,
-        add_unit,
+    from inscal.lab.queries import (
         calibrations,
         current_calibration,
         find_calibration,
@@ -219,11 +220,15 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         get_calibration,
         get_unit,
         list_units,
+        table_counts,
+    )
+    from inscal.lab.store import (
+        AlreadyRecorded,
+        add_unit,
         record_calibration,
         record_result,
         set_current,
         stage_calibration,
-        table_counts,
     )
 
 

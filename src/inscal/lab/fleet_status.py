@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from inscal.lab.database import Database, DatabaseError
 from inscal.lab.drift import DEFAULT_K, History, history
 from inscal.lab.model import Calibration, Unit, iso
-from inscal.lab.store import calibrations, current_calibration, list_units
+from inscal.lab.queries import calibrations, current_calibration, list_units
 
 
 def unit_history(db: Database, serial: str, method: str | None = None, k: float = DEFAULT_K) -> History:

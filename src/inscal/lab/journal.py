@@ -18,7 +18,7 @@ database is the one with a commit, so it records what the files are to become:
 
 A process that dies before 2 commits nothing and publishes nothing (its transaction rolls back; the
 renames come after the commit).  One that dies between 2 and 4 leaves rows, which the next write to
-the database (any :func:`inscal.lab.database.open_database` for writing, or ``inscal db recover``)
+the database (any :func:`inscal.lab.opening.open_database` for writing, or ``inscal db recover``)
 rolls *forward* (:func:`recover`): a temporary still there with its hash is renamed into place; a
 parameter file whose temporary is gone is written again from the database, which stores it byte for
 byte; a file in place with its hash needs nothing.  Forward, never back: the result tables are

@@ -308,7 +308,7 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Calibration:
-    """One recorded calibration result with its provenance (:func:`~inscal.lab.store.get_calibration`).
+    """One recorded calibration result with its provenance (:func:`~inscal.lab.queries.get_calibration`).
 
     Parameters
     ----------

@@ -1,22 +1,21 @@
-"""Writing and reading the calibration database: units, calibration results (each in one
-transaction), the "already recorded" query, one calibration with all it has, a unit's history
-and its current calibration.
+"""Writing the calibration database: units, and calibration results, each in one transaction.
 
 Write API (what ``inscal calibrate --db`` and a batch of calibrations use)::
 
-    db = open_database(url)                                   # inscal.lab.database
+    db = open_database(url)                                   # inscal.lab.opening
     add_unit(db, "FOG-0042", model="FOG-IMU")                 # once per unit
-    if find_calibration(db, session.record_sha256, options, serial) is None:
+    if find_calibration(db, session.record_sha256, options, serial) is None:   # inscal.lab.queries
         rid = record_calibration(db, "FOG-0042", param_text, session, options=options,
                                  covariance=covariance_of(result))
-    cal = get_calibration(db, rid)                            # parameters, sigma, covariance, fit, provenance
+    cal = get_calibration(db, rid)                            # inscal.lab.queries
 
 A record (its sha256) is one session of a unit; a session may hold results of several methods
 or options, but one result per (record, options) and per parameter file: the insert of the
 result's key (``result_keys``, unique) is the check, in the result's own transaction, so two
-writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A result that replaces an earlier one (the same record recalibrated) names it in
-``supersedes``: the earlier one then leaves the history.  Recording a result makes it the
-unit's current calibration unless ``make_current=False``.
+writers racing on the same calibration record it once (the other gets :class:`AlreadyRecorded`).  A
+result that replaces an earlier one (the same record recalibrated) names it in ``supersedes``: the
+earlier one then leaves the history.  Recording a result makes it the unit's current calibration unless
+``make_current=False``.  Reading it back is :mod:`inscal.lab.queries`.
 """
 
 from __future__ import annotations
@@ -25,24 +24,18 @@ import datetime as dt
 import hashlib
 import json
 
-import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql as pg_dialect
 from sqlalchemy.dialects import sqlite as sqlite_dialect
 
-from inscal.core.error_model import PARAMETERS, parameter_components
-from inscal.core.thermal import ThermalModel, thermal_from_field
-from inscal.io.paramfile import ParamFileError
 from inscal.lab import schema as t
-from inscal.lab.database import Database, DatabaseError, Staged, begin_write, read, write
+from inscal.lab.database import Database, DatabaseError, Staged, begin_write, write
 from inscal.lab.model import (
-    Calibration,
     check_date,
-    Parameter,
-    Session,
     SessionInfo,
     Unit,
 )
+from inscal.lab.queries import current_id, unit_from_row, unit_id_of
 from inscal.lab.record import (
     covariance_of,
     fit_of,
@@ -108,40 +101,6 @@ def _insert_ignore(db_or_conn, table: sa.Table, index: list[str] | None):
     return ins.on_conflict_do_nothing(index_elements=index)
 
 
-def _unit(row) -> Unit:
-    return Unit(row.id, row.serial, row.model, row.notes, row.created_at)
-
-
-def get_unit(db: Database, serial: str) -> Unit | None:
-    """The unit registered under a serial.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    serial : str
-        The serial.
-
-    Returns
-    -------
-    Unit or None
-        The unit, None if none is registered.
-
-    Examples
-    --------
-    >>> from inscal import lab
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> lab.get_unit(db, "IMU-1").model, lab.get_unit(db, "IMU-2")
-    ('nav-grade', None)
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        row = conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).first()
-    return None if row is None else _unit(row)
-
-
 def add_unit(db: Database, serial: str, model: str | None = None, notes: str | None = None) -> tuple[Unit, bool]:
     """Register a unit (an instrument the lab calibrates; its serial is its identity).
 
@@ -190,7 +149,7 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
         return conn.execute(sa.select(t.units).where(t.units.c.serial == serial)).one(), new is not None
 
     row, created = write(db, run)
-    unit = _unit(row)
+    unit = unit_from_row(row)
     for what, given, have in (("model", model, unit.model), ("notes", notes, unit.notes)):
         if given is not None and given != have:
             raise DatabaseError(f"unit {serial} is registered already with {what} {have!r} (units are append-only: "
@@ -211,13 +170,6 @@ def check_serial(serial: str) -> str:
         raise DatabaseError(f"serial {str(serial)[:60]!r}{'...' if len(str(serial)) > 60 else ''}: give 1 to 200 "
                             "printable characters")
     return s
-
-
-def _unit_id(conn, serial: str) -> int:
-    uid = conn.execute(sa.select(t.units.c.id).where(t.units.c.serial == serial)).scalar()
-    if uid is None:
-        raise DatabaseError(f"unknown unit {serial!r}: register it first with `inscal db add {serial} --model MODEL`")
-    return uid
 
 
 def record_calibration(db: Database, serial: str, param_text: str, session: SessionInfo, *,
@@ -409,7 +361,7 @@ def calibration_writer(serial: str, param_text: str, session: SessionInfo, *,
     ohash, phash = options_hash(options), text_hash(param_text)
 
     def run(conn):
-        uid = _unit_id(conn, serial)
+        uid = unit_id_of(conn, serial)
         conn.execute(_insert_ignore(conn, t.sessions, ["unit_id", "record_sha256"]).values(
             unit_id=uid, recorded_at=stamp, **sess))
         sid, sdate = conn.execute(sa.select(t.sessions.c.id, t.sessions.c.date).where(
@@ -550,85 +502,6 @@ def write_budget(conn, result_id: int, station: dict, budget: dict, stamp: dt.da
                                              budget=budget, recorded_at=stamp))
 
 
-def get_budget(db: Database, result_id: int) -> dict | None:
-    """The uncertainty budget stored with a result (field units).
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    result_id : int
-        The result.
-
-    Returns
-    -------
-    dict or None
-        ``{"result_id", "station", "budget"}`` (the station's document and the budget as stored),
-        None when it was recorded without a station.
-
-    Raises
-    ------
-    DatabaseError
-        A stored budget that is not one.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> lab.get_budget(db, first) is None  # recorded without a station
-    True
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        row = conn.execute(sa.select(t.budgets.c.budget, t.stations.c.document).join(
-            t.stations, t.stations.c.id == t.budgets.c.station_id).where(t.budgets.c.result_id == int(result_id))).first()
-    if row is None:
-        return None
-    if not budget_well_formed(row.budget):
-        raise DatabaseError(f"the uncertainty budget stored with result {result_id} is not a budget "
-                            f"({short_json(row.budget)}): the database was edited; record the result again with "
-                            "inscal calibrate ... --station FILE.toml --serial ... --supersedes "
-                            f"{result_id}")
-    return {"result_id": int(result_id), "station": row.document, "budget": row.budget}
-
-
-#: the keys of a stored budget and of each of its components and contributions (inscal.uncertainty.budget.Budget)
-BUDGET_KEYS = ("station", "method", "coverage", "components")
-COMPONENT_KEYS = ("parameter", "label", "unit", "value", "u_c", "k", "U", "contributions")
-CONTRIBUTION_KEYS = ("input", "value", "distribution", "u", "unit", "sensitivity", "contribution", "share", "stops")
-
-
-def budget_well_formed(b) -> bool:
-    """Whether ``b`` (a stored budget's JSON) has what the budget's readers use."""
-    if not (isinstance(b, dict) and all(k in b for k in BUDGET_KEYS) and isinstance(b["components"], list)):
-        return False
-    for c in b["components"]:
-        if not (isinstance(c, dict) and all(k in c for k in COMPONENT_KEYS) and isinstance(c["contributions"], list)):
-            return False
-        if not all(isinstance(x, dict) and all(k in x for k in CONTRIBUTION_KEYS) for x in c["contributions"]):
-            return False
-    return True
-
-
-def short_json(v, limit: int = 40) -> str:
-    """``v`` as JSON text, cut to ``limit`` characters."""
-    text = json.dumps(v, default=str)
-    return text if len(text) <= limit else text[:limit - 1] + "…"
-
-
 def set_current(db: Database, serial: str, result_id: int) -> None:
     """Make a result the unit's current calibration.
 
@@ -672,427 +545,10 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
     """
 
     def run(conn):
-        uid = _unit_id(conn, serial)
+        uid = unit_id_of(conn, serial)
         owner = conn.execute(sa.select(t.results.c.unit_id).where(t.results.c.id == result_id)).scalar()
         if owner != uid:
             raise DatabaseError(f"result {result_id} is not a calibration of {serial}")
         conn.execute(sa.insert(t.current).values(unit_id=uid, result_id=result_id, set_at=now()))
 
     write(db, run)
-
-
-def find_calibration(db: Database, record_sha256: str, options: dict, serial: str | None = None) -> int | None:
-    """The newest result already recorded from a record with the same options.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    record_sha256 : str
-        The record's hash (:func:`inscal.io.file_hash`).
-    options : dict
-        The calibration's options (:func:`~inscal.lab.record.calibration_options`).
-    serial : str, optional
-        Only this unit's.
-
-    Returns
-    -------
-    int or None
-        Its id; None if none.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> lab.find_calibration(db, jan.record_sha256, {"method": "six-position"}) == first
-    True
-
-    >>> db.close()
-    """
-    q = (sa.select(t.results.c.id).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
-         .where(t.sessions.c.record_sha256 == record_sha256, t.results.c.options_hash == options_hash(options))
-         .order_by(t.results.c.id.desc()).limit(1))
-    if serial is not None:
-        q = q.join(t.units, t.units.c.id == t.results.c.unit_id).where(t.units.c.serial == serial)
-    with read(db) as conn:
-        return conn.execute(q).scalar()
-
-
-def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | None:
-    """The result of a unit recorded from the very same parameter file.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    serial : str
-        The unit.
-    param_file_sha256 : str
-        The file's hash (:func:`~inscal.lab.record.text_hash` of its text).
-
-    Returns
-    -------
-    int or None
-        Its id; None if none.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> lab.find_param_file(db, "IMU-1", lab.text_hash(text)) == first
-    True
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        return conn.execute(sa.select(t.results.c.id).join(t.units, t.units.c.id == t.results.c.unit_id).where(
-            t.units.c.serial == serial, t.results.c.param_file_sha256 == param_file_sha256)
-            .order_by(t.results.c.id).limit(1)).scalar()
-
-
-def current_id(conn, unit_id: int) -> int | None:
-    """The id of the unit's current result (its newest ``current`` row), or None."""
-    return conn.execute(sa.select(t.current.c.result_id).where(t.current.c.unit_id == unit_id)
-                        .order_by(t.current.c.id.desc()).limit(1)).scalar()
-
-
-def _arrays(name: str, rows: list) -> Parameter:
-    shape = PARAMETERS[name].shape
-    n = len(parameter_components(name))
-
-    def arr(key):
-        a = np.full(n, np.nan)
-        for r in rows:
-            v = getattr(r, key)
-            a[r.component] = np.nan if v is None else v
-        return a.reshape(shape) if shape else a.reshape(())
-
-    formal = arr("sigma_formal") if any(r.sigma_formal is not None for r in rows) else None
-    return Parameter(name, rows[0].unit, arr("value"), arr("sigma"), formal,
-                     tuple(r.label for r in sorted(rows, key=lambda r: r.component)))
-
-
-def _load(conn, result_rows: list) -> list[Calibration]:
-    """The calibrations of ``result_rows`` (a few queries for all of them)."""
-    if not result_rows:
-        return []
-    ids = [r.id for r in result_rows]
-    params: dict[int, dict[str, list]] = {i: {} for i in ids}
-    for p in conn.execute(sa.select(t.parameters).where(t.parameters.c.result_id.in_(ids))
-                          .order_by(t.parameters.c.id)):
-        params[p.result_id].setdefault(p.name, []).append(p)
-    sess = {s.id: s for s in conn.execute(sa.select(t.sessions).where(
-        t.sessions.c.id.in_({r.session_id for r in result_rows})))}
-    unit_rows = {u.id: u for u in conn.execute(sa.select(t.units).where(
-        t.units.c.id.in_({r.unit_id for r in result_rows})))}
-    later: dict[int, list[int]] = {i: [] for i in ids}
-    for r in conn.execute(sa.select(t.results.c.id, t.results.c.supersedes).where(t.results.c.supersedes.in_(ids))):
-        later[r.supersedes].append(r.id)
-    cur = {uid: current_id(conn, uid) for uid in unit_rows}
-    out = []
-    for r in result_rows:
-        s = sess[r.session_id]
-        session = Session(id=s.id, record_sha256=s.record_sha256, date=s.date, record_path=s.record_path,
-                          station=s.station, operator=s.operator, latitude_deg=s.latitude_deg,
-                          longitude_deg=s.longitude_deg, height_m=s.height_m, gravity_model=s.gravity_model,
-                          g_site_m_s2=s.g_site_m_s2, temperature_c=s.temperature_c, path_name=s.path_name,
-                          recorded_at=s.recorded_at)
-        u = unit_rows[r.unit_id]
-        out.append(Calibration(
-            id=r.id, serial=u.serial, method=r.method, state_set=r.state_set, options=r.options,
-            options_hash=r.options_hash, parameters={n: _arrays(n, rows) for n, rows in params[r.id].items()},
-            covariance=r.covariance, fit=r.fit, fit_chi2=r.fit_chi2, fit_dof=r.fit_dof, fit_p=r.fit_p,
-            notes=tuple(r.notes or ()), inscal_version=r.inscal_version, param_text=r.param_file,
-            param_file_sha256=r.param_file_sha256, supersedes=r.supersedes, superseded_by=tuple(sorted(later[r.id])),
-            current=cur[r.unit_id] == r.id, recorded_at=r.recorded_at, session=session, unit_model=u.model))
-    return out
-
-
-def get_calibration(db: Database, result_id: int) -> Calibration:
-    """A result with all its parameters, sigma, covariance, fit and provenance.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    result_id : int
-        The result.
-
-    Returns
-    -------
-    Calibration
-        The result.
-
-    Raises
-    ------
-    DatabaseError
-        No such result.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> cal = lab.get_calibration(db, first)
-    >>> cal.serial, cal.method, cal.parameters["gyro_bias"].unit
-    ('IMU-1', 'six-position', 'deg/h')
-
-    >>> db.close()
-    """
-    if not 0 < int(result_id) < 2**63:  # beyond any id (and SQLite's 64-bit integers)
-        raise DatabaseError(f"no calibration result {result_id} in {db.where}")
-    with read(db) as conn:
-        row = conn.execute(sa.select(t.results).where(t.results.c.id == int(result_id))).first()
-        if row is None:
-            raise DatabaseError(f"no calibration result {result_id} in {db.where}")
-        return _load(conn, [row])[0]
-
-
-def current_calibration(db: Database, serial: str) -> Calibration | None:
-    """The current calibration of a unit.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    serial : str
-        The unit.
-
-    Returns
-    -------
-    Calibration or None
-        Its current calibration, None if it has none.
-
-    Raises
-    ------
-    DatabaseError
-        An unknown unit.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
-    >>> lab.current_calibration(db, "IMU-1").id == second  # the newest record's
-    True
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        rid = current_id(conn, _unit_id(conn, serial))
-        if rid is None:
-            return None
-        return _load(conn, [conn.execute(sa.select(t.results).where(t.results.c.id == rid)).one()])[0]
-
-
-def calibrations(db: Database, serial: str, method: str | None = None, superseded: bool = False) -> list[Calibration]:
-    """The calibrations of a unit, in the order of their records' dates (then of recording).
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-    serial : str
-        The unit.
-    method : str, optional
-        Only this method's.
-    superseded : bool
-        Keep the results another one supersedes too.
-
-    Returns
-    -------
-    list of Calibration
-        The calibrations.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
-    >>> [c.parameters["gyro_bias"].value[0].item() for c in lab.calibrations(db, "IMU-1")]
-    [0.01, 0.012]
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        uid = _unit_id(conn, serial)
-        q = (sa.select(t.results).join(t.sessions, t.sessions.c.id == t.results.c.session_id)
-             .where(t.results.c.unit_id == uid).order_by(t.sessions.c.date, t.results.c.id))
-        if method is not None:
-            q = q.where(t.results.c.method == method)
-        if not superseded:
-            later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
-            q = q.where(t.results.c.id.not_in(later))
-        return _load(conn, list(conn.execute(q)))
-
-
-def thermal_of(cal: Calibration) -> ThermalModel | None:
-    """The thermal model the parameter file of ``cal`` carries (its ``[thermal]`` table), None when it has none
-    or one that cannot be read."""
-    try:
-        doc = parse_param_text(cal.param_text)
-    except ParamFileError:
-        return None
-    tdoc = doc.get("thermal")
-    if not isinstance(tdoc, dict):
-        return None
-    try:
-        return thermal_from_field({k: v for k, v in tdoc.items() if k != "fit"})[0]
-    except (ValueError, TypeError, KeyError):
-        return None
-
-
-def newest_thermal(db: Database, serial: str) -> tuple[Calibration, ThermalModel] | None:
-    """The unit's newest result (by its record's date, then by recording) whose parameter file carries a thermal
-    model (``thermal-plateaus``, thermal states), with that model; None when none does.  Superseded results
-    are left out."""
-    for cal in reversed(calibrations(db, serial)):
-        model = thermal_of(cal)
-        if model is not None and not model.is_zero:
-            return cal, model
-    return None
-
-
-def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
-    """Every unit with its number of (not superseded) results and its current result id, by serial.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-
-    Returns
-    -------
-    list of tuple of (Unit, int, int or None)
-        ``(unit, results, current result id)``.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> [(u.serial, n, cur == first) for u, n, cur in lab.list_units(db)]
-    [('IMU-1', 1, True)]
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        later = sa.select(t.results.c.supersedes).where(t.results.c.supersedes.is_not(None))
-        counts = dict(conn.execute(sa.select(t.results.c.unit_id, sa.func.count()).where(
-            t.results.c.id.not_in(later)).group_by(t.results.c.unit_id)).all())
-        out = []
-        for row in conn.execute(sa.select(t.units).order_by(t.units.c.serial)):
-            out.append((_unit(row), int(counts.get(row.id, 0)), current_id(conn, row.id)))
-        return out
-
-
-def table_counts(db: Database) -> dict[str, int]:
-    """Rows per table.
-
-    Parameters
-    ----------
-    db : Database
-        The open database.
-
-    Returns
-    -------
-    dict of str to int
-        ``{table: rows}``.
-
-    Examples
-    --------
-    >>> import datetime as dt
-    >>> import numpy as np
-    >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> counts = lab.table_counts(db)
-    >>> counts["units"], counts["results"], counts["parameters"]
-    (1, 1, 3)
-
-    >>> db.close()
-    """
-    with read(db) as conn:
-        return {tab.name: int(conn.execute(sa.select(sa.func.count()).select_from(tab)).scalar_one())
-                for tab in t.TABLES}

@@ -17,7 +17,7 @@ Records and their units
 Resuming
     Before a record is calibrated, its sha256 and the canonical options
     (:meth:`~inscal.runs.calibration.CalibrationSetup.options`, the same as ``inscal calibrate
-    --serial``'s) are looked up for its unit (:func:`~inscal.lab.store.find_calibration`): a record
+    --serial``'s) are looked up for its unit (:func:`~inscal.lab.queries.find_calibration`): a record
     recorded already is skipped.  Every result is committed in one transaction, so a batch killed at
     any moment leaves whole results only, and running it again calibrates exactly the records
     missing.  The look-up is repeated just before the result is written, under a lock per record
@@ -67,15 +67,15 @@ from inscal.runs.calibration import (
     calibrate_record,
     load_record,
 )
-from inscal.lab.database import Database, DatabaseError, database_url, open_database
+from inscal.lab.database import Database, DatabaseError, database_url
+from inscal.lab.opening import open_database
 from inscal.lab.model import parse_date
 from inscal.lab.record import options_hash, session_from_record
+from inscal.lab.queries import find_calibration, get_unit
 from inscal.lab.store import (
     AlreadyRecorded,
     add_unit,
     check_serial,
-    find_calibration,
-    get_unit,
     record_result,
 )
 

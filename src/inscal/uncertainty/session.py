@@ -22,7 +22,7 @@ import sqlalchemy
 
 from inscal import lab
 from inscal.lab.model import iso
-from inscal.lab.store import newest_thermal
+from inscal.lab.queries import newest_thermal
 from inscal.core import units
 from inscal.uncertainty import budget as gum
 from inscal.uncertainty.montecarlo import budget_monte_carlo

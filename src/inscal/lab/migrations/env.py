@@ -1,5 +1,5 @@
 """Alembic's environment for the calibration database: the migrations run on the connection that
-:func:`inscal.lab.database.upgrade_database` hands over (``config.attributes["connection"]``), inside
+:func:`inscal.lab.opening.upgrade_database` hands over (``config.attributes["connection"]``), inside
 its transaction, so an upgrade is all or nothing (SQLite and PostgreSQL both have transactional DDL)."""
 
 from alembic import context
