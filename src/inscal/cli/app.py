@@ -14,14 +14,16 @@ import click
 import typer
 
 from inscal.cli.common import CliError, fail
+from inscal.cli.examples import epilog
 from inscal.cli.interrupts import (
     Interrupted,
     catch_interrupts,
     pending_signal,
     release_interrupts,
 )
+from inscal.cli.options import Command, Group
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
+app = typer.Typer(add_completion=False, no_args_is_help=True, cls=Group, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 
 def _version(value: bool) -> None:
     if value:
@@ -110,6 +112,13 @@ def _register_all() -> None:
     for info in app.registered_commands:
         if info.callback.__name__ not in _PIPELINES:
             info.callback = _one_unit(info.callback)
+    # every command's help: the values named (inscal.cli.options.Command) and its examples (inscal.cli.examples)
+    commands = [("", info) for info in app.registered_commands]
+    for group in app.registered_groups:
+        commands += [(group.name + " ", info) for info in group.typer_instance.registered_commands]
+    for prefix, info in commands:
+        info.cls = Command
+        info.epilog = epilog(prefix + (info.name or info.callback.__name__))
 
 
 _register_all()

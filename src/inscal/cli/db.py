@@ -16,8 +16,9 @@ from inscal.cli.common import (
     short,
 )
 from inscal.cli.guards import check_not_database, database_notes
+from inscal.cli.options import Group
 
-db_app = typer.Typer(no_args_is_help=True, add_completion=False,
+db_app = typer.Typer(no_args_is_help=True, add_completion=False, cls=Group,
                      help="The calibration database: units, sessions and results over time (SQLite file or "
                           "PostgreSQL URL; --db, else $INSCAL_DB, else calib.sqlite here).")
 
