@@ -74,10 +74,6 @@ def _one_unit(command):
     def run(*args, **kwargs):
         files = importlib.import_module("inscal.io.files")
         try:
-            _check_applies()
-        except CliError as exc:
-            raise fail(str(exc)) from None
-        try:
             with files.output_unit():
                 try:
                     return command(*args, **kwargs)
@@ -89,21 +85,6 @@ def _one_unit(command):
             raise fail(str(exc)) from None          # of the publication (a database commit) failed: nothing published
 
     return run
-
-
-def _check_applies() -> None:
-    """The options of this run against what they apply to (:mod:`inscal.cli.applies`)."""
-    from typer._click.core import ParameterSource  # typer's own click (vendored), whose context runs the command
-    from typer._click.globals import get_current_context
-
-    from inscal.cli.applies import check_command
-
-    ctx = get_current_context()
-    given = {n for n in ctx.params if ctx.get_parameter_source(n) in (ParameterSource.COMMANDLINE,
-                                                                      ParameterSource.ENVIRONMENT)}
-    opts = {p.name: max((o for o in p.opts if o.startswith("--")), key=len, default=p.opts[0])
-            for p in ctx.command.params if getattr(p, "opts", None)}
-    check_command(ctx.info_name or "", dict(ctx.params), given, opts)
 
 
 def _register_all() -> None:

@@ -88,10 +88,11 @@ def _report_stage(out, force, log, res, ctx, t0):
 def _calibrate_stage(out, force, seed, quick, show_progress, log, res):
     """Calibrate the N25 record with the traditional six-position scheme, the N25 method and the joint fit."""
     from inscal.cli.calibrate import run_calibrate
+    from inscal.cli.calibrate_setup import CalibrateOptions
 
     res["steps"]["calibrate"] = {}
     for method in ("six-position", "n25", "joint"):
-        r = run_calibrate(out / "n25.h5", method, out / f"params-{method}.toml", force=force)
+        r = run_calibrate(CalibrateOptions(out / "n25.h5", method, out / f"params-{method}.toml", force=force))
         p = r["parameters"]
         res["steps"]["calibrate"][method] = p  # every estimate: value, sigma, error (against the truth), unit
         dth = p.get("gimbal_nonorthogonality")

@@ -107,16 +107,8 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
         if scheduler not in (None, "synchronous", "sync"):
             raise CliError("--no-dask and --scheduler ADDRESS contradict each other")
         scheduler = "synchronous"
-    if runs < 1:
-        raise CliError(f"--runs must be >= 1, got {runs}")
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
-    if workers is not None and workers < 1:
-        raise CliError(f"--workers must be >= 1, got {workers}")
     if workers is not None and scheduler not in (None, "local"):
         raise CliError("--workers applies to the default LocalCluster only")
-    if batch_size is not None and batch_size < 1:
-        raise CliError(f"--batch-size must be >= 1, got {batch_size}")
     try:
         exp = studies.get_experiment(experiment, params)
     except mc.StudyError as exc:

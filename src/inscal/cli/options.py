@@ -17,6 +17,9 @@ from typing import Annotated
 import typer
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
+from inscal.cli.applies import check_context
+from inscal.cli.common import CliError, fail
+
 DB_HELP = ("calibration database: a file (SQLite) or postgresql://USER@HOST/NAME (default: $INSCAL_DB, else "
            "calib.sqlite)")
 
@@ -57,6 +60,29 @@ McOption = Annotated[int | None, typer.Option("--mc", metavar="N", help=(
     "component's linear interval is validated or not; e.g. 10000)"))]
 FilterRateOption = Annotated[float, typer.Option("--filter-rate-hz", metavar="HZ", help=(
     "systematic: filter update rate [Hz]"))]
+
+# --------------------------------------------------------------------------- a calibration's (calibrate, batch)
+METHODS_HELP = ("six-position | twelve-position | n25 | joint | systematic51 | systematic30 | unified | "
+                "thermal-plateaus (a turntable record) | multi-position | ferraris (no turntable: still poses at "
+                "unknown orientations; six faces and three whole turns)")
+SettleOption = Annotated[float | None, typer.Option("--settle-s", metavar="SECONDS", help=(
+    "settling time dropped at both ends of each window [s] (default 1; multi-position, ferraris: 0.25)"))]
+MinStaticOption = Annotated[float | None, typer.Option("--min-static-s", metavar="SECONDS", help=(
+    "shortest static window used [s] (default 20; multi-position: 1; ferraris: 2)"))]
+EncoderSigmaOption = Annotated[float | None, typer.Option("--encoder-sigma", metavar="ARCSEC", help=(
+    "unified / gimbal states: white noise of each encoder angle [arcsec] (default 1)"))]
+EncoderLatencyOption = Annotated[float, typer.Option("--encoder-latency", metavar="SECONDS", help=(
+    "shift the encoder angles by this many seconds before calibrating (> 0: encoders that lag the IMU)"))]
+SkipEncoderCheckOption = Annotated[bool, typer.Option("--skip-encoder-check", help=(
+    "calibrate even when the encoder angles do not follow the gyros"))]
+CalibrationNoiseOption = Annotated[Path | None, typer.Option("--noise", metavar="NOISE.toml", help=(
+    "systematic: an identified noise model (noise.toml of inscal noise): its white terms weight the filter, its "
+    "Gauss-Markov terms become bias states"))]
+
+
+def method_option(help: str = METHODS_HELP) -> object:
+    """``--method/-m``: the calibration method (required)."""
+    return Annotated[str, typer.Option("--method", "-m", metavar="METHOD", help=help)]
 
 
 def scheduler_option(default: str) -> object:
@@ -166,6 +192,14 @@ class Command(TyperCommand):
     def get_help_option(self, ctx):
         """``--help``, a flag: no value shown."""
         return _flag(super().get_help_option(ctx))
+
+    def invoke(self, ctx):
+        """Run the command once its options pass :func:`inscal.cli.applies.check_context` (else one line, exit 2)."""
+        try:
+            check_context(ctx)
+        except CliError as exc:
+            raise fail(str(exc)) from None
+        return super().invoke(ctx)
 
     def format_help(self, ctx, formatter) -> None:
         """Typer's help with the texts' square brackets escaped for Rich."""

@@ -85,10 +85,11 @@ def _records(tmp: Path) -> None:
 
 def _systematic(tmp: Path) -> None:
     from inscal.cli.calibrate import run_calibrate
+    from inscal.cli.calibrate_setup import CalibrateOptions
 
-    run_calibrate(tmp / "s16.h5", "systematic51", tmp / "s16-51.toml", force=True)
-    run_calibrate(tmp / "s16.h5", "systematic30", tmp / "s16-30.toml", force=True)
-    run_calibrate(tmp / "s16-gimbal.h5", "unified", tmp / "unified.toml", force=True)
+    run_calibrate(CalibrateOptions(tmp / "s16.h5", "systematic51", tmp / "s16-51.toml", force=True))
+    run_calibrate(CalibrateOptions(tmp / "s16.h5", "systematic30", tmp / "s16-30.toml", force=True))
+    run_calibrate(CalibrateOptions(tmp / "s16-gimbal.h5", "unified", tmp / "unified.toml", force=True))
 
 
 def _observability(tmp: Path) -> None:
@@ -99,9 +100,10 @@ def _observability(tmp: Path) -> None:
 
 def _n25_methods(tmp: Path) -> None:
     from inscal.cli.calibrate import run_calibrate
+    from inscal.cli.calibrate_setup import CalibrateOptions
 
     for method in ("six-position", "twelve-position", "n25", "joint"):
-        run_calibrate(tmp / "n25.h5", method, tmp / f"params-{method}.toml", force=True)
+        run_calibrate(CalibrateOptions(tmp / "n25.h5", method, tmp / f"params-{method}.toml", force=True))
 
 
 def _bound(tmp: Path) -> None:
