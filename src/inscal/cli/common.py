@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import json
 import os
@@ -134,25 +133,6 @@ def print_json(obj) -> None:
     from inscal.io.jsonfile import to_jsonable
 
     typer.echo(json.dumps(to_jsonable(obj), indent=2))
-
-
-@contextlib.contextmanager
-def progress_bar(description: str, total: int, enabled: bool = True):
-    """A Rich progress bar on stderr; yields ``update(done, total)``."""
-    console = None
-    if enabled:
-        from rich.console import Console
-
-        console = Console(stderr=True)
-    if console is None or not console.is_terminal:  # no bar (nor its stray newline) in a log or a pipe
-        yield lambda done, tot: None
-        return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                  TimeRemainingColumn(), console=console, transient=True) as prog:
-        task = prog.add_task(description, total=total)
-        yield lambda done, tot: prog.update(task, completed=done)
 
 
 def load_checked_params(path):

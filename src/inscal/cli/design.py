@@ -11,6 +11,7 @@ import typer
 
 from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory, human_seconds
+from inscal.core.progress import ProgressBar
 
 
 def _range(opt: str, v: str | None):
@@ -25,47 +26,6 @@ def _range(opt: str, v: str | None):
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= 0 <= hi and lo < hi):
         raise CliError(f"{opt} must be LO,HI with LO <= 0 <= HI (the path starts at 0 deg), got {short(v)!r}")
     return (float(units.to_si(lo, "deg")), float(units.to_si(hi, "deg")))
-
-
-class _Progress:
-    """Search progress on stderr: a Rich bar with the best score on a terminal; otherwise (a log, CI)
-    a plain line at every 10 % of the candidates."""
-
-    def __init__(self, total: int, name: str):
-        import sys
-
-        from rich.console import Console
-
-        self.total, self.name, self.next_pct, self.p = total, name, 10, None
-        self.err = sys.stderr
-        con = Console(stderr=True)
-        if con.is_terminal:
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-            )
-
-            self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                              TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=con)
-            self.p.start()
-            self.task = self.p.add_task(name, total=total, best="-")
-
-    def update(self, done: int, total: int, best: float) -> None:
-        if self.p is not None:
-            self.p.update(self.task, completed=done, best=f"{best:.4g}")
-            return
-        pct = 100.0 * done / max(1, total)
-        if pct >= self.next_pct or done == total:
-            print(f"{self.name}: {done}/{total} candidates, best score {best:.4g}", file=self.err, flush=True)
-            while self.next_pct <= pct:
-                self.next_pct += 10
-
-    def close(self) -> None:
-        if self.p is not None:
-            self.p.stop()
 
 
 def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | None, station=None) -> dict:
@@ -177,15 +137,19 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
     check_size(minutes, candidates, population, workers, scheduler, setup)
-    bar = _Progress(candidates, f"design {minutes:g} min") if progress else None
+    label = f"design {minutes:g} min"
+    bar = ProgressBar(label, candidates, progress, every_s=None)
+
+    def update(done: int, total: int, best: float) -> None:  # the best score so far beside the bar
+        bar.update(done, total, f"best {best:.4g}", f"{label}: {done}/{total} candidates, best score {best:.4g}")
+
     try:
         res = design(minutes, states, objective, targets, groups, limits, seed, candidates, population,
-                     scheduler, workers, setup, bar.update if bar else None, name)
+                     scheduler, workers, setup, update if progress else None, name)
     except (DesignError, BoundError) as exc:
         raise CliError(str(exc)) from None
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     doc = scenario_doc(base, name, res.path, arw, vrw, station)
     d = res.to_dict()
     what = "" if station is None else f" of the combined uncertainty at station {station.name!r}"

@@ -14,9 +14,9 @@ from inscal.cli.common import (
     fail,
     parse_gravity_option,
     print_json,
-    progress_bar,
     short,
 )
+from inscal.core.progress import ProgressBar
 
 np = LazyModule("numpy")
 
@@ -101,8 +101,6 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
 
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
         raise CliError(f"--rate-hz must be positive, got {rate_hz:g}")
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
     try:
         sc = scenarios.build(scenario, duration_s=None if duration_h is None else duration_h * 3600.0, rate_hz=rate_hz)
     except ValueError as exc:  # ScenarioError, PathError, unit errors
@@ -118,9 +116,9 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
     check_output(out, force)
     check_size(sc, out)
     rng = np.random.default_rng(seed)
-    with progress_bar(f"simulating {sc.name}", sc.n_samples, show_progress) as upd:
+    with ProgressBar(f"simulating {sc.name}", sc.n_samples, show_progress, lines=False, transient=True) as bar:
         try:
-            n = sim.write_simulation(out, sc, rng, overwrite=force, progress=upd)
+            n = sim.write_simulation(out, sc, rng, overwrite=force, progress=bar.update)
         except (FileExistsError, FileNotFoundError, ValueError, OSError) as exc:  # OSError: e.g. a read-only folder
             raise CliError(str(exc)) from None
     res = summary(sc, out, seed, n)
