@@ -11,7 +11,27 @@ import typer
 
 from inscal.cli.calibrate_outputs import recorded, write_outputs
 from inscal.cli.calibrate_setup import (
+    AcceptUnconvergedOption,
+    AlphaOption,
     CalibrateOptions,
+    ChamberLabelOption,
+    FaceTiltOption,
+    GravityTolOption,
+    McSeedOption,
+    MinTurnEndOption,
+    PerPlateauOption,
+    PlateauTolOption,
+    PlotsOption,
+    QuadraticOption,
+    STATES_HELP,
+    STATION_HELP,
+    TRefOption,
+    TemperatureSensorOption,
+    ThermalModelOption,
+    ThermalOrderOption,
+    TremorDpsOption,
+    TurnClosureOption,
+    TurnTolOption,
     budget_thermal_model,
     method_options,
     open_lab,
@@ -49,22 +69,6 @@ from inscal.cli.options import (
     vrw_option,
     station_option,
 )
-
-STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-diagonals and cross-coupling chosen "
-               "by F-tests on the innovations) | 51 | 30, plus options lever9, async, psins, gimbal, gdiag, nocross, "
-               "auto (e.g. 51,lever9 or auto,psins), and thermal: the thermal coefficients as states, the record's "
-               "/temperature a known input, T_ref 20 degC (thermal: orders 2,2,3,2 and the dT/dt term; "
-               "thermal=GSABR: orders of gyro bias, gyro scale factor, accel bias, accel scale factor 0-3 and the "
-               "dT/dt term 0-1, e.g. 51,thermal=11110); unified: extra options (e.g. lever9, auto)")
-STATION_HELP = ("the turntable / station of the run: its name (with --serial), or a station description FILE.toml "
-                "(n25, six-position, twelve-position, joint, systematic51, systematic30, multi-position, ferraris): "
-                "the GUM uncertainty budget is computed, printed and, with --serial, stored with the result")
-
-
-def _option(name: str, help: str, kind: type = float, metavar: str | None = None) -> object:
-    """An option of calibrate alone (None unless given)."""
-    return Annotated[kind | None, typer.Option(name, metavar=metavar, help=help)]
-
 
 def run_calibrate(o: CalibrateOptions) -> dict:
     """Calibrate ``o.data`` with ``o.method`` and write ``o.out`` (the options: :class:`CalibrateOptions`);
@@ -268,29 +272,17 @@ def register(app: typer.Typer) -> None:
         force: ForceOption = False,
         settle: SettleOption = None,
         min_static: MinStaticOption = None,
-        quadratic: Annotated[bool, typer.Option("--quadratic", help=(
-            "multi-position: estimate the quadratic accelerometer terms too (12 parameters: at least 12 poses, and "
-            "more for the fit to have accelerometer degrees of freedom)"))] = False,
+        quadratic: QuadraticOption = False,
         # the no-turntable methods' options (None: the method's own default)
-        alpha: _option("--alpha", "multi-position, ferraris: false-alarm probability of the still-pose tests "
-                       "(default 1e-3; ferraris 1e-4)", metavar="P") = None,
-        gravity_tol: _option("--gravity-tol", "multi-position, ferraris: the largest relative difference between "
-                             "the poses' specific force and the site's gravity (default 0.15; ferraris 0.1)",
-                             metavar="RATIO") = None,
-        face_tilt: _option("--face-tilt-deg", "ferraris: rms angle in deg between a face and the horizontal when "
-                           "it rests on a table (flatness, squareness, the table's level; in the sigma) (default "
-                           "0.3; 0: exact faces)") = None,
-        min_turn_end: _option("--min-turn-end-s", "ferraris: shortest still pose in s at the ends of a turn, after "
-                              "--settle-s at both ends (default 0.3)") = None,
-        turn_tol: _option("--turn-tol-deg", "ferraris: how far from 360 deg a whole turn may be, in deg "
-                          "(default 30)") = None,
-        turn_closure: _option("--turn-closure-deg", "ferraris: rms difference in deg between a whole turn's angle "
-                              "and 360 deg (a turn by hand against a stop; in the sigma) (default 0.2; 0: exact "
-                              "turns)") = None,
-        tremor_dps: _option("--tremor-dps", "multi-position: the hand tremor a still pose may hold [deg/s rms] "
-                            "(default 3; the accelerometers judge a pose, the gyros may tremble up to this)") = None,
+        alpha: AlphaOption = None,
+        gravity_tol: GravityTolOption = None,
+        face_tilt: FaceTiltOption = None,
+        min_turn_end: MinTurnEndOption = None,
+        turn_tol: TurnTolOption = None,
+        turn_closure: TurnClosureOption = None,
+        tremor_dps: TremorDpsOption = None,
         states: states_option(STATES_HELP) = None,
-        plots: _option("--plots", "systematic: folder for the convergence plots (PNG)", Path, "FOLDER") = None,
+        plots: PlotsOption = None,
         filter_rate: FilterRateOption = 1.0,
         arw: arw_option("from the data") = None,
         vrw: vrw_option("from the data") = None,
@@ -305,34 +297,19 @@ def register(app: typer.Typer) -> None:
         date: DateOption = None,
         temperature_c: TemperatureCOption = None,
         supersedes: SupersedesOption = None,
-        per_plateau: _option("--per-plateau", "thermal-plateaus: the method run on each temperature plateau "
-                             "(default n25; any other method)", str, "METHOD") = None,
-        thermal_order: _option("--thermal-order", "thermal-plateaus: NAME=ORDER, the polynomial order of a "
-                               "thermal term in T - T_ref (repeatable; default gyro_bias, gyro_scale_factor, "
-                               "accel_bias, accel_scale_factor = 2, misalignments 0 = constant, at most 1; an order "
-                               "not named is raised while its fit misfits the plateaus)", list[str],
-                               "NAME=ORDER") = None,
-        t_ref: _option("--t-ref", "thermal-plateaus: reference temperature of the model [deg C] (default 20; "
-                       "inside the plateaus' range)", metavar="DEGC") = None,
-        plateau_tol: Annotated[float, typer.Option("--plateau-tol", metavar="DEGC", help=(
-            "thermal-plateaus: a plateau's readings stay within this of their mean [deg C]"))] = 0.5,
-        temperature_sensor: Annotated[str, typer.Option("--temperature-sensor", metavar="SENSOR", help=(
-            "thermal-plateaus: the temperature sensor (default: the mean of the record's sensors)"))] = "",
-        chamber_label: Annotated[str, typer.Option("--chamber-label", metavar="LABEL", help=(
-            "thermal-plateaus: label prefix of the path's chamber transitions (the plateaus are cut there; without "
-            "them they are found in the temperature)"))] = "chamber",
+        per_plateau: PerPlateauOption = None,
+        thermal_order: ThermalOrderOption = None,
+        t_ref: TRefOption = None,
+        plateau_tol: PlateauTolOption = 0.5,
+        temperature_sensor: TemperatureSensorOption = "",
+        chamber_label: ChamberLabelOption = "chamber",
         wait: WaitOption = None,
-        accept_unconverged: Annotated[bool, typer.Option("--accept-unconverged", help=(
-            "systematic: keep the last iterate of a run that does not converge (a note in the text, the JSON and "
-            "the parameter file) instead of ending with exit 2"))] = False,
+        accept_unconverged: AcceptUnconvergedOption = False,
         noise: CalibrationNoiseOption = None,
         mc: McOption = None,
-        mc_seed: Annotated[int, typer.Option("--mc-seed", metavar="SEED", help="seed of the Monte Carlo")] = 0,
+        mc_seed: McSeedOption = 0,
         mc_workers: McWorkersOption = 1,
-        thermal_model: _option("--thermal-model", "with --station FILE.toml: a parameter file with a thermal model "
-                               "([thermal], from thermal-plateaus or thermal states) whose slope dy/dT propagates the "
-                               "chamber's temperature stability (default: the unit's newest result in the database "
-                               "that has one)", Path, "PARAMS.toml") = None,
+        thermal_model: ThermalModelOption = None,
         json_: JsonOption = False,
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""

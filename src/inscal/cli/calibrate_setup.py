@@ -1,5 +1,5 @@
-"""The options of ``inscal calibrate`` as one object (:class:`CalibrateOptions`) and their checks before the
-calibration runs: the station description of the budget, its thermal model, the thermal orders, the no-turntable
+"""The options of ``inscal calibrate``: those of calibrate alone (the shared ones are :mod:`inscal.cli.options`),
+all of them as one object (:class:`CalibrateOptions`), and their checks before the calibration runs: the station description of the budget, its thermal model, the thermal orders, the no-turntable
 methods' options in their functions' units, and the calibration database that ``--serial`` records in."""
 
 from __future__ import annotations
@@ -7,9 +7,87 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
+
+import typer
 
 from inscal.cli.common import CliError, normal_serial
 from inscal.cli.guards import database_notes
+
+# ----------------------------------------------------------------------------- the options of calibrate alone
+STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-diagonals and cross-coupling chosen "
+               "by F-tests on the innovations) | 51 | 30, plus options lever9, async, psins, gimbal, gdiag, nocross, "
+               "auto (e.g. 51,lever9 or auto,psins), and thermal: the thermal coefficients as states, the record's "
+               "/temperature a known input, T_ref 20 degC (thermal: orders 2,2,3,2 and the dT/dt term; "
+               "thermal=GSABR: orders of gyro bias, gyro scale factor, accel bias, accel scale factor 0-3 and the "
+               "dT/dt term 0-1, e.g. 51,thermal=11110); unified: extra options (e.g. lever9, auto)")
+STATION_HELP = ("the turntable / station of the run: its name (with --serial), or a station description FILE.toml "
+                "(n25, six-position, twelve-position, joint, systematic51, systematic30, multi-position, ferraris): "
+                "the GUM uncertainty budget is computed, printed and, with --serial, stored with the result")
+
+
+def _option(name: str, help: str, kind: type = float, metavar: str | None = None) -> object:
+    """An option of calibrate alone (None unless given; its metavar from :func:`inscal.cli.options.metavar_of` unless
+    ``metavar``)."""
+    return Annotated[kind | None, typer.Option(name, metavar=metavar, help=help)]
+
+QuadraticOption = Annotated[bool, typer.Option("--quadratic", help=(
+    "multi-position: estimate the quadratic accelerometer terms too (12 parameters: at least 12 poses, and "
+    "more for the fit to have accelerometer degrees of freedom)"))]
+AlphaOption = _option(
+    "--alpha", "multi-position, ferraris: false-alarm probability of the still-pose tests "
+    "(default 1e-3; ferraris 1e-4)", metavar="P")
+GravityTolOption = _option(
+    "--gravity-tol", "multi-position, ferraris: the largest relative difference between "
+    "the poses' specific force and the site's gravity (default 0.15; ferraris 0.1)",
+    metavar="RATIO")
+FaceTiltOption = _option(
+    "--face-tilt-deg", "ferraris: rms angle in deg between a face and the horizontal when "
+    "it rests on a table (flatness, squareness, the table's level; in the sigma) (default "
+    "0.3; 0: exact faces)")
+MinTurnEndOption = _option(
+    "--min-turn-end-s", "ferraris: shortest still pose in s at the ends of a turn, after "
+    "--settle-s at both ends (default 0.3)")
+TurnTolOption = _option(
+    "--turn-tol-deg", "ferraris: how far from 360 deg a whole turn may be, in deg "
+    "(default 30)")
+TurnClosureOption = _option(
+    "--turn-closure-deg", "ferraris: rms difference in deg between a whole turn's angle "
+    "and 360 deg (a turn by hand against a stop; in the sigma) (default 0.2; 0: exact "
+    "turns)")
+TremorDpsOption = _option(
+    "--tremor-dps", "multi-position: the hand tremor a still pose may hold [deg/s rms] "
+    "(default 3; the accelerometers judge a pose, the gyros may tremble up to this)")
+PlotsOption = _option(
+    "--plots", "systematic: folder for the convergence plots (PNG)", Path, "FOLDER")
+PerPlateauOption = _option(
+    "--per-plateau", "thermal-plateaus: the method run on each temperature plateau "
+    "(default n25; any other method)", str, "METHOD")
+ThermalOrderOption = _option(
+    "--thermal-order", "thermal-plateaus: NAME=ORDER, the polynomial order of a "
+    "thermal term in T - T_ref (repeatable; default gyro_bias, gyro_scale_factor, "
+    "accel_bias, accel_scale_factor = 2, misalignments 0 = constant, at most 1; an order "
+    "not named is raised while its fit misfits the plateaus)", list[str],
+    "NAME=ORDER")
+TRefOption = _option(
+    "--t-ref", "thermal-plateaus: reference temperature of the model [deg C] (default 20; "
+    "inside the plateaus' range)", metavar="DEGC")
+PlateauTolOption = Annotated[float, typer.Option("--plateau-tol", metavar="DEGC", help=(
+    "thermal-plateaus: a plateau's readings stay within this of their mean [deg C]"))]
+TemperatureSensorOption = Annotated[str, typer.Option("--temperature-sensor", metavar="SENSOR", help=(
+    "thermal-plateaus: the temperature sensor (default: the mean of the record's sensors)"))]
+ChamberLabelOption = Annotated[str, typer.Option("--chamber-label", metavar="LABEL", help=(
+    "thermal-plateaus: label prefix of the path's chamber transitions (the plateaus are cut there; without "
+    "them they are found in the temperature)"))]
+AcceptUnconvergedOption = Annotated[bool, typer.Option("--accept-unconverged", help=(
+    "systematic: keep the last iterate of a run that does not converge (a note in the text, the JSON and "
+    "the parameter file) instead of ending with exit 2"))]
+McSeedOption = Annotated[int, typer.Option("--mc-seed", metavar="SEED", help="seed of the Monte Carlo")]
+ThermalModelOption = _option(
+    "--thermal-model", "with --station FILE.toml: a parameter file with a thermal model "
+    "([thermal], from thermal-plateaus or thermal states) whose slope dy/dT propagates the "
+    "chamber's temperature stability (default: the unit's newest result in the database "
+    "that has one)", Path, "PARAMS.toml")
 
 
 @dataclass(frozen=True)
