@@ -17,6 +17,7 @@ from inscal.cli.common import (
     short,
 )
 from inscal.cli.limits import check_memory
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 np = LazyModule("numpy")
 units = LazyModule("inscal.core.units")
@@ -126,14 +127,14 @@ def register(app: typer.Typer) -> None:
     @app.command("allan")
     def allan_cmd(
         data: Path = typer.Argument(..., help="HDF5 record (use a static window)"),
-        start_s: float = typer.Option(0.0, "--start", help="window start [s]"),
-        stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
+        start_s: float = typer.Option(0.0, "--start", metavar="SECONDS", help="window start [s]"),
+        stop_s: float = typer.Option(None, "--stop", metavar="SECONDS", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (.png, .pdf or .svg)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing plot"),
-        model: str = typer.Option("auto", "--model", help="the noise model whose white-noise term gives ARW/VRW "
+        force: ForceOption = False,
+        model: str = typer.Option("auto", "--model", metavar="MODEL", help="the noise model whose white-noise term gives ARW/VRW "
                                   "(as inscal noise: 'auto' or a sum such as 'WN+RW+2GM')"),
-        seed: int = typer.Option(0, "--seed", help="seed of the multi-start solver's draws (as inscal noise)"),
-        json_: bool = typer.Option(False, "--json", help="print results as JSON"),
+        seed: SeedOption = 0,
+        json_: JsonOption = False,
     ):
         """Allan deviation of a record: ARW and VRW with their 95 % intervals (the noise engine's, as
         inscal noise) and the bias-instability read-off per axis."""

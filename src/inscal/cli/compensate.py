@@ -38,6 +38,7 @@ from inscal.cli.common import (
     short,
     thermal_compensation,
 )
+from inscal.cli.options import JsonOption
 
 
 def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None,
@@ -116,14 +117,14 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def compensate(
         data: Path = typer.Argument(..., help="HDF5 record to compensate"),
-        params: Path = typer.Option(..., "--params", "-p", help="calibration parameter file (TOML, from inscal calibrate)"),
+        params: Path = typer.Option(..., "--params", "-p", metavar="PARAMS.toml", help="calibration parameter file (TOML, from inscal calibrate)"),
         out: Path = typer.Option(..., "--out", "-o", help="compensated HDF5 record"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output; compensate an already "
                                    "compensated record anyway"),
-        temperature: float = typer.Option(None, "--temperature", help="constant temperature in degC for the parameter "
+        temperature: float = typer.Option(None, "--temperature", metavar="DEGC", help="constant temperature in degC for the parameter "
                                           "file's thermal model (a record without /temperature; in place of the "
                                           "record's readings otherwise)"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        json_: JsonOption = False,
     ):
         """Compensate a record's increments with a calibration parameter file (and its thermal model, at the
         record's temperature)."""

@@ -20,6 +20,7 @@ from pathlib import Path
 import typer
 
 from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 #: the report's files (besides the records and parameter files of the steps)
 REPORT_FILES = ("report.html", "summary.json", "allan.png", "s16-table2.png", "nav-comparison.png")
@@ -241,10 +242,10 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def demo(
         out: Path = typer.Option(Path("demo-output"), "--out", "-o", help="folder for the demo's files"),
-        force: bool = typer.Option(False, "--force", help="overwrite files from an earlier demo"),
-        seed: int = typer.Option(1, help="seed of the noise generators"),
+        force: ForceOption = False,
+        seed: SeedOption = 1,
         quick: bool = typer.Option(False, "--quick", help="shorter navigation run"),
-        json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
+        json_: JsonOption = False,
     ):
         """Run the main job on built-in defaults: simulate, calibrate, navigate, compare."""
         log = (lambda msg: None) if json_ else typer.echo

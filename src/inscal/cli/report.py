@@ -16,6 +16,7 @@ from inscal.cli.common import (
     print_json,
     short,
 )
+from inscal.cli.options import ForceOption, JsonOption
 
 
 #: samples of the first dwell below which :func:`inscal.report.record.record_report` leaves out the noise section
@@ -114,17 +115,16 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def report(
         data: Path = typer.Argument(..., help="HDF5 record, or a noise model (noise.toml of inscal noise)"),
-        params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable); "
+        params: list[Path] = typer.Option([], "--params", "-p", metavar="PARAMS.toml", help="parameter file(s) to tabulate (repeatable); "
                                           "a file with a thermal model also gets each thermal parameter's curve "
                                           "over its calibrated range with its 1-sigma band"),
-        noise: list[Path] = typer.Option([], "--noise", help="noise model(s) from 'inscal noise --out' (noise.toml, "
+        noise: list[Path] = typer.Option([], "--noise", metavar="NOISE.toml", help="noise model(s) from 'inscal noise --out' (noise.toml, "
                                          "repeatable): each process per channel in IEEE 952/1293 units with its 95 % "
                                          "interval and per-sample form, and the model's Allan deviation over the "
                                          "record's first dwell"),
         out: Path = typer.Option(..., "--out", "-o", help="HTML report to write"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing report"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary, with the numbers behind the "
-                                   "temperature and thermal plots (field units)"),
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Write an HTML report: gimbal motion, sensor outputs, temperature and dT/dt, Allan deviation,
         identified noise models, parameters vs truth, thermal parameters over temperature with their 1-sigma

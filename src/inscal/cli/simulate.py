@@ -16,6 +16,7 @@ from inscal.cli.common import (
     print_json,
     short,
 )
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 from inscal.core.progress import ProgressBar
 
 np = LazyModule("numpy")
@@ -139,14 +140,14 @@ def register(app: typer.Typer) -> None:
                                        "thermal-plateaus-s16, thermal-ramp, thermal-cycle, thermal-warmup; without a "
                                        "turntable: handheld-mems, handheld-tactical, handheld-navigation) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
-        seed: int = typer.Option(0, help="seed of the noise generator"),
-        duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
+        seed: SeedOption = 0,
+        duration_h: float = typer.Option(None, "--duration-h", metavar="HOURS", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
+        force: ForceOption = False,
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
-        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+        gravity: str = typer.Option(None, "--gravity", metavar="MODEL", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
                                     "(default: the scenario's, wgs84 unless its site table says otherwise)"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        json_: JsonOption = False,
     ):
         """Simulate an IMU on a dual-axis turntable (or hand-held) and write an HDF5 record."""
         try:

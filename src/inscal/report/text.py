@@ -189,3 +189,36 @@ def calibration_lines(rep: dict) -> list[str]:
         out.append(f"  recorded in {r['db']}: {r['serial']} result {r['result_id']}"
                    + (", now the current calibration" if r["current"] else ""))
     return out
+
+
+def navigation_lines(rep: dict) -> list[str]:
+    """The printed navigation run of ``inscal navigate`` (its JSON report ``rep``): the errors of position, velocity,
+    height and attitude, the final attitude, the oscillations' amplitudes and the files written."""
+    out = []
+    th = rep["thermal"]
+    out.append(f"{rep['data']}: {rep['duration_h']:.2f} h navigated ({rep['mode']}, vertical {rep['vertical_channel']}, "
+               f"init {rep['init']}{', params ' + rep['params'] if rep['params'] else ''}"
+               f"{', thermal model at ' + th['temperature'] if th else ''})")
+    out.append(f"  position error: max {rep['max_position_error_m']:.3f} m ({rep['max_position_error_nmi']:.4f} nmi), "
+               f"final {rep['final_position_error_m']:.3f} m ({rep['final_position_error_nmi']:.4f} nmi)")
+    out.append(f"  velocity error: max {rep['max_velocity_error_mps']:.4f} m/s (horizontal)")
+    if rep["vertical_channel"] != "hold" or rep["height_reference"] is not None:
+        out.append(f"  height error: max {rep['max_height_error_m']:.3f} m, final {rep['final_height_error_m']:.3f} m "
+                   f"(vertical {rep['vertical_channel']})")
+    if "final_attitude_deg" in rep:
+        f = rep["final_attitude_deg"]
+        out.append(f"  final attitude: roll {f['roll']:.4f}°, pitch {f['pitch']:.4f}°, yaw {f['yaw']:.4f}° "
+                   f"(counter-clockwise from East) = heading {f['heading']:.4f}° (clockwise from North)")
+    if "max_attitude_error_arcsec" in rep:
+        a = rep["max_attitude_error_arcsec"]
+        out.append(f"  attitude error: max roll {a['roll']:.2f}\", pitch {a['pitch']:.2f}\", yaw {a['yaw']:.2f}\"")
+    for name in ("position_east", "position_north"):
+        c = rep["oscillation_amplitudes"][name]
+        parts = [f"{k} {c[k]:.3f} {c['unit']}" for k in ("schuler", "foucault", "earth") if c[k] is not None]
+        if parts:
+            out.append(f"  {name.replace('_', ' ')}: " + ", ".join(parts))
+    if rep["out"]:
+        out.append(f"  -> {rep['out']}")
+    if rep["plot"]:
+        out.append(f"  plot -> {rep['plot']}")
+    return out
