@@ -78,6 +78,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     ),
     "db upgrade": (
         "inscal db upgrade --db lab.sqlite",
+        "inscal db upgrade --db postgresql://lab@dbhost/calib --json",
     ),
     "db recover": (
         "inscal db recover --db lab.sqlite",
@@ -109,7 +110,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     ),
     "db certificate": (
         "inscal db certificate FOG-0042 --out certificates/ --db lab.sqlite",
-        "inscal db certificate FOG-0042 --out cert.html --no-pdf --lab 'Inertial Lab, Xi'an' --db lab.sqlite",
+        "inscal db certificate FOG-0042 --out cert.html --no-pdf --lab \"Inertial Lab, Xi'an\" --db lab.sqlite",
     ),
 }
 
