@@ -10,11 +10,13 @@ import typer
 from inscal.cli.common import (
     CliError,
     LazyModule,
+    call,
     check_not_input,
     check_output,
-    fail,
     print_json,
     short,
+    warn,
+    write_figure,
 )
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
@@ -115,10 +117,7 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
     if plot is not None:
         from inscal.report.figures import allan_plot
 
-        try:
-            allan_plot(plot, res["taus_s"], res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
-        except OSError as exc:
-            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+        write_figure(allan_plot, plot, res["taus_s"], res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
         res["plot"] = str(plot)
     return res
 
@@ -138,11 +137,8 @@ def register(app: typer.Typer) -> None:
     ):
         """Allan deviation of a record: ARW and VRW with their 95 % intervals (the noise engine's, as
         inscal noise) and the bias-instability read-off per axis."""
-        try:
-            res = run_allan(data, start_s, stop_s, plot, force,
-                            warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), model=model, seed=seed)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_allan, data, start_s, stop_s, plot, force,
+                        warn=warn, model=model, seed=seed)
         if json_:
             print_json(res)
             return

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
+from inscal.cli.common import CliError, call, check_scheduler, fail, print_json, short
 from inscal.cli.guards import recovery_note
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
 from inscal.cli.options import (
@@ -246,13 +246,10 @@ def register(app: typer.Typer) -> None:
             "(default 10)"))] = None,
     ):
         """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
-        try:
-            rep = run_batch(records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
-                            station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
-                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait,
-                            noise=noise)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_batch, records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
+                        station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
+                        encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait,
+                        noise=noise)
         for line in rep.get("recovered", []):
             recovery_note(line)
         if json_:

@@ -38,7 +38,7 @@ from inscal.cli.calibrate_setup import (
     parse_orders,
     station_description,
 )
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, read_record
+from inscal.cli.common import CliError, call, check_not_input, check_output, print_json, read_record
 from inscal.cli.guards import check_outputs
 from inscal.cli.limits import check_mc_trials
 from inscal.cli.options import (
@@ -316,10 +316,7 @@ def register(app: typer.Typer) -> None:
         opts = options_of(CalibrateOptions, locals(), thermal_order=tuple(thermal_order or ()) or None,
                           method_options=method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol,
                                                         turn_closure))
-        try:
-            rep = run_calibrate(opts)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_calibrate, opts)
         if json_:
             print_json({k: v for k, v in rep.items() if k not in ("out", "notes")} | {"notes": rep["notes"]})
             return

@@ -41,6 +41,27 @@ def fail(msg: str, code: int = 2) -> typer.Exit:
     return typer.Exit(code)
 
 
+def call(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` for a command: a :class:`CliError` is its one line on standard error, exit 2."""
+    try:
+        return fn(*args, **kwargs)
+    except CliError as exc:
+        raise fail(str(exc)) from None
+
+
+def warn(text: str) -> None:
+    """A warning of the command on standard error (``inscal: warning: ...``)."""
+    typer.echo(f"inscal: warning: {text}", err=True)
+
+
+def write_figure(draw, plot: Path, *args, **kwargs):
+    """``draw(plot, *args, **kwargs)``: a figure written, an OSError as a one-line :class:`CliError`."""
+    try:
+        return draw(plot, *args, **kwargs)
+    except OSError as exc:
+        raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+
+
 def check_output(path: Path, force: bool) -> None:
     """Refuse to overwrite an existing output unless ``force``; the parent folder must exist and be
     writable.  Then take the output's lock for the rest of the command (:func:`inscal.io.files.claim_output`,
@@ -194,6 +215,7 @@ def thermal_compensation(data: Path, params: Path, meta: dict, info, imu, temper
     the file has no thermal model.  The record's temperature is surveyed before any work: a record
     without /temperature (and no ``temperature`` constant [degC]), readings that do not cover the
     samples, and an ``out_of_range = "error"`` model that the temperature leaves are one-line refusals."""
+    from inscal import io
     from inscal.core.thermal import ThermalError
     from inscal.nav.stream import ThermalCompensation
 
@@ -224,6 +246,8 @@ def thermal_compensation(data: Path, params: Path, meta: dict, info, imu, temper
         comp = ThermalCompensation(model, imu, source, info.rate_hz, where=short(data))
         survey = comp.survey(first_time(data), info.n_samples)
     except ThermalError as exc:
+        raise CliError(str(exc)) from None
+    except (io.DataFileError, OSError) as exc:  # the record's first sample unreadable
         raise CliError(str(exc)) from None
     if survey["message"] is not None:
         warnings.append(survey["message"])

@@ -30,13 +30,14 @@ import typer
 
 from inscal.cli.common import (
     CliError,
+    call,
     check_not_input,
     check_output,
-    fail,
     load_checked_params,
     print_json,
     short,
     thermal_compensation,
+    warn,
 )
 from inscal.cli.options import JsonOption
 
@@ -76,14 +77,10 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     mismatch = provenance_mismatch(data, params, meta, attrs)
     if mismatch:
         warnings.append(mismatch)
-    try:
-        comp, survey, twarn = thermal_compensation(data, params, meta, info, imu, temperature)
-    except (io.DataFileError, OSError) as exc:
-        raise CliError(str(exc)) from None
+    comp, survey, twarn = thermal_compensation(data, params, meta, info, imu, temperature)
     warnings += twarn
-    for w in warnings:
-        if warn is not None:
-            warn(w)
+    for w in warnings if warn is not None else ():
+        warn(w)
     dt = 1.0 / info.rate_hz
 
     def chunks():
@@ -128,11 +125,8 @@ def register(app: typer.Typer) -> None:
     ):
         """Compensate a record's increments with a calibration parameter file (and its thermal model, at the
         record's temperature)."""
-        try:
-            res = run_compensate(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
-                                 temperature=temperature)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_compensate, data, params, out, force, warn=warn,
+                             temperature=temperature)
         if json_:
             print_json(res)
         else:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
+from inscal.cli.common import CliError, call, check_not_input, check_output, print_json, short
 from inscal.cli.options import ForceOption, JsonOption, gravity_option
 
 
@@ -221,12 +221,9 @@ def register(app: typer.Typer) -> None:
         json_: JsonOption = False,
     ):
         """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
-        try:
-            res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
-                             topic, stamps, config, temperature_topic)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_import, src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
+                         rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
+                         topic, stamps, config, temperature_topic)
         for w in res["warnings"]:
             typer.echo(f"inscal: warning: {w}", err=True)
         if json_:
@@ -289,10 +286,7 @@ def register(app: typer.Typer) -> None:
     ):
         """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
         KF-GINS text; or a calibration in Kalibr's, imucal's, imu_tk's or KF-GINS's convention, or as C99 source."""
-        try:
-            res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_export, data, fmt, out, gimbal_out, path_out, force, temperature_out)
         if json_:
             print_json(res)
         elif "params" in res:

@@ -10,14 +10,15 @@ import typer
 from inscal.cli.common import (
     CliError,
     LazyModule,
+    call,
     check_not_input,
     check_output,
-    fail,
     load_checked_params,
     np,
     print_json,
     short,
     thermal_compensation,
+    warn,
 )
 from inscal.cli.options import ForceOption, JsonOption, TemperatureOption, gravity_option, out_option, plot_option
 
@@ -177,14 +178,10 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         done = compensated_with(attrs)
         if done is not None:
             warnings.append(f"{data} is already compensated (with {done}): --params applies a correction again")
-        try:
-            comp, _, twarn = thermal_compensation(data, params, pmeta, info, imu, temperature)
-        except (io.DataFileError, OSError) as exc:
-            raise CliError(str(exc)) from None
+        comp, _, twarn = thermal_compensation(data, params, pmeta, info, imu, temperature)
         warnings += twarn
-        for w in warnings:
-            if warn is not None:
-                warn(w)
+        for w in warnings if warn is not None else ():
+            warn(w)
     try:
         config = NavConfig(mode=mode, vertical=vertical, output_rate_hz=output_rate_hz)
         align_cfg = nv.AlignConfig(coarse_time=align_coarse_s, fine_time=align_fine_s)
@@ -274,12 +271,9 @@ def register(app: typer.Typer) -> None:
     ):
         """Navigate (strapdown, pure inertial or damped) and report the errors on a static base.  A parameter
         file with a thermal model is applied at the record's temperature."""
-        try:
-            rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
-                               force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), gravity=gravity,
-                               height_ref=height_ref, plot=plot, temperature=temperature)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_navigate, data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
+                           force, warn=warn, gravity=gravity,
+                           height_ref=height_ref, plot=plot, temperature=temperature)
         if json_:
             print_json(rep)
             return

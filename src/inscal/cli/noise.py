@@ -6,7 +6,16 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, check_not_input, check_output, fail, print_json, short
+from inscal.cli.common import (
+    CliError,
+    LazyModule,
+    call,
+    check_not_input,
+    check_output,
+    print_json,
+    short,
+    write_figure,
+)
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
@@ -142,10 +151,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
     if plot is not None:
         from inscal.report.noise import noise_plot
 
-        try:
-            noise_plot(plot, summaries, overwrite=force)
-        except OSError as exc:
-            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+        write_figure(noise_plot, plot, summaries, overwrite=force)
         res["plot"] = str(plot)
     return res
 
@@ -171,10 +177,7 @@ def register(app: typer.Typer) -> None:
         json_: JsonOption = False,
     ):
         """Identify the noise: Allan/wavelet variance with intervals, GMWM fit, model choice, IEEE read-offs."""
-        try:
-            res = run_noise(data, model, channels, start_s, stop_s, plot, out, from_curve, kind, seed, force)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_noise, data, model, channels, start_s, stop_s, plot, out, from_curve, kind, seed, force)
         if json_:
             print_json(res)
             return

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.common import CliError, call, fail, print_json, short
 from inscal.cli.limits import check_count, check_mc_trials, check_memory, human_seconds
 from inscal.cli.observability_text import print_budget, print_crlb, print_report
 from inscal.cli.options import (
@@ -249,11 +249,8 @@ def register(app: typer.Typer) -> None:
             if mc is not None:
                 raise fail("--mc needs --method (the Monte Carlo of a window-mean method's budget; the filter's site "
                            "and clock enter it linearly)")
-            try:
-                b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
-                             t_ref, noise, st)
-            except CliError as exc:
-                raise fail(str(exc)) from None
+            b = call(run_crlb, source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
+                         t_ref, noise, st)
             bud = None
             if st is not None:
                 from inscal.cli.bound_budget import bound_budget, dominant_inputs
@@ -280,10 +277,7 @@ def register(app: typer.Typer) -> None:
         if filter_rate_hz != 1.0 or bi_tau != 3600.0:
             raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
                        "--rate-hz")
-        try:
-            rep = run_observability(source, states, rate_hz, arw, vrw, t_ref)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_observability, source, states, rate_hz, arw, vrw, t_ref)
         if json_:
             print_json(rep.to_dict())
             return

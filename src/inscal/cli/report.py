@@ -9,12 +9,13 @@ import typer
 
 from inscal.cli.common import (
     CliError,
+    call,
     check_not_input,
     check_output,
-    fail,
     load_checked_params,
     print_json,
     short,
+    warn,
 )
 from inscal.cli.options import ForceOption, JsonOption
 
@@ -129,11 +130,8 @@ def register(app: typer.Typer) -> None:
         """Write an HTML report: gimbal motion, sensor outputs, temperature and dT/dt, Allan deviation,
         identified noise models, parameters vs truth, thermal parameters over temperature with their 1-sigma
         bands."""
-        try:
-            res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
-                             noise=noise)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_report, data, params, out, force, warn=warn,
+                         noise=noise)
         if json_:
             print_json(res)
         else:

@@ -10,8 +10,8 @@ import typer
 from inscal.cli.common import (
     CliError,
     LazyModule,
+    call,
     check_output,
-    fail,
     parse_gravity_option,
     print_json,
     short,
@@ -150,11 +150,8 @@ def register(app: typer.Typer) -> None:
         json_: JsonOption = False,
     ):
         """Simulate an IMU on a dual-axis turntable (or hand-held) and write an HDF5 record."""
-        try:
-            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
-                               gravity=gravity)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_simulate, scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
+                           gravity=gravity)
         if json_:
             print_json(res)
         else:
