@@ -37,7 +37,6 @@ from inscal.cli.options import (
     station_option,
     vrw_option,
 )
-from inscal.core.progress import ProgressBar, duration
 
 #: most records of one batch (10^6: months of calibrations at a few seconds each)
 MAX_RECORDS = 10**6
@@ -54,6 +53,8 @@ class BatchProgress:
 
     def __init__(self, total: int, enabled: bool):
         self.total, self.done, self.skipped, self.failed, self.calibrated = total, 0, 0, 0, 0
+        from inscal.core.progress import ProgressBar  # rich: loaded for a batch only (fast start)
+
         self.work_s, self.workers = 0.0, 1
         self.bar = ProgressBar("batch", total, enabled)
 
@@ -78,12 +79,16 @@ class BatchProgress:
             self.work_s += outcome.elapsed_s
         if outcome.status == "failed":
             self.bar.print(f"inscal: failed: {short(outcome.path)}: {outcome.error}")
+        from inscal.core.progress import duration
+
         eta = self.eta_s()
         note = ", ".join(p for p in (self.counts(), "" if eta is None else f"~{duration(eta)} left") if p)
         self.bar.update(self.done, note=note, line=self.plain_line)
 
     def plain_line(self) -> str:
         """The progress line of a log: records done, skipped and failed, time elapsed and left."""
+        from inscal.core.progress import duration
+
         eta = self.eta_s()
         per = "" if eta is None else (f", about {duration(eta)} left ({self.work_s / self.calibrated:.3g} s per "
                                       f"record, {self.workers} worker{'s' if self.workers != 1 else ''})")
@@ -194,6 +199,9 @@ def run_batch(records: list[str] | None, method: str, db: str | None = None, sch
 
 
 def summary_line(rep: dict) -> str:
+    """The batch's summary in one line: records calibrated, skipped and failed, units registered, time."""
+    from inscal.core.progress import duration
+
     per = "" if rep["seconds_per_record"] is None else f", {rep['seconds_per_record']:.3g} s per record"
     reg = f"; registered {len(rep['registered'])} unit{'s' if len(rep['registered']) != 1 else ''}" if rep["registered"] \
         else ""

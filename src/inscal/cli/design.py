@@ -12,7 +12,6 @@ import typer
 from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory, human_seconds
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
-from inscal.core.progress import ProgressBar
 
 
 def _range(opt: str, v: str | None):
@@ -138,6 +137,8 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
     check_size(minutes, candidates, population, workers, scheduler, setup)
+    from inscal.core.progress import ProgressBar
+
     label = f"design {minutes:g} min"
     bar = ProgressBar(label, candidates, progress, every_s=None)
 

@@ -17,7 +17,6 @@ from inscal.cli.common import (
     short,
 )
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
-from inscal.core.progress import ProgressBar
 
 np = LazyModule("numpy")
 
@@ -97,6 +96,7 @@ def check_size(sc, out: Path) -> int:
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
                  rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
                  no_noise: bool = False, gravity: str | None = None) -> dict:
+    from inscal.core.progress import ProgressBar
     from inscal.sim import scenarios
     from inscal.sim import simulate as sim
 

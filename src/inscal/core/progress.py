@@ -8,6 +8,9 @@ import sys
 import time
 from typing import Callable
 
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
 
 def duration(seconds: float) -> str:
     """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
@@ -35,14 +38,10 @@ class ProgressBar:
         self.bar, self.plain = None, False
         if not enabled:
             return
-        from rich.console import Console
-
         con = Console(stderr=True)
         if not con.is_terminal:  # no bar (nor its stray newline) in a log or a pipe
             self.plain = lines
             return
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
         self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TextColumn("{task.fields[note]}"), TimeElapsedColumn(), console=con, transient=transient)
         self.bar.start()

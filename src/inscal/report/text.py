@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 
+from inscal.lab.drift import months_between
 from inscal.report.budget import budget_lines
 
 
@@ -77,8 +78,6 @@ def history_lines(rep: dict, h) -> list[str]:
     repeatability, drift rate and flags; ``rep`` the command's report (its ``plot``)."""
     if not h.ids:
         return [f"{h.serial}: no {h.method} calibration"]
-    from inscal.lab.drift import months_between
-
     span = months_between(h.dates[0], h.dates[-1])
     out = [(f"{h.serial} ({h.method}): {len(h.ids)} calibrations, {h.dates[0]:%Y-%m-%d} .. {h.dates[-1]:%Y-%m-%d} "
             f"({span:.3g} months); flags at k = {h.k:g}"),
