@@ -66,8 +66,7 @@ def test_the_database_examples_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("INSCAL_DB", raising=False)
     runner = CliRunner()
-    for line in (*EXAMPLES["db init"][:1], *EXAMPLES["db add"][:1], *EXAMPLES["db list"], *EXAMPLES["db recover"],
-                 EXAMPLES["db upgrade"][0], EXAMPLES["montecarlo"][0]):
+    for line in (EXAMPLES["db init"][0], EXAMPLES["db add"][0], EXAMPLES["db list"][1], EXAMPLES["montecarlo"][0]):
         r = runner.invoke(app, shlex.split(line)[1:])
         assert r.exit_code == 0, (line, r.output)
     r = runner.invoke(app, ["db", "list", "--db", "lab.sqlite", "--json"])

@@ -7,17 +7,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    call,
-    check_not_input,
-    check_output,
-    print_json,
-    short,
-    warn,
-    write_figure,
-)
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, print_json, short, warn,
+    write_figure)
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
 

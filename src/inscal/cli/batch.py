@@ -8,6 +8,7 @@ stderr; the others are recorded), 2 a bad invocation (nothing calibrated), 130 /
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -32,6 +33,7 @@ from inscal.cli.options import (
     arw_option,
     gravity_option,
     method_option,
+    options_of,
     scheduler_option,
     states_option,
     station_option,
@@ -147,55 +149,85 @@ def check_batch_size(items, setup, scheduler: str, workers: int | None) -> None:
         check_memory(procs * need, what + many, hint + (" or lower --workers" if procs > 1 else ""))
 
 
-def run_batch(records: list[str] | None, method: str, db: str | None = None, scheduler: str | None = None,
-              workers: int | None = None, serial: str | None = None, names: str | None = None,
-              manifest: Path | None = None, register: bool = False, model: str | None = None,
-              station: str | None = None, operator: str | None = None, states: str | None = None,
-              settle: float | None = None, min_static: float | None = None, filter_rate_hz: float = 1.0, arw: float | None = None,
-              vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
-              encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True,
-              wait: float | None = None, noise: Path | None = None) -> dict:
-    """Calibrate the records with ``method`` into ``db`` and return the JSON report (counts, failures,
-    every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated.
-    ``noise``: a noise.toml for the systematic filter, as ``inscal calibrate --noise``."""
+@dataclass(frozen=True)
+class BatchOptions:
+    """What ``inscal batch`` is asked: calibrate ``records`` (files, folders, glob patterns; or a ``manifest``)
+    with ``method`` into the database ``db``, on ``scheduler`` (local, none or an address) with ``workers``; the
+    units from ``serial`` or the file ``names``, registered (as ``model``) when ``register_units``; the session's
+    ``station`` and ``operator``; the calibration's options as for ``inscal calibrate``
+    (:class:`~inscal.cli.calibrate_setup.CalibrateOptions`); ``progress`` on standard error; ``wait`` [s] for
+    another writer of the database."""
+
+    records: tuple[str, ...] | None
+    method: str
+    db: str | None = None
+    scheduler: str | None = None
+    workers: int | None = None
+    serial: str | None = None
+    names: str | None = None
+    manifest: Path | None = None
+    register_units: bool = False
+    model: str | None = None
+    station: str | None = None
+    operator: str | None = None
+    states: str | None = None
+    settle: float | None = None
+    min_static: float | None = None
+    filter_rate: float = 1.0
+    arw: float | None = None
+    vrw: float | None = None
+    gravity: str | None = None
+    encoder_sigma: float | None = None
+    encoder_latency: float = 0.0
+    skip_encoder_check: bool = False
+    progress: bool = True
+    wait: float | None = None
+    noise: Path | None = None
+
+
+def run_batch(o: BatchOptions) -> dict:
+    """Calibrate the records of ``o`` (:class:`BatchOptions`) into its database and return the JSON report
+    (counts, failures, every record's outcome); a bad invocation raises :class:`CliError` before anything is
+    calibrated.  ``o.noise``: a noise.toml for the systematic filter, as ``inscal calibrate --noise``."""
     import sqlalchemy
 
     from inscal.lab import DatabaseError, check_wait
     from inscal.lab import batch as lb
     from inscal.lab.calibration import CalibrationSetup
 
-    setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
-                             encoder_latency, check_encoders, noise=None if noise is None else str(noise.resolve()))
+    setup = CalibrationSetup(o.method, o.states, o.settle, o.min_static, o.filter_rate, o.arw, o.vrw, o.gravity,
+                             o.encoder_sigma, o.encoder_latency, not o.skip_encoder_check,
+                             noise=None if o.noise is None else str(o.noise.resolve()))
     if (msg := setup.problem()) is not None:
         raise CliError(msg)
-    scheduler = check_scheduler(scheduler or "local", ("local", "none"))
+    scheduler, workers = check_scheduler(o.scheduler or "local", ("local", "none")), o.workers
     if workers is not None and (workers < 1 or scheduler != "local"):
         raise CliError(f"--workers {workers}: a number >= 1 of processes of the default local cluster"
                        if workers < 1 else "--workers applies to the default local cluster only")
-    if model is not None and not register:
+    if o.model is not None and not o.register_units:
         raise CliError("--model is the model of the units --register registers: give --register")
     try:
-        wait_s = lb.BATCH_WAIT_S if wait is None else check_wait(wait)
+        wait_s = lb.BATCH_WAIT_S if o.wait is None else check_wait(o.wait)
     except DatabaseError as exc:
         raise CliError(str(exc)) from None
     try:
-        items = batch_items(records, serial, names, manifest, station, operator)
+        items = batch_items(list(o.records or ()), o.serial, o.names, o.manifest, o.station, o.operator)
         check_batch_size(items, setup, scheduler, workers)
-        bar = BatchProgress(len(items), progress)
+        bar = BatchProgress(len(items), o.progress)
 
         def workers_known(n: int) -> None:
             bar.workers = n
 
         try:
-            res = lb.run_batch(db, items, setup, scheduler=scheduler, workers=workers, register=register, model=model,
-                               on_outcome=bar.advance, on_workers=workers_known, wait_s=wait_s)
+            res = lb.run_batch(o.db, items, setup, scheduler=scheduler, workers=workers, register=o.register_units,
+                               model=o.model, on_outcome=bar.advance, on_workers=workers_known, wait_s=wait_s)
         finally:
             bar.close()
     except (lb.BatchError, DatabaseError) as exc:
         raise CliError(str(exc)) from None
     except sqlalchemy.exc.SQLAlchemyError as exc:
         raise CliError(f"database: {' '.join(str(getattr(exc, 'orig', None) or exc).split())[:400]}") from None
-    return {"method": method, "options": setup.options(), "scheduler": scheduler} | res.to_json()
+    return {"method": o.method, "options": setup.options(), "scheduler": scheduler} | res.to_json()
 
 
 def summary_line(rep: dict) -> str:
@@ -254,10 +286,9 @@ def register(app: typer.Typer) -> None:
             "(default 10)"))] = None,
     ):
         """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
-        rep = call(run_batch, records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
-                        station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
-                        encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait,
-                        noise=noise)
+        opts = options_of(BatchOptions, locals(), records=tuple(records) if records else None,
+                          progress=not (no_progress or json_))
+        rep = call(run_batch, opts)
         for line in rep.get("recovered", []):
             recovery_note(line)
         if json_:

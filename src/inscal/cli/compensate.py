@@ -28,17 +28,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    call,
-    check_not_input,
-    check_output,
-    load_checked_params,
-    print_json,
-    short,
-    thermal_compensation,
-    warn,
-)
+from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, short,
+    thermal_compensation, warn)
 from inscal.cli.options import JsonOption
 
 

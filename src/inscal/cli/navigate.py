@@ -7,19 +7,8 @@ from typing import Annotated
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    call,
-    check_not_input,
-    check_output,
-    load_checked_params,
-    np,
-    print_json,
-    short,
-    thermal_compensation,
-    warn,
-)
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, load_checked_params, np,
+    print_json, short, thermal_compensation, warn)
 from inscal.cli.options import ForceOption, JsonOption, TemperatureOption, gravity_option, out_option, plot_option
 
 units = LazyModule("inscal.core.units")  # np, units: imported on first use (fast start of the command line)

@@ -6,16 +6,7 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    call,
-    check_not_input,
-    check_output,
-    print_json,
-    short,
-    write_figure,
-)
+from inscal.cli.common import CliError, LazyModule, call, check_not_input, check_output, print_json, short, write_figure
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
 

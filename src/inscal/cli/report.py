@@ -7,16 +7,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    call,
-    check_not_input,
-    check_output,
-    load_checked_params,
-    print_json,
-    short,
-    warn,
-)
+from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, short,
+    warn)
 from inscal.cli.options import ForceOption, JsonOption
 
 

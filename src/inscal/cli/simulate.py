@@ -7,15 +7,7 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    call,
-    check_output,
-    parse_gravity_option,
-    print_json,
-    short,
-)
+from inscal.cli.common import CliError, LazyModule, call, check_output, parse_gravity_option, print_json, short
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 np = LazyModule("numpy")
