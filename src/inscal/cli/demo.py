@@ -216,7 +216,7 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res, nav_runs):
 
     The navigation record is noise-free: with the N25 noise (ARW 0.02 deg/sqrt(h)) the attitude
     random walk alone reaches ~90" per hour and hides the differences between calibrations."""
-    from inscal.cli.navigate import navigate_file
+    from inscal.cli.navigate import NavigateOptions, navigate_file
     from inscal.cli.simulate import run_simulate
 
     hours = 1.0 if quick else 6.0
@@ -226,7 +226,7 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res, nav_runs):
     res["navigation_hours"] = hours
     for label in NAV_RUNS:
         params = None if label == "uncalibrated" else out / f"params-{label}.toml"
-        r, nav_res, gim = navigate_file(rec, params=params)
+        r, nav_res, gim = navigate_file(NavigateOptions(rec, params=params))
         nav_runs[label] = (nav_res, gim)
         keep = {k: r[k] for k in ("duration_h", "max_position_error_m", "final_position_error_m", "max_position_error_nmi",
                                   "max_attitude_error_arcsec", "max_velocity_error_mps", "final_attitude_deg") if k in r}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -9,7 +10,8 @@ import typer
 
 from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, load_checked_params, np,
     print_json, short, thermal_compensation, warn)
-from inscal.cli.options import ForceOption, JsonOption, TemperatureOption, gravity_option, out_option, plot_option
+from inscal.cli.options import (ForceOption, JsonOption, TemperatureOption, gravity_option, options_of, out_option,
+                                plot_option)
 
 units = LazyModule("inscal.core.units")  # np, units: imported on first use (fast start of the command line)
 
@@ -100,25 +102,44 @@ def parse_height_ref(value: str | None):
         raise CliError(str(exc)) from None
 
 
-def run_navigate(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
-                 init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                 gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
-                 temperature: float | None = None) -> dict:
-    """Navigate ``data`` (see the command); ``warn(line)`` is called at once for each
-    provenance (and thermal range) warning (they are also in the result's ``warnings``).  ``gravity``
-    (wgs84 | psins | m/s^2) overrides the record's gravity model; ``temperature`` [degC]: a constant
-    temperature for the parameter file's thermal model (:func:`inscal.cli.common.thermal_compensation`)."""
-    return navigate_file(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out, force,
-                         warn, gravity, height_ref, plot, temperature)[0]
+@dataclass(frozen=True)
+class NavigateOptions:
+    """What ``inscal navigate`` is asked: navigate ``data`` (with the parameter file ``params`` applied on the
+    fly) in ``mode`` (free | damped) with the ``vertical`` channel (hold | damped | free, on ``height_ref``: a
+    constant [m] or a CSV), initialised by ``init`` (auto | truth | align, coarse and fine alignment times
+    [s]), the solution at ``output_rate_hz`` written to ``out`` (``force``: over an existing file), its
+    ``plot``; ``gravity`` (wgs84 | psins | m/s^2) overrides the record's gravity model; ``temperature`` [degC]:
+    a constant temperature for the parameter file's thermal model
+    (:func:`inscal.cli.common.thermal_compensation`)."""
+
+    data: Path
+    params: Path | None = None
+    mode: str = "free"
+    vertical: str = "hold"
+    init: str = "auto"
+    align_coarse_s: float = 60.0
+    align_fine_s: float = 600.0
+    output_rate_hz: float = 1.0
+    out: Path | None = None
+    force: bool = False
+    gravity: str | None = None
+    height_ref: str | None = None
+    plot: Path | None = None
+    temperature: float | None = None
 
 
-def navigate_file(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
-                  init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                  output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                  gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
-                  temperature: float | None = None):
+def run_navigate(o: NavigateOptions, warn=None) -> dict:
+    """Navigate as ``o`` says (:class:`NavigateOptions`); ``warn(line)`` is called at once for each
+    provenance (and thermal range) warning (they are also in the result's ``warnings``)."""
+    return navigate_file(o, warn)[0]
+
+
+def navigate_file(o: NavigateOptions, warn=None):
     """:func:`run_navigate` returning ``(report, NavResult, gimbal model)`` (the demo draws the run)."""
+    data, params, mode, vertical, init = o.data, o.params, o.mode, o.vertical, o.init
+    align_coarse_s, align_fine_s, output_rate_hz, out, force = (o.align_coarse_s, o.align_fine_s, o.output_rate_hz,
+                                                                o.out, o.force)
+    gravity, height_ref, plot, temperature = o.gravity, o.height_ref, o.plot, o.temperature
     import warnings as pywarnings
 
     from inscal import io
@@ -260,9 +281,7 @@ def register(app: typer.Typer) -> None:
     ):
         """Navigate (strapdown, pure inertial or damped) and report the errors on a static base.  A parameter
         file with a thermal model is applied at the record's temperature."""
-        rep = call(run_navigate, data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
-                           force, warn=warn, gravity=gravity,
-                           height_ref=height_ref, plot=plot, temperature=temperature)
+        rep = call(run_navigate, options_of(NavigateOptions, locals()), warn=warn)
         if json_:
             print_json(rep)
             return

@@ -74,13 +74,13 @@ def _bound(tmp: Path) -> None:
 
 
 def _navigate(tmp: Path) -> None:
-    from inscal.cli.navigate import run_navigate
+    from inscal.cli.navigate import NavigateOptions, run_navigate
 
     rm = tmp / "n25-rotmod.h5"
-    run_navigate(rm)
+    run_navigate(NavigateOptions(rm))
     params = tmp / "params-n25.toml"
-    run_navigate(rm, params=params if params.is_file() else None, vertical="damped", height_ref="0")
-    run_navigate(tmp / "n25-static.h5", init="align", align_coarse_s=60.0, align_fine_s=60.0)
+    run_navigate(NavigateOptions(rm, params=params if params.is_file() else None, vertical="damped", height_ref="0"))
+    run_navigate(NavigateOptions(tmp / "n25-static.h5", init="align", align_coarse_s=60.0, align_fine_s=60.0))
 
 
 def _library(tmp: Path) -> None:
