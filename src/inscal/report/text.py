@@ -221,3 +221,45 @@ def navigation_lines(rep: dict) -> list[str]:
     if rep["plot"]:
         out.append(f"  plot -> {rep['plot']}")
     return out
+
+
+def import_line(res: dict) -> str:
+    """The printed import of ``inscal import`` (its JSON report ``res``): the samples, their span and rate, the
+    source and the record, with what the import found or did (gimbal angles, path, encoders, regridding, a bag's
+    topic, integrated rates, saturation, temperature)."""
+    extra = []
+    if res["gimbal"]:
+        extra.append(f"gimbal angles from {res['gimbal']}")
+    if res["path"]:
+        extra.append(f"path {res['path']}")
+    if res["encoder_latency_s"]:
+        extra.append(f"encoder latency {res['encoder_latency_s'] * 1e3:g} ms corrected")
+    enc = res["encoders"]
+    if enc is not None and enc["moves"]:
+        lat = "" if enc["latency_s"] is None else f", latency {enc['latency_s'] * 1e3:.2f} ms" + (
+            "" if enc["latency_sigma_s"] is None else f" +- {enc['latency_sigma_s'] * 1e3:.2f} ms")
+        to = "" if enc["max_residual_deg"] is None else f" to {enc['max_residual_deg']:.2g} deg"
+        extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
+    if res["time_regridded"]:
+        extra.append("time regridded")
+    if (bag := res.get("bag")) is not None:
+        extra.append(f"topic {bag['topic']} ({bag['storage']}, {bag['stamps']} stamps, {bag['messages']} messages)")
+    if (ig := res.get("integration")) is not None:
+        b = ig["error_bound"]
+        extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
+                     f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
+                     + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
+                        f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else "")
+                     + (", white noise (one sample per increment)" if ig["noise"]["white"] else
+                        f", noise variance {ig['noise']['variance_ratio'][0]:.2g}-"
+                        f"{ig['noise']['variance_ratio'][1]:.2g} of white, neighbour correlation up to "
+                        f"{ig['noise']['neighbour_correlation']:.2g} (jittered stamps)"))
+    if sat := res.get("saturated"):
+        extra.append(f"{len(sat)} run(s) of a sensor at its range marked saturated (first: {sat[0]['channel']} "
+                     f"at {sat[0]['level']:g} for {sat[0]['samples']} samples from t = {sat[0]['t0']:.3f} s; the "
+                     "calibrations leave them out)")
+    if (temp := res["temperature"]) is not None:
+        on = "on the sample times" if temp["grid"] == "record" else "at their own times"
+        extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
+    return (f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "
+            f"from {res['source']} -> {res['out']}" + (f" ({'; '.join(extra)})" if extra else ""))
