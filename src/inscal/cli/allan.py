@@ -121,8 +121,7 @@ def register(app: typer.Typer) -> None:
         stop_s: float = typer.Option(None, "--stop", metavar="SECONDS", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (.png, .pdf or .svg)"),
         force: ForceOption = False,
-        model: str = typer.Option("auto", "--model", metavar="MODEL",
-                                  help="the noise model whose white-noise term gives ARW/VRW "
+        model: str = typer.Option("auto", "--model", metavar="MODEL", help="the noise model whose white-noise term gives ARW/VRW "
                                   "(as inscal noise: 'auto' or a sum such as 'WN+RW+2GM')"),
         seed: SeedOption = 0,
         json_: JsonOption = False,

@@ -105,13 +105,11 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def compensate(
         data: Path = typer.Argument(..., help="HDF5 record to compensate"),
-        params: Path = typer.Option(..., "--params", "-p", metavar="PARAMS.toml",
-                                    help="calibration parameter file (TOML, from inscal calibrate)"),
+        params: Path = typer.Option(..., "--params", "-p", metavar="PARAMS.toml", help="calibration parameter file (TOML, from inscal calibrate)"),
         out: Path = typer.Option(..., "--out", "-o", help="compensated HDF5 record"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output; compensate an already "
                                    "compensated record anyway"),
-        temperature: float = typer.Option(None, "--temperature", metavar="DEGC",
-                                          help="constant temperature in degC for the parameter "
+        temperature: float = typer.Option(None, "--temperature", metavar="DEGC", help="constant temperature in degC for the parameter "
                                           "file's thermal model (a record without /temperature; in place of the "
                                           "record's readings otherwise)"),
         json_: JsonOption = False,

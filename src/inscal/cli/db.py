@@ -114,11 +114,9 @@ def add_cmd(serial: SerialArgument,
             db: DbOption = None,
             model: str = typer.Option(None, "--model", metavar="MODEL", help="the unit's model (when registering it)"),
             notes: str = typer.Option(None, "--notes", metavar="TEXT", help="notes on the unit (when registering it)"),
-            data: Path = typer.Option(None, "--data", metavar="RECORD",
-                                      help="the record the parameter file was calibrated from "
+            data: Path = typer.Option(None, "--data", metavar="RECORD", help="the record the parameter file was calibrated from "
                                       "(its hash must match; gives the site and path)"),
-            station: str = typer.Option(None, "--station", metavar="STATION",
-                                        help="the turntable / station of the run"),
+            station: str = typer.Option(None, "--station", metavar="STATION", help="the turntable / station of the run"),
             operator: OperatorOption = None,
             date: DateOption = None,
             temperature_c: TemperatureCOption = None,
@@ -240,8 +238,7 @@ def export_cmd(serial: SerialArgument,
 @db_app.command("history")
 def history_cmd(serial: SerialArgument,
                 db: DbOption = None,
-                method: str = typer.Option(None, "--method", "-m", metavar="METHOD",
-                                           help="calibration method (default: the current "
+                method: str = typer.Option(None, "--method", "-m", metavar="METHOD", help="calibration method (default: the current "
                                            "calibration's)"),
                 k: KOption = 3.0,
                 plot: plot_option("figure of every parameter over time (.png, .pdf, .svg)") = None,
@@ -268,13 +265,10 @@ def certificate_cmd(serial: SerialArgument,
                     result: ResultOption = None,
                     pdf: bool = typer.Option(True, "--pdf/--no-pdf", help="also print the PDF with headless Chromium "
                                              "(chromium on PATH or $INSCAL_CHROMIUM; without it --pdf is refused)"),
-                    issued: str = typer.Option(None, "--issued", metavar="DATE",
-                                               help="date of issue, YYYY-MM-DD or ISO time (UTC; "
+                    issued: str = typer.Option(None, "--issued", metavar="DATE", help="date of issue, YYYY-MM-DD or ISO time (UTC; "
                                                "default: now)"),
-                    laboratory: str = typer.Option(None, "--lab", metavar="TEXT",
-                                                   help="the laboratory's name and address"),
-                    authorized_by: str = typer.Option(None, "--authorized-by", metavar="NAME",
-                                                      help="who authorizes the certificate"),
+                    laboratory: str = typer.Option(None, "--lab", metavar="TEXT", help="the laboratory's name and address"),
+                    authorized_by: str = typer.Option(None, "--authorized-by", metavar="NAME", help="who authorizes the certificate"),
                     force: ForceOption = False,
                     json_: JsonOption = False):
     """A calibration certificate (ISO/IEC 17025 §7.8): HTML, PDF and the same content as JSON, written together."""

@@ -222,28 +222,20 @@ def register(app: typer.Typer) -> None:
         minutes: float = typer.Option(30.0, "--minutes", help="time budget of the path [min]"),
         states: str = typer.Option("51", "--states", help="error-state model: 51 | 30 | unified (options ,lever9 "
                                                           ",async ,psins)"),
-        objective: str = typer.Option("worst-normalised", "--objective", metavar="OBJECTIVE",
-                                      help="worst-normalised (max of σ/target) "
+        objective: str = typer.Option("worst-normalised", "--objective", metavar="OBJECTIVE", help="worst-normalised (max of σ/target) "
                                                                               "| weighted (mean of (σ/target)^2)"),
-        targets: str = typer.Option("s16-path", "--targets", metavar="TARGETS",
-                                    help="s16-path (bound of S16's own 1-h path) | "
+        targets: str = typer.Option("s16-path", "--targets", metavar="TARGETS", help="s16-path (bound of S16's own 1-h path) | "
                                                                   "s16-table2 (S16 Table 2 figures for its groups)"),
-        groups: str = typer.Option("all", "--groups", metavar="GROUPS",
-                                   help="parameter groups in the objective: all | table2 | a "
+        groups: str = typer.Option("all", "--groups", metavar="GROUPS", help="parameter groups in the objective: all | table2 | a "
                                                            "comma list"),
         axes: str = typer.Option("outer,inner", "--axes", help="gimbal axes the path may turn"),
         max_rate: float = typer.Option(10.0, "--max-rate", metavar="DEG/S", help="largest turntable rate [deg/s]"),
-        max_accel: float = typer.Option(10.0, "--max-accel", metavar="DEG/S^2",
-                                        help="angular acceleration of the moves [deg/s^2]"),
-        outer_range: str = typer.Option(None, "--outer-range", metavar="LO,HI",
-                                        help="outer angle limits LO,HI [deg] (start = 0)"),
-        inner_range: str = typer.Option(None, "--inner-range", metavar="LO,HI",
-                                        help="inner angle limits LO,HI [deg] (start = 0)"),
-        cable_wrap: float = typer.Option(None, "--cable-wrap", metavar="DEG",
-                                         help="largest net rotation of each axis [deg]"),
+        max_accel: float = typer.Option(10.0, "--max-accel", metavar="DEG/S^2", help="angular acceleration of the moves [deg/s^2]"),
+        outer_range: str = typer.Option(None, "--outer-range", metavar="LO,HI", help="outer angle limits LO,HI [deg] (start = 0)"),
+        inner_range: str = typer.Option(None, "--inner-range", metavar="LO,HI", help="inner angle limits LO,HI [deg] (start = 0)"),
+        cable_wrap: float = typer.Option(None, "--cable-wrap", metavar="DEG", help="largest net rotation of each axis [deg]"),
         min_dwell: float = typer.Option(5.0, "--min-dwell", metavar="SECONDS", help="shortest dwell after a move [s]"),
-        initial_dwell: float = typer.Option(60.0, "--initial-dwell", metavar="SECONDS",
-                                            help="dwell at the start (alignment) [s]"),
+        initial_dwell: float = typer.Option(60.0, "--initial-dwell", metavar="SECONDS", help="dwell at the start (alignment) [s]"),
         max_moves: int = typer.Option(40, "--max-moves", metavar="N", help="most moves in a path"),
         seed: SeedOption = 0,
         candidates: int = typer.Option(256, "--candidates", help="candidate paths to evaluate"),
@@ -251,17 +243,12 @@ def register(app: typer.Typer) -> None:
         scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler ADDRESS, 'local' (default: a "
                                                                "LocalCluster of --workers) or 'none' (in-process)"),
         workers: int = typer.Option(2, "--workers", help="workers of the local Dask cluster"),
-        base: str = typer.Option("s16", "--base", metavar="SCENARIO",
-                                 help="built-in scenario for the site, gimbal, noise and IMU of "
+        base: str = typer.Option("s16", "--base", metavar="SCENARIO", help="built-in scenario for the site, gimbal, noise and IMU of "
                                                        "the written file"),
-        arw: float = typer.Option(None, "--arw", metavar="DEG/SQRT(H)",
-                                  help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
-        vrw: float = typer.Option(None, "--vrw", metavar="UG/SQRT(HZ)",
-                                  help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
-        plot: FsPath = typer.Option(None, "--plot", metavar="PATH",
-                                    help="write the path report: FILE.png and FILE.html"),
-        station: FsPath = typer.Option(None, "--station", metavar="STATION.toml",
-                                       help="a station description (station.toml): design at its "
+        arw: float = typer.Option(None, "--arw", metavar="DEG/SQRT(H)", help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
+        vrw: float = typer.Option(None, "--vrw", metavar="UG/SQRT(HZ)", help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
+        plot: FsPath = typer.Option(None, "--plot", metavar="PATH", help="write the path report: FILE.png and FILE.html"),
+        station: FsPath = typer.Option(None, "--station", metavar="STATION.toml", help="a station description (station.toml): design at its "
                                        "site for the combined uncertainty (the bound with the site's gravity, "
                                        "latitude, height and the time base; GUM)"),
         force: ForceOption = False,

@@ -185,50 +185,37 @@ def register(app: typer.Typer) -> None:
                                    "ROS 1 .bag, ROS 2 bag folder)"),
         fmt: str = typer.Option(..., "--format", "-f", help="psins | psins-imu | mat | csv | txt | rosbag | kf-gins"),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
-        mapping: Path = typer.Option(None, "--mapping", metavar="MAPPING.toml",
-                                     help="csv/txt: columns, units, axes (TOML); may hold a site table"),
-        path: Path = typer.Option(None, "--path", metavar="PATH.toml",
-                                  help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
+        mapping: Path = typer.Option(None, "--mapping", metavar="MAPPING.toml", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
+        path: Path = typer.Option(None, "--path", metavar="PATH.toml", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
         path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
                                          "(default: the start of the first sample)"),
-        gimbal: Path = typer.Option(None, "--gimbal", metavar="CSV",
-                                    help="encoder angles file: columns time (s), outer, inner"),
-        gimbal_unit: str = typer.Option(None, "--gimbal-unit", metavar="deg|rad",
-                                        help="unit of the --gimbal angles: deg | rad (default: the "
+        gimbal: Path = typer.Option(None, "--gimbal", metavar="CSV", help="encoder angles file: columns time (s), outer, inner"),
+        gimbal_unit: str = typer.Option(None, "--gimbal-unit", metavar="deg|rad", help="unit of the --gimbal angles: deg | rad (default: the "
                                         "unit the file's header gives, as 'outer [rad]', else deg)"),
         lat: float = typer.Option(None, "--lat", metavar="DEG", help="site latitude (deg)"),
         lon: float = typer.Option(None, "--lon", metavar="DEG", help="site longitude (deg)"),
         height: float = typer.Option(None, "--height", metavar="M", help="site ellipsoidal height (m)"),
-        rate_hz: float = typer.Option(None, "--rate-hz", metavar="HZ",
-                                      help="sample rate (Hz) (default: from the timestamps, which must "
+        rate_hz: float = typer.Option(None, "--rate-hz", metavar="HZ", help="sample rate (Hz) (default: from the timestamps, which must "
                                       "then be uniform; given: slightly jittery timestamps are regridded)"),
-        dtype: str = typer.Option("float64", "--dtype", metavar="float64|float32",
-                                  help="psins .bin: float64 | float32"),
-        variable: str = typer.Option(None, "--variable", metavar="NAME",
-                                     help=".mat: the N x 7 variable (default: the first one)"),
+        dtype: str = typer.Option("float64", "--dtype", metavar="float64|float32", help="psins .bin: float64 | float32"),
+        variable: str = typer.Option(None, "--variable", metavar="NAME", help=".mat: the N x 7 variable (default: the first one)"),
         rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
-        skip: list[str] = typer.Option(None, "--skip-check", metavar="CHECK",
-                                       help="skip a plausibility check: constant | saturation | "
+        skip: list[str] = typer.Option(None, "--skip-check", metavar="CHECK", help="skip a plausibility check: constant | saturation | "
                                        "magnitudes | motion | encoders (repeatable)"),
         encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="encoder latency (s) to correct: the angles "
                                               "are shifted to theta(t + SECONDS) (the encoder check names it when it "
                                               "is over a sample)", metavar="SECONDS"),
         gravity: gravity_option("wgs84; the model is stored in the record") = None,
-        temperature: Path = typer.Option(None, "--temperature", metavar="CSV",
-                                         help="temperature readings at their own times: a header "
+        temperature: Path = typer.Option(None, "--temperature", metavar="CSV", help="temperature readings at their own times: a header "
                                          "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
                                          "then rows on the source's clock"),
-        topic: str = typer.Option(None, "--topic", metavar="TOPIC",
-                                  help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
+        topic: str = typer.Option(None, "--topic", metavar="TOPIC", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
                                   "one; the topics are listed otherwise)"),
-        stamps: str = typer.Option("header", "--stamps", metavar="header|receive",
-                                   help="rosbag: the samples' time: header (the messages' "
+        stamps: str = typer.Option("header", "--stamps", metavar="header|receive", help="rosbag: the samples' time: header (the messages' "
                                    "header.stamp) | receive (when the bag recorded them)"),
-        temperature_topic: str = typer.Option(None, "--temperature-topic", metavar="TOPIC",
-                                              help="rosbag: a sensor_msgs/Temperature "
+        temperature_topic: str = typer.Option(None, "--temperature-topic", metavar="TOPIC", help="rosbag: a sensor_msgs/Temperature "
                                               "topic (degC) for the record's temperature"),
-        config: Path = typer.Option(None, "--config", metavar="CONFIG.yaml",
-                                    help="kf-gins: its YAML configuration (imunoise block and "
+        config: Path = typer.Option(None, "--config", metavar="CONFIG.yaml", help="kf-gins: its YAML configuration (imunoise block and "
                                     "imudatarate, kept with the record)"),
         force: ForceOption = False,
         json_: JsonOption = False,

@@ -262,18 +262,14 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="IMU record (HDF5, from `inscal simulate` or recorded)"),
         params: Annotated[Path | None, typer.Option("--params", metavar="PARAMS.toml", help=(
             "calibration parameter file (TOML) applied on the fly"))] = None,
-        mode: str = typer.Option("free", "--mode", metavar="free|damped",
-                                 help="free (pure inertial) or damped (horizontal damping, zero reference velocity)"),
-        vertical: str = typer.Option("hold", "--vertical", metavar="hold|damped|free",
-                                     help="vertical channel: hold (v_U = 0, h = site), damped "
+        mode: str = typer.Option("free", "--mode", metavar="free|damped", help="free (pure inertial) or damped (horizontal damping, zero reference velocity)"),
+        vertical: str = typer.Option("hold", "--vertical", metavar="hold|damped|free", help="vertical channel: hold (v_U = 0, h = site), damped "
                                      "(3rd-order loop on the reference height) or free (pure inertial: diverges, e-folding ~9.5 min)"),
-        height_ref: str = typer.Option(None, "--height-ref", metavar="M|CSV",
-                                       help="external height for --vertical damped/hold: a constant "
+        height_ref: str = typer.Option(None, "--height-ref", metavar="M|CSV", help="external height for --vertical damped/hold: a constant "
                                        "in metres, or a CSV file with columns time_s,height_m (interpolated)"),
         plot: plot_option("plot of the run (.png, .pdf, .svg): position error E/N/U [m] and horizontal [nmi], "
                           "attitude error (or attitude and heading)") = None,
-        init: str = typer.Option("auto", "--init", metavar="auto|truth|align",
-                                 help="auto (truth if the record has it, else align), truth or align"),
+        init: str = typer.Option("auto", "--init", metavar="auto|truth|align", help="auto (truth if the record has it, else align), truth or align"),
         align_coarse_s: float = typer.Option(60.0, "--align-coarse-s", help="coarse alignment time [s]"),
         align_fine_s: float = typer.Option(600.0, "--align-fine-s", help="Kalman fine alignment time [s]"),
         output_rate_hz: float = typer.Option(1.0, "--output-rate-hz", help="rate of the navigation output [Hz]"),

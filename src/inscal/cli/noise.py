@@ -152,12 +152,10 @@ def register(app: typer.Typer) -> None:
     @app.command("noise")
     def noise_cmd(
         data: Path = typer.Argument(None, help="HDF5 record (a static window of it)"),
-        model: str = typer.Option("auto", "--model", metavar="MODEL",
-                                  help="'auto' (choose among the sub-sums of QN+WN+BI+RW+DR+2GM "
+        model: str = typer.Option("auto", "--model", metavar="MODEL", help="'auto' (choose among the sub-sums of QN+WN+BI+RW+DR+2GM "
                                   "by the J statistic plus a Hannan-Quinn penalty) or a sum such as 'WN+RW+2GM' "
                                   "(QN WN BI RW DR GM)"),
-        channels: str = typer.Option(None, "--channels", metavar="CHANNELS",
-                                     help="comma-separated among gx,gy,gz,ax,ay,az (default all)"),
+        channels: str = typer.Option(None, "--channels", metavar="CHANNELS", help="comma-separated among gx,gy,gz,ax,ay,az (default all)"),
         start_s: float = typer.Option(0.0, "--start", metavar="SECONDS", help="window start [s]"),
         stop_s: float = typer.Option(None, "--stop", metavar="SECONDS", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write the Allan deviation, fit and terms (.png/.pdf/.svg)"),

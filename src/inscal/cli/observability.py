@@ -210,22 +210,16 @@ def register(app: typer.Typer) -> None:
         crlb: bool = typer.Option(False, "--crlb", help="print the Cramér-Rao bound of every parameter (fast, "
                                                         "from the path kinematics; no simulation)"),
         filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0,
-        gyro_bi: float = typer.Option(None, "--gyro-bi", metavar="DEG/H",
-                                      help="with --crlb: gyro bias instability, Gauss-Markov "
+        gyro_bi: float = typer.Option(None, "--gyro-bi", metavar="DEG/H", help="with --crlb: gyro bias instability, Gauss-Markov "
                                                               "sigma [deg/h]"),
-        accel_bi: float = typer.Option(None, "--accel-bi", metavar="UG",
-                                       help="with --crlb: accelerometer bias instability, "
+        accel_bi: float = typer.Option(None, "--accel-bi", metavar="UG", help="with --crlb: accelerometer bias instability, "
                                                                 "Gauss-Markov sigma [ug]"),
-        bi_tau: float = typer.Option(3600.0, "--bi-tau", metavar="SECONDS",
-                                     help="with --crlb: correlation time of the bias "
+        bi_tau: float = typer.Option(3600.0, "--bi-tau", metavar="SECONDS", help="with --crlb: correlation time of the bias "
                                                               "instability [s]"),
-        gyro_rrw: float = typer.Option(None, "--gyro-rrw", metavar="DEG/H/SQRT(H)",
-                                       help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
-        accel_rrw: float = typer.Option(None, "--accel-rrw", metavar="UG/SQRT(S)",
-                                        help="with --crlb: accelerometer bias random walk "
+        gyro_rrw: float = typer.Option(None, "--gyro-rrw", metavar="DEG/H/SQRT(H)", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
+        accel_rrw: float = typer.Option(None, "--accel-rrw", metavar="UG/SQRT(S)", help="with --crlb: accelerometer bias random walk "
                                                                   "[ug/sqrt(s)]"),
-        t_ref: float = typer.Option(None, "--t-ref", metavar="DEGC",
-                                    help="reference temperature of the thermal states [degC] "
+        t_ref: float = typer.Option(None, "--t-ref", metavar="DEGC", help="reference temperature of the thermal states [degC] "
                                                           "(default: the scenario's thermal model's, else 20)"),
         noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
                             "Gauss-Markov and random-walk terms are the bound's noise") = None,
@@ -233,8 +227,7 @@ def register(app: typer.Typer) -> None:
                                 "the uncertainty budget the path promises with its inputs (which dominate, before "
                                 "the run)", Path) = None,
         full: bool = typer.Option(False, "--full", help="with --station: every component's budget table"),
-        method: str = typer.Option(None, "--method", metavar="METHOD",
-                                   help="with --station: a window-mean method (n25, six-position, "
+        method: str = typer.Option(None, "--method", metavar="METHOD", help="with --station: a window-mean method (n25, six-position, "
                                    "twelve-position, joint): its budget from one run simulated on the path at the "
                                    "station (the scenario's unit and noise) instead of the systematic filter's bound"),
         seed: SeedOption = 0,

@@ -108,12 +108,10 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def report(
         data: Path = typer.Argument(..., help="HDF5 record, or a noise model (noise.toml of inscal noise)"),
-        params: list[Path] = typer.Option([], "--params", "-p", metavar="PARAMS.toml",
-                                          help="parameter file(s) to tabulate (repeatable); "
+        params: list[Path] = typer.Option([], "--params", "-p", metavar="PARAMS.toml", help="parameter file(s) to tabulate (repeatable); "
                                           "a file with a thermal model also gets each thermal parameter's curve "
                                           "over its calibrated range with its 1-sigma band"),
-        noise: list[Path] = typer.Option([], "--noise", metavar="NOISE.toml",
-                                         help="noise model(s) from 'inscal noise --out' (noise.toml, "
+        noise: list[Path] = typer.Option([], "--noise", metavar="NOISE.toml", help="noise model(s) from 'inscal noise --out' (noise.toml, "
                                          "repeatable): each process per channel in IEEE 952/1293 units with its 95 % "
                                          "interval and per-sample form, and the model's Allan deviation over the "
                                          "record's first dwell"),

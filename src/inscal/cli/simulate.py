@@ -133,13 +133,11 @@ def register(app: typer.Typer) -> None:
                                        "turntable: handheld-mems, handheld-tactical, handheld-navigation) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
         seed: SeedOption = 0,
-        duration_h: float = typer.Option(None, "--duration-h", metavar="HOURS",
-                                         help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
+        duration_h: float = typer.Option(None, "--duration-h", metavar="HOURS", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
         force: ForceOption = False,
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
-        gravity: str = typer.Option(None, "--gravity", metavar="MODEL",
-                                    help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+        gravity: str = typer.Option(None, "--gravity", metavar="MODEL", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
                                     "(default: the scenario's, wgs84 unless its site table says otherwise)"),
         json_: JsonOption = False,
     ):
