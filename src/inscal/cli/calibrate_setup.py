@@ -1,6 +1,7 @@
 """The options of ``inscal calibrate``: those of calibrate alone (the shared ones are :mod:`inscal.cli.options`),
-all of them as one object (:class:`CalibrateOptions`), and their checks before the calibration runs: the station description of the budget, its thermal model, the thermal orders, the no-turntable
-methods' options in their functions' units, and the calibration database that ``--serial`` records in."""
+all of them as one object (:class:`CalibrateOptions`), and their checks before the calibration runs: the
+station description of the budget, its thermal model, the thermal orders, the no-turntable methods' options
+in their functions' units, and the calibration database that ``--serial`` records in."""
 
 from __future__ import annotations
 
