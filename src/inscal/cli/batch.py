@@ -14,6 +14,7 @@ from typing import Annotated
 
 import typer
 
+from inscal.cli.calibrate_setup import SetupOptions
 from inscal.cli.common import CliError, call, check_scheduler, fail, print_json, short
 from inscal.cli.guards import recovery_note
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
@@ -108,7 +109,6 @@ def batch_items(records: list[str] | None, serial: str | None, names: str | None
                 station: str | None, operator: str | None):
     """The records of the batch with their units (see :mod:`inscal.lab.batch`)."""
     from inscal.lab import batch as lb
-
     if manifest is not None:
         if records:
             raise CliError("give the records either as arguments or in --manifest, not both")
@@ -150,13 +150,12 @@ def check_batch_size(items, setup, scheduler: str, workers: int | None) -> None:
 
 
 @dataclass(frozen=True)
-class BatchOptions:
+class BatchOptions(SetupOptions):
     """What ``inscal batch`` is asked: calibrate ``records`` (files, folders, glob patterns; or a ``manifest``)
     with ``method`` into the database ``db``, on ``scheduler`` (local, none or an address) with ``workers``; the
     units from ``serial`` or the file ``names``, registered (as ``model``) when ``register_units``; the session's
-    ``station`` and ``operator``; the calibration's options as for ``inscal calibrate``
-    (:class:`~inscal.cli.calibrate_setup.CalibrateOptions`); ``progress`` on standard error; ``wait`` [s] for
-    another writer of the database."""
+    ``station`` and ``operator``; the calibration's options as for ``inscal calibrate`` (:class:`SetupOptions`);
+    ``progress`` on standard error; ``wait`` [s] for another writer of the database."""
 
     records: tuple[str, ...] | None
     method: str
@@ -170,19 +169,8 @@ class BatchOptions:
     model: str | None = None
     station: str | None = None
     operator: str | None = None
-    states: str | None = None
-    settle: float | None = None
-    min_static: float | None = None
-    filter_rate: float = 1.0
-    arw: float | None = None
-    vrw: float | None = None
-    gravity: str | None = None
-    encoder_sigma: float | None = None
-    encoder_latency: float = 0.0
-    skip_encoder_check: bool = False
     progress: bool = True
     wait: float | None = None
-    noise: Path | None = None
 
 
 def run_batch(o: BatchOptions) -> dict:
@@ -193,11 +181,8 @@ def run_batch(o: BatchOptions) -> dict:
 
     from inscal.lab import DatabaseError, check_wait
     from inscal.lab import batch as lb
-    from inscal.lab.calibration import CalibrationSetup
 
-    setup = CalibrationSetup(o.method, o.states, o.settle, o.min_static, o.filter_rate, o.arw, o.vrw, o.gravity,
-                             o.encoder_sigma, o.encoder_latency, not o.skip_encoder_check,
-                             noise=None if o.noise is None else str(o.noise.resolve()))
+    setup = o.calibration_setup(o.method, None if o.noise is None else str(o.noise.resolve()))
     if (msg := setup.problem()) is not None:
         raise CliError(msg)
     scheduler, workers = check_scheduler(o.scheduler or "local", ("local", "none")), o.workers

@@ -75,14 +75,12 @@ def run_calibrate(o: CalibrateOptions) -> dict:
     returns the JSON report.  Nothing is written unless the calibration succeeds; the GUM budget of a
     ``--station FILE.toml`` is :func:`_budget`."""
     from inscal.io.files import input_problem
-    from inscal.lab.calibration import CalibrationSetup
 
-    setup = CalibrationSetup(o.method, o.states, o.settle, o.min_static, o.filter_rate, o.arw, o.vrw, o.gravity,
-                             o.encoder_sigma, o.encoder_latency, not o.skip_encoder_check, o.per_plateau,
-                             parse_orders(o.thermal_order), o.t_ref, o.plateau_tol, o.temperature_sensor,
-                             o.chamber_label, o.accept_unconverged, o.quadratic,
-                             None if o.noise is None else str(o.noise), method_options=o.method_options,
-                             tremor=o.tremor_dps)
+    setup = o.calibration_setup(o.method, None if o.noise is None else str(o.noise), per_plateau=o.per_plateau,
+                                thermal_orders=parse_orders(o.thermal_order), t_ref=o.t_ref,
+                                plateau_tol=o.plateau_tol, temperature_sensor=o.temperature_sensor,
+                                chamber_label=o.chamber_label, accept_unconverged=o.accept_unconverged,
+                                quadratic=o.quadratic, method_options=o.method_options, tremor=o.tremor_dps)
     if (msg := setup.problem(o.plots is not None)) is not None:
         raise CliError(msg)
     if (msg := input_problem(o.data, "data file")) is not None:

@@ -91,8 +91,36 @@ ThermalModelOption = _option(
     "that has one)", Path, "PARAMS.toml")
 
 
+@dataclass(frozen=True, kw_only=True)
+class SetupOptions:
+    """The options of a calibration that ``inscal calibrate`` and ``inscal batch`` share (None: the method's own
+    default), as the library's :class:`~inscal.lab.calibration.CalibrationSetup` takes them
+    (:meth:`calibration_setup`)."""
+
+    settle: float | None = None
+    min_static: float | None = None
+    states: str | None = None
+    filter_rate: float = 1.0
+    arw: float | None = None
+    vrw: float | None = None
+    gravity: str | None = None
+    encoder_sigma: float | None = None
+    encoder_latency: float = 0.0
+    skip_encoder_check: bool = False
+    noise: Path | None = None
+
+    def calibration_setup(self, method: str, noise: str | None, **more):
+        """The library's setup (:class:`~inscal.lab.calibration.CalibrationSetup`) of ``method`` with these
+        options, the noise model ``noise`` (a path) and ``more`` of the setup's fields."""
+        from inscal.lab.calibration import CalibrationSetup  # numpy and the methods: on first use (fast start)
+
+        return CalibrationSetup(method, self.states, self.settle, self.min_static, self.filter_rate, self.arw, self.vrw,
+                                self.gravity, self.encoder_sigma, self.encoder_latency, not self.skip_encoder_check,
+                                noise=noise, **more)
+
+
 @dataclass(frozen=True)
-class CalibrateOptions:
+class CalibrateOptions(SetupOptions):
     """Everything ``inscal calibrate`` is asked: calibrate ``data`` with ``method`` and write ``out``.
 
     ``states``/``plots``/``filter_rate``/``arw`` [deg/sqrt(h)]/``vrw`` [ug/sqrt(Hz)] apply to the systematic
@@ -126,17 +154,7 @@ class CalibrateOptions:
     method: str
     out: Path
     force: bool = False
-    settle: float | None = None
-    min_static: float | None = None
-    states: str | None = None
     plots: Path | None = None
-    filter_rate: float = 1.0
-    arw: float | None = None
-    vrw: float | None = None
-    gravity: str | None = None
-    encoder_sigma: float | None = None
-    encoder_latency: float = 0.0
-    skip_encoder_check: bool = False
     db: str | None = None
     serial: str | None = None
     station: str | None = None
@@ -153,7 +171,6 @@ class CalibrateOptions:
     wait: float | None = None
     accept_unconverged: bool = False
     quadratic: bool = False
-    noise: Path | None = None
     thermal_model: Path | None = None
     mc: int | None = None
     mc_seed: int = 0
