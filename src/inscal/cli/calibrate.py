@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from inscal.cli.calibrate_outputs import recorded, write_outputs
+from inscal.cli.calibrate_outputs import open_lab, recorded, write_outputs
 from inscal.cli.calibrate_setup import (
     AcceptUnconvergedOption,
     AlphaOption,
@@ -34,7 +34,6 @@ from inscal.cli.calibrate_setup import (
     TurnTolOption,
     budget_thermal_model,
     method_options,
-    open_lab,
     parse_orders,
     station_description,
 )

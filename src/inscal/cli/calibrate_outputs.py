@@ -1,11 +1,68 @@
-"""The outputs of ``inscal calibrate``: the parameter file, the convergence plots and the database row, written
-inside the command's output unit so that they are published together, or none of them."""
+"""The outputs of ``inscal calibrate``: the calibration database that ``--serial`` records in, opened and checked
+before the calibration runs (:func:`open_lab`), then the parameter file, the convergence plots and the database
+row, written inside the command's output unit so that they are published together, or none of them."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from inscal.cli.common import CliError
+from inscal.cli.common import CliError, normal_serial
+from inscal.cli.guards import database_notes
+
+
+def open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
+              options: dict, wait: float | None = None) -> dict | None:
+    """The calibration database and what ``--serial`` records in it, checked before the calibration
+    runs: the unit is registered, the record not yet calibrated with the same options (unless
+    ``--supersedes``); None without ``--serial``."""
+    if serial is None:
+        extra = [n for n, v in (("--db", db), ("--station", station), ("--operator", operator), ("--date", date),
+                                ("--temperature-c", temperature_c), ("--supersedes", supersedes), ("--wait", wait))
+                 if v is not None]
+        if extra:
+            raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
+        return None
+    serial = normal_serial(serial)
+    import sqlalchemy
+
+    from inscal import lab
+    from inscal.io.files import file_hash
+    from inscal.io.paramfile import ParamFileError
+
+    if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
+        raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
+    for name, text in (("--station", station), ("--operator", operator)):  # checked before the calibration runs
+        if text is not None and len(text) > 200:
+            raise CliError(f"{name} {text[:40]!r}...: {len(text)} characters, at most 200")
+    try:
+        when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
+        d = lab.open_database(db, wait_s=wait)
+    except (lab.DatabaseError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    database_notes(d)
+    try:
+        if lab.get_unit(d, serial) is None:
+            raise CliError(f"unknown unit {serial!r} in {d.where}: register it first with `inscal db add {serial} "
+                           "--model MODEL`")
+        if supersedes is not None:
+            old = lab.get_calibration(d, supersedes)
+            if old.serial != serial:
+                raise CliError(f"--supersedes {supersedes}: that result is a calibration of {old.serial}, not {serial}")
+        h = file_hash(data)
+        done = lab.find_calibration(d, h, options, serial)
+        if done is not None and supersedes is None:
+            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}; `inscal db "
+                           f"export {serial} --result {done} --out FILE` writes its parameter file); --supersedes {done} "
+                           "records a new calibration in its place")
+    except (lab.DatabaseError, ParamFileError, sqlalchemy.exc.SQLAlchemyError) as exc:
+        d.close()
+        raise CliError(str(getattr(exc, "orig", None) or exc).split("\n")[0]) from None
+    except BaseException:
+        d.close()
+        raise
+    return {"db": d, "serial": serial, "hash": h, "options": options, "date": when, "station": station,
+            "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
 
 
 def write_outputs(data: Path, out: Path, force: bool, plots: Path | None, res, rec, meta: dict, enc_report,

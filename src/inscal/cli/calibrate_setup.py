@@ -1,7 +1,7 @@
 """The options of ``inscal calibrate``: those of calibrate alone (the shared ones are :mod:`inscal.cli.options`),
 all of them as one object (:class:`CalibrateOptions`), and their checks before the calibration runs: the
 station description of the budget, its thermal model, the thermal orders, the no-turntable methods' options
-in their functions' units, and the calibration database that ``--serial`` records in."""
+in their functions' units (the database that ``--serial`` records in: :mod:`inscal.cli.calibrate_outputs`)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ from typing import Annotated
 
 import typer
 
-from inscal.cli.common import CliError, normal_serial
-from inscal.cli.guards import database_notes
+from inscal.cli.common import CliError
 
 # ----------------------------------------------------------------------------- the options of calibrate alone
 STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-diagonals and cross-coupling chosen "
@@ -235,61 +234,6 @@ def parse_orders(items: list[str] | None) -> tuple[tuple[str, int], ...]:
                            "ORDER 0 .. 3; 0: constant)")
         out.append((name.strip(), order))
     return tuple(out)
-
-
-
-def open_lab(db, serial, station, operator, date, temperature_c, supersedes, data: Path,
-              options: dict, wait: float | None = None) -> dict | None:
-    """The calibration database and what ``--serial`` records in it, checked before the calibration
-    runs: the unit is registered, the record not yet calibrated with the same options (unless
-    ``--supersedes``); None without ``--serial``."""
-    if serial is None:
-        extra = [n for n, v in (("--db", db), ("--station", station), ("--operator", operator), ("--date", date),
-                                ("--temperature-c", temperature_c), ("--supersedes", supersedes), ("--wait", wait))
-                 if v is not None]
-        if extra:
-            raise CliError(f"{', '.join(extra)}: the calibration is recorded in the database for a unit: give --serial")
-        return None
-    serial = normal_serial(serial)
-    import sqlalchemy
-
-    from inscal import lab
-    from inscal.io.files import file_hash
-    from inscal.io.paramfile import ParamFileError
-
-    if temperature_c is not None and not (math.isfinite(temperature_c) and -100.0 < temperature_c < 200.0):
-        raise CliError(f"--temperature-c {temperature_c}: not an IMU temperature in deg C")
-    for name, text in (("--station", station), ("--operator", operator)):  # checked before the calibration runs
-        if text is not None and len(text) > 200:
-            raise CliError(f"{name} {text[:40]!r}...: {len(text)} characters, at most 200")
-    try:
-        when = lab.check_date(lab.parse_date(date), "--date") if date is not None else None
-        d = lab.open_database(db, wait_s=wait)
-    except (lab.DatabaseError, ValueError) as exc:
-        raise CliError(str(exc)) from None
-    database_notes(d)
-    try:
-        if lab.get_unit(d, serial) is None:
-            raise CliError(f"unknown unit {serial!r} in {d.where}: register it first with `inscal db add {serial} "
-                           "--model MODEL`")
-        if supersedes is not None:
-            old = lab.get_calibration(d, supersedes)
-            if old.serial != serial:
-                raise CliError(f"--supersedes {supersedes}: that result is a calibration of {old.serial}, not {serial}")
-        h = file_hash(data)
-        done = lab.find_calibration(d, h, options, serial)
-        if done is not None and supersedes is None:
-            raise CliError(f"{data} is recorded already for {serial} with these options (result {done}; `inscal db "
-                           f"export {serial} --result {done} --out FILE` writes its parameter file); --supersedes {done} "
-                           "records a new calibration in its place")
-    except (lab.DatabaseError, ParamFileError, sqlalchemy.exc.SQLAlchemyError) as exc:
-        d.close()
-        raise CliError(str(getattr(exc, "orig", None) or exc).split("\n")[0]) from None
-    except BaseException:
-        d.close()
-        raise
-    return {"db": d, "serial": serial, "hash": h, "options": options, "date": when, "station": station,
-            "operator": operator, "temperature_c": temperature_c, "supersedes": supersedes}
 
 
 
