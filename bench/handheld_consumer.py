@@ -67,6 +67,7 @@ def run(folder: Path, tag: str, skip: list[str]) -> None:
     from inscal.io.mapping import ImportFileError
 
     from inscal.cli.calibrate import run_calibrate
+    from inscal.cli.calibrate_setup import CalibrateOptions
 
     out = {}
     for csv in sorted(folder.glob("s*.csv")):
@@ -83,7 +84,7 @@ def run(folder: Path, tag: str, skip: list[str]) -> None:
             print(name, "import:", exc, flush=True)
             continue
         try:
-            rep = run_calibrate(rec, "multi-position", par)
+            rep = run_calibrate(CalibrateOptions(rec, "multi-position", par))
         except (CliError, Exception) as exc:  # every refusal counts as a failure of the defaults
             out[name] = {"stage": "calibrate", "error": f"{type(exc).__name__}: {exc}"}
             print(name, "calibrate:", exc, flush=True)

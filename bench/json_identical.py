@@ -69,6 +69,18 @@ COMMANDS = [
     ("import-unknown", ["import", "{W}/x.csv", "--format", "xls", "--out", "{W}/u.h5", "--json"]),
     ("import-dtype", ["import", "{W}/x.csv", "--format", "mat", "--dtype", "float32", "--out", "{W}/u.h5", "--json"]),
     ("import-no-site", ["import", "{W}/x.csv", "--format", "csv", "--lat", "30", "--out", "{W}/u.h5", "--json"]),
+    # the database commands on a database of their own, and two refusals
+    ("simulate", ["simulate", "psins19", "--out", "{W}/p19.h5", "--rate-hz", "20", "--seed", "1", "--json"]),
+    ("db-init", ["db", "init", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("db-add-2", ["db", "add", "FOG-1", "--model", "FOG", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("calibrate-db", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/db.toml", "--serial", "FOG-1",
+                      "--db", "{W}/lab2.sqlite", "--operator", "Ada", "--json"]),
+    ("db-list", ["db", "list", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("db-show", ["db", "show", "FOG-1", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("db-history", ["db", "history", "FOG-1", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("db-export", ["db", "export", "FOG-1", "--out", "{W}/again.toml", "--db", "{W}/lab2.sqlite", "--json"]),
+    ("db-refused", ["db", "list", "--db", "{W}/lab2.sqlite", "--k", "0"]),
+    ("calibrate-refused", ["calibrate", "{D}/n25.h5", "--method", "n25", "--out", "{W}/x.toml", "--mc-seed", "-1"]),
 ]
 #: the station file of the budget's commands (the tests' typical station)
 STATION = ROOT / "tests" / "data" / "station.toml"

@@ -5,7 +5,8 @@
   and functions that implement it.  The theory pages cite equations with ``{ref}`` to those labels,
   so a page that cites an equation no code implements fails the strict build.
 - When the HTML is written, the CLI reference is checked against the Typer app itself: every
-  command and every option of every command must appear in ``reference/cli.html``.
+  command and every option of every command (with the name of its value: ``--settle-s SECONDS``) and
+  every command's examples (:data:`inscal.cli.examples.EXAMPLES`) must appear in ``reference/cli.html``.
 """
 
 from __future__ import annotations
@@ -15,9 +16,12 @@ import functools
 import inspect
 import re
 from collections import defaultdict
+from html import unescape as html_unescape
 from pathlib import Path
 
 from sphinx.errors import ExtensionError
+
+from inscal.cli.examples import EXAMPLES
 
 #: an equation tag: the paper, then one or more equation numbers ("eq. 15-19", "eq. 24, 25")
 TAG = re.compile(r"\b(S16|N25) eq(?:s)?\. ?(\d+[a-z]?(?:\s*(?:[–-]|,|and)\s*\d+[a-z]?)*)")
@@ -187,7 +191,7 @@ def write_cli_page(app) -> None:
             if param.param_type_name == "argument":
                 lines += [f".. option:: {param.name.upper()}", "", f"   (argument) {help_text}".rstrip(), ""]
                 continue
-            metavar = "" if getattr(param, "is_flag", False) else " " + param.display_type(ctx).upper()
+            metavar = "" if getattr(param, "is_flag", False) else " " + (param.metavar or param.name.upper())
             names = ", ".join(f"{opt}{metavar}" for opt in list(param.opts) + list(param.secondary_opts))
             extra = []
             if param.required:
@@ -198,6 +202,10 @@ def write_cli_page(app) -> None:
                 extra.append("repeatable")
             suffix = f" ({'; '.join(extra)})" if extra else ""
             lines += [f".. option:: {names}", "", f"   {help_text}{suffix}".rstrip(), ""]
+        examples = EXAMPLES.get(" ".join(path), ())
+        if examples:
+            lines += [".. rubric:: Examples", "", ".. code-block:: console", ""]
+            lines += [f"   $ {x}" for x in examples] + [""]
         if getattr(command, "commands", None):
             subs = [n for n in command.commands if not command.commands[n].hidden]
             lines += ["Subcommands: " + ", ".join(f"``{n}``" for n in subs) + ".", ""]
@@ -212,6 +220,7 @@ def check_cli_reference(app, exception) -> None:
     if exception is not None or app.builder.format != "html":
         return
     html = (Path(app.outdir) / "reference" / "cli.html").read_text(encoding="utf-8")
+    text = " ".join(html_unescape(re.sub(r"<[^>]+>", "", html)).split())  # the page's words, as shown
     missing = []
     for path, command, _ctx in cli_tree():
         prog = "-".join(("inscal",) + path)
@@ -225,6 +234,9 @@ def check_cli_reference(app, exception) -> None:
             for opt in opts:
                 if f'id="cmdoption-{prog}-{opt.lstrip("-")}"'.lower() not in html.lower():
                     missing.append(f"{' '.join(prog.split('-', 1))} {opt}")
+        for example in EXAMPLES.get(" ".join(path), ()):
+            if example not in text:
+                missing.append(f"the example {example!r}")
     if missing:
         raise ExtensionError("the CLI reference lacks: " + ", ".join(missing))
 

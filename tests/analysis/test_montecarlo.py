@@ -14,6 +14,7 @@ import pytest
 from inscal.analysis import montecarlo as mc
 from inscal.analysis import studies
 from inscal.cli.montecarlo import format_cell, format_table
+from inscal.core.progress import duration
 
 
 # ------------------------------------------------------------------ a small dummy experiment
@@ -492,7 +493,7 @@ def test_eta_is_mean_run_time_times_runs_left_over_workers(capsys):
     bar.close()
     err = capsys.readouterr().err
     assert "about 12 s left (3 s per run, 2 workers)" in err and "1 failed" in err
-    assert mc._duration(42) == "42 s" and mc._duration(185) == "3 min 05 s" and mc._duration(7620) == "2 h 07 min"
+    assert duration(42) == "42 s" and duration(185) == "3 min 05 s" and duration(7620) == "2 h 07 min"
 
 
 def _wide_summary():

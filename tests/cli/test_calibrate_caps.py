@@ -27,6 +27,7 @@ from test_memory_caps import (
 )
 
 from inscal.cli.calibrate import run_calibrate
+from inscal.cli.calibrate_setup import CalibrateOptions
 from inscal.cli.limits import available_memory
 from inscal.cli.simulate import run_simulate
 
@@ -105,7 +106,7 @@ def s16(tmp_path_factory):
     them from numba's cache: a compilation, unlike the kernels, cannot be interrupted."""
     folder = tmp_path_factory.mktemp("s16")
     run_simulate("s16", folder / "s16.h5")
-    run_calibrate(folder / "s16.h5", "systematic51", folder / "warm.toml", states="51")
+    run_calibrate(CalibrateOptions(folder / "s16.h5", "systematic51", folder / "warm.toml", states="51"))
     return folder / "s16.h5"
 
 

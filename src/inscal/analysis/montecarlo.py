@@ -47,7 +47,6 @@ import json
 import math
 import os
 import shutil
-import sys
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -55,17 +54,10 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-)
 
 from inscal import __version__ as inscal_version
 from inscal.core.parallel import LOCAL_WORKER_ENVIRON, start_client
+from inscal.core.progress import ProgressBar, duration
 from inscal.core.stats import chi2_ppf
 from inscal.io.jsonfile import to_jsonable
 
@@ -523,46 +515,17 @@ def _run_dask(experiment, pending, scheduler, workers, batch_size, sink, bar=Non
             raise
 
 
-def _duration(seconds: float) -> str:
-    """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
-    s = int(round(max(0.0, seconds)))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
-
-
 class _Progress:
-    """Progress on stderr: a Rich bar on a terminal; otherwise (a log file, CI) a plain
-    line at every 10 % and at most every 30 s.  Nothing when disabled.
+    """The study's progress (:class:`inscal.core.progress.ProgressBar`): a Rich bar on a terminal; otherwise (a
+    log file, CI) a plain line at every 10 % and at least every 30 s.  Nothing when disabled.
 
     The time left is the mean run time so far (each run's own ``elapsed_s``) x the runs left /
     the workers (``workers``: set by the runner once the cluster is known), not the wall-clock
     rate, which the start of a cluster and the first (compiling) runs distort."""
 
     def __init__(self, total: int, name: str, enabled: bool, workers: int = 1):
-        self.p = None
-        self.plain = False
-        self.failed = 0
-        self.done = 0
-        self.run_s = 0.0
-        self.workers = workers
-        self.total = total
-        self.name = name
-        self.t0 = self.t_last = time.perf_counter()
-        self.next_pct = 10
-        if not enabled:
-            return
-
-        con = Console(stderr=True)
-        if not con.is_terminal:
-            self.plain = True
-            return
-        self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]}"),
-                          TimeElapsedColumn(), TextColumn("{task.fields[eta]}"), console=con, transient=False)
-        self.p.start()
-        self.task = self.p.add_task(name, total=total, failed="", eta="")
+        self.failed, self.done, self.run_s, self.workers, self.total, self.name = 0, 0, 0.0, workers, total, name
+        self.bar = ProgressBar(name, total, enabled)
 
     def eta_s(self) -> float | None:
         """Seconds left: mean run time x runs left / workers (None before the first run)."""
@@ -571,29 +534,26 @@ class _Progress:
         return self.run_s / self.done * (self.total - self.done) / max(1, self.workers)
 
     def advance(self, n: int, failed: int, run_seconds: float = 0.0) -> None:
+        """``n`` more runs done, ``failed`` of them failed, ``run_seconds`` their own time."""
         self.failed += failed
         self.done += n
         self.run_s += run_seconds
         eta = self.eta_s()
-        if self.p is not None:
-            self.p.update(self.task, advance=n, failed=f"{self.failed} failed" if self.failed else "",
-                          eta="" if eta is None else f"~{_duration(eta)} left")
-        elif self.plain:
-            now = time.perf_counter()
-            pct = 100 * self.done / max(1, self.total)
-            if pct >= self.next_pct or now - self.t_last >= 30 or self.done == self.total:
-                el = now - self.t0
-                print(f"{self.name}: {self.done}/{self.total} runs ({pct:.0f} %), {_duration(el)} elapsed, about "
-                      f"{_duration(eta or 0.0)} left ({self.run_s / max(1, self.done):.3g} s per run, {self.workers} "
-                      f"worker{'s' if self.workers != 1 else ''})"
-                      + (f", {self.failed} failed" if self.failed else ""), file=sys.stderr, flush=True)
-                self.t_last = now
-                while self.next_pct <= pct:
-                    self.next_pct += 10
+        note = ", ".join(p for p in (f"{self.failed} failed" if self.failed else "",
+                                     "" if eta is None else f"~{duration(eta)} left") if p)
+        self.bar.update(self.done, note=note, line=self.plain_line)
+
+    def plain_line(self) -> str:
+        """The progress line of a log: runs done, time elapsed and left, failures."""
+        pct = 100 * self.done / max(1, self.total)
+        return (f"{self.name}: {self.done}/{self.total} runs ({pct:.0f} %), {duration(self.bar.elapsed_s)} elapsed, "
+                f"about {duration(self.eta_s() or 0.0)} left ({self.run_s / max(1, self.done):.3g} s per run, "
+                f"{self.workers} worker{'s' if self.workers != 1 else ''})"
+                + (f", {self.failed} failed" if self.failed else ""))
 
     def close(self) -> None:
-        if self.p is not None:
-            self.p.stop()
+        """Stop the bar."""
+        self.bar.close()
 
 
 # ----------------------------------------------------------------------------- summary

@@ -7,16 +7,10 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    check_not_input,
-    check_output,
-    fail,
-    print_json,
-    short,
-)
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, print_json, short, warn,
+    write_figure)
 from inscal.cli.limits import check_memory
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 np = LazyModule("numpy")
 units = LazyModule("inscal.core.units")
@@ -114,10 +108,7 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
     if plot is not None:
         from inscal.report.figures import allan_plot
 
-        try:
-            allan_plot(plot, res["taus_s"], res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
-        except OSError as exc:
-            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+        write_figure(allan_plot, plot, res["taus_s"], res["gyro_adev_deg_h"], res["accel_adev_ug"], overwrite=force)
         res["plot"] = str(plot)
     return res
 
@@ -126,22 +117,19 @@ def register(app: typer.Typer) -> None:
     @app.command("allan")
     def allan_cmd(
         data: Path = typer.Argument(..., help="HDF5 record (use a static window)"),
-        start_s: float = typer.Option(0.0, "--start", help="window start [s]"),
-        stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
+        start_s: float = typer.Option(0.0, "--start", metavar="SECONDS", help="window start [s]"),
+        stop_s: float = typer.Option(None, "--stop", metavar="SECONDS", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write an Allan deviation plot (.png, .pdf or .svg)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing plot"),
-        model: str = typer.Option("auto", "--model", help="the noise model whose white-noise term gives ARW/VRW "
+        force: ForceOption = False,
+        model: str = typer.Option("auto", "--model", metavar="MODEL", help="the noise model whose white-noise term gives ARW/VRW "
                                   "(as inscal noise: 'auto' or a sum such as 'WN+RW+2GM')"),
-        seed: int = typer.Option(0, "--seed", help="seed of the multi-start solver's draws (as inscal noise)"),
-        json_: bool = typer.Option(False, "--json", help="print results as JSON"),
+        seed: SeedOption = 0,
+        json_: JsonOption = False,
     ):
         """Allan deviation of a record: ARW and VRW with their 95 % intervals (the noise engine's, as
         inscal noise) and the bias-instability read-off per axis."""
-        try:
-            res = run_allan(data, start_s, stop_s, plot, force,
-                            warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), model=model, seed=seed)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_allan, data, start_s, stop_s, plot, force,
+                        warn=warn, model=model, seed=seed)
         if json_:
             print_json(res)
             return

@@ -14,14 +14,16 @@ import click
 import typer
 
 from inscal.cli.common import CliError, fail
+from inscal.cli.examples import epilog
 from inscal.cli.interrupts import (
     Interrupted,
     catch_interrupts,
     pending_signal,
     release_interrupts,
 )
+from inscal.cli.options import Command, Group
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
+app = typer.Typer(add_completion=False, no_args_is_help=True, cls=Group, help="Calibrate high-accuracy IMUs and dual-axis rotational INS.")
 
 def _version(value: bool) -> None:
     if value:
@@ -72,10 +74,6 @@ def _one_unit(command):
     def run(*args, **kwargs):
         files = importlib.import_module("inscal.io.files")
         try:
-            _check_applies()
-        except CliError as exc:
-            raise fail(str(exc)) from None
-        try:
             with files.output_unit():
                 try:
                     return command(*args, **kwargs)
@@ -89,27 +87,19 @@ def _one_unit(command):
     return run
 
 
-def _check_applies() -> None:
-    """The options of this run against what they apply to (:mod:`inscal.cli.applies`)."""
-    from typer._click.core import ParameterSource  # typer's own click (vendored), whose context runs the command
-    from typer._click.globals import get_current_context
-
-    from inscal.cli.applies import check_command
-
-    ctx = get_current_context()
-    given = {n for n in ctx.params if ctx.get_parameter_source(n) in (ParameterSource.COMMANDLINE,
-                                                                      ParameterSource.ENVIRONMENT)}
-    opts = {p.name: max((o for o in p.opts if o.startswith("--")), key=len, default=p.opts[0])
-            for p in ctx.command.params if getattr(p, "opts", None)}
-    check_command(ctx.info_name or "", dict(ctx.params), given, opts)
-
-
 def _register_all() -> None:
     for name in _SUBCOMMAND_MODULES:
         importlib.import_module(f"inscal.cli.{name}").register(app)
     for info in app.registered_commands:
         if info.callback.__name__ not in _PIPELINES:
             info.callback = _one_unit(info.callback)
+    # every command's help: the values named (inscal.cli.options.Command) and its examples (inscal.cli.examples)
+    commands = [("", info) for info in app.registered_commands]
+    for group in app.registered_groups:
+        commands += [(group.name + " ", info) for info in group.typer_instance.registered_commands]
+    for prefix, info in commands:
+        info.cls = Command
+        info.epilog = epilog(prefix + (info.name or info.callback.__name__))
 
 
 _register_all()

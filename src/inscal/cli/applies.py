@@ -3,7 +3,8 @@
 An option given on the command line that does not apply to the method, format or source it is given
 with would be ignored without a word; :func:`check_command` refuses it in one line (exit 2) instead,
 naming what it applies to.  The same place refuses a negative seed (numpy's generators take
-``SeedSequence`` entropy >= 0), naming the option that carries it, and an output whose name says
+``SeedSequence`` entropy >= 0), naming the option that carries it, a count below its bound (:data:`BOUNDS`:
+``--workers 0``, ``--k 0``), and an output whose name says
 another format than the one written (HDF5 under ``.txt``, TOML under ``.h5``).  The commands keep their
 own checks of values; this module holds only the "does it apply" rules, so that a new method or format
 is added to one table.
@@ -11,6 +12,7 @@ is added to one table.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -72,6 +74,11 @@ RULES: dict[str, tuple[Rule, ...]] = {
     ),
 }
 
+#: counts and factors with a lower bound, whatever the command: parameter -> (bound, whether it is excluded)
+BOUNDS: dict[str, tuple[float, bool]] = {
+    "workers": (1, False), "mc_workers": (1, False), "runs": (1, False), "batch_size": (1, False), "k": (0, True),
+}
+
 #: command -> (output parameter, the format written, the suffixes that say it); a name with a suffix
 #: of another format (:data:`OTHER_FORMATS`) is refused
 OUTPUTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
@@ -103,6 +110,11 @@ def check_command(command: str, params: dict, given: set[str], opts: dict[str, s
     for name in sorted(given):
         if (name == "seed" or name.endswith("_seed")) and isinstance(params.get(name), int) and params[name] < 0:
             raise CliError(f"{flag(name, opts)} must be a seed >= 0, got {params[name]}")
+    for name, (bound, strict) in BOUNDS.items():
+        v = params.get(name)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not (
+                math.isfinite(v) and (v > bound if strict else v >= bound)):
+            raise CliError(f"{flag(name, opts)} must be {'>' if strict else '>='} {bound:g}, got {v}")
     for rule in RULES.get(command, ()):
         if rule.option in given and not rule.applies(params):
             what = (f"--method {params.get('method')}" if "method" in params else
@@ -125,3 +137,16 @@ def check_command(command: str, params: dict, given: set[str], opts: dict[str, s
             if sfx in OTHER_FORMATS and sfx not in suffixes:
                 raise CliError(f"{flag(name, opts)} {out}: the command writes {what}, and the name says {sfx}: "
                                f"use a {' or '.join(suffixes)} name")
+
+
+def check_context(ctx) -> None:
+    """:func:`check_command` for the command of the click context ``ctx`` (``db add``: a subcommand with its
+    group's name), its options given on the command line or in the environment."""
+    from typer._click.core import ParameterSource  # typer's own click (vendored), whose context runs the command
+
+    given = {n for n in ctx.params if ctx.get_parameter_source(n) in (ParameterSource.COMMANDLINE,
+                                                                      ParameterSource.ENVIRONMENT)}
+    opts = {p.name: max((o for o in p.opts if o.startswith("--")), key=len, default=p.opts[0])
+            for p in ctx.command.params if getattr(p, "opts", None)}
+    group = ctx.parent.info_name + " " if ctx.parent is not None and ctx.parent.parent is not None else ""
+    check_command(group + (ctx.info_name or ""), dict(ctx.params), given, opts)

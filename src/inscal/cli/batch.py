@@ -8,37 +8,47 @@ stderr; the others are recorded), 2 a bad invocation (nothing calibrated), 130 /
 from __future__ import annotations
 
 import os
-import sys
-import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
+from inscal.cli.calibrate_setup import SetupOptions
+from inscal.cli.common import CliError, call, check_scheduler, fail, print_json, short
 from inscal.cli.guards import recovery_note
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
+from inscal.cli.options import (
+    CalibrationNoiseOption,
+    DbOption,
+    EncoderLatencyOption,
+    EncoderSigmaOption,
+    FilterRateOption,
+    JsonOption,
+    MinStaticOption,
+    NoProgressOption,
+    OperatorOption,
+    SettleOption,
+    SkipEncoderCheckOption,
+    WorkersOption,
+    arw_option,
+    gravity_option,
+    method_option,
+    options_of,
+    scheduler_option,
+    states_option,
+    station_option,
+    vrw_option,
+)
 
 #: most records of one batch (10^6: months of calibrations at a few seconds each)
 MAX_RECORDS = 10**6
-DB_HELP = "calibration database: a file (SQLite) or postgresql://USER@HOST/NAME (default: $INSCAL_DB, else calib.sqlite)"
-#: plain progress lines (not on a terminal): every this share of the records, and at least this often [s]
-PLAIN_STEP = 0.1
-PLAIN_EVERY_S = 30.0
-
-
-def duration(seconds: float) -> str:
-    """``42 s``, ``3 min 05 s``, ``2 h 07 min``."""
-    s = round(max(0.0, seconds))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 class BatchProgress:
-    """Progress on stderr: a Rich bar on a terminal; otherwise a plain line at every 10 % of the records
-    and at least every 30 s; nothing when disabled.  A failed record's line is printed in any case.
+    """The batch's progress (:class:`inscal.core.progress.ProgressBar`): a Rich bar on a terminal; otherwise a
+    plain line at every 10 % of the records and at least every 30 s; nothing when disabled.  A failed record's
+    line is printed in any case.
 
     The time left is the mean worker time of a calibrated record so far x the records left / the
     workers (set once the cluster is known): the start of the cluster and the records skipped as
@@ -46,48 +56,24 @@ class BatchProgress:
 
     def __init__(self, total: int, enabled: bool):
         self.total, self.done, self.skipped, self.failed, self.calibrated = total, 0, 0, 0, 0
+        from inscal.core.progress import ProgressBar  # rich: loaded for a batch only (fast start)
+
         self.work_s, self.workers = 0.0, 1
-        self.t0 = self.t_last = time.perf_counter()
-        self.next_share = PLAIN_STEP
-        self.bar = None
-        self.plain = False
-        if not enabled:
-            return
-        from rich.console import Console
-
-        con = Console(stderr=True)
-        if not con.is_terminal:
-            self.plain = True
-            return
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-        )
-
-        self.bar = Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[counts]}"),
-                            TimeElapsedColumn(), TextColumn("{task.fields[eta]}"), console=con)
-        self.bar.start()
-        self.task = self.bar.add_task("batch", total=total, counts="", eta="")
+        self.bar = ProgressBar("batch", total, enabled)
 
     def eta_s(self) -> float | None:
+        """Seconds left (None before the first record calibrated)."""
         if self.calibrated == 0:
             return None
         return self.work_s / self.calibrated * (self.total - self.done) / max(1, self.workers)
 
     def counts(self) -> str:
+        """The records skipped and failed so far, in words."""
         parts = [f"{self.skipped} skipped" if self.skipped else "", f"{self.failed} failed" if self.failed else ""]
         return ", ".join(p for p in parts if p)
 
-    def line(self, text: str) -> None:
-        if self.bar is not None:
-            self.bar.console.print(text, markup=False, highlight=False, soft_wrap=True)
-        else:
-            print(text, file=sys.stderr, flush=True)
-
     def advance(self, outcome) -> None:
+        """One more record done (:class:`inscal.runs.batch.Outcome`)."""
         self.done += 1
         self.skipped += outcome.status == "skipped"
         self.failed += outcome.status == "failed"
@@ -95,29 +81,28 @@ class BatchProgress:
             self.calibrated += 1
             self.work_s += outcome.elapsed_s
         if outcome.status == "failed":
-            self.line(f"inscal: failed: {short(outcome.path)}: {outcome.error}")
+            self.bar.print(f"inscal: failed: {short(outcome.path)}: {outcome.error}")
+        from inscal.core.progress import duration
+
         eta = self.eta_s()
-        if self.bar is not None:
-            self.bar.update(self.task, advance=1, counts=self.counts(),
-                            eta="" if eta is None else f"~{duration(eta)} left")
-            return
-        if not self.plain:
-            return
-        now = time.perf_counter()
-        share = self.done / max(1, self.total)
-        if share >= self.next_share or now - self.t_last >= PLAIN_EVERY_S or self.done == self.total:
-            per = "" if eta is None else (f", about {duration(eta)} left ({self.work_s / self.calibrated:.3g} s per "
-                                          f"record, {self.workers} worker{'s' if self.workers != 1 else ''})")
-            counts = self.counts()
-            self.line(f"batch: {self.done}/{self.total} record{'s' if self.total != 1 else ''} ({100 * share:.0f} %){', ' + counts if counts else ''}; "
-                      f"{duration(now - self.t0)} elapsed{per}")
-            self.t_last = now
-            while self.next_share <= share:
-                self.next_share += PLAIN_STEP
+        note = ", ".join(p for p in (self.counts(), "" if eta is None else f"~{duration(eta)} left") if p)
+        self.bar.update(self.done, note=note, line=self.plain_line)
+
+    def plain_line(self) -> str:
+        """The progress line of a log: records done, skipped and failed, time elapsed and left."""
+        from inscal.core.progress import duration
+
+        eta = self.eta_s()
+        per = "" if eta is None else (f", about {duration(eta)} left ({self.work_s / self.calibrated:.3g} s per "
+                                      f"record, {self.workers} worker{'s' if self.workers != 1 else ''})")
+        counts = self.counts()
+        return (f"batch: {self.done}/{self.total} record{'s' if self.total != 1 else ''} "
+                f"({100 * self.done / max(1, self.total):.0f} %){', ' + counts if counts else ''}; "
+                f"{duration(self.bar.elapsed_s)} elapsed{per}")
 
     def close(self) -> None:
-        if self.bar is not None:
-            self.bar.stop()
+        """Stop the bar."""
+        self.bar.close()
 
 
 def batch_items(records: list[str] | None, serial: str | None, names: str | None, manifest: Path | None,
@@ -165,58 +150,76 @@ def check_batch_size(items, setup, scheduler: str, workers: int | None) -> None:
         check_memory(procs * need, what + many, hint + (" or lower --workers" if procs > 1 else ""))
 
 
-def run_batch(records: list[str] | None, method: str, db: str | None = None, scheduler: str | None = None,
-              workers: int | None = None, serial: str | None = None, names: str | None = None,
-              manifest: Path | None = None, register: bool = False, model: str | None = None,
-              station: str | None = None, operator: str | None = None, states: str | None = None,
-              settle: float | None = None, min_static: float | None = None, filter_rate_hz: float = 1.0, arw: float | None = None,
-              vrw: float | None = None, gravity: str | None = None, encoder_sigma: float | None = None,
-              encoder_latency: float = 0.0, check_encoders: bool = True, progress: bool = True,
-              wait: float | None = None, noise: Path | None = None) -> dict:
-    """Calibrate the records with ``method`` into ``db`` and return the JSON report (counts, failures,
-    every record's outcome); a bad invocation raises :class:`CliError` before anything is calibrated.
-    ``noise``: a noise.toml for the systematic filter, as ``inscal calibrate --noise``."""
+@dataclass(frozen=True)
+class BatchOptions(SetupOptions):
+    """What ``inscal batch`` is asked: calibrate ``records`` (files, folders, glob patterns; or a ``manifest``)
+    with ``method`` into the database ``db``, on ``scheduler`` (local, none or an address) with ``workers``; the
+    units from ``serial`` or the file ``names``, registered (as ``model``) when ``register_units``; the session's
+    ``station`` and ``operator``; the calibration's options as for ``inscal calibrate`` (:class:`SetupOptions`);
+    ``progress`` on standard error; ``wait`` [s] for another writer of the database."""
+
+    records: tuple[str, ...] | None
+    method: str
+    db: str | None = None
+    scheduler: str | None = None
+    workers: int | None = None
+    serial: str | None = None
+    names: str | None = None
+    manifest: Path | None = None
+    register_units: bool = False
+    model: str | None = None
+    station: str | None = None
+    operator: str | None = None
+    progress: bool = True
+    wait: float | None = None
+
+
+def run_batch(o: BatchOptions) -> dict:
+    """Calibrate the records of ``o`` (:class:`BatchOptions`) into its database and return the JSON report
+    (counts, failures, every record's outcome); a bad invocation raises :class:`CliError` before anything is
+    calibrated.  ``o.noise``: a noise.toml for the systematic filter, as ``inscal calibrate --noise``."""
     import sqlalchemy
 
     from inscal.lab import DatabaseError, check_wait
     from inscal.runs import batch as lb
-    from inscal.runs.calibration import CalibrationSetup
 
-    setup = CalibrationSetup(method, states, settle, min_static, filter_rate_hz, arw, vrw, gravity, encoder_sigma,
-                             encoder_latency, check_encoders, noise=None if noise is None else str(noise.resolve()))
+    setup = o.calibration_setup(o.method, None if o.noise is None else str(o.noise.resolve()))
     if (msg := setup.problem()) is not None:
         raise CliError(msg)
-    scheduler = check_scheduler(scheduler or "local", ("local", "none"))
+    scheduler, workers = check_scheduler(o.scheduler or "local", ("local", "none")), o.workers
     if workers is not None and (workers < 1 or scheduler != "local"):
         raise CliError(f"--workers {workers}: a number >= 1 of processes of the default local cluster"
                        if workers < 1 else "--workers applies to the default local cluster only")
-    if model is not None and not register:
+    if o.model is not None and not o.register_units:
         raise CliError("--model is the model of the units --register registers: give --register")
     try:
-        wait_s = lb.BATCH_WAIT_S if wait is None else check_wait(wait)
+        wait_s = lb.BATCH_WAIT_S if o.wait is None else check_wait(o.wait)
     except DatabaseError as exc:
         raise CliError(str(exc)) from None
     try:
-        items = batch_items(records, serial, names, manifest, station, operator)
+        items = batch_items(list(o.records or ()), o.serial, o.names, o.manifest, o.station, o.operator)
         check_batch_size(items, setup, scheduler, workers)
-        bar = BatchProgress(len(items), progress)
+        bar = BatchProgress(len(items), o.progress)
 
         def workers_known(n: int) -> None:
             bar.workers = n
 
         try:
-            res = lb.run_batch(db, items, setup, scheduler=scheduler, workers=workers, register=register, model=model,
-                               on_outcome=bar.advance, on_workers=workers_known, wait_s=wait_s)
+            res = lb.run_batch(o.db, items, setup, scheduler=scheduler, workers=workers, register=o.register_units,
+                               model=o.model, on_outcome=bar.advance, on_workers=workers_known, wait_s=wait_s)
         finally:
             bar.close()
     except (lb.BatchError, DatabaseError) as exc:
         raise CliError(str(exc)) from None
     except sqlalchemy.exc.SQLAlchemyError as exc:
         raise CliError(f"database: {' '.join(str(getattr(exc, 'orig', None) or exc).split())[:400]}") from None
-    return {"method": method, "options": setup.options(), "scheduler": scheduler} | res.to_json()
+    return {"method": o.method, "options": setup.options(), "scheduler": scheduler} | res.to_json()
 
 
 def summary_line(rep: dict) -> str:
+    """The batch's summary in one line: records calibrated, skipped and failed, units registered, time."""
+    from inscal.core.progress import duration
+
     per = "" if rep["seconds_per_record"] is None else f", {rep['seconds_per_record']:.3g} s per record"
     reg = f"; registered {len(rep['registered'])} unit{'s' if len(rep['registered']) != 1 else ''}" if rep["registered"] \
         else ""
@@ -228,60 +231,50 @@ def summary_line(rep: dict) -> str:
 def register(app: typer.Typer) -> None:
     @app.command()
     def batch(
-        records: list[str] = typer.Argument(None, help="records: folders (their *.h5 and *.hdf5), files or glob "
-                                            "patterns (quoted: 'runs/FOG-*.h5'); or --manifest"),
-        method: str = typer.Option(..., "--method", "-m",
-                                   help="six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
-                                        "unified | multi-position | ferraris"),
-        db: str = typer.Option(None, "--db", help=DB_HELP),
-        scheduler: str = typer.Option(None, "--scheduler", help="local (the default: a Dask LocalCluster), none (in "
-                                      "this process, one record after another) or a Dask scheduler's address "
-                                      "tcp://HOST:PORT (its workers must see the records and the database)"),
-        workers: int = typer.Option(None, "--workers", help="worker processes of the local cluster (default: CPU "
-                                    "cores)"),
-        serial: str = typer.Option(None, "--serial", help="every record is of this unit"),
-        names: str = typer.Option(None, "--names", help="file-name pattern giving each record's unit and date, with "
-                                  "{serial}, {date} (2025-01-15 or 20250115) and * (default: {serial}_{date}.h5; a name "
-                                  "that does not match: the record's imu_serial attribute and creation time)"),
-        manifest: Path = typer.Option(None, "--manifest", help="CSV with a header and columns path,serial and "
-                                      "optionally date,station,operator,temperature_c (paths relative to it)"),
-        register_units: bool = typer.Option(False, "--register", help="register the units not in the database yet "
-                                            "(else their records fail)"),
-        model: str = typer.Option(None, "--model", help="with --register: the model of the units registered"),
-        station: str = typer.Option(None, "--station", help="the turntable / station of the runs (a manifest's "
-                                    "column wins)"),
-        operator: str = typer.Option(None, "--operator", help="who ran them (a manifest's column wins)"),
-        settle: float = typer.Option(None, "--settle-s", help="settling time dropped at both ends of each window [s] "
-                                     "(default 1; multi-position, ferraris: 0.25)"),
-        min_static: float = typer.Option(None, "--min-static-s", help="shortest static window used [s] (default 20; "
-                                         "multi-position, ferraris: 2)"),
-        states: str = typer.Option(None, "--states", help="systematic: the state set, as for inscal calibrate"),
-        filter_rate: float = typer.Option(1.0, "--filter-rate-hz", help="systematic: filter update rate [Hz]"),
-        arw: float = typer.Option(None, "--arw", help="systematic: gyro white noise [deg/sqrt(h)]"),
-        vrw: float = typer.Option(None, "--vrw", help="systematic: accelerometer white noise [ug/sqrt(Hz)]"),
-        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
-                                    "(default: each record's)"),
-        encoder_sigma: float = typer.Option(None, "--encoder-sigma", help="unified / gimbal states: encoder angle "
-                                            "noise [arcsec]"),
-        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="shift the encoder angles by this many "
-                                              "seconds before calibrating"),
-        skip_encoder_check: bool = typer.Option(False, "--skip-encoder-check", help="calibrate even when the encoder "
-                                                "angles do not follow the gyros"),
-        noise: Path = typer.Option(None, "--noise", help="systematic: an identified noise model (noise.toml), as for "
-                                   "inscal calibrate"),
-        json_: bool = typer.Option(False, "--json", help="print the summary (counts, failures, every record) as JSON"),
-        no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar or lines"),
-        wait: float = typer.Option(None, "--wait", help="seconds a record's write waits for another writer of the "
-                                   "database before it fails naming it (default 10)"),
+        method: method_option("six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
+                              "unified | multi-position | ferraris"),
+        records: Annotated[list[str] | None, typer.Argument(help=(
+            "records: folders (their *.h5 and *.hdf5), files or glob patterns (quoted: 'runs/FOG-*.h5'); or "
+            "--manifest"))] = None,
+        db: DbOption = None,
+        scheduler: scheduler_option("local; its workers must see the records and the database") = None,
+        workers: WorkersOption = None,
+        serial: Annotated[str | None, typer.Option("--serial", metavar="SERIAL", help=(
+            "every record is of this unit"))] = None,
+        names: Annotated[str | None, typer.Option("--names", metavar="PATTERN", help=(
+            "file-name pattern giving each record's unit and date, with {serial}, {date} (2025-01-15 or 20250115) "
+            "and * (default: {serial}_{date}.h5; a name that does not match: the record's imu_serial attribute and "
+            "creation time)"))] = None,
+        manifest: Annotated[Path | None, typer.Option("--manifest", metavar="FILE.csv", help=(
+            "CSV with a header and columns path,serial and optionally date,station,operator,temperature_c (paths "
+            "relative to it)"))] = None,
+        register_units: Annotated[bool, typer.Option("--register", help=(
+            "register the units not in the database yet (else their records fail)"))] = False,
+        model: Annotated[str | None, typer.Option("--model", metavar="MODEL", help=(
+            "with --register: the model of the units registered"))] = None,
+        station: station_option("the turntable / station of the runs (a manifest's column wins)") = None,
+        operator: OperatorOption = None,
+        settle: SettleOption = None,
+        min_static: MinStaticOption = None,
+        states: states_option("systematic: the state set, as for inscal calibrate") = None,
+        filter_rate: FilterRateOption = 1.0,
+        arw: arw_option("from the data") = None,
+        vrw: vrw_option("from the data") = None,
+        gravity: gravity_option("each record's") = None,
+        encoder_sigma: EncoderSigmaOption = None,
+        encoder_latency: EncoderLatencyOption = 0.0,
+        skip_encoder_check: SkipEncoderCheckOption = False,
+        noise: CalibrationNoiseOption = None,
+        json_: JsonOption = False,
+        no_progress: NoProgressOption = False,
+        wait: Annotated[float | None, typer.Option("--wait", metavar="SECONDS", help=(
+            "seconds a record's write waits for another writer of the database before it fails naming it "
+            "(default 10)"))] = None,
     ):
         """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
-        try:
-            rep = run_batch(records, method, db, scheduler, workers, serial, names, manifest, register_units, model,
-                            station, operator, states, settle, min_static, filter_rate, arw, vrw, gravity, encoder_sigma,
-                            encoder_latency, not skip_encoder_check, progress=not (no_progress or json_), wait=wait,
-                            noise=noise)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        opts = options_of(BatchOptions, locals(), records=tuple(records) if records else None,
+                          progress=not (no_progress or json_))
+        rep = call(run_batch, opts)
         for line in rep.get("recovered", []):
             recovery_note(line)
         if json_:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import json
 import os
@@ -40,6 +39,27 @@ def fail(msg: str, code: int = 2) -> typer.Exit:
         msg = short(msg, 5 * MAX_ECHO)
     typer.echo(f"inscal: error: {msg}", err=True)
     return typer.Exit(code)
+
+
+def call(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` for a command: a :class:`CliError` is its one line on standard error, exit 2."""
+    try:
+        return fn(*args, **kwargs)
+    except CliError as exc:
+        raise fail(str(exc)) from None
+
+
+def warn(text: str) -> None:
+    """A warning of the command on standard error (``inscal: warning: ...``)."""
+    typer.echo(f"inscal: warning: {text}", err=True)
+
+
+def write_figure(draw, plot: Path, *args, **kwargs):
+    """``draw(plot, *args, **kwargs)``: a figure written, an OSError as a one-line :class:`CliError`."""
+    try:
+        return draw(plot, *args, **kwargs)
+    except OSError as exc:
+        raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
 
 
 def check_output(path: Path, force: bool) -> None:
@@ -129,25 +149,6 @@ def print_json(obj) -> None:
     typer.echo(json.dumps(to_jsonable(obj), indent=2))
 
 
-@contextlib.contextmanager
-def progress_bar(description: str, total: int, enabled: bool = True):
-    """A Rich progress bar on stderr; yields ``update(done, total)``."""
-    console = None
-    if enabled:
-        from rich.console import Console
-
-        console = Console(stderr=True)
-    if console is None or not console.is_terminal:  # no bar (nor its stray newline) in a log or a pipe
-        yield lambda done, tot: None
-        return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                  TimeRemainingColumn(), console=console, transient=True) as prog:
-        task = prog.add_task(description, total=total)
-        yield lambda done, tot: prog.update(task, completed=done)
-
-
 def load_checked_params(path):
     """``(imu, gimbal, meta)`` of a parameter file (:func:`inscal.io.paramfile.load_params`), its method one
     of inscal's calibration methods or of :data:`~inscal.io.paramfile.HAND_METHODS` (a file whose ``method``
@@ -207,6 +208,7 @@ def thermal_compensation(data: Path, params: Path, meta: dict, info, imu, temper
     the file has no thermal model.  The record's temperature is surveyed before any work: a record
     without /temperature (and no ``temperature`` constant [degC]), readings that do not cover the
     samples, and an ``out_of_range = "error"`` model that the temperature leaves are one-line refusals."""
+    from inscal import io
     from inscal.core.thermal import ThermalError
     from inscal.nav.stream import ThermalCompensation
 
@@ -237,6 +239,8 @@ def thermal_compensation(data: Path, params: Path, meta: dict, info, imu, temper
         comp = ThermalCompensation(model, imu, source, info.rate_hz, where=short(data))
         survey = comp.survey(first_time(data), info.n_samples)
     except ThermalError as exc:
+        raise CliError(str(exc)) from None
+    except (io.DataFileError, OSError) as exc:  # the record's first sample unreadable
         raise CliError(str(exc)) from None
     if survey["message"] is not None:
         warnings.append(survey["message"])

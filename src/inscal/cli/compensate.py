@@ -28,16 +28,9 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    check_not_input,
-    check_output,
-    fail,
-    load_checked_params,
-    print_json,
-    short,
-    thermal_compensation,
-)
+from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, short,
+    thermal_compensation, warn)
+from inscal.cli.options import JsonOption
 
 
 def run_compensate(data: Path, params: Path, out: Path, force: bool = False, warn=None,
@@ -75,14 +68,10 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     mismatch = provenance_mismatch(data, params, meta, attrs)
     if mismatch:
         warnings.append(mismatch)
-    try:
-        comp, survey, twarn = thermal_compensation(data, params, meta, info, imu, temperature)
-    except (io.DataFileError, OSError) as exc:
-        raise CliError(str(exc)) from None
+    comp, survey, twarn = thermal_compensation(data, params, meta, info, imu, temperature)
     warnings += twarn
-    for w in warnings:
-        if warn is not None:
-            warn(w)
+    for w in warnings if warn is not None else ():
+        warn(w)
     dt = 1.0 / info.rate_hz
 
     def chunks():
@@ -116,22 +105,19 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def compensate(
         data: Path = typer.Argument(..., help="HDF5 record to compensate"),
-        params: Path = typer.Option(..., "--params", "-p", help="calibration parameter file (TOML, from inscal calibrate)"),
+        params: Path = typer.Option(..., "--params", "-p", metavar="PARAMS.toml", help="calibration parameter file (TOML, from inscal calibrate)"),
         out: Path = typer.Option(..., "--out", "-o", help="compensated HDF5 record"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing output; compensate an already "
                                    "compensated record anyway"),
-        temperature: float = typer.Option(None, "--temperature", help="constant temperature in degC for the parameter "
+        temperature: float = typer.Option(None, "--temperature", metavar="DEGC", help="constant temperature in degC for the parameter "
                                           "file's thermal model (a record without /temperature; in place of the "
                                           "record's readings otherwise)"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        json_: JsonOption = False,
     ):
         """Compensate a record's increments with a calibration parameter file (and its thermal model, at the
         record's temperature)."""
-        try:
-            res = run_compensate(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
-                                 temperature=temperature)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_compensate, data, params, out, force, warn=warn,
+                             temperature=temperature)
         if json_:
             print_json(res)
         else:

@@ -20,6 +20,7 @@ from pathlib import Path
 import typer
 
 from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 #: the report's files (besides the records and parameter files of the steps)
 REPORT_FILES = ("report.html", "summary.json", "allan.png", "s16-table2.png", "nav-comparison.png")
@@ -88,10 +89,11 @@ def _report_stage(out, force, log, res, ctx, t0):
 def _calibrate_stage(out, force, seed, quick, show_progress, log, res):
     """Calibrate the N25 record with the traditional six-position scheme, the N25 method and the joint fit."""
     from inscal.cli.calibrate import run_calibrate
+    from inscal.cli.calibrate_setup import CalibrateOptions
 
     res["steps"]["calibrate"] = {}
     for method in ("six-position", "n25", "joint"):
-        r = run_calibrate(out / "n25.h5", method, out / f"params-{method}.toml", force=force)
+        r = run_calibrate(CalibrateOptions(out / "n25.h5", method, out / f"params-{method}.toml", force=force))
         p = r["parameters"]
         res["steps"]["calibrate"][method] = p  # every estimate: value, sigma, error (against the truth), unit
         dth = p.get("gimbal_nonorthogonality")
@@ -214,7 +216,7 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res, nav_runs):
 
     The navigation record is noise-free: with the N25 noise (ARW 0.02 deg/sqrt(h)) the attitude
     random walk alone reaches ~90" per hour and hides the differences between calibrations."""
-    from inscal.cli.navigate import navigate_file
+    from inscal.cli.navigate import NavigateOptions, navigate_file
     from inscal.cli.simulate import run_simulate
 
     hours = 1.0 if quick else 6.0
@@ -224,7 +226,7 @@ def _navigate_stage(out, force, seed, quick, show_progress, log, res, nav_runs):
     res["navigation_hours"] = hours
     for label in NAV_RUNS:
         params = None if label == "uncalibrated" else out / f"params-{label}.toml"
-        r, nav_res, gim = navigate_file(rec, params=params)
+        r, nav_res, gim = navigate_file(NavigateOptions(rec, params=params))
         nav_runs[label] = (nav_res, gim)
         keep = {k: r[k] for k in ("duration_h", "max_position_error_m", "final_position_error_m", "max_position_error_nmi",
                                   "max_attitude_error_arcsec", "max_velocity_error_mps", "final_attitude_deg") if k in r}
@@ -240,10 +242,10 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def demo(
         out: Path = typer.Option(Path("demo-output"), "--out", "-o", help="folder for the demo's files"),
-        force: bool = typer.Option(False, "--force", help="overwrite files from an earlier demo"),
-        seed: int = typer.Option(1, help="seed of the noise generators"),
+        force: ForceOption = False,
+        seed: SeedOption = 1,
         quick: bool = typer.Option(False, "--quick", help="shorter navigation run"),
-        json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
+        json_: JsonOption = False,
     ):
         """Run the main job on built-in defaults: simulate, calibrate, navigate, compare."""
         log = (lambda msg: None) if json_ else typer.echo

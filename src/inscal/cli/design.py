@@ -11,6 +11,7 @@ import typer
 
 from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory, human_seconds
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 
 def _range(opt: str, v: str | None):
@@ -25,47 +26,6 @@ def _range(opt: str, v: str | None):
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= 0 <= hi and lo < hi):
         raise CliError(f"{opt} must be LO,HI with LO <= 0 <= HI (the path starts at 0 deg), got {short(v)!r}")
     return (float(units.to_si(lo, "deg")), float(units.to_si(hi, "deg")))
-
-
-class _Progress:
-    """Search progress on stderr: a Rich bar with the best score on a terminal; otherwise (a log, CI)
-    a plain line at every 10 % of the candidates."""
-
-    def __init__(self, total: int, name: str):
-        import sys
-
-        from rich.console import Console
-
-        self.total, self.name, self.next_pct, self.p = total, name, 10, None
-        self.err = sys.stderr
-        con = Console(stderr=True)
-        if con.is_terminal:
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-            )
-
-            self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                              TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=con)
-            self.p.start()
-            self.task = self.p.add_task(name, total=total, best="-")
-
-    def update(self, done: int, total: int, best: float) -> None:
-        if self.p is not None:
-            self.p.update(self.task, completed=done, best=f"{best:.4g}")
-            return
-        pct = 100.0 * done / max(1, total)
-        if pct >= self.next_pct or done == total:
-            print(f"{self.name}: {done}/{total} candidates, best score {best:.4g}", file=self.err, flush=True)
-            while self.next_pct <= pct:
-                self.next_pct += 10
-
-    def close(self) -> None:
-        if self.p is not None:
-            self.p.stop()
 
 
 def scenario_doc(base: str, name: str, path, arw: float | None, vrw: float | None, station=None) -> dict:
@@ -177,15 +137,21 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
     check_size(minutes, candidates, population, workers, scheduler, setup)
-    bar = _Progress(candidates, f"design {minutes:g} min") if progress else None
+    from inscal.core.progress import ProgressBar
+
+    label = f"design {minutes:g} min"
+    bar = ProgressBar(label, candidates, progress, every_s=None)
+
+    def update(done: int, total: int, best: float) -> None:  # the best score so far beside the bar
+        bar.update(done, total, f"best {best:.4g}", f"{label}: {done}/{total} candidates, best score {best:.4g}")
+
     try:
         res = design(minutes, states, objective, targets, groups, limits, seed, candidates, population,
-                     scheduler, workers, setup, bar.update if bar else None, name)
+                     scheduler, workers, setup, update if progress else None, name)
     except (DesignError, BoundError) as exc:
         raise CliError(str(exc)) from None
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     doc = scenario_doc(base, name, res.path, arw, vrw, station)
     d = res.to_dict()
     what = "" if station is None else f" of the combined uncertainty at station {station.name!r}"
@@ -256,37 +222,37 @@ def register(app: typer.Typer) -> None:
         minutes: float = typer.Option(30.0, "--minutes", help="time budget of the path [min]"),
         states: str = typer.Option("51", "--states", help="error-state model: 51 | 30 | unified (options ,lever9 "
                                                           ",async ,psins)"),
-        objective: str = typer.Option("worst-normalised", "--objective", help="worst-normalised (max of σ/target) "
+        objective: str = typer.Option("worst-normalised", "--objective", metavar="OBJECTIVE", help="worst-normalised (max of σ/target) "
                                                                               "| weighted (mean of (σ/target)^2)"),
-        targets: str = typer.Option("s16-path", "--targets", help="s16-path (bound of S16's own 1-h path) | "
+        targets: str = typer.Option("s16-path", "--targets", metavar="TARGETS", help="s16-path (bound of S16's own 1-h path) | "
                                                                   "s16-table2 (S16 Table 2 figures for its groups)"),
-        groups: str = typer.Option("all", "--groups", help="parameter groups in the objective: all | table2 | a "
+        groups: str = typer.Option("all", "--groups", metavar="GROUPS", help="parameter groups in the objective: all | table2 | a "
                                                            "comma list"),
         axes: str = typer.Option("outer,inner", "--axes", help="gimbal axes the path may turn"),
-        max_rate: float = typer.Option(10.0, "--max-rate", help="largest turntable rate [deg/s]"),
-        max_accel: float = typer.Option(10.0, "--max-accel", help="angular acceleration of the moves [deg/s^2]"),
-        outer_range: str = typer.Option(None, "--outer-range", help="outer angle limits LO,HI [deg] (start = 0)"),
-        inner_range: str = typer.Option(None, "--inner-range", help="inner angle limits LO,HI [deg] (start = 0)"),
-        cable_wrap: float = typer.Option(None, "--cable-wrap", help="largest net rotation of each axis [deg]"),
-        min_dwell: float = typer.Option(5.0, "--min-dwell", help="shortest dwell after a move [s]"),
-        initial_dwell: float = typer.Option(60.0, "--initial-dwell", help="dwell at the start (alignment) [s]"),
-        max_moves: int = typer.Option(40, "--max-moves", help="most moves in a path"),
-        seed: int = typer.Option(0, "--seed", help="seed of the search"),
+        max_rate: float = typer.Option(10.0, "--max-rate", metavar="DEG/S", help="largest turntable rate [deg/s]"),
+        max_accel: float = typer.Option(10.0, "--max-accel", metavar="DEG/S^2", help="angular acceleration of the moves [deg/s^2]"),
+        outer_range: str = typer.Option(None, "--outer-range", metavar="LO,HI", help="outer angle limits LO,HI [deg] (start = 0)"),
+        inner_range: str = typer.Option(None, "--inner-range", metavar="LO,HI", help="inner angle limits LO,HI [deg] (start = 0)"),
+        cable_wrap: float = typer.Option(None, "--cable-wrap", metavar="DEG", help="largest net rotation of each axis [deg]"),
+        min_dwell: float = typer.Option(5.0, "--min-dwell", metavar="SECONDS", help="shortest dwell after a move [s]"),
+        initial_dwell: float = typer.Option(60.0, "--initial-dwell", metavar="SECONDS", help="dwell at the start (alignment) [s]"),
+        max_moves: int = typer.Option(40, "--max-moves", metavar="N", help="most moves in a path"),
+        seed: SeedOption = 0,
         candidates: int = typer.Option(256, "--candidates", help="candidate paths to evaluate"),
         population: int = typer.Option(16, "--population", help="survivors per generation"),
         scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler ADDRESS, 'local' (default: a "
                                                                "LocalCluster of --workers) or 'none' (in-process)"),
         workers: int = typer.Option(2, "--workers", help="workers of the local Dask cluster"),
-        base: str = typer.Option("s16", "--base", help="built-in scenario for the site, gimbal, noise and IMU of "
+        base: str = typer.Option("s16", "--base", metavar="SCENARIO", help="built-in scenario for the site, gimbal, noise and IMU of "
                                                        "the written file"),
-        arw: float = typer.Option(None, "--arw", help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
-        vrw: float = typer.Option(None, "--vrw", help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
-        plot: FsPath = typer.Option(None, "--plot", help="write the path report: FILE.png and FILE.html"),
-        station: FsPath = typer.Option(None, "--station", help="a station description (station.toml): design at its "
+        arw: float = typer.Option(None, "--arw", metavar="DEG/SQRT(H)", help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
+        vrw: float = typer.Option(None, "--vrw", metavar="UG/SQRT(HZ)", help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
+        plot: FsPath = typer.Option(None, "--plot", metavar="PATH", help="write the path report: FILE.png and FILE.html"),
+        station: FsPath = typer.Option(None, "--station", metavar="STATION.toml", help="a station description (station.toml): design at its "
                                        "site for the combined uncertainty (the bound with the site's gravity, "
                                        "latitude, height and the time base; GUM)"),
-        force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
-        json_: bool = typer.Option(False, "--json", help="print the result as JSON"),
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Design a calibration path from its Cramér-Rao bound: an evolutionary search over sequences of
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""

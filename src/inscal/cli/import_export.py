@@ -15,7 +15,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, check_not_input, check_output, fail, print_json, short
+from inscal.cli.common import CliError, call, check_not_input, check_output, fail, print_json, short
+from inscal.cli.options import ForceOption, JsonOption, gravity_option
 from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
@@ -159,90 +160,53 @@ def register(app: typer.Typer) -> None:
         src: Path = typer.Argument(..., help=f"source file ({source_help()})"),
         fmt: str = typer.Option(..., "--format", "-f", help=import_help()),
         out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
-        mapping: Path = typer.Option(None, "--mapping", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
-        path: Path = typer.Option(None, "--path", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
+        mapping: Path = typer.Option(None, "--mapping", metavar="MAPPING.toml", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
+        path: Path = typer.Option(None, "--path", metavar="PATH.toml", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
         path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
                                          "(default: the start of the first sample)"),
-        gimbal: Path = typer.Option(None, "--gimbal", help="encoder angles file: columns time (s), outer, inner"),
-        gimbal_unit: str = typer.Option(None, "--gimbal-unit", help="unit of the --gimbal angles: deg | rad (default: the "
+        gimbal: Path = typer.Option(None, "--gimbal", metavar="CSV", help="encoder angles file: columns time (s), outer, inner"),
+        gimbal_unit: str = typer.Option(None, "--gimbal-unit", metavar="deg|rad", help="unit of the --gimbal angles: deg | rad (default: the "
                                         "unit the file's header gives, as 'outer [rad]', else deg)"),
-        lat: float = typer.Option(None, "--lat", help="site latitude (deg)"),
-        lon: float = typer.Option(None, "--lon", help="site longitude (deg)"),
-        height: float = typer.Option(None, "--height", help="site ellipsoidal height (m)"),
-        rate_hz: float = typer.Option(None, "--rate-hz", help="sample rate (Hz) (default: from the timestamps, which must "
+        lat: float = typer.Option(None, "--lat", metavar="DEG", help="site latitude (deg)"),
+        lon: float = typer.Option(None, "--lon", metavar="DEG", help="site longitude (deg)"),
+        height: float = typer.Option(None, "--height", metavar="M", help="site ellipsoidal height (m)"),
+        rate_hz: float = typer.Option(None, "--rate-hz", metavar="HZ", help="sample rate (Hz) (default: from the timestamps, which must "
                                       "then be uniform; given: slightly jittery timestamps are regridded)"),
-        dtype: str = typer.Option("float64", "--dtype", help="psins .bin: float64 | float32"),
-        variable: str = typer.Option(None, "--variable", help=".mat: the N x 7 variable (default: the first one)"),
+        dtype: str = typer.Option("float64", "--dtype", metavar="float64|float32", help="psins .bin: float64 | float32"),
+        variable: str = typer.Option(None, "--variable", metavar="NAME", help=".mat: the N x 7 variable (default: the first one)"),
         rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
-        skip: list[str] = typer.Option(None, "--skip-check", help="skip a plausibility check: constant | saturation | "
+        skip: list[str] = typer.Option(None, "--skip-check", metavar="CHECK", help="skip a plausibility check: constant | saturation | "
                                        "magnitudes | motion | encoders (repeatable)"),
         encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="encoder latency (s) to correct: the angles "
                                               "are shifted to theta(t + SECONDS) (the encoder check names it when it "
                                               "is over a sample)", metavar="SECONDS"),
-        gravity: str = typer.Option(None, "--gravity", help="site gravity model stored in the record: wgs84 (default) | "
-                                    "psins | a measured value in m/s^2 at the site height"),
-        temperature: Path = typer.Option(None, "--temperature", help="temperature readings at their own times: a header "
+        gravity: gravity_option("wgs84; the model is stored in the record") = None,
+        temperature: Path = typer.Option(None, "--temperature", metavar="CSV", help="temperature readings at their own times: a header "
                                          "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
                                          "then rows on the source's clock"),
-        topic: str = typer.Option(None, "--topic", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
+        topic: str = typer.Option(None, "--topic", metavar="TOPIC", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
                                   "one; the topics are listed otherwise)"),
-        stamps: str = typer.Option("header", "--stamps", help="rosbag: the samples' time: header (the messages' "
+        stamps: str = typer.Option("header", "--stamps", metavar="header|receive", help="rosbag: the samples' time: header (the messages' "
                                    "header.stamp) | receive (when the bag recorded them)"),
-        temperature_topic: str = typer.Option(None, "--temperature-topic", help="rosbag: a sensor_msgs/Temperature "
+        temperature_topic: str = typer.Option(None, "--temperature-topic", metavar="TOPIC", help="rosbag: a sensor_msgs/Temperature "
                                               "topic (degC) for the record's temperature"),
-        config: Path = typer.Option(None, "--config", help="kf-gins: its YAML configuration (imunoise block and "
+        config: Path = typer.Option(None, "--config", metavar="CONFIG.yaml", help="kf-gins: its YAML configuration (imunoise block and "
                                     "imudatarate, kept with the record)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing record"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
-        try:
-            res = run_import(src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                             rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
-                             topic, stamps, config, temperature_topic)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_import, src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
+                         rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
+                         topic, stamps, config, temperature_topic)
         for w in res["warnings"]:
             typer.echo(f"inscal: warning: {w}", err=True)
         if json_:
             print_json(res)
             return
-        extra = []
-        if res["gimbal"]:
-            extra.append(f"gimbal angles from {res['gimbal']}")
-        if res["path"]:
-            extra.append(f"path {res['path']}")
-        if res["encoder_latency_s"]:
-            extra.append(f"encoder latency {res['encoder_latency_s'] * 1e3:g} ms corrected")
-        enc = res["encoders"]
-        if enc is not None and enc["moves"]:
-            lat = "" if enc["latency_s"] is None else f", latency {enc['latency_s'] * 1e3:.2f} ms" + (
-                "" if enc["latency_sigma_s"] is None else f" +- {enc['latency_sigma_s'] * 1e3:.2f} ms")
-            to = "" if enc["max_residual_deg"] is None else f" to {enc['max_residual_deg']:.2g} deg"
-            extra.append(f"encoders agree with the gyros on {enc['moves']} moves{to}{lat}")
-        if res["time_regridded"]:
-            extra.append("time regridded")
-        if (bag := res.get("bag")) is not None:
-            extra.append(f"topic {bag['topic']} ({bag['storage']}, {bag['stamps']} stamps, {bag['messages']} messages)")
-        if (ig := res.get("integration")) is not None:
-            b = ig["error_bound"]
-            extra.append(f"rates integrated onto a {ig['grid_rate_hz']:g} Hz grid, rule error <= "
-                         f"{max(b['dtheta_rad']):.2g} rad, {max(b['dvel_m_s']):.2g} m/s"
-                         + (f", {ig['gaps_bridged']} step(s) over 1.5 median steps bridged (longest "
-                            f"{ig['largest_step_s']:.3g} s)" if ig.get("gaps_bridged") else "")
-                         + (", white noise (one sample per increment)" if ig["noise"]["white"] else
-                            f", noise variance {ig['noise']['variance_ratio'][0]:.2g}-"
-                            f"{ig['noise']['variance_ratio'][1]:.2g} of white, neighbour correlation up to "
-                            f"{ig['noise']['neighbour_correlation']:.2g} (jittered stamps)"))
-        if sat := res.get("saturated"):
-            extra.append(f"{len(sat)} run(s) of a sensor at its range marked saturated (first: {sat[0]['channel']} "
-                         f"at {sat[0]['level']:g} for {sat[0]['samples']} samples from t = {sat[0]['t0']:.3f} s; the "
-                         "calibrations leave them out)")
-        if (temp := res["temperature"]) is not None:
-            on = "on the sample times" if temp["grid"] == "record" else "at their own times"
-            extra.append(f"temperature: {temp['readings']} readings of {', '.join(temp['sensors'])} {on}")
-        typer.echo(f"imported {res['samples']} samples ({res['duration_s']:.1f} s at {res['rate_hz']:g} Hz, {res['kind']}) "
-                   f"from {res['source']} -> {res['out']}" + (f" ({'; '.join(extra)})" if extra else ""))
+        from inscal.report.text import import_line
+
+        typer.echo(import_line(res))
 
     @app.command("export")
     def export(
@@ -259,15 +223,12 @@ def register(app: typer.Typer) -> None:
         temperature_out: Path = typer.Option(None, "--temperature-out", help="also write the record's temperature "
                                              "readings at their own times (csv: time [s], one degC column per sensor) "
                                              "for import --temperature"),
-        force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Export a record as csv (17 digits; its temperature too), PSINS .bin (float64 rows dθ, dv, t), .mat or
         KF-GINS text; or a calibration in Kalibr's, imucal's, imu_tk's or KF-GINS's convention, or as C99 source."""
-        try:
-            res = run_export(data, fmt, out, gimbal_out, path_out, force, temperature_out)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_export, data, fmt, out, gimbal_out, path_out, force, temperature_out)
         if json_:
             print_json(res)
         elif "params" in res:

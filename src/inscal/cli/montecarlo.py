@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
+from inscal.cli.options import JsonOption, NoProgressOption
 
 #: most runs of a study, all configuration points together (10^6: weeks of CPU at 1-10 s a run)
 MAX_RUNS = 10**6
@@ -107,16 +108,8 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
         if scheduler not in (None, "synchronous", "sync"):
             raise CliError("--no-dask and --scheduler ADDRESS contradict each other")
         scheduler = "synchronous"
-    if runs < 1:
-        raise CliError(f"--runs must be >= 1, got {runs}")
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
-    if workers is not None and workers < 1:
-        raise CliError(f"--workers must be >= 1, got {workers}")
     if workers is not None and scheduler not in (None, "local"):
         raise CliError("--workers applies to the default LocalCluster only")
-    if batch_size is not None and batch_size < 1:
-        raise CliError(f"--batch-size must be >= 1, got {batch_size}")
     try:
         exp = studies.get_experiment(experiment, params)
     except mc.StudyError as exc:
@@ -146,15 +139,15 @@ def register(app: typer.Typer) -> None:
         experiment: str = typer.Argument(None, help="built-in experiment (n25-fig5, n25-schemes); --list shows them"),
         runs: int = typer.Option(None, "--runs", "-n", help="runs per configuration point"),
         out: Path = typer.Option(None, "--out", "-o", help="study folder (results, summary, plot); rerun to resume"),
-        seed: int = typer.Option(0, help="root seed: run i uses SeedSequence(seed).spawn(total)[i]"),
-        set_: list[str] = typer.Option(None, "--set", help="experiment parameter KEY=VALUE (VALUE as JSON), repeatable"),
+        seed: int = typer.Option(0, "--seed", metavar="SEED", help="root seed: run i uses SeedSequence(seed).spawn(total)[i]"),
+        set_: list[str] = typer.Option(None, "--set", metavar="NAME=VALUE", help="experiment parameter KEY=VALUE (VALUE as JSON), repeatable"),
         scheduler: str = typer.Option(None, help="Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"),
         workers: int = typer.Option(None, help="LocalCluster worker processes (default: CPU cores)"),
         batch_size: int = typer.Option(None, "--batch-size", help="runs per Dask task (default: about 4 tasks per worker, at most 25)"),
         no_dask: bool = typer.Option(False, "--no-dask", help="run in this process, one run after another"),
         force: bool = typer.Option(False, "--force", help="discard a different study found in --out"),
-        json_: bool = typer.Option(False, "--json", help="print the summary as JSON"),
-        no_progress: bool = typer.Option(False, "--no-progress", help="no progress bar"),
+        json_: JsonOption = False,
+        no_progress: NoProgressOption = False,
         list_: bool = typer.Option(False, "--list", help="list the built-in experiments and their parameters"),
     ):
         """Seeded Monte Carlo study of a calibration experiment, resumable, on Dask."""

@@ -2,22 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    check_not_input,
-    check_output,
-    fail,
-    load_checked_params,
-    np,
-    print_json,
-    short,
-    thermal_compensation,
-)
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, load_checked_params, np,
+    print_json, short, thermal_compensation, warn)
+from inscal.cli.options import (ForceOption, JsonOption, TemperatureOption, gravity_option, options_of, out_option,
+                                plot_option)
 
 units = LazyModule("inscal.core.units")  # np, units: imported on first use (fast start of the command line)
 
@@ -108,25 +102,44 @@ def parse_height_ref(value: str | None):
         raise CliError(str(exc)) from None
 
 
-def run_navigate(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
-                 init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                 output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                 gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
-                 temperature: float | None = None) -> dict:
-    """Navigate ``data`` (see the command); ``warn(line)`` is called at once for each
-    provenance (and thermal range) warning (they are also in the result's ``warnings``).  ``gravity``
-    (wgs84 | psins | m/s^2) overrides the record's gravity model; ``temperature`` [degC]: a constant
-    temperature for the parameter file's thermal model (:func:`inscal.cli.common.thermal_compensation`)."""
-    return navigate_file(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out, force,
-                         warn, gravity, height_ref, plot, temperature)[0]
+@dataclass(frozen=True)
+class NavigateOptions:
+    """What ``inscal navigate`` is asked: navigate ``data`` (with the parameter file ``params`` applied on the
+    fly) in ``mode`` (free | damped) with the ``vertical`` channel (hold | damped | free, on ``height_ref``: a
+    constant [m] or a CSV), initialised by ``init`` (auto | truth | align, coarse and fine alignment times
+    [s]), the solution at ``output_rate_hz`` written to ``out`` (``force``: over an existing file), its
+    ``plot``; ``gravity`` (wgs84 | psins | m/s^2) overrides the record's gravity model; ``temperature`` [degC]:
+    a constant temperature for the parameter file's thermal model
+    (:func:`inscal.cli.common.thermal_compensation`)."""
+
+    data: Path
+    params: Path | None = None
+    mode: str = "free"
+    vertical: str = "hold"
+    init: str = "auto"
+    align_coarse_s: float = 60.0
+    align_fine_s: float = 600.0
+    output_rate_hz: float = 1.0
+    out: Path | None = None
+    force: bool = False
+    gravity: str | None = None
+    height_ref: str | None = None
+    plot: Path | None = None
+    temperature: float | None = None
 
 
-def navigate_file(data: Path, params: Path | None = None, mode: str = "free", vertical: str = "hold",
-                  init: str = "auto", align_coarse_s: float = 60.0, align_fine_s: float = 600.0,
-                  output_rate_hz: float = 1.0, out: Path | None = None, force: bool = False, warn=None,
-                  gravity: str | None = None, height_ref: str | None = None, plot: Path | None = None,
-                  temperature: float | None = None):
+def run_navigate(o: NavigateOptions, warn=None) -> dict:
+    """Navigate as ``o`` says (:class:`NavigateOptions`); ``warn(line)`` is called at once for each
+    provenance (and thermal range) warning (they are also in the result's ``warnings``)."""
+    return navigate_file(o, warn)[0]
+
+
+def navigate_file(o: NavigateOptions, warn=None):
     """:func:`run_navigate` returning ``(report, NavResult, gimbal model)`` (the demo draws the run)."""
+    data, params, mode, vertical, init = o.data, o.params, o.mode, o.vertical, o.init
+    align_coarse_s, align_fine_s, output_rate_hz, out, force = (o.align_coarse_s, o.align_fine_s, o.output_rate_hz,
+                                                                o.out, o.force)
+    gravity, height_ref, plot, temperature = o.gravity, o.height_ref, o.plot, o.temperature
     import warnings as pywarnings
 
     from inscal import io
@@ -175,14 +188,10 @@ def navigate_file(data: Path, params: Path | None = None, mode: str = "free", ve
         done = compensated_with(attrs)
         if done is not None:
             warnings.append(f"{data} is already compensated (with {done}): --params applies a correction again")
-        try:
-            comp, _, twarn = thermal_compensation(data, params, pmeta, info, imu, temperature)
-        except (io.DataFileError, OSError) as exc:
-            raise CliError(str(exc)) from None
+        comp, _, twarn = thermal_compensation(data, params, pmeta, info, imu, temperature)
         warnings += twarn
-        for w in warnings:
-            if warn is not None:
-                warn(w)
+        for w in warnings if warn is not None else ():
+            warn(w)
     try:
         config = NavConfig(mode=mode, vertical=vertical, output_rate_hz=output_rate_hz)
         align_cfg = nv.AlignConfig(coarse_time=align_coarse_s, fine_time=align_fine_s)
@@ -251,61 +260,32 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def navigate(
         data: Path = typer.Argument(..., help="IMU record (HDF5, from `inscal simulate` or recorded)"),
-        params: Path = typer.Option(None, "--params", help="calibration parameter file (TOML) applied on the fly"),
-        mode: str = typer.Option("free", "--mode", help="free (pure inertial) or damped (horizontal damping, zero reference velocity)"),
-        vertical: str = typer.Option("hold", "--vertical", help="vertical channel: hold (v_U = 0, h = site), damped "
+        params: Annotated[Path | None, typer.Option("--params", metavar="PARAMS.toml", help=(
+            "calibration parameter file (TOML) applied on the fly"))] = None,
+        mode: str = typer.Option("free", "--mode", metavar="free|damped", help="free (pure inertial) or damped (horizontal damping, zero reference velocity)"),
+        vertical: str = typer.Option("hold", "--vertical", metavar="hold|damped|free", help="vertical channel: hold (v_U = 0, h = site), damped "
                                      "(3rd-order loop on the reference height) or free (pure inertial: diverges, e-folding ~9.5 min)"),
-        height_ref: str = typer.Option(None, "--height-ref", help="external height for --vertical damped/hold: a constant "
+        height_ref: str = typer.Option(None, "--height-ref", metavar="M|CSV", help="external height for --vertical damped/hold: a constant "
                                        "in metres, or a CSV file with columns time_s,height_m (interpolated)"),
-        plot: Path = typer.Option(None, "--plot", help="plot of the run (.png, .pdf, .svg): position error E/N/U [m] and "
-                                  "horizontal [nmi], attitude error (or attitude and heading)"),
-        init: str = typer.Option("auto", "--init", help="auto (truth if the record has it, else align), truth or align"),
+        plot: plot_option("plot of the run (.png, .pdf, .svg): position error E/N/U [m] and horizontal [nmi], "
+                          "attitude error (or attitude and heading)") = None,
+        init: str = typer.Option("auto", "--init", metavar="auto|truth|align", help="auto (truth if the record has it, else align), truth or align"),
         align_coarse_s: float = typer.Option(60.0, "--align-coarse-s", help="coarse alignment time [s]"),
         align_fine_s: float = typer.Option(600.0, "--align-fine-s", help="Kalman fine alignment time [s]"),
         output_rate_hz: float = typer.Option(1.0, "--output-rate-hz", help="rate of the navigation output [Hz]"),
-        out: Path = typer.Option(None, "--out", "-o", help="write the navigation solution (HDF5)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
-        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
-                                    "(default: the record's)"),
-        temperature: float = typer.Option(None, "--temperature", help="constant temperature in degC for the thermal "
-                                          "model of --params (a record without /temperature; in place of the "
-                                          "record's readings otherwise)"),
-        json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
+        out: out_option("write the navigation solution (HDF5)", required=False) = None,
+        force: ForceOption = False,
+        gravity: gravity_option("the record's") = None,
+        temperature: TemperatureOption = None,
+        json_: JsonOption = False,
     ):
         """Navigate (strapdown, pure inertial or damped) and report the errors on a static base.  A parameter
         file with a thermal model is applied at the record's temperature."""
-        try:
-            rep = run_navigate(data, params, mode, vertical, init, align_coarse_s, align_fine_s, output_rate_hz, out,
-                               force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True), gravity=gravity,
-                               height_ref=height_ref, plot=plot, temperature=temperature)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_navigate, options_of(NavigateOptions, locals()), warn=warn)
         if json_:
             print_json(rep)
             return
-        th = rep["thermal"]
-        typer.echo(f"{rep['data']}: {rep['duration_h']:.2f} h navigated ({rep['mode']}, vertical {rep['vertical_channel']}, "
-                   f"init {rep['init']}{', params ' + rep['params'] if rep['params'] else ''}"
-                   f"{', thermal model at ' + th['temperature'] if th else ''})")
-        typer.echo(f"  position error: max {rep['max_position_error_m']:.3f} m ({rep['max_position_error_nmi']:.4f} nmi), "
-                   f"final {rep['final_position_error_m']:.3f} m ({rep['final_position_error_nmi']:.4f} nmi)")
-        typer.echo(f"  velocity error: max {rep['max_velocity_error_mps']:.4f} m/s (horizontal)")
-        if rep["vertical_channel"] != "hold" or rep["height_reference"] is not None:
-            typer.echo(f"  height error: max {rep['max_height_error_m']:.3f} m, final {rep['final_height_error_m']:.3f} m "
-                       f"(vertical {rep['vertical_channel']})")
-        if "final_attitude_deg" in rep:
-            f = rep["final_attitude_deg"]
-            typer.echo(f"  final attitude: roll {f['roll']:.4f}°, pitch {f['pitch']:.4f}°, yaw {f['yaw']:.4f}° "
-                       f"(counter-clockwise from East) = heading {f['heading']:.4f}° (clockwise from North)")
-        if "max_attitude_error_arcsec" in rep:
-            a = rep["max_attitude_error_arcsec"]
-            typer.echo(f"  attitude error: max roll {a['roll']:.2f}\", pitch {a['pitch']:.2f}\", yaw {a['yaw']:.2f}\"")
-        for name in ("position_east", "position_north"):
-            c = rep["oscillation_amplitudes"][name]
-            parts = [f"{k} {c[k]:.3f} {c['unit']}" for k in ("schuler", "foucault", "earth") if c[k] is not None]
-            if parts:
-                typer.echo(f"  {name.replace('_', ' ')}: " + ", ".join(parts))
-        if rep["out"]:
-            typer.echo(f"  -> {rep['out']}")
-        if rep["plot"]:
-            typer.echo(f"  plot -> {rep['plot']}")
+        from inscal.report.text import navigation_lines
+
+        for line in navigation_lines(rep):
+            typer.echo(line)

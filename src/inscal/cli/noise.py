@@ -6,8 +6,9 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, check_not_input, check_output, fail, print_json, short
+from inscal.cli.common import CliError, LazyModule, call, check_not_input, check_output, print_json, short, write_figure
 from inscal.cli.limits import check_memory
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 np = LazyModule("numpy")
 
@@ -141,10 +142,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
     if plot is not None:
         from inscal.report.noise import noise_plot
 
-        try:
-            noise_plot(plot, summaries, overwrite=force)
-        except OSError as exc:
-            raise CliError(f"cannot write {short(plot)}: {exc.strerror or exc}") from None
+        write_figure(noise_plot, plot, summaries, overwrite=force)
         res["plot"] = str(plot)
     return res
 
@@ -154,26 +152,23 @@ def register(app: typer.Typer) -> None:
     @app.command("noise")
     def noise_cmd(
         data: Path = typer.Argument(None, help="HDF5 record (a static window of it)"),
-        model: str = typer.Option("auto", "--model", help="'auto' (choose among the sub-sums of QN+WN+BI+RW+DR+2GM "
+        model: str = typer.Option("auto", "--model", metavar="MODEL", help="'auto' (choose among the sub-sums of QN+WN+BI+RW+DR+2GM "
                                   "by the J statistic plus a Hannan-Quinn penalty) or a sum such as 'WN+RW+2GM' "
                                   "(QN WN BI RW DR GM)"),
-        channels: str = typer.Option(None, "--channels", help="comma-separated among gx,gy,gz,ax,ay,az (default all)"),
-        start_s: float = typer.Option(0.0, "--start", help="window start [s]"),
-        stop_s: float = typer.Option(None, "--stop", help="window end [s] (default: end of record)"),
+        channels: str = typer.Option(None, "--channels", metavar="CHANNELS", help="comma-separated among gx,gy,gz,ax,ay,az (default all)"),
+        start_s: float = typer.Option(0.0, "--start", metavar="SECONDS", help="window start [s]"),
+        stop_s: float = typer.Option(None, "--stop", metavar="SECONDS", help="window end [s] (default: end of record)"),
         plot: Path = typer.Option(None, "--plot", help="write the Allan deviation, fit and terms (.png/.pdf/.svg)"),
         out: Path = typer.Option(None, "--out", help="write the identified model (noise.toml)"),
-        from_curve: Path = typer.Option(None, "--from-curve", help="fit a curve computed elsewhere: CSV "
+        from_curve: Path = typer.Option(None, "--from-curve", metavar="CSV", help="fit a curve computed elsewhere: CSV "
                                         "'tau_s,<avar|adev|wvar>,lower,upper' in SI with a '# dt_s = ...' line"),
-        kind: str = typer.Option("gyro", "--kind", help="with --from-curve: gyro or accel"),
-        seed: int = typer.Option(0, "--seed", help="seed of the multi-start solver's draws"),
-        force: bool = typer.Option(False, "--force", help="overwrite existing outputs"),
-        json_: bool = typer.Option(False, "--json", help="print results as JSON"),
+        kind: str = typer.Option("gyro", "--kind", metavar="gyro|accel", help="with --from-curve: gyro or accel"),
+        seed: SeedOption = 0,
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Identify the noise: Allan/wavelet variance with intervals, GMWM fit, model choice, IEEE read-offs."""
-        try:
-            res = run_noise(data, model, channels, start_s, stop_s, plot, out, from_curve, kind, seed, force)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_noise, data, model, channels, start_s, stop_s, plot, out, from_curve, kind, seed, force)
         if json_:
             print_json(res)
             return

@@ -6,15 +6,23 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from inscal.cli.common import CliError, fail, print_json, short
+from inscal.cli.common import CliError, call, fail, print_json, short
 from inscal.cli.limits import check_count, check_mc_trials, check_memory, human_seconds
-
-#: width of the observability table when the output is no terminal (thermal group names and units are long)
-WIDE = 120
-
+from inscal.cli.observability_text import print_budget, print_crlb, print_report
+from inscal.cli.options import (
+    JsonOption,
+    McWorkersOption,
+    SeedOption,
+    arw_option,
+    noise_option,
+    states_option,
+    station_option,
+    vrw_option,
+)
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
                       vrw: float | None = None, t_ref: float | None = None):
@@ -150,46 +158,6 @@ def _check_t_ref(t_ref: float | None, st) -> None:
         raise CliError("--t-ref is the reference temperature of the thermal states: add them (--states 51,thermal)")
 
 
-def _temperature_line(t: dict) -> str:
-    return (f"temperature: {t['t_min']:.4g} .. {t['t_max']:.4g} degC, up to {t['rate_max_c_per_min']:.3g} degC/min "
-            f"({t['input']}); thermal coefficients about T_ref {t['t_ref']:g} degC, each prior spread over the span "
-            f"{t['span']:.4g} degC")
-
-
-def _print_crlb(source: str, b) -> None:
-    from rich import box
-    from rich.console import Console
-    from rich.table import Table
-
-    con = Console()
-    d = b.to_dict()
-    tab = Table(title=f"Cramér-Rao bound of {source} (path {b.path_name!r}, {b.duration_s:.0f} s), "
-                      f"{b.setup.states.n_states}-state model ({d['states']})", box=box.SIMPLE_HEAD, pad_edge=False)
-    for col in ("parameter", "unit", "prior 1σ", "bound 1σ", "ratio"):
-        tab.add_column(col, justify="left" if col in ("parameter", "unit") else "right", no_wrap=True)
-    rms = b.group_rms()
-    current = None
-    for r in d["parameters"]:
-        if r["group"] != current:
-            current = r["group"]
-            tab.add_row(f"[bold]{current}[/bold]", r["unit"], f"{r['prior']:.4g}", f"RMS {rms[current]:.3g}", "")
-        tab.add_row(f"  {r['label'][len(current):].strip('[]') or current}", "", "", f"{r['bound']:.3g}",
-                    f"{r['ratio']:.2g}")
-    con.print(tab)
-    n = d["noise"]
-    con.print("ratio = bound / prior 1σ")
-    arw = ", ".join(f"{x:.3g}" for x in sorted(set(n["arw_deg_sqrt_h"])))
-    vrw = ", ".join(f"{x:.3g}" for x in sorted(set(n["vrw_ug_sqrt_hz"])))
-    site = d["site"]
-    con.print(f"bound = posterior 1σ of the linear-Gaussian error-state model (smoothed = final filtered for "
-              f"constants); site {site['latitude_deg']:.4g} N {site['longitude_deg']:.4g} E "
-              f"{site['height_m']:.4g} m; ARW {arw} deg/√h, VRW {vrw} µg/√Hz"
-              + ("; bias instability as process noise" if n["bias"] else "")
-              + f"; {b.steps} steps at {d['filter_rate_hz']:g} Hz ({b.seconds:.3f} s)")
-    if "temperature" in d:
-        con.print(_temperature_line(d["temperature"]))
-
-
 def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool, mc: int | None = None,
                mc_workers: int = 1) -> None:
     """``--crlb --station --method M``: the budget of a window-mean method from one simulated run (and its JCGM 101
@@ -225,111 +193,7 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool,
         print_json({"source": source, "method": method, "seed": seed, "station": st.to_dict(), "budget": doc,
                     "dominant_inputs": dominant_inputs(bud)})
         return
-    _print_budget(source, None, bud, full, f"{method} on one simulated run (seed {seed})", doc)
-
-
-def _print_budget(source: str, b, bud, full: bool, what: str | None = None, doc: dict | None = None) -> None:
-    """The budget the path promises: one line per component (or its table with ``full``), then the inputs by how
-    many components they dominate."""
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.table import Table
-
-    from inscal.uncertainty.before_run import dominant_inputs
-    from inscal.report.budget import INPUT_TITLES, budget_lines
-
-    con = Console()
-    if not con.is_terminal and "COLUMNS" not in os.environ:
-        con = Console(width=WIDE + 40)
-    if b is None:
-        con.print(f"Uncertainty budget of {escape(source)} before the run: {escape(what)}")
-    else:
-        con.print(f"Uncertainty budget of {escape(source)} before the run (path {escape(b.path_name)!r}, "
-                  f"{b.duration_s:.0f} s, {b.setup.states.n_states}-state filter, {b.steps} steps at "
-                  f"{1.0 / b.setup.T:g} Hz, {b.seconds:.3f} s)")
-    lines = budget_lines(doc or bud.to_dict(), full=full)
-    notes = [x for x in lines if x.startswith("  note: ")]
-    for x in lines:
-        if not x.startswith("  note: "):
-            con.print(escape(x), highlight=False)
-    tab = Table(title="which inputs dominate (share of u_c²)")
-    for col in ("input", "largest in", "largest share", "median share"):
-        tab.add_column(col, justify="left" if col == "input" else "right")
-    for r in dominant_inputs(bud):
-        tab.add_row(escape(INPUT_TITLES.get(r["input"], r["input"])), f"{r['n_largest']} of {len(bud.components)}",
-                    f"{r['max_share'] * 100:.1f} %", f"{r['median_share'] * 100:.1f} %")
-    con.print(tab)
-    for x in notes:
-        con.print(escape(x.strip()), highlight=False)
-
-
-def _print_report(rep) -> None:
-    from rich import box
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.table import Table
-
-    from inscal.plan.observability import RANK_TOL, THRESHOLDS
-
-    con = Console()
-    if not con.is_terminal and "COLUMNS" not in os.environ:  # a file or a pipe: the whole table, not 80 columns of it
-        con = Console(width=WIDE)
-    noise = rep.noise
-    arw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["arw_deg_sqrt_h"])))
-    vrw = ", ".join(f"{x:.3g}" for x in sorted(set(noise["vrw_ug_sqrt_hz"])))
-    site = rep.site
-    tab = Table(title=f"Observability of {rep.source} ({rep.kind} {rep.path_name!r}, {rep.duration_s:.0f} s), "
-                      f"{rep.n_states}-state filter ({rep.state_spec})", box=box.SIMPLE_HEAD)
-    for col, just in (("state", "left"), ("prior 1σ", "right"), ("posterior 1σ", "right"), ("ratio", "right"),
-                      ("verdict", "left")):
-        tab.add_column(col, justify=just, no_wrap=True, min_width=13 if col == "verdict" else None)
-    style = {"well observed": "green", "observed": "green", "weak": "yellow", "unobservable": "red"}
-    groups = rep.groups()
-    current = None
-    for s in rep.states:
-        if s.group != current:
-            current = s.group
-            g = groups[current]
-            tab.add_row(f"[bold]{current}[/bold]", f"{s.prior:.4g} {s.unit}", "worst:", f"[bold]{g['max_ratio']:.3g}[/bold]",
-                        f"[bold {style[g['verdict']]}]{g['verdict']}[/]")
-        tab.add_row(f"  {s.component or s.group}", "", f"{s.posterior:.3g}", f"{s.ratio:.3g}",
-                    f"[{style[s.verdict]}]{s.verdict}[/]")
-    con.print(tab)
-    lim = ", ".join(f"{n} < {v:g}" for n, v in THRESHOLDS)
-    con.print(f"ratio = posterior / prior 1σ; {lim}, else unobservable.  Site {site['latitude_deg']:.4g} N "
-              f"{site['longitude_deg']:.4g} E {site['height_m']:.4g} m; ARW {arw} deg/√h, VRW {vrw} µg/√Hz "
-              f"({noise['source']}); {rep.steps} filter steps at {rep.filter_rate_hz:g} Hz from a noise-free "
-              f"{rep.rate_hz:g} Hz simulation.")
-    sv = rep.singular_values
-    con.print(f"\n[bold]Observability matrix[/bold] (whitened, states scaled by their prior σ; parameter block after "
-              f"projecting out the initial navigation state): rank {rep.rank} of {rep.n_params} at tolerance "
-              f"{RANK_TOL:g} x largest (full state: {rep.full_rank} of {rep.n_states}); singular values / largest, "
-              f"smallest 10: " + " ".join(f"{x:.1e}" for x in sv[-10:]))
-    if rep.thermal:
-        _print_partners(con, rep)
-    wt = Table(title="weakest directions (right singular vectors, scaled parameters)")
-    wt.add_column("σ / σmax", justify="right")
-    wt.add_column("dominant combination")
-    for d in rep.weakest:
-        wt.add_row(f"{d.singular_value:.2e}", escape(d.describe()))
-    con.print(wt)
-    for n in rep.notes:
-        con.print(f"note: {escape(n)}")
-    con.print(f"({rep.timing_s['total']:.2f} s)")
-
-
-def _print_partners(con, rep) -> None:
-    """Per thermal coefficient: the state it is most correlated with a posteriori."""
-    from rich.markup import escape
-    from rich.table import Table
-
-    con.print(_temperature_line(rep.thermal))
-    tab = Table(title="thermal coefficients: the state each is most correlated with (posterior)")
-    for col in ("coefficient", "most correlated with", "correlation"):
-        tab.add_column(col, justify="right" if col == "correlation" else "left", no_wrap=True)
-    for lab, p in rep.thermal["partners"].items():
-        tab.add_row(escape(lab), escape(p["with"]), f"{p['correlation']:+.3f}")
-    con.print(tab)
+    print_budget(source, None, bud, full, f"{method} on one simulated run (seed {seed})", doc)
 
 
 def register(app: typer.Typer) -> None:
@@ -338,41 +202,40 @@ def register(app: typer.Typer) -> None:
         source: str = typer.Argument(..., metavar="PATH_OR_SCENARIO",
                                      help="built-in scenario (s16, psins19, n25, ...) or path (s16-table1, "
                                           "n25-twelve, ...), a scenario TOML, or a path TOML (a [path] table)"),
-        states: str = typer.Option("51", "--states", help="state set: 51 | 30, options ,lever9 ,async ,psins, "
-                                                          ",thermal (or ,thermal=GSABR: needs a temperature profile)"),
-        rate_hz: float = typer.Option(20.0, "--rate-hz", help="rate of the noise-free simulation [Hz]"),
-        arw: float = typer.Option(None, "--arw", help="gyro angle random walk [deg/sqrt(h)] (default: the "
-                                                      "scenario's, else S16's 5e-5)"),
-        vrw: float = typer.Option(None, "--vrw", help="accelerometer velocity random walk [ug/sqrt(Hz)] (default: "
-                                                      "the scenario's, else S16's 1)"),
+        states: states_option("state set: 51 | 30, options ,lever9 ,async ,psins, ,thermal (or ,thermal=GSABR: "
+                              "needs a temperature profile)") = "51",
+        rate_hz: Annotated[float, typer.Option("--rate-hz", help="rate of the noise-free simulation [Hz]")] = 20.0,
+        arw: arw_option("the scenario's, else S16's 5e-5") = None,
+        vrw: vrw_option("the scenario's, else S16's 1") = None,
         crlb: bool = typer.Option(False, "--crlb", help="print the Cramér-Rao bound of every parameter (fast, "
                                                         "from the path kinematics; no simulation)"),
-        filter_rate_hz: float = typer.Option(1.0, "--filter-rate-hz", help="filter rate of the bound [Hz]"),
-        gyro_bi: float = typer.Option(None, "--gyro-bi", help="with --crlb: gyro bias instability, Gauss-Markov "
+        filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0,
+        gyro_bi: float = typer.Option(None, "--gyro-bi", metavar="DEG/H", help="with --crlb: gyro bias instability, Gauss-Markov "
                                                               "sigma [deg/h]"),
-        accel_bi: float = typer.Option(None, "--accel-bi", help="with --crlb: accelerometer bias instability, "
+        accel_bi: float = typer.Option(None, "--accel-bi", metavar="UG", help="with --crlb: accelerometer bias instability, "
                                                                 "Gauss-Markov sigma [ug]"),
-        bi_tau: float = typer.Option(3600.0, "--bi-tau", help="with --crlb: correlation time of the bias "
+        bi_tau: float = typer.Option(3600.0, "--bi-tau", metavar="SECONDS", help="with --crlb: correlation time of the bias "
                                                               "instability [s]"),
-        gyro_rrw: float = typer.Option(None, "--gyro-rrw", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
-        accel_rrw: float = typer.Option(None, "--accel-rrw", help="with --crlb: accelerometer bias random walk "
+        gyro_rrw: float = typer.Option(None, "--gyro-rrw", metavar="DEG/H/SQRT(H)", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
+        accel_rrw: float = typer.Option(None, "--accel-rrw", metavar="UG/SQRT(S)", help="with --crlb: accelerometer bias random walk "
                                                                   "[ug/sqrt(s)]"),
-        t_ref: float = typer.Option(None, "--t-ref", help="reference temperature of the thermal states [degC] "
+        t_ref: float = typer.Option(None, "--t-ref", metavar="DEGC", help="reference temperature of the thermal states [degC] "
                                                           "(default: the scenario's thermal model's, else 20)"),
-        noise: Path = typer.Option(None, "--noise", help="with --crlb: an identified noise model (noise.toml of "
-                                   "inscal noise): its white, Gauss-Markov and random-walk terms are the bound's noise"),
-        station: Path = typer.Option(None, "--station", help="with --crlb: a station description (station.toml): "
-                                     "the bound at its site, and the uncertainty budget the path promises with its "
-                                     "inputs (which dominate, before the run)"),
+        noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
+                            "Gauss-Markov and random-walk terms are the bound's noise") = None,
+        station: station_option("with --crlb: a station description (station.toml): the bound at its site, and "
+                                "the uncertainty budget the path promises with its inputs (which dominate, before "
+                                "the run)", Path) = None,
         full: bool = typer.Option(False, "--full", help="with --station: every component's budget table"),
-        method: str = typer.Option(None, "--method", help="with --station: a window-mean method (n25, six-position, "
+        method: str = typer.Option(None, "--method", metavar="METHOD", help="with --station: a window-mean method (n25, six-position, "
                                    "twelve-position, joint): its budget from one run simulated on the path at the "
                                    "station (the scenario's unit and noise) instead of the systematic filter's bound"),
-        seed: int = typer.Option(0, "--seed", help="with --method: seed of the simulated run"),
-        mc: int = typer.Option(None, "--mc", help="with --method: the JCGM 101 Monte Carlo of that budget, at most N "
-                               "trials (does the linear budget hold for this path at this station?)"),
-        mc_workers: int = typer.Option(1, "--mc-workers", help="with --mc: Dask workers (1: this process)"),
-        json_: bool = typer.Option(False, "--json", help="print the results as JSON"),
+        seed: SeedOption = 0,
+        mc: Annotated[int | None, typer.Option("--mc", metavar="N", help=(
+            "with --method: the JCGM 101 Monte Carlo of that budget, at most N trials (does the linear budget hold "
+            "for this path at this station?)"))] = None,
+        mc_workers: McWorkersOption = 1,
+        json_: JsonOption = False,
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
@@ -386,11 +249,8 @@ def register(app: typer.Typer) -> None:
             if mc is not None:
                 raise fail("--mc needs --method (the Monte Carlo of a window-mean method's budget; the filter's site "
                            "and clock enter it linearly)")
-            try:
-                b = run_crlb(source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
-                             t_ref, noise, st)
-            except CliError as exc:
-                raise fail(str(exc)) from None
+            b = call(run_crlb, source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
+                         t_ref, noise, st)
             bud = None
             if st is not None:
                 from inscal.uncertainty.before_run import bound_budget, dominant_inputs
@@ -403,9 +263,9 @@ def register(app: typer.Typer) -> None:
                     doc.update(station=st.to_dict(), budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))
                 print_json(doc)
             elif bud is not None:
-                _print_budget(source, b, bud, full)
+                print_budget(source, b, bud, full)
             else:
-                _print_crlb(source, b)
+                print_crlb(source, b)
             return
         if station is not None or full or method is not None or mc is not None:
             raise fail("--station, --full, --method and --mc apply to the bound (--crlb)")
@@ -417,11 +277,8 @@ def register(app: typer.Typer) -> None:
         if filter_rate_hz != 1.0 or bi_tau != 3600.0:
             raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
                        "--rate-hz")
-        try:
-            rep = run_observability(source, states, rate_hz, arw, vrw, t_ref)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        rep = call(run_observability, source, states, rate_hz, arw, vrw, t_ref)
         if json_:
             print_json(rep.to_dict())
             return
-        _print_report(rep)
+        print_report(rep)

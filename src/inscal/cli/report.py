@@ -7,15 +7,9 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    check_not_input,
-    check_output,
-    fail,
-    load_checked_params,
-    print_json,
-    short,
-)
+from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, short,
+    warn)
+from inscal.cli.options import ForceOption, JsonOption
 
 
 #: samples of the first dwell below which :func:`inscal.report.record.record_report` leaves out the noise section
@@ -114,26 +108,22 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def report(
         data: Path = typer.Argument(..., help="HDF5 record, or a noise model (noise.toml of inscal noise)"),
-        params: list[Path] = typer.Option([], "--params", "-p", help="parameter file(s) to tabulate (repeatable); "
+        params: list[Path] = typer.Option([], "--params", "-p", metavar="PARAMS.toml", help="parameter file(s) to tabulate (repeatable); "
                                           "a file with a thermal model also gets each thermal parameter's curve "
                                           "over its calibrated range with its 1-sigma band"),
-        noise: list[Path] = typer.Option([], "--noise", help="noise model(s) from 'inscal noise --out' (noise.toml, "
+        noise: list[Path] = typer.Option([], "--noise", metavar="NOISE.toml", help="noise model(s) from 'inscal noise --out' (noise.toml, "
                                          "repeatable): each process per channel in IEEE 952/1293 units with its 95 % "
                                          "interval and per-sample form, and the model's Allan deviation over the "
                                          "record's first dwell"),
         out: Path = typer.Option(..., "--out", "-o", help="HTML report to write"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing report"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary, with the numbers behind the "
-                                   "temperature and thermal plots (field units)"),
+        force: ForceOption = False,
+        json_: JsonOption = False,
     ):
         """Write an HTML report: gimbal motion, sensor outputs, temperature and dT/dt, Allan deviation,
         identified noise models, parameters vs truth, thermal parameters over temperature with their 1-sigma
         bands."""
-        try:
-            res = run_report(data, params, out, force, warn=lambda w: typer.echo(f"inscal: warning: {w}", err=True),
-                             noise=noise)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_report, data, params, out, force, warn=warn,
+                         noise=noise)
         if json_:
             print_json(res)
         else:

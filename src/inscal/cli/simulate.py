@@ -7,16 +7,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (
-    CliError,
-    LazyModule,
-    check_output,
-    fail,
-    parse_gravity_option,
-    print_json,
-    progress_bar,
-    short,
-)
+from inscal.cli.common import CliError, LazyModule, call, check_output, parse_gravity_option, print_json, short
+from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
 np = LazyModule("numpy")
 
@@ -96,13 +88,12 @@ def check_size(sc, out: Path) -> int:
 def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | None = None,
                  rate_hz: float | None = None, force: bool = False, show_progress: bool = True,
                  no_noise: bool = False, gravity: str | None = None) -> dict:
+    from inscal.core.progress import ProgressBar
     from inscal.sim import scenarios
     from inscal.sim import simulate as sim
 
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
         raise CliError(f"--rate-hz must be positive, got {rate_hz:g}")
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
     try:
         sc = scenarios.build(scenario, duration_s=None if duration_h is None else duration_h * 3600.0, rate_hz=rate_hz)
     except ValueError as exc:  # ScenarioError, PathError, unit errors
@@ -118,9 +109,9 @@ def run_simulate(scenario: str, out: Path, seed: int = 0, duration_h: float | No
     check_output(out, force)
     check_size(sc, out)
     rng = np.random.default_rng(seed)
-    with progress_bar(f"simulating {sc.name}", sc.n_samples, show_progress) as upd:
+    with ProgressBar(f"simulating {sc.name}", sc.n_samples, show_progress, lines=False, transient=True) as bar:
         try:
-            n = sim.write_simulation(out, sc, rng, overwrite=force, progress=upd)
+            n = sim.write_simulation(out, sc, rng, overwrite=force, progress=bar.update)
         except (FileExistsError, FileNotFoundError, ValueError, OSError) as exc:  # OSError: e.g. a read-only folder
             raise CliError(str(exc)) from None
     res = summary(sc, out, seed, n)
@@ -141,21 +132,18 @@ def register(app: typer.Typer) -> None:
                                        "thermal-plateaus-s16, thermal-ramp, thermal-cycle, thermal-warmup; without a "
                                        "turntable: handheld-mems, handheld-tactical, handheld-navigation) or a .toml file"),
         out: Path = typer.Option(..., "--out", "-o", help="output HDF5 record"),
-        seed: int = typer.Option(0, help="seed of the noise generator"),
-        duration_h: float = typer.Option(None, "--duration-h", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
+        seed: SeedOption = 0,
+        duration_h: float = typer.Option(None, "--duration-h", metavar="HOURS", help="duration in hours (static, rotation-modulation and thermal-warmup scenarios)"),
         rate_hz: float = typer.Option(None, "--rate-hz", help="sampling rate [Hz] (default: the scenario's)"),
-        force: bool = typer.Option(False, "--force", help="overwrite an existing output file"),
+        force: ForceOption = False,
         no_noise: bool = typer.Option(False, "--no-noise", help="drop the scenario's stochastic errors (deterministic errors stay)"),
-        gravity: str = typer.Option(None, "--gravity", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
+        gravity: str = typer.Option(None, "--gravity", metavar="MODEL", help="gravity model: wgs84 | psins | a measured value in m/s^2 "
                                     "(default: the scenario's, wgs84 unless its site table says otherwise)"),
-        json_: bool = typer.Option(False, "--json", help="print a JSON summary"),
+        json_: JsonOption = False,
     ):
         """Simulate an IMU on a dual-axis turntable (or hand-held) and write an HDF5 record."""
-        try:
-            res = run_simulate(scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
-                               gravity=gravity)
-        except CliError as exc:
-            raise fail(str(exc)) from None
+        res = call(run_simulate, scenario, out, seed, duration_h, rate_hz, force, show_progress=not json_, no_noise=no_noise,
+                           gravity=gravity)
         if json_:
             print_json(res)
         else:
