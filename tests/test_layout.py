@@ -24,7 +24,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "inscal"
 #: loaded only to read a bag; ruamel.yaml: only for a KF-GINS configuration)
 OPTIONAL = ("matplotlib", "dask", "distributed", "scipy.io", "allantools", "rosbags", "ruamel")
 #: (module file, imported package): function-local imports kept for start time, with the reason above
-START_TIME = {("io/records.py", "inscal.core")}
+START_TIME = {("io/recordfile.py", "inscal.core")}
 MAX_LINES = 800
 
 

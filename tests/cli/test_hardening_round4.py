@@ -28,7 +28,7 @@ from typer.testing import CliRunner
 from inscal import io
 from inscal.analysis.noise.identify import MAX_CURVE_POINTS
 from inscal.cli.app import app
-from inscal.io.records import read_record
+from inscal.io.recordfile import read_record
 
 ROOT = Path(__file__).resolve().parents[2]
 runner = CliRunner()

@@ -20,7 +20,7 @@ from inscal.core.attitude import quat_to_dcm
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import ImuNoise
 from inscal.core.turntable import C_s_b
-from inscal.io import records as io
+from inscal import io
 from inscal.io.encoders import (
     EncoderError,
     apply_latency,

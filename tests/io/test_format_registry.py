@@ -1,6 +1,6 @@
 """The format table (:data:`inscal.io.formats.REGISTRY`): every row's plugin module reads, the importer's
 option checks and the mapping follow the rows, the table costs the command line's start no NumPy, and
-one record loader (:func:`inscal.io.records.load_record`) refuses a malformed record in one line for the
+one record loader (:func:`inscal.io.recordfile.load_record`) refuses a malformed record in one line for the
 command line and the lab alike."""
 
 from __future__ import annotations
@@ -70,7 +70,8 @@ def test_the_site_options_complete_the_mapping_site():
 
 def test_the_table_costs_the_command_line_no_numpy():
     code = ("import sys; import inscal.cli.app; from inscal.io.formats import REGISTRY; "
-            "print(sorted(m for m in ('numpy', 'h5py', 'inscal.io.records') if m in sys.modules))")
+            "print(sorted(m for m in ('numpy', 'h5py', 'inscal.io.records', 'inscal.io.recordfile', "
+            "'inscal.io.streaming') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]", out
 

@@ -17,7 +17,8 @@ from typer.testing import CliRunner
 
 from inscal.sim.simulate import write_simulation
 from inscal.core import earth
-from inscal.io import importers, records as io
+from inscal import io
+from inscal.io import importers
 from inscal.sim import scenarios
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import param_value

@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 from inscal.cli.app import app
 from inscal.core import earth
 from inscal.core.earth import Site
-from inscal.io import importers, records as io
+from inscal import io
+from inscal.io import importers
 from inscal.io.mapping import ImportFileError, parse_mapping
 from inscal.io.records import Record, Temperature
 

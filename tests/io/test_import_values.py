@@ -26,7 +26,7 @@ from typer.testing import CliRunner
 
 from inscal.cli.app import app
 from inscal.io import importers
-from inscal.io import records as io
+from inscal import io
 from inscal.sim import scenarios
 from inscal.sim.simulate import write_simulation
 

@@ -13,7 +13,7 @@ from inscal.core import earth
 from inscal.core.earth import Site
 from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 from inscal.core.thermal import THERMAL_TERMS
-from inscal.io import records as io
+from inscal import io
 from inscal.io.records import DataFileError, Record, Temperature, Truth
 from inscal.sim import scenarios
 

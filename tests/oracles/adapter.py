@@ -34,7 +34,8 @@ from reference_imu import ImuRecord, PsinsErrors
 
 from inscal.core.earth import Site, parse_gravity
 from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise, split_scale_misalignment
-from inscal.io.records import Record, Truth, write_record
+from inscal.io.recordfile import write_record
+from inscal.io.records import Record, Truth
 
 
 def inscal_site(gen: ImuRecord) -> Site:

@@ -22,7 +22,7 @@ from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
 from inscal.core.earth import Site
 from inscal.io.importers import import_file
-from inscal.io.records import read_record
+from inscal.io.recordfile import read_record
 from inscal.runs.calibration import CalibrationSetup, calibrate_record
 
 LAT = 0.8  # rad

@@ -27,7 +27,7 @@ from inscal.calibrate import METHODS, NO_TABLE_METHODS
 from inscal.cli.app import app
 from inscal.core.error_model import parameter_components
 from inscal.core.turntable import n25_twelve
-from inscal.io.records import record_info
+from inscal.io.recordfile import record_info
 from inscal.uncertainty import sensitivity as S
 from inscal.sim.scenarios import build
 from inscal.sim.simulate import write_simulation

@@ -19,7 +19,7 @@ from adapter import k2_dropped_bound, to_inscal_truth, to_record, write_inscal_r
 from inscal.calibrate.systematic import systematic
 from inscal.core import earth, units
 from inscal.core.error_model import GimbalErrors, ImuNoise
-from inscal.io.records import read_record
+from inscal.io.recordfile import read_record
 from inscal.sim import scenarios
 from inscal.sim.simulate import simulate
 

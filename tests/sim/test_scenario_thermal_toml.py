@@ -13,7 +13,7 @@ import tomli_w
 
 from inscal.core import units
 from inscal.core.thermal import THERMAL_TERMS, thermal_to_field
-from inscal.io import records as io
+from inscal import io
 from inscal.sim import scenarios
 from inscal.sim.scenarios import ScenarioError
 from inscal.sim.simulate import write_simulation

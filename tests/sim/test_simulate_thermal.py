@@ -8,7 +8,7 @@ import pytest
 
 from inscal.core.error_model import ImuNoise
 from inscal.core.turntable import static
-from inscal.io.records import read_record
+from inscal.io.recordfile import read_record
 from inscal.sim.scenarios import CHAMBER_LABEL, THERMAL_PLATEAUS_C, build, thermal_model
 from inscal.sim.simulate import Scenario, simulate, write_simulation
 from inscal.sim.thermal import Piece, TemperatureProfile, TemperatureSensor, plateaus

@@ -16,7 +16,7 @@ import numpy as np
 
 from inscal.analysis.noise.estimators import StreamingScaleVariance
 from inscal.analysis.noise.motion import MotionStats
-from inscal.io.records import iter_window
+from inscal.io.streaming import iter_window
 
 BI_FACTOR = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 

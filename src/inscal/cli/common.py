@@ -110,7 +110,7 @@ def check_not_input(out: Path, *inputs: Path | None, what: str = "--out", role: 
 
 
 def read_record(path: Path):
-    """The record of ``path`` (:func:`inscal.io.records.load_record`: a malformed record, increments that are
+    """The record of ``path`` (:func:`inscal.io.recordfile.load_record`: a malformed record, increments that are
     not floating point) with every failure a one-line :class:`CliError`."""
     from inscal import io
 

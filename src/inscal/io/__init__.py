@@ -10,13 +10,15 @@ import importlib
 
 #: the modules that hold the names of this face
 _FILES = ("REMOVED_PARTS", "atomic_path", "file_hash", "remove_live_parts", "remove_part")
-_RECORDS = ("KIND", "UNITS", "DataFileError", "LazyArray", "Record", "RecordInfo", "Temperature", "Truth", "Window",
-            "check_datasets", "compensated_with", "iter_chunks", "iter_window", "open_record", "read_record",
-            "read_temperature", "record_attrs", "record_info", "record_window", "truth_groups", "validate_arrays",
-            "validate_temperature", "write_record", "write_stream", "load_record")
+_RECORDS = ("KIND", "UNITS", "DataFileError", "Record", "RecordInfo", "Temperature", "Truth", "compensated_with",
+            "record_attrs", "validate_arrays", "validate_temperature")
+_RECORDFILE = ("check_datasets", "load_record", "read_record", "read_temperature", "record_info", "truth_groups",
+               "write_record", "write_stream")
+_STREAMING = ("LazyArray", "Window", "iter_chunks", "iter_window", "open_record", "record_window")
 #: name -> the module that defines it
 FACE = {**{n: "inscal.core.cancel" for n in ("cancel", "check_cancel")}, **{n: "inscal.io.files" for n in _FILES},
-        **{n: "inscal.io.records" for n in _RECORDS}}
+        **{n: "inscal.io.records" for n in _RECORDS}, **{n: "inscal.io.recordfile" for n in _RECORDFILE},
+        **{n: "inscal.io.streaming" for n in _STREAMING}}
 
 
 def __getattr__(name: str):

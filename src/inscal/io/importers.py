@@ -166,17 +166,9 @@ from inscal.io.mapping import (  # noqa: F401  (EXPORT_HEADER*: the export's hea
     load_mapping,
     load_path,
 )
-from inscal.io.records import (
-    DataFileError,
-    Record,
-    RecordInfo,
-    Temperature,
-    iter_chunks,
-    iter_window,
-    record_info,
-    validate_arrays,
-    write_stream,
-)
+from inscal.io.recordfile import record_info, write_stream
+from inscal.io.records import DataFileError, Record, RecordInfo, Temperature, validate_arrays
+from inscal.io.streaming import iter_chunks, iter_window
 
 
 # ----------------------------------------------------------------------------- import

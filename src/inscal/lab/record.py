@@ -27,7 +27,8 @@ from inscal.io.paramfile import (
     ParamFileError,
     params_document,
 )
-from inscal.io.records import record_attrs, record_info
+from inscal.io.recordfile import record_info
+from inscal.io.records import record_attrs
 from inscal.lab.model import SessionInfo, parse_date
 
 

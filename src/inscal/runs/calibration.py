@@ -32,12 +32,8 @@ from inscal.core.earth import parse_gravity
 from inscal.io.checks import saturated_samples
 from inscal.io.encoders import apply_latency, check_record_encoders, small_latency
 from inscal.io.noisefile import NoiseFileError, noise_document, read_noise
-from inscal.io.records import (  # noqa: F401  (load_record: the batch's, re-exported)
-    Record,
-    RecordInfo,
-    load_record,
-    record_attrs,
-)
+from inscal.io.recordfile import load_record  # noqa: F401  (the batch's, re-exported)
+from inscal.io.records import Record, RecordInfo, record_attrs
 from inscal.lab.record import calibration_options
 
 

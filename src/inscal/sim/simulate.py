@@ -41,7 +41,8 @@ from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
 from inscal.core.kinematics import rates_at, segment_at
 from inscal.core.thermal import ThermalModel
 from inscal.core.turntable import RotationPath, Segments, outer_axis
-from inscal.io.records import DataFileError, Record, RecordInfo, Temperature, Truth, record_attrs, write_stream
+from inscal.io.recordfile import write_stream
+from inscal.io.records import DataFileError, Record, RecordInfo, Temperature, Truth, record_attrs
 from inscal.sim.kernel import (
     O_ARW,
     O_ASYNC,

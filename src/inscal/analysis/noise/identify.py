@@ -25,7 +25,7 @@ from inscal.analysis.noise.motion import MotionStats
 from inscal.analysis.noise.selection import AUTO_MIN_MODEL, AUTO_MODEL, Selection, readoffs, select
 from inscal.core import noise_models as nm
 from inscal.core import units
-from inscal.io.records import iter_window
+from inscal.io.streaming import iter_window
 
 CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 KINDS = {c: ("gyro" if c[0] == "g" else "accel") for c in CHANNELS}
