@@ -122,16 +122,12 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import joint
-    >>> res = joint(ws)
-    >>> z = (res.gimbal.nonorthogonality - sc.gimbal.nonorthogonality) / res.sigma["gimbal_nonorthogonality"]
+    >>> from inscal.calibrate import joint, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # with its truth
+    >>> res = joint(window_means(rec))
+    >>> true = rec.truth.gimbal.nonorthogonality
+    >>> z = (res.gimbal.nonorthogonality - true) / res.sigma["gimbal_nonorthogonality"]
     >>> bool(abs(z) < 3)
     True
     """

@@ -87,16 +87,11 @@ class CalibrationResult:
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import calibrate
-    >>> res = calibrate(ws, "joint")
-    >>> bias = res.to_field((sc.imu, sc.gimbal))["accel_bias"]  # field units, the error against the truth
+    >>> from inscal.calibrate import calibrate, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)
+    >>> res = calibrate(window_means(rec), "joint")
+    >>> bias = res.to_field((rec.truth.imu, rec.truth.gimbal))["accel_bias"]  # field units, the error against the truth
     >>> bias["unit"], all(abs(e) < 3 * s for e, s in zip(bias["error"], bias["sigma"]))
     ('ug', True)
     """
