@@ -214,7 +214,7 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     Returns
     -------
     CalibrationResult
-        The IMU errors (SI) and their 1 sigma.
+        The IMU errors that the faces and the turns determine (SI), with their 1 sigma.
 
     Raises
     ------

@@ -112,7 +112,8 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The IMU and gimbal errors of the joint least squares (SI), their 1 sigma and the parameters
+        estimated; the unobservable directions it held are in ``diagnostics`` and ``notes``.
 
     Raises
     ------

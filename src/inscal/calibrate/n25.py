@@ -260,7 +260,8 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The N25 estimates (SI) of the IMU errors and the gimbal nonorthogonality, their 1 sigma and
+        the parameters estimated.
 
     Raises
     ------

@@ -159,6 +159,52 @@ class CalibrationResult:
         pair = _truth_pair(truth)
         return self.truth_transform(pair) if self.truth_transform is not None else pair
 
+    @classmethod
+    def from_field(cls, values: dict, sigma: dict, method: str = "manual") -> CalibrationResult:
+        """A result from values and 1 sigma in field units (the ``value`` and ``sigma`` of
+        :meth:`to_field`): a calibration entered by hand or taken from another tool.
+
+        Parameters
+        ----------
+        values : dict
+            ``{parameter name: value}`` in the field unit of :data:`inscal.core.error_model.PARAMETERS`
+            (deg/h, ppm, arcsec, ...); the names estimated, in this order.
+        sigma : dict
+            ``{parameter name: 1 sigma}`` in the same units, for every name of ``values``.
+        method : str
+            The method's name.
+
+        Returns
+        -------
+        CalibrationResult
+            The estimates (SI) and their 1 sigma; the parameters not named are zero.
+
+        Raises
+        ------
+        ValueError
+            An unknown parameter name, a name without its sigma, or a value of the wrong size.
+
+        Examples
+        --------
+        >>> from inscal.calibrate import CalibrationResult
+        >>> res = CalibrationResult.from_field({"gyro_bias": [0.01, 0.0, 0.0]}, {"gyro_bias": [0.001] * 3})
+        >>> res.estimated, res.to_field()["gyro_bias"]["unit"], round(res.to_field()["gyro_bias"]["value"][0], 6)
+        (('gyro_bias',), 'deg/h', 0.01)
+        """
+        si, sig = {}, {}
+        for name, v in values.items():
+            if name not in PARAMETERS or name not in sigma:
+                raise ValueError(f"{name!r}: " + ("no sigma given" if name in PARAMETERS else "unknown parameter"))
+            p = PARAMETERS[name]
+            try:
+                x = np.asarray(units.to_si(np.asarray(v, dtype=float), p.unit, p.kind)).reshape(p.shape)
+                sig[name] = np.asarray(units.to_si(np.asarray(sigma[name], dtype=float), p.unit, p.kind)).reshape(p.shape)
+            except ValueError as exc:
+                raise ValueError(f"{name!r}: {exc}") from None
+            si[name] = x if p.shape else float(x)
+        imu, gimbal = errors_from_values(si)
+        return cls(method, imu, gimbal, sig, tuple(values))
+
     def to_field(self, truth=None) -> dict:
         """``{NAME: {"value": [...], "sigma": [...], "unit": ..., "error": [...]}}`` in field
         units (``error`` = estimate - truth, only when ``truth`` is given: an object with

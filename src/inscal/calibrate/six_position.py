@@ -86,7 +86,8 @@ def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The accelerometer and gyro estimates of the six positions and the rate tests (SI), with their
+        1 sigma (``uncertainty``) and the parameters estimated (no gimbal errors).
 
     Raises
     ------

@@ -49,14 +49,15 @@ def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResul
     Parameters
     ----------
     ws : WindowSet
-        The windows of a turntable record (:func:`window_means`).
+        The twelve static positions and the rate tests of a turntable record (:func:`window_means`).
     uncertainty : bool
-        Propagate the windows' noise to the sigma.
+        Propagate the windows' noise to the sigma (False: faster, no sigma).
 
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The accelerometer and gyro estimates of the twelve positions and the rate tests (SI), their
+        1 sigma when ``uncertainty`` is set, and the parameters estimated (no gimbal errors).
 
     Examples
     --------

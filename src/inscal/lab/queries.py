@@ -103,15 +103,10 @@ def find_calibration(db: Database, record_sha256: str, options: dict, serial: st
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -150,15 +145,10 @@ def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | 
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -255,15 +245,10 @@ def get_calibration(db: Database, result_id: int) -> Calibration:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -306,15 +291,10 @@ def current_calibration(db: Database, serial: str) -> Calibration | None:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -355,15 +335,10 @@ def calibrations(db: Database, serial: str, method: str | None = None, supersede
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -430,15 +405,10 @@ def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -474,15 +444,10 @@ def table_counts(db: Database) -> dict[str, int]:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -522,15 +487,10 @@ def get_budget(db: Database, result_id: int) -> dict | None:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))

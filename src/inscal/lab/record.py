@@ -63,11 +63,9 @@ def param_file_text(result, data_file: str | None = None, data_hash: str | None 
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.0] * 3}, {"gyro_bias": [0.0002] * 3}, "six-position")
     >>> text = lab.param_file_text(res)
     >>> text.splitlines()[3], "[parameters.gyro_bias]" in text
     ('method = "six-position"', True)
@@ -265,11 +263,9 @@ def covariance_of(result) -> dict | None:
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.0] * 3}, {"gyro_bias": [0.0002] * 3}, "six-position")
     >>> lab.covariance_of(res) is None  # 1 sigma only
     True
     """

@@ -62,15 +62,10 @@ class AlreadyRecorded(DatabaseError):
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -224,15 +219,10 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -279,15 +269,10 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -455,15 +440,10 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -522,15 +502,10 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
