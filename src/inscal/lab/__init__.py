@@ -97,6 +97,7 @@ EXPORTS = {
     "published": "inscal.lab.database",
     "recover_publications": "inscal.lab.database",
     "table_counts": "inscal.lab.queries",
+    "example_history": "inscal.lab.example",
 }
 __all__ = [
     "CLOCK_SKEW",
@@ -148,6 +149,7 @@ __all__ = [
     "revision_number",
     "revision_of",
     "session_from_record",
+    "example_history",
     "set_current",
     "stage_calibration",
     "table_counts",
@@ -211,6 +213,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         session_from_record,
         text_hash,
     )
+    from inscal.lab.example import example_history
     from inscal.lab.queries import (
         calibrations,
         current_calibration,

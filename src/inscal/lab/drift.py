@@ -255,17 +255,8 @@ class History:
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.unit_history(db, "IMU-1")
     >>> h.ids == (first, second), len(h.components), h.flagged
     (True, 3, [])
@@ -333,17 +324,8 @@ def history(calibrations: list[Calibration], serial: str, method: str, k: float 
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.history(lab.calibrations(db, "IMU-1"), "IMU-1", "six-position")
     >>> h.components[0].label, round(h.components[0].step, 4)
     ('gyro_bias[x]', 0.002)

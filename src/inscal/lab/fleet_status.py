@@ -36,17 +36,8 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.unit_history(db, "IMU-1")
     >>> h.method, [d.month for d in h.dates]
     ('six-position', [1, 3])
@@ -83,15 +74,8 @@ class FleetEntry:
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> entry, = lab.fleet(db)
     >>> row = entry.to_json()
     >>> row["serial"], row["results"], row["current"]["method"], row["flagged"]
@@ -135,17 +119,8 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> [(e.unit.serial, e.results) for e in lab.fleet(db)], lab.fleet(db, flagged_only=True)
     ([('IMU-1', 2)], [])
 

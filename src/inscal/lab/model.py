@@ -226,17 +226,10 @@ class Session(SessionInfo):
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its record: "sha256:111..."
     >>> session = lab.get_calibration(db, first).session
-    >>> session.id, session.record_sha256 == jan.record_sha256
+    >>> session.id, session.record_sha256 == "sha256:" + "1" * 64
     (1, True)
 
     >>> db.close()
@@ -351,15 +344,8 @@ class Calibration:
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> cal = lab.get_calibration(db, first)
     >>> cal.date, cal.current, cal.to_json()["parameters"]["gyro_bias"]["value"]
     (datetime.datetime(2025, 1, 31, 0, 0), True, [0.01, 0.0, 0.0])

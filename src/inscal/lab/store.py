@@ -64,14 +64,11 @@ class AlreadyRecorded(DatabaseError):
     >>> import datetime as dt
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> try:
-    ...     lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
+    >>> again = CalibrationResult.from_field({"gyro_bias": [0.010, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> try:  # the same record, the same options
+    ...     lab.record_result(db, "IMU-1", again, lab.SessionInfo(record_sha256="sha256:" + "1" * 64,
+    ...                                                            date=dt.datetime(2025, 1, 31)))
     ... except lab.AlreadyRecorded as exc:
     ...     print(exc.result_id == first)
     True
@@ -221,14 +218,10 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     >>> import datetime as dt
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
     >>> jul = lab.SessionInfo(record_sha256="sha256:" + "3" * 64, date=dt.datetime(2025, 7, 1))
-    >>> text = lab.param_file_text(result(0.011), data_hash=jul.record_sha256)
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.011, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> text = lab.param_file_text(res, data_hash=jul.record_sha256)
     >>> rid = lab.record_calibration(db, "IMU-1", text, jul, supersedes=first)
     >>> lab.get_calibration(db, first).superseded_by == (rid,)
     True
@@ -271,14 +264,10 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     >>> import datetime as dt
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
     >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(result(0.012)), mar)
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.012, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(res), mar)
     >>> staged.value["current"]
     True
     >>> staged.close()  # rolled back
@@ -501,17 +490,8 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
 
     Examples
     --------
-    >>> import datetime as dt
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
-    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> lab.set_current(db, "IMU-1", first)
     >>> lab.current_calibration(db, "IMU-1").id == first
     True
