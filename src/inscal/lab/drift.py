@@ -167,9 +167,10 @@ def component_drift(name: str, label: str, unit: str, ids, months, values, sigma
     Parameters
     ----------
     name, label, unit : str
-        The parameter, the component's label, its field unit.
+        The parameter's name (``gyro_bias``), the label of the component (``gyro_bias[x]``) and the
+        field unit the values are in.
     ids : sequence of int
-        The results, oldest first.
+        The ids of the results, oldest first.
     months : array_like
         Their records' dates, months after the first.
     values, sigma : array_like

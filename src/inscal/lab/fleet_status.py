@@ -16,7 +16,7 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its results read, nothing written).
     serial : str
         The unit.
     method : str, optional
@@ -106,7 +106,7 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its results read, nothing written).
     k : float
         The flag threshold (``|z| > k``).
     flagged_only : bool

@@ -57,7 +57,7 @@ def get_unit(db: Database, serial: str) -> Unit | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The serial.
 
@@ -87,7 +87,7 @@ def find_calibration(db: Database, record_sha256: str, options: dict, serial: st
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     record_sha256 : str
         The record's hash (:func:`inscal.io.file_hash`).
     options : dict
@@ -124,7 +124,7 @@ def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | 
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
     param_file_sha256 : str
@@ -221,7 +221,7 @@ def get_calibration(db: Database, result_id: int) -> Calibration:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     result_id : int
         The result.
 
@@ -260,7 +260,7 @@ def current_calibration(db: Database, serial: str) -> Calibration | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
 
@@ -296,7 +296,7 @@ def calibrations(db: Database, serial: str, method: str | None = None, supersede
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
     method : str, optional
@@ -363,7 +363,7 @@ def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
 
     Returns
     -------
@@ -395,7 +395,7 @@ def table_counts(db: Database) -> dict[str, int]:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
 
     Returns
     -------
@@ -423,9 +423,9 @@ def get_budget(db: Database, result_id: int) -> dict | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     result_id : int
-        The result.
+        The result whose budget is wanted.
 
     Returns
     -------

@@ -88,7 +88,7 @@ def text_hash(text: str) -> str:
     Returns
     -------
     str
-        The hash.
+        ``"sha256:"`` and the 64 hex digits of the digest.
 
     Examples
     --------
@@ -169,7 +169,7 @@ def options_hash(options: dict) -> str:
     Returns
     -------
     str
-        The hash.
+        The :func:`text_hash` of their canonical JSON.
 
     Examples
     --------
@@ -177,8 +177,7 @@ def options_hash(options: dict) -> str:
     >>> lab.options_hash({"a": 1, "b": 2.0}) == lab.options_hash({"b": 2.0, "a": 1})
     True
     """
-    text = json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return text_hash(json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False))
 
 
 def session_from_record(path, *, record_sha256: str | None = None, date=None, station: str | None = None,

@@ -102,7 +102,7 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The serial (1 to 200 characters).
     model : str, optional
@@ -173,7 +173,7 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The unit (registered with :func:`add_unit`).
     param_text : str
@@ -243,7 +243,7 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The unit.
     param_text : str
@@ -403,7 +403,7 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The unit (registered with :func:`add_unit`).
     result : CalibrationResult
@@ -477,7 +477,7 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The unit.
     result_id : int

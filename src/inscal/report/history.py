@@ -32,13 +32,11 @@ def history_figure(h: History):
     Examples
     --------
     >>> import matplotlib.pyplot as plt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.report.history import history_figure
-    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
-    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
-    >>> h = lab.History("IMU-1", "six-position", 3.0, c.ids, (), (c,))
-    >>> fig = history_figure(h)
+    >>> db, ids = lab.example_history("calib.sqlite", (0.010, 0.020, 0.030))  # three six-position results
+    >>> fig = history_figure(lab.unit_history(db, "IMU-1"))
+    >>> db.close()
     >>> fig.axes[0].get_title().startswith("gyro_bias[x]")
     True
     >>> plt.close(fig)

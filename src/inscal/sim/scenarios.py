@@ -570,10 +570,8 @@ def scenario_record(name: str, rng: np.random.Generator | None, duration_s: floa
         A built-in name (:data:`BUILTIN`) or a scenario TOML file, as for :func:`build`.
     rng : numpy.random.Generator or None
         The generator of the noise (None: no noise drawn; a scenario with noise needs one).
-    duration_s : float, optional
-        The duration [s] of the scenarios that take one (:data:`DURATION_SCENARIOS`).
-    rate_hz : float, optional
-        Another sample rate [Hz].
+    duration_s, rate_hz : float, optional
+        The duration [s] and another sample rate [Hz], as for :func:`build`.
 
     Returns
     -------
