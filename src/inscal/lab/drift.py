@@ -108,12 +108,12 @@ class ComponentDrift:
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
-    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
-    >>> round(c.rate, 6), round(c.change, 6), c.flags
-    (0.001667, 0.02, ('step', 'drift'))
+    >>> db, ids = lab.example_history("calib.sqlite", (0.010, 0.020, 0.030))  # a month between results
+    >>> c = lab.unit_history(db, "IMU-1").components[0]
+    >>> c.label, c.n, round(c.rate, 4), c.flags  # deg/h a month
+    ('gyro_bias[x]', 3, 0.0101, ('step', 'drift'))
+    >>> db.close()
     """
 
     name: str

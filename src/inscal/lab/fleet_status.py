@@ -115,7 +115,7 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
     Returns
     -------
     list of FleetEntry
-        The units.
+        One entry a unit: its number of results, its current calibration and that method's history.
 
     Examples
     --------

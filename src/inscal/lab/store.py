@@ -264,9 +264,9 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     >>> import datetime as dt
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
     >>> res = CalibrationResult.from_field({"gyro_bias": [0.012, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its January result
     >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(res), mar)
     >>> staged.value["current"]
     True

@@ -27,7 +27,7 @@ def history_figure(h: History):
     Returns
     -------
     matplotlib.figure.Figure
-        The figure (the caller saves and closes it).
+        One panel a component, in rows of :data:`COLUMNS` (the caller saves and closes it).
 
     Examples
     --------
