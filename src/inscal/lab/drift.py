@@ -306,10 +306,8 @@ def history(calibrations: list[Calibration], serial: str, method: str, k: float 
     ----------
     calibrations : list of Calibration
         One unit's calibrations of one method, oldest first.
-    serial : str
-        The unit.
-    method : str
-        The method.
+    serial, method : str
+        The unit and the method, as the history names them.
     k : float
         The flag threshold (``|z| > k``).
 

@@ -407,7 +407,7 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     serial : str
         The unit (registered with :func:`add_unit`).
     result : CalibrationResult
-        The calibration.
+        The calibration, written as its parameter file's text and covariance.
     session : SessionInfo
         Its record.
     data_file : str, optional
