@@ -126,7 +126,8 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     >>> from inscal.calibrate import joint, window_means
     >>> from inscal.sim.scenarios import scenario_record
     >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # with its truth
-    >>> res = joint(window_means(rec))
+    >>> ws = window_means(rec)
+    >>> res = joint(ws)
     >>> true = rec.truth.gimbal.nonorthogonality
     >>> z = (res.gimbal.nonorthogonality - true) / res.sigma["gimbal_nonorthogonality"]
     >>> bool(abs(z) < 3)
