@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from inscal.lab.drift import History
-from inscal.report.figures import new_figure, save_figure
+from inscal.report.figures import hide_unused, new_figure, save_figure
 
 #: panels per row of the figure
 COLUMNS = 3
@@ -66,8 +66,7 @@ def history_figure(h: History):
         col = [ax for i, ax in enumerate(axes[:, j]) if i * COLUMNS + j < len(comps)] or [axes[0, j]]
         col[-1].xaxis.set_tick_params(labelbottom=True)
         col[-1].set_xlabel(f"months since {start}", fontsize=7)
-    for ax in axes.ravel()[len(comps):]:
-        ax.set_visible(False)
+    hide_unused(axes, len(comps))
     fig.suptitle(f"{h.serial} ({h.method}): {len(h.ids)} calibrations; 1 sigma bars, weighted least-squares drift "
                  f"(1 month = 365.25/12 days); flags at k = {h.k:g}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.98))
