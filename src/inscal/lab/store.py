@@ -218,8 +218,8 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     >>> import datetime as dt
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
     >>> jul = lab.SessionInfo(record_sha256="sha256:" + "3" * 64, date=dt.datetime(2025, 7, 1))
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its January result
     >>> res = CalibrationResult.from_field({"gyro_bias": [0.011, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> text = lab.param_file_text(res, data_hash=jul.record_sha256)
     >>> rid = lab.record_calibration(db, "IMU-1", text, jul, supersedes=first)
@@ -245,7 +245,7 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     db : Database
         The open database (written in one transaction).
     serial : str
-        The unit.
+        The unit, as for :func:`record_calibration`.
     param_text : str
         The parameter file exactly as written.
     session : SessionInfo
@@ -405,7 +405,7 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     db : Database
         The open database (written in one transaction).
     serial : str
-        The unit (registered with :func:`add_unit`).
+        The unit's serial, registered with :func:`add_unit`.
     result : CalibrationResult
         The calibration, written as its parameter file's text and covariance.
     session : SessionInfo
@@ -479,7 +479,7 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
     db : Database
         The open database (written in one transaction).
     serial : str
-        The unit.
+        The unit whose current calibration it becomes.
     result_id : int
         One of its results.
 
