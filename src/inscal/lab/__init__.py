@@ -17,6 +17,7 @@ Public API (what ``inscal db``, ``inscal calibrate --db`` and batch calibrations
     lab.current_calibration(db, "FOG-0042")
     h = lab.unit_history(db, "FOG-0042", k=3)   # repeatability, drift rate +- sigma, flags
     lab.fleet(db, flagged_only=True)
+    db, ids = lab.example_history("try.sqlite")   # a small database to try these on (one unit, two results)
 
 Values are stored in the field units of :data:`inscal.core.error_model.PARAMETERS` (those of the
 parameter file); see :mod:`inscal.lab.schema` for the tables, :mod:`inscal.lab.drift` for the
