@@ -122,10 +122,10 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
 
     Examples
     --------
-    >>> import numpy as np
+    >>> from numpy.random import default_rng
     >>> from inscal.calibrate import joint, window_means
     >>> from inscal.sim.scenarios import scenario_record
-    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # with its truth
+    >>> rec = scenario_record("n25", default_rng(0), rate_hz=10.0)  # with its truth
     >>> ws = window_means(rec)
     >>> res = joint(ws)
     >>> true = rec.truth.gimbal.nonorthogonality
