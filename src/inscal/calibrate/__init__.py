@@ -132,16 +132,12 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import calibrate, window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> res = calibrate(ws, "joint")
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # N25 path, errors, noise
+    >>> res = calibrate(window_means(rec), "joint")
     >>> res.method, len(res.estimated)
     ('joint', 8)
-    >>> z = (res.imu.accel_bias - sc.imu.accel_bias) / res.sigma["accel_bias"]
+    >>> z = (res.imu.accel_bias - rec.truth.imu.accel_bias) / res.sigma["accel_bias"]
     >>> bool(np.all(np.abs(z) < 3))  # within 3 sigma of the truth
     True
     """

@@ -214,7 +214,7 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     Returns
     -------
     CalibrationResult
-        The IMU errors (SI) and their 1 sigma.
+        The IMU errors that the faces and the turns determine (SI), with their 1 sigma.
 
     Raises
     ------
@@ -224,14 +224,11 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
+    >>> from inscal.sim.scenarios import scenario_record
     >>> from inscal.calibrate import ferraris
-    >>> sc = build("ferraris-mems")
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> res = ferraris(Record(data.time, data.dtheta, data.dvel, None, sc.rate_hz, sc.site))
-    >>> z = (res.imu.gyro_bias - sc.imu.gyro_bias) / res.sigma["gyro_bias"]
+    >>> rec = scenario_record("ferraris-mems", np.random.default_rng(0))  # with its truth
+    >>> res = ferraris(rec)
+    >>> z = (res.imu.gyro_bias - rec.truth.imu.gyro_bias) / res.sigma["gyro_bias"]
     >>> bool(np.all(np.abs(z) < 3))
     True
     """

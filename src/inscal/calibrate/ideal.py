@@ -19,15 +19,7 @@ from inscal.calibrate.fit import (
 )
 from inscal.calibrate.joint import joint
 from inscal.calibrate.positions import predicted_scheme_errors, rate_test_groups
-from inscal.calibrate.result import (
-    IMU_LINEAR,
-    CalibrationResult,
-    errors_from_values,
-    flatten,
-    make_result,
-    nparams,
-    unflatten,
-)
+from inscal.calibrate.result import IMU_LINEAR, CalibrationResult, errors_from_values, flatten, make_result, nparams, unflatten
 from inscal.calibrate.window_model import predict
 from inscal.calibrate.windows import CalibrationError, WindowSet
 from inscal.core.error_model import GimbalErrors

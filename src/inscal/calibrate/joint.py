@@ -112,7 +112,8 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The IMU and gimbal errors of the joint least squares (SI), their 1 sigma and the parameters
+        estimated; the unobservable directions it held are in ``diagnostics`` and ``notes``.
 
     Raises
     ------
@@ -121,17 +122,14 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import joint
+    >>> from numpy.random import default_rng
+    >>> from inscal.calibrate import joint, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", default_rng(0), rate_hz=10.0)  # with its truth
+    >>> ws = window_means(rec)
     >>> res = joint(ws)
-    >>> z = (res.gimbal.nonorthogonality - sc.gimbal.nonorthogonality) / res.sigma["gimbal_nonorthogonality"]
+    >>> true = rec.truth.gimbal.nonorthogonality
+    >>> z = (res.gimbal.nonorthogonality - true) / res.sigma["gimbal_nonorthogonality"]
     >>> bool(abs(z) < 3)
     True
     """

@@ -284,13 +284,10 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
     A simulated hand-held session of a MEMS IMU (the fit takes about 2 s: not run in the tests):
 
     >>> import numpy as np
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
+    >>> from inscal.sim.scenarios import scenario_record
     >>> from inscal.calibrate import multi_position
-    >>> sc = build("handheld-mems")
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> res = multi_position(Record(data.time, data.dtheta, data.dvel, None, sc.rate_hz, sc.site))  # doctest: +SKIP
+    >>> rec = scenario_record("handheld-mems", np.random.default_rng(0))
+    >>> res = multi_position(rec)  # doctest: +SKIP
     >>> np.round(np.degrees(res.imu.gyro_bias) * 3600.0)  # deg/h; the truth: 400, -700, 1000  # doctest: +SKIP
     array([ 402., -699.,  994.])
     """

@@ -260,7 +260,8 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The N25 estimates (SI) of the IMU errors and the gimbal nonorthogonality, their 1 sigma and
+        the parameters estimated.
 
     Raises
     ------
@@ -270,17 +271,12 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import n25
+    >>> from inscal.calibrate import n25, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # with its truth
+    >>> res = n25(window_means(rec), uncertainty=False)  # no sigma: faster
     >>> from inscal.core.units import ARCSEC
-    >>> res = n25(ws, uncertainty=False)  # no sigma: faster
-    >>> round(sc.gimbal.nonorthogonality / ARCSEC, 1), round(res.gimbal.nonorthogonality / ARCSEC, 1)
+    >>> round(rec.truth.gimbal.nonorthogonality / ARCSEC, 1), round(res.gimbal.nonorthogonality / ARCSEC, 1)
     (20.0, 20.0)
     """
     idx = symmetric_windows(ws)

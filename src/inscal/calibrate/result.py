@@ -87,16 +87,11 @@ class CalibrationResult:
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import calibrate
-    >>> res = calibrate(ws, "joint")
-    >>> bias = res.to_field((sc.imu, sc.gimbal))["accel_bias"]  # field units, the error against the truth
+    >>> from inscal.calibrate import calibrate, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)
+    >>> res = calibrate(window_means(rec), "joint")
+    >>> bias = res.to_field((rec.truth.imu, rec.truth.gimbal))["accel_bias"]  # field units, the error against the truth
     >>> bias["unit"], all(abs(e) < 3 * s for e, s in zip(bias["error"], bias["sigma"]))
     ('ug', True)
     """
@@ -163,6 +158,52 @@ class CalibrationResult:
     def _truth(self, truth):
         pair = _truth_pair(truth)
         return self.truth_transform(pair) if self.truth_transform is not None else pair
+
+    @classmethod
+    def from_field(cls, values: dict, sigma: dict, method: str = "manual") -> CalibrationResult:
+        """A result from values and 1 sigma in field units (the ``value`` and ``sigma`` of
+        :meth:`to_field`): a calibration entered by hand or taken from another tool.
+
+        Parameters
+        ----------
+        values : dict
+            ``{parameter name: value}`` in the field unit of :data:`inscal.core.error_model.PARAMETERS`
+            (deg/h, ppm, arcsec, ...); the names estimated, in this order.
+        sigma : dict
+            ``{parameter name: 1 sigma}`` in the same units, for every name of ``values``.
+        method : str
+            The method's name.
+
+        Returns
+        -------
+        CalibrationResult
+            The estimates (SI) and their 1 sigma; the parameters not named are zero.
+
+        Raises
+        ------
+        ValueError
+            An unknown parameter name, a name without its sigma, or a value of the wrong size.
+
+        Examples
+        --------
+        >>> from inscal.calibrate import CalibrationResult
+        >>> res = CalibrationResult.from_field({"gyro_bias": [0.01, 0.0, 0.0]}, {"gyro_bias": [0.001] * 3})
+        >>> res.estimated, res.to_field()["gyro_bias"]["unit"], round(res.to_field()["gyro_bias"]["value"][0], 6)
+        (('gyro_bias',), 'deg/h', 0.01)
+        """
+        si, sig = {}, {}
+        for name, v in values.items():
+            if name not in PARAMETERS or name not in sigma:
+                raise ValueError(f"{name!r}: " + ("no sigma given" if name in PARAMETERS else "unknown parameter"))
+            p = PARAMETERS[name]
+            try:
+                x = np.asarray(units.to_si(np.asarray(v, dtype=float), p.unit, p.kind)).reshape(p.shape)
+                sig[name] = np.asarray(units.to_si(np.asarray(sigma[name], dtype=float), p.unit, p.kind)).reshape(p.shape)
+            except ValueError as exc:
+                raise ValueError(f"{name!r}: {exc}") from None
+            si[name] = x if p.shape else float(x)
+        imu, gimbal = errors_from_values(si)
+        return cls(method, imu, gimbal, sig, tuple(values))
 
     def to_field(self, truth=None) -> dict:
         """``{NAME: {"value": [...], "sigma": [...], "unit": ..., "error": [...]}}`` in field

@@ -86,7 +86,8 @@ def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The accelerometer and gyro estimates of the six positions and the rate tests (SI), with their
+        1 sigma (``uncertainty``) and the parameters estimated (no gimbal errors).
 
     Raises
     ------
@@ -96,14 +97,9 @@ def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import six_position
+    >>> from inscal.calibrate import six_position, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> ws = window_means(scenario_record("n25", np.random.default_rng(0), rate_hz=10.0))
     >>> res = six_position(ws, uncertainty=False)  # no sigma: faster
     >>> "gimbal_nonorthogonality" in res.estimated
     False

@@ -49,27 +49,22 @@ def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResul
     Parameters
     ----------
     ws : WindowSet
-        The windows of a turntable record (:func:`window_means`).
+        The twelve static positions and the rate tests of a turntable record (:func:`window_means`).
     uncertainty : bool
-        Propagate the windows' noise to the sigma.
+        Propagate the windows' noise to the sigma (False: faster, no sigma).
 
     Returns
     -------
     CalibrationResult
-        The estimates (SI), their 1 sigma and the parameters estimated.
+        The accelerometer and gyro estimates of the twelve positions and the rate tests (SI), their
+        1 sigma when ``uncertainty`` is set, and the parameters estimated (no gimbal errors).
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
-    >>> from inscal.calibrate import twelve_position
-    >>> res = twelve_position(ws, uncertainty=False)  # no sigma: faster
+    >>> from numpy.random import default_rng
+    >>> from inscal.calibrate import twelve_position, window_means
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> res = twelve_position(window_means(scenario_record("n25", default_rng(0), rate_hz=10.0)), uncertainty=False)
     >>> len(res.diagnostics["positions"])
     12
     """

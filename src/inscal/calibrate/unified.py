@@ -85,12 +85,8 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
 
     >>> import numpy as np
     >>> from inscal.calibrate import unified
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("s16", rate_hz=10.0)
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> rec = Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site)
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("s16", np.random.default_rng(0), rate_hz=10.0)
     >>> res = unified(rec, max_passes=1, filter_rate_hz=0.2)
     >>> res.method, "gimbal_nonorthogonality" in res.estimated, len(res.estimated) > 10
     ('unified', True, True)

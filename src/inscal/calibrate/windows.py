@@ -88,12 +88,8 @@ class Window:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> ws = window_means(scenario_record("n25", np.random.default_rng(0), rate_hz=10.0))
     >>> w = ws.static[0]
     >>> w.describe()
     'static (0.0, 0.0) deg, 1.5-98.5 s'
@@ -151,12 +147,9 @@ class WindowSet:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # N25 path, errors, noise
+    >>> ws = window_means(rec)
     >>> len(ws.windows), len(ws.static), len(ws.rate)
     (42, 21, 6)
     """
@@ -342,14 +335,10 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from inscal.calibrate import window_means
-    >>> from inscal.io import Record
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("n25", rate_hz=10.0)  # the N25 path, its IMU and gimbal errors, noise
-    >>> data = simulate(sc, np.random.default_rng(0))
-    >>> ws = window_means(Record(data.time, data.dtheta, data.dvel, data.gimbal, sc.rate_hz, sc.site))
+    >>> from numpy.random import default_rng
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.calibrate.windows import window_means
+    >>> ws = window_means(scenario_record("n25", default_rng(0), rate_hz=10.0))
     >>> ws.rate_hz, ws.windows[0].kind, ws.rate[0].axis
     (10.0, 'static', 'inner')
     """

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, print_json, short, warn,
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, print_json, record_errors, short, warn,
     write_figure)
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
@@ -51,7 +51,7 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
             raise CliError(f"--model: {exc}") from None
     else:
         model = "auto"
-    try:
+    with record_errors(data):
         win = io.record_window(data, start_s, stop_s)
         if win.n < 1000:
             span = f"between {start_s:g} s and {stop_s:g} s" if stop_s is not None else f"from {start_s:g} s to its end"
@@ -62,10 +62,6 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         from inscal.analysis.noise import identify as idf
 
         scan = idf.scan_window(data, win)
-    except io.DataFileError as exc:
-        raise CliError(str(exc)) from None
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
     t0 = scan.t_first - 1 / win.rate_hz
     warnings = []
     w = scan.motion.warning(t0, idf.CHANNELS)

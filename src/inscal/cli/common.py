@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import os
@@ -118,6 +119,21 @@ def read_record(path: Path):
         return io.load_record(path, short)
     except io.DataFileError as exc:
         raise CliError(str(exc)) from None
+
+
+@contextlib.contextmanager
+def record_errors(data: Path, *also: type[Exception]):
+    """Reading the record ``data`` inside: its failures leave as one-line :class:`CliError` s, a
+    :class:`~inscal.io.DataFileError` (or one of ``also``) by its message, a ``KeyError``, ``TypeError`` or
+    ``ValueError`` of a malformed file as "not a valid inscal record"."""
+    from inscal import io
+
+    try:
+        yield
+    except (io.DataFileError, *also) as exc:
+        raise CliError(str(exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
 
 
 #: echoed user strings longer than this are cut (a 100,000-character name is not echoed in full)

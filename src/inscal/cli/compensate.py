@@ -28,7 +28,7 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, short,
+from inscal.cli.common import (CliError, call, check_not_input, check_output, load_checked_params, print_json, record_errors, short,
     thermal_compensation, warn)
 from inscal.cli.options import JsonOption
 
@@ -46,12 +46,8 @@ def run_compensate(data: Path, params: Path, out: Path, force: bool = False, war
     check_output(out, force)
     check_not_input(out, data, params)
     imu, gimbal, meta = load_checked_params(params)
-    try:
+    with record_errors(data, ParamFileError):
         info = io.record_info(data)
-    except (ParamFileError, io.DataFileError) as exc:
-        raise CliError(str(exc)) from None
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
     if info.n_samples < 2:
         raise CliError(f"{short(data)}: {info.n_samples} sample(s); nothing to compensate")
     from inscal.io.paramfile import provenance_mismatch

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from inscal.cli.common import CliError, LazyModule, call, check_not_input, check_output, print_json, short, write_figure
+from inscal.cli.common import (CliError, LazyModule, call, check_not_input, check_output, print_json, record_errors, short,
+                               write_figure)
 from inscal.cli.limits import check_memory
 from inscal.cli.options import ForceOption, JsonOption, SeedOption
 
@@ -90,7 +91,7 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
         sels, chan_names, kinds, rate_hz = [sel], [name], [kind], 1.0 / curve.dt
         res = {"curve_file": str(from_curve), "quantity": quantity}
     else:
-        try:
+        with record_errors(data):
             win = io.record_window(data, start_s, stop_s)
             if win.n < need:
                 raise CliError(f"{short(data)}: the window has {win.n} samples ({win.n / win.rate_hz:.4g} s); model "
@@ -99,10 +100,6 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
             check_memory(win.n * BYTES_PER_SAMPLE, f"the window of {short(data)} ({win.n} samples)",
                          "take a shorter window with --start/--stop")
             scan = idf.scan_window(data, win)
-        except io.DataFileError as exc:
-            raise CliError(str(exc)) from None
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CliError(f"{short(data)}: not a valid inscal record ({type(exc).__name__}: {short(exc)})") from None
         t0 = scan.t_first - 1 / win.rate_hz
         idx = [idf.CHANNELS.index(c) for c in names]
         probs = scan.checks.problems(idf.CHANNELS, t0, 1 / win.rate_hz)

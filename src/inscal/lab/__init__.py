@@ -17,6 +17,7 @@ Public API (what ``inscal db``, ``inscal calibrate --db`` and batch calibrations
     lab.current_calibration(db, "FOG-0042")
     h = lab.unit_history(db, "FOG-0042", k=3)   # repeatability, drift rate +- sigma, flags
     lab.fleet(db, flagged_only=True)
+    db, ids = lab.example_history("try.sqlite")   # a small database to try these on (one unit, two results)
 
 Values are stored in the field units of :data:`inscal.core.error_model.PARAMETERS` (those of the
 parameter file); see :mod:`inscal.lab.schema` for the tables, :mod:`inscal.lab.drift` for the
@@ -97,6 +98,7 @@ EXPORTS = {
     "published": "inscal.lab.database",
     "recover_publications": "inscal.lab.database",
     "table_counts": "inscal.lab.queries",
+    "example_history": "inscal.lab.example",
 }
 __all__ = [
     "CLOCK_SKEW",
@@ -148,6 +150,7 @@ __all__ = [
     "revision_number",
     "revision_of",
     "session_from_record",
+    "example_history",
     "set_current",
     "stage_calibration",
     "table_counts",
@@ -211,6 +214,7 @@ if TYPE_CHECKING:  # the names for type checkers and IDEs; at run time they load
         session_from_record,
         text_hash,
     )
+    from inscal.lab.example import example_history
     from inscal.lab.queries import (
         calibrations,
         current_calibration,

@@ -288,7 +288,7 @@ def recover_publications(db: Database, strict: bool = False) -> journal.Recovery
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its journal of the files to publish).
     strict : bool
         Refuse (:class:`DatabaseError`) a database another writer holds (``inscal db recover``).
 
@@ -325,7 +325,7 @@ def published(db: Database, ids: list[int]) -> None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its journal of the files to publish).
     ids : list of int
         The journal entries.
 
@@ -349,7 +349,7 @@ def pending_publications(db: Database) -> int:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its journal of the files to publish).
 
     Returns
     -------

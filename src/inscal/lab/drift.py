@@ -108,12 +108,12 @@ class ComponentDrift:
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
-    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
-    >>> round(c.rate, 6), round(c.change, 6), c.flags
-    (0.001667, 0.02, ('step', 'drift'))
+    >>> db, ids = lab.example_history("calib.sqlite", (0.010, 0.020, 0.030))  # a month between results
+    >>> c = lab.unit_history(db, "IMU-1").components[0]
+    >>> c.label, c.n, round(c.rate, 4), c.flags  # deg/h a month
+    ('gyro_bias[x]', 3, 0.0101, ('step', 'drift'))
+    >>> db.close()
     """
 
     name: str
@@ -167,9 +167,10 @@ def component_drift(name: str, label: str, unit: str, ids, months, values, sigma
     Parameters
     ----------
     name, label, unit : str
-        The parameter, the component's label, its field unit.
+        The parameter's name (``gyro_bias``), the label of the component (``gyro_bias[x]``) and the
+        field unit the values are in.
     ids : sequence of int
-        The results, oldest first.
+        The ids of the results, oldest first.
     months : array_like
         Their records' dates, months after the first.
     values, sigma : array_like
@@ -255,22 +256,8 @@ class History:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.unit_history(db, "IMU-1")
     >>> h.ids == (first, second), len(h.components), h.flagged
     (True, 3, [])
@@ -319,10 +306,8 @@ def history(calibrations: list[Calibration], serial: str, method: str, k: float 
     ----------
     calibrations : list of Calibration
         One unit's calibrations of one method, oldest first.
-    serial : str
-        The unit.
-    method : str
-        The method.
+    serial, method : str
+        The unit and the method, as the history names them.
     k : float
         The flag threshold (``|z| > k``).
 
@@ -338,22 +323,8 @@ def history(calibrations: list[Calibration], serial: str, method: str, k: float 
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.history(lab.calibrations(db, "IMU-1"), "IMU-1", "six-position")
     >>> h.components[0].label, round(h.components[0].step, 4)
     ('gyro_bias[x]', 0.002)

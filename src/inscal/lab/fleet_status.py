@@ -16,7 +16,7 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its results read, nothing written).
     serial : str
         The unit.
     method : str, optional
@@ -36,22 +36,8 @@ def unit_history(db: Database, serial: str, method: str | None = None, k: float 
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> h = lab.unit_history(db, "IMU-1")
     >>> h.method, [d.month for d in h.dates]
     ('six-position', [1, 3])
@@ -88,20 +74,8 @@ class FleetEntry:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> entry, = lab.fleet(db)
     >>> row = entry.to_json()
     >>> row["serial"], row["results"], row["current"]["method"], row["flagged"]
@@ -132,7 +106,7 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its results read, nothing written).
     k : float
         The flag threshold (``|z| > k``).
     flagged_only : bool
@@ -141,26 +115,12 @@ def fleet(db: Database, k: float = DEFAULT_K, flagged_only: bool = False) -> lis
     Returns
     -------
     list of FleetEntry
-        The units.
+        One entry a unit: its number of results, its current calibration and that method's history.
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> [(e.unit.serial, e.results) for e in lab.fleet(db)], lab.fleet(db, flagged_only=True)
     ([('IMU-1', 2)], [])
 

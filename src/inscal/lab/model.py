@@ -226,22 +226,10 @@ class Session(SessionInfo):
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its record: "sha256:111..."
     >>> session = lab.get_calibration(db, first).session
-    >>> session.id, session.record_sha256 == jan.record_sha256
+    >>> session.id, session.record_sha256 == "sha256:" + "1" * 64
     (1, True)
 
     >>> db.close()
@@ -356,20 +344,8 @@ class Calibration:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> cal = lab.get_calibration(db, first)
     >>> cal.date, cal.current, cal.to_json()["parameters"]["gyro_bias"]["value"]
     (datetime.datetime(2025, 1, 31, 0, 0), True, [0.01, 0.0, 0.0])

@@ -101,7 +101,7 @@ def revision_of(db: Database) -> str | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (its schema revision read).
 
     Returns
     -------

@@ -57,7 +57,7 @@ def get_unit(db: Database, serial: str) -> Unit | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The serial.
 
@@ -87,7 +87,7 @@ def find_calibration(db: Database, record_sha256: str, options: dict, serial: st
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     record_sha256 : str
         The record's hash (:func:`inscal.io.file_hash`).
     options : dict
@@ -102,21 +102,9 @@ def find_calibration(db: Database, record_sha256: str, options: dict, serial: st
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> lab.find_calibration(db, jan.record_sha256, {"method": "six-position"}) == first
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its record: "sha256:111..."
+    >>> lab.find_calibration(db, "sha256:" + "1" * 64, {"method": "six-position"}) == first
     True
 
     >>> db.close()
@@ -136,7 +124,7 @@ def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | 
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
     param_file_sha256 : str
@@ -150,19 +138,14 @@ def find_param_file(db: Database, serial: str, param_file_sha256: str) -> int | 
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.010, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> text = lab.param_file_text(res)  # a parameter file, as ``inscal calibrate`` writes it
     >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
+    >>> _ = lab.add_unit(db, "IMU-1")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> first = lab.record_calibration(db, "IMU-1", text, jan)
     >>> lab.find_param_file(db, "IMU-1", lab.text_hash(text)) == first
     True
 
@@ -238,7 +221,7 @@ def get_calibration(db: Database, result_id: int) -> Calibration:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     result_id : int
         The result.
 
@@ -254,20 +237,8 @@ def get_calibration(db: Database, result_id: int) -> Calibration:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> cal = lab.get_calibration(db, first)
     >>> cal.serial, cal.method, cal.parameters["gyro_bias"].unit
     ('IMU-1', 'six-position', 'deg/h')
@@ -289,7 +260,7 @@ def current_calibration(db: Database, serial: str) -> Calibration | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
 
@@ -305,22 +276,8 @@ def current_calibration(db: Database, serial: str) -> Calibration | None:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> lab.current_calibration(db, "IMU-1").id == second  # the newest record's
     True
 
@@ -339,7 +296,7 @@ def calibrations(db: Database, serial: str, method: str | None = None, supersede
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     serial : str
         The unit.
     method : str, optional
@@ -354,22 +311,8 @@ def calibrations(db: Database, serial: str, method: str | None = None, supersede
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> [c.parameters["gyro_bias"].value[0].item() for c in lab.calibrations(db, "IMU-1")]
     [0.01, 0.012]
 
@@ -420,7 +363,7 @@ def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
 
     Returns
     -------
@@ -429,20 +372,8 @@ def list_units(db: Database) -> list[tuple[Unit, int, int | None]]:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> [(u.serial, n, cur == first) for u, n, cur in lab.list_units(db)]
     [('IMU-1', 1, True)]
 
@@ -464,7 +395,7 @@ def table_counts(db: Database) -> dict[str, int]:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
 
     Returns
     -------
@@ -473,20 +404,8 @@ def table_counts(db: Database) -> dict[str, int]:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> counts = lab.table_counts(db)
     >>> counts["units"], counts["results"], counts["parameters"]
     (1, 1, 3)
@@ -504,9 +423,9 @@ def get_budget(db: Database, result_id: int) -> dict | None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (read only).
     result_id : int
-        The result.
+        The result whose budget is wanted.
 
     Returns
     -------
@@ -521,20 +440,8 @@ def get_budget(db: Database, result_id: int) -> dict | None:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one unit, one result
     >>> lab.get_budget(db, first) is None  # recorded without a station
     True
 

@@ -64,11 +64,9 @@ def param_file_text(result, data_file: str | None = None, data_hash: str | None 
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.0] * 3}, {"gyro_bias": [0.0002] * 3}, "six-position")
     >>> text = lab.param_file_text(res)
     >>> text.splitlines()[3], "[parameters.gyro_bias]" in text
     ('method = "six-position"', True)
@@ -91,7 +89,7 @@ def text_hash(text: str) -> str:
     Returns
     -------
     str
-        The hash.
+        ``"sha256:"`` and the 64 hex digits of the digest.
 
     Examples
     --------
@@ -172,7 +170,7 @@ def options_hash(options: dict) -> str:
     Returns
     -------
     str
-        The hash.
+        The :func:`text_hash` of their canonical JSON.
 
     Examples
     --------
@@ -180,8 +178,7 @@ def options_hash(options: dict) -> str:
     >>> lab.options_hash({"a": 1, "b": 2.0}) == lab.options_hash({"b": 2.0, "a": 1})
     True
     """
-    text = json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return text_hash(json.dumps(to_jsonable(options), sort_keys=True, separators=(",", ":"), allow_nan=False))
 
 
 def session_from_record(path, *, record_sha256: str | None = None, date=None, station: str | None = None,
@@ -266,11 +263,9 @@ def covariance_of(result) -> dict | None:
 
     Examples
     --------
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> res = CalibrationResult("six-position", ImuErrors(), GimbalErrors(), {"gyro_bias": np.full(3, 1e-9)}, ("gyro_bias",))
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.0] * 3}, {"gyro_bias": [0.0002] * 3}, "six-position")
     >>> lab.covariance_of(res) is None  # 1 sigma only
     True
     """

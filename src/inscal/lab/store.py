@@ -62,21 +62,13 @@ class AlreadyRecorded(DatabaseError):
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> try:
-    ...     lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # one result, of the record "sha256:111..."
+    >>> again = CalibrationResult.from_field({"gyro_bias": [0.010, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> try:  # the same record, the same options
+    ...     lab.record_result(db, "IMU-1", again, lab.SessionInfo(record_sha256="sha256:" + "1" * 64,
+    ...                                                            date=dt.datetime(2025, 1, 31)))
     ... except lab.AlreadyRecorded as exc:
     ...     print(exc.result_id == first)
     True
@@ -110,7 +102,7 @@ def add_unit(db: Database, serial: str, model: str | None = None, notes: str | N
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The serial (1 to 200 characters).
     model : str, optional
@@ -181,7 +173,7 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
         The unit (registered with :func:`add_unit`).
     param_text : str
@@ -224,21 +216,12 @@ def record_calibration(db: Database, serial: str, param_text: str, session: Sess
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
     >>> jul = lab.SessionInfo(record_sha256="sha256:" + "3" * 64, date=dt.datetime(2025, 7, 1))
-    >>> text = lab.param_file_text(result(0.011), data_hash=jul.record_sha256)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its January result
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.011, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
+    >>> text = lab.param_file_text(res, data_hash=jul.record_sha256)
     >>> rid = lab.record_calibration(db, "IMU-1", text, jul, supersedes=first)
     >>> lab.get_calibration(db, first).superseded_by == (rid,)
     True
@@ -260,9 +243,9 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
-        The unit.
+        The unit, as for :func:`record_calibration`.
     param_text : str
         The parameter file exactly as written.
     session : SessionInfo
@@ -279,21 +262,12 @@ def stage_calibration(db: Database, serial: str, param_text: str, session: Sessi
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
+    >>> res = CalibrationResult.from_field({"gyro_bias": [0.012, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(result(0.012)), mar)
+    >>> db, (first,) = lab.example_history("calib.sqlite", (0.010,))  # its January result
+    >>> staged = lab.stage_calibration(db, "IMU-1", lab.param_file_text(res), mar)
     >>> staged.value["current"]
     True
     >>> staged.close()  # rolled back
@@ -429,11 +403,11 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
-        The unit (registered with :func:`add_unit`).
+        The unit's serial, registered with :func:`add_unit`.
     result : CalibrationResult
-        The calibration.
+        The calibration, written as its parameter file's text and covariance.
     session : SessionInfo
         Its record.
     data_file : str, optional
@@ -455,15 +429,10 @@ def record_result(db: Database, serial: str, result, session: SessionInfo, *, da
     Examples
     --------
     >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
+    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias [deg/h], 1 sigma 0.001 deg/h
+    ...     return CalibrationResult.from_field({"gyro_bias": [bias_deg_h, 0, 0]}, {"gyro_bias": [0.001] * 3}, "six-position")
     >>> db, created = lab.init_database("calib.sqlite")
     >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
     >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
@@ -508,9 +477,9 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
     Parameters
     ----------
     db : Database
-        The open database.
+        The open database (written in one transaction).
     serial : str
-        The unit.
+        The unit whose current calibration it becomes.
     result_id : int
         One of its results.
 
@@ -521,22 +490,8 @@ def set_current(db: Database, serial: str, result_id: int) -> None:
 
     Examples
     --------
-    >>> import datetime as dt
-    >>> import numpy as np
     >>> from inscal import lab
-    >>> from inscal.calibrate import CalibrationResult
-    >>> from inscal.core.error_model import GimbalErrors, ImuErrors
-    >>> from inscal.core.units import DEG, HOUR
-    >>> def result(bias_deg_h):  # a six-position result: the x gyro bias, 1 sigma 0.001 deg/h
-    ...     imu = ImuErrors(gyro_bias=np.array([bias_deg_h, 0.0, 0.0]) * DEG / HOUR)
-    ...     sigma = {"gyro_bias": np.full(3, 0.001 * DEG / HOUR)}
-    ...     return CalibrationResult("six-position", imu, GimbalErrors(), sigma, ("gyro_bias",))
-    >>> db, created = lab.init_database("calib.sqlite")
-    >>> unit, _ = lab.add_unit(db, "IMU-1", "nav-grade")
-    >>> jan = lab.SessionInfo(record_sha256="sha256:" + "1" * 64, date=dt.datetime(2025, 1, 31))
-    >>> first, text = lab.record_result(db, "IMU-1", result(0.010), jan)
-    >>> mar = lab.SessionInfo(record_sha256="sha256:" + "2" * 64, date=dt.datetime(2025, 3, 2))
-    >>> second, _ = lab.record_result(db, "IMU-1", result(0.012), mar)
+    >>> db, (first, second) = lab.example_history("calib.sqlite", (0.010, 0.012))  # one unit's two results
     >>> lab.set_current(db, "IMU-1", first)
     >>> lab.current_calibration(db, "IMU-1").id == first
     True

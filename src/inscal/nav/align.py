@@ -108,14 +108,12 @@ class AlignResult:
 
     Examples
     --------
-    >>> import numpy as np
+    >>> from numpy.random import default_rng
     >>> from inscal.nav import AlignConfig, SampleStream, align, chunks_of
-    >>> from inscal.sim.scenarios import build
-    >>> from inscal.sim.simulate import simulate
-    >>> sc = build("static", duration_s=30.0, rate_hz=10.0)
-    >>> stream = SampleStream(chunks_of(simulate(sc, np.random.default_rng(0))))
-    >>> res = align(stream, 0.1, sc.site.latitude, sc.site.longitude, sc.site.height,
-    ...             AlignConfig(coarse_time=10.0, fine_time=20.0))
+    >>> from inscal.sim.scenarios import scenario_record
+    >>> rec = scenario_record("static", default_rng(0), duration_s=30.0, rate_hz=10.0)
+    >>> lat, lon, h = rec.site.latitude, rec.site.longitude, rec.site.height
+    >>> res = align(SampleStream(chunks_of(rec)), 0.1, lat, lon, h, AlignConfig(coarse_time=10.0, fine_time=20.0))
     >>> res.k_end, res.time_end
     (300, 30.0)
     """

@@ -24,6 +24,19 @@ def new_figure():
     return plt
 
 
+def allan_panel(ax, unit: str, title: str) -> None:
+    """Label an Allan deviation panel (tau [s] against the deviation in ``unit``), with its grid and legend."""
+    ax.set(xlabel="tau [s]", ylabel=f"Allan deviation [{unit}]", title=title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6)
+
+
+def hide_unused(axes, used: int) -> None:
+    """Hide the panels of the grid ``axes`` after its first ``used``."""
+    for ax in axes.ravel()[used:]:
+        ax.set_visible(False)
+
+
 def save_figure(fig, path, overwrite: bool = False, laid_out: bool = False) -> None:
     """Write ``fig`` to ``path`` (the format by its suffix; atomic), cropped to what it draws, unless it is
     ``laid_out`` already (``tight_layout`` or fixed margins): the crop is a second full drawing."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from inscal.lab.drift import History
-from inscal.report.figures import new_figure, save_figure
+from inscal.report.figures import hide_unused, new_figure, save_figure
 
 #: panels per row of the figure
 COLUMNS = 3
@@ -27,18 +27,16 @@ def history_figure(h: History):
     Returns
     -------
     matplotlib.figure.Figure
-        The figure (the caller saves and closes it).
+        One panel a component, in rows of :data:`COLUMNS` (the caller saves and closes it).
 
     Examples
     --------
     >>> import matplotlib.pyplot as plt
-    >>> import numpy as np
     >>> from inscal import lab
     >>> from inscal.report.history import history_figure
-    >>> c = lab.component_drift("gyro_bias", "gyro_bias[x]", "deg/h", (1, 2, 3), np.array([0.0, 6.0, 12.0]),
-    ...                         np.array([0.010, 0.020, 0.030]), np.full(3, 0.001))
-    >>> h = lab.History("IMU-1", "six-position", 3.0, c.ids, (), (c,))
-    >>> fig = history_figure(h)
+    >>> db, ids = lab.example_history("calib.sqlite", (0.010, 0.020, 0.030))  # three six-position results
+    >>> fig = history_figure(lab.unit_history(db, "IMU-1"))
+    >>> db.close()
     >>> fig.axes[0].get_title().startswith("gyro_bias[x]")
     True
     >>> plt.close(fig)
@@ -68,8 +66,7 @@ def history_figure(h: History):
         col = [ax for i, ax in enumerate(axes[:, j]) if i * COLUMNS + j < len(comps)] or [axes[0, j]]
         col[-1].xaxis.set_tick_params(labelbottom=True)
         col[-1].set_xlabel(f"months since {start}", fontsize=7)
-    for ax in axes.ravel()[len(comps):]:
-        ax.set_visible(False)
+    hide_unused(axes, len(comps))
     fig.suptitle(f"{h.serial} ({h.method}): {len(h.ids)} calibrations; 1 sigma bars, weighted least-squares drift "
                  f"(1 month = 365.25/12 days); flags at k = {h.k:g}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.98))

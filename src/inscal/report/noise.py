@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from inscal.report.figures import new_figure, save_figure
+from inscal.report.figures import allan_panel, hide_unused, new_figure, save_figure
 
 
 def noise_plot(path, channels: list[dict], overwrite: bool = False) -> None:
@@ -27,11 +27,8 @@ def noise_plot(path, channels: list[dict], overwrite: bool = False) -> None:
             ax.loglog(tau, v, "--", lw=0.8, label=name)
         top = float(np.max(ad)) * 3
         ax.set_ylim(float(np.min(c["adev_lower_95"])) / 3, top)
-        ax.set(xlabel="tau [s]", ylabel=f"Allan deviation [{c['unit']}]", title=f"{ch['channel']} ({ch['kind']})")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
-    for ax in axes.ravel()[k:]:
-        ax.set_visible(False)
+        allan_panel(ax, c["unit"], f"{ch['channel']} ({ch['kind']})")
+    hide_unused(axes, k)
     fig.tight_layout()
     save_figure(fig, path, overwrite, laid_out=True)
     plt.close(fig)

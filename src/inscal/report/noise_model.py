@@ -18,7 +18,7 @@ from inscal.core import noise_models as nm
 from inscal.core import units
 from inscal.io.files import atomic_path
 from inscal.io.noisefile import intervals_of
-from inscal.report.figures import new_figure, png_base64
+from inscal.report.figures import allan_panel, hide_unused, new_figure, png_base64
 from inscal.report.html import display_unit, escape, fmt_num, html_table
 
 #: field unit of a channel's Allan deviation (a rate: the gyro's in deg/h, the accelerometer's in ug)
@@ -89,11 +89,8 @@ def model_figure(model: nm.NoiseModel, measured: dict | None = None):
         ax.loglog(tau, units.from_si(np.sqrt(ch.avar(m, dt)), unit), "r-", lw=1.5, label=f"model {ch.model}")
         for t in ch.terms:
             ax.loglog(tau, units.from_si(np.sqrt(np.maximum(t.avar(m, dt), 0.0)), unit), "--", lw=0.8, label=t.code)
-        ax.set(xlabel="tau [s]", ylabel=f"Allan deviation [{unit}]", title=f"{ch.name} ({ch.kind})")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
-    for ax in axes.ravel()[k:]:
-        ax.set_visible(False)
+        allan_panel(ax, unit, f"{ch.name} ({ch.kind})")
+    hide_unused(axes, k)
     fig.tight_layout()
     return fig
 

@@ -115,6 +115,19 @@ def file_bytes(p: FsPath) -> bytes:
     return b
 
 
+def text_lines(p: FsPath, what: str = "", binary_check: bool = False) -> list[str]:
+    """The lines of the text source ``p`` (UTF-8, a byte-order mark dropped) after :func:`file_bytes`;
+    ``what`` ends the message of a file that is not UTF-8 (``": a PSINS .imu log is text"``), and
+    ``binary_check`` refuses a NUL byte in its first 4 KiB as binary data."""
+    b = file_bytes(p)
+    if binary_check and b"\x00" in b[:4096]:
+        raise ImportFileError(f"{p}: not a text file (binary data)")
+    try:
+        return b.decode("utf-8-sig").splitlines()
+    except UnicodeDecodeError:
+        raise ImportFileError(f"{p}: not a text file (not UTF-8){what}") from None
+
+
 def rows7(a: np.ndarray, where: str, rates: bool, hint: str = "") -> Raw:
     """A (N, 7) PSINS array ``[gyro(3) accel(3) t]`` as a :class:`Raw`."""
     if a.shape[0] < 2:

@@ -11,7 +11,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from inscal.core import units
-from inscal.io.formats.base import Raw, ReadOptions, file_bytes
+from inscal.io.formats.base import Raw, ReadOptions, text_lines
 from inscal.io.mapping import MAX_RATE_HZ, MIN_RATE_HZ, ImportFileError
 
 
@@ -34,12 +34,7 @@ def read_psins_imu(path) -> Raw:
     ``t0 + k interval``, plus the running sum of the dither column (microseconds) when present.
     The header's site becomes the record's site unless one is given."""
     p = FsPath(path)
-    b = file_bytes(p)
-    try:
-        text = b.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file (not UTF-8): a PSINS .imu log is text") from None
-    lines = text.splitlines()
+    lines = text_lines(p, ": a PSINS .imu log is text")
     first = next((ln for ln in lines if ln.strip()), "")
     if not (first.lstrip().startswith("%") and "PSINS" in first and "SIMU" in first):
         raise ImportFileError(f"{p}: not a PSINS .imu log (its first line must be the '% PSINS-format SIMU' comment)")

@@ -11,7 +11,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from inscal.core import units
-from inscal.io.formats.base import RawTemperature, check_angles, file_bytes
+from inscal.io.formats.base import RawTemperature, check_angles, text_lines
 from inscal.io.formats.table import parse_table, split_fields
 from inscal.io.mapping import ImportFileError, Mapping
 
@@ -33,12 +33,7 @@ def read_temperature_file(path) -> RawTemperature:
     lines.  A comma-separated row may leave a sensor's cell empty (no reading of that sensor then).
     Times must increase; values are returned in degC."""
     p = FsPath(path)
-    b = file_bytes(p)
-    try:
-        text = b.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
-    lines = text.splitlines()
+    lines = text_lines(p)
     k_head = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
     if k_head is None:
         raise ImportFileError(f"{p}: no temperature rows")
@@ -139,12 +134,7 @@ def read_gimbal_file(path, unit: str | None = None) -> tuple[np.ndarray, np.ndar
             units.check_kind(unit, "angle")
         except units.UnitError as exc:
             raise ImportFileError(f"--gimbal-unit: {exc}") from None
-    b = file_bytes(p)
-    try:
-        text = b.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [ln for ln in text_lines(p) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ImportFileError(f"{p}: no gimbal rows")
     delim = "," if "," in lines[0] else None

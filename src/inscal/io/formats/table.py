@@ -11,7 +11,7 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from inscal.io.formats.base import file_bytes
+from inscal.io.formats.base import text_lines
 from inscal.io.mapping import ImportFileError, Mapping
 
 
@@ -48,14 +48,7 @@ def parse_table(p: FsPath, m: Mapping, blank: dict | None = None,
     """Data rows as floats, the file line of each row, and the header names (last header row, unless
     ``names`` gives them).  ``blank``: ``{column (index or header name): what it is for}`` of temperature
     columns, whose cells may be empty (NaN: no reading) and must otherwise be finite."""
-    b = file_bytes(p)
-    if b"\x00" in b[:4096]:
-        raise ImportFileError(f"{p}: not a text file (binary data)")
-    try:
-        text = b.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ImportFileError(f"{p}: not a text file (not UTF-8)") from None
-    lines = text.splitlines()
+    lines = text_lines(p, binary_check=True)
     if len(lines) < m.header_rows:
         raise ImportFileError(f"{p}: {len(lines)} line(s), fewer than header_rows = {m.header_rows}")
     if names is None:
