@@ -41,7 +41,7 @@ ENTRY_POINTS = (
     "inscal.core.error_model.ImuErrors",
     "inscal.core.error_model.ImuNoise",
     "inscal.sim.scenarios.build",
-    "inscal.sim.scenarios.scenario_record",
+    "inscal.sim.records.scenario_record",
     "inscal.sim.simulate.simulate",
     "inscal.sim.simulate.write_simulation",
     "inscal.analysis.allan.allan",

@@ -132,7 +132,7 @@ def calibrate(record_like, method: str, **options) -> CalibrationResult:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import calibrate, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # N25 path, errors, noise
     >>> res = calibrate(window_means(rec), "joint")
     >>> res.method, len(res.estimated)

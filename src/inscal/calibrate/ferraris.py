@@ -224,7 +224,7 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     Examples
     --------
     >>> import numpy as np
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> from inscal.calibrate import ferraris
     >>> rec = scenario_record("ferraris-mems", np.random.default_rng(0))  # with its truth
     >>> res = ferraris(rec)

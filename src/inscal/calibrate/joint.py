@@ -124,7 +124,7 @@ def joint(ws: WindowSet, uncertainty: bool = True, fix: dict | None = None, init
     --------
     >>> from numpy.random import default_rng
     >>> from inscal.calibrate import joint, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("n25", default_rng(0), rate_hz=10.0)  # with its truth
     >>> ws = window_means(rec)
     >>> res = joint(ws)

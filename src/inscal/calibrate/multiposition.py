@@ -284,7 +284,7 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
     A simulated hand-held session of a MEMS IMU (the fit takes about 2 s: not run in the tests):
 
     >>> import numpy as np
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> from inscal.calibrate import multi_position
     >>> rec = scenario_record("handheld-mems", np.random.default_rng(0))
     >>> res = multi_position(rec)  # doctest: +SKIP

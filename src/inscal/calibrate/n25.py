@@ -272,7 +272,7 @@ def n25(ws: WindowSet, uncertainty: bool = True, max_alpha0: float = 2.0 * DEG) 
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import n25, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # with its truth
     >>> res = n25(window_means(rec), uncertainty=False)  # no sigma: faster
     >>> from inscal.core.units import ARCSEC

@@ -88,7 +88,7 @@ class CalibrationResult:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import calibrate, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)
     >>> res = calibrate(window_means(rec), "joint")
     >>> bias = res.to_field((rec.truth.imu, rec.truth.gimbal))["accel_bias"]  # field units, the error against the truth

@@ -98,7 +98,7 @@ def six_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResult:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import six_position, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> ws = window_means(scenario_record("n25", np.random.default_rng(0), rate_hz=10.0))
     >>> res = six_position(ws, uncertainty=False)  # no sigma: faster
     >>> "gimbal_nonorthogonality" in res.estimated

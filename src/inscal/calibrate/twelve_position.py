@@ -63,7 +63,7 @@ def twelve_position(ws: WindowSet, uncertainty: bool = True) -> CalibrationResul
     --------
     >>> from numpy.random import default_rng
     >>> from inscal.calibrate import twelve_position, window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> res = twelve_position(window_means(scenario_record("n25", default_rng(0), rate_hz=10.0)), uncertainty=False)
     >>> len(res.diagnostics["positions"])
     12

@@ -85,7 +85,7 @@ def unified(ws_or_record, **kw) -> CalibrationResult:
 
     >>> import numpy as np
     >>> from inscal.calibrate import unified
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("s16", np.random.default_rng(0), rate_hz=10.0)
     >>> res = unified(rec, max_passes=1, filter_rate_hz=0.2)
     >>> res.method, "gimbal_nonorthogonality" in res.estimated, len(res.estimated) > 10

@@ -88,7 +88,7 @@ class Window:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> ws = window_means(scenario_record("n25", np.random.default_rng(0), rate_hz=10.0))
     >>> w = ws.static[0]
     >>> w.describe()
@@ -147,7 +147,7 @@ class WindowSet:
     --------
     >>> import numpy as np
     >>> from inscal.calibrate import window_means
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("n25", np.random.default_rng(0), rate_hz=10.0)  # N25 path, errors, noise
     >>> ws = window_means(rec)
     >>> len(ws.windows), len(ws.static), len(ws.rate)
@@ -336,7 +336,7 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
     Examples
     --------
     >>> from numpy.random import default_rng
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> from inscal.calibrate.windows import window_means
     >>> ws = window_means(scenario_record("n25", default_rng(0), rate_hz=10.0))
     >>> ws.rate_hz, ws.windows[0].kind, ws.rate[0].axis

@@ -110,7 +110,7 @@ class AlignResult:
     --------
     >>> from numpy.random import default_rng
     >>> from inscal.nav import AlignConfig, SampleStream, align, chunks_of
-    >>> from inscal.sim.scenarios import scenario_record
+    >>> from inscal.sim.records import scenario_record
     >>> rec = scenario_record("static", default_rng(0), duration_s=30.0, rate_hz=10.0)
     >>> lat, lon, h = rec.site.latitude, rec.site.longitude, rec.site.height
     >>> res = align(SampleStream(chunks_of(rec)), 0.1, lat, lon, h, AlignConfig(coarse_time=10.0, fine_time=20.0))

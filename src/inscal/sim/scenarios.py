@@ -192,10 +192,9 @@ from inscal.core.turntable import Move
 from inscal.core.units import DEG
 from inscal.core.noise_models import NoiseModel
 from inscal.io.noisefile import NoiseFileError, read_noise
-from inscal.io.records import Record
 from inscal.io.tomlfile import read_toml
 from inscal.sim.handheld import FerrarisMotion, HandheldMotion
-from inscal.sim.simulate import Scenario, simulate
+from inscal.sim.simulate import Scenario
 from inscal.sim.thermal import PIECE_KINDS, Piece, TemperatureProfile, TemperatureSensor, plateaus
 
 N25_SITE = Site(latitude=30.686651 * DEG, longitude=120.664265 * DEG, height=0.0)
@@ -558,41 +557,6 @@ def build(name: str, duration_s: float | None = None, rate_hz: float | None = No
             raise ScenarioError(str(exc)) from None
     return sc
 
-
-def scenario_record(name: str, rng: np.random.Generator | None, duration_s: float | None = None,
-                    rate_hz: float | None = None) -> Record:
-    """The record of a scenario, simulated in memory: :func:`build`, then
-    :func:`~inscal.sim.simulate.simulate` and :meth:`~inscal.sim.simulate.SimData.to_record`.
-
-    Parameters
-    ----------
-    name : str
-        A built-in name (:data:`BUILTIN`) or a scenario TOML file, as for :func:`build`.
-    rng : numpy.random.Generator or None
-        The generator of the noise (None: no noise drawn; a scenario with noise needs one).
-    duration_s, rate_hz : float, optional
-        The duration [s] and another sample rate [Hz], as for :func:`build`.
-
-    Returns
-    -------
-    Record
-        The increments, the gimbal angles, the rate, the site, the path and the truth (the scenario's
-        errors), as :func:`inscal.io.load_record` returns them from a written simulation.
-
-    Raises
-    ------
-    ScenarioError
-        What :func:`build` rejects.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from inscal.sim.scenarios import scenario_record
-    >>> rec = scenario_record("static", np.random.default_rng(0), duration_s=60.0, rate_hz=10.0)
-    >>> rec.dtheta.shape, rec.rate_hz, rec.scenario
-    ((600, 3), 10.0, 'static')
-    """
-    return simulate(build(name, duration_s, rate_hz), rng).to_record()
 
 
 _TOP_KEYS = {"base", "schema_version", "scenario", "site", "errors", "noise", "path", "thermal", "temperature"}
