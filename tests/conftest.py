@@ -46,14 +46,14 @@ LONGEST = (
     "cli/test_db_cli.py",  # 19 s
     "io/test_encoders.py",  # 18 s (the n25 imports made once for the module)
     "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
-    "analysis/test_montecarlo.py",  # 18 s
+    "analysis/test_montecarlo.py",  # 17 s (the runner's two LocalCluster tests share one cluster)
     "cli/test_readme_block_0.py",  # 18 s
     "calibrate/test_noise_matrix.py",  # 18 s
     "calibrate/test_selection.py",  # 16 s
     "cli/test_readme_block_2.py",  # 16 s
     "lab/test_batch.py",  # 14 s (the run after the kill in the process)
     "cli/test_memory_caps.py",  # 13 s
-    "oracles/test_oracle_calibration.py",  # 12 s
+    "oracles/test_oracle_calibration.py",  # 10 s (the second noise-free seed: the CLI's run only)
     "oracles/test_methods_into_lab.py",  # 12 s (every table-free and window method through every lab path)
     "cli/test_hardening_round4.py",  # 10 s
     "oracles/test_handheld_consumer.py",  # 9 s (consumer-MEMS sessions: tremor, saturation)

@@ -14,6 +14,7 @@ import pytest
 from inscal.analysis import montecarlo as mc
 from inscal.analysis import studies
 from inscal.cli.montecarlo import format_cell, format_table
+from inscal.core.parallel import start_client
 from inscal.core.progress import duration
 
 
@@ -200,7 +201,35 @@ def test_load_study_from_folder(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ Dask
-def test_local_cluster_two_workers_matches_synchronous(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def _local_clusters():
+    started: list = []
+    yield started
+    for cluster, _ in started:
+        cluster.close()
+
+
+@pytest.fixture()
+def one_local_cluster(_local_clusters, monkeypatch):
+    """The tests of the runner's own LocalCluster (``workers=2``) share one (its two worker processes start
+    in ~5 s of CPU): the first ``run_study`` starts it through the runner's ``start_client`` call, the later
+    ones, with the same arguments, get a client of it; it closes with the module."""
+
+    def shared(scheduler, workers, *args):
+        from distributed import Client
+
+        if not _local_clusters:
+            client, cluster = start_client(scheduler, workers, *args)
+            _local_clusters.append((cluster, (scheduler, workers, *args)))
+            return client, None
+        assert (scheduler, workers, *args) == _local_clusters[0][1]
+        return Client(_local_clusters[0][0]), None
+
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    monkeypatch.setattr(mc, "start_client", shared)
+
+
+def test_local_cluster_two_workers_matches_synchronous(tmp_path, monkeypatch, one_local_cluster):
     """Same results as in this process; and the workers keep glibc's default allocator (Dask's
     MALLOC_TRIM_THRESHOLD_ made every run of n25-fig5 1.6x slower there)."""
     pytest.importorskip("distributed")
@@ -426,7 +455,7 @@ def test_cli_s16_table2_small(tmp_path):
     assert (out / "summary.png").stat().st_size > 5000 and (out / "summary.csv").exists()
 
 
-def test_local_cluster_runs_the_real_experiment_identically(tmp_path):
+def test_local_cluster_runs_the_real_experiment_identically(tmp_path, one_local_cluster):
     pytest.importorskip("inscal.calibrate")
     exp = studies.get_experiment("n25-fig5", {"dtheta_arcsec": [5.0, 20.0], "simulation": "reuse"})
     sync = mc.run_study(exp, tmp_path / "s", runs=2, seed=4, scheduler="synchronous")
