@@ -229,7 +229,11 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
                            tc_min=tc_min)[:2]
         fitted[cand] = (p, th, jg, zero)
     # the extended family's grid is coarse (three or four GMs): eliminate from its best few
-    _eliminate(curve, fitted, set(polish), pen, W, (tcm, tc_min), rng, 1 if tc_min else ELIMINATE_FROM_EXTENDED)
+    polished = set(polish)
+    _eliminate(curve, fitted, polished, pen, W, (tcm, tc_min), rng, 1 if tc_min else ELIMINATE_FROM_EXTENDED)
+    for cand in polished:  # each judged by the covariance it implies itself
+        p, th, jg, zero = fitted[cand]
+        fitted[cand] = (p, *own_yardstick(curve, cand, th, rng, (tcm, tc_min), (th, jg)), zero)
     table, thetas = [], {}
     for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
@@ -241,7 +245,9 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
                 why = ""
         name = nm.model_string(cand)
         thetas[name] = (cand, th)
-        table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p, why))
+        table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p,
+                      why or ("" if cand in polished else "not polished (its J at the grid, on the largest "
+                                                          "model's yardstick)")))
     table.sort(key=lambda r: r[1])
     ok = [r for r in table if not r[5]] or table
     best = ok[0]
@@ -275,6 +281,25 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
             f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
                                    else "; no sign of it in this record)") for m, g, _, s in richer)
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+
+
+def own_yardstick(curve: Curve, cand, theta, rng, tc_range, fallback) -> tuple:
+    """``(theta, J)`` of the candidate ``cand`` judged by its own yardstick: ``V`` = cov(nu_hat) of the
+    processes it is at ``theta`` (:func:`inscal.analysis.noise.fit.curve_covariance`), and the fit
+    polished again with ``V^-1/2`` from ``theta`` (one iteration of the iterated GMM, Hansen, Heaton &
+    Yaron, J. Bus. Econ. Stat. 14 (1996) 262-280).  The largest model's ``V``, the grid's common
+    yardstick, is no yardstick for a smaller candidate: where the largest fit explains the longest
+    scales by a rate ramp (deterministic: no variance of its own) its ``V`` there is tens of times below
+    a random walk's, and a candidate without the ramp is judged on scales it is told are near exact.
+    ``fallback`` where ``V`` is singular."""
+    try:
+        Wc = np.linalg.inv(np.linalg.cholesky(curve_covariance(terms_of(cand, theta, curve.dt), curve)))
+    except np.linalg.LinAlgError:
+        return fallback
+    if not np.all(np.isfinite(Wc)):
+        return fallback
+    return solve(curve, cand, n_starts=0, rng=rng, theta0=theta, whiten=Wc, grid=False, tc_max=tc_range[0],
+                 tc_min=tc_range[1])[:2]
 
 
 def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng, n_from: int = 1) -> None:
