@@ -141,7 +141,9 @@ def main():
             print(f"== rw: {RW.model} at {hours:g} h, {a.runs} runs ({time.perf_counter() - t0:.0f} s): K from the "
                   f"true model's fit mean {100 * kf.mean():+.1f} % median {100 * np.median(kf):+.1f} %; from auto "
                   f"(where it keeps RW, {np.sum(np.isfinite(ka))} runs) mean {100 * np.nanmean(ka):+.1f} % median "
-                  f"{100 * np.nanmedian(ka):+.1f} %; auto right {100 * right:.1f} %")
+                  f"{100 * np.nanmedian(ka):+.1f} %; auto right {100 * right:.1f} %" if not a.fit_only else
+                  f"== rw: {RW.model} at {hours:g} h, {a.runs} runs ({time.perf_counter() - t0:.0f} s): K from the "
+                  f"true model's fit mean {100 * kf.mean():+.1f} % median {100 * np.median(kf):+.1f} % (fits only)")
             # the curve is linear in K^2: its estimate against the truth (unbiased where the mean ratio is 1
             # within its standard error), and the share of fits at the zero bound (K below 3 % of the truth)
             k2 = (kf + 1) ** 2
@@ -151,7 +153,7 @@ def main():
             print(f"   K^2 / K^2 true: mean {k2.mean():.3f} +- {k2.std(ddof=1) / np.sqrt(k2.size):.3f} (standard error), "
                   f"median {np.median(k2):.3f}, SD {k2.std(ddof=1):.3f}; K at the zero bound (< 3 % of the truth) in "
                   f"{100 * np.mean(kf + 1 < 0.03):.1f} % of runs")
-            wrong = [o[3] for o in out if o[2] != RW.model]
+            wrong = [o[3] for o in out if o[2] != RW.model and o[3]]
             if wrong:
                 print(f"  e.g.: {wrong[0]}")
 
