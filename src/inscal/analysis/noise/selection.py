@@ -274,7 +274,7 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
         chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0, tc_min=tc_min)
     row = {r[0]: r for r in table}.get(chosen.model, best)
     why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
-           f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
+           f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart, each judged by its own V")
     if removed:
         why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
     if len(ok) > 1:
