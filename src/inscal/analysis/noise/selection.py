@@ -102,6 +102,8 @@ EXTEND_ALPHA = 0.01
 MAX_ELIMINATE = 3
 #: the extended family's elimination starts from this many of its best polished candidates
 ELIMINATE_FROM_EXTENDED = 4
+#: the set-aside reason of a candidate left at its grid point (its J on the common yardstick)
+NOT_POLISHED = "not polished (its J at the grid, on the largest model's yardstick)"
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
 NEAR_PENALTIES = 2.0
 
@@ -255,9 +257,9 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
         name = nm.model_string(cand)
         thetas[name] = (cand, th)
         table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p,
-                      why or ("" if cand in polished else "not polished (its J at the grid, on the largest "
-                                                          "model's yardstick)")))
+                      why or ("" if cand in polished else NOT_POLISHED)))
     table.sort(key=lambda r: r[1])
+    judged = {nm.model_string(c) for c in polished}
     ok = [r for r in table if not r[5]] or table
     best = ok[0]
     cand, th = thetas[best[0]]
@@ -281,7 +283,7 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
         ru = next(r for r in ok if r[0] != row[0])
         why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
     why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
-    aside = [r for r in table if r[5] and r[1] < row[1]]
+    aside = [r for r in table if r[5] and r[0] in judged and r[1] < row[1]]  # on one yardstick only
     if aside:
         why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
     richer = _richer(row, table, thetas, pen)
