@@ -78,7 +78,7 @@ def test_selection_finds_a_clear_model_and_says_why():
     rows = {r[0]: r for r in s.candidates}
     assert rows["WN+RW"][2] < 1e-6 and rows["WN+GM"][2] > 5  # J of the truth, of the GM in RW's place
     assert rows["WN+GM"][1] - rows["WN+RW"][1] > 10  # and a parameter more
-    assert rows["WN+RW+GM"][5].startswith("GM below")  # the GM is not seen beside the RW: set aside, said why
+    assert rows["WN+RW+GM"][5]  # the GM is not seen beside the random walk: set aside, with its reason
     assert len(sub_models(nm.parse_model("QN+WN+2GM"))) == 11
 
 
@@ -153,36 +153,3 @@ def test_fit_counts_its_starts_and_flags_unresolved_intervals():
     assert summ["ieee_readoffs"]["BI"]["edf"] > 1 and summ["starts"] == 5
     with pytest.raises(ValueError, match="has no term"):
         nm.parse_model("WN+0GM")
-
-
-def test_a_smaller_candidate_is_judged_by_its_own_covariance():
-    """8 h of a non-white start with RW and two GMs whose last scale came out high by chance (seed
-    4302 of bench_noise_start): the largest model explains it by a rate ramp, which has no variance,
-    so on its yardstick the true model's J is far out (the last scale's equivalent degrees of freedom
-    2 nu^2 / V_jj tens of times the truth's) and a ramp looks needed; judged by the covariance of its
-    own fit, the true model passes its J test and the ramp no longer pays its penalty."""
-    from inscal.analysis.noise.fit import solve
-    from inscal.analysis.noise.selection import AUTO_MODEL, own_yardstick, penalty, record_samples, tc_limit
-
-    dt = 0.1
-    ch = nm.ChannelNoise("g", "gyro", (nm.GaussMarkov(1e-3, 0.4 * dt), nm.RandomWalk(1.2e-5),
-                                       nm.GaussMarkov(4e-4, 0.5), nm.GaussMarkov(2e-4, 8.0)))
-    n = 8 * 36000
-    c = Curve.from_scale_variance(scale_variance(ch.simulate(n, dt, np.random.default_rng(4302)), 1 / dt,
-                                                 octave_scales(n)))
-    full = fit_curve(c, AUTO_MODEL, n_starts=0)
-    V = curve_covariance(full.terms, c)
-    eta_full = 2 * full.wv_fit[-1] ** 2 / V[-1, -1]
-    eta_true = 2 * ch.wvar(c.m, dt)[-1] ** 2 / curve_covariance(ch.terms, c)[-1, -1]
-    assert eta_full > 10 * eta_true
-    W = np.linalg.inv(np.linalg.cholesky(V))
-    rng, tcr = np.random.default_rng(0), (tc_limit(c), None)
-    j, own = {}, {}
-    for model in ("RW+3GM", "RW+DR+3GM"):
-        codes = nm.parse_model(model)
-        th, j[model] = solve(c, codes, n_starts=1, rng=rng, whiten=W, tc_max=tcr[0])[:2]
-        own[model] = own_yardstick(c, codes, th, rng, tcr, (th, j[model]))[1]
-    pen = penalty("hqic", record_samples(c))
-    assert j["RW+3GM"] - j["RW+DR+3GM"] > pen  # the common yardstick keeps the ramp
-    assert own["RW+3GM"] < 20.1  # chi^2(8) at 99 %
-    assert own["RW+3GM"] - own["RW+DR+3GM"] < pen

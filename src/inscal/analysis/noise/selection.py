@@ -2,22 +2,13 @@
 
 Every sub-sum of a largest model (the terms of ``QN+WN+BI+RW+DR+4GM`` by default, a candidate only where the curve has more scales than
 parameters) is a candidate.
-Each is fitted with the efficient weights (GMM: ``V`` the covariance of the wavelet variances,
-:func:`inscal.analysis.noise.fit.curve_covariance`), so that its objective is Hansen's J statistic
+Each is fitted with the efficient weights (two-step GMM: ``V`` the covariance of the wavelet
+variances at the largest model's GMWM fit, :func:`inscal.analysis.noise.fit.curve_covariance`), so that
+its objective is Hansen's J statistic
 
-    J_c = min_theta (nu_hat - nu_c(theta))' V_c^-1 (nu_hat - nu_c(theta)),   about chi^2(scales - p_c)
+    J_c = min_theta (nu_hat - nu_c(theta))' V^-1 (nu_hat - nu_c(theta)),   about chi^2(scales - p_c)
 
 and the J of two nested candidates differ by about chi^2 of their difference in parameters.  The
-grid and the first polish share one yardstick, ``V`` at the largest model's GMWM fit; every polished
-candidate is then judged by its own, ``V_c`` at its own fit, polished once more with it (one step of
-the iterated GMM: :func:`own_yardstick`).  The largest model's ``V`` is no yardstick for the smaller
-candidates: where its fit explains the longest scales by a rate ramp (deterministic, no variance of
-its own) its ``V`` there is tens of times below the random walk's a smaller candidate has, so a
-candidate without the ramp is judged on scales it is told are nearly exact, and the ramp (or a
-flicker term) is kept for a chance excursion of the last scales (measured: 8 h of a non-white start
-with RW and 2 GMs, the equivalent degrees of freedom ``2 nu^2 / V_jj`` of the last scale 1020 at the
-largest fit against 14.6 at the truth).  Only the polished candidates take part in the choice; the
-others are listed with their grid J on the common yardstick.  The
 choice minimises a model-selection criterion of GMM (Andrews & Lu, J. Econometrics 101 (2001)
 123-164), by default their Hannan-Quinn one (MMSC-HQIC)
 
@@ -102,8 +93,6 @@ EXTEND_ALPHA = 0.01
 MAX_ELIMINATE = 3
 #: the extended family's elimination starts from this many of its best polished candidates
 ELIMINATE_FROM_EXTENDED = 4
-#: the set-aside reason of a candidate left at its grid point (its J on the common yardstick)
-NOT_POLISHED = "not polished (its J at the grid, on the largest model's yardstick)"
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
 NEAR_PENALTIES = 2.0
 
@@ -240,11 +229,7 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
                            tc_min=tc_min)[:2]
         fitted[cand] = (p, th, jg, zero)
     # the extended family's grid is coarse (three or four GMs): eliminate from its best few
-    polished = set(polish)
-    _eliminate(curve, fitted, polished, pen, W, (tcm, tc_min), rng, 1 if tc_min else ELIMINATE_FROM_EXTENDED)
-    for cand in polished:  # each judged by the covariance it implies itself
-        p, th, jg, zero = fitted[cand]
-        fitted[cand] = (p, *own_yardstick(curve, cand, th, rng, (tcm, tc_min), (th, jg)), zero)
+    _eliminate(curve, fitted, set(polish), pen, W, (tcm, tc_min), rng, 1 if tc_min else ELIMINATE_FROM_EXTENDED)
     table, thetas = [], {}
     for cand, (p, th, jg, zero) in fitted.items():
         why = set_aside(cand, th, zero, curve, W)
@@ -256,10 +241,8 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
                 why = ""
         name = nm.model_string(cand)
         thetas[name] = (cand, th)
-        table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p,
-                      why or ("" if cand in polished else NOT_POLISHED)))
+        table.append((name, jg + pen * p, jg, chi2_sf(jg, J - p), p, why))
     table.sort(key=lambda r: r[1])
-    judged = {nm.model_string(c) for c in polished}
     ok = [r for r in table if not r[5]] or table
     best = ok[0]
     cand, th = thetas[best[0]]
@@ -276,14 +259,14 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
         chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0, tc_min=tc_min)
     row = {r[0]: r for r in table}.get(chosen.model, best)
     why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
-           f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart, each judged by its own V")
+           f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
     if removed:
         why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
     if len(ok) > 1:
         ru = next(r for r in ok if r[0] != row[0])
         why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
     why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
-    aside = [r for r in table if r[5] and r[0] in judged and r[1] < row[1]]  # on one yardstick only
+    aside = [r for r in table if r[5] and r[1] < row[1]]
     if aside:
         why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
     richer = _richer(row, table, thetas, pen)
@@ -292,25 +275,6 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
             f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
                                    else "; no sign of it in this record)") for m, g, _, s in richer)
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
-
-
-def own_yardstick(curve: Curve, cand, theta, rng, tc_range, fallback) -> tuple:
-    """``(theta, J)`` of the candidate ``cand`` judged by its own yardstick: ``V`` = cov(nu_hat) of the
-    processes it is at ``theta`` (:func:`inscal.analysis.noise.fit.curve_covariance`), and the fit
-    polished again with ``V^-1/2`` from ``theta`` (one iteration of the iterated GMM, Hansen, Heaton &
-    Yaron, J. Bus. Econ. Stat. 14 (1996) 262-280).  The largest model's ``V``, the grid's common
-    yardstick, is no yardstick for a smaller candidate: where the largest fit explains the longest
-    scales by a rate ramp (deterministic: no variance of its own) its ``V`` there is tens of times below
-    a random walk's, and a candidate without the ramp is judged on scales it is told are near exact.
-    ``fallback`` where ``V`` is singular."""
-    try:
-        Wc = np.linalg.inv(np.linalg.cholesky(curve_covariance(terms_of(cand, theta, curve.dt), curve)))
-    except np.linalg.LinAlgError:
-        return fallback
-    if not np.all(np.isfinite(Wc)):
-        return fallback
-    return solve(curve, cand, n_starts=0, rng=rng, theta0=theta, whiten=Wc, grid=False, tc_max=tc_range[0],
-                 tc_min=tc_range[1])[:2]
 
 
 def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng, n_from: int = 1) -> None:
