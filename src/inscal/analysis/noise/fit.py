@@ -155,15 +155,21 @@ def ramp_covariance(spectrum, ramp_wv, m, n_terms, n_grid_per_decade: int = 1500
     nu = np.logspace(math.log10(f_lo), math.log10(0.5), int(n_grid_per_decade * math.log10(0.5 / f_lo)) + 1)
     s = np.sin(np.pi * nu)
     hj = np.stack([np.where(nu * mm > 32, math.sqrt(0.375), np.sin(np.pi * nu * mm) ** 2) / (mm * s) for mm in m])
-    w = np.gradient(np.log(nu)) * nu * spectrum(nu)  # df = f dln f
+    w = np.gradient(np.log(nu)) * nu * spectrum(nu) / (s * s)  # df = f dln f
+    sin_m = np.sin(np.pi * nu[None, :] * M[:, None])  # each sin(pi f M_j) once
+    wh = w * hj
     out = np.empty((m.size, m.size))
     for j in range(m.size):
         for k in range(j, m.size):
-            fast = nu * min(M[j], M[k]) > 32
-            prod = np.where(fast, np.where(nu * abs(M[j] - M[k]) > 32, 0.0, 0.5 * np.cos(np.pi * nu * (M[j] - M[k]))),
-                            np.sin(np.pi * nu * M[j]) * np.sin(np.pi * nu * M[k]))
-            g = prod / (M[j] * M[k] * s * s)
-            out[j, k] = out[k, j] = 2.0 * np.sum(w * hj[j] * hj[k] * g)  # both halves of [-1/2, 1/2]
+            # where the Fejer factors oscillate finer than the grid: their mean (the cos), else the product
+            slow = nu * min(M[j], M[k]) <= 32
+            cut = min(int(np.searchsorted(nu, 32.0 / abs(M[j] - M[k]), side="right")), nu.size) if M[j] != M[k] \
+                else nu.size
+            tot = np.sum(wh[j][slow] * hj[k][slow] * sin_m[j][slow] * sin_m[k][slow])
+            fast = ~slow
+            fast[cut:] = False  # nu |M_j - M_k| > 32: the mean of the cos is 0 too
+            tot += np.sum(wh[j][fast] * hj[k][fast] * 0.5 * np.cos(np.pi * nu[fast] * (M[j] - M[k])))
+            out[j, k] = out[k, j] = 2.0 * tot / (M[j] * M[k])  # both halves of [-1/2, 1/2]
     return 4.0 * np.outer(c, c) * out
 
 
