@@ -12,7 +12,6 @@ from scipy.linalg import solve_triangular
 from inscal.calibrate.result import CalibrationResult, unflatten
 from inscal.calibrate.systematic.diagnostics import (
     encoder_angles,
-    euler_of,
     gimbal_diagnostics,
     innovation_fit,
     misfit_signature,
@@ -32,6 +31,7 @@ from inscal.calibrate.systematic.model_error import (
 )
 from inscal.calibrate.systematic.model_error import initial as no_model_error
 from inscal.calibrate.systematic.model_error import note as model_error_note
+from inscal.calibrate.systematic.driver_state import NoiseLevels, Passes, Prepared, diagnostics, result_notes
 from inscal.calibrate.systematic.gm_states import noise_setup
 from inscal.calibrate.systematic.kernel import pass_bytes, run_pass, smooth_pass
 from inscal.calibrate.systematic.params import CompParams, canonical_jacobian
@@ -62,7 +62,6 @@ from inscal.core import units
 from inscal.core.attitude import dcm_from_quat, quat_from_rotvec
 from inscal.core.earth import OMEGA_IE
 from inscal.core.error_model import GimbalErrors, ImuErrors, parameter_components
-from inscal.core.stats import chi2_sf
 from inscal.core.thermal import RATE_WINDOW_S
 from inscal.nav.align import coarse_align
 
@@ -277,6 +276,83 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     states (:mod:`inscal.calibrate.systematic.gm_states`).
     """
     rec = ws_or_record
+    p = prepare(rec, states, thermal_orders=thermal_orders, noise=noise, arw=arw, vrw=vrw,
+                filter_rate_hz=filter_rate_hz, t_ref=t_ref, temperature_sensor=temperature_sensor,
+                temperature_rate_window_s=temperature_rate_window_s, velocity_sigma=velocity_sigma,
+                position_sigma=position_sigma, prior=prior, history_s=history_s, align_s=align_s, initial=initial,
+                encoder_sigma=encoder_sigma, encoder_every=encoder_every, nis_cap=nis_cap, weights=weights,
+                robust=robust)
+    st, nd, sig_par = p.st, p.nd, p.sig_par
+    it = filter_passes(p, max_passes, tol, keep_passes)
+    out, est = it.out, it.est
+    verdict = convergence_verdict(it.passes, it.converged, tol, est.error_state(st, p.nominal) / sig_par,
+                                  st.labels()[nd:], float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
+                                  truncated=max_passes < MIN_VERDICT_PASSES)
+    x_est = est.error_state(st, p.nominal)
+    term_check = None
+    wider = dataclasses.replace(st, asynchrony=True, lever9=True)
+    if (not verdict and robust and weights is None and max_passes >= MIN_VERDICT_PASSES and st.extended
+            and not st.gimbal and wider != st and max(it.me.group_factor.values()) > 1.0):
+        # the record misfits the model beyond its noise: a white model-error term accounts for the misfit only if
+        # no term the states leave out drives it.  The same record with the candidate terms of --states auto added
+        # says whether one does (model_error.term_shift)
+        def refit():
+            return systematic(rec, wider, filter_rate_hz=filter_rate_hz, max_passes=max_passes, tol=tol, arw=p.arw,
+                              vrw=p.vrw, velocity_sigma=velocity_sigma, position_sigma=position_sigma, prior=prior,
+                              history_s=history_s, align_s=align_s, initial=est.to_imu(), method_name=method_name,
+                              nis_cap=nis_cap, t_ref=t_ref, temperature_sensor=temperature_sensor,
+                              temperature_rate_window_s=temperature_rate_window_s, robust=robust)
+        verdict, term_check = missing_term_check(refit, wider, st, x_est, it.P_post, nd)
+    if verdict and not accept_unconverged:
+        raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
+                           "or --accept-unconverged to keep the last iterate")
+    # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the caller
+    last = smooth_pass(out) if keep_passes else out
+    names = estimated_names(st)
+    J = canonical_jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
+    Sig = J @ it.P_post @ J.T
+    sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
+    fixed = fixed_mask(st, names)
+    sflat[fixed] = np.nan
+    cost = None
+    if robust and weights is None and (any(f > 1.0 for f in it.me.group_factor.values()) or it.me.outliers):
+        cost = model_error_cost(p, it, J, sflat, names)
+    # the prior in the same canonical components: the yardstick of what the record observed
+    prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
+    unobs, unobs_note = unobservable(names, sflat, prior_flat)
+    imu = est.to_imu()
+    nis, dof, chisq, expected, fit = innovation_statistics(p, it, last, cost)
+    formal = unflatten(sflat, names)
+    sigma = unflatten(sflat * fit["scale"], names)
+    assumed = None if st.gimbal else inputs_assumed(last, p.site, it.sig_used, it.P_post @ it.Pf_inv, J,
+                                                    sflat * fit["scale"], names, p.T)
+    diag = diagnostics(p, it, last, fit, nis, dof, chisq, expected, assumed, verdict, term_check, accept_unconverged,
+                       formal, unobs, robust, weights, noise)
+    notes = result_notes(p, it.me, diag["frame"], verdict, fit, assumed, unobs_note, noise)
+    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
+                            est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
+    res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
+    if st.gimbal:
+        gimbal_diagnostics(res, last, st, p.enc_sig, int(encoder_every))
+    if p.tin is not None:
+        attach_thermal(res, p, it, imu, fit, chisq, dof, expected)
+    h_out, h_sig = it.first
+    res.history = pass_history(h_out, st, names, h_sig, J, est, it.P_post)
+    res.history["time_s"] = res.history["t_steps"] * p.T
+    res.states = st
+    res.model_error = it.me  # the frozen model-error factors (the nested fits of --states auto share them)
+    res.covariance = {"labels": st.labels()[nd:], "P": it.P_post}
+    res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
+    if keep_passes:
+        res.pass_output = last
+    return res
+
+
+def prepare(rec, states, *, thermal_orders, noise, arw, vrw, filter_rate_hz, t_ref, temperature_sensor,
+            temperature_rate_window_s, velocity_sigma, position_sigma, prior, history_s, align_s, initial,
+            encoder_sigma, encoder_every, nis_cap, weights, robust) -> Prepared:
+    """The record checked and ready for the passes (:func:`systematic`'s options): the states, the increments,
+    the noise, the priors, the coarse alignment on the first dwell, the encoder rows and the model-error start."""
     st = states if isinstance(states, StateSet) else StateSet.parse(states)
     if thermal_orders is not None:
         st = dataclasses.replace(st, thermal=thermal_orders_from(thermal_orders))
@@ -303,29 +379,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     T = n_per * dt
     site = rec.site
     site_v = np.array([site.latitude, site.longitude, site.height, site.gravity_scale])
-    # noise model
-    est_arw, est_vrw = estimate_white_noise(dth, dv, dt)
-    arw_v = np.broadcast_to(np.asarray(est_arw if arw is None else arw, float), (3,)).copy()
-    vrw_v = np.broadcast_to(np.asarray(est_vrw if vrw is None else vrw, float), (3,)).copy()
-    # floors: a filter tuned to (near) noise-free data loses its numerical footing; these are
-    # far below navigation-grade noise (S16: 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz)) ...
-    floored = bool(np.any(arw_v < ARW_FLOOR) or np.any(vrw_v < VRW_FLOOR))
-    arw_v = np.maximum(arw_v, ARW_FLOOR)
-    vrw_v = np.maximum(vrw_v, VRW_FLOOR)
-    # ... and, for a quantized record, the rounding noise of its quantum (q / sqrt(12) per increment)
-    q_res = np.concatenate([data_resolution(dth), data_resolution(dv)])  # no copy of the record
-    arw_q, vrw_q = q_res[:3] / math.sqrt(12.0 * dt), q_res[3:] / math.sqrt(12.0 * dt)
-    # ... or of float32 storage (white, ulp / sqrt(12) per increment)
-    f32 = np.concatenate([float32_rounding(dth), float32_rounding(dv)])
-    arw_q = np.maximum(arw_q, f32[:3] / math.sqrt(dt))
-    vrw_q = np.maximum(vrw_q, f32[3:] / math.sqrt(dt))
-    resolution_floored = bool(np.any(arw_v < arw_q) or np.any(vrw_v < vrw_q))
-    arw_v = np.maximum(arw_v, arw_q)
-    vrw_v = np.maximum(vrw_v, vrw_q)
-    qg, qa = arw_v**2, vrw_v**2
-    vsig = float(velocity_sigma) if velocity_sigma is not None else 0.05 * float(np.mean(vrw_v)) * math.sqrt(T)
-    psig = float(position_sigma) if position_sigma is not None else vsig * T
-    r = np.array([vsig**2] * 3 + [psig**2] * 3)
+    nv = noise_levels(dth, dv, dt, T, arw, vrw, velocity_sigma, position_sigma)
     # state scaling = prior sigma
     sig0 = dict(DEFAULT_SIGMA0)
     known = list(sig0) + [g.name for g in st.groups if g.name not in sig0]
@@ -348,7 +402,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     # 0.02 deg/sqrt(h)) leaves it degrees off after a minute; a prior of 1 deg about that start would be
     # 4 sigma wrong and the passes would crawl towards the truth.  The heading prior (and the mount azimuth
     # of the gimbal states, which inherits it) widens to twice that sigma when it exceeds the default.
-    sigma_psi = float(np.mean(arw_v)) / math.sqrt(n_al * dt) / (OMEGA_IE * max(math.cos(site.latitude), 1e-3))
+    sigma_psi = float(np.mean(nv.arw_v)) / math.sqrt(n_al * dt) / (OMEGA_IE * max(math.cos(site.latitude), 1e-3))
     nav_sig0 = list(NAV_SIGMA0)
     nav_sig0[2] = max(nav_sig0[2], 2.0 * sigma_psi)
     if "mount_attitude" not in (prior or {}):
@@ -366,21 +420,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     enc = None
     enc_sig = ENCODER_SIGMA if encoder_sigma is None else float(encoder_sigma)
     if st.gimbal:
-        if not (math.isfinite(enc_sig) and enc_sig > 0):
-            raise CalibrationError(f"encoder sigma must be > 0, got {encoder_sigma}")
-        if int(encoder_every) != encoder_every or encoder_every < 1:
-            raise CalibrationError(f"encoder_every must be a whole number >= 1, got {encoder_every}")
-        ang = encoder_angles(rec, dth.shape[0], dt)
-        Msteps = dth.shape[0] // n_per
-        enc = ang[(np.arange(Msteps) + 1) * n_per - 1].copy()
-        enc[np.arange(Msteps) % int(encoder_every) != 0] = np.nan
-        if not np.all(np.isfinite(ang[0])):
-            raise CalibrationError("the gimbal states need the encoder angles at the first sample (the mount attitude "
-                                   "starts from the coarse alignment there)")
-        # N25 eq. 8 at the start: C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T with dth = the start value
-        mount0 = mount_from_attitude(C0, ang[0], start.gim[0])
-        start.gim = np.concatenate([start.gim[:1], mount0])
-        nominal.gim = np.concatenate([[0.0], mount0])
+        enc = encoder_rows(rec, dth, dt, n_per, C0, start, nominal, enc_sig, encoder_sigma, encoder_every)
     cap = np.inf if nis_cap is None else float(nis_cap)
     if not cap > 0:
         raise CalibrationError(f"nis_cap must be > 0 (or None for plain updates), got {nis_cap}")
@@ -394,54 +434,99 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
     else:
         me = no_model_error(Msteps)
     frozen = weights is not None or not robust
+    return Prepared(st, gm_note, arw, vrw, dth, dv, rate, dt, tin, n_per, T, site, site_v, nv, hist_every, nd, sig,
+                    sig_par, start, nominal, C0, enc, enc_sig, cap, moving, me, frozen)
+
+
+def noise_levels(dth, dv, dt: float, T: float, arw, vrw, velocity_sigma, position_sigma) -> NoiseLevels:
+    """The white noise of the filter: given, else estimated from the record; floored, and at least the rounding
+    noise of the record's quantum or float32 storage; and the zero-velocity/known-position pseudo-measurement
+    noise of a filter step of ``T`` seconds."""
+    est_arw, est_vrw = estimate_white_noise(dth, dv, dt)
+    arw_v = np.broadcast_to(np.asarray(est_arw if arw is None else arw, float), (3,)).copy()
+    vrw_v = np.broadcast_to(np.asarray(est_vrw if vrw is None else vrw, float), (3,)).copy()
+    # floors: a filter tuned to (near) noise-free data loses its numerical footing; these are
+    # far below navigation-grade noise (S16: 5e-5 deg/sqrt(h), 1 ug/sqrt(Hz)) ...
+    floored = bool(np.any(arw_v < ARW_FLOOR) or np.any(vrw_v < VRW_FLOOR))
+    arw_v = np.maximum(arw_v, ARW_FLOOR)
+    vrw_v = np.maximum(vrw_v, VRW_FLOOR)
+    # ... and, for a quantized record, the rounding noise of its quantum (q / sqrt(12) per increment)
+    q_res = np.concatenate([data_resolution(dth), data_resolution(dv)])  # no copy of the record
+    arw_q, vrw_q = q_res[:3] / math.sqrt(12.0 * dt), q_res[3:] / math.sqrt(12.0 * dt)
+    # ... or of float32 storage (white, ulp / sqrt(12) per increment)
+    f32 = np.concatenate([float32_rounding(dth), float32_rounding(dv)])
+    arw_q = np.maximum(arw_q, f32[:3] / math.sqrt(dt))
+    vrw_q = np.maximum(vrw_q, f32[3:] / math.sqrt(dt))
+    resolution_floored = bool(np.any(arw_v < arw_q) or np.any(vrw_v < vrw_q))
+    arw_v = np.maximum(arw_v, arw_q)
+    vrw_v = np.maximum(vrw_v, vrw_q)
+    qg, qa = arw_v**2, vrw_v**2
+    vsig = float(velocity_sigma) if velocity_sigma is not None else 0.05 * float(np.mean(vrw_v)) * math.sqrt(T)
+    psig = float(position_sigma) if position_sigma is not None else vsig * T
+    r = np.array([vsig**2] * 3 + [psig**2] * 3)
+    return NoiseLevels(arw_v, vrw_v, floored, resolution_floored, q_res, f32, qg, qa, vsig, psig, r)
+
+
+def encoder_rows(rec, dth, dt: float, n_per: int, C0, start: CompParams, nominal: CompParams, enc_sig: float,
+                 encoder_sigma, encoder_every) -> np.ndarray:
+    """The encoder angles at the filter steps (NaN where a step has no encoder row); sets the mount attitude of
+    ``start`` and ``nominal`` from the coarse alignment ``C0`` (N25 eq. 8)."""
+    if not (math.isfinite(enc_sig) and enc_sig > 0):
+        raise CalibrationError(f"encoder sigma must be > 0, got {encoder_sigma}")
+    if int(encoder_every) != encoder_every or encoder_every < 1:
+        raise CalibrationError(f"encoder_every must be a whole number >= 1, got {encoder_every}")
+    ang = encoder_angles(rec, dth.shape[0], dt)
+    Msteps = dth.shape[0] // n_per
+    enc = ang[(np.arange(Msteps) + 1) * n_per - 1].copy()
+    enc[np.arange(Msteps) % int(encoder_every) != 0] = np.nan
+    if not np.all(np.isfinite(ang[0])):
+        raise CalibrationError("the gimbal states need the encoder angles at the first sample (the mount attitude "
+                               "starts from the coarse alignment there)")
+    # N25 eq. 8 at the start: C_b^n = C_s^n (Rot(u, tx) R_z(tz))^T with dth = the start value
+    mount0 = mount_from_attitude(C0, ang[0], start.gim[0])
+    start.gim = np.concatenate([start.gim[:1], mount0])
+    nominal.gim = np.concatenate([[0.0], mount0])
+    return enc
+
+
+def filter_passes(p: Prepared, max_passes: int, tol: float, keep_passes: bool) -> Passes:
+    """The iterated filter passes with prior deflation, each changed back to the prior about the nominal, and the
+    model-error factors set from the innovations of the first passes, until a pass moves the estimate by less than
+    ``tol`` sigma with the weights that stay (or ``max_passes``)."""
+    st, nd, nominal, sig, sig_par, nv = p.st, p.nd, p.nominal, p.sig, p.sig_par, p.noise
+    C0, me, frozen, cap = p.C0, p.me, p.frozen, p.cap
     updates = 0
     passes = []
-    p_start = start
+    p_start = p.start
     prev = None
     converged = False
     inv_prior = 1.0 / sig_par**2
     sig_pass = sig.copy()
     first = None
-    rs_scaled = r / sig[3:N_NAV] ** 2
-    qam = float(np.mean(qa))
+    rs_scaled = nv.r / sig[3:N_NAV] ** 2
+    qam = float(np.mean(nv.qa))
     for ip in range(max_passes):
         out = None  # the last pass's per-step stores go before this one allocates its own: one pass's worth at a time
         sig_used = sig_pass
         try:
-            out = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_pass, qg, qa, r, hist_every,
-                           keep_phi=keep_passes, smooth=False, enc=enc, enc_sigma=enc_sig,
+            out = run_pass(p.dth, p.dv, p.dt, p.n_per, C0, p.site_v, p_start, st, sig_pass, nv.qg, nv.qa, nv.r,
+                           p.hist_every, keep_phi=keep_passes, smooth=False, enc=p.enc, enc_sigma=p.enc_sig,
                            nis_cap=cap if (updates == 0 and ip < LAST_BOUNDED_PASS) else np.inf,
-                           temperature=None if tin is None else (tin["dT"], tin["rate"]), q_factor=me.q_factor,
+                           temperature=None if p.tin is None else (p.tin["dT"], p.tin["rate"]), q_factor=me.q_factor,
                            r_factor=me.r_factor)
         except np.linalg.LinAlgError:
             raise CalibrationError(
                 f"systematic filter: numerical failure in pass {ip + 1} (the covariance lost its positive "
-                f"definiteness; ARW {units.from_si(float(np.min(arw_v)), 'deg/sqrt(h)'):.3g} .. "
-                f"{units.from_si(float(np.max(arw_v)), 'deg/sqrt(h)'):.3g} deg/sqrt(h), VRW "
-                f"{units.from_si(float(np.min(vrw_v)), 'ug/sqrt(Hz)'):.3g} .. "
-                f"{units.from_si(float(np.max(vrw_v)), 'ug/sqrt(Hz)'):.3g} ug/sqrt(Hz): a noise far from the "
+                f"definiteness; ARW {units.from_si(float(np.min(nv.arw_v)), 'deg/sqrt(h)'):.3g} .. "
+                f"{units.from_si(float(np.max(nv.arw_v)), 'deg/sqrt(h)'):.3g} deg/sqrt(h), VRW "
+                f"{units.from_si(float(np.min(nv.vrw_v)), 'ug/sqrt(Hz)'):.3g} .. "
+                f"{units.from_si(float(np.max(nv.vrw_v)), 'ug/sqrt(Hz)'):.3g} ug/sqrt(Hz): a noise far from the "
                 "data's, or a record the filter cannot follow; try --arw/--vrw)") from None
         if not (np.all(np.isfinite(out.Pf)) and np.all(np.isfinite(out.params.error_state(st, nominal)))):
             raise CalibrationError(f"systematic filter diverged in pass {ip + 1} (non-finite state): the linearisation "
                                    "is too far from the data (a coarse alignment off, or errors beyond the priors)")
         sp = sig_pass[nd:]
-        # This pass ran with the prior N(p_start, diag(sp^2)) (deflated after pass 1 for numerical range).
-        # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
-        # L_d = Pf^-1 - diag(sp^-2), posterior P = (L_d + diag(sig0^-2))^-1,
-        # x = P (Pf^-1 x' + diag(sig0^-2) mu) with x' the pass's total correction and mu = p_start - nominal.
-        # P_pp = U_pp U_pp^T (U upper triangular, navigation first): its inverse from the factor, which has
-        # half the dynamic range of P
-        Ui = solve_triangular(out.Uf[nd:, nd:], np.eye(sp.shape[0]))
-        Pf_inv = (Ui.T @ Ui) / np.outer(sp, sp)
-        Pf_inv = 0.5 * (Pf_inv + Pf_inv.T)
-        L_d = Pf_inv - np.diag(1.0 / sp**2)
-        P_post = np.linalg.inv(L_d + np.diag(inv_prior))
-        P_post = 0.5 * (P_post + P_post.T)
-        x_pass = p_start.error_state(st, out.params)  # estimate(start) - estimate(end) = the correction
-        mu = p_start.error_state(st, nominal)
-        x_post = P_post @ (Pf_inv @ x_pass + inv_prior * mu)
-        est = out.params.corrected(st, x_post - x_pass)
-        sig_post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
+        Pf_inv, P_post, est, sig_post = change_of_prior(out, sp, nd, inv_prior, p_start, st, nominal)
         phi0 = out.x0s[:3] * sig_pass[:3]
         C0 = dcm_from_quat(quat_from_rotvec(-phi0)) @ C0
         if first is None:  # its history needs only the smoothed states at the stored rows (run_pass has them)
@@ -466,7 +551,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
             D = sig_pass[3:N_NAV]
             S_raw = np.linalg.inv(Si) * np.outer(D, D)[None]
             expected_k = 6.0 - np.diagonal(Si, axis1=1, axis2=2) @ rs_scaled
-            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, moving, qam, T, r, out.r_factor,
+            new = update_factors(me, S_raw, out.z[:out.steps], expected_k, p.moving, qam, p.T, nv.r, out.r_factor,
                                  out.q_used, cap)
             if new.settled:
                 frozen = True  # the factors this pass ran with stand
@@ -486,91 +571,99 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         # information is removed again above), which keeps the covariance's range ~1e4 instead of ~1e10
         sig_pass = sig.copy()
         sig_pass[nd:] = np.minimum(sig_par, DEFLATE * np.maximum(sig_post, 1e-6 * sig_par))
-    verdict = convergence_verdict(passes, converged, tol, est.error_state(st, nominal) / sig_par, st.labels()[nd:],
-                                  float(np.max(np.abs(out.z[:out.steps, 3:]))) if out.steps else 0.0,
-                                  truncated=max_passes < MIN_VERDICT_PASSES)
-    x_est = est.error_state(st, nominal)
-    term_check = None
-    wider = dataclasses.replace(st, asynchrony=True, lever9=True)
-    if (not verdict and robust and weights is None and max_passes >= MIN_VERDICT_PASSES and st.extended
-            and not st.gimbal and wider != st and max(me.group_factor.values()) > 1.0):
-        # the record misfits the model beyond its noise: a white model-error term accounts for the misfit only if
-        # no term the states leave out drives it.  The same record with the candidate terms of --states auto added
-        # says whether one does (model_error.term_shift)
-        try:
-            big = systematic(rec, wider, filter_rate_hz=filter_rate_hz, max_passes=max_passes, tol=tol, arw=arw,
-                             vrw=vrw, velocity_sigma=velocity_sigma, position_sigma=position_sigma, prior=prior,
-                             history_s=history_s, align_s=align_s, initial=est.to_imu(), method_name=method_name,
-                             nis_cap=nis_cap, t_ref=t_ref, temperature_sensor=temperature_sensor,
-                             temperature_rate_window_s=temperature_rate_window_s, robust=robust)
-        except CalibrationError as exc:
-            term_check = {"done": False, "why": str(exc), "states": state_spec(wider)}
-        else:
-            labels = st.labels()[nd:]
-            z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"])
-            worst = int(np.argmax(z))
-            term_check = {"done": True, "states": state_spec(wider), "shift_max_sigma": float(z[worst]),
-                          "state": labels[worst], "limit": TERM_SHIFT_LIMIT,
-                          "model_error_with_terms": big.model_error.as_dict()}
-            if z[worst] > TERM_SHIFT_LIMIT:
-                verdict = (f"the record misfits the model beyond its noise and a term the states leave out drives the "
-                           f"estimate: with --states {state_spec(wider)} {labels[worst]} moves {z[worst]:.3g} sigma "
-                           f"(limit {TERM_SHIFT_LIMIT:g}); calibrate with those states or --states auto")
-    if verdict and not accept_unconverged:
-        raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
-                           "or --accept-unconverged to keep the last iterate")
-    # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the caller
-    last = smooth_pass(out) if keep_passes else out
-    names = estimated_names(st)
-    J = canonical_jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
-    Sig = J @ P_post @ J.T
-    sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
-    fixed = fixed_mask(st, names)
-    sflat[fixed] = np.nan
-    # what the model-error term costs (its last resort): each group's sigma against the bound without it, the same
-    # record and linearisation with every factor 1 (the filter's posterior of the record at the noise assumed)
-    cost = None
-    if robust and weights is None and (any(f > 1.0 for f in me.group_factor.values()) or me.outliers):
-        try:
-            plain = run_pass(dth, dv, dt, n_per, C0, site_v, p_start, st, sig_used, qg, qa, r, hist_every,
-                             smooth=False, enc=enc, enc_sigma=enc_sig,
-                             temperature=None if tin is None else (tin["dT"], tin["rate"]))
-            spu = sig_used[nd:]
-            Uiu = solve_triangular(plain.Uf[nd:, nd:], np.eye(spu.shape[0]))
-            Pfu = (Uiu.T @ Uiu) / np.outer(spu, spu)
-            P_bound = np.linalg.inv(0.5 * (Pfu + Pfu.T) - np.diag(1.0 / spu**2) + np.diag(inv_prior))
-            s_bound = unflatten(np.sqrt(np.maximum(np.diag(J @ P_bound @ J.T), 0.0)), names)
-            s_now = unflatten(sflat, names)
-            cost = {n: float(np.nanmax(np.asarray(s_now[n], float) / np.asarray(s_bound[n], float)))
-                    for n in names if np.any(np.isfinite(np.asarray(s_now[n], float)))}
-        except (np.linalg.LinAlgError, CalibrationError):
-            cost = None
-    # the prior in the same canonical components: the yardstick of what the record observed
-    prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
-    unobs, unobs_note = unobservable(names, sflat, prior_flat)
-    imu = est.to_imu()
+    return Passes(out, est, p_start, C0, P_post, Pf_inv, sig_used, me, passes, converged, first)
 
-    # innovation statistics (normalised innovation squared; dof = 6 per step) and the fit
 
+def change_of_prior(out, sp: np.ndarray, nd: int, inv_prior: np.ndarray, p_start: CompParams, st: StateSet,
+                    nominal: CompParams) -> tuple:
+    """A pass's data information about its start, and the posterior with the prior about the nominal:
+    (Pf^-1, P, the estimate, its sigma)."""
+    # This pass ran with the prior N(p_start, diag(sp^2)) (deflated after pass 1 for numerical range).
+    # Exact linear-Gaussian change of prior to N(nominal, diag(sig0^2)): data information
+    # L_d = Pf^-1 - diag(sp^-2), posterior P = (L_d + diag(sig0^-2))^-1,
+    # x = P (Pf^-1 x' + diag(sig0^-2) mu) with x' the pass's total correction and mu = p_start - nominal.
+    # P_pp = U_pp U_pp^T (U upper triangular, navigation first): its inverse from the factor, which has
+    # half the dynamic range of P
+    Ui = solve_triangular(out.Uf[nd:, nd:], np.eye(sp.shape[0]))
+    Pf_inv = (Ui.T @ Ui) / np.outer(sp, sp)
+    Pf_inv = 0.5 * (Pf_inv + Pf_inv.T)
+    L_d = Pf_inv - np.diag(1.0 / sp**2)
+    P_post = np.linalg.inv(L_d + np.diag(inv_prior))
+    P_post = 0.5 * (P_post + P_post.T)
+    x_pass = p_start.error_state(st, out.params)  # estimate(start) - estimate(end) = the correction
+    mu = p_start.error_state(st, nominal)
+    x_post = P_post @ (Pf_inv @ x_pass + inv_prior * mu)
+    est = out.params.corrected(st, x_post - x_pass)
+    sig_post = np.sqrt(np.maximum(np.diag(P_post), 0.0))
+    return Pf_inv, P_post, est, sig_post
+
+
+def missing_term_check(refit, wider: StateSet, st: StateSet, x_est, P_post, nd: int) -> tuple:
+    """Whether a term the states leave out drives the estimate of a misfitting record: ``refit()`` the same record
+    with the ``wider`` states (model_error.term_shift).  Returns (verdict or None, the check's diagnostics)."""
+    verdict = None
+    try:
+        big = refit()
+    except CalibrationError as exc:
+        term_check = {"done": False, "why": str(exc), "states": state_spec(wider)}
+    else:
+        labels = st.labels()[nd:]
+        z = term_shift(x_est, P_post, labels, big.parameter_state, big.covariance["P"], big.covariance["labels"])
+        worst = int(np.argmax(z))
+        term_check = {"done": True, "states": state_spec(wider), "shift_max_sigma": float(z[worst]),
+                      "state": labels[worst], "limit": TERM_SHIFT_LIMIT,
+                      "model_error_with_terms": big.model_error.as_dict()}
+        if z[worst] > TERM_SHIFT_LIMIT:
+            verdict = (f"the record misfits the model beyond its noise and a term the states leave out drives the "
+                       f"estimate: with --states {state_spec(wider)} {labels[worst]} moves {z[worst]:.3g} sigma "
+                       f"(limit {TERM_SHIFT_LIMIT:g}); calibrate with those states or --states auto")
+    return verdict, term_check
+
+
+def model_error_cost(p: Prepared, it: Passes, J, sflat, names) -> dict | None:
+    """What the model-error term costs (its last resort): each group's sigma against the bound without it, the
+    same record and linearisation with every factor 1 (the filter's posterior of the record at the noise
+    assumed); None where that pass fails."""
+    nd, nv = p.nd, p.noise
+    try:
+        plain = run_pass(p.dth, p.dv, p.dt, p.n_per, it.C0, p.site_v, it.p_start, p.st, it.sig_used, nv.qg, nv.qa,
+                         nv.r, p.hist_every, smooth=False, enc=p.enc, enc_sigma=p.enc_sig,
+                         temperature=None if p.tin is None else (p.tin["dT"], p.tin["rate"]))
+        spu = it.sig_used[nd:]
+        Uiu = solve_triangular(plain.Uf[nd:, nd:], np.eye(spu.shape[0]))
+        Pfu = (Uiu.T @ Uiu) / np.outer(spu, spu)
+        P_bound = np.linalg.inv(0.5 * (Pfu + Pfu.T) - np.diag(1.0 / spu**2) + np.diag(1.0 / p.sig_par**2))
+        s_bound = unflatten(np.sqrt(np.maximum(np.diag(J @ P_bound @ J.T), 0.0)), names)
+        s_now = unflatten(sflat, names)
+        return {n: float(np.nanmax(np.asarray(s_now[n], float) / np.asarray(s_bound[n], float)))
+                for n in names if np.any(np.isfinite(np.asarray(s_now[n], float)))}
+    except (np.linalg.LinAlgError, CalibrationError):
+        return None
+
+
+def innovation_statistics(p: Prepared, it: Passes, last, cost: dict | None) -> tuple:
+    """The innovation statistics of the last pass (normalised innovation squared; dof = 6 per step) and the fit:
+    (NIS, dof, chi2, its expectation, the fit with the model-error term's notes)."""
+    me, nv = it.me, p.noise
     nis = last.nis
     dof = 6 * last.steps
     chisq = float(np.sum(nis))
     # expectation of the chi2: the zero-velocity/known-position pseudo-measurement noise R regularises the
     # filter but is not in a static record's data, so E[nu^T S^-1 nu] = 6 - tr(S^-1 R) per step (the
     # encoder rows' expectation is formed the same way); steps down-weighted by the cap count 6
-    rs_scaled = r / sig[3:N_NAV] ** 2
+    rs_scaled = nv.r / p.sig[3:N_NAV] ** 2
     Si_diag = np.diagonal(last.smoother.Si_st[:last.steps], axis1=1, axis2=2)
     per_step = 6.0 - Si_diag @ rs_scaled
     per_step[last.q_used[:last.steps] > me.q_factor[:last.steps]] = 6.0  # bounded steps (a jump): their own
     # NIS is that of the nominal model
     expected = float(np.sum(per_step))
     floor_words = None
-    if floored and arw is None and vrw is None:  # the record's own noise, estimated, is below the floors
+    if nv.floored and p.arw is None and p.vrw is None:  # the record's own noise, estimated, is below the floors
         floor_words = (f"ARW {units.from_si(ARW_FLOOR, 'deg/sqrt(h)'):.2g} deg/sqrt(h), VRW "
                        f"{units.from_si(VRW_FLOOR, 'ug/sqrt(Hz)'):.2g} ug/sqrt(Hz)"
-                       + ("; the record is float32" if np.any(f32 > 0) else "")
-                       + ("; the record is quantized" if np.any(q_res > 0) else ""))
-    fit = innovation_fit(nis, last.z, T, chisq, dof, st, misfit_signature(nis, dth, dt, n_per), expected,
+                       + ("; the record is float32" if np.any(nv.f32 > 0) else "")
+                       + ("; the record is quantized" if np.any(nv.q_res > 0) else ""))
+    fit = innovation_fit(nis, last.z, p.T, chisq, dof, p.st, misfit_signature(nis, p.dth, p.dt, p.n_per), expected,
                          floor_words)
     if any(f > 1.0 for f in me.group_factor.values()):
         # the chi2 is of the model with its velocity model-error term, estimated to fit: the model as given
@@ -579,110 +672,37 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         fit["consistent"] = False
         fit["cause"] = fit["cause"] or "model error: the record misfits the model beyond its noise"
         fit["model_error"] = me.as_dict()
-        fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(moving)))
+        fit["note"] = (fit["note"] + "; " if fit["note"] else "") + model_error_note(me, int(np.sum(p.moving)))
     if cost:
         top = sorted(cost.items(), key=lambda kv: -kv[1])[:3]
         fit["model_error_cost"] = cost
         fit["note"] = ((fit["note"] + "; " if fit["note"] else "") + "the model-error term costs the sigma (against the "
                        "bound without it): " + ", ".join(f"{n} x{v:.3g}" for n, v in top))
-    formal = unflatten(sflat, names)
-    sigma = unflatten(sflat * fit["scale"], names)
-    assumed = None if st.gimbal else inputs_assumed(last, site, sig_used, P_post @ Pf_inv, J, sflat * fit["scale"],
-                                                    names, T)
-    diag = {
-        "states": st.n_states, "state_options": state_spec(st), "frame": "accelerometer-defined (PSINS triangular)"
-        if st.psins else "gyro-defined (S16 m-frame)",
-        "filter_rate_hz": 1.0 / T, "steps": int(last.steps), "passes": passes, "converged": converged,
-        "noise": {"arw_deg_sqrt_h": units.from_si(arw_v, "deg/sqrt(h)").tolist(),
-                  "vrw_ug_sqrt_hz": units.from_si(vrw_v, "ug/sqrt(Hz)").tolist(),
-                  "estimated_from_data": arw is None and vrw is None, "floored": floored,
-                  "resolution_floored": resolution_floored,
-                  "resolution": {"gyro_arcsec": units.from_si(q_res[:3], "arcsec").tolist(),
-                                 "accel_ug_s": units.from_si(q_res[3:], "ug*s").tolist()},
-                  "float32": bool(np.all(f32 > 0)),
-                  "float32_rounding": {"gyro_arcsec": units.from_si(f32[:3], "arcsec").tolist(),
-                                       "accel_ug_s": units.from_si(f32[3:], "ug*s").tolist()},
-                  "velocity_sigma_m_s": vsig, "position_sigma_m": psig},
-        "innovations": {"nis_mean": float(np.mean(nis)), "nis_expected": expected / max(len(nis), 1), "chi2": chisq,
-                        "dof": dof, "expected_chi2": expected,
-                        "p_value": chi2_sf(chisq, expected) if dof > 0 else float("nan"),
-                        "velocity_rms_m_s": float(np.sqrt(np.mean(last.z[:, :3] ** 2))),
-                        "position_rms_m": float(np.sqrt(np.mean(last.z[:, 3:] ** 2)))},
-        "initial_attitude_deg": np.degrees(euler_of(C0)).tolist(),
-    }
-    diag["fit"] = fit
-    diag["inputs_assumed"] = assumed
-    diag["model_error"] = me.as_dict() | {"moving_steps": int(np.sum(moving)), "robust": bool(robust),
-                                          "outlier_cap": None if not math.isfinite(cap) else cap,
-                                          "shared": weights is not None}
-    if st.lever_timing:  # a nuisance (states levtime): the canonical parameters do not depend on it
-        off = 0
-        for g in st.groups:
-            if g.name == "accel_lever_timing":
-                break
-            off += g.size
-        diag["lever_timing"] = {"value_ms": (est.levt * 1e3).tolist(),
-                                "sigma_ms": (np.sqrt(np.maximum(np.diag(P_post)[off:off + 3], 0.0)) * 1e3).tolist()}
-    diag["convergence"] = {"converged": converged, "verdict": verdict or None,
-                           "accepted_unconverged": bool(verdict) and accept_unconverged, "term_check": term_check}
-    diag["formal_sigma"] = formal
-    diag["unobservable"] = unobs
-    notes = [f"systematic {st.n_states}-state filter: parameters in the {diag['frame']} frame"]
-    if verdict:
-        notes.append(f"NOT A CONVERGED CALIBRATION: {verdict}; the last iterate is kept on request "
-                     "(--accept-unconverged)")
-    if fit["note"]:
-        notes.append(fit["note"])
-    if assumed is not None:
-        notes.append(assumed["note"])
-    me_note = model_error_note(me, int(np.sum(moving)))
-    if me_note and me_note not in (fit["note"] or ""):
-        notes.append(me_note)
-    if unobs_note:
-        notes.append(unobs_note)
-    if noise is not None:
-        diag["noise"]["gauss_markov"] = [{"sensor": g.sensor, "axis": "xyz"[g.axis], "tc_s": g.tc,
-                                          "sigma": float(units.from_si(g.sigma, "deg/h" if g.sensor == "gyro" else "ug")),
-                                          "sigma_unit": "deg/h" if g.sensor == "gyro" else "ug"} for g in st.gm]
-        diag["noise"]["from_model"] = True
-        tcs = sorted({round(g.tc, 3) for g in st.gm})
-        notes.append(f"noise model given: white noise of its WN terms, {len(st.gm)} Gauss-Markov bias state(s)"
-                     + (f" (correlation time {', '.join(f'{t:g}' for t in tcs)} s)" if tcs else ""))
-        if gm_note:
-            notes.append(gm_note)
-    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
-                            est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
-    res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
-    if st.gimbal:
-        gimbal_diagnostics(res, last, st, enc_sig, int(encoder_every))
-    if tin is not None:
-        o = thermal_offset(st)
-        res.thermal, res.thermal_sigma, table, th_notes = thermal_result(est, st, P_post[o:, o:], sig_par[o:],
-                                                                         fit["scale"], imu, tin, P_all=P_post,
-                                                                         prior_all=sig_par)
-        res.thermal_fit = {"method": "thermal states of the systematic filter (one run)", "chi2": chisq, "dof": dof,
-                           "expected_chi2": expected, "p_value": diag["innovations"]["p_value"],
-                           "consistent": fit["consistent"], "scale": fit["scale"]}
-        diag["thermal"] = {"t_ref": tin["t_ref"], "t_min": tin["t_min"], "t_max": tin["t_max"], "span": tin["span"],
-                           "rate_max_c_per_min": 60.0 * tin["rate_max"], "sensor": tin["sensor"],
-                           "rate_window_s": tin["rate_window_s"],
-                           "orders": dict(zip(("gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor",
-                                               "gyro_bias_rate"), st.thermal)),
-                           "coefficients": table}
-        res.notes += th_notes
-        if st.thermal[-1] and not reverses(tin["rate"]):
-            res.notes.append(
-                "the temperature never falls (or never rises) at a rate of note: the gyro bias's dT/dt term is told from "
-                "its polynomial in T only where the rate changes (the ends of a ramp), and over seeds of thermal-ramp "
-                "their sigma undercover (RMS error/sigma 1.2-1.4; bench/thermal_ramp.py); a profile that crosses each "
-                "temperature both ways (thermal-cycle: in band) separates them")
-    h_out, h_sig = first
-    res.history = pass_history(h_out, st, names, h_sig, J, est, P_post)
-    res.history["time_s"] = res.history["t_steps"] * T
-    res.states = st
-    res.model_error = me  # the frozen model-error factors (the nested fits of --states auto share them)
-    res.covariance = {"labels": st.labels()[nd:], "P": P_post}
-    res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
-    if keep_passes:
-        res.pass_output = last
-    return res
+    return nis, dof, chisq, expected, fit
+
+
+def attach_thermal(res: CalibrationResult, p: Prepared, it: Passes, imu: ImuErrors, fit: dict, chisq: float,
+                   dof: int, expected: float) -> None:
+    """The thermal states' canonical model, its fit and diagnostics on ``res``
+    (:mod:`inscal.calibrate.systematic.thermal_states`)."""
+    st, tin, sig_par, P_post, diag = p.st, p.tin, p.sig_par, it.P_post, res.diagnostics
+    o = thermal_offset(st)
+    res.thermal, res.thermal_sigma, table, th_notes = thermal_result(it.est, st, P_post[o:, o:], sig_par[o:],
+                                                                     fit["scale"], imu, tin, P_all=P_post,
+                                                                     prior_all=sig_par)
+    res.thermal_fit = {"method": "thermal states of the systematic filter (one run)", "chi2": chisq, "dof": dof,
+                       "expected_chi2": expected, "p_value": diag["innovations"]["p_value"],
+                       "consistent": fit["consistent"], "scale": fit["scale"]}
+    diag["thermal"] = {"t_ref": tin["t_ref"], "t_min": tin["t_min"], "t_max": tin["t_max"], "span": tin["span"],
+                       "rate_max_c_per_min": 60.0 * tin["rate_max"], "sensor": tin["sensor"],
+                       "rate_window_s": tin["rate_window_s"],
+                       "orders": dict(zip(("gyro_bias", "gyro_scale_factor", "accel_bias", "accel_scale_factor",
+                                           "gyro_bias_rate"), st.thermal)),
+                       "coefficients": table}
+    res.notes += th_notes
+    if st.thermal[-1] and not reverses(tin["rate"]):
+        res.notes.append(
+            "the temperature never falls (or never rises) at a rate of note: the gyro bias's dT/dt term is told from "
+            "its polynomial in T only where the rate changes (the ends of a ramp), and over seeds of thermal-ramp "
+            "their sigma undercover (RMS error/sigma 1.2-1.4; bench/thermal_ramp.py); a profile that crosses each "
+            "temperature both ways (thermal-cycle: in band) separates them")
