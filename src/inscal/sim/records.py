@@ -18,7 +18,8 @@ def scenario_record(name: str, rng: np.random.Generator | None, duration_s: floa
     Parameters
     ----------
     name : str
-        A built-in name (``inscal.sim.scenarios.BUILTIN``) or a scenario TOML file, as for :func:`~inscal.sim.scenarios.build`.
+        A built-in name (``inscal.sim.scenarios.BUILTIN``) or a scenario TOML file, as for
+        :func:`~inscal.sim.scenarios.build`.
     rng : numpy.random.Generator or None
         The generator of the noise (None: no noise drawn; a scenario with noise needs one).
     duration_s, rate_hz : float, optional
