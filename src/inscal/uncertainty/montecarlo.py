@@ -36,19 +36,17 @@ are laid out here, and the trials of an adaptive round are known only when the p
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from inscal.analysis.montecarlo import ordered_map
 from inscal.calibrate import calibrate
 from inscal.calibrate.result import CalibrationResult, flatten
 from inscal.core import units
 from inscal.core.error_model import PARAMETERS
+from inscal.core.progress import ProgressBar
 from inscal.uncertainty import budget as gum
 from inscal.uncertainty import distributions
 from inscal.uncertainty import sensitivity as S
@@ -279,34 +277,6 @@ def _summary(result: CalibrationResult, budget: gum.Budget, parts: list[np.ndarr
     return MonteCarloBudget(runs, seed, len(parts), budget.coverage, n_dig, tuple(comps), tuple(notes))
 
 
-class TrialProgress:
-    """Trials done on stderr: at every 10 % (a log) or a Rich bar (a terminal); ``update(done, total)`` is the
-    ``progress`` of :func:`monte_carlo`, ``close()`` ends the bar."""
-
-    def __init__(self, total: int):
-        self.total, self.next_pct, self.bar = total, 10, None
-        con = Console(stderr=True)
-        if con.is_terminal:
-            self.bar = Progress(TextColumn("JCGM 101 Monte Carlo"), BarColumn(), MofNCompleteColumn(),
-                                TimeElapsedColumn(), console=con)
-            self.bar.start()
-            self.task = self.bar.add_task("mc", total=total)
-
-    def update(self, done: int, total: int) -> None:
-        """``done`` trials of at most ``total``: the bar moved, or a line at every 10 %."""
-        if self.bar is not None:
-            self.bar.update(self.task, completed=done, total=total)
-            return
-        pct = 100.0 * done / max(1, total)
-        if pct >= self.next_pct:
-            print(f"budget Monte Carlo: {done} trials (at most {total})", file=sys.stderr, flush=True)
-            while self.next_pct <= pct:
-                self.next_pct += 10
-
-    def close(self) -> None:
-        """End the bar (nothing for the plain lines)."""
-        if self.bar is not None:
-            self.bar.stop()
 
 
 def budget_monte_carlo(result: CalibrationResult, station: Station, budget: gum.Budget, runs: int, seed: int = 0,
@@ -316,7 +286,7 @@ def budget_monte_carlo(result: CalibrationResult, station: Station, budget: gum.
 
     At most ``runs`` trials, in rounds of :data:`ROUND`, on the shared Monte Carlo engine
     (:func:`inscal.analysis.montecarlo.ordered_map`: this process for one worker, else a local Dask cluster of
-    ``workers`` processes), the trials done on stderr (:class:`TrialProgress`).
+    ``workers`` processes), the trials done on stderr (:class:`~inscal.core.progress.ProgressBar`: a line at every 10 % in a log).
 
     Parameters
     ----------
@@ -360,9 +330,7 @@ hours
                          f" not {result.method}: its site and clock inputs enter the filter linearly, and a thousand "
                          "filter runs would take hours")
     with ordered_map(workers) as map_fn:
-        bar = TrialProgress(runs)
-        try:
+        with ProgressBar("JCGM 101 Monte Carlo", runs, every_s=None) as bar:
             return monte_carlo(result, station, budget, runs=runs, seed=seed, adaptive=True, options=options,
-                               map_fn=map_fn, progress=bar.update)
-        finally:
-            bar.close()
+                               map_fn=map_fn, progress=lambda done, total: bar.update(
+                                   done, total, line=f"budget Monte Carlo: {done} trials (at most {total})"))
