@@ -40,6 +40,7 @@ from inscal.calibrate.systematic.states import (
     K_UG,
     TH_RATE_ROW,
 )
+from inscal.core.attitude import skew_entry
 from inscal.core.dense import product_entry
 
 # the basis of one sample's column values: u_g (3), -1, -f (3), u_a (3), -f_i^2 (3), -f_x f_y, -f_x f_z, -f_y f_z,
@@ -166,14 +167,7 @@ def basis_values(ug, ua, w, f, wd, fdot, B, j, lev9, sd, lt):
     if lev9:
         for i in range(3):
             for k in range(3):
-                cr = 0.0
-                if k == 0:
-                    cr = 0.0 if i == 0 else (wd[2] if i == 1 else -wd[1])
-                elif k == 1:
-                    cr = -wd[2] if i == 0 else (0.0 if i == 1 else wd[0])
-                else:
-                    cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
-                B[B_LEVF + 3 * i + k, j] = -(w[i] * w[k] - (ww if i == k else 0.0) + cr)
+                B[B_LEVF + 3 * i + k, j] = -(w[i] * w[k] - (ww if i == k else 0.0) + skew_entry(wd, i, k))
 
 
 @njit(cache=True, inline="always")
