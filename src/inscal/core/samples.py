@@ -1,5 +1,6 @@
-"""A record's sample arrays taken in: the time (n,) and two per-axis arrays (n, 3) as float arrays, their
-shapes checked once for every reader (a logger's samples, a record handed to the still-pose detector)."""
+"""A record's samples: the time (n,) and two per-axis arrays (n, 3) taken in as float arrays, their
+shapes checked once for every reader (a logger's samples, a record handed to the still-pose detector); the
+number of samples and the length of a record type (:class:`SampleSpan`)."""
 
 from __future__ import annotations
 
@@ -14,3 +15,18 @@ def triad_series(time, first, second, error: type[Exception], message: str):
     if t.ndim != 1 or a.shape != (n, 3) or b.shape != (n, 3):
         raise error(message.format(t.shape, a.shape, b.shape))
     return t, a, b
+
+
+class SampleSpan:
+    """The size of a record's samples, for the record types (a mixin: the class has ``time`` (n,) [s] and
+    ``rate_hz``)."""
+
+    @property
+    def n_samples(self) -> int:
+        """The number of samples N."""
+        return int(self.time.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """The record's length N / rate [s]."""
+        return float(self.n_samples / self.rate_hz)
