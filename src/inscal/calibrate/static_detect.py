@@ -62,6 +62,7 @@ from scipy import stats
 
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
+from inscal.core.samples import triad_series
 
 #: the round-off floor of the noise density of a noise-free record, relative to the signal
 NOISE_FLOOR = 1e-12
@@ -272,13 +273,9 @@ def _tremor_word(tremor: float) -> str:
 
 def _checked(time, dtheta, dvel, alpha, min_still, settle, tremor, batch_s, clipped):
     """The record as float arrays, or one clear :class:`CalibrationError` on a bad input."""
-    time = np.asarray(time, float)
-    dth = np.asarray(dtheta, float)
-    dv = np.asarray(dvel, float)
+    time, dth, dv = triad_series(time, dtheta, dvel, CalibrationError,
+                                 "time, dtheta, dvel must be (n,), (n, 3), (n, 3); got {}, {}, {}")
     n = time.shape[0]
-    if time.ndim != 1 or dth.shape != (n, 3) or dv.shape != (n, 3):
-        raise CalibrationError(f"time, dtheta, dvel must be (n,), (n, 3), (n, 3); got {time.shape}, {dth.shape}, "
-                               f"{dv.shape}")
     if n < 10:
         raise CalibrationError(f"record too short ({n} samples) to hold a still pose")
     if not (np.all(np.isfinite(dth)) and np.all(np.isfinite(dv))):

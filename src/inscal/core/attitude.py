@@ -31,6 +31,16 @@ def skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+@njit(cache=True, inline="always")
+def skew_entry(v, i, j):
+    """The entry (i, j) of [v x], ``(v x e_j)_i``, without building the matrix (for the kernels' loops)."""
+    if j == 0:
+        return 0.0 if i == 0 else (v[2] if i == 1 else -v[1])
+    if j == 1:
+        return -v[2] if i == 0 else (0.0 if i == 1 else v[0])
+    return v[1] if i == 0 else (-v[0] if i == 1 else 0.0)
+
+
 @njit(cache=True)
 def axis_angle_dcm(axis, angle):
     """Exact DCM of a right-handed rotation ``angle`` about unit ``axis`` (Rodrigues).

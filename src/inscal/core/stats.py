@@ -18,22 +18,24 @@ def _valid(dof) -> bool:
     return dof > 0 and math.isfinite(dof) or dof == math.inf
 
 
-def chi2_sf(x: float, dof: float) -> float:
-    """P(X > x) for X ~ chi-square(dof)."""
+def _tail(x: float, dof: float, below_zero: float, function) -> float:
+    """``function(dof, x)`` (``chdtr``, ``chdtrc``) with scipy.stats' handling: NaN for an invalid ``dof`` or
+    a NaN ``x``, ``below_zero`` for ``x <= 0``."""
     if not _valid(dof) or x != x:
         return math.nan
     if x <= 0:
-        return 1.0
-    return float(special.chdtrc(dof, x))
+        return below_zero
+    return float(function(dof, x))
+
+
+def chi2_sf(x: float, dof: float) -> float:
+    """P(X > x) for X ~ chi-square(dof)."""
+    return _tail(x, dof, 1.0, special.chdtrc)
 
 
 def chi2_cdf(x: float, dof: float) -> float:
     """P(X <= x) for X ~ chi-square(dof)."""
-    if not _valid(dof) or x != x:
-        return math.nan
-    if x <= 0:
-        return 0.0
-    return float(special.chdtr(dof, x))
+    return _tail(x, dof, 0.0, special.chdtr)
 
 
 def chi2_ppf(q: float, dof: float) -> float:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inscal.core import units
+from inscal.core.samples import triad_series
 from inscal.io.formats.rates import cell_edges
 from inscal.io.records import DataFileError
 
@@ -59,13 +60,9 @@ def increments_from_samples(time, gyro, accel, *, time_unit: str = "s", gyro_uni
     """The increments of logger samples (module docstring).  ``gyro_counts`` / ``accel_counts``:
     ``(scale, offset)`` with the scale in SI (rad/s, m/s^2 per count), for the ``counts`` unit;
     ``gyro_range``: the clip level in ``gyro_unit`` (counts: in counts)."""
-    t_raw = np.asarray(time, float)
-    g_raw = np.asarray(gyro, float)
-    a_raw = np.asarray(accel, float)
+    t_raw, g_raw, a_raw = triad_series(time, gyro, accel, DataFileError,
+                                       "logger samples: time (n,), gyro (n, 3), accel (n, 3); got {}, {}, {}")
     n = t_raw.shape[0]
-    if t_raw.ndim != 1 or g_raw.shape != (n, 3) or a_raw.shape != (n, 3):
-        raise DataFileError(f"logger samples: time (n,), gyro (n, 3), accel (n, 3); got {t_raw.shape}, {g_raw.shape}, "
-                            f"{a_raw.shape}")
     if n < 3:
         raise DataFileError(f"logger samples: {n} samples, too few")
     for name, x in (("time", t_raw), ("gyro", g_raw), ("accel", a_raw)):

@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING
 import h5py
 import numpy as np
 
+from inscal.core.samples import SampleSpan
+
 if TYPE_CHECKING:  # imported on first use: they pull in scipy and numba (seconds), which reading a record does not need
     from inscal.core.earth import Site
     from inscal.core.error_model import GimbalErrors, ImuErrors, ImuNoise
@@ -203,7 +205,7 @@ def validate_temperature(time, values, sensors, where: str = "temperature") -> N
 
 
 @dataclass
-class Record:
+class Record(SampleSpan):
     """An IMU record in memory (SI), as :func:`~inscal.io.recordfile.read_record` returns it and
     :func:`~inscal.io.recordfile.write_record` writes it.
 
@@ -254,16 +256,6 @@ class Record:
     scenario: str = ""
     source: str = ""
     temperature: Temperature | None = None
-
-    @property
-    def n_samples(self) -> int:
-        """The number of samples N."""
-        return int(self.time.shape[0])
-
-    @property
-    def duration(self) -> float:
-        """The record's length N / rate [s]."""
-        return float(self.n_samples / self.rate_hz)
 
 @dataclass
 class RecordInfo:

@@ -1,7 +1,8 @@
 """Creating, opening and upgrading the calibration database at this inscal's schema revision.
 
 Schema revisions (Alembic scripts in ``inscal/lab/migrations/``: ``env.py`` and one file per revision in
-``versions/``, loaded by path, not as modules): :func:`init_database` creates the tables
+``versions/``, loaded by path, not as modules; ``ddl.py``, the frozen statements they share):
+:func:`init_database` creates the tables
 at the newest revision; :func:`open_database` refuses, in one line, a database whose revision
 is newer than this inscal knows (made by a newer inscal) and one at an older revision (run
 ``inscal db upgrade``, or ``upgrade=True``), so no version ever writes rows the other cannot read.

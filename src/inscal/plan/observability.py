@@ -99,6 +99,7 @@ from inscal.calibrate.systematic.states import (
 )
 from inscal.calibrate.windows import CalibrationError
 from inscal.core import units
+from inscal.core.dense import product_entry
 from inscal.core.error_model import ImuErrors, ImuNoise
 from inscal.core.turntable import BUILTIN_PATHS, RotationPath
 from inscal.io.tomlfile import read_toml
@@ -560,15 +561,9 @@ def _factor_kernel(k0, k1, phinn, phinp, w, w_att, att_used, R, A, B, growth):
         P = phinn[k]
         for i in range(9):
             for j in range(9):
-                s = 0.0
-                for l in range(9):
-                    s += P[i, l] * A[l, j]
-                A2[i, j] = s
+                A2[i, j] = product_entry(0.0, P, i, A, j, 9)
             for j in range(p):
-                s = phinp[k, i, j]
-                for l in range(9):
-                    s += P[i, l] * B[l, j]
-                B2[i, j] = s
+                B2[i, j] = product_entry(phinp[k, i, j], P, i, B, j, 9)
         A[:, :] = A2
         B[:, :] = B2
         if abs(A[8, 8]) > growth[0]:
@@ -581,17 +576,12 @@ def _factor_kernel(k0, k1, phinn, phinp, w, w_att, att_used, R, A, B, growth):
         nr = 6
         if have_att and att_used[k] != 0:
             # W Psi_k = [W_n A_k, W_n B_k + W_p]
+            Wk = w_att[k]
             for a in range(3):
                 for j in range(9):
-                    s = 0.0
-                    for l in range(9):
-                        s += w_att[k, a, l] * A[l, j]
-                    X[6 + a, j] = s
+                    X[6 + a, j] = product_entry(0.0, Wk, a, A, j, 9)
                 for j in range(p):
-                    s = w_att[k, a, 9 + j]
-                    for l in range(9):
-                        s += w_att[k, a, l] * B[l, j]
-                    X[6 + a, 9 + j] = s
+                    X[6 + a, 9 + j] = product_entry(Wk[a, 9 + j], Wk, a, B, j, 9)
             nr = 9
         # Householder: annihilate column j of X against R[j, j]
         for j in range(N):

@@ -85,6 +85,58 @@ def rates_on_segment(t, s, tx, tz, cx, sx, cz, sz, seg_t0, seg_th0, seg_w0, seg_
     return rates_from_trig(cx, sx, cz, sz, wx, wz, u, Cbn, wie_n, g)
 
 
+# ----------------------------------------------------------------------------- per-axis steps of the pass
+# Small helpers that numba inlines: the pass keeps its numbers in scalars (registers), three axes at a time;
+# each helper does the arithmetic the pass wrote out per axis, in the same order (the same bits).
+@njit(cache=True, inline="always")
+def add_scaled(a0, a1, a2, c, x0, x1, x2):
+    """``a_i + c x_i`` for the three axes."""
+    return a0 + c * x0, a1 + c * x1, a2 + c * x2
+
+
+@njit(cache=True, inline="always")
+def add_products(s0, s1, s2, s3, s4, s5, c, x0, x1, x2):
+    """The six products of a 3-vector added with weight c: ``s + c (x_0^2, x_1^2, x_2^2, x_0 x_1, x_0 x_2,
+    x_1 x_2)`` (``f^(2)`` and ``f^(x)``; the six of ``w w^T``)."""
+    return (s0 + c * x0 * x0, s1 + c * x1 * x1, s2 + c * x2 * x2, s3 + c * x0 * x1, s4 + c * x0 * x2,
+            s5 + c * x1 * x2)
+
+
+@njit(cache=True, inline="always")
+def shifted(a, j, c, x0, x1, x2):
+    """The window shifted by the asynchrony: ``x_i - a[j + 1, c + i] + a[j, c + i]`` (gyro window - I_{j+1} + I_j)."""
+    return (x0 - a[j + 1, c] + a[j, c], x1 - a[j + 1, c + 1] + a[j, c + 1], x2 - a[j + 1, c + 2] + a[j, c + 2])
+
+
+@njit(cache=True, inline="always")
+def mat_vec(m, x0, x1, x2):
+    """``m x`` for a 3x3 ``m``, each row summed left to right."""
+    return (m[0, 0] * x0 + m[0, 1] * x1 + m[0, 2] * x2, m[1, 0] * x0 + m[1, 1] * x1 + m[1, 2] * x2,
+            m[2, 0] * x0 + m[2, 1] * x1 + m[2, 2] * x2)
+
+
+@njit(cache=True, inline="always")
+def put3(a, j, c, x0, x1, x2):
+    """``a[j, c:c + 3] = x``."""
+    a[j, c] = x0
+    a[j, c + 1] = x1
+    a[j, c + 2] = x2
+
+
+@njit(cache=True, inline="always")
+def white(x0, x1, x2, z, j, sigma, sqdt):
+    """White noise added to the three axes: ``x_i + z[j, i] sigma_i sqrt(dt)``."""
+    return x0 + z[j, 0] * sigma[0] * sqdt, x1 + z[j, 1] * sigma[1] * sqdt, x2 + z[j, 2] * sigma[2] * sqdt
+
+
+@njit(cache=True, inline="always")
+def gauss_markov_step(zi, z, j, c, sigma, drv, phi):
+    """The bias of axis c in sample j: ``y = zi_c + sigma_c sqrt(1 - phi^2) z_jc``, and the state ``zi_c = phi y``."""
+    y = zi[c] + z[j, c] * sigma[c] * drv
+    zi[c] = y * phi
+    return y
+
+
 @njit(cache=True)
 def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry, out):
     """Samples ``k0 .. k0 + n - 1`` of a simulation (see the module docstring), all SI.
@@ -184,12 +236,8 @@ def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry
             if s < S - 1 and seg_t1[s] <= b:
                 s += 1
             if truth:
-                tdth[j, 0] = memo_v[hit, 6]
-                tdth[j, 1] = memo_v[hit, 7]
-                tdth[j, 2] = memo_v[hit, 8]
-                tdv[j, 0] = memo_v[hit, 9]
-                tdv[j, 1] = memo_v[hit, 10]
-                tdv[j, 2] = memo_v[hit, 11]
+                put3(tdth, j, 0, memo_v[hit, 6], memo_v[hit, 7], memo_v[hit, 8])
+                put3(tdv, j, 0, memo_v[hit, 9], memo_v[hit, 10], memo_v[hit, 11])
         else:
             # --- 1. the integrals over [a, b], piece by piece between breakpoints
             th0 = th1 = th2 = 0.0
@@ -220,26 +268,12 @@ def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry
                             wq = 0.5 * h * glw[k]
                             w0, w1, w2, f0, f1, f2_ = rates_on_segment(tq, s, tx, tz, cx, sx, cz, sz, seg_t0, seg_th0,
                                                                        seg_w0, seg_acc, u, Cbn, wie_n, g)
-                        th0 += wq * w0
-                        th1 += wq * w1
-                        th2 += wq * w2
-                        v0 += wq * f0
-                        v1 += wq * f1
-                        v2 += wq * f2_
+                        th0, th1, th2 = add_scaled(th0, th1, th2, wq, w0, w1, w2)
+                        v0, v1, v2 = add_scaled(v0, v1, v2, wq, f0, f1, f2_)
                         if quad:
-                            q0 += wq * f0 * f0
-                            q1 += wq * f1 * f1
-                            q2 += wq * f2_ * f2_
-                            x0 += wq * f0 * f1
-                            x1 += wq * f0 * f2_
-                            x2 += wq * f1 * f2_
+                            q0, q1, q2, x0, x1, x2 = add_products(q0, q1, q2, x0, x1, x2, wq, f0, f1, f2_)
                         if lever:
-                            r0 += wq * w0 * w0
-                            r1 += wq * w1 * w1
-                            r2 += wq * w2 * w2
-                            r3 += wq * w0 * w1
-                            r4 += wq * w0 * w2
-                            r5 += wq * w1 * w2
+                            r0, r1, r2, r3, r4, r5 = add_products(r0, r1, r2, r3, r4, r5, wq, w0, w1, w2)
                 if sb >= b:
                     end_static = is_static and static_seg == s
                     break
@@ -265,52 +299,28 @@ def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry
             if s < S - 1 and seg_t1[s] <= b:
                 s += 1
             if truth:
-                tdth[j, 0] = th0
-                tdth[j, 1] = th1
-                tdth[j, 2] = th2
-                tdv[j, 0] = v0
-                tdv[j, 1] = v1
-                tdv[j, 2] = v2
+                put3(tdth, j, 0, th0, th1, th2)
+                put3(tdv, j, 0, v0, v1, v2)
             if raw:
                 if quad:
-                    f2[j, 0] = q0
-                    f2[j, 1] = q1
-                    f2[j, 2] = q2
-                    fx[j, 0] = x0
-                    fx[j, 1] = x1
-                    fx[j, 2] = x2
+                    put3(f2, j, 0, q0, q1, q2)
+                    put3(fx, j, 0, x0, x1, x2)
                 if lever:
-                    ww[j, 0] = r0
-                    ww[j, 1] = r1
-                    ww[j, 2] = r2
-                    ww[j, 3] = r3
-                    ww[j, 4] = r4
-                    ww[j, 5] = r5
-                    dw[j, 0] = d0
-                    dw[j, 1] = d1
-                    dw[j, 2] = d2
+                    put3(ww, j, 0, r0, r1, r2)
+                    put3(ww, j, 3, r3, r4, r5)
+                    put3(dw, j, 0, d0, d1, d2)
             if not record:
                 continue
             # --- 2. the accelerometer window [a - tau, b - tau] = gyro window - I_{j+1} + I_j
             va0, va1, va2 = v0, v1, v2
             if asyn:
-                va0 = v0 - iv[j + 1, 0] + iv[j, 0]
-                va1 = v1 - iv[j + 1, 1] + iv[j, 1]
-                va2 = v2 - iv[j + 1, 2] + iv[j, 2]
+                va0, va1, va2 = shifted(iv, j, 0, v0, v1, v2)
                 if quad:
-                    q0 = q0 - if2[j + 1, 0] + if2[j, 0]
-                    q1 = q1 - if2[j + 1, 1] + if2[j, 1]
-                    q2 = q2 - if2[j + 1, 2] + if2[j, 2]
-                    x0 = x0 - ifx[j + 1, 0] + ifx[j, 0]
-                    x1 = x1 - ifx[j + 1, 1] + ifx[j, 1]
-                    x2 = x2 - ifx[j + 1, 2] + ifx[j, 2]
+                    q0, q1, q2 = shifted(if2, j, 0, q0, q1, q2)
+                    x0, x1, x2 = shifted(ifx, j, 0, x0, x1, x2)
                 if lever:
-                    r0 = r0 - iww[j + 1, 0] + iww[j, 0]
-                    r1 = r1 - iww[j + 1, 1] + iww[j, 1]
-                    r2 = r2 - iww[j + 1, 2] + iww[j, 2]
-                    r3 = r3 - iww[j + 1, 3] + iww[j, 3]
-                    r4 = r4 - iww[j + 1, 4] + iww[j, 4]
-                    r5 = r5 - iww[j + 1, 5] + iww[j, 5]
+                    r0, r1, r2 = shifted(iww, j, 0, r0, r1, r2)
+                    r3, r4, r5 = shifted(iww, j, 3, r3, r4, r5)
                     d0 = wdel[j + 1, 0] - wdel[j, 0]
                     d1 = wdel[j + 1, 1] - wdel[j, 1]
                     d2 = wdel[j + 1, 2] - wdel[j, 2]
@@ -318,80 +328,50 @@ def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry
             if measure:
                 e0, e1, e2 = th0, th1, th2
                 if gsens:  # the g-sensitivity acts on the gyro window's specific force
-                    e0 = th0 + (gs[0, 0] * v0 + gs[0, 1] * v1 + gs[0, 2] * v2)
-                    e1 = th1 + (gs[1, 0] * v0 + gs[1, 1] * v1 + gs[1, 2] * v2)
-                    e2 = th2 + (gs[2, 0] * v0 + gs[2, 1] * v1 + gs[2, 2] * v2)
-                ng0 = (mg[0, 0] * e0 + mg[0, 1] * e1 + mg[0, 2] * e2) + bg[0] * dt
-                ng1 = (mg[1, 0] * e0 + mg[1, 1] * e1 + mg[1, 2] * e2) + bg[1] * dt
-                ng2 = (mg[2, 0] * e0 + mg[2, 1] * e1 + mg[2, 2] * e2) + bg[2] * dt
+                    g0, g1, g2 = mat_vec(gs, v0, v1, v2)
+                    e0, e1, e2 = th0 + g0, th1 + g1, th2 + g2
+                m0, m1, m2 = mat_vec(mg, e0, e1, e2)
+                ng0, ng1, ng2 = m0 + bg[0] * dt, m1 + bg[1] * dt, m2 + bg[2] * dt
                 if quad:
-                    va0 = va0 + q0 * k2[0] + (kc[0, 0] * x0 + kc[0, 1] * x1 + kc[0, 2] * x2)
-                    va1 = va1 + q1 * k2[1] + (kc[1, 0] * x0 + kc[1, 1] * x1 + kc[1, 2] * x2)
-                    va2 = va2 + q2 * k2[2] + (kc[2, 0] * x0 + kc[2, 1] * x1 + kc[2, 2] * x2)
+                    c0, c1, c2 = mat_vec(kc, x0, x1, x2)
+                    va0, va1, va2 = va0 + q0 * k2[0] + c0, va1 + q1 * k2[1] + c1, va2 + q2 * k2[2] + c2
                 if lever:
                     rr = r0 + r1 + r2
                     va0 = va0 + (r0 * p[0, 0] + r3 * p[0, 1] + r4 * p[0, 2] - p[0, 0] * rr) + (d1 * p[0, 2] - d2 * p[0, 1])
                     va1 = va1 + (r3 * p[1, 0] + r1 * p[1, 1] + r5 * p[1, 2] - p[1, 1] * rr) + (d2 * p[1, 0] - d0 * p[1, 2])
                     va2 = va2 + (r4 * p[2, 0] + r5 * p[2, 1] + r2 * p[2, 2] - p[2, 2] * rr) + (d0 * p[2, 1] - d1 * p[2, 0])
-                na0 = (ma[0, 0] * va0 + ma[0, 1] * va1 + ma[0, 2] * va2) + ba[0] * dt
-                na1 = (ma[1, 0] * va0 + ma[1, 1] * va1 + ma[1, 2] * va2) + ba[1] * dt
-                na2 = (ma[2, 0] * va0 + ma[2, 1] * va1 + ma[2, 2] * va2) + ba[2] * dt
+                m0, m1, m2 = mat_vec(ma, va0, va1, va2)
+                na0, na1, na2 = m0 + ba[0] * dt, m1 + ba[1] * dt, m2 + ba[2] * dt
             else:
                 ng0, ng1, ng2 = th0, th1, th2
                 na0, na1, na2 = va0, va1, va2
             if qualify:  # keep the numbers for the next samples of this length in this segment
                 memo_s[memo_next] = s_memo
                 memo_h[memo_next] = h_memo
-                memo_v[memo_next, 0] = ng0
-                memo_v[memo_next, 1] = ng1
-                memo_v[memo_next, 2] = ng2
-                memo_v[memo_next, 3] = na0
-                memo_v[memo_next, 4] = na1
-                memo_v[memo_next, 5] = na2
-                memo_v[memo_next, 6] = th0
-                memo_v[memo_next, 7] = th1
-                memo_v[memo_next, 8] = th2
-                memo_v[memo_next, 9] = v0
-                memo_v[memo_next, 10] = v1
-                memo_v[memo_next, 11] = v2
+                put3(memo_v, memo_next, 0, ng0, ng1, ng2)
+                put3(memo_v, memo_next, 3, na0, na1, na2)
+                put3(memo_v, memo_next, 6, th0, th1, th2)
+                put3(memo_v, memo_next, 9, v0, v1, v2)
                 memo_next = (memo_next + 1) % MEMO
         # --- 4. the noise, in the order of NoiseState.apply
         if o_arw:
-            ng0 = ng0 + z_arw[j, 0] * arw[0] * sqdt
-            ng1 = ng1 + z_arw[j, 1] * arw[1] * sqdt
-            ng2 = ng2 + z_arw[j, 2] * arw[2] * sqdt
+            ng0, ng1, ng2 = white(ng0, ng1, ng2, z_arw, j, arw, sqdt)
         if o_vrw:
-            na0 = na0 + z_vrw[j, 0] * vrw[0] * sqdt
-            na1 = na1 + z_vrw[j, 1] * vrw[1] * sqdt
-            na2 = na2 + z_vrw[j, 2] * vrw[2] * sqdt
-        if gm_g:  # y_k = phi y_(k-1) + sigma sqrt(1 - phi^2) z_k
-            y = zi_g[0] + z_gm_g[j, 0] * sig_g[0] * drv_g
-            zi_g[0] = y * phi_g
-            ng0 = ng0 + y * dt
-            y = zi_g[1] + z_gm_g[j, 1] * sig_g[1] * drv_g
-            zi_g[1] = y * phi_g
-            ng1 = ng1 + y * dt
-            y = zi_g[2] + z_gm_g[j, 2] * sig_g[2] * drv_g
-            zi_g[2] = y * phi_g
-            ng2 = ng2 + y * dt
+            na0, na1, na2 = white(na0, na1, na2, z_vrw, j, vrw, sqdt)
+        if gm_g:  # y_k = phi y_(k-1) + sigma sqrt(1 - phi^2) z_k, axis by axis
+            ng0 = ng0 + gauss_markov_step(zi_g, z_gm_g, j, 0, sig_g, drv_g, phi_g) * dt
+            ng1 = ng1 + gauss_markov_step(zi_g, z_gm_g, j, 1, sig_g, drv_g, phi_g) * dt
+            ng2 = ng2 + gauss_markov_step(zi_g, z_gm_g, j, 2, sig_g, drv_g, phi_g) * dt
         if gm_a:
-            y = zi_a[0] + z_gm_a[j, 0] * sig_a[0] * drv_a
-            zi_a[0] = y * phi_a
-            na0 = na0 + y * dt
-            y = zi_a[1] + z_gm_a[j, 1] * sig_a[1] * drv_a
-            zi_a[1] = y * phi_a
-            na1 = na1 + y * dt
-            y = zi_a[2] + z_gm_a[j, 2] * sig_a[2] * drv_a
-            zi_a[2] = y * phi_a
-            na2 = na2 + y * dt
+            na0 = na0 + gauss_markov_step(zi_a, z_gm_a, j, 0, sig_a, drv_a, phi_a) * dt
+            na1 = na1 + gauss_markov_step(zi_a, z_gm_a, j, 1, sig_a, drv_a, phi_a) * dt
+            na2 = na2 + gauss_markov_step(zi_a, z_gm_a, j, 2, sig_a, drv_a, phi_a) * dt
         if qz_g:  # whole quanta of the running total; the remainder carries to the next sample
-            ng0 = quantum_step(ng0, q_g, tot_g, cnt_g, 0)
-            ng1 = quantum_step(ng1, q_g, tot_g, cnt_g, 1)
-            ng2 = quantum_step(ng2, q_g, tot_g, cnt_g, 2)
+            ng0, ng1, ng2 = (quantum_step(ng0, q_g, tot_g, cnt_g, 0), quantum_step(ng1, q_g, tot_g, cnt_g, 1),
+                             quantum_step(ng2, q_g, tot_g, cnt_g, 2))
         if qz_a:
-            na0 = quantum_step(na0, q_a, tot_a, cnt_a, 0)
-            na1 = quantum_step(na1, q_a, tot_a, cnt_a, 1)
-            na2 = quantum_step(na2, q_a, tot_a, cnt_a, 2)
+            na0, na1, na2 = (quantum_step(na0, q_a, tot_a, cnt_a, 0), quantum_step(na1, q_a, tot_a, cnt_a, 1),
+                             quantum_step(na2, q_a, tot_a, cnt_a, 2))
         # --- 5. the recorded gimbal angles at b (Segments.angles: theta = th0 + w0 tau + 0.5 acc tau^2)
         while sg < S - 1 and seg_t1[sg] < b:
             sg += 1
@@ -402,12 +382,8 @@ def simulate_pass(k0, n, dt, path, glx, glw, opts, model, boundary, noise, carry
             gx = gx + z_enc[j, 0] * enc
             gz = gz + z_enc[j, 1] * enc
         time[j] = b
-        mdth[j, 0] = ng0
-        mdth[j, 1] = ng1
-        mdth[j, 2] = ng2
-        mdv[j, 0] = na0
-        mdv[j, 1] = na1
-        mdv[j, 2] = na2
+        put3(mdth, j, 0, ng0, ng1, ng2)
+        put3(mdv, j, 0, na0, na1, na2)
         gimbal[j, 0] = gx
         gimbal[j, 1] = gz
     if lever:

@@ -171,24 +171,22 @@ def _simulate_kernel(k0, n, dt, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc, u, Cbn
                   np.zeros(4), (np.zeros(1), _rows(1, 3), _rows(1, 3), _rows(1, 2), dth, dv, f2, fx, ww, dw))
 
 
+#: the axis pairs of the cross products f^(x) = (f_x f_y, f_x f_z, f_y f_z) (and of w w^T's off-diagonal)
+_PAIRS = np.array([[0, 1], [0, 2], [1, 2]])
+
+
 @njit(cache=True)
 def _accumulate(wq, w, f, want_nl, j, sgn, iv, if2, ifx, iww):
     c = sgn * wq
     for i in range(3):
         iv[j, i] += c * f[i]
     if want_nl:
-        if2[j, 0] += c * f[0] * f[0]
-        if2[j, 1] += c * f[1] * f[1]
-        if2[j, 2] += c * f[2] * f[2]
-        ifx[j, 0] += c * f[0] * f[1]
-        ifx[j, 1] += c * f[0] * f[2]
-        ifx[j, 2] += c * f[1] * f[2]
-        iww[j, 0] += c * w[0] * w[0]
-        iww[j, 1] += c * w[1] * w[1]
-        iww[j, 2] += c * w[2] * w[2]
-        iww[j, 3] += c * w[0] * w[1]
-        iww[j, 4] += c * w[0] * w[2]
-        iww[j, 5] += c * w[1] * w[2]
+        for i in range(3):
+            a, b = _PAIRS[i, 0], _PAIRS[i, 1]
+            if2[j, i] += c * f[i] * f[i]
+            ifx[j, i] += c * f[a] * f[b]
+            iww[j, i] += c * w[i] * w[i]
+            iww[j, 3 + i] += c * w[a] * w[b]
 
 
 @njit(cache=True)
@@ -202,12 +200,7 @@ def _asynchrony_kernel(k0, n1, dt, tau, seg_t0, seg_t1, seg_th0, seg_w0, seg_acc
     are split into <= dt parts), static segments exactly."""
     S = seg_t0.shape[0]
     T = seg_t1[S - 1]
-    w = np.empty(3)
-    f = np.empty(3)
-    w_beg = np.empty(3)
-    f_beg = np.empty(3)
-    w_fin = np.empty(3)
-    f_fin = np.empty(3)
+    w, f, w_beg, f_beg, w_fin, f_fin = np.empty((6, 3))  # rates: at a node; before the path; after it
     rates_at(0.0, 0, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_beg, f_beg)
     rates_at(T, S - 1, seg_t0, seg_th0, seg_w0, seg_acc, u, Cbn, wie_n, g, w_fin, f_fin)
     nq = glx.shape[0]

@@ -11,7 +11,7 @@ from numba import njit
 
 from inscal.calibrate.systematic.states import K_GIM, K_LEVT, K_TH
 from inscal.core import earth
-from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z
+from inscal.core.attitude import axis_angle_dcm, rot_x, rot_y, rot_z, skew_entry
 
 
 # ----------------------------------------------------------------------------- the kernel
@@ -219,14 +219,7 @@ def column_values(kinds, axes, js, ug, ua, w, f, wd, fdot, vals):
         elif k == 7:  # diagonal lever arm: -d a_size_i / d r_i = |w|^2 - w_i^2
             vals[c] = ww - w[i] * w[i]
         elif k == 8:  # full lever arm p_ij: -(w_i w_j - delta_ij |w|^2 + (wdot x e_j)_i)
-            cr = 0.0
-            if j == 0:
-                cr = 0.0 if i == 0 else (wd[2] if i == 1 else -wd[1])
-            elif j == 1:
-                cr = -wd[2] if i == 0 else (0.0 if i == 1 else wd[0])
-            else:
-                cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
-            vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + cr)
+            vals[c] = -(w[i] * w[j] - (ww if i == j else 0.0) + skew_entry(wd, i, j))
         else:  # the asynchrony (the caller's C f-dot) and the lever-arm timing: its column is the lever-arm terms'
             # rate (lever_timing_rate), zero at lever arms of zero, the nominal unit the bound linearises about
             vals[c] = 0.0

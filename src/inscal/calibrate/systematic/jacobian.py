@@ -40,6 +40,8 @@ from inscal.calibrate.systematic.states import (
     K_UG,
     TH_RATE_ROW,
 )
+from inscal.core.attitude import skew_entry
+from inscal.core.dense import product_entry
 
 # the basis of one sample's column values: u_g (3), -1, -f (3), u_a (3), -f_i^2 (3), -f_x f_y, -f_x f_z, -f_y f_z,
 # |w|^2 - w_i^2 (3), the full lever arm's -(w_i w_j - delta_ij |w|^2 + (w-dot x e_j)_i) (9, at 3 i + j), f-dot (3);
@@ -165,14 +167,7 @@ def basis_values(ug, ua, w, f, wd, fdot, B, j, lev9, sd, lt):
     if lev9:
         for i in range(3):
             for k in range(3):
-                cr = 0.0
-                if k == 0:
-                    cr = 0.0 if i == 0 else (wd[2] if i == 1 else -wd[1])
-                elif k == 1:
-                    cr = -wd[2] if i == 0 else (0.0 if i == 1 else wd[0])
-                else:
-                    cr = wd[1] if i == 0 else (-wd[0] if i == 1 else 0.0)
-                B[B_LEVF + 3 * i + k, j] = -(w[i] * w[k] - (ww if i == k else 0.0) + cr)
+                B[B_LEVF + 3 * i + k, j] = -(w[i] * w[k] - (ww if i == k else 0.0) + skew_entry(wd, i, k))
 
 
 @njit(cache=True, inline="always")
@@ -253,16 +248,10 @@ def discretise(F, T, qgm, qam, sig, F2, phinn, Qd):
     F3 = np.empty((9, 9))
     for i in range(9):
         for j in range(9):
-            s = 0.0
-            for k in range(9):
-                s += F[i, k] * F[k, j]
-            F2[i, j] = s
+            F2[i, j] = product_entry(0.0, F, i, F, j, 9)
     for i in range(9):
         for j in range(9):
-            s = 0.0
-            for k in range(9):
-                s += F2[i, k] * F[k, j]
-            F3[i, j] = s
+            F3[i, j] = product_entry(0.0, F2, i, F, j, 9)
     T2, T3 = T * T / 2.0, T * T * T / 6.0
     for i in range(9):
         for j in range(9):

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inscal.calibrate.windows import CalibrationError
+from inscal.core.samples import SampleSpan
 from inscal.core.thermal import select_sensor, temperature_rate
 from inscal.core.turntable import Move, RotationPath
 
@@ -48,7 +49,7 @@ class Plateau:
 
 
 @dataclass
-class PlateauRecord:
+class PlateauRecord(SampleSpan):
     """A plateau as a record of its own (what the calibration methods take): time rebased to 0 at the
     cut, the increments, the encoder angles (or None), the cut path (or None), rate and site."""
 
@@ -62,14 +63,6 @@ class PlateauRecord:
     plateau: Plateau
     scenario: str = ""
     temperature: None = None  # constant on a plateau: the per-plateau methods calibrate at one temperature
-
-    @property
-    def n_samples(self) -> int:
-        return int(self.time.shape[0])
-
-    @property
-    def duration(self) -> float:
-        return float(self.n_samples / self.rate_hz)
 
 
 def _move_spans(path: RotationPath) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

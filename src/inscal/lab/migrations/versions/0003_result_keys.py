@@ -6,32 +6,27 @@ slip between.
 
 The results recorded before (an older inscal could record the same calibration twice) are keyed in
 the order they were recorded: the first of each key keeps it, a later duplicate stays in ``results``
-(append-only) without a key, as it was.
-
-Revision ID: 0003_result_keys
-Revises: 0002_session_temperature
-"""
+(append-only) without a key, as it was."""
 
 import sqlalchemy as sa
 from alembic import op
 
+from inscal.lab.migrations.ddl import append_only, create_table
+
 revision = "0003_result_keys"
 down_revision = "0002_session_temperature"
-branch_labels = None
-depends_on = None
 
 
 def upgrade() -> None:
-    op.create_table(
-        "result_keys",
-        sa.Column("result_id", sa.Integer, sa.ForeignKey("results.id"), primary_key=True, autoincrement=False),
-        sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
-        sa.Column("record_sha256", sa.String(80), nullable=False),
-        sa.Column("options_hash", sa.String(80), nullable=False),
-        sa.Column("param_file_sha256", sa.String(80), nullable=False),
-        sa.Column("supersedes", sa.Integer, nullable=False),  # the result superseded, 0 for none
-        sa.UniqueConstraint("unit_id", "record_sha256", "options_hash", "supersedes", name="uq_result_keys_options"),
-    )
+    # supersedes: the result superseded, 0 for none
+    create_table("result_keys", """
+        result_id           Integer      PRIMARY KEY NO AUTOINCREMENT REFERENCES results.id
+        unit_id             Integer      NOT NULL REFERENCES units.id
+        record_sha256       String(80)   NOT NULL
+        options_hash        String(80)   NOT NULL
+        param_file_sha256   String(80)   NOT NULL
+        supersedes          Integer      NOT NULL
+    """, sa.UniqueConstraint("unit_id", "record_sha256", "options_hash", "supersedes", name="uq_result_keys_options"))
     op.create_index("ix_result_keys_param_file", "result_keys", ["unit_id", "param_file_sha256"])
     dialect = op.get_bind().dialect.name
     select = ("SELECT r.id, r.unit_id, s.record_sha256, r.options_hash, r.param_file_sha256, COALESCE(r.supersedes, 0) "
@@ -39,17 +34,12 @@ def upgrade() -> None:
     cols = "(result_id, unit_id, record_sha256, options_hash, param_file_sha256, supersedes)"
     if dialect == "sqlite":
         op.execute(f"INSERT OR IGNORE INTO result_keys {cols} {select}")
-        for event in ("UPDATE", "DELETE"):
-            op.execute(f"CREATE TRIGGER result_keys_no_{event.lower()} BEFORE {event} ON result_keys BEGIN "
-                       "SELECT RAISE(ABORT, 'inscal: table result_keys is append-only (no UPDATE or DELETE)'); END")
     else:
         conn = op.get_bind()
         for row in conn.execute(sa.text(select)).all():  # one by one, in order: the first of each key keeps it
             conn.execute(sa.text(f"INSERT INTO result_keys {cols} VALUES (:a, :b, :c, :d, :e, :f) "
                                  "ON CONFLICT DO NOTHING"), dict(zip("abcdef", row)))
-        if dialect == "postgresql":
-            op.execute("CREATE TRIGGER result_keys_append_only BEFORE UPDATE OR DELETE ON result_keys "
-                       "FOR EACH ROW EXECUTE FUNCTION inscal_append_only()")
+    append_only(["result_keys"])
 
 
 def downgrade() -> None:
