@@ -42,12 +42,14 @@ chi2 is taken (the likelihood ratio at equal dimension).  Not decided from the d
 encoder observations, so the likelihoods are of different data; ``--method unified`` chooses them).
 
 A named set (:func:`check_named`, run by the named methods on a set the user named) gets the same tests for what
-models the record rather than the unit, where its fit weighted steps away as misfit: the lever-arm timing and the
-frame.  On the independent oracle's noise-free record ``51,async,lever9`` weighted the turns' misfit away (outlier
-steps) and left the lever arms 3.8-5.5 sigma off with sigma at the record's bound; the misfit follows the lever-arm
-timing and the accelerometer-defined frame (chi2 1180 -> 121 -> 25 on seed 2), and with both the lever arms are
-within 1.2 sigma.  A named set's frame changes only when the other frame's chi2 is lower by more than the
-``alpha`` quantile of chi2(1) (times the dispersion): the user's frame stands where the data cannot tell.
+models the record rather than the unit where its fit weighted steps away as misfit: the lever-arm timing and the
+frame, on the named fit's own frozen model-error factors (so its chi2 is the smaller model's, and each test costs one
+short fit from its estimate).  On the independent oracle's noise-free record ``51,async,lever9`` weighted the turns'
+misfit away (outlier steps) and left the lever arms 3.8-5.5 sigma off with sigma at the record's bound; the misfit
+follows the lever-arm timing and the accelerometer-defined frame, and with both (refitted with factors of their own)
+the lever arms are within 1.2 sigma.  A named set's frame changes only where the other frame's chi2 is lower by
+more than the ``alpha`` quantile of chi2(1) (times the dispersion): the user's frame stands where the data cannot
+tell.
 """
 
 from __future__ import annotations
@@ -176,14 +178,13 @@ def largest_states(base: str, spec: str | None) -> StateSet:
 
 def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, add=tuple(ADD),
                   drop=tuple(DROP), fit: Callable[..., CalibrationResult] = systematic, frames: bool = True,
-                  full: CalibrationResult | None = None, named: bool = False, **options) -> CalibrationResult:
+                  **options) -> CalibrationResult:
     """The systematic calibration of ``record`` with its error terms chosen from the data (module
     docstring).  ``base``: the starting state set (``"51"``, ``"30"``, ``"51,psins"``, ``"unified"``...);
     ``add``/``drop``: the candidate options; ``frames``: decide the frame convention when the full lever arm is
-    chosen (module docstring); ``full``: the fit of the full model when it is already made; ``named``: the search
-    checks a state set the user named (:func:`check_named`), said so in the note; ``options`` go to ``fit``
-    (:func:`systematic`).  The result is the fit of the chosen set; ``diagnostics["selection"]`` lists every test
-    and ``notes`` the decisions."""
+    chosen (module docstring); ``options`` go to ``fit`` (:func:`systematic`).  The result
+    is the fit of the chosen set; ``diagnostics["selection"]`` lists every test and ``notes`` the
+    decisions."""
     base_st = base if isinstance(base, StateSet) else StateSet.parse(base)
     if not 0.0 < alpha < 1.0:
         raise CalibrationError(f"alpha must be in (0, 1), got {alpha}")
@@ -194,9 +195,8 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     options.pop("initial", None)
     cands = _candidates(base_st, add, drop)
     full_st = _full(base_st, cands)
-    fits = int(full is None)
-    if full is None:
-        full = fit(record, full_st, **options)
+    full = fit(record, full_st, **options)
+    fits = 1
     # the smaller fits share the full model's frozen model-error factors (model_error): their chi2 are then of
     # one noise model and compare; one that does not converge is kept as it ends and not compared (_test)
     options["weights"] = full.model_error
@@ -269,7 +269,7 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
     gone = with_nested(gone)
     frame = None
     if frames and st.lever9 and not (st.psins or st.gimbal):
-        st, cur, frame = _frame_choice(record, st, cur, fit, options, chi2_ppf(1.0 - alpha, 1) if named else 0.0)
+        st, cur, frame = _frame_choice(record, st, cur, fit, options)
         fits += 1
     decided = {t: dataclasses.replace(d, accepted=(t not in gone) if t in ADD else (t in gone))
                for t, d in tests.items()}
@@ -277,11 +277,9 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
         cur.diagnostics["model_error"]["shared"] = True
     cur.diagnostics["selection"] = {"base": state_spec(base_st), "chosen": state_spec(st), "alpha": alpha,
                                     "fits": fits, "full": state_spec(full_st),
-                                    "tests": [d.to_json() for d in decided.values()], "frame": frame,
-                                    "named": named}
-    if not named:
-        cur.notes.append(f"state set chosen from the data (--states auto): {state_spec(st)}; "
-                         + "; ".join(d.line() for d in decided.values()) + (f"; {frame['line']}" if frame else ""))
+                                    "tests": [d.to_json() for d in decided.values()], "frame": frame}
+    cur.notes.append(f"state set chosen from the data (--states auto): {state_spec(st)}; "
+                     + "; ".join(d.line() for d in decided.values()) + (f"; {frame['line']}" if frame else ""))
     return cur
 
 
@@ -294,59 +292,75 @@ def model_error_on(res: CalibrationResult) -> bool:
 
 def check_named(record, res: CalibrationResult, *, alpha: float = ALPHA,
                 fit: Callable[..., CalibrationResult] = systematic, **options) -> CalibrationResult:
-    """A named state set's fit ``res`` checked for the misfit it weighted away (the named-set check).
+    """A named state set's fit ``res`` checked for the misfit it weighted away (module docstring).
 
     The velocity model-error term is the last resort: it weights away the steps that misfit, and a misfit that
     follows the motion is structure a term can model.  A named set with the full lever arm whose fit needed the
-    term (:func:`model_error_on`) is tested as ``--states auto`` tests it, adding only what models the record and
-    not the unit: the lever-arm timing (``levtime``, nuisance states; the nested test of :func:`select_states`)
-    and, unless ``psins`` is named, the frame whose axes the size effect follows (the lower chi2 at equal
-    parameters).  Where the record holds either, the fit of the named set with them is returned, with one note
-    naming what was added and the chi2 it removed (``diagnostics["selection"]``, ``named`` true); every parameter
-    named is still estimated.  Else ``res`` is returned with the tests in a note.  A truncated, unrobust or nested
-    run (``max_passes`` below four, ``robust=False``, given ``weights``), an accepted unconverged one and one
-    without the full lever arm are returned as they are."""
+    term (:func:`model_error_on`) is tested for what models the record and not the unit: the lever-arm timing
+    (``levtime``, three nuisance states, the nested test against chi2(3)) and, unless ``psins`` is named, the frame
+    whose axes the size effect follows; both on ``res``'s frozen factors, from its estimate.  Where the record holds
+    either, the set with them is fitted again with factors of its own and returned, with one note naming what was
+    added and the chi2 it removed (``diagnostics["selection"]``, ``named`` true); every parameter named is still
+    estimated.  Else ``res`` is returned with the tests in a note.  A truncated, unrobust or nested run
+    (``max_passes`` below four, ``robust=False``, given ``weights``), an accepted unconverged one and one without the
+    full lever arm are returned as they are."""
     st = res.states
-    conv = res.diagnostics.get("convergence") or {}
     if (st is None or not (st.extended and st.lever9) or st.gimbal or (st.lever_timing and st.psins)
             or options.get("weights") is not None or options.get("robust", True) is False
-            or options.get("max_passes", 10) < MIN_VERDICT_PASSES or conv.get("verdict") or not model_error_on(res)):
+            or options.get("max_passes", 10) < MIN_VERDICT_PASSES
+            or (res.diagnostics.get("convergence") or {}).get("verdict") or not model_error_on(res)):
         return res
-    add = () if st.lever_timing else ("levtime",)
     named = state_spec(st)
+    frozen = {k: v for k, v in options.items() if k != "initial"} | {"weights": res.model_error,
+                                                                      "accept_unconverged": True}
+    cur_st, cur, tests, fits, full_st = st, res, [], 0, st
     try:
-        sel = select_states(record, st, alpha=alpha, add=add, drop=(), fit=fit, frames=not st.psins,
-                            full=None if add else res, named=True, **options)
+        if not st.lever_timing:
+            full_st = dataclasses.replace(st, lever_timing=True)
+            big = fit(record, full_st, initial=res.imu, **frozen)
+            fits += 1
+            if big.diagnostics.get("convergence", {}).get("converged", True):
+                d = _test("add", "levtime", res, big, full_st.n_params - st.n_params, alpha)
+            else:
+                d = Decision("add", "levtime", _chi2(res)[0], _chi2(big)[0], full_st.n_params - st.n_params, 1.0,
+                             float("nan"), float("nan"), False, "not converged")
+            tests.append(d)
+            if d.accepted and d.status == "tested":
+                cur_st, cur = full_st, big
+        frame = None
+        if not st.psins:
+            cur_st, cur, frame = _frame_choice(record, cur_st, cur, fit, frozen, chi2_ppf(1.0 - alpha, 1))
+            fits += 1
+        if cur_st != st:  # what the record holds, with factors of its own (the named set's weighted its misfit away)
+            cur = fit(record, cur_st, initial=cur.imu, **{k: v for k, v in options.items() if k != "initial"})
+            fits += 1
     except CalibrationError as exc:
         res.notes.append(f"the states named ({named}) weighted steps away as misfit, and the check for the "
                          f"lever-arm timing and the frame could not run: {exc}")
         return res
-    d = sel.diagnostics["selection"]
-    lt = next((t for t in d["tests"] if t["term"] == "levtime"), None)
-    fr = d["frame"]
-    if sel.states == st:
-        res.diagnostics["selection"] = d
-        tests = ([Decision(**lt).line()] if lt else []) + ([fr["line"]] if fr else [])
+    sel = {"base": named, "chosen": state_spec(cur_st), "alpha": alpha, "fits": fits, "full": state_spec(full_st),
+           "tests": [d.to_json() for d in tests], "frame": frame, "named": True}
+    cur.diagnostics["selection"] = sel
+    if cur_st == st:
+        found = [d.line() for d in tests] + ([frame["line"]] if frame else [])
         res.notes.append(f"the states named ({named}) weighted steps away as misfit; checked for what the misfit could "
-                         f"follow: {'; '.join(tests)}: the states named stand")
+                         f"follow: {'; '.join(found)}: the states named stand")
         return res
-    parts = []
-    if lt and lt["accepted"]:
-        parts.append(f"the lever-arm timing (levtime: chi2 {lt['chi2_small']:.6g} -> {lt['chi2_large']:.6g} with "
-                     f"{lt['dk']} more nuisance states, p = {lt['p_value']:.2g})")
-    if fr and fr["chosen"] == "psins":
+    parts = [f"the lever-arm timing (levtime: chi2 {d.chi2_small:.6g} -> {d.chi2_large:.6g} with {d.dk} more "
+             f"nuisance states, p = {d.p_value:.2g})" for d in tests if d.accepted and d.status == "tested"]
+    if frame and frame["chosen"] == "psins":
         parts.append(f"the size effect along the accelerometers' axes (the accelerometer-defined frame, psins: chi2 "
-                     f"{fr['chi2_gyro']:.6g} -> {fr['chi2_accel']:.6g} at equal parameters)")
-    sel.notes.append(f"the states named ({named}) leave out what the turns' residuals follow: {' and '.join(parts)}; "
-                     f"fitted with {d['chosen']}: every parameter named, the misfit modelled instead of weighted away")
-    return sel
+                     f"{frame['chi2_gyro']:.6g} -> {frame['chi2_accel']:.6g} at equal parameters)")
+    cur.notes.append(f"the states named ({named}) leave out what the turns' residuals follow: {' and '.join(parts)}; "
+                     f"fitted with {sel['chosen']}: every parameter named, the misfit modelled instead of weighted away")
+    return cur
 
 
 def _frame_choice(record, st: StateSet, cur: CalibrationResult, fit, options, margin: float = 0.0) -> tuple:
     """The chosen set ``st`` (fit ``cur``, gyro-defined frame) against the same set in the accelerometer-defined
     frame (``psins``), started from ``cur``'s estimate in that frame: ``(states, fit, record of the choice)`` of the
-    one with the lower chi2 (module docstring), the accelerometer-defined one only when lower by more than ``margin``
-    times the dispersion (a named set keeps its frame unless the data say otherwise); a fit in the other frame that
+    one with the lower chi2 (module docstring), the accelerometer-defined one only where lower by more than ``margin``
+    times the dispersion (a named set's frame stands where the data cannot tell); a fit in the other frame that
     fails or does not converge loses."""
     alt_st = dataclasses.replace(st, psins=True)
     try:
@@ -358,7 +372,7 @@ def _frame_choice(record, st: StateSet, cur: CalibrationResult, fit, options, ma
     c_a = _chi2(alt)[0] if ok else float("nan")
     take = bool(ok and c_a < c_g - margin * max(1.0, c_g / max(dof, 1)))
     why = ("the size effect's axes fit better" if take or not c_a < c_g else
-           f"kept: the accelerometer-defined fits better by less than {margin:.3g} (the named frame stands)")
+           f"kept: the accelerometer-defined one fits better by less than {margin:.3g} (the named frame stands)")
     line = (f"frame: {'accelerometer-defined (psins)' if take else 'gyro-defined'}, {why} "
             f"(chi2 {c_g:.6g} gyro-defined, {c_a:.6g} accelerometer-defined, equal parameters)" if ok else
             "frame: gyro-defined (the fit in the accelerometer-defined frame did not converge)")
