@@ -86,7 +86,7 @@ def main(argv=None):
                 zs[spec].setdefault(name, []).append(z)
             lev = np.abs(zs[spec]["accel_lever_arm"][-1])
             print(f"seed {seed:3d} {spec:32s} -> {res.diagnostics.get('state_options')}: lever arms max z "
-                  f"{np.max(lev):.2f}, all groups max z {max(np.max(np.abs(v[-1])) for v in zs[spec].values()):.2f}  "
+                  f"{np.max(lev):.2f}, all groups max z {max(np.max(np.abs(v[-1]), initial=0.0) for v in zs[spec].values()):.2f}  "
                   f"({time.perf_counter() - t0:.0f} s)", flush=True)
     out = {spec: summary(zs[spec], seeds) for spec in specs}
     for spec, groups in out.items():

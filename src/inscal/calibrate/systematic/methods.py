@@ -16,8 +16,10 @@ def _run(record, base: str, extra: str | None, method_name: str, kw: dict) -> Ca
 
 
 def systematic51(ws_or_record, **kw) -> CalibrationResult:
-    """S16's 51-state systematic calibration (``states="51"`` plus options, e.g. ``"lever9,async"``;
-    ``"auto"``: the terms chosen from the data by :func:`~inscal.calibrate.systematic.selection.select_states`)."""
+    """S16's 51-state systematic calibration (``states="51"`` plus options, e.g. ``"lever9,async"``: a named set with
+    the full lever arm is checked for the lever-arm timing and the frame by
+    :func:`~inscal.calibrate.systematic.selection.check_named`; ``"auto"``: the terms chosen from the data by
+    :func:`~inscal.calibrate.systematic.selection.select_states`)."""
     return _run(ws_or_record, "51", kw.pop("states", None), "systematic51", kw)
 
 

@@ -47,7 +47,7 @@ frame, on the named fit's own frozen model-error factors (so its chi2 is the sma
 short fit from its estimate).  On the independent oracle's noise-free record ``51,async,lever9`` weighted the turns'
 misfit away (outlier steps) and left the lever arms 3.8-5.5 sigma off with sigma at the record's bound; the misfit
 follows the lever-arm timing and the accelerometer-defined frame, and with both (refitted with factors of their own)
-the lever arms are within 1.2 sigma.  A named set's frame changes only where the other frame's chi2 is lower by
+the lever arms are within 1.34 sigma.  A named set's frame changes only where the other frame's chi2 is lower by
 more than the ``alpha`` quantile of chi2(1) (times the dispersion): the user's frame stands where the data cannot
 tell.
 """
