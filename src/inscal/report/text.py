@@ -163,7 +163,9 @@ def calibration_lines(rep: dict) -> list[str]:
             out.append(f"  pose {c['pose']} ({c['t0_s']:.1f}-{c['t1_s']:.1f} s): rejected, {c['reason']}")
     if "selection" in rep:
         sel = rep["selection"]
-        out.append(f"  states: {sel['chosen']} (chosen from the data, {sel['fits']} fits; full model {sel['full']})")
+        how = (f"the states named, {sel['base']}, checked for the lever-arm timing and the frame: {sel['fits']} more fits"
+               if sel.get("named") else f"chosen from the data, {sel['fits']} fits")
+        out.append(f"  states: {sel['chosen']} ({how}; full model {sel['full']})")
         for t in sel["tests"]:
             verb = ("added" if t["accepted"] else "not needed") if t["step"] == "add" else \
                 ("dropped" if t["accepted"] else "kept")
