@@ -9,6 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from inscal import io
+from inscal.cli.allan import run_allan
 from inscal.cli.app import app
 from inscal.core import noise_models as nm
 from inscal.core import units
@@ -192,3 +193,7 @@ def test_short_turns_are_cut_out_and_the_rest_fitted(tmp_path, clean_fit, k):
     got = res["channels"][0]["parameters"]
     for p in ("WN.n", "GM1.sigma", "GM1.tc"):  # the turn itself would put a GM of ~1e5 deg/h in the model
         assert got[p]["value"] == pytest.approx(clean_fit[p]["value"], rel=0.15 if p != "GM1.tc" else 0.4), p
+    if k == 2:  # inscal allan cuts the same stretches: the same ARW, to the last digit
+        al = run_allan(rec, model="WN+GM")
+        assert al["cut"]["spans_s"] == cut["spans_s"] and al["arw_deg_rth"][0] == got["WN.n"]["value"]
+        assert any(w.startswith("cut out: ") for w in al["warnings"])

@@ -243,7 +243,8 @@ def cut_motion(path, win, scan: Scan, t0: float, chunk_size: int = 1 << 18, per_
     if not parts:
         raise NoiseInputError(f"no static stretch of 16 samples is left once the motion at {where} is cut out")
     sv = pooled(parts, m_all, dt)
-    return sv, Cut(tuple((t0 + a * dt, t0 + b * dt) for a, b in spans), cut * dt, cut / win.n, len(parts), sv.n)
+    return sv, Cut(tuple((float(t0 + a * dt), float(t0 + b * dt)) for a, b in spans), float(cut * dt),
+                   float(cut / win.n), len(parts), int(sv.n))
 
 
 def octave_curve(sv: ScaleVariance, c: int) -> Curve:
