@@ -21,6 +21,13 @@ by 15 or more is kept in more than 93 % of records.  ``criterion="bic"`` takes t
 ``ln n`` per parameter (consistent too, but it drops terms that a record of 10^6 samples shows
 plainly: 14 per parameter), ``"aic"`` 2.
 
+One ``V`` for every candidate is a yardstick fitted to the largest model of all: where that fit
+explains the longest scales by a rate ramp (deterministic, no variance of its own) it claims tens of
+times the degrees of freedom those scales have, and every smaller candidate is judged on scales it is
+told are near exact.  So the table's choice is then checked by nested pairs (:func:`nested_check`),
+each on the larger one's own yardstick: a term is dropped where Newey & West's distance statistic
+``D = J_smaller - J_larger``, both on ``V`` at the larger one's estimate, stays below its penalty.
+
 The record cannot tell some candidates from smaller ones; they are set aside, not compared (and
 the reason is listed), so that "the right model" is the smallest one that describes what the record
 can show:
