@@ -101,7 +101,8 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         white = np.array([c["white"] for c in ch[sl]])
         res[key] = units.from_si(white[:, 0], unit)
         res[key.replace("_", "_lower_95_", 1)] = units.from_si(white[:, 1], unit)
-        res[key.replace("_", "_upper_95_", 1)] = units.from_si(white[:, 2], unit)
+        with np.errstate(over="ignore"):  # an unseen term's upper bound beyond float range: inf, unbounded
+            res[key.replace("_", "_upper_95_", 1)] = units.from_si(white[:, 2], unit)
         res[f"{sensor}_white_source"] = [c["white_source"] for c in ch[sl]]
         res[f"{sensor}_model"] = [c["model"] for c in ch[sl]]
         bi = [c["readoffs"]["BI"] for c in ch[sl]]
