@@ -11,7 +11,7 @@ from inscal.analysis.noise.estimators import octave_scales, scale_variance
 from inscal.analysis.noise.fit import Curve, bootstrap, curve_covariance, fit_curve, wv_covariance
 from inscal.analysis.noise import projection
 from inscal.analysis.noise.intervals import chi2_bounds, gmwm_weights
-from inscal.analysis.noise.selection import readoffs, select, sub_models
+from inscal.analysis.noise.selection import nested_check, penalty, readoffs, record_samples, select, sub_models, tc_limit
 from inscal.core import noise_models as nm
 
 DT = 0.01
@@ -135,6 +135,22 @@ def test_a_non_white_start_is_kept_as_a_short_gauss_markov_term():
     assert not any(r[5].startswith("GM of T_c") for r in s.candidates)  # no set-aside for the bound any more
     for m, gap, _, _ in s.richer:  # what fits nearly as well contains the choice
         assert "GM" in m and 0 <= gap
+
+
+def test_nested_pairs_drop_a_spurious_ramp_and_keep_the_true_terms():
+    """Each nested pair on the larger one's own yardstick (Newey-West's D): a ramp beside the truth's
+    random walk adds nothing to the exact curve (D ~ 0: dropped, the truth's values back), while every
+    true term's D is its noncentrality, far above the penalty (kept)."""
+    truth = (nm.WhiteNoise(1e-4), nm.RandomWalk(1e-4), nm.GaussMarkov(3e-4, 1.0))
+    c = exact_curve(nm.ChannelNoise("g", "gyro", truth), 1 << 16)
+    pen, tcr = penalty("hqic", record_samples(c)), (tc_limit(c), None)
+    th = np.log([1e-4, 1e-4, 1e-6, 3e-4, 1.0])  # WN+RW+DR+GM, a small spurious ramp
+    codes, th2, tested = nested_check(c, ("WN", "RW", "DR", "GM"), th, pen, tcr, np.random.default_rng(0))
+    assert codes == ("WN", "RW", "GM") and [t[2] for t in tested] == ["DR"] and tested[0][3] < pen
+    assert np.exp(th2) == pytest.approx([1e-4, 1e-4, 3e-4, 1.0], rel=1e-3)
+    codes, _, tested = nested_check(c, ("WN", "RW", "GM"), np.log([1e-4, 1e-4, 3e-4, 1.0]), pen, tcr,
+                                    np.random.default_rng(0))
+    assert codes == ("WN", "RW", "GM") and tested == []
 
 
 def test_fit_counts_its_starts_and_flags_unresolved_intervals():

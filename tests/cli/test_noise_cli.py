@@ -9,6 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from inscal import io
+from inscal.cli.allan import run_allan
 from inscal.cli.app import app
 from inscal.core import noise_models as nm
 from inscal.core import units
@@ -107,7 +108,7 @@ def _counts(dth, dv, gim):
 
 
 @pytest.mark.parametrize("edit, args, words", [
-    (_moving, [], "moves between 2"),
+    (_moving, [], "moves in 1"),
     (_nan, [], "NaN"),
     (_stuck, [], "ay is stuck"),
     (_saturated, ["--channels", "gx"], "gx is saturated"),
@@ -154,3 +155,45 @@ def test_identify_simulate_identify(tmp_path):
     (tmp_path / "scen2.toml").write_text('base = "static"\n[noise]\nfile = "rw.toml"\n')
     r = CliRunner().invoke(app, ["simulate", str(tmp_path / "scen2.toml"), "--out", str(tmp_path / "r2.h5")])
     assert r.exit_code == 2 and "az has RW" in r.stderr and not (tmp_path / "r2.h5").exists()
+
+
+def _turns(k):
+    """k turns of 90 deg about z, 1.5 s each (0.25 % of the 600-s record; 0.25-1 % in all)."""
+    starts = np.linspace(100, 500, k)
+
+    def edit(dth, dv, gim):
+        for s in starts:
+            i0, n = int(s * RATE), int(1.5 * RATE)
+            dth[i0:i0 + n, 2] += math.radians(90) / n
+    return starts, edit
+
+
+@pytest.fixture(scope="module")
+def clean_fit(static):
+    r = CliRunner().invoke(app, ["noise", str(static), "--model", "WN+GM", "--channels", "gx", "--json"])
+    assert r.exit_code == 0, r.stderr
+    return json.loads(r.stdout)["channels"][0]["parameters"]
+
+
+@pytest.mark.parametrize("k", [1, 2, 4])
+def test_short_turns_are_cut_out_and_the_rest_fitted(tmp_path, clean_fit, k):
+    """Each turn is caught and cut out with its margin (said in --json), and the model fitted on the
+    static segments left is the clean record's (the same noise without the turns)."""
+    starts, edit = _turns(k)
+    rec = _record(tmp_path / "turns.h5", edit=edit)
+    r = CliRunner().invoke(app, ["noise", str(rec), "--model", "WN+GM", "--channels", "gx", "--json"])
+    assert r.exit_code == 0, r.stderr
+    res = json.loads(r.stdout)
+    cut = res["cut"]
+    assert len(cut["spans_s"]) == k
+    for s, (a, b) in zip(starts, cut["spans_s"]):  # each turn inside its cut, within margin + two blocks
+        assert s - cut["margin_s"] - 1.01 <= a <= s and s + 1.5 <= b <= s + 1.5 + cut["margin_s"] + 2.01, (s, a, b)
+    assert cut["share"] == pytest.approx(sum(b - a for a, b in cut["spans_s"]) / 600.0, rel=1e-9)
+    assert cut["static_segments"] == k + 1 and cut["samples_used"] == round(60_000 * (1 - cut["share"]))
+    got = res["channels"][0]["parameters"]
+    for p in ("WN.n", "GM1.sigma", "GM1.tc"):  # the turn itself would put a GM of ~1e5 deg/h in the model
+        assert got[p]["value"] == pytest.approx(clean_fit[p]["value"], rel=0.15 if p != "GM1.tc" else 0.4), p
+    if k == 2:  # inscal allan cuts the same stretches: the same ARW, to the last digit
+        al = run_allan(rec, model="WN+GM")
+        assert al["cut"]["spans_s"] == cut["spans_s"] and al["arw_deg_rth"][0] == got["WN.n"]["value"]
+        assert any(w.startswith("cut out: ") for w in al["warnings"])

@@ -3,6 +3,7 @@ noise engine (``inscal noise``): the same pass, curve, white-noise density and r
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import typer
@@ -63,8 +64,19 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
 
         scan = idf.scan_window(data, win)
     t0 = scan.t_first - 1 / win.rate_hz
-    warnings = []
+    warnings, cut = [], None
     w = scan.motion.warning(t0, idf.CHANNELS)
+    if w:  # as inscal noise: the moving stretches cut out where they are few, else the warning
+        with record_errors(data):
+            try:
+                sv, cut = idf.cut_motion(data, win, scan, t0)
+            except idf.NoiseInputError:
+                sv = None
+        if sv is not None:
+            scan = dataclasses.replace(scan, sv=sv)
+            w = (f"cut out: {cut.seconds:.4g} s ({100 * cut.share:.3g} % of the window) that moves, at "
+                 + ", ".join(f"{a:.6g}-{b:.6g} s" for a, b in cut.spans_s) + f" ({idf.CUT_MARGIN_S:g} s margin each "
+                 f"side); the curve is computed on the {cut.segments} static segments left")
     for line in ([w] if w else []) + scan.checks.problems(idf.CHANNELS, t0, 1 / win.rate_hz):
         warnings.append(line)
         if warn is not None:
@@ -89,7 +101,8 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         white = np.array([c["white"] for c in ch[sl]])
         res[key] = units.from_si(white[:, 0], unit)
         res[key.replace("_", "_lower_95_", 1)] = units.from_si(white[:, 1], unit)
-        res[key.replace("_", "_upper_95_", 1)] = units.from_si(white[:, 2], unit)
+        with np.errstate(over="ignore"):  # an unseen term's upper bound beyond float range: inf, unbounded
+            res[key.replace("_", "_upper_95_", 1)] = units.from_si(white[:, 2], unit)
         res[f"{sensor}_white_source"] = [c["white_source"] for c in ch[sl]]
         res[f"{sensor}_model"] = [c["model"] for c in ch[sl]]
         bi = [c["readoffs"]["BI"] for c in ch[sl]]
@@ -101,6 +114,8 @@ def run_allan(data: Path, start_s: float = 0.0, stop_s: float | None = None, plo
         # instability, and the figure is only an upper bound
         res[f"{sensor}_bias_instability_upper_bound"] = [not b["flat_bottom"] for b in bi]
     res["warnings"] = warnings
+    if cut is not None:
+        res["cut"] = cut.to_dict()
     if plot is not None:
         from inscal.report.figures import allan_plot
 

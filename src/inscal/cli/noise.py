@@ -106,16 +106,24 @@ def run_noise(data: Path | None, model: str = "auto", channels: str | None = Non
         probs = [p for p in probs if p.split(" ", 1)[0] in names]
         if probs:
             raise CliError(f"{short(data)}: {probs[0]}")
+        sv, cut = scan.sv, None
         why = scan.motion.reason(t0, idf.CHANNELS)
-        if why is not None:
-            span = scan.motion.moving_span()
-            where = f"between {t0 + span[0]:.6g} s and {t0 + span[1]:.6g} s" if span else "(the gimbal turns)"
-            raise CliError(f"{short(data)}: the record moves {where} ({why}): noise is identified on a static "
-                           "window; choose one with --start/--stop")
-        sels = [idf.identify_curve(idf.octave_curve(scan.sv, c), model, rng) for c in idx]
-        summaries = [idf.channel_summary(nm_, s, scan.sv, c) for nm_, s, c in zip(names, sels, idx)]
+        if why is not None:  # the moving stretches cut out, the curve on the static rest
+            with record_errors(data):
+                try:
+                    sv, cut = idf.cut_motion(data, win, scan, t0)
+                except idf.NoiseInputError as exc:
+                    raise CliError(f"{short(data)}: {exc} ({why})") from None
+            if sv.m.size < idf.required_scales(model) or sv.n < need:
+                raise CliError(f"{short(data)}: once the motion at {', '.join(f'{a:.6g}-{b:.6g} s' for a, b in cut.spans_s)}"
+                               f" is cut out, the static segments give {sv.m.size} scales; model {model} needs "
+                               f"{idf.required_scales(model)}: a longer static record, or a smaller --model")
+        sels = [idf.identify_curve(idf.octave_curve(sv, c), model, rng) for c in idx]
+        summaries = [idf.channel_summary(nm_, s, sv, c) for nm_, s, c in zip(names, sels, idx)]
         chan_names, kinds, rate_hz = names, [idf.KINDS[c] for c in names], win.rate_hz
         res = {"data": str(data), "window_s": [scan.t_first - 1 / win.rate_hz, scan.t_last]}
+        if cut is not None:
+            res["cut"] = {**cut.to_dict(), "why": why}
     res.update({"model_asked": model, "seed": seed, "channels": summaries,
                 "conventions": "SI inside; values in IEEE Std 952-2020 (gyro) / 1293-2018 (accelerometer) units; "
                                "AVAR(m) = 2 x Haar wavelet variance at width 2m; 95 % intervals (eta3 chi-square "
@@ -174,6 +182,12 @@ def register(app: typer.Typer) -> None:
         from rich.table import Table
 
         con = Console()
+        if "cut" in res:
+            c = res["cut"]
+            typer.echo(f"cut out: {c['seconds']:.4g} s ({100 * c['share']:.3g} % of the window) that moves, at "
+                       + ", ".join(f"{a:.6g}-{b:.6g} s" for a, b in c["spans_s"])
+                       + f" ({c['margin_s']:g} s margin each side); the curve is computed on the {c['static_segments']}"
+                       f" static segments left")
         for ch in res["channels"]:
             tab = Table(title=escape(f"{ch['channel']} ({ch['kind']}): {ch['model']}"))
             for col in ("parameter", "value", "95 % interval", "unit"):

@@ -241,6 +241,30 @@ def accumulate(buf, b0, last, m, next_i, sums):
         next_i[j] = max(next_i[j], last - 2 * m[j] + 1)
 
 
+def segment_factors(m, n_seg: int, max_fraction: float = 0.1) -> np.ndarray:
+    """The factors of ``m`` a static segment of ``n_seg`` samples is long enough for: up to
+    ``max(2, n_seg max_fraction)``, the rule of :func:`octave_scales` for a whole record."""
+    m = np.asarray(m)
+    return m[m <= max(2.0, n_seg * max_fraction)]
+
+
+def pooled(parts, m, dt: float) -> ScaleVariance:
+    """The variances of several static segments of one record pooled at the factors ``m``: at each
+    factor the squared terms of every segment that has it (:func:`segment_factors`), over their total
+    number M (the terms that span a cut are not formed: the curve's M, its degrees of freedom, counts
+    only those used).  ``parts``: each segment's :class:`ScaleVariance`; factors no segment has are left out."""
+    m = np.asarray(m, dtype=float)
+    k = parts[0].wv.shape[1]
+    tot, M = np.zeros((m.size, k)), np.zeros(m.size)
+    for p in parts:
+        j = np.searchsorted(m, p.m)
+        ok = (j < m.size) & (m[np.minimum(j, m.size - 1)] == p.m)
+        tot[j[ok]] += p.wv[ok] * p.n_terms[ok, None]
+        M[j[ok]] += p.n_terms[ok]
+    has = M > 0
+    return ScaleVariance(m[has], float(dt), int(sum(p.n for p in parts)), tot[has] / M[has, None], M[has])
+
+
 def scale_variance(x, rate_hz: float, m=None, increments: bool = False, chunk: int = 1 << 18) -> ScaleVariance:
     """:class:`ScaleVariance` of the rows of ``x`` (an array or an HDF5 dataset, (N, k) or (N,)), streamed."""
     n = int(np.shape(x)[0])

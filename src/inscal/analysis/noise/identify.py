@@ -7,8 +7,10 @@ Channels: ``gx gy gz`` (the gyro increments /dtheta, rad) and ``ax ay az`` (/dve
 rates by ``/ dt``.  A channel is refused when it is stuck (more than half of its successive
 increments equal, or a stretch of equal increments far longer than chance allows: frozen or
 saturated), saturated (more than 1 % of it at its extreme value), or holds raw counts (every
-increment a whole number of at least 1: not SI); a window that moves, tilts or steps
-(:mod:`inscal.analysis.noise.motion`) is refused with the times.
+increment a whole number of at least 1: not SI).  The stretches of a window that move, tilt or step
+(:mod:`inscal.analysis.noise.motion`) are cut out with a margin and the curve computed on the static
+segments left (:func:`cut_motion`); a window that moves in more than :data:`MAX_CUT_SHARE` of it is
+refused with the times.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inscal.analysis.noise.estimators import ScaleVariance, StreamingScaleVariance, log_scales, octave_scales
+from inscal.analysis.noise.estimators import (ScaleVariance, StreamingScaleVariance, log_scales, octave_scales, pooled,
+                                              segment_factors)
 from inscal.analysis.noise.fit import Curve, fit_curve, n_params
 from inscal.analysis.noise.intervals import chi2_bounds, wv_interval
 from inscal.analysis.noise.motion import MotionStats
@@ -31,6 +34,10 @@ CHANNELS = ("gx", "gy", "gz", "ax", "ay", "az")
 KINDS = {c: ("gyro" if c[0] == "g" else "accel") for c in CHANNELS}
 #: a parameter whose 95 % interval spans more than this factor is flagged unresolved
 UNRESOLVED_SPAN = 1e3
+#: the margin cut out on each side of a moving stretch [s]: a turn's start and its settling
+CUT_MARGIN_S = 5.0
+#: the largest share of a window cut out as moving; a window that moves more is refused with the times
+MAX_CUT_SHARE = 0.1
 #: the shortest run of equal successive increments taken for a stuck stretch
 STUCK_RUN_MIN = 20
 #: the octave scales a model of p parameters needs: p + 2 (two degrees of freedom left for the J test)
@@ -176,6 +183,68 @@ def scan_window(path, win, chunk_size: int = 1 << 18, per_octave: int = 4) -> Sc
         mot.update(x, g)
         chk.update(x)
     return Scan(acc.result(), mot, chk, t_first, t_last)
+
+
+@dataclass(frozen=True)
+class Cut:
+    """The moving stretches cut out of a window (:func:`cut_motion`): ``spans_s`` as (start, end) [s]
+    of the record's time, their total ``seconds`` and ``share`` of the window, the static segments
+    kept (``segments``) and the samples the pooled curve uses."""
+
+    spans_s: tuple
+    seconds: float
+    share: float
+    segments: int
+    samples_used: int
+
+    def to_dict(self) -> dict:
+        """The cut as JSON-ready fields."""
+        return {"spans_s": [list(s) for s in self.spans_s], "seconds": self.seconds, "share": self.share,
+                "static_segments": self.segments, "samples_used": self.samples_used,
+                "margin_s": CUT_MARGIN_S, "max_share": MAX_CUT_SHARE}
+
+
+def cut_motion(path, win, scan: Scan, t0: float, chunk_size: int = 1 << 18, per_octave: int = 4) -> tuple:
+    """The window without its moving stretches: every stretch that moves, turns, steps or is stuck
+    (:meth:`inscal.analysis.noise.motion.MotionStats.moving_spans`, widened by :data:`CUT_MARGIN_S`
+    on each side) cut out, and the variances computed on each static segment left and pooled
+    (:func:`inscal.analysis.noise.estimators.pooled`: each factor from the segments long enough for it,
+    its degrees of freedom from the terms used).  Returns ``(ScaleVariance, Cut)``; a
+    :class:`NoiseInputError` with the times where more than :data:`MAX_CUT_SHARE` of the window would be
+    cut, where the gimbal turns, or where no segment is long enough.  ``t0``: the time of the window's
+    sample -1 [s]."""
+    dt = 1.0 / win.rate_hz
+    spans = scan.motion.moving_spans(CUT_MARGIN_S)
+    where = ", ".join(f"{t0 + a * dt:.6g}-{t0 + b * dt:.6g} s" for a, b in spans[:4]) + (
+        f" and {len(spans) - 4} more" if len(spans) > 4 else "")
+    cut = sum(b - a for a, b in spans)
+    if cut > MAX_CUT_SHARE * win.n:
+        raise NoiseInputError(f"it moves in {100 * cut / win.n:.3g} % of the window (more than the "
+                              f"{100 * MAX_CUT_SHARE:g} % inscal cuts out), at {where}: noise is identified on a "
+                              "static window; choose one with --start/--stop")
+    if scan.motion.gmin is not None and float(np.max(scan.motion.gmax - scan.motion.gmin)) > 1e-3:
+        raise NoiseInputError("the gimbal turns in the window: noise is identified on a static window; choose one "
+                              "with --start/--stop")
+    keep, prev = [], 0
+    for a, b in spans + [(win.n, win.n)]:
+        if a > prev:
+            keep.append((prev, a))
+        prev = b
+    m_all = log_scales(win.n, per_octave)
+    parts = []
+    for a, b in keep:
+        ms = segment_factors(m_all, b - a)
+        if b - a < 16 or ms.size == 0:
+            continue
+        acc = StreamingScaleVariance(b - a, win.rate_hz, 6, ms, increments=True)
+        for dth, dv in iter_window(path, ("dtheta", "dvel"), win.i0 + a, win.i0 + b, chunk_size):
+            acc.update(np.concatenate([dth, dv], axis=1))
+        parts.append(acc.result())
+    if not parts:
+        raise NoiseInputError(f"no static stretch of 16 samples is left once the motion at {where} is cut out")
+    sv = pooled(parts, m_all, dt)
+    return sv, Cut(tuple((float(t0 + a * dt), float(t0 + b * dt)) for a, b in spans), float(cut * dt),
+                   float(cut / win.n), len(parts), int(sv.n))
 
 
 def octave_curve(sv: ScaleVariance, c: int) -> Curve:

@@ -45,6 +45,7 @@ class MotionStats:
 
     def __init__(self, n: int, rate_hz: float, k: int = 3):
         self.rate_hz = rate_hz
+        self.n_total = int(n)
         self.m = max(1, min(n // 20, int(round(rate_hz))))  # ~1 s blocks (at least 20 of them)
         self.k = n // self.m
         self.nch = int(k)
@@ -128,6 +129,25 @@ class MotionStats:
             c = int(np.argmax(zmax))
             out[0] += f" ({names[c]} {zmax[c]:.3g} sigma)"
         return out
+
+    def moving_spans(self, margin_s: float = 0.0) -> list[tuple[int, int]]:
+        """The stretches that move or lie in an event as ``(first, end)`` sample indices of the window
+        (``end`` one past the last), each widened by ``margin_s`` [s] on both sides and merged where
+        they overlap (a turn's edges and the blocks between them, where its rate passes the
+        threshold, are one stretch); empty when the window is static."""
+        mask = self._moving()[0] | self.event_mask()[0]
+        if not mask.any():
+            return []
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+        pad = int(np.ceil(margin_s * self.rate_hz / self.m))
+        spans = []
+        for a, b in zip(edges[::2], edges[1::2]):
+            a, b = max(a - pad, 0), min(b + pad, self.nb)
+            if spans and a <= spans[-1][1]:
+                spans[-1] = (spans[-1][0], b)
+            else:
+                spans.append((a, b))
+        return [(a * self.m, b * self.m if b < self.nb else self.n_total) for a, b in spans]
 
     def moving_span(self) -> tuple[float, float] | None:
         """Seconds from the window's start of the first and the end of the last block that moves or

@@ -21,6 +21,13 @@ by 15 or more is kept in more than 93 % of records.  ``criterion="bic"`` takes t
 ``ln n`` per parameter (consistent too, but it drops terms that a record of 10^6 samples shows
 plainly: 14 per parameter), ``"aic"`` 2.
 
+One ``V`` for every candidate is a yardstick fitted to the largest model of all: where that fit
+explains the longest scales by a rate ramp (deterministic, no variance of its own) it claims tens of
+times the degrees of freedom those scales have, and every smaller candidate is judged on scales it is
+told are near exact.  So the table's choice is then checked by nested pairs (:func:`nested_check`),
+each on the larger one's own yardstick: a term is dropped where Newey & West's distance statistic
+``D = J_smaller - J_larger``, both on ``V`` at the larger one's estimate, stays below its penalty.
+
 The record cannot tell some candidates from smaller ones; they are set aside, not compared (and
 the reason is listed), so that "the right model" is the smallest one that describes what the record
 can show:
@@ -246,6 +253,10 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
     ok = [r for r in table if not r[5]] or table
     best = ok[0]
     cand, th = thetas[best[0]]
+    # each nested pair judged on the larger one's own yardstick, not the largest model's (Newey & West's D)
+    cand, th, tested = nested_check(curve, cand, th, pen, (tcm, tc_min), rng, thetas)
+    if tested:
+        best = {r[0]: r for r in table}[nm.model_string(cand)]
     chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th, tc_min=tc_min)
     removed = []
     while any(chosen.negligible) and len(chosen.codes) > 1:
@@ -258,23 +269,86 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
             sum(n_params(c) for c in chosen.codes[:i]), sum(n_params(c) for c in chosen.codes[:i + 1])))
         chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0, tc_min=tc_min)
     row = {r[0]: r for r in table}.get(chosen.model, best)
-    why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
-           f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
+    top = ok[0]
+    if tested:
+        why = (f"{row[0]}: from {top[0]} (lowest {criterion.upper()} = J + {pen:.3g} p = {top[1]:.4g} on the largest "
+               f"model's yardstick, among {len(ok)} of {len(table)} sub-sums of {nm.model_string(codes)} the record "
+               "can tell apart) by nested pairs, each on the larger one's own yardstick: "
+               + "; ".join(f"{t} adds D = {d:.3g} < {pen * dp:.3g} to {b}" for _, b, t, d, dp in tested))
+    else:
+        why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
+               f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
     if removed:
         why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
-    if len(ok) > 1:
+    if len(ok) > 1 and not tested:
         ru = next(r for r in ok if r[0] != row[0])
         why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
-    why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
-    aside = [r for r in table if r[5] and r[1] < row[1]]
+    if tested:
+        why += f"; J = {chosen.gof:.3g} on {chosen.gof_dof} dof at its own fit, p = {chosen.gof_p:.2g}"
+    else:
+        why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
+    aside = [r for r in table if r[5] and r[1] < min(row[1], top[1])]
     if aside:
         why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
-    richer = _richer(row, table, thetas, pen)
+    richer = _richer(row, table, thetas, pen) if not tested else tuple(
+        (a, float(pen * dp - d), float(d), _length_factor(d, dp, pen)) for a, _, _, d, dp in reversed(tested[-2:]))
     if richer:
         why += "; richer models fit nearly as well: " + "; ".join(
             f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
                                    else "; no sign of it in this record)") for m, g, _, s in richer)
     return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+
+
+def whitener(terms, curve: Curve):
+    """``W`` with ``W' W = V^-1`` for the covariance ``V`` of ``curve``'s wavelet variances under the
+    processes ``terms`` (:func:`inscal.analysis.noise.fit.curve_covariance`), or None where ``V`` is not
+    positive definite."""
+    try:
+        W = np.linalg.inv(np.linalg.cholesky(curve_covariance(terms, curve)))
+    except np.linalg.LinAlgError:
+        return None
+    return W if np.all(np.isfinite(W)) else None
+
+
+def nested_check(curve: Curve, cand, theta, pen: float, tc_range, rng, thetas=None):
+    """Backward elimination of the choice ``cand`` (at ``theta``) by nested pairs, each on the larger
+    one's own yardstick: ``V`` at the larger candidate's estimate, both refitted with its ``V^-1/2`` and
+    ``D = J_smaller - J_larger`` (Newey & West, Int. Econ. Rev. 28 (1987) 777-787: the distance test of
+    GMM, chi^2(dp) under the smaller model).  The common yardstick of the choice's table is the largest
+    model's ``V``, fitted to the largest model of all: where that fit explains the longest scales by a
+    rate ramp (deterministic, no variance of its own) it claims tens of times the degrees of freedom the
+    scale has, and every candidate without the term is judged on scales it is told are near exact.
+    The term of smallest ``D - pen dp`` is dropped while that is negative (at most :data:`MAX_ELIMINATE`
+    steps).  Returns ``(codes, theta, [(larger, smaller, term, D, dp), ...])``; ``thetas`` (model name ->
+    (codes, theta)) gives a second start to each smaller fit."""
+    thetas = {} if thetas is None else thetas
+    tested = []
+    for _ in range(MAX_ELIMINATE):
+        if len(cand) < 2:
+            break
+        W = whitener(terms_of(cand, theta, curve.dt), curve)
+        if W is None:
+            break
+        th_p, j_p = solve(curve, cand, n_starts=0, rng=rng, theta0=theta, whiten=W, grid=False, tc_max=tc_range[0],
+                          tc_min=tc_range[1])[:2]
+        starts = np.cumsum([0] + [n_params(c) for c in cand])
+        best = None
+        for i in range(len(cand)):
+            child = _without(cand, i)
+            th0s = [np.delete(th_p, slice(starts[i], starts[i + 1]))]
+            if nm.model_string(child) in thetas:
+                th0s.append(thetas[nm.model_string(child)][1])
+            for th0 in th0s:
+                thc, jc = solve(curve, child, n_starts=0, rng=rng, theta0=th0, whiten=W, grid=False,
+                                tc_max=tc_range[0], tc_min=tc_range[1])[:2]
+                score = jc - j_p - pen * n_params(cand[i])
+                if score < 0 and (best is None or score < best[0]):
+                    best = (score, child, thc, cand[i], jc - j_p)
+        if best is None:
+            break
+        tested.append((nm.model_string(cand), nm.model_string(best[1]), best[3], float(best[4]), n_params(best[3])))
+        cand, theta = best[1], best[2]
+    return cand, theta, tested
 
 
 def _eliminate(curve: Curve, fitted: dict, polished: set, pen: float, W, tc_range, rng, n_from: int = 1) -> None:
@@ -327,10 +401,15 @@ def _richer(row, table, thetas, pen) -> tuple:
             continue
         dp = r[4] - row[4]
         drop = row[2] - r[2]
-        lam = drop - dp
-        s = (pen * dp + 3.0) / lam if lam > 0 else None
-        out.append((r[0], float(r[1] - row[1]), float(drop), None if s is None else float(max(s, 1.0))))
+        out.append((r[0], float(r[1] - row[1]), float(drop), _length_factor(drop, dp, pen)))
     return tuple(sorted(out, key=lambda x: x[1])[:2])
+
+
+def _length_factor(drop: float, dp: int, pen: float):
+    """The record length factor that would show a term of ``dp`` parameters whose J drop is ``drop``
+    (:func:`_richer`), or None where the drop is no more than its dp."""
+    lam = drop - dp
+    return float(max((pen * dp + 3.0) / lam, 1.0)) if lam > 0 else None
 
 
 # ----------------------------------------------------------------------------- IEEE read-offs
