@@ -11,66 +11,99 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import typer
 
 from inscal.cli.common import CliError, call, check_not_input, check_output, fail, print_json, short
-from inscal.cli.options import ForceOption, JsonOption, gravity_option
+from inscal.cli.options import ForceOption, JsonOption, gravity_option, options_of
 from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
-def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path: Path | None = None,
-               path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str | None = None,
-               lat: float | None = None, lon: float | None = None, height: float | None = None,
-               rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
-               rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None,
-               topic: str | None = None, stamps: str = "header", config: Path | None = None,
-               temperature_topic: str | None = None) -> dict:
+@dataclass(frozen=True)
+class ImportOptions:
+    """What ``inscal import`` is asked: convert ``src`` (in format ``fmt``, :data:`inscal.io.formats.REGISTRY`)
+    into the record ``out`` (``force``: over an existing file), with the csv/txt column ``mapping``, the rotation
+    ``path`` (starting at ``path_start`` [s] of the source's time) or the encoder angles ``gimbal`` (in
+    ``gimbal_unit``: deg | rad), the site (``lat``, ``lon`` [deg], ``height`` [m]), the sample rate ``rate_hz``,
+    psins' ``dtype``, .mat's ``variable``, ``rates`` (rows of rates, not increments), the plausibility checks
+    to ``skip``, the ``gravity`` model, the ``encoder_latency`` [s] corrected, the ``temperature`` readings
+    (csv), a bag's ``topic``, ``stamps`` and ``temperature_topic``, and KF-GINS's ``config`` (YAML)."""
+
+    src: Path
+    fmt: str
+    out: Path
+    mapping: Path | None = None
+    path: Path | None = None
+    path_start: float | None = None
+    gimbal: Path | None = None
+    gimbal_unit: str | None = None
+    lat: float | None = None
+    lon: float | None = None
+    height: float | None = None
+    rate_hz: float | None = None
+    dtype: str = "float64"
+    variable: str | None = None
+    rates: bool = False
+    skip: tuple[str, ...] = ()
+    force: bool = False
+    gravity: str | None = None
+    encoder_latency: float = 0.0
+    temperature: Path | None = None
+    topic: str | None = None
+    stamps: str = "header"
+    config: Path | None = None
+    temperature_topic: str | None = None
+
+
+def run_import(o: ImportOptions) -> dict:
+    """Import as ``o`` says (:class:`ImportOptions`), with the checks of :mod:`inscal.io.importers`; returns
+    the JSON report.  The options are checked before anything is read; a bad source is one line."""
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
     from inscal.io.mapping import ImportFileError
     from inscal.io.records import DataFileError
 
-    spec = REGISTRY.get(fmt)
+    spec = REGISTRY.get(o.fmt)
     if spec is None:
-        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(REGISTRY)}")
-    bad = sorted(set(skip or ()) - set(SKIPPABLE))
+        raise CliError(f"unknown --format {o.fmt!r}; choose one of: {', '.join(REGISTRY)}")
+    bad = sorted(set(o.skip or ()) - set(SKIPPABLE))
     if bad:
         raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(SKIPPABLE)}")
-    if not (math.isfinite(encoder_latency) and abs(encoder_latency) <= 1.0):
-        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
-    if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
-        raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if spec.folder is not None and src.is_dir():  # a source that is a folder (a ROS 2 bag)
+    if not (math.isfinite(o.encoder_latency) and abs(o.encoder_latency) <= 1.0):
+        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {o.encoder_latency}")
+    if o.gimbal_unit is not None and o.gimbal_unit not in ("deg", "rad"):
+        raise CliError(f"--gimbal-unit must be deg or rad, got {o.gimbal_unit!r}")
+    if spec.folder is not None and o.src.is_dir():  # a source that is a folder (a ROS 2 bag)
         what, marker = spec.folder
-        if not (src / marker).is_file():
-            raise CliError(f"{src}: a {what} folder holds {marker}, and this one has none")
-    elif (msg := input_problem(src, "file")) is not None:
+        if not (o.src / marker).is_file():
+            raise CliError(f"{o.src}: a {what} folder holds {marker}, and this one has none")
+    elif (msg := input_problem(o.src, "file")) is not None:
         raise CliError(msg)
-    check_output(out, force)
-    check_not_input(out, src, role="source file")
-    check_not_input(out, mapping, path, gimbal, temperature, config)
+    check_output(o.out, o.force)
+    check_not_input(o.out, o.src, role="source file")
+    check_not_input(o.out, o.mapping, o.path, o.gimbal, o.temperature, o.config)
     try:
         gmodel = None
-        if gravity is not None:
+        if o.gravity is not None:
             from inscal.cli.common import parse_gravity_option
 
-            gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
-        return import_file(src, out, spec, None, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
-                           variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
-                           gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
-                           config_file=config, temperature_topic=temperature_topic, site_parts=(lat, lon, height))
+            gmodel = parse_gravity_option(o.gravity)  # applied to the site wherever it comes from
+        return import_file(o.src, o.out, spec, None, o.mapping, o.path, o.path_start, o.gimbal, o.gimbal_unit,
+                           o.rate_hz, o.dtype, o.variable, o.rates, tuple(o.skip or ()), overwrite=o.force,
+                           encoder_latency=o.encoder_latency, gravity=gmodel, temperature_file=o.temperature,
+                           topic=o.topic, stamps=o.stamps, config_file=o.config, temperature_topic=o.temperature_topic,
+                           site_parts=(o.lat, o.lon, o.height))
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         msg = str(exc)
-        if config is not None and rate_hz is None:  # the rate came from the configuration, not from an option
+        if o.config is not None and o.rate_hz is None:  # the rate came from the configuration, not from an option
             msg = re.sub(r"--rate-hz ([0-9][0-9.eE+-]*)", lambda m: f"the rate {m.group(1)} Hz (imudatarate of --config "
-                         f"{short(config)}; --rate-hz overrides it)", msg, count=1)
+                         f"{short(o.config)}; --rate-hz overrides it)", msg, count=1)
         raise CliError(msg) from None
     except OSError as exc:
-        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
+        raise CliError(f"cannot write {o.out}: {exc.strerror or exc}") from None
 
 
 def _is_record(p: Path) -> bool:
@@ -196,9 +229,7 @@ def register(app: typer.Typer) -> None:
         json_: JsonOption = False,
     ):
         """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
-        res = call(run_import, src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                         rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
-                         topic, stamps, config, temperature_topic)
+        res = call(run_import, options_of(ImportOptions, locals(), skip=tuple(skip or ())))
         for w in res["warnings"]:
             typer.echo(f"inscal: warning: {w}", err=True)
         if json_:

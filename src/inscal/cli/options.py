@@ -219,7 +219,7 @@ class Command(TyperCommand):
             self.help, self.epilog = text, epilog
 
 
-def options_of(cls, params: dict, **extra):
+def options_of(cls, params: dict, /, **extra):
     """``cls`` (a dataclass of a command's options) from the command's parameters by field name (``params``:
     the click context's, or the function's locals), with ``extra`` fields set or overriding."""
     names = {f.name for f in dataclasses.fields(cls)}
