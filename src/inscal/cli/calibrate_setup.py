@@ -13,6 +13,19 @@ from typing import Annotated
 import typer
 
 from inscal.cli.common import CliError
+from inscal.cli.options import (
+    CalibrationNoiseOption,
+    EncoderLatencyOption,
+    EncoderSigmaOption,
+    FilterRateOption,
+    MinStaticOption,
+    SettleOption,
+    SkipEncoderCheckOption,
+    arw_option,
+    gravity_option,
+    states_option,
+    vrw_option,
+)
 
 # ----------------------------------------------------------------------------- the options of calibrate alone
 STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-diagonals and cross-coupling chosen "
@@ -24,6 +37,12 @@ STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-
 STATION_HELP = ("the turntable / station of the run: its name (with --serial), or a station description FILE.toml "
                 "(n25, six-position, twelve-position, joint, systematic51, systematic30, multi-position, ferraris): "
                 "the GUM uncertainty budget is computed, printed and, with --serial, stored with the result")
+
+
+StatesOption = states_option(STATES_HELP)
+ArwOption = arw_option("from the data")
+VrwOption = vrw_option("from the data")
+GravityOption = gravity_option("the record's")
 
 
 def _option(name: str, help: str, kind: type = float, metavar: str | None = None) -> object:
@@ -93,20 +112,21 @@ ThermalModelOption = _option(
 @dataclass(frozen=True, kw_only=True)
 class SetupOptions:
     """The options of a calibration that ``inscal calibrate`` and ``inscal batch`` share (None: the method's own
-    default), as the library's :class:`~inscal.runs.calibration.CalibrationSetup` takes them
-    (:meth:`calibration_setup`)."""
+    default), each declared once here as its command-line option (:func:`inscal.cli.options.with_options` gives
+    both commands these parameters), as the library's :class:`~inscal.runs.calibration.CalibrationSetup` takes
+    them (:meth:`calibration_setup`)."""
 
-    settle: float | None = None
-    min_static: float | None = None
-    states: str | None = None
-    filter_rate: float = 1.0
-    arw: float | None = None
-    vrw: float | None = None
-    gravity: str | None = None
-    encoder_sigma: float | None = None
-    encoder_latency: float = 0.0
-    skip_encoder_check: bool = False
-    noise: Path | None = None
+    settle: SettleOption = None
+    min_static: MinStaticOption = None
+    states: StatesOption = None
+    filter_rate: FilterRateOption = 1.0
+    arw: ArwOption = None
+    vrw: VrwOption = None
+    gravity: GravityOption = None
+    encoder_sigma: EncoderSigmaOption = None
+    encoder_latency: EncoderLatencyOption = 0.0
+    skip_encoder_check: SkipEncoderCheckOption = False
+    noise: CalibrationNoiseOption = None
 
     def calibration_setup(self, method: str, noise: str | None, **more):
         """The library's setup (:class:`~inscal.runs.calibration.CalibrationSetup`) of ``method`` with these

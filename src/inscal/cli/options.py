@@ -11,6 +11,9 @@ type (:func:`metavar_of`), so that no help shows a type name (``<str>``) or a va
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
+import typing
 from pathlib import Path
 from typing import Annotated
 
@@ -224,6 +227,40 @@ def options_of(cls, params: dict, /, **extra):
     the click context's, or the function's locals), with ``extra`` fields set or overriding."""
     names = {f.name for f in dataclasses.fields(cls)}
     return cls(**({k: v for k, v in params.items() if k in names} | extra))
+
+
+def with_options(block, before: str):
+    """A command's decorator: the command takes the options of the dataclass ``block`` as well, declared once by
+    its fields (their ``Annotated`` option types and defaults; a field without one is not an option; the
+    class's own fields before those of its bases), shown in the help before the command's own parameter
+    ``before`` and handed to the command in its ``**`` parameter (:func:`options_of` then builds the options
+    object from them)."""
+    def decorate(command):
+        hints = typing.get_type_hints(block, include_extras=True)
+        empty = inspect.Parameter.empty
+        own_first = sorted(dataclasses.fields(block), key=lambda f: f.name not in vars(block).get("__annotations__", {}))
+        shared = [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=hints[f.name],
+                                    default=empty if f.default is dataclasses.MISSING else f.default)
+                  for f in own_first if _declared(hints[f.name])]
+        own = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
+               for p in inspect.signature(command, eval_str=True).parameters.values()
+               if p.kind is not inspect.Parameter.VAR_KEYWORD]
+        at = [p.name for p in own].index(before)
+        params = own[:at] + shared + own[at:]
+
+        @functools.wraps(command)
+        def run(**given):
+            return command(**given)
+
+        run.__signature__ = inspect.Signature(params)
+        run.__annotations__ = {p.name: p.annotation for p in params}
+        return run
+    return decorate
+
+
+def _declared(hint) -> bool:
+    """Whether a type is an option's or argument's declaration (``Annotated[..., typer.Option(...)]``)."""
+    return any(isinstance(m, typer.models.ParameterInfo) for m in getattr(hint, "__metadata__", ()))
 
 
 def _flag(option):
