@@ -25,6 +25,7 @@ from inscal.cli.options import (
     states_option,
     station_option,
     vrw_option,
+    with_options,
 )
 
 
@@ -104,33 +105,44 @@ class DesignOptions:
     :class:`inscal.uncertainty.station.Station`): the path is designed at its site for the combined
     uncertainty."""
 
-    out: FsPath
-    minutes: float = 30.0
-    states: str = "51"
-    objective: str = "worst-normalised"
-    targets: str = "s16-path"
-    groups: str = "all"
-    axes: str = "outer,inner"
-    max_rate: float = 10.0
-    max_accel: float = 10.0
-    outer_range: str | None = None
-    inner_range: str | None = None
-    cable_wrap: float | None = None
-    min_dwell: float = 5.0
-    initial_dwell: float = 60.0
-    max_moves: int = 40
-    seed: int = 0
-    candidates: int = 256
-    population: int = 16
-    scheduler: str | None = None
-    workers: int = 2
-    base: str = "s16"
-    arw: float | None = None
-    vrw: float | None = None
-    plot: FsPath | None = None
-    force: bool = False
+    out: out_option("output scenario TOML with the designed [path]")
+    minutes: Annotated[float, typer.Option("--minutes", help="time budget of the path [min]")] = 30.0
+    states: states_option("error-state model: 51 | 30 | unified (options ,lever9 ,async ,psins)") = "51"
+    objective: Annotated[str, typer.Option("--objective", metavar="OBJECTIVE", help=(
+        "worst-normalised (max of σ/target) | weighted (mean of (σ/target)^2)"))] = "worst-normalised"
+    targets: Annotated[str, typer.Option("--targets", metavar="TARGETS", help=(
+        "s16-path (bound of S16's own 1-h path) | s16-table2 (S16 Table 2 figures for its groups)"))] = "s16-path"
+    groups: Annotated[str, typer.Option("--groups", metavar="GROUPS", help=(
+        "parameter groups in the objective: all | table2 | a comma list"))] = "all"
+    axes: Annotated[str, typer.Option("--axes", help="gimbal axes the path may turn")] = "outer,inner"
+    max_rate: Annotated[float, typer.Option("--max-rate", metavar="DEG/S", help=(
+        "largest turntable rate [deg/s]"))] = 10.0
+    max_accel: Annotated[float, typer.Option("--max-accel", metavar="DEG/S^2", help=(
+        "angular acceleration of the moves [deg/s^2]"))] = 10.0
+    outer_range: Annotated[str | None, typer.Option("--outer-range", metavar="LO,HI", help=(
+        "outer angle limits LO,HI [deg] (start = 0)"))] = None
+    inner_range: Annotated[str | None, typer.Option("--inner-range", metavar="LO,HI", help=(
+        "inner angle limits LO,HI [deg] (start = 0)"))] = None
+    cable_wrap: Annotated[float | None, typer.Option("--cable-wrap", metavar="DEG", help=(
+        "largest net rotation of each axis [deg]"))] = None
+    min_dwell: Annotated[float, typer.Option("--min-dwell", metavar="SECONDS", help=(
+        "shortest dwell after a move [s]"))] = 5.0
+    initial_dwell: Annotated[float, typer.Option("--initial-dwell", metavar="SECONDS", help=(
+        "dwell at the start (alignment) [s]"))] = 60.0
+    max_moves: Annotated[int, typer.Option("--max-moves", metavar="N", help="most moves in a path")] = 40
+    seed: SeedOption = 0
+    candidates: Annotated[int, typer.Option("--candidates", help="candidate paths to evaluate")] = 256
+    population: Annotated[int, typer.Option("--population", help="survivors per generation")] = 16
+    scheduler: scheduler_option("a LocalCluster of --workers") = None
+    workers: Annotated[int, typer.Option("--workers", help="workers of the local Dask cluster")] = 2
+    base: Annotated[str, typer.Option("--base", metavar="SCENARIO", help=(
+        "built-in scenario for the site, gimbal, noise and IMU of the written file"))] = "s16"
+    arw: arw_option("the base scenario's") = None
+    vrw: vrw_option("the base scenario's") = None
+    plot: plot_option("write the path report: FILE.png and FILE.html") = None
+    force: ForceOption = False
     progress: bool = True
-    station: object = None
+    station: object = None  # a Station (read from --station FILE.toml)
 
 
 def run_design(o: DesignOptions):
@@ -261,47 +273,13 @@ def _print(res, out, station=None) -> None:
 
 def register(app: typer.Typer) -> None:
     @app.command("design")
+    @with_options(DesignOptions, before="station")
     def design_cmd(
-        out: out_option("output scenario TOML with the designed [path]"),
-        minutes: Annotated[float, typer.Option("--minutes", help="time budget of the path [min]")] = 30.0,
-        states: states_option("error-state model: 51 | 30 | unified (options ,lever9 ,async ,psins)") = "51",
-        objective: Annotated[str, typer.Option("--objective", metavar="OBJECTIVE", help=(
-            "worst-normalised (max of σ/target) | weighted (mean of (σ/target)^2)"))] = "worst-normalised",
-        targets: Annotated[str, typer.Option("--targets", metavar="TARGETS", help=(
-            "s16-path (bound of S16's own 1-h path) | s16-table2 (S16 Table 2 figures for its groups)"))] = "s16-path",
-        groups: Annotated[str, typer.Option("--groups", metavar="GROUPS", help=(
-            "parameter groups in the objective: all | table2 | a comma list"))] = "all",
-        axes: Annotated[str, typer.Option("--axes", help="gimbal axes the path may turn")] = "outer,inner",
-        max_rate: Annotated[float, typer.Option("--max-rate", metavar="DEG/S", help=(
-            "largest turntable rate [deg/s]"))] = 10.0,
-        max_accel: Annotated[float, typer.Option("--max-accel", metavar="DEG/S^2", help=(
-            "angular acceleration of the moves [deg/s^2]"))] = 10.0,
-        outer_range: Annotated[str | None, typer.Option("--outer-range", metavar="LO,HI", help=(
-            "outer angle limits LO,HI [deg] (start = 0)"))] = None,
-        inner_range: Annotated[str | None, typer.Option("--inner-range", metavar="LO,HI", help=(
-            "inner angle limits LO,HI [deg] (start = 0)"))] = None,
-        cable_wrap: Annotated[float | None, typer.Option("--cable-wrap", metavar="DEG", help=(
-            "largest net rotation of each axis [deg]"))] = None,
-        min_dwell: Annotated[float, typer.Option("--min-dwell", metavar="SECONDS", help=(
-            "shortest dwell after a move [s]"))] = 5.0,
-        initial_dwell: Annotated[float, typer.Option("--initial-dwell", metavar="SECONDS", help=(
-            "dwell at the start (alignment) [s]"))] = 60.0,
-        max_moves: Annotated[int, typer.Option("--max-moves", metavar="N", help="most moves in a path")] = 40,
-        seed: SeedOption = 0,
-        candidates: Annotated[int, typer.Option("--candidates", help="candidate paths to evaluate")] = 256,
-        population: Annotated[int, typer.Option("--population", help="survivors per generation")] = 16,
-        scheduler: scheduler_option("a LocalCluster of --workers") = None,
-        workers: Annotated[int, typer.Option("--workers", help="workers of the local Dask cluster")] = 2,
-        base: Annotated[str, typer.Option("--base", metavar="SCENARIO", help=(
-            "built-in scenario for the site, gimbal, noise and IMU of the written file"))] = "s16",
-        arw: arw_option("the base scenario's") = None,
-        vrw: vrw_option("the base scenario's") = None,
-        plot: plot_option("write the path report: FILE.png and FILE.html") = None,
         station: station_option("a station description (station.toml): design at its site for the combined "
                                 "uncertainty (the bound with the site's gravity, latitude, height and the time "
                                 "base; GUM)", FsPath) = None,
-        force: ForceOption = False,
         json_: JsonOption = False,
+        **options,
     ):
         """Design a calibration path from its Cramér-Rao bound: an evolutionary search over sequences of
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""
@@ -309,12 +287,12 @@ def register(app: typer.Typer) -> None:
 
         st = read_station_option(station)
         try:
-            res, _ = run_design(options_of(DesignOptions, locals(), progress=True, station=st))
+            res, _ = run_design(options_of(DesignOptions, options, progress=True, station=st))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             d = res.to_dict()
-            d["out"] = str(out)
+            d["out"] = str(options["out"])
             d.pop("bound", None)
             d["bound"] = {"parameters": res.bound.table(), "group_rms": res.bound.group_rms()}
             if st is not None:
@@ -324,4 +302,4 @@ def register(app: typer.Typer) -> None:
                 d.update(station=st.name, budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))
             print_json(d)
             return
-        _print(res, out, st)
+        _print(res, options["out"], st)

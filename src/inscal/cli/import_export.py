@@ -13,11 +13,12 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
 from inscal.cli.common import CliError, call, check_not_input, check_output, fail, print_json, short
-from inscal.cli.options import ForceOption, JsonOption, gravity_option, options_of
+from inscal.cli.options import ForceOption, JsonOption, gravity_option, options_of, with_options
 from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
@@ -31,30 +32,51 @@ class ImportOptions:
     to ``skip``, the ``gravity`` model, the ``encoder_latency`` [s] corrected, the ``temperature`` readings
     (csv), a bag's ``topic``, ``stamps`` and ``temperature_topic``, and KF-GINS's ``config`` (YAML)."""
 
-    src: Path
-    fmt: str
-    out: Path
-    mapping: Path | None = None
-    path: Path | None = None
-    path_start: float | None = None
-    gimbal: Path | None = None
-    gimbal_unit: str | None = None
-    lat: float | None = None
-    lon: float | None = None
-    height: float | None = None
-    rate_hz: float | None = None
-    dtype: str = "float64"
-    variable: str | None = None
-    rates: bool = False
-    skip: tuple[str, ...] = ()
-    force: bool = False
-    gravity: str | None = None
-    encoder_latency: float = 0.0
-    temperature: Path | None = None
-    topic: str | None = None
-    stamps: str = "header"
-    config: Path | None = None
-    temperature_topic: str | None = None
+    src: Annotated[Path, typer.Argument(help=f"source file ({source_help()})")]
+    fmt: Annotated[str, typer.Option("--format", "-f", help=import_help())]
+    out: Annotated[Path, typer.Option("--out", "-o", help="HDF5 record to write")]
+    mapping: Annotated[Path | None, typer.Option("--mapping", metavar="MAPPING.toml", help=(
+        "csv/txt: columns, units, axes (TOML); may hold a site table"))] = None
+    path: Annotated[Path | None, typer.Option("--path", metavar="PATH.toml", help=(
+        "rotation path TOML (a path table as in scenario files) when there are no encoder angles"))] = None
+    path_start: Annotated[float | None, typer.Option("--path-start-s", help=(
+        "source time (s) at which the path starts (default: the start of the first sample)"))] = None
+    gimbal: Annotated[Path | None, typer.Option("--gimbal", metavar="CSV", help=(
+        "encoder angles file: columns time (s), outer, inner"))] = None
+    gimbal_unit: Annotated[str | None, typer.Option("--gimbal-unit", metavar="deg|rad", help=(
+        "unit of the --gimbal angles: deg | rad (default: the unit the file's header gives, as 'outer [rad]', "
+        "else deg)"))] = None
+    lat: Annotated[float | None, typer.Option("--lat", metavar="DEG", help="site latitude (deg)")] = None
+    lon: Annotated[float | None, typer.Option("--lon", metavar="DEG", help="site longitude (deg)")] = None
+    height: Annotated[float | None, typer.Option("--height", metavar="M", help="site ellipsoidal height (m)")] = None
+    rate_hz: Annotated[float | None, typer.Option("--rate-hz", metavar="HZ", help=(
+        "sample rate (Hz) (default: from the timestamps, which must then be uniform; given: slightly jittery "
+        "timestamps are regridded)"))] = None
+    dtype: Annotated[str, typer.Option("--dtype", metavar="float64|float32", help=(
+        "psins .bin: float64 | float32"))] = "float64"
+    variable: Annotated[str | None, typer.Option("--variable", metavar="NAME", help=(
+        ".mat: the N x 7 variable (default: the first one)"))] = None
+    rates: Annotated[bool, typer.Option("--rates", help=(
+        "psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"))] = False
+    skip: Annotated[list[str] | None, typer.Option("--skip-check", metavar="CHECK", help=(
+        "skip a plausibility check: constant | saturation | magnitudes | motion | encoders (repeatable)"))] = ()
+    encoder_latency: Annotated[float, typer.Option("--encoder-latency", metavar="SECONDS", help=(
+        "encoder latency (s) to correct: the angles are shifted to theta(t + SECONDS) (the encoder check names it "
+        "when it is over a sample)"))] = 0.0
+    gravity: gravity_option("wgs84; the model is stored in the record") = None
+    temperature: Annotated[Path | None, typer.Option("--temperature", metavar="CSV", help=(
+        "temperature readings at their own times: a header row 'time [s],NAME [degC],...' (a sensor per column; "
+        "K, degF, ms accepted), then rows on the source's clock"))] = None
+    topic: Annotated[str | None, typer.Option("--topic", metavar="TOPIC", help=(
+        "rosbag: the sensor_msgs/Imu topic (default: the bag's only one; the topics are listed otherwise)"))] = None
+    stamps: Annotated[str, typer.Option("--stamps", metavar="header|receive", help=(
+        "rosbag: the samples' time: header (the messages' header.stamp) | receive (when the bag recorded "
+        "them)"))] = "header"
+    temperature_topic: Annotated[str | None, typer.Option("--temperature-topic", metavar="TOPIC", help=(
+        "rosbag: a sensor_msgs/Temperature topic (degC) for the record's temperature"))] = None
+    config: Annotated[Path | None, typer.Option("--config", metavar="CONFIG.yaml", help=(
+        "kf-gins: its YAML configuration (imunoise block and imudatarate, kept with the record)"))] = None
+    force: ForceOption = False
 
 
 def run_import(o: ImportOptions) -> dict:
@@ -189,47 +211,10 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
 
 def register(app: typer.Typer) -> None:
     @app.command("import")
-    def import_(
-        src: Path = typer.Argument(..., help=f"source file ({source_help()})"),
-        fmt: str = typer.Option(..., "--format", "-f", help=import_help()),
-        out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
-        mapping: Path = typer.Option(None, "--mapping", metavar="MAPPING.toml", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
-        path: Path = typer.Option(None, "--path", metavar="PATH.toml", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
-        path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
-                                         "(default: the start of the first sample)"),
-        gimbal: Path = typer.Option(None, "--gimbal", metavar="CSV", help="encoder angles file: columns time (s), outer, inner"),
-        gimbal_unit: str = typer.Option(None, "--gimbal-unit", metavar="deg|rad", help="unit of the --gimbal angles: deg | rad (default: the "
-                                        "unit the file's header gives, as 'outer [rad]', else deg)"),
-        lat: float = typer.Option(None, "--lat", metavar="DEG", help="site latitude (deg)"),
-        lon: float = typer.Option(None, "--lon", metavar="DEG", help="site longitude (deg)"),
-        height: float = typer.Option(None, "--height", metavar="M", help="site ellipsoidal height (m)"),
-        rate_hz: float = typer.Option(None, "--rate-hz", metavar="HZ", help="sample rate (Hz) (default: from the timestamps, which must "
-                                      "then be uniform; given: slightly jittery timestamps are regridded)"),
-        dtype: str = typer.Option("float64", "--dtype", metavar="float64|float32", help="psins .bin: float64 | float32"),
-        variable: str = typer.Option(None, "--variable", metavar="NAME", help=".mat: the N x 7 variable (default: the first one)"),
-        rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
-        skip: list[str] = typer.Option(None, "--skip-check", metavar="CHECK", help="skip a plausibility check: constant | saturation | "
-                                       "magnitudes | motion | encoders (repeatable)"),
-        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="encoder latency (s) to correct: the angles "
-                                              "are shifted to theta(t + SECONDS) (the encoder check names it when it "
-                                              "is over a sample)", metavar="SECONDS"),
-        gravity: gravity_option("wgs84; the model is stored in the record") = None,
-        temperature: Path = typer.Option(None, "--temperature", metavar="CSV", help="temperature readings at their own times: a header "
-                                         "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
-                                         "then rows on the source's clock"),
-        topic: str = typer.Option(None, "--topic", metavar="TOPIC", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
-                                  "one; the topics are listed otherwise)"),
-        stamps: str = typer.Option("header", "--stamps", metavar="header|receive", help="rosbag: the samples' time: header (the messages' "
-                                   "header.stamp) | receive (when the bag recorded them)"),
-        temperature_topic: str = typer.Option(None, "--temperature-topic", metavar="TOPIC", help="rosbag: a sensor_msgs/Temperature "
-                                              "topic (degC) for the record's temperature"),
-        config: Path = typer.Option(None, "--config", metavar="CONFIG.yaml", help="kf-gins: its YAML configuration (imunoise block and "
-                                    "imudatarate, kept with the record)"),
-        force: ForceOption = False,
-        json_: JsonOption = False,
-    ):
+    @with_options(ImportOptions, before="json_")
+    def import_(json_: JsonOption = False, **options):
         """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
-        res = call(run_import, options_of(ImportOptions, locals(), skip=tuple(skip or ())))
+        res = call(run_import, options_of(ImportOptions, options, skip=tuple(options["skip"] or ())))
         for w in res["warnings"]:
             typer.echo(f"inscal: warning: {w}", err=True)
         if json_:

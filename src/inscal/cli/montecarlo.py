@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
-from inscal.cli.options import JsonOption, NoProgressOption, WorkersOption, options_of, out_option
+from inscal.cli.options import JsonOption, NoProgressOption, WorkersOption, options_of, out_option, with_options
 
 #: most runs of a study, all configuration points together (10^6: weeks of CPU at 1-10 s a run)
 MAX_RUNS = 10**6
@@ -102,18 +102,23 @@ class MonteCarloOptions:
     (its parameters ``params`` over its defaults) in the folder ``out`` (``force``: discard a different study
     found there), run ``i`` seeded by ``SeedSequence(seed).spawn(total)[i]``; on ``scheduler`` (local,
     synchronous or an address) with ``workers`` and ``batch_size`` runs per task, or in this process
-    (``no_dask``); ``progress`` on standard error; at most ``max_new_runs`` new runs (None: all)."""
+    (``no_dask``); ``progress`` on standard error; at most ``max_new_runs`` new runs (None: all).  The
+    experiment, ``runs`` and ``out`` are required (None only for ``inscal montecarlo --list``)."""
 
-    experiment: str
-    runs: int
-    out: Path
-    seed: int = 0
-    params: dict | None = None
-    scheduler: str | None = None
-    workers: int | None = None
-    batch_size: int | None = None
-    no_dask: bool = False
-    force: bool = False
+    experiment: Annotated[str | None, typer.Argument(help=(
+        "built-in experiment (n25-fig5, n25-schemes); --list shows them"))] = None
+    runs: Annotated[int | None, typer.Option("--runs", "-n", help="runs per configuration point")] = None
+    out: out_option("study folder (results, summary, plot); rerun to resume", required=False) = None
+    seed: Annotated[int, typer.Option("--seed", metavar="SEED", help=(
+        "root seed: run i uses SeedSequence(seed).spawn(total)[i]"))] = 0
+    params: dict | None = None  # --set KEY=VALUE (parse_set)
+    scheduler: Annotated[str | None, typer.Option("--scheduler", help=(
+        "Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"))] = None
+    workers: WorkersOption = None
+    batch_size: Annotated[int | None, typer.Option("--batch-size", help=(
+        "runs per Dask task (default: about 4 tasks per worker, at most 25)"))] = None
+    no_dask: Annotated[bool, typer.Option("--no-dask", help="run in this process, one run after another")] = False
+    force: Annotated[bool, typer.Option("--force", help="discard a different study found in --out")] = False
     progress: bool = True
     max_new_runs: int | None = None
 
@@ -156,24 +161,14 @@ def run_montecarlo(o: MonteCarloOptions) -> tuple[dict, object, object]:
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_options(MonteCarloOptions, before="set_")
     def montecarlo(
-        experiment: str = typer.Argument(None, help="built-in experiment (n25-fig5, n25-schemes); --list shows them"),
-        runs: Annotated[int | None, typer.Option("--runs", "-n", help="runs per configuration point")] = None,
-        out: out_option("study folder (results, summary, plot); rerun to resume", required=False) = None,
-        seed: Annotated[int, typer.Option("--seed", metavar="SEED", help=(
-            "root seed: run i uses SeedSequence(seed).spawn(total)[i]"))] = 0,
         set_: Annotated[list[str] | None, typer.Option("--set", metavar="NAME=VALUE", help=(
             "experiment parameter KEY=VALUE (VALUE as JSON), repeatable"))] = None,
-        scheduler: Annotated[str | None, typer.Option("--scheduler", help=(
-            "Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"))] = None,
-        workers: WorkersOption = None,
-        batch_size: Annotated[int | None, typer.Option("--batch-size", help=(
-            "runs per Dask task (default: about 4 tasks per worker, at most 25)"))] = None,
-        no_dask: Annotated[bool, typer.Option("--no-dask", help="run in this process, one run after another")] = False,
-        force: Annotated[bool, typer.Option("--force", help="discard a different study found in --out")] = False,
         json_: JsonOption = False,
         no_progress: NoProgressOption = False,
         list_: bool = typer.Option(False, "--list", help="list the built-in experiments and their parameters"),
+        **options,
     ):
         """Seeded Monte Carlo study of a calibration experiment, resumable, on Dask."""
         from inscal.analysis import studies
@@ -187,10 +182,10 @@ def register(app: typer.Typer) -> None:
                 for k, v in info.items():
                     typer.echo(f"{k}: {v['description']}\n    defaults: {json.dumps(v['defaults'])}")
             return
-        if experiment is None or runs is None or out is None:
+        if None in (options["experiment"], options["runs"], options["out"]):
             raise fail("EXPERIMENT, --runs and --out are required (or --list)")
         try:
-            d, summ, _ = run_montecarlo(options_of(MonteCarloOptions, locals(), params=parse_set(set_),
+            d, summ, _ = run_montecarlo(options_of(MonteCarloOptions, options, params=parse_set(set_),
                                                    progress=not (no_progress or json_)))
         except CliError as exc:
             raise fail(str(exc)) from None

@@ -3,6 +3,7 @@ from the path alone (no data).  See :mod:`inscal.plan.observability`."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from inscal.cli.options import (
     states_option,
     station_option,
     vrw_option,
+    with_options,
 )
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
@@ -75,19 +77,29 @@ class CrlbOptions:
     (:class:`inscal.uncertainty.station.Station`): the bound at its site, carrying the site and clock
     sensitivities."""
 
-    source: str
-    states: str = "51"
-    arw: float | None = None
-    vrw: float | None = None
-    filter_rate_hz: float = 1.0
-    gyro_bi: float | None = None
-    accel_bi: float | None = None
-    bi_tau: float = 3600.0
-    gyro_rrw: float | None = None
-    accel_rrw: float | None = None
-    t_ref: float | None = None
-    noise: Path | None = None
-    station: object = None
+    source: Annotated[str, typer.Argument(metavar="PATH_OR_SCENARIO", help=(
+        "built-in scenario (s16, psins19, n25, ...) or path (s16-table1, n25-twelve, ...), a scenario TOML, or a "
+        "path TOML (a [path] table)"))]
+    states: states_option("state set: 51 | 30, options ,lever9 ,async ,psins, ,thermal (or ,thermal=GSABR: "
+                          "needs a temperature profile)") = "51"
+    arw: arw_option("the scenario's, else S16's 5e-5") = None
+    vrw: vrw_option("the scenario's, else S16's 1") = None
+    filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0
+    gyro_bi: Annotated[float | None, typer.Option("--gyro-bi", metavar="DEG/H", help=(
+        "with --crlb: gyro bias instability, Gauss-Markov sigma [deg/h]"))] = None
+    accel_bi: Annotated[float | None, typer.Option("--accel-bi", metavar="UG", help=(
+        "with --crlb: accelerometer bias instability, Gauss-Markov sigma [ug]"))] = None
+    bi_tau: Annotated[float, typer.Option("--bi-tau", metavar="SECONDS", help=(
+        "with --crlb: correlation time of the bias instability [s]"))] = 3600.0
+    gyro_rrw: Annotated[float | None, typer.Option("--gyro-rrw", metavar="DEG/H/SQRT(H)", help=(
+        "with --crlb: gyro bias random walk [deg/h/sqrt(h)]"))] = None
+    accel_rrw: Annotated[float | None, typer.Option("--accel-rrw", metavar="UG/SQRT(S)", help=(
+        "with --crlb: accelerometer bias random walk [ug/sqrt(s)]"))] = None
+    t_ref: Annotated[float | None, typer.Option("--t-ref", metavar="DEGC", help=(
+        "reference temperature of the thermal states [degC] (default: the scenario's thermal model's, else 20)"))] = None
+    noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
+                        "Gauss-Markov and random-walk terms are the bound's noise") = None
+    station: object = None  # a Station (read from --station FILE.toml)
 
 
 def run_crlb(o: CrlbOptions):
@@ -207,31 +219,11 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool,
 
 def register(app: typer.Typer) -> None:
     @app.command("observability")
+    @with_options(CrlbOptions, before="rate_hz")
     def observability_cmd(
-        source: str = typer.Argument(..., metavar="PATH_OR_SCENARIO",
-                                     help="built-in scenario (s16, psins19, n25, ...) or path (s16-table1, "
-                                          "n25-twelve, ...), a scenario TOML, or a path TOML (a [path] table)"),
-        states: states_option("state set: 51 | 30, options ,lever9 ,async ,psins, ,thermal (or ,thermal=GSABR: "
-                              "needs a temperature profile)") = "51",
         rate_hz: Annotated[float, typer.Option("--rate-hz", help="rate of the noise-free simulation [Hz]")] = 20.0,
-        arw: arw_option("the scenario's, else S16's 5e-5") = None,
-        vrw: vrw_option("the scenario's, else S16's 1") = None,
         crlb: bool = typer.Option(False, "--crlb", help="print the Cramér-Rao bound of every parameter (fast, "
                                                         "from the path kinematics; no simulation)"),
-        filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0,
-        gyro_bi: float = typer.Option(None, "--gyro-bi", metavar="DEG/H", help="with --crlb: gyro bias instability, Gauss-Markov "
-                                                              "sigma [deg/h]"),
-        accel_bi: float = typer.Option(None, "--accel-bi", metavar="UG", help="with --crlb: accelerometer bias instability, "
-                                                                "Gauss-Markov sigma [ug]"),
-        bi_tau: float = typer.Option(3600.0, "--bi-tau", metavar="SECONDS", help="with --crlb: correlation time of the bias "
-                                                              "instability [s]"),
-        gyro_rrw: float = typer.Option(None, "--gyro-rrw", metavar="DEG/H/SQRT(H)", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
-        accel_rrw: float = typer.Option(None, "--accel-rrw", metavar="UG/SQRT(S)", help="with --crlb: accelerometer bias random walk "
-                                                                  "[ug/sqrt(s)]"),
-        t_ref: float = typer.Option(None, "--t-ref", metavar="DEGC", help="reference temperature of the thermal states [degC] "
-                                                          "(default: the scenario's thermal model's, else 20)"),
-        noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
-                            "Gauss-Markov and random-walk terms are the bound's noise") = None,
         station: station_option("with --crlb: a station description (station.toml): the bound at its site, and "
                                 "the uncertainty budget the path promises with its inputs (which dominate, before "
                                 "the run)", Path) = None,
@@ -245,9 +237,12 @@ def register(app: typer.Typer) -> None:
             "for this path at this station?)"))] = None,
         mc_workers: McWorkersOption = 1,
         json_: JsonOption = False,
+        **options,
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
+        o = options_of(CrlbOptions, options)
+        source = o.source
         if crlb:
             from inscal.cli.bound_budget import read_station_option
 
@@ -258,7 +253,7 @@ def register(app: typer.Typer) -> None:
             if mc is not None:
                 raise fail("--mc needs --method (the Monte Carlo of a window-mean method's budget; the filter's site "
                            "and clock enter it linearly)")
-            b = call(run_crlb, options_of(CrlbOptions, locals(), station=st))
+            b = call(run_crlb, dataclasses.replace(o, station=st))
             bud = None
             if st is not None:
                 from inscal.uncertainty.before_run import bound_budget, dominant_inputs
@@ -277,15 +272,15 @@ def register(app: typer.Typer) -> None:
             return
         if station is not None or full or method is not None or mc is not None:
             raise fail("--station, --full, --method and --mc apply to the bound (--crlb)")
-        if noise is not None:
+        if o.noise is not None:
             raise fail("--noise applies to the bound (--crlb)")
-        if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+        if any(v is not None for v in (o.gyro_bi, o.accel_bi, o.gyro_rrw, o.accel_rrw)):
             raise fail("--gyro-bi, --accel-bi, --gyro-rrw and --accel-rrw need --crlb (the systematic filter has no "
                        "bias process noise)")
-        if filter_rate_hz != 1.0 or bi_tau != 3600.0:
+        if o.filter_rate_hz != 1.0 or o.bi_tau != 3600.0:
             raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
                        "--rate-hz")
-        rep = call(run_observability, source, states, rate_hz, arw, vrw, t_ref)
+        rep = call(run_observability, source, o.states, rate_hz, o.arw, o.vrw, o.t_ref)
         if json_:
             print_json(rep.to_dict())
             return
