@@ -25,10 +25,11 @@ from inscal.cli.options import (
     OperatorOption,
     WorkersOption,
     method_option,
+    option,
     options_of,
-    with_options,
     scheduler_option,
     station_option,
+    with_options,
 )
 
 #: most records of one batch (10^6: months of calibrations at a few seconds each)
@@ -156,25 +157,20 @@ class BatchOptions(SetupOptions):
     db: DbOption = None
     scheduler: scheduler_option("local; its workers must see the records and the database") = None
     workers: WorkersOption = None
-    serial: Annotated[str | None, typer.Option("--serial", metavar="SERIAL", help=(
-        "every record is of this unit"))] = None
-    names: Annotated[str | None, typer.Option("--names", metavar="PATTERN", help=(
-        "file-name pattern giving each record's unit and date, with {serial}, {date} (2025-01-15 or 20250115) "
-        "and * (default: {serial}_{date}.h5; a name that does not match: the record's imu_serial attribute and "
-        "creation time)"))] = None
-    manifest: Annotated[Path | None, typer.Option("--manifest", metavar="FILE.csv", help=(
-        "CSV with a header and columns path,serial and optionally date,station,operator,temperature_c (paths "
-        "relative to it)"))] = None
+    serial: option("--serial", "every record is of this unit", str, "SERIAL") = None
+    names: option("--names", "file-name pattern giving each record's unit and date, with {serial}, {date} (2025-01-15 "
+                  "or 20250115) and * (default: {serial}_{date}.h5; a name that does not match: the record's "
+                  "imu_serial attribute and creation time)", str, "PATTERN") = None
+    manifest: option("--manifest", "CSV with a header and columns path,serial and optionally "
+                     "date,station,operator,temperature_c (paths relative to it)", Path, "FILE.csv") = None
     register_units: Annotated[bool, typer.Option("--register", help=(
         "register the units not in the database yet (else their records fail)"))] = False
-    model: Annotated[str | None, typer.Option("--model", metavar="MODEL", help=(
-        "with --register: the model of the units registered"))] = None
+    model: option("--model", "with --register: the model of the units registered", str, "MODEL") = None
     station: station_option("the turntable / station of the runs (a manifest's column wins)") = None
     operator: OperatorOption = None
     progress: bool = True
-    wait: Annotated[float | None, typer.Option("--wait", metavar="SECONDS", help=(
-        "seconds a record's write waits for another writer of the database before it fails naming it "
-        "(default 10)"))] = None
+    wait: option("--wait", "seconds a record's write waits for another writer of the database before it fails naming "
+                 "it (default 10)", metavar="SECONDS") = None
 
 
 def run_batch(o: BatchOptions) -> dict:

@@ -28,6 +28,7 @@ from inscal.cli.options import (
     SupersedesOption,
     TemperatureCOption,
     WaitOption,
+    option,
     out_option,
 )
 
@@ -44,14 +45,11 @@ class AddOptions:
         "a parameter file (inscal calibrate --out) to record as a calibration of the unit; without it, register "
         "the unit"))] = None
     db: DbOption = None
-    model: Annotated[str | None, typer.Option("--model", metavar="MODEL", help=(
-        "the unit's model (when registering it)"))] = None
-    notes: Annotated[str | None, typer.Option("--notes", metavar="TEXT", help=(
-        "notes on the unit (when registering it)"))] = None
-    data: Annotated[Path | None, typer.Option("--data", metavar="RECORD", help=(
-        "the record the parameter file was calibrated from (its hash must match; gives the site and path)"))] = None
-    station: Annotated[str | None, typer.Option("--station", metavar="STATION", help=(
-        "the turntable / station of the run"))] = None
+    model: option("--model", "the unit's model (when registering it)", str, "MODEL") = None
+    notes: option("--notes", "notes on the unit (when registering it)", str, "TEXT") = None
+    data: option("--data", "the record the parameter file was calibrated from (its hash must match; gives the site "
+                 "and path)", Path, "RECORD") = None
+    station: option("--station", "the turntable / station of the run", str, "STATION") = None
     operator: OperatorOption = None
     date: DateOption = None
     temperature_c: TemperatureCOption = None
@@ -72,12 +70,9 @@ class CertificateOptions:
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help=(
         "also print the PDF with headless Chromium (chromium on PATH or $INSCAL_CHROMIUM; without it --pdf is "
         "refused)"))] = True
-    issued: Annotated[str | None, typer.Option("--issued", metavar="DATE", help=(
-        "date of issue, YYYY-MM-DD or ISO time (UTC; default: now)"))] = None
-    laboratory: Annotated[str | None, typer.Option("--lab", metavar="TEXT", help=(
-        "the laboratory's name and address"))] = None
-    authorized_by: Annotated[str | None, typer.Option("--authorized-by", metavar="NAME", help=(
-        "who authorizes the certificate"))] = None
+    issued: option("--issued", "date of issue, YYYY-MM-DD or ISO time (UTC; default: now)", str, "DATE") = None
+    laboratory: option("--lab", "the laboratory's name and address", str, "TEXT") = None
+    authorized_by: option("--authorized-by", "who authorizes the certificate", str, "NAME") = None
     force: ForceOption = False
 
 

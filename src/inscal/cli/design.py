@@ -18,6 +18,7 @@ from inscal.cli.options import (
     JsonOption,
     SeedOption,
     arw_option,
+    option,
     options_of,
     out_option,
     plot_option,
@@ -119,12 +120,9 @@ class DesignOptions:
         "largest turntable rate [deg/s]"))] = 10.0
     max_accel: Annotated[float, typer.Option("--max-accel", metavar="DEG/S^2", help=(
         "angular acceleration of the moves [deg/s^2]"))] = 10.0
-    outer_range: Annotated[str | None, typer.Option("--outer-range", metavar="LO,HI", help=(
-        "outer angle limits LO,HI [deg] (start = 0)"))] = None
-    inner_range: Annotated[str | None, typer.Option("--inner-range", metavar="LO,HI", help=(
-        "inner angle limits LO,HI [deg] (start = 0)"))] = None
-    cable_wrap: Annotated[float | None, typer.Option("--cable-wrap", metavar="DEG", help=(
-        "largest net rotation of each axis [deg]"))] = None
+    outer_range: option("--outer-range", "outer angle limits LO,HI [deg] (start = 0)", str, "LO,HI") = None
+    inner_range: option("--inner-range", "inner angle limits LO,HI [deg] (start = 0)", str, "LO,HI") = None
+    cable_wrap: option("--cable-wrap", "largest net rotation of each axis [deg]", metavar="DEG") = None
     min_dwell: Annotated[float, typer.Option("--min-dwell", metavar="SECONDS", help=(
         "shortest dwell after a move [s]"))] = 5.0
     initial_dwell: Annotated[float, typer.Option("--initial-dwell", metavar="SECONDS", help=(

@@ -18,7 +18,7 @@ from typing import Annotated
 import typer
 
 from inscal.cli.common import CliError, call, check_not_input, check_output, fail, print_json, short
-from inscal.cli.options import ForceOption, JsonOption, gravity_option, options_of, with_options
+from inscal.cli.options import ForceOption, JsonOption, gravity_option, option, options_of, with_options
 from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
@@ -35,27 +35,23 @@ class ImportOptions:
     src: Annotated[Path, typer.Argument(help=f"source file ({source_help()})")]
     fmt: Annotated[str, typer.Option("--format", "-f", help=import_help())]
     out: Annotated[Path, typer.Option("--out", "-o", help="HDF5 record to write")]
-    mapping: Annotated[Path | None, typer.Option("--mapping", metavar="MAPPING.toml", help=(
-        "csv/txt: columns, units, axes (TOML); may hold a site table"))] = None
-    path: Annotated[Path | None, typer.Option("--path", metavar="PATH.toml", help=(
-        "rotation path TOML (a path table as in scenario files) when there are no encoder angles"))] = None
-    path_start: Annotated[float | None, typer.Option("--path-start-s", help=(
-        "source time (s) at which the path starts (default: the start of the first sample)"))] = None
-    gimbal: Annotated[Path | None, typer.Option("--gimbal", metavar="CSV", help=(
-        "encoder angles file: columns time (s), outer, inner"))] = None
-    gimbal_unit: Annotated[str | None, typer.Option("--gimbal-unit", metavar="deg|rad", help=(
-        "unit of the --gimbal angles: deg | rad (default: the unit the file's header gives, as 'outer [rad]', "
-        "else deg)"))] = None
-    lat: Annotated[float | None, typer.Option("--lat", metavar="DEG", help="site latitude (deg)")] = None
-    lon: Annotated[float | None, typer.Option("--lon", metavar="DEG", help="site longitude (deg)")] = None
-    height: Annotated[float | None, typer.Option("--height", metavar="M", help="site ellipsoidal height (m)")] = None
-    rate_hz: Annotated[float | None, typer.Option("--rate-hz", metavar="HZ", help=(
-        "sample rate (Hz) (default: from the timestamps, which must then be uniform; given: slightly jittery "
-        "timestamps are regridded)"))] = None
+    mapping: option("--mapping", "csv/txt: columns, units, axes (TOML); may hold a site table", Path,
+                    "MAPPING.toml") = None
+    path: option("--path", "rotation path TOML (a path table as in scenario files) when there are no encoder "
+                 "angles", Path, "PATH.toml") = None
+    path_start: option("--path-start-s", "source time (s) at which the path starts (default: the start of the first "
+                       "sample)") = None
+    gimbal: option("--gimbal", "encoder angles file: columns time (s), outer, inner", Path, "CSV") = None
+    gimbal_unit: option("--gimbal-unit", "unit of the --gimbal angles: deg | rad (default: the unit the file's header "
+                        "gives, as 'outer [rad]', else deg)", str, "deg|rad") = None
+    lat: option("--lat", "site latitude (deg)", metavar="DEG") = None
+    lon: option("--lon", "site longitude (deg)", metavar="DEG") = None
+    height: option("--height", "site ellipsoidal height (m)", metavar="M") = None
+    rate_hz: option("--rate-hz", "sample rate (Hz) (default: from the timestamps, which must then be uniform; given: "
+                    "slightly jittery timestamps are regridded)", metavar="HZ") = None
     dtype: Annotated[str, typer.Option("--dtype", metavar="float64|float32", help=(
         "psins .bin: float64 | float32"))] = "float64"
-    variable: Annotated[str | None, typer.Option("--variable", metavar="NAME", help=(
-        ".mat: the N x 7 variable (default: the first one)"))] = None
+    variable: option("--variable", ".mat: the N x 7 variable (default: the first one)", str, "NAME") = None
     rates: Annotated[bool, typer.Option("--rates", help=(
         "psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"))] = False
     skip: Annotated[list[str] | None, typer.Option("--skip-check", metavar="CHECK", help=(
@@ -64,18 +60,18 @@ class ImportOptions:
         "encoder latency (s) to correct: the angles are shifted to theta(t + SECONDS) (the encoder check names it "
         "when it is over a sample)"))] = 0.0
     gravity: gravity_option("wgs84; the model is stored in the record") = None
-    temperature: Annotated[Path | None, typer.Option("--temperature", metavar="CSV", help=(
-        "temperature readings at their own times: a header row 'time [s],NAME [degC],...' (a sensor per column; "
-        "K, degF, ms accepted), then rows on the source's clock"))] = None
-    topic: Annotated[str | None, typer.Option("--topic", metavar="TOPIC", help=(
-        "rosbag: the sensor_msgs/Imu topic (default: the bag's only one; the topics are listed otherwise)"))] = None
+    temperature: option("--temperature", "temperature readings at their own times: a header row 'time [s],NAME "
+                        "[degC],...' (a sensor per column; K, degF, ms accepted), then rows on the source's clock",
+                        Path, "CSV") = None
+    topic: option("--topic", "rosbag: the sensor_msgs/Imu topic (default: the bag's only one; the topics are listed "
+                  "otherwise)", str, "TOPIC") = None
     stamps: Annotated[str, typer.Option("--stamps", metavar="header|receive", help=(
         "rosbag: the samples' time: header (the messages' header.stamp) | receive (when the bag recorded "
         "them)"))] = "header"
-    temperature_topic: Annotated[str | None, typer.Option("--temperature-topic", metavar="TOPIC", help=(
-        "rosbag: a sensor_msgs/Temperature topic (degC) for the record's temperature"))] = None
-    config: Annotated[Path | None, typer.Option("--config", metavar="CONFIG.yaml", help=(
-        "kf-gins: its YAML configuration (imunoise block and imudatarate, kept with the record)"))] = None
+    temperature_topic: option("--temperature-topic", "rosbag: a sensor_msgs/Temperature topic (degC) for the record's "
+                              "temperature", str, "TOPIC") = None
+    config: option("--config", "kf-gins: its YAML configuration (imunoise block and imudatarate, kept with the "
+                   "record)", Path, "CONFIG.yaml") = None
     force: ForceOption = False
 
 

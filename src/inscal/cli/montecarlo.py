@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
-from inscal.cli.options import JsonOption, NoProgressOption, WorkersOption, options_of, out_option, with_options
+from inscal.cli.options import JsonOption, NoProgressOption, WorkersOption, option, options_of, out_option, with_options
 
 #: most runs of a study, all configuration points together (10^6: weeks of CPU at 1-10 s a run)
 MAX_RUNS = 10**6
@@ -112,11 +112,10 @@ class MonteCarloOptions:
     seed: Annotated[int, typer.Option("--seed", metavar="SEED", help=(
         "root seed: run i uses SeedSequence(seed).spawn(total)[i]"))] = 0
     params: dict | None = None  # --set KEY=VALUE (parse_set)
-    scheduler: Annotated[str | None, typer.Option("--scheduler", help=(
-        "Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"))] = None
+    scheduler: option("--scheduler", "Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'",
+                      str) = None
     workers: WorkersOption = None
-    batch_size: Annotated[int | None, typer.Option("--batch-size", help=(
-        "runs per Dask task (default: about 4 tasks per worker, at most 25)"))] = None
+    batch_size: option("--batch-size", "runs per Dask task (default: about 4 tasks per worker, at most 25)", int) = None
     no_dask: Annotated[bool, typer.Option("--no-dask", help="run in this process, one run after another")] = False
     force: Annotated[bool, typer.Option("--force", help="discard a different study found in --out")] = False
     progress: bool = True

@@ -21,6 +21,7 @@ from inscal.cli.options import (
     SeedOption,
     arw_option,
     noise_option,
+    option,
     options_of,
     states_option,
     station_option,
@@ -85,18 +86,17 @@ class CrlbOptions:
     arw: arw_option("the scenario's, else S16's 5e-5") = None
     vrw: vrw_option("the scenario's, else S16's 1") = None
     filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0
-    gyro_bi: Annotated[float | None, typer.Option("--gyro-bi", metavar="DEG/H", help=(
-        "with --crlb: gyro bias instability, Gauss-Markov sigma [deg/h]"))] = None
-    accel_bi: Annotated[float | None, typer.Option("--accel-bi", metavar="UG", help=(
-        "with --crlb: accelerometer bias instability, Gauss-Markov sigma [ug]"))] = None
+    gyro_bi: option("--gyro-bi", "with --crlb: gyro bias instability, Gauss-Markov sigma [deg/h]",
+                    metavar="DEG/H") = None
+    accel_bi: option("--accel-bi", "with --crlb: accelerometer bias instability, Gauss-Markov sigma [ug]",
+                     metavar="UG") = None
     bi_tau: Annotated[float, typer.Option("--bi-tau", metavar="SECONDS", help=(
         "with --crlb: correlation time of the bias instability [s]"))] = 3600.0
-    gyro_rrw: Annotated[float | None, typer.Option("--gyro-rrw", metavar="DEG/H/SQRT(H)", help=(
-        "with --crlb: gyro bias random walk [deg/h/sqrt(h)]"))] = None
-    accel_rrw: Annotated[float | None, typer.Option("--accel-rrw", metavar="UG/SQRT(S)", help=(
-        "with --crlb: accelerometer bias random walk [ug/sqrt(s)]"))] = None
-    t_ref: Annotated[float | None, typer.Option("--t-ref", metavar="DEGC", help=(
-        "reference temperature of the thermal states [degC] (default: the scenario's thermal model's, else 20)"))] = None
+    gyro_rrw: option("--gyro-rrw", "with --crlb: gyro bias random walk [deg/h/sqrt(h)]", metavar="DEG/H/SQRT(H)") = None
+    accel_rrw: option("--accel-rrw", "with --crlb: accelerometer bias random walk [ug/sqrt(s)]",
+                      metavar="UG/SQRT(S)") = None
+    t_ref: option("--t-ref", "reference temperature of the thermal states [degC] (default: the scenario's thermal "
+                  "model's, else 20)", metavar="DEGC") = None
     noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
                         "Gauss-Markov and random-walk terms are the bound's noise") = None
     station: object = None  # a Station (read from --station FILE.toml)
