@@ -163,11 +163,11 @@ def main(argv=None) -> int:
         toml = a.design
         print(f"designed path: {toml}")
     else:
-        from inscal.cli.design import run_design
+        from inscal.cli.design import DesignOptions, run_design
 
         toml = os.path.join(tmp, f"designed-{a.minutes:g}min.toml")
-        res, _ = run_design(Path(toml), a.minutes, a.states, seed=a.seed, candidates=a.candidates, scheduler="none",
-                            base=base, progress=False)
+        res, _ = run_design(DesignOptions(Path(toml), a.minutes, a.states, seed=a.seed, candidates=a.candidates,
+                                          scheduler="none", base=base, progress=False))
         print(f"design: {a.minutes:g} min, states {a.states}, {res.evaluations} candidates, seed {a.seed}, "
               f"{res.seconds:.1f} s: worst bound / S16 path bound {res.value:.3g} ({len(res.path.moves)} moves) -> {toml}")
     sources = [toml, base]

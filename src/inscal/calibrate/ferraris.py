@@ -54,7 +54,7 @@ import math
 
 import numpy as np
 
-from inscal.calibrate.multiposition import ACC_FREE, frame_of, lower_frame
+from inscal.calibrate.multiposition import ACC_FREE, check_gravity, frame_of, lower_frame
 from inscal.calibrate.result import CalibrationResult
 from inscal.calibrate.static_detect import detect_still
 from inscal.calibrate.windows import CalibrationError
@@ -232,6 +232,36 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
     >>> bool(np.all(np.abs(z) < 3))
     True
     """
+    _check_options(settle, min_static, min_turn_end, turn_tol_deg, gravity_tol, face_tilt, turn_closure)
+    min_turn_end = min(min_turn_end, min_static)
+    time = np.asarray(record_like.time, float)
+    dth = np.asarray(record_like.dtheta, float)
+    dv = np.asarray(record_like.dvel, float)
+    site = record_like.site
+    g = float(site.gravity)
+    si = detect_still(time, dth, dv, min_still=min_turn_end, settle=settle, alpha=alpha)
+    poses = si.require(6, "the Ferraris method (six faces)")
+    check_gravity(float(np.median([np.linalg.norm(c.accel) for c in poses])), g, gravity_tol)
+    faces = _six_faces(poses, si, min_static)
+    turns, tnotes = _turns(poses, dth, time, turn_tol_deg)
+    if len(turns) < 3:
+        raise CalibrationError(f"found whole turns about {''.join('xyz'[j] for j in sorted(turns)) or 'no axis'}: "
+                               "Ferraris needs one 360 deg turn about the vertical on a face with each of x, y, z "
+                               f"vertical, from a still pose of at least {min_turn_end:g} s (--min-turn-end-s, after "
+                               f"--settle-s {settle:g} at both ends) and back to one")
+    wv = OMEGA_IE * math.sin(site.latitude)
+    wh = OMEGA_IE * math.cos(site.latitude)
+    x, vx, sgn = _inputs(faces, turns, si, dth, wh, face_tilt, turn_closure)
+
+    def fn(z):
+        return _estimate(z, g, wv, sgn)
+
+    p, cov = _propagate(fn, x, vx, face_tilt)
+    return _result(p, cov, si, faces, turns, tnotes, face_tilt, turn_closure, wh)
+
+
+def _check_options(settle, min_static, min_turn_end, turn_tol_deg, gravity_tol, face_tilt, turn_closure) -> None:
+    """:func:`ferraris`'s options in their ranges, else a :class:`CalibrationError` naming the first that is not."""
     for name, v, ok in (("settle", settle, settle >= 0), ("min_static", min_static, min_static > 0),
                         ("min_turn_end", min_turn_end, min_turn_end > 0),
                         ("turn_tol_deg", turn_tol_deg, 0 < turn_tol_deg < 180),
@@ -242,19 +272,11 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
             raise CalibrationError(f"ferraris: {name} = {v} out of range (settle >= 0, min_static > 0, "
                                    "min_turn_end > 0, 0 < turn_tol_deg < 180, 0 < gravity_tol < 1, "
                                    "0 <= face_tilt, turn_closure <= 10 deg)")
-    min_turn_end = min(min_turn_end, min_static)
-    time = np.asarray(record_like.time, float)
-    dth = np.asarray(record_like.dtheta, float)
-    dv = np.asarray(record_like.dvel, float)
-    site = record_like.site
-    g = float(site.gravity)
-    si = detect_still(time, dth, dv, min_still=min_turn_end, settle=settle, alpha=alpha)
-    poses = si.require(6, "the Ferraris method (six faces)")
-    med = float(np.median([np.linalg.norm(c.accel) for c in poses]))
-    if abs(med / g - 1.0) > gravity_tol:
-        raise CalibrationError(f"the still poses read {med:.5g} m/s^2 (median), far from the site's gravity "
-                               f"{g:.5g} m/s^2 (more than {gravity_tol:.0%}): wrong units, or the wrong site or "
-                               "--gravity")
+
+
+def _six_faces(poses, si, min_static: float) -> dict:
+    """The longest still pose of at least ``min_static`` s on each face: {face: pose}, every face of
+    :data:`FACES` (else a :class:`CalibrationError` naming the faces missing and why)."""
     faces: dict[str, object] = {}
     for c in poses:
         f = _face(c.accel)
@@ -273,14 +295,12 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
             why = f"; {rej[0].describe()}"
         raise CalibrationError(f"the face poses (still >= {min_static:g} s) rest on {len(faces)} of the six faces: no "
                                f"pose with {', '.join(missing)} up (Ferraris needs all six){why}")
-    turns, tnotes = _turns(poses, dth, time, turn_tol_deg)
-    if len(turns) < 3:
-        raise CalibrationError(f"found whole turns about {''.join('xyz'[j] for j in sorted(turns)) or 'no axis'}: "
-                               "Ferraris needs one 360 deg turn about the vertical on a face with each of x, y, z "
-                               f"vertical, from a still pose of at least {min_turn_end:g} s (--min-turn-end-s, after "
-                               f"--settle-s {settle:g} at both ends) and back to one")
-    wv = OMEGA_IE * math.sin(site.latitude)
-    wh = OMEGA_IE * math.cos(site.latitude)
+    return faces
+
+
+def _inputs(faces: dict, turns: dict, si, dth: np.ndarray, wh: float, face_tilt: float, turn_closure: float):
+    """The input vector of :func:`_estimate` (:data:`_LAYOUT`), its variances (the Type A noise of the means
+    and integrals, the Type B horizontal Earth rate, face tilt and turn closure) and the sense of each turn."""
     x = np.zeros(N_INPUTS)
     vx = np.zeros(N_INPUTS)
     x[_SL["a"]] = np.concatenate([faces[f].accel for f in FACES])
@@ -311,16 +331,17 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
         vht[j] = 0.5 * (wh * reach[j]) ** 2
         vht[j, j] = 0.0
     vx[_SL["ht"]] = vht.ravel()
-    var_c = 0.5 * face_tilt**2  # two components per face
-    vx[_SL["tilt"]] = var_c
+    vx[_SL["tilt"]] = 0.5 * face_tilt**2  # two components per face
     x[_SL["ang"]] = 2.0 * math.pi
     vx[_SL["ang"]] = turn_closure**2
     # the sense of each turn: + when it turns counterclockwise about the vertical it is about
     sgn = np.array([math.copysign(1.0, turns[j][0][j] * at[j][j]) for j in range(3)])
+    return x, vx, sgn
 
-    def fn(z):
-        return _estimate(z, g, wv, sgn)
 
+def _propagate(fn, x: np.ndarray, vx: np.ndarray, face_tilt: float):
+    """The parameters ``fn(x)`` and their covariance: the inputs' variances ``vx`` to first order (central
+    differences), the face tilt's to second order too (:func:`_tilt_moments`)."""
     p = fn(x)
     J = np.zeros((p.size, x.size))
     for k in range(x.size):
@@ -332,7 +353,14 @@ def ferraris(record_like, settle: float = 0.25, min_static: float = 2.0, alpha: 
         J[:, k] = (fn(x + e) - fn(x - e)) / (2 * h)
     cov = (J * vx[None, :]) @ J.T
     if face_tilt > 0:
-        cov = cov + _tilt_moments(fn, x, var_c)
+        cov = cov + _tilt_moments(fn, x, 0.5 * face_tilt**2)
+    return p, cov
+
+
+def _result(p: np.ndarray, cov: np.ndarray, si, faces: dict, turns: dict, tnotes: list, face_tilt: float,
+            turn_closure: float, wh: float) -> CalibrationResult:
+    """:func:`ferraris`'s result from the parameters ``p`` and their covariance: the accelerometer
+    misalignments the frame holds fixed set to 0 (sigma NaN), the notes and the diagnostics."""
     sd = np.sqrt(np.diag(cov))
     ea = p[3:9].copy()
     held = np.ones(6, bool)

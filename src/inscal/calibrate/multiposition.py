@@ -305,23 +305,66 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
     a = np.array([c.accel for c in poses])
     sa = np.array([c.accel_sigma for c in poses])
     med = float(np.median(np.linalg.norm(a, axis=1)))
+    check_gravity(med, g, gravity_tol)
+    acc, xa, cova, cova_formal, Ja, fita = _accel_fit(a, sa, g, med, quadratic, sv_tol)
+    gyr, xg, covg, covg_formal, fitg = _gyro_fit(time, dth, si, poses, acc, xa, cova, site, notes, sv_tol)
+    # ---------------------------------------------------------------------- result
+    values, sigma, formal, estimated = _values(acc, xa, xg, cova, covg, cova_formal, covg_formal, quadratic)
+    for name, fit in (("accelerometer", fita), ("gyro", fitg)):
+        if not fit["consistent"]:
+            notes.append(f"the {name} fit rejects its model (chi2 {fit['chi2']:.4g} on {fit['dof']} dof, p = "
+                         f"{fit['p_value']:.2g}): its sigma are scaled by {fit['scale']:.3g}")
+    earth = gyr.earth_report(xg, covg)  # adds its note when the horizontal Earth rate is not resolved
+    notes += gyr.notes
+    obs = _observability(Ja, acc, a, xa, sv_tol)
+    notes.append(f"pose set: accelerometer fit condition {obs['condition']:.3g}, weakest {', '.join(obs['weakest'])}; "
+                 f"the extra pose that would help most: {obs['extra_pose']}")
+    fit = _fit_report(acc, gyr, xa, xg, fita, fitg, poses)
+    labels = acc.labels + gyr.labels
+    pa = len(acc.labels)
+    P = np.zeros((pa + 14, pa + 14))
+    P[:pa, :pa], P[pa:, pa:] = cova, covg
+    keep = [i for i, lab in enumerate(labels) if not lab.startswith("earth_rate")]
+    diagnostics = {"fit": fit, "formal_sigma": formal, "still": si.report(),
+                   "covariance": {"labels": [labels[i] for i in keep], "P": P[np.ix_(keep, keep)]},
+                   "frame": "accelerometer frame (x: accel x, y in the accel xy plane; Tedaldi 2014)",
+                   "earth_rate": earth,
+                   "observability": obs}
+    imu = ImuErrors(**{k: v for k, v in values.items()})
+    return CalibrationResult("multi-position", imu, GimbalErrors(), sigma, tuple(estimated), None, diagnostics, notes,
+                             truth_transform=frame_of)
+
+
+def check_gravity(med: float, g: float, gravity_tol: float) -> None:
+    """A :class:`CalibrationError` when the still poses' median specific force ``med`` [m/s^2] is more than
+    ``gravity_tol`` (relative) from the site's gravity ``g``: wrong units, or the wrong site."""
     if abs(med / g - 1.0) > gravity_tol:
         raise CalibrationError(f"the still poses read {med:.5g} m/s^2 (median), far from the site's gravity "
                                f"{g:.5g} m/s^2 (more than {gravity_tol:.0%}): wrong units, or the wrong site or "
                                "--gravity")
-    # ---------------------------------------------------------------------- accelerometers
+
+
+def _accel_fit(a: np.ndarray, sa: np.ndarray, g: float, med: float, quadratic: bool, sv_tol: float):
+    """The accelerometer model from the poses' mean specific forces ``a`` (1 sigma ``sa``): the problem, its
+    solution, covariance (scaled and formal), Jacobian and fit report (a :class:`CalibrationError` when the
+    poses leave a direction undetermined)."""
     acc = _Accel(a, sa, g, quadratic)
-    pa = len(acc.labels)
-    xa0 = np.zeros(pa)
+    xa0 = np.zeros(len(acc.labels))
     xa0[:3] = med / g - 1.0
     J0 = _jacobian(acc.residuals, xa0, 1e-6 * acc.typical)
     weak = _weak(J0, acc.typical, acc.labels, sv_tol)
     if weak:
         raise CalibrationError(_undetermined(weak, a, acc, xa0, sv_tol))
     xa, cova, cova_formal, Ja, fita = _solve(acc.residuals, xa0, 1e-7 * acc.typical, acc.labels)
+    return acc, xa, cova, cova_formal, Ja, fita
+
+
+def _gyro_fit(time, dth, si, poses, acc, xa, cova, site, notes: list, sv_tol: float):
+    """The gyro model from the moves between the poses, with the gravity directions of the accelerometer
+    model ``xa``: the problem, its solution, covariance (scaled and formal) and fit report (a
+    :class:`CalibrationError` when the moves leave a direction undetermined)."""
     fa, Ma = acc.forces(xa)
     u = fa / np.linalg.norm(fa, axis=1)[:, None]
-    # ---------------------------------------------------------------------- gyros
     gyr = _gyro_problem(time, dth, si, poses, u, site, notes)
     xg, covg, covg_formal, Jg, fitg = gyr.solve()
     weak_g = [lab for lab in _weak(Jg, gyr.typical, gyr.labels, sv_tol) if not lab.startswith("earth_rate")]
@@ -342,7 +385,11 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
     Lc = np.linalg.cholesky(np.eye(dr.shape[0]) + dr @ cova @ dr.T)
     xg, covg, covg_formal, Jg, fitg = _solve(lambda x: linalg.solve_triangular(Lc, gyr.residuals(x), lower=True), xg,
                                              1e-7 * gyr.typical, gyr.labels)
-    # ---------------------------------------------------------------------- result
+    return gyr, xg, covg, covg_formal, fitg
+
+
+def _values(acc, xa, xg, cova, covg, cova_formal, covg_formal, quadratic: bool):
+    """The IMU errors of the two fits, their 1 sigma (scaled, and formal) and the parameters estimated."""
     Mav, ba, k2, Ea = acc.unpack(xa)
     values = {"accel_scale_factor": xa[:3], "accel_misalignment": Ea, "accel_bias": ba,
               "gyro_scale_factor": xg[:3], "gyro_misalignment": xg[3:9], "gyro_bias": xg[9:12]}
@@ -364,15 +411,12 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
         sigma["accel_nonlinearity"] = sdev_a[9:12]
         formal["accel_nonlinearity"] = fa_[9:12]
         estimated.append("accel_nonlinearity")
-    for name, fit in (("accelerometer", fita), ("gyro", fitg)):
-        if not fit["consistent"]:
-            notes.append(f"the {name} fit rejects its model (chi2 {fit['chi2']:.4g} on {fit['dof']} dof, p = "
-                         f"{fit['p_value']:.2g}): its sigma are scaled by {fit['scale']:.3g}")
-    earth = gyr.earth_report(xg, covg)  # adds its note when the horizontal Earth rate is not resolved
-    notes += gyr.notes
-    obs = _observability(Ja, acc, a, xa, sv_tol)
-    notes.append(f"pose set: accelerometer fit condition {obs['condition']:.3g}, weakest {', '.join(obs['weakest'])}; "
-                 f"the extra pose that would help most: {obs['extra_pose']}")
+    return values, sigma, formal, estimated
+
+
+def _fit_report(acc, gyr, xa, xg, fita: dict, fitg: dict, poses) -> dict:
+    """The two fits together: chi^2, degrees of freedom, p-value, each channel's report and the residuals per
+    pose and per move."""
     ra = acc.residuals(xa)
     rg_still, rg_turn = gyr.split(gyr.residuals(xg))
     rows = [{"window": c.number, "label": f"pose {c.number} ({c.t0:.1f}-{c.t1:.1f} s)",
@@ -383,21 +427,9 @@ def multi_position(record_like, settle: float = 0.25, min_static: float = 1.0, q
              for m, k in enumerate(moves)]
     chi2, dof = fita["chi2"] + fitg["chi2"], fita["dof"] + fitg["dof"]
     p = float(stats.chi2.sf(chi2, dof)) if dof > 0 else 1.0
-    fit = {"chi2": chi2, "dof": dof, "p_value": p, "consistent": fita["consistent"] and fitg["consistent"],
-           "scale": max(fita["scale"], fitg["scale"]), "channels": {"accel": fita, "gyro": fitg}, "residuals": rows,
-           "note": None if fita["consistent"] and fitg["consistent"] else "see the notes"}
-    labels = acc.labels + gyr.labels
-    P = np.zeros((pa + 14, pa + 14))
-    P[:pa, :pa], P[pa:, pa:] = cova, covg
-    keep = [i for i, lab in enumerate(labels) if not lab.startswith("earth_rate")]
-    diagnostics = {"fit": fit, "formal_sigma": formal, "still": si.report(),
-                   "covariance": {"labels": [labels[i] for i in keep], "P": P[np.ix_(keep, keep)]},
-                   "frame": "accelerometer frame (x: accel x, y in the accel xy plane; Tedaldi 2014)",
-                   "earth_rate": earth,
-                   "observability": obs}
-    imu = ImuErrors(**{k: v for k, v in values.items()})
-    return CalibrationResult("multi-position", imu, GimbalErrors(), sigma, tuple(estimated), None, diagnostics, notes,
-                             truth_transform=frame_of)
+    return {"chi2": chi2, "dof": dof, "p_value": p, "consistent": fita["consistent"] and fitg["consistent"],
+            "scale": max(fita["scale"], fitg["scale"]), "channels": {"accel": fita, "gyro": fitg}, "residuals": rows,
+            "note": None if fita["consistent"] and fitg["consistent"] else "see the notes"}
 
 
 def _unit(acc, xa, j, h):

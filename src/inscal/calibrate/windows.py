@@ -359,32 +359,8 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
     h = max(1, int(round(smooth * rate_hz)))
     ns = int(round(settle * rate_hz))
     info = {"source": "gimbal angles" if gim is not None else "increments"}
-
-    if gim is not None:
-        theta = unwrap_angles(np.asarray(gim, float))
-        if theta.shape != (n, 2):
-            raise CalibrationError(f"gimbal must be an ({n}, 2) array of (theta_x, theta_z), got {theta.shape}")
-        check_gimbal_jumps(theta, dt, time, jump_tol=jump_tol)
-        rate = _centred_rate(theta, h, dt)
-        ok = all_columns(np.isfinite(rate))
-        absr = np.abs(np.nan_to_num(rate, nan=np.inf))
-        static = ok & all_columns(absr < static_tol)
-        moving_axis = [ok & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
-    else:
-        path = getattr(record_like, "path", None)
-        if path is None:
-            raise CalibrationError("record has no gimbal angles and no rotation path: the attitude of each window is unknown")
-        theta, _, _ = path.segments().angles(time)
-        theta = unwrap_angles(theta)
-        # windows from the increments: smoothed gyro rate
-        cum = np.cumsum(dth, axis=0)
-        wr = _centred_rate(cum, h, dt)
-        ok = all_columns(np.isfinite(wr))
-        wn = np.linalg.norm(np.nan_to_num(wr, nan=np.inf), axis=1)
-        static = ok & (wn < increment_static_tol)
-        rate = _centred_rate(theta, h, dt)  # axis/direction from the path
-        absr = np.abs(np.nan_to_num(rate, nan=np.inf))
-        moving_axis = [ok & (wn > rate_min) & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
+    theta, rate, static, moving_axis = _motion(record_like, gim, time, dth, dt, h, static_tol, rate_min,
+                                               increment_static_tol, jump_tol)
 
     # white-noise level per sample from second differences of the per-sample rates
     def noise(x):  # of the per-sample rates x / dt
@@ -408,6 +384,60 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
         a, b = a + ns, b - ns
         if (b - a) * dt >= min_static:
             windows.append(make("static", a, b))
+    for span in _rate_spans(time, theta, rate, moving_axis, ns, dt, rate_hz, static_tol, rate_rel_tol, min_turns,
+                            partial_turns, min_turn_s, min_turn_deg):
+        windows.append(make(*span))
+    windows.sort(key=lambda w: w.i0)
+    if not windows:
+        raise CalibrationError("no static dwell window and no constant-rate window found in the record "
+                               f"(static: both axes slower than {static_tol / DEG:g} deg/s for at least {min_static:g} s)")
+    info.update(n_static=sum(w.kind == "static" for w in windows), n_rate=sum(w.kind == "rate" for w in windows),
+                n_turn=sum(w.kind == "turn" for w in windows),
+                settle_s=settle, min_static_s=min_static)
+    return WindowSet(windows, site, rate_hz, info)
+
+
+def _motion(record_like, gim, time, dth, dt: float, h: int, static_tol: float, rate_min: float,
+            increment_static_tol: float, jump_tol: float | None):
+    """The table's angles (n, 2), their rate (centred over ``h`` samples), the static samples and, per axis
+    (outer, inner), the samples turning about that axis alone: from the gimbal angles ``gim``, or without
+    them from the gyro increments and the record's rotation path (:func:`window_means`)."""
+    n = time.shape[0]
+    if gim is not None:
+        theta = unwrap_angles(np.asarray(gim, float))
+        if theta.shape != (n, 2):
+            raise CalibrationError(f"gimbal must be an ({n}, 2) array of (theta_x, theta_z), got {theta.shape}")
+        check_gimbal_jumps(theta, dt, time, jump_tol=jump_tol)
+        rate = _centred_rate(theta, h, dt)
+        ok = all_columns(np.isfinite(rate))
+        absr = np.abs(np.nan_to_num(rate, nan=np.inf))
+        static = ok & all_columns(absr < static_tol)
+        moving_axis = [ok & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
+        return theta, rate, static, moving_axis
+    path = getattr(record_like, "path", None)
+    if path is None:
+        raise CalibrationError("record has no gimbal angles and no rotation path: the attitude of each window is unknown")
+    theta, _, _ = path.segments().angles(time)
+    theta = unwrap_angles(theta)
+    # windows from the increments: smoothed gyro rate
+    cum = np.cumsum(dth, axis=0)
+    wr = _centred_rate(cum, h, dt)
+    ok = all_columns(np.isfinite(wr))
+    wn = np.linalg.norm(np.nan_to_num(wr, nan=np.inf), axis=1)
+    static = ok & (wn < increment_static_tol)
+    rate = _centred_rate(theta, h, dt)  # axis/direction from the path
+    absr = np.abs(np.nan_to_num(rate, nan=np.inf))
+    moving_axis = [ok & (wn > rate_min) & (absr[:, a] > rate_min) & (absr[:, 1 - a] < static_tol) for a in (0, 1)]
+    return theta, rate, static, moving_axis
+
+
+def _rate_spans(time, theta, rate, moving_axis, ns: int, dt: float, rate_hz: float, static_tol: float,
+                rate_rel_tol: float, min_turns: int, partial_turns: bool, min_turn_s: float, min_turn_deg: float):
+    """The constant-rate windows of :func:`window_means` about each axis in turn (outer, inner), each as
+    ``(kind, first, end, axis, rate, angles at its start, at its end)``: ``"rate"`` the whole turns at the
+    middle of a constant-rate run, ``"turn"`` the whole run of a partial turn; the angles and rate from a
+    straight line fitted to the window's angles."""
+    spans = []
     for ax, axname in ((0, "outer"), (1, "inner")):
         for a, b in _runs(moving_axis[ax]):
             r = rate[a:b, ax]
@@ -443,12 +473,5 @@ def window_means(record_like, settle: float = 1.0, min_static: float = 20.0, smo
             coef, *_ = np.linalg.lstsq(A, th, rcond=None)
             th0 = coef[0]
             th1 = coef[0] + coef[1] * (tt[-1] - tt[0])
-            windows.append(make(kind, s0, s1, axname, float(coef[1, ax]), th0, th1))
-    windows.sort(key=lambda w: w.i0)
-    if not windows:
-        raise CalibrationError("no static dwell window and no constant-rate window found in the record "
-                               f"(static: both axes slower than {static_tol / DEG:g} deg/s for at least {min_static:g} s)")
-    info.update(n_static=sum(w.kind == "static" for w in windows), n_rate=sum(w.kind == "rate" for w in windows),
-                n_turn=sum(w.kind == "turn" for w in windows),
-                settle_s=settle, min_static_s=min_static)
-    return WindowSet(windows, site, rate_hz, info)
+            spans.append((kind, s0, s1, axname, float(coef[1, ax]), th0, th1))
+    return spans

@@ -4,10 +4,10 @@ An option given on the command line that does not apply to the method, format or
 with would be ignored without a word; :func:`check_command` refuses it in one line (exit 2) instead,
 naming what it applies to.  The same place refuses a negative seed (numpy's generators take
 ``SeedSequence`` entropy >= 0), naming the option that carries it, a count below its bound (:data:`BOUNDS`:
-``--workers 0``, ``--k 0``), and an output whose name says
-another format than the one written (HDF5 under ``.txt``, TOML under ``.h5``).  The commands keep their
-own checks of values; this module holds only the "does it apply" rules, so that a new method or format
-is added to one table.
+``--workers 0``, ``--k 0``), a value out of its range (:data:`POSITIVE`, :data:`NON_NEGATIVE`: ``--minutes
+0``), and an output whose name says another format than the one written (HDF5 under ``.txt``, TOML under
+``.h5``).  The commands keep their own checks of values that depend on one another; this module holds the
+"does it apply" rules and the ranges, so that a new method, format or option is added to one table.
 """
 
 from __future__ import annotations
@@ -77,6 +77,15 @@ RULES: dict[str, tuple[Rule, ...]] = {
 #: counts and factors with a lower bound, whatever the command: parameter -> (bound, whether it is excluded)
 BOUNDS: dict[str, tuple[float, bool]] = {
     "workers": (1, False), "mc_workers": (1, False), "runs": (1, False), "batch_size": (1, False), "k": (0, True),
+    "candidates": (2, False), "population": (2, False),
+}
+#: command -> the options that take a positive number, and those that take a number >= 0 (None: not given)
+POSITIVE: dict[str, tuple[str, ...]] = {
+    "design": ("minutes", "max_rate", "max_accel", "arw", "vrw"),
+    "observability": ("rate_hz", "arw", "vrw", "filter_rate_hz", "bi_tau"),
+}
+NON_NEGATIVE: dict[str, tuple[str, ...]] = {
+    "observability": ("gyro_bi", "accel_bi", "gyro_rrw", "accel_rrw"),
 }
 
 #: command -> (output parameter, the format written, the suffixes that say it); a name with a suffix
@@ -115,6 +124,12 @@ def check_command(command: str, params: dict, given: set[str], opts: dict[str, s
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not (
                 math.isfinite(v) and (v > bound if strict else v >= bound)):
             raise CliError(f"{flag(name, opts)} must be {'>' if strict else '>='} {bound:g}, got {v}")
+    for names, ok, what in ((POSITIVE, lambda v: v > 0, "a positive number"),
+                            (NON_NEGATIVE, lambda v: v >= 0, "a number >= 0")):
+        for name in names.get(command, ()):
+            v = params.get(name)
+            if v is not None and not (math.isfinite(v) and ok(v)):
+                raise CliError(f"{flag(name, opts)} must be {what}, got {v:g}")
     for rule in RULES.get(command, ()):
         if rule.option in given and not rule.applies(params):
             what = (f"--method {params.get('method')}" if "method" in params else

@@ -19,26 +19,17 @@ from inscal.cli.common import CliError, call, check_scheduler, fail, print_json,
 from inscal.cli.guards import recovery_note
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
 from inscal.cli.options import (
-    CalibrationNoiseOption,
     DbOption,
-    EncoderLatencyOption,
-    EncoderSigmaOption,
-    FilterRateOption,
     JsonOption,
-    MinStaticOption,
     NoProgressOption,
     OperatorOption,
-    SettleOption,
-    SkipEncoderCheckOption,
     WorkersOption,
-    arw_option,
-    gravity_option,
     method_option,
+    option,
     options_of,
     scheduler_option,
-    states_option,
     station_option,
-    vrw_option,
+    with_options,
 )
 
 #: most records of one batch (10^6: months of calibrations at a few seconds each)
@@ -158,20 +149,28 @@ class BatchOptions(SetupOptions):
     ``station`` and ``operator``; the calibration's options as for ``inscal calibrate`` (:class:`SetupOptions`);
     ``progress`` on standard error; ``wait`` [s] for another writer of the database."""
 
-    records: tuple[str, ...] | None
-    method: str
-    db: str | None = None
-    scheduler: str | None = None
-    workers: int | None = None
-    serial: str | None = None
-    names: str | None = None
-    manifest: Path | None = None
-    register_units: bool = False
-    model: str | None = None
-    station: str | None = None
-    operator: str | None = None
+    method: method_option("six-position | twelve-position | n25 | joint | systematic51 | systematic30 | unified | "
+                          "multi-position | ferraris")
+    records: Annotated[list[str] | None, typer.Argument(help=(
+        "records: folders (their *.h5 and *.hdf5), files or glob patterns (quoted: 'runs/FOG-*.h5'); or "
+        "--manifest"))] = None
+    db: DbOption = None
+    scheduler: scheduler_option("local; its workers must see the records and the database") = None
+    workers: WorkersOption = None
+    serial: option("--serial", "every record is of this unit", str, "SERIAL") = None
+    names: option("--names", "file-name pattern giving each record's unit and date, with {serial}, {date} (2025-01-15 "
+                  "or 20250115) and * (default: {serial}_{date}.h5; a name that does not match: the record's "
+                  "imu_serial attribute and creation time)", str, "PATTERN") = None
+    manifest: option("--manifest", "CSV with a header and columns path,serial and optionally "
+                     "date,station,operator,temperature_c (paths relative to it)", Path, "FILE.csv") = None
+    register_units: Annotated[bool, typer.Option("--register", help=(
+        "register the units not in the database yet (else their records fail)"))] = False
+    model: option("--model", "with --register: the model of the units registered", str, "MODEL") = None
+    station: station_option("the turntable / station of the runs (a manifest's column wins)") = None
+    operator: OperatorOption = None
     progress: bool = True
-    wait: float | None = None
+    wait: option("--wait", "seconds a record's write waits for another writer of the database before it fails naming "
+                 "it (default 10)", metavar="SECONDS") = None
 
 
 def run_batch(o: BatchOptions) -> dict:
@@ -230,50 +229,14 @@ def summary_line(rep: dict) -> str:
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_options(BatchOptions, before="json_")
     def batch(
-        method: method_option("six-position | twelve-position | n25 | joint | systematic51 | systematic30 | "
-                              "unified | multi-position | ferraris"),
-        records: Annotated[list[str] | None, typer.Argument(help=(
-            "records: folders (their *.h5 and *.hdf5), files or glob patterns (quoted: 'runs/FOG-*.h5'); or "
-            "--manifest"))] = None,
-        db: DbOption = None,
-        scheduler: scheduler_option("local; its workers must see the records and the database") = None,
-        workers: WorkersOption = None,
-        serial: Annotated[str | None, typer.Option("--serial", metavar="SERIAL", help=(
-            "every record is of this unit"))] = None,
-        names: Annotated[str | None, typer.Option("--names", metavar="PATTERN", help=(
-            "file-name pattern giving each record's unit and date, with {serial}, {date} (2025-01-15 or 20250115) "
-            "and * (default: {serial}_{date}.h5; a name that does not match: the record's imu_serial attribute and "
-            "creation time)"))] = None,
-        manifest: Annotated[Path | None, typer.Option("--manifest", metavar="FILE.csv", help=(
-            "CSV with a header and columns path,serial and optionally date,station,operator,temperature_c (paths "
-            "relative to it)"))] = None,
-        register_units: Annotated[bool, typer.Option("--register", help=(
-            "register the units not in the database yet (else their records fail)"))] = False,
-        model: Annotated[str | None, typer.Option("--model", metavar="MODEL", help=(
-            "with --register: the model of the units registered"))] = None,
-        station: station_option("the turntable / station of the runs (a manifest's column wins)") = None,
-        operator: OperatorOption = None,
-        settle: SettleOption = None,
-        min_static: MinStaticOption = None,
-        states: states_option("systematic: the state set, as for inscal calibrate") = None,
-        filter_rate: FilterRateOption = 1.0,
-        arw: arw_option("from the data") = None,
-        vrw: vrw_option("from the data") = None,
-        gravity: gravity_option("each record's") = None,
-        encoder_sigma: EncoderSigmaOption = None,
-        encoder_latency: EncoderLatencyOption = 0.0,
-        skip_encoder_check: SkipEncoderCheckOption = False,
-        noise: CalibrationNoiseOption = None,
         json_: JsonOption = False,
         no_progress: NoProgressOption = False,
-        wait: Annotated[float | None, typer.Option("--wait", metavar="SECONDS", help=(
-            "seconds a record's write waits for another writer of the database before it fails naming it "
-            "(default 10)"))] = None,
+        **options,
     ):
         """Calibrate many records into the calibration database (Dask), skipping the ones recorded already."""
-        opts = options_of(BatchOptions, locals(), records=tuple(records) if records else None,
-                          progress=not (no_progress or json_))
+        opts = options_of(BatchOptions, options, progress=not (no_progress or json_))
         rep = call(run_batch, opts)
         for line in rep.get("recovered", []):
             recovery_note(line)

@@ -22,8 +22,8 @@ from inscal.cli.calibrate_setup import (
     PerPlateauOption,
     PlateauTolOption,
     PlotsOption,
+    SetupOptions,
     QuadraticOption,
-    STATES_HELP,
     STATION_HELP,
     TRefOption,
     TemperatureSensorOption,
@@ -41,31 +41,21 @@ from inscal.cli.common import CliError, call, check_not_input, check_output, pri
 from inscal.cli.guards import check_outputs
 from inscal.cli.limits import check_mc_trials
 from inscal.cli.options import (
-    CalibrationNoiseOption,
     DateOption,
     DbOption,
-    EncoderLatencyOption,
-    EncoderSigmaOption,
-    FilterRateOption,
     ForceOption,
     JsonOption,
     McOption,
     McWorkersOption,
-    MinStaticOption,
     OperatorOption,
     SerialOption,
-    SettleOption,
-    SkipEncoderCheckOption,
     SupersedesOption,
     TemperatureCOption,
     WaitOption,
-    arw_option,
-    gravity_option,
     method_option,
     options_of,
     out_option,
-    states_option,
-    vrw_option,
+    with_options,
     station_option,
 )
 
@@ -196,13 +186,12 @@ def _budget(res, station, lab_db: dict | None, rec, setup, temperature_c: float 
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_options(SetupOptions, before="quadratic")
     def calibrate(
         data: Annotated[Path, typer.Argument(help="HDF5 record (inscal simulate, or a recorded run)")],
         method: method_option(),
         out: out_option("parameter file to write (TOML)"),
         force: ForceOption = False,
-        settle: SettleOption = None,
-        min_static: MinStaticOption = None,
         quadratic: QuadraticOption = False,
         # the no-turntable methods' options (None: the method's own default)
         alpha: AlphaOption = None,
@@ -212,15 +201,7 @@ def register(app: typer.Typer) -> None:
         turn_tol: TurnTolOption = None,
         turn_closure: TurnClosureOption = None,
         tremor_dps: TremorDpsOption = None,
-        states: states_option(STATES_HELP) = None,
         plots: PlotsOption = None,
-        filter_rate: FilterRateOption = 1.0,
-        arw: arw_option("from the data") = None,
-        vrw: vrw_option("from the data") = None,
-        gravity: gravity_option("the record's") = None,
-        encoder_sigma: EncoderSigmaOption = None,
-        encoder_latency: EncoderLatencyOption = 0.0,
-        skip_encoder_check: SkipEncoderCheckOption = False,
         serial: SerialOption = None,
         db: DbOption = None,
         station: station_option(STATION_HELP) = None,
@@ -236,15 +217,15 @@ def register(app: typer.Typer) -> None:
         chamber_label: ChamberLabelOption = "chamber",
         wait: WaitOption = None,
         accept_unconverged: AcceptUnconvergedOption = False,
-        noise: CalibrationNoiseOption = None,
         mc: McOption = None,
         mc_seed: McSeedOption = 0,
         mc_workers: McWorkersOption = 1,
         thermal_model: ThermalModelOption = None,
         json_: JsonOption = False,
+        **setup,
     ):
         """Calibrate IMU errors (and gimbal non-orthogonality / mounting attitude) from a record."""
-        opts = options_of(CalibrateOptions, locals(), thermal_order=tuple(thermal_order or ()) or None,
+        opts = options_of(CalibrateOptions, locals() | setup, thermal_order=tuple(thermal_order or ()) or None,
                           method_options=method_options(alpha, gravity_tol, face_tilt, min_turn_end, turn_tol,
                                                         turn_closure))
         rep = call(run_calibrate, opts)

@@ -13,6 +13,20 @@ from typing import Annotated
 import typer
 
 from inscal.cli.common import CliError
+from inscal.cli.options import (
+    CalibrationNoiseOption,
+    EncoderLatencyOption,
+    EncoderSigmaOption,
+    FilterRateOption,
+    MinStaticOption,
+    SettleOption,
+    SkipEncoderCheckOption,
+    arw_option,
+    gravity_option,
+    option,
+    states_option,
+    vrw_option,
+)
 
 # ----------------------------------------------------------------------------- the options of calibrate alone
 STATES_HELP = ("systematic: auto (the default: async, lever9, g-sensitivity off-diagonals and cross-coupling chosen "
@@ -26,50 +40,51 @@ STATION_HELP = ("the turntable / station of the run: its name (with --serial), o
                 "the GUM uncertainty budget is computed, printed and, with --serial, stored with the result")
 
 
-def _option(name: str, help: str, kind: type = float, metavar: str | None = None) -> object:
-    """An option of calibrate alone (None unless given; its metavar from :func:`inscal.cli.options.metavar_of` unless
-    ``metavar``)."""
-    return Annotated[kind | None, typer.Option(name, metavar=metavar, help=help)]
+StatesOption = states_option(STATES_HELP)
+ArwOption = arw_option("from the data")
+VrwOption = vrw_option("from the data")
+GravityOption = gravity_option("the record's")
+
 
 QuadraticOption = Annotated[bool, typer.Option("--quadratic", help=(
     "multi-position: estimate the quadratic accelerometer terms too (12 parameters: at least 12 poses, and "
     "more for the fit to have accelerometer degrees of freedom)"))]
-AlphaOption = _option(
+AlphaOption = option(
     "--alpha", "multi-position, ferraris: false-alarm probability of the still-pose tests "
     "(default 1e-3; ferraris 1e-4)", metavar="P")
-GravityTolOption = _option(
+GravityTolOption = option(
     "--gravity-tol", "multi-position, ferraris: the largest relative difference between "
     "the poses' specific force and the site's gravity (default 0.15; ferraris 0.1)",
     metavar="RATIO")
-FaceTiltOption = _option(
+FaceTiltOption = option(
     "--face-tilt-deg", "ferraris: rms angle in deg between a face and the horizontal when "
     "it rests on a table (flatness, squareness, the table's level; in the sigma) (default "
     "0.3; 0: exact faces)")
-MinTurnEndOption = _option(
+MinTurnEndOption = option(
     "--min-turn-end-s", "ferraris: shortest still pose in s at the ends of a turn, after "
     "--settle-s at both ends (default 0.3)")
-TurnTolOption = _option(
+TurnTolOption = option(
     "--turn-tol-deg", "ferraris: how far from 360 deg a whole turn may be, in deg "
     "(default 30)")
-TurnClosureOption = _option(
+TurnClosureOption = option(
     "--turn-closure-deg", "ferraris: rms difference in deg between a whole turn's angle "
     "and 360 deg (a turn by hand against a stop; in the sigma) (default 0.2; 0: exact "
     "turns)")
-TremorDpsOption = _option(
+TremorDpsOption = option(
     "--tremor-dps", "multi-position: the hand tremor a still pose may hold [deg/s rms] "
     "(default 3; the accelerometers judge a pose, the gyros may tremble up to this)")
-PlotsOption = _option(
+PlotsOption = option(
     "--plots", "systematic: folder for the convergence plots (PNG)", Path, "FOLDER")
-PerPlateauOption = _option(
+PerPlateauOption = option(
     "--per-plateau", "thermal-plateaus: the method run on each temperature plateau "
     "(default n25; any other method)", str, "METHOD")
-ThermalOrderOption = _option(
+ThermalOrderOption = option(
     "--thermal-order", "thermal-plateaus: NAME=ORDER, the polynomial order of a "
     "thermal term in T - T_ref (repeatable; default gyro_bias, gyro_scale_factor, "
     "accel_bias, accel_scale_factor = 2, misalignments 0 = constant, at most 1; an order "
     "not named is raised while its fit misfits the plateaus)", list[str],
     "NAME=ORDER")
-TRefOption = _option(
+TRefOption = option(
     "--t-ref", "thermal-plateaus: reference temperature of the model [deg C] (default 20; "
     "inside the plateaus' range)", metavar="DEGC")
 PlateauTolOption = Annotated[float, typer.Option("--plateau-tol", metavar="DEGC", help=(
@@ -83,7 +98,7 @@ AcceptUnconvergedOption = Annotated[bool, typer.Option("--accept-unconverged", h
     "systematic: keep the last iterate of a run that does not converge (a note in the text, the JSON and "
     "the parameter file) instead of ending with exit 2"))]
 McSeedOption = Annotated[int, typer.Option("--mc-seed", metavar="SEED", help="seed of the Monte Carlo")]
-ThermalModelOption = _option(
+ThermalModelOption = option(
     "--thermal-model", "with --station FILE.toml: a parameter file with a thermal model "
     "([thermal], from thermal-plateaus or thermal states) whose slope dy/dT propagates the "
     "chamber's temperature stability (default: the unit's newest result in the database "
@@ -93,20 +108,21 @@ ThermalModelOption = _option(
 @dataclass(frozen=True, kw_only=True)
 class SetupOptions:
     """The options of a calibration that ``inscal calibrate`` and ``inscal batch`` share (None: the method's own
-    default), as the library's :class:`~inscal.runs.calibration.CalibrationSetup` takes them
-    (:meth:`calibration_setup`)."""
+    default), each declared once here as its command-line option (:func:`inscal.cli.options.with_options` gives
+    both commands these parameters), as the library's :class:`~inscal.runs.calibration.CalibrationSetup` takes
+    them (:meth:`calibration_setup`)."""
 
-    settle: float | None = None
-    min_static: float | None = None
-    states: str | None = None
-    filter_rate: float = 1.0
-    arw: float | None = None
-    vrw: float | None = None
-    gravity: str | None = None
-    encoder_sigma: float | None = None
-    encoder_latency: float = 0.0
-    skip_encoder_check: bool = False
-    noise: Path | None = None
+    settle: SettleOption = None
+    min_static: MinStaticOption = None
+    states: StatesOption = None
+    filter_rate: FilterRateOption = 1.0
+    arw: ArwOption = None
+    vrw: VrwOption = None
+    gravity: GravityOption = None
+    encoder_sigma: EncoderSigmaOption = None
+    encoder_latency: EncoderLatencyOption = 0.0
+    skip_encoder_check: SkipEncoderCheckOption = False
+    noise: CalibrationNoiseOption = None
 
     def calibration_setup(self, method: str, noise: str | None, **more):
         """The library's setup (:class:`~inscal.runs.calibration.CalibrationSetup`) of ``method`` with these

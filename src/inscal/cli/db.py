@@ -3,7 +3,6 @@ What the commands do apart from their options and printing is in :mod:`inscal.cl
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import typer
 
@@ -20,21 +19,18 @@ from inscal.cli.db_run import (
 )
 from inscal.cli.guards import check_not_database
 from inscal.cli.options import (
-    DateOption,
     DbOption,
     ForceOption,
     Group,
     JsonOption,
     KOption,
-    OperatorOption,
     ResultOption,
     SerialArgument,
-    SupersedesOption,
-    TemperatureCOption,
     WaitOption,
     options_of,
     out_option,
     plot_option,
+    with_options,
 )
 
 db_app = typer.Typer(no_args_is_help=True, add_completion=False, cls=Group,
@@ -107,35 +103,34 @@ def recover_cmd(db: DbOption = None,
         typer.echo(f"{rep['db']}: every result's files are in place; nothing to recover")
 
 
-@db_app.command("add")
-def add_cmd(serial: SerialArgument,
-            params: Path = typer.Argument(None, help="a parameter file (inscal calibrate --out) to record as a "
-                                                     "calibration of the unit; without it, register the unit"),
-            db: DbOption = None,
-            model: str = typer.Option(None, "--model", metavar="MODEL", help="the unit's model (when registering it)"),
-            notes: str = typer.Option(None, "--notes", metavar="TEXT", help="notes on the unit (when registering it)"),
-            data: Path = typer.Option(None, "--data", metavar="RECORD", help="the record the parameter file was calibrated from "
-                                      "(its hash must match; gives the site and path)"),
-            station: str = typer.Option(None, "--station", metavar="STATION", help="the turntable / station of the run"),
-            operator: OperatorOption = None,
-            date: DateOption = None,
-            temperature_c: TemperatureCOption = None,
-            supersedes: SupersedesOption = None,
-            wait: WaitOption = None,
-            json_: JsonOption = False):
+def _command(name: str, options_class, run):
+    """``inscal db NAME``: its options the fields of ``options_class`` (:func:`inscal.cli.options.with_options`), its
+    work ``run(options)`` (:mod:`inscal.cli.db_run`; a refusal is one line), ``--json`` the report; the decorated
+    function (its docstring the command's help) prints the report's text lines, given the options."""
+    def decorate(text):
+        def command(json_: JsonOption = False, **options):
+            with db_errors():
+                rep = run(options_of(options_class, options))
+            if json_:
+                print_json(rep)
+                return
+            text(rep, options)
+
+        command.__name__, command.__doc__ = text.__name__, text.__doc__
+        return db_app.command(name)(with_options(options_class, before="json_")(command))
+    return decorate
+
+
+@_command("add", AddOptions, run_add)
+def add_cmd(rep: dict, options: dict) -> None:
     """Register a unit (SERIAL --model ...), or record a parameter file as one of its calibrations."""
-    with db_errors():
-        rep = run_add(options_of(AddOptions, locals()))
-    if json_:
-        print_json(rep)
-        return
     if "unit" in rep:
         u = rep["unit"]
         typer.echo(f"unit {u['serial']} {'registered' if rep['created'] else 'is registered already'}"
                    + (f" (model {u['model']})" if u["model"] else "") + f" in {rep['db']}")
     else:
-        typer.echo(f"{rep['serial']}: {params} recorded as result {rep['result_id']} ({rep['method']}, {rep['date']})"
-                   + (", now the current calibration" if rep["current"] else ""))
+        typer.echo(f"{rep['serial']}: {options['params']} recorded as result {rep['result_id']} ({rep['method']}, "
+                   f"{rep['date']})" + (", now the current calibration" if rep["current"] else ""))
 
 
 @db_app.command("list")
@@ -256,27 +251,9 @@ def history_cmd(serial: SerialArgument,
         typer.echo(line)
 
 
-@db_app.command("certificate")
-def certificate_cmd(serial: SerialArgument,
-                    out: out_option("a folder (made when missing) for "
-                                             "INSCAL-SERIAL-ID.html/.pdf/.json, or NAME.html (also NAME.pdf, "
-                                             "NAME.json)"),
-                    db: DbOption = None,
-                    result: ResultOption = None,
-                    pdf: bool = typer.Option(True, "--pdf/--no-pdf", help="also print the PDF with headless Chromium "
-                                             "(chromium on PATH or $INSCAL_CHROMIUM; without it --pdf is refused)"),
-                    issued: str = typer.Option(None, "--issued", metavar="DATE", help="date of issue, YYYY-MM-DD or ISO time (UTC; "
-                                               "default: now)"),
-                    laboratory: str = typer.Option(None, "--lab", metavar="TEXT", help="the laboratory's name and address"),
-                    authorized_by: str = typer.Option(None, "--authorized-by", metavar="NAME", help="who authorizes the certificate"),
-                    force: ForceOption = False,
-                    json_: JsonOption = False):
+@_command("certificate", CertificateOptions, run_certificate)
+def certificate_cmd(rep: dict, options: dict) -> None:
     """A calibration certificate (ISO/IEC 17025 §7.8): HTML, PDF and the same content as JSON, written together."""
-    with db_errors():
-        rep = run_certificate(options_of(CertificateOptions, locals()))
-    if json_:
-        print_json(rep)
-        return
     files = ", ".join(f for f in (rep["html"], rep["pdf"] and f"{rep['pdf']} ({rep['pages']} pages)", rep["json"]) if f)
-    typer.echo(f"{serial}: certificate {rep['certificate']} (result {rep['result_id']}, {rep['method']}, record of "
+    typer.echo(f"{options['serial']}: certificate {rep['certificate']} (result {rep['result_id']}, {rep['method']}, record of "
                f"{rep['date'][:10]}) -> {files}")

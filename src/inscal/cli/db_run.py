@@ -6,6 +6,9 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
+
+import typer
 
 from inscal.cli.common import (
     CliError,
@@ -15,6 +18,19 @@ from inscal.cli.common import (
     short,
 )
 from inscal.cli.guards import check_not_database, database_notes
+from inscal.cli.options import (
+    DateOption,
+    DbOption,
+    ForceOption,
+    OperatorOption,
+    ResultOption,
+    SerialArgument,
+    SupersedesOption,
+    TemperatureCOption,
+    WaitOption,
+    option,
+    out_option,
+)
 
 PLOT_FORMATS = ("png", "pdf", "svg")
 
@@ -24,18 +40,21 @@ class AddOptions:
     """The options of ``inscal db add``: the unit ``serial``, and for a calibration its parameter file
     ``params`` with the session it was calibrated in."""
 
-    serial: str
-    params: Path | None = None
-    db: str | None = None
-    model: str | None = None
-    notes: str | None = None
-    data: Path | None = None
-    station: str | None = None
-    operator: str | None = None
-    date: str | None = None
-    temperature_c: float | None = None
-    supersedes: int | None = None
-    wait: float | None = None
+    serial: SerialArgument
+    params: Annotated[Path | None, typer.Argument(help=(
+        "a parameter file (inscal calibrate --out) to record as a calibration of the unit; without it, register "
+        "the unit"))] = None
+    db: DbOption = None
+    model: option("--model", "the unit's model (when registering it)", str, "MODEL") = None
+    notes: option("--notes", "notes on the unit (when registering it)", str, "TEXT") = None
+    data: option("--data", "the record the parameter file was calibrated from (its hash must match; gives the site "
+                 "and path)", Path, "RECORD") = None
+    station: option("--station", "the turntable / station of the run", str, "STATION") = None
+    operator: OperatorOption = None
+    date: DateOption = None
+    temperature_c: TemperatureCOption = None
+    supersedes: SupersedesOption = None
+    wait: WaitOption = None
 
 
 @dataclass(frozen=True)
@@ -43,15 +62,18 @@ class CertificateOptions:
     """The options of ``inscal db certificate``: result ``result`` (None: the current one) of unit ``serial``
     certified into ``out``."""
 
-    serial: str
-    out: Path
-    db: str | None = None
-    result: int | None = None
-    pdf: bool = True
-    force: bool = False
-    issued: str | None = None
-    laboratory: str | None = None
-    authorized_by: str | None = None
+    serial: SerialArgument
+    out: out_option("a folder (made when missing) for INSCAL-SERIAL-ID.html/.pdf/.json, or NAME.html (also "
+                    "NAME.pdf, NAME.json)")
+    db: DbOption = None
+    result: ResultOption = None
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help=(
+        "also print the PDF with headless Chromium (chromium on PATH or $INSCAL_CHROMIUM; without it --pdf is "
+        "refused)"))] = True
+    issued: option("--issued", "date of issue, YYYY-MM-DD or ISO time (UTC; default: now)", str, "DATE") = None
+    laboratory: option("--lab", "the laboratory's name and address", str, "TEXT") = None
+    authorized_by: option("--authorized-by", "who authorizes the certificate", str, "NAME") = None
+    force: ForceOption = False
 
 
 @contextlib.contextmanager

@@ -5,13 +5,29 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path as FsPath
+from typing import Annotated
 
 import typer
 
 from inscal.cli.common import CliError, check_output, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory, human_seconds
-from inscal.cli.options import ForceOption, JsonOption, SeedOption
+from inscal.cli.options import (
+    ForceOption,
+    JsonOption,
+    SeedOption,
+    arw_option,
+    option,
+    options_of,
+    out_option,
+    plot_option,
+    scheduler_option,
+    states_option,
+    station_option,
+    vrw_option,
+    with_options,
+)
 
 
 def _range(opt: str, v: str | None):
@@ -78,15 +94,57 @@ def check_size(minutes: float, candidates: int, population: int, workers: int, s
                  "shorten --minutes or lower --population or --workers")
 
 
-def run_design(out: FsPath, minutes: float, states: str = "51", objective: str = "worst-normalised",
-               targets: str = "s16-path", groups: str = "all", axes: str = "outer,inner", max_rate: float = 10.0,
-               max_accel: float = 10.0, outer_range: str | None = None, inner_range: str | None = None,
-               cable_wrap: float | None = None, min_dwell: float = 5.0, initial_dwell: float = 60.0,
-               max_moves: int = 40, seed: int = 0, candidates: int = 256, population: int = 16, scheduler: str | None = None,
-               workers: int = 2, base: str = "s16", arw: float | None = None, vrw: float | None = None,
-               plot: FsPath | None = None, force: bool = False, progress: bool = True, station=None):
-    """Run the search and write the path; returns ``(DesignResult, document)``.  ``station``: a station
-    (:class:`inscal.uncertainty.station.Station`): the path is designed at its site for the combined uncertainty."""
+@dataclass(frozen=True)
+class DesignOptions:
+    """What ``inscal design`` is asked: a path of ``minutes`` written to ``out`` (``force``: over an existing
+    file) for the ``states`` set, minimising ``objective`` against ``targets`` over the parameter ``groups``;
+    the turntable's limits (``axes`` it may turn, ``max_rate`` [deg/s], ``max_accel`` [deg/s^2], the angle
+    ranges ``outer_range``/``inner_range`` "LO,HI" [deg], ``cable_wrap`` [deg], ``min_dwell``,
+    ``initial_dwell`` [s], ``max_moves``); the search (``seed``, ``candidates``, ``population`` survivors, on
+    ``scheduler`` with ``workers``, ``progress`` on standard error); the scenario ``base`` of the file written
+    and its noise ``arw`` [deg/sqrt(h)], ``vrw`` [ug/sqrt(Hz)]; the path report ``plot``; ``station`` (a
+    :class:`inscal.uncertainty.station.Station`): the path is designed at its site for the combined
+    uncertainty."""
+
+    out: out_option("output scenario TOML with the designed [path]")
+    minutes: Annotated[float, typer.Option("--minutes", help="time budget of the path [min]")] = 30.0
+    states: states_option("error-state model: 51 | 30 | unified (options ,lever9 ,async ,psins)") = "51"
+    objective: Annotated[str, typer.Option("--objective", metavar="OBJECTIVE", help=(
+        "worst-normalised (max of σ/target) | weighted (mean of (σ/target)^2)"))] = "worst-normalised"
+    targets: Annotated[str, typer.Option("--targets", metavar="TARGETS", help=(
+        "s16-path (bound of S16's own 1-h path) | s16-table2 (S16 Table 2 figures for its groups)"))] = "s16-path"
+    groups: Annotated[str, typer.Option("--groups", metavar="GROUPS", help=(
+        "parameter groups in the objective: all | table2 | a comma list"))] = "all"
+    axes: Annotated[str, typer.Option("--axes", help="gimbal axes the path may turn")] = "outer,inner"
+    max_rate: Annotated[float, typer.Option("--max-rate", metavar="DEG/S", help=(
+        "largest turntable rate [deg/s]"))] = 10.0
+    max_accel: Annotated[float, typer.Option("--max-accel", metavar="DEG/S^2", help=(
+        "angular acceleration of the moves [deg/s^2]"))] = 10.0
+    outer_range: option("--outer-range", "outer angle limits LO,HI [deg] (start = 0)", str, "LO,HI") = None
+    inner_range: option("--inner-range", "inner angle limits LO,HI [deg] (start = 0)", str, "LO,HI") = None
+    cable_wrap: option("--cable-wrap", "largest net rotation of each axis [deg]", metavar="DEG") = None
+    min_dwell: Annotated[float, typer.Option("--min-dwell", metavar="SECONDS", help=(
+        "shortest dwell after a move [s]"))] = 5.0
+    initial_dwell: Annotated[float, typer.Option("--initial-dwell", metavar="SECONDS", help=(
+        "dwell at the start (alignment) [s]"))] = 60.0
+    max_moves: Annotated[int, typer.Option("--max-moves", metavar="N", help="most moves in a path")] = 40
+    seed: SeedOption = 0
+    candidates: Annotated[int, typer.Option("--candidates", help="candidate paths to evaluate")] = 256
+    population: Annotated[int, typer.Option("--population", help="survivors per generation")] = 16
+    scheduler: scheduler_option("a LocalCluster of --workers") = None
+    workers: Annotated[int, typer.Option("--workers", help="workers of the local Dask cluster")] = 2
+    base: Annotated[str, typer.Option("--base", metavar="SCENARIO", help=(
+        "built-in scenario for the site, gimbal, noise and IMU of the written file"))] = "s16"
+    arw: arw_option("the base scenario's") = None
+    vrw: vrw_option("the base scenario's") = None
+    plot: plot_option("write the path report: FILE.png and FILE.html") = None
+    force: ForceOption = False
+    progress: bool = True
+    station: object = None  # a Station (read from --station FILE.toml)
+
+
+def run_design(o: DesignOptions):
+    """Run the search of ``o`` (:class:`DesignOptions`) and write the path; returns ``(DesignResult, document)``."""
     import tomli_w
 
     from inscal.core import units
@@ -96,28 +154,23 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     from inscal.plan.design import DesignError, Limits, design
     from inscal.sim.scenarios import BUILTIN, ScenarioError, scenario_from_dict
 
-    scheduler = check_scheduler(scheduler, ("local", "none", "synchronous", "sync", ""))
-    out = FsPath(out)
+    scheduler = check_scheduler(o.scheduler, ("local", "none", "synchronous", "sync", ""))
+    out = FsPath(o.out)
     if out.suffix != ".toml":
         raise CliError(f"--out must be a .toml file, got {short(out)}")
-    check_output(out, force)
+    check_output(out, o.force)
+    plot = None if o.plot is None else FsPath(o.plot)
     if plot is not None:
-        plot = FsPath(plot)
-        check_output(plot, force)
-    for name, v in (("--minutes", minutes), ("--max-rate", max_rate), ("--max-accel", max_accel),
-                    ("--arw", arw), ("--vrw", vrw)):
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise CliError(f"{name} must be a positive number, got {v:g}")
-    if candidates < 2 or population < 2 or workers < 1:
-        raise CliError("--candidates and --population must be >= 2, --workers >= 1")
-    if base not in BUILTIN:
-        raise CliError(f"--base must be a built-in scenario ({', '.join(BUILTIN)}), got {short(base)!r}")
-    ax = tuple(a.strip() for a in axes.split(",") if a.strip())
+        check_output(plot, o.force)
+    if o.base not in BUILTIN:
+        raise CliError(f"--base must be a built-in scenario ({', '.join(BUILTIN)}), got {short(o.base)!r}")
+    ax = tuple(a.strip() for a in o.axes.split(",") if a.strip())
     try:
-        limits = Limits(axes=ax, max_rate=units.to_si(max_rate, "deg/s"), max_accel=units.to_si(max_accel, "deg/s"),
-                        outer_range=_range("--outer-range", outer_range), inner_range=_range("--inner-range", inner_range),
-                        cable_wrap=None if cable_wrap is None else units.to_si(cable_wrap, "deg"),
-                        min_dwell=min_dwell, initial_dwell=initial_dwell, max_moves=max_moves)
+        limits = Limits(axes=ax, max_rate=units.to_si(o.max_rate, "deg/s"),
+                        max_accel=units.to_si(o.max_accel, "deg/s"), outer_range=_range("--outer-range", o.outer_range),
+                        inner_range=_range("--inner-range", o.inner_range),
+                        cable_wrap=None if o.cable_wrap is None else units.to_si(o.cable_wrap, "deg"),
+                        min_dwell=o.min_dwell, initial_dwell=o.initial_dwell, max_moves=o.max_moves)
     except DesignError as exc:
         raise CliError(str(exc)) from None
     name = out.stem
@@ -125,43 +178,44 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
     try:
         from inscal.core.turntable import static
 
-        probe = scenario_doc(base, name, static(60.0), arw, vrw, station)
+        probe = scenario_doc(o.base, name, static(60.0), o.arw, o.vrw, o.station)
         sc = scenario_from_dict(probe)
         consider = None
-        if station is not None:
+        if o.station is not None:
             from inscal.uncertainty.before_run import consider_u
 
-            consider = consider_u(station)
-        setup = make_setup(states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw, BiasNoise.from_imu_noise(sc.noise),
+            consider = consider_u(o.station)
+        setup = make_setup(o.states, sc.site, sc.gimbal, sc.noise.arw, sc.noise.vrw,
+                           BiasNoise.from_imu_noise(sc.noise),
                            consider=consider)
     except (BoundError, ScenarioError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    check_size(minutes, candidates, population, workers, scheduler, setup)
+    check_size(o.minutes, o.candidates, o.population, o.workers, scheduler, setup)
     from inscal.core.progress import ProgressBar
 
-    label = f"design {minutes:g} min"
-    bar = ProgressBar(label, candidates, progress, every_s=None)
+    label = f"design {o.minutes:g} min"
+    bar = ProgressBar(label, o.candidates, o.progress, every_s=None)
 
     def update(done: int, total: int, best: float) -> None:  # the best score so far beside the bar
         bar.update(done, total, f"best {best:.4g}", f"{label}: {done}/{total} candidates, best score {best:.4g}")
 
     try:
-        res = design(minutes, states, objective, targets, groups, limits, seed, candidates, population,
-                     scheduler, workers, setup, update if progress else None, name)
+        res = design(o.minutes, o.states, o.objective, o.targets, o.groups, limits, o.seed, o.candidates,
+                     o.population, scheduler, o.workers, setup, update if o.progress else None, name)
     except (DesignError, BoundError) as exc:
         raise CliError(str(exc)) from None
     finally:
         bar.close()
-    doc = scenario_doc(base, name, res.path, arw, vrw, station)
+    doc = scenario_doc(o.base, name, res.path, o.arw, o.vrw, o.station)
     d = res.to_dict()
-    what = "" if station is None else f" of the combined uncertainty at station {station.name!r}"
-    head = [f"# inscal design: {minutes:g} min, states {states}, objective {objective}{what} over {groups} "
-            f"(targets {targets}) = {res.value:.4g} (S16's own 1-h path: {res.reference_value:.4g})",
-            f"# seed {seed}, {res.evaluations} candidates; limits {d['limits']}",
+    what = "" if o.station is None else f" of the combined uncertainty at station {o.station.name!r}"
+    head = [f"# inscal design: {o.minutes:g} min, states {o.states}, objective {o.objective}{what} over {o.groups} "
+            f"(targets {o.targets}) = {res.value:.4g} (S16's own 1-h path: {res.reference_value:.4g})",
+            f"# seed {o.seed}, {res.evaluations} candidates; limits {d['limits']}",
             "# the bound of this file: inscal observability THIS.toml --crlb"]
     text = "\n".join(head) + "\n" + tomli_w.dumps(doc)
     try:
-        with atomic_path(out, force) as tmp:
+        with atomic_path(out, o.force) as tmp:
             tmp.write_text(text, encoding="utf-8")
     except (OSError, FileExistsError) as exc:
         raise CliError(f"cannot write {short(out)}: {exc}") from None
@@ -169,13 +223,13 @@ def run_design(out: FsPath, minutes: float, states: str = "51", objective: str =
         from inscal.report.path import write_path_report
 
         g = res.groups()
-        summ = (f"{minutes:g}-minute path designed for {objective} over {groups} (targets {targets}): "
+        summ = (f"{o.minutes:g}-minute path designed for {o.objective} over {o.groups} (targets {o.targets}): "
                 f"{res.value:.3g} (S16's 1-h path: {res.reference_value:.3g}); per S16 Table 2 group, worst "
                 "bound / S16-path bound: " + ", ".join(f"{k} {g[k]['worst_ratio']:.2f}" for k in d["table2_groups"]))
         try:
             write_path_report(plot, res.bound, res.path, res.objective.targets,
-                              title=f"Designed path {name} ({minutes:g} min)", summary=summ,
-                              target_label=f"target ({targets})", overwrite=force)
+                              title=f"Designed path {name} ({o.minutes:g} min)", summary=summ,
+                              target_label=f"target ({o.targets})", overwrite=o.force)
         except (OSError, FileExistsError) as exc:
             raise CliError(f"cannot write {short(plot)}: {exc}") from None
     return res, doc
@@ -217,42 +271,13 @@ def _print(res, out, station=None) -> None:
 
 def register(app: typer.Typer) -> None:
     @app.command("design")
+    @with_options(DesignOptions, before="station")
     def design_cmd(
-        out: FsPath = typer.Option(..., "--out", help="output scenario TOML with the designed [path]"),
-        minutes: float = typer.Option(30.0, "--minutes", help="time budget of the path [min]"),
-        states: str = typer.Option("51", "--states", help="error-state model: 51 | 30 | unified (options ,lever9 "
-                                                          ",async ,psins)"),
-        objective: str = typer.Option("worst-normalised", "--objective", metavar="OBJECTIVE", help="worst-normalised (max of σ/target) "
-                                                                              "| weighted (mean of (σ/target)^2)"),
-        targets: str = typer.Option("s16-path", "--targets", metavar="TARGETS", help="s16-path (bound of S16's own 1-h path) | "
-                                                                  "s16-table2 (S16 Table 2 figures for its groups)"),
-        groups: str = typer.Option("all", "--groups", metavar="GROUPS", help="parameter groups in the objective: all | table2 | a "
-                                                           "comma list"),
-        axes: str = typer.Option("outer,inner", "--axes", help="gimbal axes the path may turn"),
-        max_rate: float = typer.Option(10.0, "--max-rate", metavar="DEG/S", help="largest turntable rate [deg/s]"),
-        max_accel: float = typer.Option(10.0, "--max-accel", metavar="DEG/S^2", help="angular acceleration of the moves [deg/s^2]"),
-        outer_range: str = typer.Option(None, "--outer-range", metavar="LO,HI", help="outer angle limits LO,HI [deg] (start = 0)"),
-        inner_range: str = typer.Option(None, "--inner-range", metavar="LO,HI", help="inner angle limits LO,HI [deg] (start = 0)"),
-        cable_wrap: float = typer.Option(None, "--cable-wrap", metavar="DEG", help="largest net rotation of each axis [deg]"),
-        min_dwell: float = typer.Option(5.0, "--min-dwell", metavar="SECONDS", help="shortest dwell after a move [s]"),
-        initial_dwell: float = typer.Option(60.0, "--initial-dwell", metavar="SECONDS", help="dwell at the start (alignment) [s]"),
-        max_moves: int = typer.Option(40, "--max-moves", metavar="N", help="most moves in a path"),
-        seed: SeedOption = 0,
-        candidates: int = typer.Option(256, "--candidates", help="candidate paths to evaluate"),
-        population: int = typer.Option(16, "--population", help="survivors per generation"),
-        scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler ADDRESS, 'local' (default: a "
-                                                               "LocalCluster of --workers) or 'none' (in-process)"),
-        workers: int = typer.Option(2, "--workers", help="workers of the local Dask cluster"),
-        base: str = typer.Option("s16", "--base", metavar="SCENARIO", help="built-in scenario for the site, gimbal, noise and IMU of "
-                                                       "the written file"),
-        arw: float = typer.Option(None, "--arw", metavar="DEG/SQRT(H)", help="gyro ARW [deg/sqrt(h)] (default: the base scenario's)"),
-        vrw: float = typer.Option(None, "--vrw", metavar="UG/SQRT(HZ)", help="accelerometer VRW [ug/sqrt(Hz)] (default: the base's)"),
-        plot: FsPath = typer.Option(None, "--plot", metavar="PATH", help="write the path report: FILE.png and FILE.html"),
-        station: FsPath = typer.Option(None, "--station", metavar="STATION.toml", help="a station description (station.toml): design at its "
-                                       "site for the combined uncertainty (the bound with the site's gravity, "
-                                       "latitude, height and the time base; GUM)"),
-        force: ForceOption = False,
+        station: station_option("a station description (station.toml): design at its site for the combined "
+                                "uncertainty (the bound with the site's gravity, latitude, height and the time "
+                                "base; GUM)", FsPath) = None,
         json_: JsonOption = False,
+        **options,
     ):
         """Design a calibration path from its Cramér-Rao bound: an evolutionary search over sequences of
         turns (axis, angle, rate, dwell) within the time budget and the turntable's limits."""
@@ -260,15 +285,12 @@ def register(app: typer.Typer) -> None:
 
         st = read_station_option(station)
         try:
-            res, _ = run_design(out, minutes, states, objective, targets, groups, axes, max_rate, max_accel,
-                                outer_range, inner_range, cable_wrap, min_dwell, initial_dwell, max_moves, seed,
-                                candidates,
-                                population, scheduler, workers, base, arw, vrw, plot, force, progress=True, station=st)
+            res, _ = run_design(options_of(DesignOptions, options, progress=True, station=st))
         except CliError as exc:
             raise fail(str(exc)) from None
         if json_:
             d = res.to_dict()
-            d["out"] = str(out)
+            d["out"] = str(options["out"])
             d.pop("bound", None)
             d["bound"] = {"parameters": res.bound.table(), "group_rms": res.bound.group_rms()}
             if st is not None:
@@ -278,4 +300,4 @@ def register(app: typer.Typer) -> None:
                 d.update(station=st.name, budget=bud.to_dict(), dominant_inputs=dominant_inputs(bud))
             print_json(d)
             return
-        _print(res, out, st)
+        _print(res, options["out"], st)

@@ -11,66 +11,117 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
 from inscal.cli.common import CliError, call, check_not_input, check_output, fail, print_json, short
-from inscal.cli.options import ForceOption, JsonOption, gravity_option
+from inscal.cli.options import ForceOption, JsonOption, gravity_option, option, options_of, with_options
 from inscal.io.formats import REGISTRY, export_formats, import_help, source_help
 
 
-def run_import(src: Path, fmt: str, out: Path, mapping: Path | None = None, path: Path | None = None,
-               path_start: float | None = None, gimbal: Path | None = None, gimbal_unit: str | None = None,
-               lat: float | None = None, lon: float | None = None, height: float | None = None,
-               rate_hz: float | None = None, dtype: str = "float64", variable: str | None = None,
-               rates: bool = False, skip: list[str] | None = None, force: bool = False,
-               gravity: str | None = None, encoder_latency: float = 0.0, temperature: Path | None = None,
-               topic: str | None = None, stamps: str = "header", config: Path | None = None,
-               temperature_topic: str | None = None) -> dict:
+@dataclass(frozen=True)
+class ImportOptions:
+    """What ``inscal import`` is asked: convert ``src`` (in format ``fmt``, :data:`inscal.io.formats.REGISTRY`)
+    into the record ``out`` (``force``: over an existing file), with the csv/txt column ``mapping``, the rotation
+    ``path`` (starting at ``path_start`` [s] of the source's time) or the encoder angles ``gimbal`` (in
+    ``gimbal_unit``: deg | rad), the site (``lat``, ``lon`` [deg], ``height`` [m]), the sample rate ``rate_hz``,
+    psins' ``dtype``, .mat's ``variable``, ``rates`` (rows of rates, not increments), the plausibility checks
+    to ``skip``, the ``gravity`` model, the ``encoder_latency`` [s] corrected, the ``temperature`` readings
+    (csv), a bag's ``topic``, ``stamps`` and ``temperature_topic``, and KF-GINS's ``config`` (YAML)."""
+
+    src: Annotated[Path, typer.Argument(help=f"source file ({source_help()})")]
+    fmt: Annotated[str, typer.Option("--format", "-f", help=import_help())]
+    out: Annotated[Path, typer.Option("--out", "-o", help="HDF5 record to write")]
+    mapping: option("--mapping", "csv/txt: columns, units, axes (TOML); may hold a site table", Path,
+                    "MAPPING.toml") = None
+    path: option("--path", "rotation path TOML (a path table as in scenario files) when there are no encoder "
+                 "angles", Path, "PATH.toml") = None
+    path_start: option("--path-start-s", "source time (s) at which the path starts (default: the start of the first "
+                       "sample)") = None
+    gimbal: option("--gimbal", "encoder angles file: columns time (s), outer, inner", Path, "CSV") = None
+    gimbal_unit: option("--gimbal-unit", "unit of the --gimbal angles: deg | rad (default: the unit the file's header "
+                        "gives, as 'outer [rad]', else deg)", str, "deg|rad") = None
+    lat: option("--lat", "site latitude (deg)", metavar="DEG") = None
+    lon: option("--lon", "site longitude (deg)", metavar="DEG") = None
+    height: option("--height", "site ellipsoidal height (m)", metavar="M") = None
+    rate_hz: option("--rate-hz", "sample rate (Hz) (default: from the timestamps, which must then be uniform; given: "
+                    "slightly jittery timestamps are regridded)", metavar="HZ") = None
+    dtype: Annotated[str, typer.Option("--dtype", metavar="float64|float32", help=(
+        "psins .bin: float64 | float32"))] = "float64"
+    variable: option("--variable", ".mat: the N x 7 variable (default: the first one)", str, "NAME") = None
+    rates: Annotated[bool, typer.Option("--rates", help=(
+        "psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"))] = False
+    skip: Annotated[list[str] | None, typer.Option("--skip-check", metavar="CHECK", help=(
+        "skip a plausibility check: constant | saturation | magnitudes | motion | encoders (repeatable)"))] = ()
+    encoder_latency: Annotated[float, typer.Option("--encoder-latency", metavar="SECONDS", help=(
+        "encoder latency (s) to correct: the angles are shifted to theta(t + SECONDS) (the encoder check names it "
+        "when it is over a sample)"))] = 0.0
+    gravity: gravity_option("wgs84; the model is stored in the record") = None
+    temperature: option("--temperature", "temperature readings at their own times: a header row 'time [s],NAME "
+                        "[degC],...' (a sensor per column; K, degF, ms accepted), then rows on the source's clock",
+                        Path, "CSV") = None
+    topic: option("--topic", "rosbag: the sensor_msgs/Imu topic (default: the bag's only one; the topics are listed "
+                  "otherwise)", str, "TOPIC") = None
+    stamps: Annotated[str, typer.Option("--stamps", metavar="header|receive", help=(
+        "rosbag: the samples' time: header (the messages' header.stamp) | receive (when the bag recorded "
+        "them)"))] = "header"
+    temperature_topic: option("--temperature-topic", "rosbag: a sensor_msgs/Temperature topic (degC) for the record's "
+                              "temperature", str, "TOPIC") = None
+    config: option("--config", "kf-gins: its YAML configuration (imunoise block and imudatarate, kept with the "
+                   "record)", Path, "CONFIG.yaml") = None
+    force: ForceOption = False
+
+
+def run_import(o: ImportOptions) -> dict:
+    """Import as ``o`` says (:class:`ImportOptions`), with the checks of :mod:`inscal.io.importers`; returns
+    the JSON report.  The options are checked before anything is read; a bad source is one line."""
     from inscal.io.checks import SKIPPABLE
     from inscal.io.files import input_problem
     from inscal.io.importers import import_file
     from inscal.io.mapping import ImportFileError
     from inscal.io.records import DataFileError
 
-    spec = REGISTRY.get(fmt)
+    spec = REGISTRY.get(o.fmt)
     if spec is None:
-        raise CliError(f"unknown --format {fmt!r}; choose one of: {', '.join(REGISTRY)}")
-    bad = sorted(set(skip or ()) - set(SKIPPABLE))
+        raise CliError(f"unknown --format {o.fmt!r}; choose one of: {', '.join(REGISTRY)}")
+    bad = sorted(set(o.skip or ()) - set(SKIPPABLE))
     if bad:
         raise CliError(f"--skip-check {', '.join(bad)}: unknown; known checks: {', '.join(SKIPPABLE)}")
-    if not (math.isfinite(encoder_latency) and abs(encoder_latency) <= 1.0):
-        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {encoder_latency}")
-    if gimbal_unit is not None and gimbal_unit not in ("deg", "rad"):
-        raise CliError(f"--gimbal-unit must be deg or rad, got {gimbal_unit!r}")
-    if spec.folder is not None and src.is_dir():  # a source that is a folder (a ROS 2 bag)
+    if not (math.isfinite(o.encoder_latency) and abs(o.encoder_latency) <= 1.0):
+        raise CliError(f"--encoder-latency must be a finite shift of at most 1 s, got {o.encoder_latency}")
+    if o.gimbal_unit is not None and o.gimbal_unit not in ("deg", "rad"):
+        raise CliError(f"--gimbal-unit must be deg or rad, got {o.gimbal_unit!r}")
+    if spec.folder is not None and o.src.is_dir():  # a source that is a folder (a ROS 2 bag)
         what, marker = spec.folder
-        if not (src / marker).is_file():
-            raise CliError(f"{src}: a {what} folder holds {marker}, and this one has none")
-    elif (msg := input_problem(src, "file")) is not None:
+        if not (o.src / marker).is_file():
+            raise CliError(f"{o.src}: a {what} folder holds {marker}, and this one has none")
+    elif (msg := input_problem(o.src, "file")) is not None:
         raise CliError(msg)
-    check_output(out, force)
-    check_not_input(out, src, role="source file")
-    check_not_input(out, mapping, path, gimbal, temperature, config)
+    check_output(o.out, o.force)
+    check_not_input(o.out, o.src, role="source file")
+    check_not_input(o.out, o.mapping, o.path, o.gimbal, o.temperature, o.config)
     try:
         gmodel = None
-        if gravity is not None:
+        if o.gravity is not None:
             from inscal.cli.common import parse_gravity_option
 
-            gmodel = parse_gravity_option(gravity)  # applied to the site wherever it comes from
-        return import_file(src, out, spec, None, mapping, path, path_start, gimbal, gimbal_unit, rate_hz, dtype,
-                           variable, rates, tuple(skip or ()), overwrite=force, encoder_latency=encoder_latency,
-                           gravity=gmodel, temperature_file=temperature, topic=topic, stamps=stamps,
-                           config_file=config, temperature_topic=temperature_topic, site_parts=(lat, lon, height))
+            gmodel = parse_gravity_option(o.gravity)  # applied to the site wherever it comes from
+        return import_file(o.src, o.out, spec, None, o.mapping, o.path, o.path_start, o.gimbal, o.gimbal_unit,
+                           o.rate_hz, o.dtype, o.variable, o.rates, tuple(o.skip or ()), overwrite=o.force,
+                           encoder_latency=o.encoder_latency, gravity=gmodel, temperature_file=o.temperature,
+                           topic=o.topic, stamps=o.stamps, config_file=o.config, temperature_topic=o.temperature_topic,
+                           site_parts=(o.lat, o.lon, o.height))
     except (ImportFileError, DataFileError, FileExistsError, FileNotFoundError) as exc:
         msg = str(exc)
-        if config is not None and rate_hz is None:  # the rate came from the configuration, not from an option
+        if o.config is not None and o.rate_hz is None:  # the rate came from the configuration, not from an option
             msg = re.sub(r"--rate-hz ([0-9][0-9.eE+-]*)", lambda m: f"the rate {m.group(1)} Hz (imudatarate of --config "
-                         f"{short(config)}; --rate-hz overrides it)", msg, count=1)
+                         f"{short(o.config)}; --rate-hz overrides it)", msg, count=1)
         raise CliError(msg) from None
     except OSError as exc:
-        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from None
+        raise CliError(f"cannot write {o.out}: {exc.strerror or exc}") from None
 
 
 def _is_record(p: Path) -> bool:
@@ -156,49 +207,10 @@ def run_export(data: Path, fmt: str, out: Path, gimbal_out: Path | None = None, 
 
 def register(app: typer.Typer) -> None:
     @app.command("import")
-    def import_(
-        src: Path = typer.Argument(..., help=f"source file ({source_help()})"),
-        fmt: str = typer.Option(..., "--format", "-f", help=import_help()),
-        out: Path = typer.Option(..., "--out", "-o", help="HDF5 record to write"),
-        mapping: Path = typer.Option(None, "--mapping", metavar="MAPPING.toml", help="csv/txt: columns, units, axes (TOML); may hold a site table"),
-        path: Path = typer.Option(None, "--path", metavar="PATH.toml", help="rotation path TOML (a path table as in scenario files) when there are no encoder angles"),
-        path_start: float = typer.Option(None, "--path-start-s", help="source time (s) at which the path starts "
-                                         "(default: the start of the first sample)"),
-        gimbal: Path = typer.Option(None, "--gimbal", metavar="CSV", help="encoder angles file: columns time (s), outer, inner"),
-        gimbal_unit: str = typer.Option(None, "--gimbal-unit", metavar="deg|rad", help="unit of the --gimbal angles: deg | rad (default: the "
-                                        "unit the file's header gives, as 'outer [rad]', else deg)"),
-        lat: float = typer.Option(None, "--lat", metavar="DEG", help="site latitude (deg)"),
-        lon: float = typer.Option(None, "--lon", metavar="DEG", help="site longitude (deg)"),
-        height: float = typer.Option(None, "--height", metavar="M", help="site ellipsoidal height (m)"),
-        rate_hz: float = typer.Option(None, "--rate-hz", metavar="HZ", help="sample rate (Hz) (default: from the timestamps, which must "
-                                      "then be uniform; given: slightly jittery timestamps are regridded)"),
-        dtype: str = typer.Option("float64", "--dtype", metavar="float64|float32", help="psins .bin: float64 | float32"),
-        variable: str = typer.Option(None, "--variable", metavar="NAME", help=".mat: the N x 7 variable (default: the first one)"),
-        rates: bool = typer.Option(False, "--rates", help="psins/mat rows are rates w, f, t (rad/s, m/s^2), not increments"),
-        skip: list[str] = typer.Option(None, "--skip-check", metavar="CHECK", help="skip a plausibility check: constant | saturation | "
-                                       "magnitudes | motion | encoders (repeatable)"),
-        encoder_latency: float = typer.Option(0.0, "--encoder-latency", help="encoder latency (s) to correct: the angles "
-                                              "are shifted to theta(t + SECONDS) (the encoder check names it when it "
-                                              "is over a sample)", metavar="SECONDS"),
-        gravity: gravity_option("wgs84; the model is stored in the record") = None,
-        temperature: Path = typer.Option(None, "--temperature", metavar="CSV", help="temperature readings at their own times: a header "
-                                         "row 'time [s],NAME [degC],...' (a sensor per column; K, degF, ms accepted), "
-                                         "then rows on the source's clock"),
-        topic: str = typer.Option(None, "--topic", metavar="TOPIC", help="rosbag: the sensor_msgs/Imu topic (default: the bag's only "
-                                  "one; the topics are listed otherwise)"),
-        stamps: str = typer.Option("header", "--stamps", metavar="header|receive", help="rosbag: the samples' time: header (the messages' "
-                                   "header.stamp) | receive (when the bag recorded them)"),
-        temperature_topic: str = typer.Option(None, "--temperature-topic", metavar="TOPIC", help="rosbag: a sensor_msgs/Temperature "
-                                              "topic (degC) for the record's temperature"),
-        config: Path = typer.Option(None, "--config", metavar="CONFIG.yaml", help="kf-gins: its YAML configuration (imunoise block and "
-                                    "imudatarate, kept with the record)"),
-        force: ForceOption = False,
-        json_: JsonOption = False,
-    ):
+    @with_options(ImportOptions, before="json_")
+    def import_(json_: JsonOption = False, **options):
         """Import IMU data (PSINS .bin/.mat, csv, text, KF-GINS text, ROS bags) into an HDF5 record, with checks."""
-        res = call(run_import, src, fmt, out, mapping, path, path_start, gimbal, gimbal_unit, lat, lon, height,
-                         rate_hz, dtype, variable, rates, skip, force, gravity, encoder_latency, temperature,
-                         topic, stamps, config, temperature_topic)
+        res = call(run_import, options_of(ImportOptions, options, skip=tuple(options["skip"] or ())))
         for w in res["warnings"]:
             typer.echo(f"inscal: warning: {w}", err=True)
         if json_:

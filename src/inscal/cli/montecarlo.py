@@ -6,8 +6,9 @@ import json
 import math
 import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -16,7 +17,7 @@ if TYPE_CHECKING:
 
 from inscal.cli.common import CliError, check_scheduler, fail, print_json, short
 from inscal.cli.limits import DASK_WORKER_BYTES, check_count, check_memory
-from inscal.cli.options import JsonOption, NoProgressOption
+from inscal.cli.options import JsonOption, NoProgressOption, WorkersOption, option, options_of, out_option, with_options
 
 #: most runs of a study, all configuration points together (10^6: weeks of CPU at 1-10 s a run)
 MAX_RUNS = 10**6
@@ -95,38 +96,62 @@ def check_size(exp, runs: int, scheduler: str | None, workers: int | None) -> No
     check_count(n, MAX_RUN_SAMPLES, f"{what} is too long a record", hint)
 
 
-def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params: dict | None = None,
-                   scheduler: str | None = None, workers: int | None = None, batch_size: int | None = None,
-                   no_dask: bool = False, force: bool = False, progress: bool = True,
-                   max_new_runs: int | None = None) -> tuple[dict, object, object]:
-    """Run or resume a study and write its summary; returns (summary dict, Summary, paths)."""
+@dataclass(frozen=True)
+class MonteCarloOptions:
+    """What ``inscal montecarlo`` is asked: ``runs`` runs per configuration point of the study ``experiment``
+    (its parameters ``params`` over its defaults) in the folder ``out`` (``force``: discard a different study
+    found there), run ``i`` seeded by ``SeedSequence(seed).spawn(total)[i]``; on ``scheduler`` (local,
+    synchronous or an address) with ``workers`` and ``batch_size`` runs per task, or in this process
+    (``no_dask``); ``progress`` on standard error; at most ``max_new_runs`` new runs (None: all).  The
+    experiment, ``runs`` and ``out`` are required (None only for ``inscal montecarlo --list``)."""
+
+    experiment: Annotated[str | None, typer.Argument(help=(
+        "built-in experiment (n25-fig5, n25-schemes); --list shows them"))] = None
+    runs: Annotated[int | None, typer.Option("--runs", "-n", help="runs per configuration point")] = None
+    out: out_option("study folder (results, summary, plot); rerun to resume", required=False) = None
+    seed: Annotated[int, typer.Option("--seed", metavar="SEED", help=(
+        "root seed: run i uses SeedSequence(seed).spawn(total)[i]"))] = 0
+    params: dict | None = None  # --set KEY=VALUE (parse_set)
+    scheduler: option("--scheduler", "Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'",
+                      str) = None
+    workers: WorkersOption = None
+    batch_size: option("--batch-size", "runs per Dask task (default: about 4 tasks per worker, at most 25)", int) = None
+    no_dask: Annotated[bool, typer.Option("--no-dask", help="run in this process, one run after another")] = False
+    force: Annotated[bool, typer.Option("--force", help="discard a different study found in --out")] = False
+    progress: bool = True
+    max_new_runs: int | None = None
+
+
+def run_montecarlo(o: MonteCarloOptions) -> tuple[dict, object, object]:
+    """Run or resume the study of ``o`` (:class:`MonteCarloOptions`) and write its summary; returns (summary
+    dict, Summary, paths)."""
     from inscal.analysis import montecarlo as mc
     from inscal.analysis import studies
 
-    scheduler = check_scheduler(scheduler, ("local", "synchronous", "sync"))
-    if no_dask:
+    scheduler = check_scheduler(o.scheduler, ("local", "synchronous", "sync"))
+    if o.no_dask:
         if scheduler not in (None, "synchronous", "sync"):
             raise CliError("--no-dask and --scheduler ADDRESS contradict each other")
         scheduler = "synchronous"
-    if workers is not None and scheduler not in (None, "local"):
+    if o.workers is not None and scheduler not in (None, "local"):
         raise CliError("--workers applies to the default LocalCluster only")
     try:
-        exp = studies.get_experiment(experiment, params)
+        exp = studies.get_experiment(o.experiment, o.params)
     except mc.StudyError as exc:
         raise CliError(str(exc)) from None
-    check_size(exp, runs, scheduler, workers)
+    check_size(exp, o.runs, scheduler, o.workers)
     try:
-        res = mc.run_study(exp, out, runs, seed, scheduler=scheduler, workers=workers, batch_size=batch_size,
-                           force=force, progress=progress, max_new_runs=max_new_runs)
+        res = mc.run_study(exp, o.out, o.runs, o.seed, scheduler=scheduler, workers=o.workers,
+                           batch_size=o.batch_size, force=o.force, progress=o.progress, max_new_runs=o.max_new_runs)
         summ = mc.summarize(exp, res)
-        paths = mc.write_outputs(exp, summ, out)
+        paths = mc.write_outputs(exp, summ, o.out)
     except mc.StudyError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
-        raise CliError(f"cannot write the study in {short(out)}: {exc.strerror or exc}") from None
+        raise CliError(f"cannot write the study in {short(o.out)}: {exc.strerror or exc}") from None
     d = summ.to_dict()
-    d["out"] = str(out)
-    d["files"] = {k: str(v) for k, v in {**paths, "runs": Path(out) / mc.RUNS_FILE}.items()}
+    d["out"] = str(o.out)
+    d["files"] = {k: str(v) for k, v in {**paths, "runs": Path(o.out) / mc.RUNS_FILE}.items()}
     d["new_runs"] = res.n_new
     d["wall_s"] = round(res.elapsed_s, 3)
     d["complete"] = res.complete()
@@ -135,20 +160,14 @@ def run_montecarlo(experiment: str, runs: int, out: Path, seed: int = 0, params:
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_options(MonteCarloOptions, before="set_")
     def montecarlo(
-        experiment: str = typer.Argument(None, help="built-in experiment (n25-fig5, n25-schemes); --list shows them"),
-        runs: int = typer.Option(None, "--runs", "-n", help="runs per configuration point"),
-        out: Path = typer.Option(None, "--out", "-o", help="study folder (results, summary, plot); rerun to resume"),
-        seed: int = typer.Option(0, "--seed", metavar="SEED", help="root seed: run i uses SeedSequence(seed).spawn(total)[i]"),
-        set_: list[str] = typer.Option(None, "--set", metavar="NAME=VALUE", help="experiment parameter KEY=VALUE (VALUE as JSON), repeatable"),
-        scheduler: str = typer.Option(None, help="Dask scheduler address, 'local' (default: a LocalCluster) or 'synchronous'"),
-        workers: int = typer.Option(None, help="LocalCluster worker processes (default: CPU cores)"),
-        batch_size: int = typer.Option(None, "--batch-size", help="runs per Dask task (default: about 4 tasks per worker, at most 25)"),
-        no_dask: bool = typer.Option(False, "--no-dask", help="run in this process, one run after another"),
-        force: bool = typer.Option(False, "--force", help="discard a different study found in --out"),
+        set_: Annotated[list[str] | None, typer.Option("--set", metavar="NAME=VALUE", help=(
+            "experiment parameter KEY=VALUE (VALUE as JSON), repeatable"))] = None,
         json_: JsonOption = False,
         no_progress: NoProgressOption = False,
         list_: bool = typer.Option(False, "--list", help="list the built-in experiments and their parameters"),
+        **options,
     ):
         """Seeded Monte Carlo study of a calibration experiment, resumable, on Dask."""
         from inscal.analysis import studies
@@ -162,11 +181,11 @@ def register(app: typer.Typer) -> None:
                 for k, v in info.items():
                     typer.echo(f"{k}: {v['description']}\n    defaults: {json.dumps(v['defaults'])}")
             return
-        if experiment is None or runs is None or out is None:
+        if None in (options["experiment"], options["runs"], options["out"]):
             raise fail("EXPERIMENT, --runs and --out are required (or --list)")
         try:
-            d, summ, _ = run_montecarlo(experiment, runs, out, seed, parse_set(set_), scheduler, workers, batch_size,
-                                        no_dask, force, progress=not (no_progress or json_))
+            d, summ, _ = run_montecarlo(options_of(MonteCarloOptions, options, params=parse_set(set_),
+                                                   progress=not (no_progress or json_)))
         except CliError as exc:
             raise fail(str(exc)) from None
         except KeyboardInterrupt:

@@ -3,8 +3,10 @@ from the path alone (no data).  See :mod:`inscal.plan.observability`."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -19,9 +21,12 @@ from inscal.cli.options import (
     SeedOption,
     arw_option,
     noise_option,
+    option,
+    options_of,
     states_option,
     station_option,
     vrw_option,
+    with_options,
 )
 
 def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, arw: float | None = None,
@@ -40,9 +45,6 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
         observability_bytes,
     )
 
-    for name, v in (("--rate-hz", rate_hz), ("--arw", arw), ("--vrw", vrw)):
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise CliError(f"{name} must be a positive number, got {v:g}")
     try:  # the size first: the simulation is held in memory, and the filter's per-step stores
         sc, _, label = load_source(source)
         st = StateSet.parse(states)
@@ -65,17 +67,43 @@ def run_observability(source: str, states: str = "51", rate_hz: float = 20.0, ar
         raise CliError(str(exc)) from None
 
 
-def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: float | None = None,
-             filter_rate_hz: float = 1.0, gyro_bi: float | None = None, accel_bi: float | None = None,
-             bi_tau: float = 3600.0, gyro_rrw: float | None = None, accel_rrw: float | None = None,
-             t_ref: float | None = None, noise=None, station=None):
-    """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``source``.  Field units:
-    ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a Gauss-Markov process
-    ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
+@dataclass(frozen=True)
+class CrlbOptions:
+    """What ``inscal observability --crlb`` is asked: the Cramér-Rao bound of ``source`` for the ``states`` set
+    at ``filter_rate_hz``.  Field units: ``arw`` deg/sqrt(h), ``vrw`` ug/sqrt(Hz); bias instability as a
+    Gauss-Markov process ``gyro_bi`` deg/h, ``accel_bi`` ug with correlation time ``bi_tau`` s, or a random walk
     ``gyro_rrw`` deg/h/sqrt(h), ``accel_rrw`` ug/sqrt(s); ``t_ref`` degC (thermal states).  ``noise``: a
     noise.toml whose white, Gauss-Markov and random-walk terms are the bound's noise
     (:func:`inscal.plan.noise_model.bound_noise`), instead of those options.  ``station``: a station
-    (:class:`inscal.uncertainty.station.Station`): the bound at its site, carrying the site and clock sensitivities."""
+    (:class:`inscal.uncertainty.station.Station`): the bound at its site, carrying the site and clock
+    sensitivities."""
+
+    source: Annotated[str, typer.Argument(metavar="PATH_OR_SCENARIO", help=(
+        "built-in scenario (s16, psins19, n25, ...) or path (s16-table1, n25-twelve, ...), a scenario TOML, or a "
+        "path TOML (a [path] table)"))]
+    states: states_option("state set: 51 | 30, options ,lever9 ,async ,psins, ,thermal (or ,thermal=GSABR: "
+                          "needs a temperature profile)") = "51"
+    arw: arw_option("the scenario's, else S16's 5e-5") = None
+    vrw: vrw_option("the scenario's, else S16's 1") = None
+    filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0
+    gyro_bi: option("--gyro-bi", "with --crlb: gyro bias instability, Gauss-Markov sigma [deg/h]",
+                    metavar="DEG/H") = None
+    accel_bi: option("--accel-bi", "with --crlb: accelerometer bias instability, Gauss-Markov sigma [ug]",
+                     metavar="UG") = None
+    bi_tau: Annotated[float, typer.Option("--bi-tau", metavar="SECONDS", help=(
+        "with --crlb: correlation time of the bias instability [s]"))] = 3600.0
+    gyro_rrw: option("--gyro-rrw", "with --crlb: gyro bias random walk [deg/h/sqrt(h)]", metavar="DEG/H/SQRT(H)") = None
+    accel_rrw: option("--accel-rrw", "with --crlb: accelerometer bias random walk [ug/sqrt(s)]",
+                      metavar="UG/SQRT(S)") = None
+    t_ref: option("--t-ref", "reference temperature of the thermal states [degC] (default: the scenario's thermal "
+                  "model's, else 20)", metavar="DEGC") = None
+    noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
+                        "Gauss-Markov and random-walk terms are the bound's noise") = None
+    station: object = None  # a Station (read from --station FILE.toml)
+
+
+def run_crlb(o: CrlbOptions):
+    """The Cramér-Rao bound (:func:`inscal.plan.bound.crlb`) of ``o.source`` (the options: :class:`CrlbOptions`)."""
     from inscal.calibrate.systematic.states import StateSet
     from inscal.calibrate.windows import CalibrationError
     from inscal.core import units
@@ -83,49 +111,42 @@ def run_crlb(source: str, states: str = "51", arw: float | None = None, vrw: flo
     from inscal.plan.observability import ObservabilityError, load_source
     from inscal.plan.rows import BiasNoise, BoundError
 
-    for name, v in (("--arw", arw), ("--vrw", vrw), ("--filter-rate-hz", filter_rate_hz), ("--bi-tau", bi_tau)):
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise CliError(f"{name} must be a positive number, got {v:g}")
-    for name, v in (("--gyro-bi", gyro_bi), ("--accel-bi", accel_bi), ("--gyro-rrw", gyro_rrw),
-                    ("--accel-rrw", accel_rrw)):
-        if v is not None and not (math.isfinite(v) and v >= 0):
-            raise CliError(f"{name} must be a number >= 0, got {v:g}")
     model_noise = None
-    if noise is not None:
-        model_noise = _model_noise(noise, arw, vrw, gyro_bi, accel_bi, gyro_rrw, accel_rrw)
+    if o.noise is not None:
+        model_noise = _model_noise(o.noise, o.arw, o.vrw, o.gyro_bi, o.accel_bi, o.gyro_rrw, o.accel_rrw)
     try:  # the size first: memory does not grow with the steps (no history kept), the time does
-        sc, _, label = load_source(source)
+        sc, _, label = load_source(o.source)
     except ObservabilityError as exc:
         raise CliError(str(exc)) from None
     try:
-        st = StateSet.parse(states)
+        st = StateSet.parse(o.states)
     except CalibrationError:
         st = None  # crlb() names the bad state set
-    _check_t_ref(t_ref, st)
+    _check_t_ref(o.t_ref, st)
     dur = sc.path.duration
-    steps = bound_steps(dur, filter_rate_hz)
-    check_count(steps, MAX_STEPS, f"--filter-rate-hz {filter_rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} "
+    steps = bound_steps(dur, o.filter_rate_hz)
+    check_count(steps, MAX_STEPS, f"--filter-rate-hz {o.filter_rate_hz:g} over the {dur:.4g} s path of {short(label, 60)} "
                 f"is {steps:.3g} filter steps, about {human_seconds(steps * STEP_SECONDS)} of CPU",
                 "lower --filter-rate-hz (1 Hz is the systematic filter's rate) or take a shorter path")
     bias = None
-    if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+    if any(v is not None for v in (o.gyro_bi, o.accel_bi, o.gyro_rrw, o.accel_rrw)):
         per_sqrt_h = 1.0 / math.sqrt(3600.0)  # x per sqrt(h) = x / 60 per sqrt(s)
-        bias = BiasNoise(gyro_rw=units.to_si(gyro_rrw or 0.0, "deg/h") * per_sqrt_h,
-                         accel_rw=units.to_si(accel_rrw or 0.0, "ug"),
-                         gyro_gm=units.to_si(gyro_bi or 0.0, "deg/h"), gyro_tau=bi_tau,
-                         accel_gm=units.to_si(accel_bi or 0.0, "ug"), accel_tau=bi_tau)
-    arw_si = None if arw is None else units.to_si(arw, "deg/sqrt(h)")
-    vrw_si = None if vrw is None else units.to_si(vrw, "ug/sqrt(Hz)")
+        bias = BiasNoise(gyro_rw=units.to_si(o.gyro_rrw or 0.0, "deg/h") * per_sqrt_h,
+                         accel_rw=units.to_si(o.accel_rrw or 0.0, "ug"),
+                         gyro_gm=units.to_si(o.gyro_bi or 0.0, "deg/h"), gyro_tau=o.bi_tau,
+                         accel_gm=units.to_si(o.accel_bi or 0.0, "ug"), accel_tau=o.bi_tau)
+    arw_si = None if o.arw is None else units.to_si(o.arw, "deg/sqrt(h)")
+    vrw_si = None if o.vrw is None else units.to_si(o.vrw, "ug/sqrt(Hz)")
     if model_noise is not None:
         arw_si, vrw_si, bias, _ = model_noise
     extra = {}
-    if station is not None:
+    if o.station is not None:
         from inscal.uncertainty.before_run import consider_u, station_site
 
-        extra = {"consider": consider_u(station), "site": station_site(sc.site, station)}
+        extra = {"consider": consider_u(o.station), "site": station_site(sc.site, o.station)}
     try:
-        return crlb(source, states, arw=arw_si, vrw=vrw_si, bias_noise=bias,
-                    filter_rate_hz=filter_rate_hz, keep_history=False, t_ref=t_ref, **extra)
+        return crlb(o.source, o.states, arw=arw_si, vrw=vrw_si, bias_noise=bias,
+                    filter_rate_hz=o.filter_rate_hz, keep_history=False, t_ref=o.t_ref, **extra)
     except BoundError as exc:
         raise CliError(str(exc)) from None
 
@@ -198,31 +219,11 @@ def _simulated(source: str, st, method: str, seed: int, full: bool, json_: bool,
 
 def register(app: typer.Typer) -> None:
     @app.command("observability")
+    @with_options(CrlbOptions, before="rate_hz")
     def observability_cmd(
-        source: str = typer.Argument(..., metavar="PATH_OR_SCENARIO",
-                                     help="built-in scenario (s16, psins19, n25, ...) or path (s16-table1, "
-                                          "n25-twelve, ...), a scenario TOML, or a path TOML (a [path] table)"),
-        states: states_option("state set: 51 | 30, options ,lever9 ,async ,psins, ,thermal (or ,thermal=GSABR: "
-                              "needs a temperature profile)") = "51",
         rate_hz: Annotated[float, typer.Option("--rate-hz", help="rate of the noise-free simulation [Hz]")] = 20.0,
-        arw: arw_option("the scenario's, else S16's 5e-5") = None,
-        vrw: vrw_option("the scenario's, else S16's 1") = None,
         crlb: bool = typer.Option(False, "--crlb", help="print the Cramér-Rao bound of every parameter (fast, "
                                                         "from the path kinematics; no simulation)"),
-        filter_rate_hz: Annotated[float, typer.Option("--filter-rate-hz", help="filter rate of the bound [Hz]")] = 1.0,
-        gyro_bi: float = typer.Option(None, "--gyro-bi", metavar="DEG/H", help="with --crlb: gyro bias instability, Gauss-Markov "
-                                                              "sigma [deg/h]"),
-        accel_bi: float = typer.Option(None, "--accel-bi", metavar="UG", help="with --crlb: accelerometer bias instability, "
-                                                                "Gauss-Markov sigma [ug]"),
-        bi_tau: float = typer.Option(3600.0, "--bi-tau", metavar="SECONDS", help="with --crlb: correlation time of the bias "
-                                                              "instability [s]"),
-        gyro_rrw: float = typer.Option(None, "--gyro-rrw", metavar="DEG/H/SQRT(H)", help="with --crlb: gyro bias random walk [deg/h/sqrt(h)]"),
-        accel_rrw: float = typer.Option(None, "--accel-rrw", metavar="UG/SQRT(S)", help="with --crlb: accelerometer bias random walk "
-                                                                  "[ug/sqrt(s)]"),
-        t_ref: float = typer.Option(None, "--t-ref", metavar="DEGC", help="reference temperature of the thermal states [degC] "
-                                                          "(default: the scenario's thermal model's, else 20)"),
-        noise: noise_option("with --crlb: an identified noise model (noise.toml of inscal noise): its white, "
-                            "Gauss-Markov and random-walk terms are the bound's noise") = None,
         station: station_option("with --crlb: a station description (station.toml): the bound at its site, and "
                                 "the uncertainty budget the path promises with its inputs (which dominate, before "
                                 "the run)", Path) = None,
@@ -236,9 +237,12 @@ def register(app: typer.Typer) -> None:
             "for this path at this station?)"))] = None,
         mc_workers: McWorkersOption = 1,
         json_: JsonOption = False,
+        **options,
     ):
         """Observability of the systematic filter's states on a rotation path, without data: posterior /
         prior σ per state and the SVD of the observability matrix."""
+        o = options_of(CrlbOptions, options)
+        source = o.source
         if crlb:
             from inscal.cli.bound_budget import read_station_option
 
@@ -249,8 +253,7 @@ def register(app: typer.Typer) -> None:
             if mc is not None:
                 raise fail("--mc needs --method (the Monte Carlo of a window-mean method's budget; the filter's site "
                            "and clock enter it linearly)")
-            b = call(run_crlb, source, states, arw, vrw, filter_rate_hz, gyro_bi, accel_bi, bi_tau, gyro_rrw, accel_rrw,
-                         t_ref, noise, st)
+            b = call(run_crlb, dataclasses.replace(o, station=st))
             bud = None
             if st is not None:
                 from inscal.uncertainty.before_run import bound_budget, dominant_inputs
@@ -269,15 +272,15 @@ def register(app: typer.Typer) -> None:
             return
         if station is not None or full or method is not None or mc is not None:
             raise fail("--station, --full, --method and --mc apply to the bound (--crlb)")
-        if noise is not None:
+        if o.noise is not None:
             raise fail("--noise applies to the bound (--crlb)")
-        if any(v is not None for v in (gyro_bi, accel_bi, gyro_rrw, accel_rrw)):
+        if any(v is not None for v in (o.gyro_bi, o.accel_bi, o.gyro_rrw, o.accel_rrw)):
             raise fail("--gyro-bi, --accel-bi, --gyro-rrw and --accel-rrw need --crlb (the systematic filter has no "
                        "bias process noise)")
-        if filter_rate_hz != 1.0 or bi_tau != 3600.0:
+        if o.filter_rate_hz != 1.0 or o.bi_tau != 3600.0:
             raise fail("--filter-rate-hz and --bi-tau apply to the bound (--crlb); the observability analysis runs at "
                        "--rate-hz")
-        rep = call(run_observability, source, states, rate_hz, arw, vrw, t_ref)
+        rep = call(run_observability, source, o.states, rate_hz, o.arw, o.vrw, o.t_ref)
         if json_:
             print_json(rep.to_dict())
             return

@@ -11,6 +11,9 @@ type (:func:`metavar_of`), so that no help shows a type name (``<str>``) or a va
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
+import typing
 from pathlib import Path
 from typing import Annotated
 
@@ -23,41 +26,44 @@ from inscal.cli.common import CliError, fail
 DB_HELP = ("calibration database: a file (SQLite) or postgresql://USER@HOST/NAME (default: $INSCAL_DB, else "
            "calib.sqlite)")
 
+
+def option(name: str, help: str, kind: type = float, metavar: str | None = None) -> object:
+    """An option that is None unless given, of type ``kind`` (its metavar from :func:`metavar_of` unless
+    ``metavar``): ``cable_wrap: option("--cable-wrap", "largest net rotation of each axis [deg]", metavar="DEG")
+    = None`` in a command's options dataclass."""
+    return Annotated[kind | None, typer.Option(name, metavar=metavar, help=help)]
+
+
 # --------------------------------------------------------------------------- shared by many commands
 JsonOption = Annotated[bool, typer.Option("--json", help="print the result as JSON (one document on stdout)")]
 ForceOption = Annotated[bool, typer.Option("--force", help="overwrite existing outputs")]
 DbOption = Annotated[str | None, typer.Option("--db", metavar="DB", help=DB_HELP)]
-WaitOption = Annotated[float | None, typer.Option("--wait", metavar="SECONDS", help=(
-    "seconds to wait for another writer of the database (default: refused after 2 s, naming it)"))]
+WaitOption = option("--wait", "seconds to wait for another writer of the database (default: refused after 2 s, naming "
+                    "it)", metavar="SECONDS")
 SeedOption = Annotated[int, typer.Option("--seed", metavar="SEED", help=(
     "seed of the random draws (>= 0; the same seed gives the same result)"))]
 ParamsOption = Annotated[Path | None, typer.Option("--params", "-p", metavar="PARAMS.toml", help=(
     "calibration parameter file (TOML, from inscal calibrate)"))]
-SerialOption = Annotated[str | None, typer.Option("--serial", metavar="SERIAL", help=(
-    "record the result in the calibration database as a calibration of this unit (registered with inscal db add)"))]
-OperatorOption = Annotated[str | None, typer.Option("--operator", metavar="NAME", help="who ran the calibration")]
-DateOption = Annotated[str | None, typer.Option("--date", metavar="DATE", help=(
-    "when the record was taken, YYYY-MM-DD or ISO time (UTC; default: the record's creation time)"))]
-TemperatureCOption = Annotated[float | None, typer.Option("--temperature-c", metavar="DEGC", help=(
-    "the IMU's temperature during the run [deg C]"))]
-SupersedesOption = Annotated[int | None, typer.Option("--supersedes", metavar="RESULT", help=(
-    "id of an earlier result this one replaces (e.g. the same record calibrated again)"))]
-ResultOption = Annotated[int | None, typer.Option("--result", metavar="RESULT", help=(
-    "this result id (default: the unit's current calibration)"))]
+SerialOption = option("--serial", "record the result in the calibration database as a calibration of this unit "
+                      "(registered with inscal db add)", str, "SERIAL")
+OperatorOption = option("--operator", "who ran the calibration", str, "NAME")
+DateOption = option("--date", "when the record was taken, YYYY-MM-DD or ISO time (UTC; default: the record's creation "
+                    "time)", str, "DATE")
+TemperatureCOption = option("--temperature-c", "the IMU's temperature during the run [deg C]", metavar="DEGC")
+SupersedesOption = option("--supersedes", "id of an earlier result this one replaces (e.g. the same record calibrated "
+                          "again)", int, "RESULT")
+ResultOption = option("--result", "this result id (default: the unit's current calibration)", int, "RESULT")
 SerialArgument = Annotated[str, typer.Argument(metavar="SERIAL", help="the unit's serial number")]
 KOption = Annotated[float, typer.Option("--k", "-k", metavar="K", help=(
     "flag a parameter that moved more than k sigma"))]
-TemperatureOption = Annotated[float | None, typer.Option("--temperature", metavar="DEGC", help=(
-    "constant temperature in degC for the parameter file's thermal model (a record without /temperature; in place "
-    "of the record's readings otherwise)"))]
+TemperatureOption = option("--temperature", "constant temperature in degC for the parameter file's thermal model (a "
+                           "record without /temperature; in place of the record's readings otherwise)", metavar="DEGC")
 NoProgressOption = Annotated[bool, typer.Option("--no-progress", help="no progress bar or progress lines")]
-WorkersOption = Annotated[int | None, typer.Option("--workers", metavar="N", help=(
-    "worker processes of the local Dask cluster (default: the CPU cores)"))]
+WorkersOption = option("--workers", "worker processes of the local Dask cluster (default: the CPU cores)", int, "N")
 McWorkersOption = Annotated[int, typer.Option("--mc-workers", metavar="N", help=(
     "Dask workers of the budget's Monte Carlo (1: this process)"))]
-McOption = Annotated[int | None, typer.Option("--mc", metavar="N", help=(
-    "with --station: the budget's JCGM 101 Monte Carlo, at most N trials (adaptive: it stops when every "
-    "component's linear interval is validated or not; e.g. 10000)"))]
+McOption = option("--mc", "with --station: the budget's JCGM 101 Monte Carlo, at most N trials (adaptive: it stops "
+                  "when every component's linear interval is validated or not; e.g. 10000)", int, "N")
 FilterRateOption = Annotated[float, typer.Option("--filter-rate-hz", metavar="HZ", help=(
     "systematic: filter update rate [Hz]"))]
 
@@ -65,19 +71,19 @@ FilterRateOption = Annotated[float, typer.Option("--filter-rate-hz", metavar="HZ
 METHODS_HELP = ("six-position | twelve-position | n25 | joint | systematic51 | systematic30 | unified | "
                 "thermal-plateaus (a turntable record) | multi-position | ferraris (no turntable: still poses at "
                 "unknown orientations; six faces and three whole turns)")
-SettleOption = Annotated[float | None, typer.Option("--settle-s", metavar="SECONDS", help=(
-    "settling time dropped at both ends of each window [s] (default 1; multi-position, ferraris: 0.25)"))]
-MinStaticOption = Annotated[float | None, typer.Option("--min-static-s", metavar="SECONDS", help=(
-    "shortest static window used [s] (default 20; multi-position: 1; ferraris: 2)"))]
-EncoderSigmaOption = Annotated[float | None, typer.Option("--encoder-sigma", metavar="ARCSEC", help=(
-    "unified / gimbal states: white noise of each encoder angle [arcsec] (default 1)"))]
+SettleOption = option("--settle-s", "settling time dropped at both ends of each window [s] (default 1; "
+                      "multi-position, ferraris: 0.25)", metavar="SECONDS")
+MinStaticOption = option("--min-static-s", "shortest static window used [s] (default 20; multi-position: 1; ferraris: "
+                         "2)", metavar="SECONDS")
+EncoderSigmaOption = option("--encoder-sigma", "unified / gimbal states: white noise of each encoder angle [arcsec] "
+                            "(default 1)", metavar="ARCSEC")
 EncoderLatencyOption = Annotated[float, typer.Option("--encoder-latency", metavar="SECONDS", help=(
     "shift the encoder angles by this many seconds before calibrating (> 0: encoders that lag the IMU)"))]
 SkipEncoderCheckOption = Annotated[bool, typer.Option("--skip-encoder-check", help=(
     "calibrate even when the encoder angles do not follow the gyros"))]
-CalibrationNoiseOption = Annotated[Path | None, typer.Option("--noise", metavar="NOISE.toml", help=(
-    "systematic: an identified noise model (noise.toml of inscal noise): its white terms weight the filter, its "
-    "Gauss-Markov terms become bias states"))]
+CalibrationNoiseOption = option("--noise", "systematic: an identified noise model (noise.toml of inscal noise): its "
+                                "white terms weight the filter, its Gauss-Markov terms become bias states", Path,
+                                "NOISE.toml")
 
 
 def method_option(help: str = METHODS_HELP) -> object:
@@ -219,11 +225,45 @@ class Command(TyperCommand):
             self.help, self.epilog = text, epilog
 
 
-def options_of(cls, params: dict, **extra):
+def options_of(cls, params: dict, /, **extra):
     """``cls`` (a dataclass of a command's options) from the command's parameters by field name (``params``:
     the click context's, or the function's locals), with ``extra`` fields set or overriding."""
     names = {f.name for f in dataclasses.fields(cls)}
     return cls(**({k: v for k, v in params.items() if k in names} | extra))
+
+
+def with_options(block, before: str):
+    """A command's decorator: the command takes the options of the dataclass ``block`` as well, declared once by
+    its fields (their ``Annotated`` option types and defaults; a field without one is not an option; the
+    class's own fields before those of its bases), shown in the help before the command's own parameter
+    ``before`` and handed to the command in its ``**`` parameter (:func:`options_of` then builds the options
+    object from them)."""
+    def decorate(command):
+        hints = typing.get_type_hints(block, include_extras=True)
+        empty = inspect.Parameter.empty
+        own_first = sorted(dataclasses.fields(block), key=lambda f: f.name not in vars(block).get("__annotations__", {}))
+        shared = [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=hints[f.name],
+                                    default=empty if f.default is dataclasses.MISSING else f.default)
+                  for f in own_first if _declared(hints[f.name])]
+        own = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
+               for p in inspect.signature(command, eval_str=True).parameters.values()
+               if p.kind is not inspect.Parameter.VAR_KEYWORD]
+        at = [p.name for p in own].index(before)
+        params = own[:at] + shared + own[at:]
+
+        @functools.wraps(command)
+        def run(**given):
+            return command(**given)
+
+        run.__signature__ = inspect.Signature(params)
+        run.__annotations__ = {p.name: p.annotation for p in params}
+        return run
+    return decorate
+
+
+def _declared(hint) -> bool:
+    """Whether a type is an option's or argument's declaration (``Annotated[..., typer.Option(...)]``)."""
+    return any(isinstance(m, typer.models.ParameterInfo) for m in getattr(hint, "__metadata__", ()))
 
 
 def _flag(option):

@@ -66,11 +66,12 @@ def _n25_methods(tmp: Path) -> None:
 
 
 def _bound(tmp: Path) -> None:
-    from inscal.cli.design import run_design
-    from inscal.cli.observability import run_crlb
+    from inscal.cli.design import DesignOptions, run_design
+    from inscal.cli.observability import CrlbOptions, run_crlb
 
-    run_crlb(str(tmp / "s16.toml"))
-    run_design(tmp / "designed.toml", 3.0, candidates=2, population=2, scheduler="none", force=True, progress=False)
+    run_crlb(CrlbOptions(str(tmp / "s16.toml")))
+    run_design(DesignOptions(tmp / "designed.toml", 3.0, candidates=2, population=2, scheduler="none", force=True,
+                             progress=False))
 
 
 def _navigate(tmp: Path) -> None:
