@@ -2,8 +2,8 @@
 lines, the files it leaves, its peak memory), not the interpreter's start: one child process imports the
 command line and every module of the package once, then forks a grandchild per command, which runs
 ``inscal.cli.main`` with its own arguments, folder, stdout and stderr files (the real signal handlers, the
-real exit), and reports ``(exit code, peak RSS in bytes, seconds from fork to exit, CPU seconds)``.  A start costs about
-1 s of CPU; a fork a few milliseconds.
+real exit), and reports ``(exit code, peak RSS in bytes, seconds from fork to exit, CPU seconds)``.  A start
+costs about 2 s of CPU; a fork a few milliseconds.
 
 POSIX only (``os.fork``); the server runs with one BLAS thread, as the suite does, so that forking is safe."""
 
@@ -101,8 +101,8 @@ D.published = L.published = _hook("clear", D.published)  # every file in place, 
 
 
 class ForkServer:
-    """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds", "cpu"}``; the command's
-    stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
+    """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds", "cpu"}``; the
+    command's stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
     command (:class:`Forked`: its pid, to signal it) instead; one command at a time per server.  ``warm``:
     Python code the server runs once before its first fork (e.g. a calibration, so that every command finds
     the numba kernels it runs loaded already)."""
