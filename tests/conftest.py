@@ -36,28 +36,30 @@ from inscal.sim.simulate import simulate
 
 #: the test files that take longest (seconds of one worker, ``--durations=0`` of the whole suite on 2 cores,
 #: OpenBLAS on one thread), longest first: they start first, so that the workers of ``make test``
-#: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them
+#: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them.
+#: The command-line files that fork their commands share the worker's fork servers (tests/cli/conftest.py's
+#: ``fork_servers``): the first of them on a worker starts them (~2 s of CPU each), the others do not
 LONGEST = (
     "paper/test_systematic_stats.py",  # 8 s (10 seeds; the 50 in bench/systematic_stats.py)
     "oracles/test_robust_sweep.py",  # 36 s
     "cli/test_signals_under_load.py",  # 23 s
     "cli/test_concurrent_writers.py",  # 20 s
     "cli/test_site_pages.py",  # 26 s (the landing tour, the own-record page, the table-free sessions, the noise guide)
-    "cli/test_db_cli.py",  # 19 s
+    "cli/test_db_cli.py",  # 17 s (the guide's block forked, no script start)
     "io/test_encoders.py",  # 18 s (the n25 imports made once for the module)
     "cli/test_db_transactions.py",  # 17 s (fault injection through a fork server)
     "analysis/test_montecarlo.py",  # 17 s (the runner's two LocalCluster tests share one cluster)
     "cli/test_readme_block_0.py",  # 18 s
     "calibrate/test_noise_matrix.py",  # 18 s
     "calibrate/test_selection.py",  # 16 s
-    "cli/test_readme_block_2.py",  # 16 s
+    "cli/test_readme_block_2.py",  # 14 s (no script start: part 0 runs the entry point)
     "lab/test_batch.py",  # 14 s (the run after the kill in the process)
-    "cli/test_memory_caps.py",  # 13 s
     "oracles/test_oracle_calibration.py",  # 10 s (the second noise-free seed: the CLI's run only)
     "oracles/test_methods_into_lab.py",  # 12 s (every table-free and window method through every lab path)
     "cli/test_hardening_round4.py",  # 10 s
     "oracles/test_handheld_consumer.py",  # 9 s (consumer-MEMS sessions: tremor, saturation)
-    "cli/test_calibrate_caps.py",  # 9 s
+    "cli/test_memory_caps.py",  # 9 s (the two interrupts forked: no interpreter start each)
+    "cli/test_calibrate_caps.py",  # 7 s (the interrupt forked)
     "cli/test_demo_html.py",  # 9 s
     "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)

@@ -2,9 +2,22 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
+from forkserver import ServerPool
 
 from inscal.uncertainty import sensitivity as S
+
+
+@pytest.fixture(scope="session")
+def fork_servers():
+    """The fork servers (:class:`forkserver.ServerPool`) of this test process, shared by the command-line
+    tests that run commands in forks: ``fork_servers.get(k)``.  Started unbuffered (the signal tests read a
+    killed command's lines); a test's ``COLUMNS`` or ``PATH`` goes with each of its commands."""
+    pool = ServerPool(dict(os.environ, PYTHONUNBUFFERED="1"))
+    yield pool
+    pool.close()
 
 
 @pytest.fixture()

@@ -2,8 +2,8 @@
 lines, the files it leaves, its peak memory), not the interpreter's start: one child process imports the
 command line and every module of the package once, then forks a grandchild per command, which runs
 ``inscal.cli.main`` with its own arguments, folder, stdout and stderr files (the real signal handlers, the
-real exit), and reports ``(exit code, peak RSS in bytes, seconds from fork to exit)``.  A start costs about
-1 s of CPU; a fork a few milliseconds.
+real exit), and reports ``(exit code, peak RSS in bytes, seconds from fork to exit, CPU seconds)``.  A start
+costs about 2 s of CPU; a fork a few milliseconds.
 
 POSIX only (``os.fork``); the server runs with one BLAS thread, as the suite does, so that forking is safe."""
 
@@ -38,6 +38,9 @@ for line in sys.stdin:
         code = 1
         try:
             os.chdir(req["cwd"])
+            if req.get("environ") is not None:  # the command's whole environment, not the server's plus env
+                os.environ.clear()
+                os.environ.update(req["environ"])
             os.environ.update(req["env"])
             fds = [os.open(os.devnull, os.O_RDONLY)] + [os.open(req[k], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
                                                         for k in ("stdout", "stderr")]
@@ -73,7 +76,8 @@ for line in sys.stdin:
             rc = None
             break
         time.sleep(0.002)
-    print(json.dumps({"rc": rc, "rss": ru.ru_maxrss * 1024, "seconds": time.monotonic() - t0}), flush=True)
+    print(json.dumps({"rc": rc, "rss": ru.ru_maxrss * 1024, "seconds": time.monotonic() - t0,
+                      "cpu": ru.ru_utime + ru.ru_stime}), flush=True)
 """
 
 
@@ -97,8 +101,8 @@ D.published = L.published = _hook("clear", D.published)  # every file in place, 
 
 
 class ForkServer:
-    """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds"}``; the command's
-    stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
+    """``with ForkServer(env) as fs: fs.run(args, cwd, logs)`` -> ``{"rc", "rss", "seconds", "cpu"}``; the
+    command's stdout and stderr are in ``logs/stdout`` and ``logs/stderr``.  ``fs.start(...)`` returns the running
     command (:class:`Forked`: its pid, to signal it) instead; one command at a time per server.  ``warm``:
     Python code the server runs once before its first fork (e.g. a calibration, so that every command finds
     the numba kernels it runs loaded already)."""
@@ -111,34 +115,52 @@ class ForkServer:
         # whether the running command's reply is there
         self.proc = subprocess.Popen([sys.executable, "-c", SERVER, *([warm] if warm else [])], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      bufsize=0, env=env)
+        self.pending = 0  # commands sent whose end the server has not replied yet
+        self.last_pid: int | None = None  # the last command started (``start``)
         ready = self.proc.stdout.readline()
         if ready.strip() != b"ready":
             self.close()
             raise RuntimeError(f"the fork server did not start: {ready!r}")
 
-    def _send(self, args, cwd: Path, logs: Path, timeout: float, env: dict | None, announce: bool) -> None:
+    def _send(self, args, cwd: Path, logs: Path, timeout: float, env: dict | None, announce: bool,
+              environ: dict | None = None) -> None:
         logs.mkdir(parents=True, exist_ok=True)
         req = {"args": [str(a) for a in args], "cwd": str(cwd), "stdout": str(logs / "stdout"),
-               "stderr": str(logs / "stderr"), "timeout": timeout, "env": dict(env or {}), "announce": announce}
+               "stderr": str(logs / "stderr"), "timeout": timeout, "env": dict(env or {}), "announce": announce,
+               "environ": None if environ is None else dict(environ)}
         data = memoryview((json.dumps(req) + "\n").encode())
         while data:
             data = data[self.proc.stdin.write(data):]
+        self.pending += 1
 
     def reply(self) -> dict:
         line = self.proc.stdout.readline()
         if not line:
             raise RuntimeError("the fork server ended")
-        return json.loads(line)
+        out = json.loads(line)
+        if "rc" in out:
+            self.pending -= 1
+        return out
 
-    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> dict:
-        """``inscal ARGS`` in ``cwd`` (``env``: variables set for this command only)."""
-        self._send(args, cwd, logs, timeout, env, announce=False)
+    def idle(self) -> bool:
+        """Whether the server is running and no command of it is still running (replies already there are
+        read: a test that ended without reading its command's)."""
+        while self.pending and self.proc.poll() is None and select.select([self.proc.stdout], [], [], 0)[0]:
+            self.reply()
+        return self.proc.poll() is None and self.pending == 0
+
+    def run(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None,
+            environ: dict | None = None) -> dict:
+        """``inscal ARGS`` in ``cwd`` (``env``: variables set for this command only; ``environ``: the command's
+        whole environment instead of the server's)."""
+        self._send(args, cwd, logs, timeout, env, announce=False, environ=environ)
         return self.reply()
 
     def start(self, args, cwd: Path, logs: Path, timeout: float = 120.0, env: dict | None = None) -> Forked:
         """``inscal ARGS`` in ``cwd``, running: ``poll()``, ``send_signal()``, ``wait()`` as for a Popen."""
         self._send(args, cwd, logs, timeout, env, announce=True)
-        return Forked(self, self.reply()["pid"], logs)
+        self.last_pid = self.reply()["pid"]
+        return Forked(self, self.last_pid, logs)
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -154,6 +176,39 @@ class ForkServer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class ServerPool:
+    """Fork servers shared by the tests of one process (a session fixture of ``tests/cli/conftest.py``): a
+    server costs ~2 s of CPU to start (the interpreter and every module of the package), a fork a few
+    milliseconds, and a fork is the same whichever test started the server.  ``pool.get(k)``: the ``k``-th
+    server (``k`` = 0, 1: two commands running at a time), started with ``env`` on first use and again if the
+    one before ended or still owes a reply (a test that failed with its command running).  A test's own
+    variables (``COLUMNS``, ``PATH``...) go with each command (``run(..., env=...)``): they are set in the
+    fork, so they must not be in ``env`` (a fork can add a variable, not remove one)."""
+
+    def __init__(self, env: dict | None = None):
+        self.env = dict(os.environ if env is None else env)
+        self.servers: dict[int, ForkServer] = {}
+
+    def get(self, k: int = 0) -> ForkServer:
+        server = self.servers.get(k)
+        if server is None or not server.idle():
+            if server is not None:  # a command still running (its test failed): it and its server end here
+                if server.pending and server.last_pid is not None and server.proc.poll() is None:
+                    try:
+                        os.kill(server.last_pid, signal.SIGKILL)
+                    except ProcessLookupError:
+                        pass
+                server.proc.kill()
+                server.close()
+            server = self.servers[k] = ForkServer(self.env)
+        return server
+
+    def close(self) -> None:
+        for server in self.servers.values():
+            server.close()
+        self.servers.clear()
 
 
 class Forked:
@@ -224,16 +279,17 @@ def plain_words(line: str) -> list[str] | None:
 
 
 class Shell:
-    """Lines of a README block, run in ``folder`` as bash runs them one after another: ``export NAME=VALUE``
-    sets a variable for the lines after it, a plain ``inscal ...`` line runs in a fork of ``server`` (the
-    first such line through the installed ``inscal`` script, so that the entry point is run too), any other
-    line in bash.  ``run(line)`` returns ``(returncode, stdout, stderr)`` as a namespace."""
+    """Lines of a README block, run in ``folder`` as bash runs them one after another, with the variables
+    ``env``: ``export NAME=VALUE`` sets a variable for the lines after it, a plain ``inscal ...`` line runs in a
+    fork of ``server`` (with ``script``, the first such line through the installed ``inscal`` script, so that
+    the entry point is run too: one block of the suite is enough), any other line in bash.  ``run(line)``
+    returns ``(returncode, stdout, stderr)`` as a namespace."""
 
-    def __init__(self, server: ForkServer, folder: Path, env: dict, logs: Path):
+    def __init__(self, server: ForkServer, folder: Path, env: dict, logs: Path, script: bool = True):
         self.server, self.folder, self.env, self.logs = server, folder, dict(env), logs
         self.extra: dict = {}
         self.count = 0
-        self.script_ran = False
+        self.script_ran = not script
 
     def run(self, line: str, timeout: float = 600.0) -> SimpleNamespace:
         words = plain_words(line)
@@ -244,7 +300,7 @@ class Shell:
         if words and words[0] == "inscal" and self.script_ran:
             self.count += 1
             logs = self.logs / f"{self.count:03d}"
-            r = self.server.run(words[1:], self.folder, logs, timeout=timeout, env=self.extra)
+            r = self.server.run(words[1:], self.folder, logs, timeout=timeout, env=self.extra, environ=self.env)
             return SimpleNamespace(returncode=r["rc"], stdout=(logs / "stdout").read_text(),
                                    stderr=(logs / "stderr").read_text())
         self.script_ran = self.script_ran or bool(words and words[0] == "inscal")

@@ -17,7 +17,7 @@ import re
 import sys
 from pathlib import Path
 
-from forkserver import ForkServer, Shell
+from forkserver import Shell
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / "docs" / "guide" / "command-line.md"
@@ -130,22 +130,22 @@ FILES = ("s16-51.toml", "n25.html", "st.html", "n25-comp.h5", "n25-imported.h5",
          "demo-output/report.html")
 
 
-def run_part(k: int, folder: Path) -> None:
-    """Run part ``k`` of the block in ``folder`` (its first command line through the installed ``inscal``
-    script in bash, the others as bash would split them, in forks of one process that imported the package:
-    :class:`forkserver.Shell`), then its checks."""
+def run_part(k: int, folder: Path, servers) -> None:
+    """Run part ``k`` of the block in ``folder`` (the command lines as bash would split them, in forks of one
+    process that imported the package, ``servers.get()`` of the ``fork_servers`` fixture: :class:`forkserver.Shell`;
+    part 0's first line through the installed ``inscal`` script in bash, so that the entry point runs once),
+    then its checks."""
     lines = command_block()
     mine = [lines[i] for i in parts(lines)[k]]
     bindir = Path(sys.executable).parent
     env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}", "COLUMNS": "100"}
     outputs = {}
-    with ForkServer(env) as server:
-        shell = Shell(server, folder, env, folder.parent / f"{folder.name}-logs")
-        for line in mine:
-            r = shell.run(line)
-            assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
-            assert "Traceback" not in r.stderr, line
-            outputs[line] = r
+    shell = Shell(servers.get(), folder, env, folder.parent / f"{folder.name}-logs", script=k == 0)
+    for line in mine:
+        r = shell.run(line)
+        assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
+        assert "Traceback" not in r.stderr, line
+        outputs[line] = r
     for needs, check in CHECKS:
         if any(needs(ln) for ln in mine):
             check(outputs, folder)

@@ -15,7 +15,6 @@ from contextlib import contextmanager
 import h5py
 import numpy as np
 import pytest
-from forkserver import ForkServer
 from test_cli_guards import make_record, one_line_error, params_file, run
 from test_signals_under_load import started
 
@@ -106,18 +105,11 @@ def _launch(args, cwd):
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
 
 
-@pytest.fixture(scope="module")
-def servers():
+@pytest.fixture()
+def servers(fork_servers):
     """Two fork servers: the two racing commands are forks of two processes that imported the package, so
     they start within milliseconds of each other."""
-    made = []
-    try:
-        for _ in range(2):
-            made.append(ForkServer(dict(os.environ, PYTHONUNBUFFERED="1")))
-        yield made
-    finally:
-        for server in made:
-            server.close()
+    return [fork_servers.get(0), fork_servers.get(1)]
 
 
 @pytest.mark.parametrize("name", ["simulate", "compensate", "export"])

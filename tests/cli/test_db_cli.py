@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from forkserver import ForkServer, Shell
+from forkserver import Shell
 from typer.testing import CliRunner
 
 from inscal import lab
@@ -49,7 +49,7 @@ def one_line(r, *phrases):
 
 
 @pytest.mark.slow
-def test_the_guides_lab_workflow_runs_as_written(tmp_path):
+def test_the_guides_lab_workflow_runs_as_written(tmp_path, fork_servers):
     """The block as one shell runs it (it exports INSCAL_DB), then what it left: two results with their sessions, the
     exports identical to calibrate's files, the history of two calibrations."""
     bindir = Path(sys.executable).parent
@@ -58,15 +58,15 @@ def test_the_guides_lab_workflow_runs_as_written(tmp_path):
     block = lab_block()
     if find_chromium() is None:  # the certificate's PDF needs Chromium: its HTML and JSON are made without it
         block = block.replace("inscal db certificate ", "inscal db certificate --no-pdf ")
-    # line by line as ``set -e`` runs it: the first failure ends the block (forkserver.Shell: the first
-    # inscal line through the installed script, the others as bash would split them, in forks of one process)
-    with ForkServer(env) as server:
-        shell = Shell(server, tmp_path, env, tmp_path.parent / f"{tmp_path.name}-logs")
-        for line in block.splitlines():
-            if line.strip():
-                r = shell.run(line)
-                assert r.returncode == 0, f"{line}\n{r.stderr[-3000:]}"
-                assert "Traceback" not in r.stderr, line
+    # line by line as ``set -e`` runs it: the first failure ends the block (forkserver.Shell: the inscal lines as
+    # bash would split them, in forks of one process, with the block's environment; the installed script's run
+    # of a first line is the README block's, tests/cli/readme_block.py)
+    shell = Shell(fork_servers.get(), tmp_path, env, tmp_path.parent / f"{tmp_path.name}-logs", script=False)
+    for line in block.splitlines():
+        if line.strip():
+            r = shell.run(line)
+            assert r.returncode == 0, f"{line}\n{r.stderr[-3000:]}"
+            assert "Traceback" not in r.stderr, line
     assert (tmp_path / "current.toml").read_bytes() == (tmp_path / "feb.toml").read_bytes()
     assert (tmp_path / "history.png").stat().st_size > 10_000
     db = tmp_path / "lab.sqlite"

@@ -5,5 +5,5 @@ from readme_block import run_part
 
 
 @pytest.mark.slow
-def test_readme_block_part_1(tmp_path):
-    run_part(1, tmp_path)
+def test_readme_block_part_1(tmp_path, fork_servers):
+    run_part(1, tmp_path, fork_servers)

@@ -37,9 +37,19 @@ def _wait_for_part(folder: Path, proc, timeout=60.0):
     return False
 
 
+def _start(args, cwd, fork_servers, sig):
+    """The command in a fork of a shared server (its interpreter and imports made once: ``inscal.cli.main`` with
+    its real handlers and exit); for SIGINT in an interpreter of its own, whose Ctrl-C is the terminal's
+    (:func:`_sigint_as_in_a_terminal`: a server started by a background job would hand on SIGINT ignored)."""
+    if sig == signal.SIGINT:
+        return _launch(args, cwd)
+    return fork_servers.get().start(args, cwd, cwd.parent / f"{cwd.name}-logs")
+
+
 @pytest.mark.parametrize("sig, code, name", [(signal.SIGTERM, 143, "SIGTERM"), (signal.SIGINT, 130, "SIGINT")])
-def test_signal_during_simulate_removes_part(tmp_path, sig, code, name):
-    proc = _launch(["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5", "--json"], tmp_path)
+def test_signal_during_simulate_removes_part(tmp_path, sig, code, name, fork_servers):
+    proc = _start(["simulate", "static-24h", "--duration-h", "24", "--out", "x.h5", "--json"], tmp_path, fork_servers,
+                  sig)
     try:
         assert _wait_for_part(tmp_path, proc), proc.communicate()
         time.sleep(0.05)  # well inside the write (a 24-h record takes about a second now)
@@ -56,14 +66,15 @@ def test_signal_during_simulate_removes_part(tmp_path, sig, code, name):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_sigterm_during_compensate_removes_part(tmp_path):
+def test_sigterm_during_compensate_removes_part(tmp_path, fork_servers):
     """A streaming writer other than simulate (compensate: read chunks -> write chunks)."""
     from test_cli_guards import make_record, params_file
 
     rec = make_record(tmp_path / "r.h5", n=2_000_000)
     params_file(tmp_path / "p.toml")
     before = sorted(x.name for x in tmp_path.iterdir())
-    proc = _launch(["compensate", "r.h5", "--params", "p.toml", "--out", "c.h5", "--json"], tmp_path)
+    proc = _start(["compensate", "r.h5", "--params", "p.toml", "--out", "c.h5", "--json"], tmp_path, fork_servers,
+                  signal.SIGTERM)
     try:
         if not _wait_for_part(tmp_path, proc):
             out, err = proc.communicate()

@@ -22,7 +22,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from forkserver import ForkServer
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
@@ -66,18 +65,12 @@ def started(proc, timeout: float = 60.0) -> None:
 
 
 @pytest.fixture(scope="module")
-def servers():
+def servers(fork_servers):
     """Two fork servers, one per command running at a time."""
     pool: queue.Queue = queue.Queue()
-    made = []
-    try:
-        for _ in range(2):
-            made.append(ForkServer(dict(os.environ, PYTHONUNBUFFERED="1")))
-            pool.put(made[-1])
-        yield pool
-    finally:
-        for server in made:
-            server.close()
+    for k in range(2):
+        pool.put(fork_servers.get(k))
+    return pool
 
 
 @pytest.fixture(scope="module")
