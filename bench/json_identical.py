@@ -147,6 +147,25 @@ def run_tree(src: Path, out: Path, quick: bool, only: set[str] | None = None, re
     return res
 
 
+NUMBER = re.compile(r"-?\d+\.?\d*(?:[eE][+-]?\d+)?")
+
+
+def numeric_summary(a: str, b: str) -> str:
+    """How two outputs differ: the count of differing lines and, where they differ only in numbers, the
+    largest relative difference of a number (what a last-bit change of the arithmetic leaves)."""
+    la, lb = a.splitlines(), b.splitlines()
+    pairs = [(x, y) for x, y in zip(la, lb) if x != y]
+    if len(la) != len(lb) or any(NUMBER.sub("#", x) != NUMBER.sub("#", y) for x, y in pairs):
+        return f"{len(pairs)} lines differ, not only in numbers"
+    rel = 0.0
+    for x, y in pairs:
+        for u, v in zip(NUMBER.findall(x), NUMBER.findall(y)):
+            fu, fv = float(u), float(v)
+            if fu != fv:
+                rel = max(rel, abs(fu - fv) / max(abs(fu), abs(fv)))
+    return f"{len(pairs)} lines differ, only in numbers: largest relative difference {rel:.2g}"
+
+
 def main() -> int:
     """Run both trees and compare; print one line per command."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -171,7 +190,9 @@ def main() -> int:
         if not same:
             diff = difflib.unified_diff(old[name].splitlines(), new[name].splitlines(), "base", "now", n=0,
                                         lineterm="")
-            print("\n".join(list(diff)[:12]))
+            lines = list(diff)
+            print("\n".join(lines[:12]))
+            print(f"  {numeric_summary(old[name], new[name])}")
     print(f"{len(old) - bad} of {len(old)} outputs identical")
     return 1 if bad else 0
 
