@@ -106,7 +106,7 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
     assert res.diagnostics["selection"]["chosen"] == rep["selection"]["chosen"]
     for name, e in res.to_field((truth, GimbalErrors())).items():
         res_field[name] = e
-        # the CLI's numbers are the library's (same record, the float32 file read back exactly)
+        # the CLI's report holds the fit's numbers (the JSON and its units read back)
         assert np.allclose(np.asarray(rep["parameters"][name]["value"], float), np.asarray(e["value"], float),
                            rtol=1e-9, atol=1e-12, equal_nan=True), name
     worst = _errors_within_targets(res_field)
