@@ -38,7 +38,9 @@ from inscal.sim.simulate import simulate
 #: OpenBLAS on one thread), longest first: they start first, so that the workers of ``make test``
 #: (``--dist loadfile --no-loadscope-reorder``) end together; every other file keeps its place after them.
 #: The command-line files that fork their commands share the worker's fork servers (tests/cli/conftest.py's
-#: ``fork_servers``): the first of them on a worker starts them (~2 s of CPU each), the others do not
+#: ``fork_servers``): the first of them on a worker starts them (~2 s of CPU each), the others do not.
+#: ``cli/test_demo_html.py`` is not here: it checks the demo run of ``cli/test_readme_block_0.py`` (tests/cli/demo_share.py),
+#: a few s when it comes after that file (its place among the other files), 9 s more when it runs the demo itself
 LONGEST = (
     "paper/test_systematic_stats.py",  # 8 s (10 seeds; the 50 in bench/systematic_stats.py)
     "oracles/test_robust_sweep.py",  # 36 s
@@ -54,15 +56,14 @@ LONGEST = (
     "calibrate/test_selection.py",  # 16 s
     "cli/test_readme_block_2.py",  # 14 s (no script start: part 0 runs the entry point)
     "lab/test_batch.py",  # 14 s (the run after the kill in the process)
-    "oracles/test_oracle_calibration.py",  # 10 s (the second noise-free seed: the CLI's run only)
     "oracles/test_methods_into_lab.py",  # 12 s (every table-free and window method through every lab path)
     "cli/test_hardening_round4.py",  # 10 s
     "oracles/test_handheld_consumer.py",  # 9 s (consumer-MEMS sessions: tremor, saturation)
     "cli/test_memory_caps.py",  # 9 s (the two interrupts forked: no interpreter start each)
     "cli/test_calibrate_caps.py",  # 7 s (the interrupt forked)
-    "cli/test_demo_html.py",  # 9 s
     "oracles/test_handheld_multiposition.py",  # 8 s
     "io/test_import_bags.py",  # 5 s (3 storages written and read, a calibration through a bag)
+    "oracles/test_oracle_calibration.py",  # ~5 s (both noise-free seeds: the CLI's run only, no library fit beside it)
     "lab/test_db_integrity.py",  # 7 s
     "uncertainty/test_budget_mc.py",  # 12 s (two JCGM 101 Monte Carlos of a six-position budget)
     "cli/test_budget_mc_cli.py",  # 6 s

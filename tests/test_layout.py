@@ -154,6 +154,8 @@ def test_the_longest_test_files_named_for_the_scheduler_exist():
     longest = ast.literal_eval(node.value)
     missing = [name for name in longest if not (tests / name).is_file()]
     assert longest and not missing, missing
+    # the page test checks the README block's demo run (tests/cli/demo_share.py): it is scheduled after that part
+    assert "cli/test_readme_block_0.py" in longest and "cli/test_demo_html.py" not in longest
 
 
 def test_make_test_names_every_installed_pytest_plugin():

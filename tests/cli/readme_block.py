@@ -11,12 +11,14 @@ that every check finds its lines."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
 import sys
 from pathlib import Path
 
+import demo_share
 from forkserver import Shell
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -130,11 +132,12 @@ FILES = ("s16-51.toml", "n25.html", "st.html", "n25-comp.h5", "n25-imported.h5",
          "demo-output/report.html")
 
 
-def run_part(k: int, folder: Path, servers) -> None:
+def run_part(k: int, folder: Path, servers, share: Path | None = None) -> None:
     """Run part ``k`` of the block in ``folder`` (the command lines as bash would split them, in forks of one
     process that imported the package, ``servers.get()`` of the ``fork_servers`` fixture: :class:`forkserver.Shell`;
     part 0's first line through the installed ``inscal`` script in bash, so that the entry point runs once),
-    then its checks."""
+    then its checks.  With ``share`` (:func:`demo_share.shared_dir`), the ``inscal demo`` line runs holding the
+    session's demo lock and leaves its output there for ``tests/cli/test_demo_html.py``."""
     lines = command_block()
     mine = [lines[i] for i in parts(lines)[k]]
     bindir = Path(sys.executable).parent
@@ -142,9 +145,13 @@ def run_part(k: int, folder: Path, servers) -> None:
     outputs = {}
     shell = Shell(servers.get(), folder, env, folder.parent / f"{folder.name}-logs", script=k == 0)
     for line in mine:
-        r = shell.run(line)
-        assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
-        assert "Traceback" not in r.stderr, line
+        demo = share is not None and line.startswith("inscal demo")
+        with demo_share.locked(share) if demo else contextlib.nullcontext():
+            r = shell.run(line)
+            assert r.returncode == 0, f"{line}\n{r.stderr[-2000:]}"
+            assert "Traceback" not in r.stderr, line
+            if demo:
+                demo_share.publish(share, folder, r.stdout)
         outputs[line] = r
     for needs, check in CHECKS:
         if any(needs(ln) for ln in mine):

@@ -1,8 +1,10 @@
-"""The demo (the main job on built-in defaults), run once for the module: its results make sense (the
-``--json`` document), and its ``report.html`` renders in a real browser (headless Chromium): every
-``<img>`` loads (non-zero natural size, not blank), no console or script errors, and every embedded PNG
-decodes to a picture (not a single colour).  The browser checks are skipped where Chromium is not
-installed."""
+"""The demo (the main job on built-in defaults), run once for the test session: its results make sense (its
+``summary.json``, the document ``--json`` prints), what it says on stdout matches them, and its ``report.html``
+renders in a real browser (headless Chromium): every ``<img>`` loads (non-zero natural size, not blank), no
+console or script errors, and every embedded PNG decodes to a picture (not a single colour).  The browser checks
+are skipped where Chromium is not installed.  The run is the README block's ``inscal demo --quick`` (part 0,
+tests/cli/test_readme_block_0.py) where that part ran first in this session, else the same command here (see
+demo_share)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import demo_share
 import pytest
 from typer.testing import CliRunner
 
@@ -60,11 +63,19 @@ window.addEventListener('load', function () {
 
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
-    """``(folder, stdout)`` of ``inscal demo --out FOLDER --quick --json``."""
-    out = tmp_path_factory.mktemp("demo") / "d"
-    r = CliRunner().invoke(app, ["demo", "--out", str(out), "--quick", "--json"])
-    assert r.exit_code == 0, r.output
-    return out, r.stdout
+    """``(folder, stdout)`` of ``inscal demo --quick`` (``--out`` its default, ``demo-output``), the folder a
+    copy of this module's own: the README block's run (:mod:`demo_share`) where it is done, else a run here."""
+    base = tmp_path_factory.mktemp("demo")
+    shared = demo_share.shared_dir(tmp_path_factory)
+    with demo_share.locked(shared):  # waits while the README's part runs its demo on another worker
+        stdout = demo_share.published(shared)
+        if stdout is not None:
+            shutil.copytree(shared / demo_share.FOLDER, base / demo_share.FOLDER)
+    if stdout is None:
+        r = CliRunner().invoke(app, ["demo", "--out", str(base / demo_share.FOLDER), "--quick"])
+        assert r.exit_code == 0, r.output
+        stdout = r.stdout
+    return base / demo_share.FOLDER, stdout
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +85,8 @@ def demo(demo_run):
 
 def test_demo_quick_json(demo_run):
     folder, stdout = demo_run
-    res = json.loads(stdout)
+    base = folder.parent  # the paths in the document: relative to the command's folder (the README's run)
+    res = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
     steps = res["steps"]
     assert steps["simulate_s16"]["samples"] == 386100
     cal = steps["calibrate"]
@@ -96,17 +108,21 @@ def test_demo_quick_json(demo_run):
     assert g30["accel_bias"]["mean_abs_error"] > 100 * g51["accel_bias"]["mean_abs_error"]
     assert 4.0 < sysc["systematic51"]["nis_mean"] < 8.0 < sysc["systematic30"]["nis_mean"]
     for m in ("systematic51", "systematic30"):
-        _, _, meta = load_params(sysc[m]["out"])
+        _, _, meta = load_params(base / sysc[m]["out"])
         assert meta["method"] == m and meta["metadata"]["states"] == m[-2:]
     nav = steps["navigate"]
     assert nav["n25"]["max_position_error_m"] < nav["six-position"]["max_position_error_m"] < nav["uncalibrated"]["max_position_error_m"]
-    # the report: self-contained HTML, the figures as PNG files, summary.json = the --json document
+    # the report: self-contained HTML, the figures as PNG files, summary.json where the document says
     rep = res["report"]
-    html = Path(rep["html"]).read_text(encoding="utf-8")
+    html = (base / rep["html"]).read_text(encoding="utf-8")
     assert html.count("<img ") == len(rep["figures"]) == 7 and "data:image/png;base64," in html
-    assert all(Path(f).stat().st_size > 10_000 for f in rep["figures"].values())
-    summary = json.loads(Path(rep["summary"]).read_text(encoding="utf-8"))
-    assert summary["steps"]["calibrate"] == cal and summary["steps"]["navigate"] == nav
+    assert all((base / f).stat().st_size > 10_000 for f in rep["figures"].values())
+    assert (base / rep["summary"]).resolve() == (folder / "summary.json").resolve()
+    # stdout: the steps as they ran, the same figures, and the last line says where the report is
+    assert f"simulated s16: {steps['simulate_s16']['samples']} samples" in stdout
+    assert f"report: {rep['html']} ({len(rep['figures'])} figures" in stdout
+    assert stdout.rstrip().splitlines()[-1] == (f"demo finished in {res['elapsed_s']:.1f} s; files in {res['out']}/; "
+                                                f"open {rep['html']}")
     assert nav["n25"]["final_attitude_deg"]["heading"] == pytest.approx(
         (90.0 - nav["n25"]["final_attitude_deg"]["yaw"]) % 360.0)
     # a second run refuses to overwrite without --force

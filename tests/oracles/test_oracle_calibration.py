@@ -4,6 +4,7 @@ defaults.  The generator shares no code with inscal's simulator (tests/oracles/r
 
 from __future__ import annotations
 
+import inspect
 import json
 
 import numpy as np
@@ -13,7 +14,7 @@ from adapter import to_inscal_truth, to_record
 from typer.testing import CliRunner
 
 from inscal import calibrate as calibrate_pkg
-from inscal.calibrate.systematic import systematic51
+from inscal.calibrate.systematic import systematic, systematic51
 from inscal.cli.app import app
 from inscal.core import units
 from inscal.core.error_model import GimbalErrors
@@ -30,6 +31,13 @@ def _psins_bin(gen, path):
     """PSINS ``.bin``: float32 rows [dtheta(3) dv(3) t], as the toolbox's binary logs."""
     rows = np.column_stack([gen.dtheta, gen.dvel, gen.time]).astype("<f4")
     path.write_bytes(rows.tobytes())
+
+
+def _same(a, b) -> bool:
+    """Whether an option's value is its default (None, a number or a string; arrays element by element)."""
+    if a is None or b is None:
+        return a is b
+    return bool(np.all(np.asarray(a) == np.asarray(b)))
 
 
 def _errors_within_targets(parameters: dict) -> dict:
@@ -55,10 +63,14 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
     r = runner.invoke(app, ["import", str(src), "--format", "psins", "--dtype", "float32", "--lat", "34", "--lon",
                             "108", "--height", "380", "--rate-hz", "100", "--gravity", "psins", "--out", str(rec)])
     assert r.exit_code == 0, r.output
-    made = []  # seed 2: the result of the CLI's own run (seed 1 runs the library again beside it)
-    if seed != 1:
-        monkeypatch.setitem(calibrate_pkg.METHODS, "systematic51", lambda *a, **kw: made.append(systematic51(*a, **kw))
-                            or made[-1])
+    made, calls = [], []  # the result of the CLI's own run, and what the CLI handed the library
+
+    def spy(record, **kw):
+        calls.append((record, kw))
+        made.append(systematic51(record, **kw))
+        return made[-1]
+
+    monkeypatch.setitem(calibrate_pkg.METHODS, "systematic51", spy)
     r = runner.invoke(app, ["calibrate", str(rec), "--method", "systematic51", "--out", str(out), "--json"]
                       + (["--states", states] if states else []))
     assert r.exit_code == 0, r.output
@@ -74,12 +86,27 @@ def test_defaults_choose_async_and_lever9_and_reach_five_times_psins(tmp_path, s
     # the record has no truth: compare the parameter file with the generator's
     res_field = {}
     truth = to_inscal_truth(gen)
-    assert len(made) == (seed != 1)
-    res = made[0] if made else systematic51(to_record(gen), states=states or "auto")
+    assert len(made) == len(calls) == 1
+    res = made[0]
+    # the library's call on the generator's record is the CLI's: the increments imported are the generator's, bit for
+    # bit (the float32 file read back exactly), and the options the CLI gives are the library's defaults.  The times
+    # agree to the float32 column's resolution (the fit reads none here: they place a path's gimbal angles and the
+    # temperature readings only)
+    cli_rec, kw = calls[0]
+    lib = to_record(gen)
+    for name in ("dtheta", "dvel"):
+        assert np.asarray(getattr(cli_rec, name), float).tobytes() == np.asarray(getattr(lib, name), float).tobytes(), name
+    t_cli, t_lib = np.asarray(cli_rec.time, float), np.asarray(lib.time, float)
+    assert t_cli.shape == t_lib.shape and np.max(np.abs(t_cli - t_lib)) <= np.spacing(np.float32(t_lib[-1]))
+    assert cli_rec.rate_hz == lib.rate_hz and cli_rec.site == lib.site
+    assert getattr(cli_rec, "gimbal", None) is None and getattr(cli_rec, "path", None) is None
+    assert kw.pop("states") == (states or "auto")
+    defaults = inspect.signature(systematic).parameters
+    assert all(k in defaults and _same(v, defaults[k].default) for k, v in kw.items()), kw
     assert res.diagnostics["selection"]["chosen"] == rep["selection"]["chosen"]
     for name, e in res.to_field((truth, GimbalErrors())).items():
         res_field[name] = e
-        # the CLI's numbers are the library's (same record, the float32 file read back exactly)
+        # the CLI's report holds the fit's numbers (the JSON and its units read back)
         assert np.allclose(np.asarray(rep["parameters"][name]["value"], float), np.asarray(e["value"], float),
                            rtol=1e-9, atol=1e-12, equal_nan=True), name
     worst = _errors_within_targets(res_field)

@@ -73,7 +73,8 @@ velocity model-error term (a factor on the accelerometer noise per motion state,
 level) and frozen outlier weights on R are estimated from the innovations and frozen, so the remaining passes are
 a Gauss-Newton iteration of one weighted problem.  A run that does not converge, an estimate beyond 5 prior sigma
 or a position innovation beyond 10 m ends with :class:`~inscal.calibrate.systematic.driver.NotConverged` unless
-``accept_unconverged``.  The site latitude and the time scale the sigma assume are stated
+``accept_unconverged`` (the exception's ``result`` is the last iterate that option keeps, from the same run).  The
+site latitude and the time scale the sigma assume are stated
 (:mod:`~inscal.calibrate.systematic.sensitivity`).
 
 Sample-to-sample terms.  The time asynchrony and the size effect's w-dot use centred

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -207,7 +208,26 @@ def inputs_assumed(out, site, sig, gain: np.ndarray, J: np.ndarray, sigma: np.nd
 
 class NotConverged(CalibrationError):
     """The passes did not settle, an estimate left its prior far behind, or the navigation wandered off the static
-    site: the last iterate is no calibration (``accept_unconverged`` keeps it, with a note)."""
+    site: the last iterate is no calibration (``accept_unconverged`` keeps it, with a note).
+
+    ``result``: that last iterate as the same call with ``accept_unconverged=True`` returns it (its note and
+    ``diagnostics["convergence"]["accepted_unconverged"]`` included), made from the run that raised when first
+    read (None where the raiser gave none); it is not pickled with the exception (a worker's error travels as
+    its message)."""
+
+    def __init__(self, message: str, result: Callable[[], CalibrationResult] | None = None):
+        super().__init__(message)
+        self._make, self._result = result, None
+
+    @property
+    def result(self) -> CalibrationResult | None:
+        """The last iterate kept (see the class docstring), or None."""
+        if self._result is None and self._make is not None:
+            self._result, self._make = self._make(), None
+        return self._result
+
+    def __reduce__(self):
+        return type(self), self.args
 
 
 def convergence_verdict(passes: list, converged: bool, tol: float, prior_z: np.ndarray, labels: list,
@@ -303,49 +323,55 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
                               nis_cap=nis_cap, t_ref=t_ref, temperature_sensor=temperature_sensor,
                               temperature_rate_window_s=temperature_rate_window_s, robust=robust)
         verdict, term_check = missing_term_check(refit, wider, st, x_est, it.P_post, nd)
+
+    def build(accepted: bool) -> CalibrationResult:
+        """The result of the last iterate (``accepted``: kept where the verdict says it is no calibration)."""
+        # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the
+        # caller
+        last = smooth_pass(out) if keep_passes else out
+        names = estimated_names(st)
+        J = canonical_jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
+        Sig = J @ it.P_post @ J.T
+        sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
+        fixed = fixed_mask(st, names)
+        sflat[fixed] = np.nan
+        cost = None
+        if robust and weights is None and (any(f > 1.0 for f in it.me.group_factor.values()) or it.me.outliers):
+            cost = model_error_cost(p, it, J, sflat, names)
+        # the prior in the same canonical components: the yardstick of what the record observed
+        prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
+        unobs, unobs_note = unobservable(names, sflat, prior_flat)
+        imu = est.to_imu()
+        nis, dof, chisq, expected, fit = innovation_statistics(p, it, last, cost)
+        formal = unflatten(sflat, names)
+        sigma = unflatten(sflat * fit["scale"], names)
+        assumed = None if st.gimbal else inputs_assumed(last, p.site, it.sig_used, it.P_post @ it.Pf_inv, J,
+                                                        sflat * fit["scale"], names, p.T)
+        diag = diagnostics(p, it, last, fit, nis, dof, chisq, expected, assumed, verdict, term_check, accepted,
+                           formal, unobs, robust, weights, noise)
+        notes = result_notes(p, it.me, diag["frame"], verdict, fit, assumed, unobs_note, noise)
+        res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
+                                est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
+        res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
+        if st.gimbal:
+            gimbal_diagnostics(res, last, st, p.enc_sig, int(encoder_every))
+        if p.tin is not None:
+            attach_thermal(res, p, it, imu, fit, chisq, dof, expected)
+        h_out, h_sig = it.first
+        res.history = pass_history(h_out, st, names, h_sig, J, est, it.P_post)
+        res.history["time_s"] = res.history["t_steps"] * p.T
+        res.states = st
+        res.model_error = it.me  # the frozen model-error factors (the nested fits of --states auto share them)
+        res.covariance = {"labels": st.labels()[nd:], "P": it.P_post}
+        res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
+        if keep_passes:
+            res.pass_output = last
+        return res
+
     if verdict and not accept_unconverged:
         raise NotConverged(f"systematic filter: {verdict}; try --arw/--vrw with the unit's real noise, other --states, "
-                           "or --accept-unconverged to keep the last iterate")
-    # the result needs the forward pass's stores only; the smoothed covariances go with the pass kept for the caller
-    last = smooth_pass(out) if keep_passes else out
-    names = estimated_names(st)
-    J = canonical_jacobian(est, st, names, sig_par) / sig_par  # d(canonical) / d(physical error state)
-    Sig = J @ it.P_post @ J.T
-    sflat = np.sqrt(np.maximum(np.diag(Sig), 0.0))
-    fixed = fixed_mask(st, names)
-    sflat[fixed] = np.nan
-    cost = None
-    if robust and weights is None and (any(f > 1.0 for f in it.me.group_factor.values()) or it.me.outliers):
-        cost = model_error_cost(p, it, J, sflat, names)
-    # the prior in the same canonical components: the yardstick of what the record observed
-    prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))
-    unobs, unobs_note = unobservable(names, sflat, prior_flat)
-    imu = est.to_imu()
-    nis, dof, chisq, expected, fit = innovation_statistics(p, it, last, cost)
-    formal = unflatten(sflat, names)
-    sigma = unflatten(sflat * fit["scale"], names)
-    assumed = None if st.gimbal else inputs_assumed(last, p.site, it.sig_used, it.P_post @ it.Pf_inv, J,
-                                                    sflat * fit["scale"], names, p.T)
-    diag = diagnostics(p, it, last, fit, nis, dof, chisq, expected, assumed, verdict, term_check, accept_unconverged,
-                       formal, unobs, robust, weights, noise)
-    notes = result_notes(p, it.me, diag["frame"], verdict, fit, assumed, unobs_note, noise)
-    res = CalibrationResult(method_name or ("systematic51" if st.extended else "systematic30"), imu,
-                            est.to_gimbal() if st.gimbal else GimbalErrors(), sigma, names, None, diag, notes)
-    res.truth_transform = lambda truth, _st=st: (truth_imu(truth, _st), truth_gimbal(truth, _st))
-    if st.gimbal:
-        gimbal_diagnostics(res, last, st, p.enc_sig, int(encoder_every))
-    if p.tin is not None:
-        attach_thermal(res, p, it, imu, fit, chisq, dof, expected)
-    h_out, h_sig = it.first
-    res.history = pass_history(h_out, st, names, h_sig, J, est, it.P_post)
-    res.history["time_s"] = res.history["t_steps"] * p.T
-    res.states = st
-    res.model_error = it.me  # the frozen model-error factors (the nested fits of --states auto share them)
-    res.covariance = {"labels": st.labels()[nd:], "P": it.P_post}
-    res.parameter_state = x_est  # the estimate as the filter's error state about the nominal (P_post's)
-    if keep_passes:
-        res.pass_output = last
-    return res
+                           "or --accept-unconverged to keep the last iterate", result=lambda: build(True))
+    return build(accept_unconverged)
 
 
 def prepare(rec, states, *, thermal_orders, noise, arw, vrw, filter_rate_hz, t_ref, temperature_sensor,
