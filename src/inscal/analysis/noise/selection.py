@@ -27,6 +27,11 @@ times the degrees of freedom those scales have, and every smaller candidate is j
 told are near exact.  So the table's choice is then checked by nested pairs (:func:`nested_check`),
 each on the larger one's own yardstick: a term is dropped where Newey & West's distance statistic
 ``D = J_smaller - J_larger``, both on ``V`` at the larger one's estimate, stays below its penalty.
+Where the choice then fails its own J test (``V`` at its own fit, p below :data:`EXTEND_ALPHA`), the
+table's :data:`RESCUE` best are each checked by nested pairs and judged by ``J + pen p`` on their own
+yardsticks (Andrews & Lu's criterion with each candidate's own efficient weights,
+:func:`own_yardstick`): a smaller candidate whose fit in the table stopped in a local optimum is
+reached from its parent's solution less one term, not passed over for a model that fails its test.
 
 The record cannot tell some candidates from smaller ones; they are set aside, not compared (and
 the reason is listed), so that "the right model" is the smallest one that describes what the record
