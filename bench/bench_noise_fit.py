@@ -22,6 +22,11 @@ automatic choice right in how many runs, by HQIC (the default) and, from the sam
 by BIC and AIC.
 
     .venv/bin/python bench/bench_noise_fit.py --runs 200 --procs 2
+    .venv/bin/python bench/bench_noise_fit.py --choice-only --only FOG --runs 200 --procs 2
+
+``--choice-only``: the automatic choice alone (no fixed fit, no read-offs) on the same records and
+seeds as the full study (record ``seed + 10 r``, the choice's generator ``seed + 10 r + 2``): the
+share of runs where it is the true model, the models chosen, and the reasons of the wrong ones.
 """
 
 from __future__ import annotations
@@ -124,6 +129,38 @@ def one(args):
             f.hits, reason, f.gof_p)
 
 
+def one_choice(args):
+    """The automatic choice alone on run ``seed``'s record (the records and generators of :func:`one`)."""
+    name, seed = args
+    dt, n, ch = SCENARIOS[name]
+    y = ch.simulate(n, dt, np.random.default_rng(seed))
+    curve = Curve.from_scale_variance(scale_variance(y, 1 / dt, octave_scales(n)))
+    t0 = time.perf_counter()
+    s = select(curve, rng=np.random.default_rng(seed + 2), criterion="hqic")
+    return seed, s.chosen.model, time.perf_counter() - t0, s.reason
+
+
+def choice_only(name, runs, procs, seed0):
+    """Print how often the automatic choice is the true model of scenario ``name`` over ``runs`` records."""
+    ch = SCENARIOS[name][2]
+    t0 = time.perf_counter()
+    out = []
+    with Pool(procs) as pool:
+        for o in pool.imap(one_choice, [(name, seed0 + 10 * r) for r in range(runs)], chunksize=1):
+            out.append(o)
+            if len(out) % 25 == 0:  # progress
+                print(f"  {len(out)} runs: choice right in {100 * np.mean([x[1] == ch.model for x in out]):.1f} %",
+                      flush=True)
+    counts = {}
+    for o in out:
+        counts[o[1]] = counts.get(o[1], 0) + 1
+    print(f"== {name} ({ch.model}), choice only: right in {100 * np.mean([o[1] == ch.model for o in out]):.1f} % of "
+          f"{runs} runs (wall {time.perf_counter() - t0:.0f} s on {procs} processes, selection "
+          f"{np.mean([o[2] for o in out]):.2f} s per run); chosen: {sorted(counts.items(), key=lambda kv: -kv[1])[:5]}")
+    for o in [o for o in out if o[1] != ch.model]:
+        print(f"  seed {o[0]}: {o[3][:300]}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=200)
@@ -131,7 +168,12 @@ def main():
     ap.add_argument("--procs", type=int, default=2)
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--only", choices=tuple(SCENARIOS))
+    ap.add_argument("--choice-only", action="store_true", help="the automatic choice alone (no fits, no read-offs)")
     a = ap.parse_args()
+    if a.choice_only:
+        for name in [a.only] if a.only else SCENARIOS:
+            choice_only(name, a.runs, a.procs, a.seed)
+        return
     for name, (dt, n, ch) in SCENARIOS.items():
         if a.only and name != a.only:
             continue

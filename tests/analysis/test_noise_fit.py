@@ -11,7 +11,7 @@ from inscal.analysis.noise.estimators import octave_scales, scale_variance
 from inscal.analysis.noise.fit import Curve, bootstrap, curve_covariance, fit_curve, wv_covariance
 from inscal.analysis.noise import projection
 from inscal.analysis.noise.intervals import chi2_bounds, gmwm_weights
-from inscal.analysis.noise.selection import nested_check, penalty, readoffs, record_samples, select, sub_models, tc_limit
+from inscal.analysis.noise.selection import nested_check, own_yardstick, penalty, readoffs, record_samples, select, sub_models, tc_limit
 from inscal.core import noise_models as nm
 
 DT = 0.01
@@ -151,6 +151,20 @@ def test_nested_pairs_drop_a_spurious_ramp_and_keep_the_true_terms():
     codes, _, tested = nested_check(c, ("WN", "RW", "GM"), np.log([1e-4, 1e-4, 3e-4, 1.0]), pen, tcr,
                                     np.random.default_rng(0))
     assert codes == ("WN", "RW", "GM") and tested == []
+
+
+def test_a_choice_failing_its_own_j_test_gives_way_on_each_ones_own_yardstick():
+    """Andrews & Lu's criterion with each candidate's own V: a choice that misses the random walk
+    (J far above its penalty) gives way to a larger candidate of the table, which its own nested check
+    brings down to the truth (the spurious ramp dropped; values back)."""
+    truth = (nm.WhiteNoise(1e-4), nm.RandomWalk(1e-4), nm.GaussMarkov(3e-4, 1.0))
+    c = exact_curve(nm.ChannelNoise("g", "gyro", truth), 1 << 16)
+    pen, tcr = penalty("hqic", record_samples(c)), (tc_limit(c), None)
+    wrong = (("WN", "GM"), np.log([1e-4, 3e-4, 1.0]))
+    start = (("WN", "RW", "DR", "GM"), np.log([1e-4, 1e-4, 1e-6, 3e-4, 1.0]))
+    codes, th, scores = own_yardstick(c, [start], wrong, pen, tcr, np.random.default_rng(0))
+    assert codes == ("WN", "RW", "GM") and np.exp(th) == pytest.approx([1e-4, 1e-4, 3e-4, 1.0], rel=1e-3)
+    assert scores["WN+GM"] > scores["WN+RW+GM"] + 10 * pen
 
 
 def test_fit_counts_its_starts_and_flags_unresolved_intervals():

@@ -27,6 +27,11 @@ times the degrees of freedom those scales have, and every smaller candidate is j
 told are near exact.  So the table's choice is then checked by nested pairs (:func:`nested_check`),
 each on the larger one's own yardstick: a term is dropped where Newey & West's distance statistic
 ``D = J_smaller - J_larger``, both on ``V`` at the larger one's estimate, stays below its penalty.
+Where the choice then fails its own J test (``V`` at its own fit, p below :data:`EXTEND_ALPHA`), the
+table's :data:`RESCUE` best are each checked by nested pairs and judged by ``J + pen p`` on their own
+yardsticks (Andrews & Lu's criterion with each candidate's own efficient weights,
+:func:`own_yardstick`): a smaller candidate whose fit in the table stopped in a local optimum is
+reached from its parent's solution less one term, not passed over for a model that fails its test.
 
 The record cannot tell some candidates from smaller ones; they are set aside, not compared (and
 the reason is listed), so that "the right model" is the smallest one that describes what the record
@@ -100,6 +105,8 @@ EXTEND_ALPHA = 0.01
 MAX_ELIMINATE = 3
 #: the extended family's elimination starts from this many of its best polished candidates
 ELIMINATE_FROM_EXTENDED = 4
+#: where the choice fails its own J test, this many of the table's best are judged on their own yardsticks
+RESCUE = 10
 #: a richer candidate within this many penalty units of the choice "fits nearly as well"
 NEAR_PENALTIES = 2.0
 
@@ -257,6 +264,55 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
     cand, th, tested = nested_check(curve, cand, th, pen, (tcm, tc_min), rng, thetas)
     if tested:
         best = {r[0]: r for r in table}[nm.model_string(cand)]
+    chosen, removed = _final_fit(curve, cand, th, thetas, n_starts, rng, tc_min)
+    rescue = ""
+    if chosen.gof_p < EXTEND_ALPHA:
+        # the choice fails its own J test: Andrews & Lu's criterion with each candidate's own V
+        cand, th, scores = own_yardstick(curve, [thetas[r[0]] for r in ok[:RESCUE]], (chosen.codes, chosen.theta),
+                                         pen, (tcm, tc_min), rng, thetas)
+        if cand != chosen.codes:
+            rescue = (f"{nm.model_string(cand)}: {chosen.model}, the choice by {criterion.upper()} on the largest "
+                      f"model's yardstick, fails its own J test (p = {chosen.gof_p:.2g}); the lowest J + {pen:.3g} p "
+                      f"on each one's own yardstick among the table's {RESCUE} best, each checked by nested pairs (" + ", ".join(
+                          f"{m} {v:.4g}" for m, v in sorted(scores.items(), key=lambda kv: kv[1])[:3]) + ")")
+            chosen, removed = _final_fit(curve, cand, th, thetas, n_starts, rng, tc_min)
+            best = {r[0]: r for r in table}.get(nm.model_string(cand), best)
+    row = {r[0]: r for r in table}.get(chosen.model, best)
+    top = ok[0]
+    if rescue:
+        why = rescue
+    elif tested:
+        why = (f"{row[0]}: from {top[0]} (lowest {criterion.upper()} = J + {pen:.3g} p = {top[1]:.4g} on the largest "
+               f"model's yardstick, among {len(ok)} of {len(table)} sub-sums of {nm.model_string(codes)} the record "
+               "can tell apart) by nested pairs, each on the larger one's own yardstick: "
+               + "; ".join(f"{t} adds D = {d:.3g} < {pen * dp:.3g} to {b}" for _, b, t, d, dp in tested))
+    else:
+        why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
+               f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
+    if removed:
+        why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
+    if len(ok) > 1 and not (tested or rescue):
+        ru = next(r for r in ok if r[0] != row[0])
+        why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
+    if tested or rescue:
+        why += f"; J = {chosen.gof:.3g} on {chosen.gof_dof} dof at its own fit, p = {chosen.gof_p:.2g}"
+    else:
+        why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
+    aside = [r for r in table if r[5] and r[1] < min(row[1], top[1])]
+    if aside:
+        why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
+    richer = () if rescue else _richer(row, table, thetas, pen) if not tested else tuple(
+        (a, float(pen * dp - d), float(d), _length_factor(d, dp, pen)) for a, _, _, d, dp in reversed(tested[-2:]))
+    if richer:
+        why += "; richer models fit nearly as well: " + "; ".join(
+            f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
+                                   else "; no sign of it in this record)") for m, g, _, s in richer)
+    return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+
+
+def _final_fit(curve: Curve, cand, th, thetas, n_starts, rng, tc_min):
+    """The choice ``cand`` refitted with the GMWM weights from ``th``; a term that fit does not show is
+    dropped and the rest refitted.  Returns ``(fit, removed codes)``."""
     chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th, tc_min=tc_min)
     removed = []
     while any(chosen.negligible) and len(chosen.codes) > 1:
@@ -268,35 +324,33 @@ def _stage(curve: Curve, codes, tc_min, rng, n_starts: int, criterion: str) -> S
         th0 = thetas[key][1] if key in thetas else np.delete(chosen.theta, slice(
             sum(n_params(c) for c in chosen.codes[:i]), sum(n_params(c) for c in chosen.codes[:i + 1])))
         chosen = fit_curve(curve, cand, n_starts=n_starts, rng=rng, theta0=th0, tc_min=tc_min)
-    row = {r[0]: r for r in table}.get(chosen.model, best)
-    top = ok[0]
-    if tested:
-        why = (f"{row[0]}: from {top[0]} (lowest {criterion.upper()} = J + {pen:.3g} p = {top[1]:.4g} on the largest "
-               f"model's yardstick, among {len(ok)} of {len(table)} sub-sums of {nm.model_string(codes)} the record "
-               "can tell apart) by nested pairs, each on the larger one's own yardstick: "
-               + "; ".join(f"{t} adds D = {d:.3g} < {pen * dp:.3g} to {b}" for _, b, t, d, dp in tested))
-    else:
-        why = (f"{row[0]}: lowest {criterion.upper()} = J + {pen:.3g} p = {row[1]:.4g} among {len(ok)} of "
-               f"{len(table)} sub-sums of {nm.model_string(codes)} the record can tell apart")
-    if removed:
-        why += f" ({best[0]} with {', '.join(removed)} dropped: not seen in the refit)"
-    if len(ok) > 1 and not tested:
-        ru = next(r for r in ok if r[0] != row[0])
-        why += f"; runner-up {ru[0]} {ru[1]:.4g} (gap {ru[1] - row[1]:.3g})"
-    if tested:
-        why += f"; J = {chosen.gof:.3g} on {chosen.gof_dof} dof at its own fit, p = {chosen.gof_p:.2g}"
-    else:
-        why += f"; J = {row[2]:.3g} on {J - row[4]} dof, p = {row[3]:.2g}"
-    aside = [r for r in table if r[5] and r[1] < min(row[1], top[1])]
-    if aside:
-        why += "; set aside though lower: " + "; ".join(f"{r[0]} ({r[5]})" for r in aside[:2])
-    richer = _richer(row, table, thetas, pen) if not tested else tuple(
-        (a, float(pen * dp - d), float(d), _length_factor(d, dp, pen)) for a, _, _, d, dp in reversed(tested[-2:]))
-    if richer:
-        why += "; richer models fit nearly as well: " + "; ".join(
-            f"{m} (gap {g:.3g}" + (f"; if it is there, a record about {s:.3g}x longer would show it)" if s
-                                   else "; no sign of it in this record)") for m, g, _, s in richer)
-    return Selection(chosen, tuple(table), why, criterion, richer, tuple(removed))
+    return chosen, removed
+
+
+def own_yardstick(curve: Curve, starts, current, pen: float, tc_range, rng, thetas=None):
+    """Andrews & Lu's criterion ``J_c + pen p_c`` with each candidate's own efficient weights (``V`` at
+    its own estimate, refitted with its ``V^-1/2``), for the choice ``current`` = (codes, theta) and for
+    each of ``starts`` (the table's best, (codes, theta)) after its own :func:`nested_check` (a term it
+    does not need dropped, each smaller fit started from the larger one's solution less that term, so a
+    local optimum of a smaller candidate's fit in the table does not hide it).  Returns the lowest one's
+    ``(codes, theta, {model: criterion})``."""
+    scores, best = {}, None
+    for codes, theta in [current] + list(starts):
+        codes, theta, _ = nested_check(curve, codes, theta, pen, tc_range, rng, thetas)
+        W = whitener(terms_of(codes, theta, curve.dt), curve)
+        if W is None:
+            continue
+        theta, j = solve(curve, codes, n_starts=0, rng=rng, theta0=theta, whiten=W, grid=False, tc_max=tc_range[0],
+                         tc_min=tc_range[1])[:2]
+        crit = float(j) + pen * sum(n_params(c) for c in codes)
+        key = nm.model_string(codes)
+        if key not in scores or crit < scores[key]:
+            scores[key] = crit
+        if best is None or crit < best[0]:
+            best = (crit, codes, theta)
+    if best is None:
+        return current[0], current[1], scores
+    return best[1], best[2], scores
 
 
 def whitener(terms, curve: Curve):
