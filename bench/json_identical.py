@@ -154,16 +154,17 @@ def numeric_summary(a: str, b: str) -> str:
     """How two outputs differ: the count of differing lines and, where they differ only in numbers, the
     largest relative difference of a number (what a last-bit change of the arithmetic leaves)."""
     la, lb = a.splitlines(), b.splitlines()
-    pairs = [(x, y) for x, y in zip(la, lb) if x != y]
-    if len(la) != len(lb) or any(NUMBER.sub("#", x) != NUMBER.sub("#", y) for x, y in pairs):
+    pairs = [(x, y, i) for i, (x, y) in enumerate(zip(la, lb)) if x != y]
+    if len(la) != len(lb) or any(NUMBER.sub("#", x) != NUMBER.sub("#", y) for x, y, _ in pairs):
         return f"{len(pairs)} lines differ, not only in numbers"
-    rel = 0.0
-    for x, y in pairs:
+    rel, where = 0.0, ""
+    for x, y, i in pairs:
         for u, v in zip(NUMBER.findall(x), NUMBER.findall(y)):
             fu, fv = float(u), float(v)
-            if fu != fv:
-                rel = max(rel, abs(fu - fv) / max(abs(fu), abs(fv)))
-    return f"{len(pairs)} lines differ, only in numbers: largest relative difference {rel:.2g}"
+            if fu != fv and abs(fu - fv) / max(abs(fu), abs(fv)) > rel:
+                keys = [ln.strip() for ln in la[max(0, i - 40):i + 1] if '":' in ln][-3:]
+                rel, where = abs(fu - fv) / max(abs(fu), abs(fv)), f"{' '.join(keys)} -> {y.strip()}"
+    return f"{len(pairs)} lines differ, only in numbers: largest relative difference {rel:.2g} ({where})"
 
 
 def main() -> int:
