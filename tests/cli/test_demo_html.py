@@ -22,7 +22,9 @@ import demo_share
 import pytest
 from typer.testing import CliRunner
 
+import inscal.cli.demo as demo_cli
 from inscal.cli.app import app
+from inscal.io.jsonfile import to_jsonable
 from inscal.io.paramfile import load_params
 
 CHROMIUM = next((shutil.which(n) for n in ("chromium", "chromium-browser") if shutil.which(n)), None)
@@ -195,3 +197,23 @@ def test_report_renders_in_chromium(demo, tmp_path):
 
     a = mpimg.imread(shot)
     assert np.ptp(a[..., :3]) > 0.5
+
+
+def test_demo_json_prints_the_summary_quietly(monkeypatch, tmp_path):
+    """``--json``: stdout is the result dict exactly as ``summary.json`` holds it (one JSON document, nothing
+    else), the run told to stay quiet and draw no progress (the full run is checked above through its file)."""
+    seen = {}
+    res = {"steps": {"x": np.float64(1.5), "n": np.int64(3), "bad": float("nan")}, "elapsed_s": 0.25,
+           "out": "d", "report": {"html": "d/report.html"}}
+
+    def fake(out, force, seed, quick, show, log):
+        seen.update(out=out, quick=quick, show=show)
+        log("a progress line that --json must not print")
+        return res
+
+    monkeypatch.setattr(demo_cli, "run_demo", fake)
+    r = CliRunner().invoke(app, ["demo", "--out", str(tmp_path / "d"), "--quick", "--json"])
+    assert r.exit_code == 0, r.output
+    assert r.stdout == json.dumps(to_jsonable(res), indent=2) + "\n"  # the bytes summary.json gets
+    assert json.loads(r.stdout)["steps"] == {"x": 1.5, "n": 3, "bad": None}
+    assert seen == {"out": tmp_path / "d", "quick": True, "show": False}
