@@ -336,7 +336,7 @@ def systematic(ws_or_record, states: str | StateSet = "51", *, filter_rate_hz: f
         fixed = fixed_mask(st, names)
         sflat[fixed] = np.nan
         cost = None
-        if robust and weights is None and (any(f > 1.0 for f in it.me.group_factor.values()) or it.me.outliers):
+        if robust and weights is None and it.me.weighted_away:
             cost = model_error_cost(p, it, J, sflat, names)
         # the prior in the same canonical components: the yardstick of what the record observed
         prior_flat = np.sqrt(np.maximum(np.einsum("ij,j,ij->i", J, sig_par**2, J), 0.0))

@@ -84,6 +84,12 @@ class ModelError:
     outliers: int  # steps with their own factor above their group's
     settled: bool  # no factor changed by more than SETTLE_RATIO against the previous ones
 
+    @property
+    def weighted_away(self) -> bool:
+        """Whether the term is on: a motion state's factor above 1, or outlier steps (the record misfits the model
+        beyond its noise somewhere)."""
+        return any(f > 1.0 for f in self.group_factor.values()) or self.outliers > 0
+
     def as_dict(self) -> dict:
         """The JSON form (the factors per group, the outlier count)."""
         return {"group_factor": {k: float(v) for k, v in self.group_factor.items()}, "outliers": int(self.outliers),

@@ -286,8 +286,7 @@ def select_states(record, base: str | StateSet = "51", *, alpha: float = ALPHA, 
 def model_error_on(res: CalibrationResult) -> bool:
     """Whether the fit weighted steps away (a motion state's model-error factor above 1, or outlier steps): the
     record misfits the model beyond its noise somewhere (:mod:`~inscal.calibrate.systematic.model_error`)."""
-    me = res.model_error
-    return me is not None and (any(f > 1.0 for f in me.group_factor.values()) or me.outliers > 0)
+    return res.model_error is not None and res.model_error.weighted_away
 
 
 def check_named(record, res: CalibrationResult, *, alpha: float = ALPHA,
